@@ -1,0 +1,82 @@
+/* mbdk.h - C API of the mbdk kernel (hand-written mirror of kernel/src/api/mbdk_capi.f90).
+ *
+ * Link with libmbdk (static, PIC): `pkg-config --cflags --libs mbdk`.
+ * Every function returns a status (0 success, > 0 success with a note, < 0 failure) or an id;
+ * nothing prints and nothing stops the process. The status table is mirrored from
+ * kernel/src/core/mbdk_status.f90; tests/test_status.py checks that the two agree.
+ */
+#ifndef MBDK_H
+#define MBDK_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Status codes (kernel/src/core/mbdk_status.f90). */
+enum mbdk_status {
+    MBDK_SUCCESS = 0,
+    MBDK_NOTE_LAST_STEP_SHORTENED = 1,
+    MBDK_ERR_INVALID_INPUT = -1,
+    MBDK_ERR_UNKNOWN_METHOD = -2,
+    MBDK_ERR_UNKNOWN_PROBLEM = -3,
+    MBDK_ERR_NOT_APPLICABLE = -4,
+    MBDK_ERR_OUTPUT_SIZE = -5,
+    MBDK_ERR_STEP_TOO_SMALL = -10,
+    MBDK_ERR_NEWTON_DIVERGED = -20,
+    MBDK_ERR_SINGULAR_MATRIX = -21,
+    MBDK_ERR_NONFINITE = -30,
+    MBDK_ERR_CALLBACK_FAILED = -40,
+    MBDK_ERR_BACKEND = -50
+};
+
+/* Options of a fixed-step solve; fill with mbdk_default_options, then set method and h. */
+typedef struct mbdk_options {
+    int method;          /* from mbdk_method_id("rk4") etc. */
+    double h;            /* step size */
+    int every;           /* keep every k-th step as a sample (the last one always) */
+    double newton_rtol;  /* implicit methods: Newton stops when WRMS(update) < 1 */
+    double newton_atol;
+    int newton_max_iter;
+    int fd_jacobian;     /* callbacks have no Jacobian: finite differences are always used */
+    int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
+} mbdk_options;
+
+typedef struct mbdk_stats {
+    int64_t steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, startup_steps;
+    double cpu_time;     /* CPU seconds of the time loop, measured in the kernel */
+} mbdk_stats;
+
+/* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure
+ * (the solve then stops with MBDK_ERR_CALLBACK_FAILED). */
+typedef int (*mbdk_rhs_fn)(int n, double t, const double *y, double *dydt, void *user_data);
+
+void mbdk_default_options(mbdk_options *opt);
+
+/* Id of a method name ("explicit_euler", "heun", "rk4", "euler_cromer", "implicit_euler",
+ * "trapezoidal", "bdf1" ... "bdf6"); 0 when unknown. */
+int mbdk_method_id(const char *name);
+
+/* Number of samples a solve writes; returns a status (MBDK_ERR_INVALID_INPUT for a bad h,
+ * interval or every; MBDK_NOTE_LAST_STEP_SHORTENED when the interval is not whole steps). */
+int mbdk_sample_count(double t0, double t_end, double h, int every, int *nsamp);
+
+/* Integrates y' = f(t, y) from (t0, y0) to t_end. t_out[nsamp], y_out[nsamp][n] (row per
+ * sample) are written; *nwritten tells how many samples (fewer only on failure). */
+int mbdk_solve_ode(mbdk_rhs_fn f, void *user_data, int n, double t0, double t_end,
+                   const double *y0, const mbdk_options *opt, int nsamp, double *t_out,
+                   double *y_out, int *nwritten, mbdk_stats *stats);
+
+/* Copies the message of a status into buf (NUL-terminated). */
+int mbdk_status_message(int status, char *buf, int buflen);
+
+/* i-th (1-based) entry of the kernel's status table: its code and name ("ERR_NONFINITE").
+ * Returns MBDK_ERR_INVALID_INPUT past the end. */
+int mbdk_status_entry(int i, int *code, char *name, int namelen);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MBDK_H */

@@ -1,0 +1,174 @@
+!> The C API (bind(C) only). kernel/include/mbdk.h is its hand-written mirror.
+!> Every function returns a status (or an id) and never prints or stops the process.
+module mbdk_capi
+  use, intrinsic :: iso_c_binding, only: c_int, c_int64_t, c_double, c_char, c_ptr, c_funptr, &
+    c_null_char, c_associated, c_funloc
+  use mbdk_kinds, only: dp
+  use mbdk_status
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_methods, only: mbdk_method_id
+  use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
+  use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
+  implicit none
+  private
+
+  !> Mirrors struct mbdk_options in mbdk.h.
+  type, bind(C) :: mbdk_c_options
+    integer(c_int) :: method
+    real(c_double) :: h
+    integer(c_int) :: every
+    real(c_double) :: newton_rtol
+    real(c_double) :: newton_atol
+    integer(c_int) :: newton_max_iter
+    integer(c_int) :: fd_jacobian
+    integer(c_int) :: nq
+  end type mbdk_c_options
+
+  !> Mirrors struct mbdk_stats in mbdk.h.
+  type, bind(C) :: mbdk_c_stats
+    integer(c_int64_t) :: steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, &
+      startup_steps
+    real(c_double) :: cpu_time
+  end type mbdk_c_stats
+
+contains
+
+  subroutine mbdk_default_options(opt) bind(C, name='mbdk_default_options')
+    type(mbdk_c_options), intent(out) :: opt
+    type(mbdk_options_t) :: d
+    opt%method = int(d%method, c_int)
+    opt%h = d%h
+    opt%every = int(d%every, c_int)
+    opt%newton_rtol = d%newton_rtol
+    opt%newton_atol = d%newton_atol
+    opt%newton_max_iter = int(d%newton_max_iter, c_int)
+    opt%fd_jacobian = merge(1_c_int, 0_c_int, d%fd_jacobian)
+    opt%nq = 0
+  end subroutine mbdk_default_options
+
+  integer(c_int) function mbdk_c_method_id(name) bind(C, name='mbdk_method_id')
+    character(kind=c_char), intent(in) :: name(*)
+    mbdk_c_method_id = int(mbdk_method_id(from_c(name)), c_int)
+  end function mbdk_c_method_id
+
+  integer(c_int) function mbdk_c_sample_count(t0, t_end, h, every, nsamp) &
+      bind(C, name='mbdk_sample_count')
+    real(c_double), value :: t0, t_end, h
+    integer(c_int), value :: every
+    integer(c_int), intent(out) :: nsamp
+    integer(kind=8) :: nsteps
+    integer :: ns, stat
+    logical :: shortened
+    call mbdk_step_plan(t0, t_end, h, int(every), nsteps, ns, shortened, stat)
+    nsamp = int(ns, c_int)
+    mbdk_c_sample_count = int(stat, c_int)
+  end function mbdk_c_sample_count
+
+  integer(c_int) function mbdk_c_solve_ode(f, user_data, n, t0, t_end, y0, opt, nsamp, t_out, &
+      y_out, nwritten, stats) bind(C, name='mbdk_solve_ode')
+    type(c_funptr), value :: f
+    type(c_ptr), value :: user_data
+    integer(c_int), value :: n, nsamp
+    real(c_double), value :: t0, t_end
+    real(c_double), intent(in) :: y0(*)
+    type(mbdk_c_options), intent(in) :: opt
+    real(c_double), intent(out) :: t_out(*)
+    real(c_double), intent(out) :: y_out(*)
+    integer(c_int), intent(out) :: nwritten
+    type(mbdk_c_stats), intent(out) :: stats
+    type(mbdk_c_problem_t) :: prob
+    type(mbdk_options_t) :: o
+    type(mbdk_stats_t) :: st
+    integer :: stat, nw
+
+    nwritten = 0
+    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double)
+    if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
+      mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    if (opt%nq < 0 .or. (opt%nq > 0 .and. 2 * opt%nq /= n)) then
+      mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    call mbdk_c_problem_init(prob, f, user_data, int(n), int(opt%nq))
+    o%method = int(opt%method)
+    o%h = opt%h
+    o%every = int(opt%every)
+    o%newton_rtol = opt%newton_rtol
+    o%newton_atol = opt%newton_atol
+    o%newton_max_iter = int(opt%newton_max_iter)
+    o%fd_jacobian = opt%fd_jacobian /= 0
+    call solve(y_out(1:n * nsamp))
+    nwritten = int(nw, c_int)
+    stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
+      st%newton_iterations, st%startup_steps, st%cpu_time)
+    mbdk_c_solve_ode = int(stat, c_int)
+
+  contains
+
+    subroutine solve(yflat)
+      real(c_double), intent(inout), target :: yflat(n, nsamp)
+      call mbdk_fixed_step_solve(prob, o, t0, t_end, y0(1:n), t_out(1:nsamp), yflat, nw, st, stat)
+    end subroutine solve
+
+  end function mbdk_c_solve_ode
+
+  !> Copies the message of a status into buf (NUL-terminated, truncated to buflen - 1).
+  integer(c_int) function mbdk_c_status_message(status, buf, buflen) &
+      bind(C, name='mbdk_status_message')
+    integer(c_int), value :: status, buflen
+    character(kind=c_char), intent(out) :: buf(*)
+    character(len=MBDK_STATUS_MSG_LEN) :: msg
+    integer :: i, m
+    mbdk_c_status_message = MBDK_ERR_INVALID_INPUT
+    if (buflen < 1) return
+    msg = mbdk_status_message(int(status))
+    m = min(len_trim(msg), int(buflen) - 1)
+    do i = 1, m
+      buf(i) = msg(i:i)
+    end do
+    buf(m + 1) = c_null_char
+    mbdk_c_status_message = MBDK_SUCCESS
+  end function mbdk_c_status_message
+
+  !> i-th entry (1-based) of the status table: code and name. Returns MBDK_ERR_INVALID_INPUT past
+  !> the end; used by tests/examples to check the header against the table.
+  integer(c_int) function mbdk_c_status_entry(i, code, name, namelen) &
+      bind(C, name='mbdk_status_entry')
+    integer(c_int), value :: i, namelen
+    integer(c_int), intent(out) :: code
+    character(kind=c_char), intent(out) :: name(*)
+    character(len=MBDK_STATUS_NAME_LEN) :: nm
+    character(len=MBDK_STATUS_MSG_LEN) :: msg
+    integer :: c, j, m
+    code = 0
+    mbdk_c_status_entry = MBDK_ERR_INVALID_INPUT
+    if (namelen < 1) return
+    call mbdk_status_entry(int(i), c, nm, msg)
+    if (c == huge(0)) return
+    code = int(c, c_int)
+    m = min(len_trim(nm), int(namelen) - 1)
+    do j = 1, m
+      name(j) = nm(j:j)
+    end do
+    name(m + 1) = c_null_char
+    mbdk_c_status_entry = MBDK_SUCCESS
+  end function mbdk_c_status_entry
+
+  function from_c(s) result(r)
+    character(kind=c_char), intent(in) :: s(*)
+    character(len=:), allocatable :: r
+    integer :: i
+    i = 0
+    do while (s(i + 1) /= c_null_char .and. i < 256)
+      i = i + 1
+    end do
+    allocate (character(len=i) :: r)
+    do i = 1, len(r)
+      r(i:i) = s(i)
+    end do
+  end function from_c
+
+end module mbdk_capi

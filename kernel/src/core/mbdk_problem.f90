@@ -1,0 +1,44 @@
+!> The abstract first-order problem y' = F(t, y) every integrator works on.
+!>
+!> A problem with nq > 0 is a second-order system in first-order layout: y = [q; v] with
+!> n = 2*nq and q' = v; Euler-Cromer needs this structure. rhs returns a status through stat
+!> (MBDK_SUCCESS or a failure code such as MBDK_ERR_CALLBACK_FAILED); it must not print or stop.
+module mbdk_problem
+  use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_ERR_NOT_APPLICABLE
+  implicit none
+  private
+
+  type, abstract, public :: mbdk_problem_t
+    integer :: n = 0             !< number of states
+    integer :: nq = 0            !< > 0: y = [q; v], q' = v, n = 2*nq
+    logical :: has_jac = .false. !< .true. when jac gives the analytic dF/dy
+  contains
+    procedure(rhs_iface), deferred :: rhs
+    procedure :: jac => no_jac
+  end type mbdk_problem_t
+
+  abstract interface
+    subroutine rhs_iface(self, t, y, f, stat)
+      import :: mbdk_problem_t, dp
+      class(mbdk_problem_t), intent(in) :: self
+      real(dp), intent(in) :: t
+      real(dp), intent(in) :: y(:)
+      real(dp), intent(out) :: f(:)
+      integer, intent(out) :: stat
+    end subroutine rhs_iface
+  end interface
+
+contains
+
+  !> Default: no analytic Jacobian (the Newton solver then uses finite differences).
+  subroutine no_jac(self, t, y, jac, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: jac(:, :)
+    integer, intent(out) :: stat
+    jac = 0.0_dp
+    stat = MBDK_ERR_NOT_APPLICABLE  ! callers check has_jac first
+  end subroutine no_jac
+
+end module mbdk_problem

@@ -1,0 +1,58 @@
+!> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs).
+module mbdk_lapack
+  use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
+  implicit none
+  private
+  public :: mbdk_lu_factor, mbdk_lu_solve
+
+  interface
+    subroutine dgetrf(m, n, a, lda, ipiv, info)
+      import :: dp
+      integer, intent(in) :: m, n, lda
+      real(dp), intent(inout) :: a(lda, *)
+      integer, intent(out) :: ipiv(*), info
+    end subroutine dgetrf
+    subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
+      import :: dp
+      character(len=1), intent(in) :: trans
+      integer, intent(in) :: n, nrhs, lda, ldb
+      real(dp), intent(in) :: a(lda, *)
+      integer, intent(in) :: ipiv(*)
+      real(dp), intent(inout) :: b(ldb, *)
+      integer, intent(out) :: info
+    end subroutine dgetrs
+  end interface
+
+contains
+
+  !> In-place LU with partial pivoting; MBDK_ERR_SINGULAR_MATRIX when a pivot is exactly zero.
+  subroutine mbdk_lu_factor(a, ipiv, stat)
+    real(dp), intent(inout) :: a(:, :)
+    integer, intent(out) :: ipiv(:)
+    integer, intent(out) :: stat
+    integer :: info, n
+    n = size(a, 1)
+    call dgetrf(n, n, a, n, ipiv, info)
+    if (info > 0) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+    else if (info < 0) then
+      stat = MBDK_ERR_INVALID_INPUT
+    else
+      stat = MBDK_SUCCESS
+    end if
+  end subroutine mbdk_lu_factor
+
+  !> Solves A x = b with the factors of mbdk_lu_factor; b is overwritten by x.
+  subroutine mbdk_lu_solve(lu, ipiv, b, stat)
+    real(dp), intent(in) :: lu(:, :)
+    integer, intent(in) :: ipiv(:)
+    real(dp), intent(inout) :: b(:)
+    integer, intent(out) :: stat
+    integer :: info, n
+    n = size(lu, 1)
+    call dgetrs('N', n, 1, lu, n, ipiv, b, n, info)
+    stat = merge(MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, info == 0)
+  end subroutine mbdk_lu_solve
+
+end module mbdk_lapack

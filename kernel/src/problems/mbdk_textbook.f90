@@ -1,0 +1,233 @@
+!> The textbook ODEs of Fekete (2023), compiled, with their parameters (order of p(:) below).
+!> Second-order problems use the layout y = [q; v] (nq > 0), so Euler-Cromer applies to them.
+!>
+!>  id name               n   p(:)                        equation
+!>   1 linear_growth      1   a (2)                       y' = a t                      (4.8)
+!>   2 decay              1   lambda (1)                  y' = -lambda y                (4.14)
+!>   3 riccati            1   a (1), b (2)                x' = a t x^2 + b x            (4.25)
+!>   4 beam_linear        1   F (5000 N), l (1000 mm),    phi' = -(F/EI)(l - x)         (4.42)
+!>                            EI (4.2e10 N mm^2)
+!>   5 beam_nonlinear     1   F, l, EI                    phi' = -(F/EI)(l - x)(1+phi^2)^1.5  (4.50)
+!>   6 damped_oscillator  2   m (10), c (5), k (100)      m y'' + c y' + k y = 0        (4.53)
+!>   7 pendulum           2   g (9.81), l (1)             phi'' = -(3g/2l) sin phi      (4.69)
+!>   8 pendulum_linear    2   g, l                        phi'' = -(3g/2l) phi          (4.77)
+!>   9 trolley_crane      4   m1 (10), m2 (1), l (1),     y = [x1, phi, x1', phi']      (4.78)
+!>                            g (9.81), k (50), s (3000),
+!>                            coupling (-1)
+!>  10 double_pendulum    4   m1 (1), m2 (2), l1 (1),     y = [phi1, phi2, phi1', phi2'] (3.64)
+!>                            l2 (2), g (9.81)
+!>  11 linear_system      n   A (n x n, column-major)     y' = A y                      (4.58)
+!>
+!> trolley_crane: trolley m1 on a spring s and damper k, a uniform bar (m2, l) hinged to it.
+!> coupling = -1 reproduces the book's (4.78) as printed; that equation is the reduction of
+!> (3.52), whose constraint Jacobian row "1, 1, 0, sin/2" has a sign slip (the bar's centre then
+!> moves opposite to the trolley). coupling = +1 is the consistent mechanism x2 = x1 + (l/2)cos phi.
+!> Both conserve energy when k = 0. It is evaluated as the 2x2 mass-matrix solve
+!> [m1+m2, -c a sin; -c a sin, m2 l^2/3] [x1''; phi''] = [c a cos phi'^2 - s x1 - k x1'; -a g cos]
+!> with a = m2 l / 2, c = coupling.
+!>
+!> double_pendulum: two uniform bars; angles from the horizontal, gravity along -y (hanging
+!> equilibrium at -90 deg). Evaluated as the 2x2 mass-matrix solve of the Lagrange equations,
+!> which is algebraically identical to the book's closed form (3.64) (tests/test_problems.py
+!> evaluates (3.64) as printed and compares).
+!>
+!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9 and 10.
+module mbdk_textbook
+  use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_UNKNOWN_PROBLEM
+  use mbdk_problem, only: mbdk_problem_t
+  implicit none
+  private
+
+  integer, parameter, public :: MBDK_PROBLEM_COUNT = 11
+  integer, parameter, public :: MBDK_PROBLEM_NAME_LEN = 24
+  integer, parameter :: LINEAR_GROWTH = 1, DECAY = 2, RICCATI = 3, BEAM_LINEAR = 4, &
+    BEAM_NONLINEAR = 5, DAMPED_OSCILLATOR = 6, PENDULUM = 7, PENDULUM_LINEAR = 8, &
+    TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11
+
+  character(len=MBDK_PROBLEM_NAME_LEN), parameter :: names(MBDK_PROBLEM_COUNT) = [character( &
+    len=MBDK_PROBLEM_NAME_LEN) :: 'linear_growth', 'decay', 'riccati', 'beam_linear', &
+    'beam_nonlinear', 'damped_oscillator', 'pendulum', 'pendulum_linear', 'trolley_crane', &
+    'double_pendulum', 'linear_system']
+  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0]
+  integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1]
+
+  type, extends(mbdk_problem_t), public :: mbdk_textbook_t
+    integer :: id = 0
+    real(dp), allocatable :: p(:)
+  contains
+    procedure :: rhs => textbook_rhs
+    procedure :: jac => textbook_jac
+  end type mbdk_textbook_t
+
+  public :: mbdk_textbook_init, mbdk_problem_id, mbdk_problem_info
+
+contains
+
+  pure integer function mbdk_problem_id(name)
+    character(len=*), intent(in) :: name
+    integer :: i
+    mbdk_problem_id = 0
+    do i = 1, MBDK_PROBLEM_COUNT
+      if (trim(adjustl(name)) == trim(names(i))) then
+        mbdk_problem_id = i
+        return
+      end if
+    end do
+  end function mbdk_problem_id
+
+  !> Name, state dimension (0: given by y0) and parameter count (-1: n*n) of problem id.
+  pure subroutine mbdk_problem_info(id, name, n, np)
+    integer, intent(in) :: id
+    character(len=*), intent(out) :: name
+    integer, intent(out) :: n, np
+    if (id < 1 .or. id > MBDK_PROBLEM_COUNT) then
+      name = ''; n = -1; np = -1
+      return
+    end if
+    name = names(id); n = dims(id); np = nparams(id)
+  end subroutine mbdk_problem_info
+
+  !> Builds problem id with state size n and parameters p; checks sizes and physical ranges.
+  subroutine mbdk_textbook_init(prob, id, n, p, stat)
+    type(mbdk_textbook_t), intent(out) :: prob
+    integer, intent(in) :: id, n
+    real(dp), intent(in) :: p(:)
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_UNKNOWN_PROBLEM
+    if (id < 1 .or. id > MBDK_PROBLEM_COUNT) return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (id == LINEAR_SYSTEM) then
+      if (n < 1 .or. size(p) /= n * n) return
+    else
+      if (n /= dims(id) .or. size(p) /= nparams(id)) return
+    end if
+    select case (id)
+    case (BEAM_LINEAR, BEAM_NONLINEAR)
+      if (p(3) == 0.0_dp) return
+    case (DAMPED_OSCILLATOR)
+      if (p(1) <= 0.0_dp) return
+    case (PENDULUM, PENDULUM_LINEAR)
+      if (p(2) <= 0.0_dp) return
+    case (TROLLEY_CRANE)
+      if (p(1) <= 0.0_dp .or. p(2) <= 0.0_dp .or. p(3) <= 0.0_dp) return
+      if (abs(p(7)) /= 1.0_dp) return
+    case (DOUBLE_PENDULUM)
+      if (any(p(1:4) <= 0.0_dp)) return
+    end select
+    prob%id = id
+    prob%n = n
+    prob%p = p
+    prob%nq = 0
+    if (id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) prob%nq = n / 2
+    prob%has_jac = .not. (id == TROLLEY_CRANE .or. id == DOUBLE_PENDULUM)
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_textbook_init
+
+  subroutine textbook_rhs(self, t, y, f, stat)
+    class(mbdk_textbook_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(dp) :: w2, a, sn, cs, d, m11, m12, m22, r1, r2, det, sd, cd
+
+    stat = MBDK_SUCCESS
+    associate (p => self%p)
+      select case (self%id)
+      case (LINEAR_GROWTH)
+        f(1) = p(1) * t
+      case (DECAY)
+        f(1) = -p(1) * y(1)
+      case (RICCATI)
+        f(1) = p(1) * t * y(1)**2 + p(2) * y(1)
+      case (BEAM_LINEAR)
+        f(1) = -(p(1) / p(3)) * (p(2) - t)
+      case (BEAM_NONLINEAR)
+        f(1) = -(p(1) / p(3)) * (p(2) - t) * (1.0_dp + y(1)**2)**1.5_dp
+      case (DAMPED_OSCILLATOR)
+        f(1) = y(2)
+        f(2) = -(p(3) * y(1) + p(2) * y(2)) / p(1)
+      case (PENDULUM)
+        w2 = 1.5_dp * p(1) / p(2)
+        f(1) = y(2)
+        f(2) = -w2 * sin(y(1))
+      case (PENDULUM_LINEAR)
+        w2 = 1.5_dp * p(1) / p(2)
+        f(1) = y(2)
+        f(2) = -w2 * y(1)
+      case (TROLLEY_CRANE)
+        ! p = m1, m2, l, g, k, s, coupling
+        a = 0.5_dp * p(2) * p(3)
+        sn = sin(y(2)); cs = cos(y(2))
+        m11 = p(1) + p(2)
+        m12 = -p(7) * a * sn
+        m22 = p(2) * p(3)**2 / 3.0_dp
+        r1 = p(7) * a * cs * y(4)**2 - p(6) * y(1) - p(5) * y(3)
+        r2 = -a * p(4) * cs
+        det = m11 * m22 - m12 * m12
+        f(1) = y(3)
+        f(2) = y(4)
+        f(3) = (m22 * r1 - m12 * r2) / det
+        f(4) = (m11 * r2 - m12 * r1) / det
+      case (DOUBLE_PENDULUM)
+        ! p = m1, m2, l1, l2, g
+        d = y(1) - y(2)
+        sd = sin(d); cd = cos(d)
+        m11 = (p(1) / 3.0_dp + p(2)) * p(3)**2
+        m12 = 0.5_dp * p(2) * p(3) * p(4) * cd
+        m22 = p(2) * p(4)**2 / 3.0_dp
+        r1 = -0.5_dp * p(2) * p(3) * p(4) * sd * y(4)**2 &
+             - (0.5_dp * p(1) + p(2)) * p(5) * p(3) * cos(y(1))
+        r2 = 0.5_dp * p(2) * p(3) * p(4) * sd * y(3)**2 - 0.5_dp * p(2) * p(5) * p(4) * cos(y(2))
+        det = m11 * m22 - m12 * m12
+        f(1) = y(3)
+        f(2) = y(4)
+        f(3) = (m22 * r1 - m12 * r2) / det
+        f(4) = (m11 * r2 - m12 * r1) / det
+      case (LINEAR_SYSTEM)
+        f = matmul(reshape(p, [self%n, self%n]), y)
+      end select
+    end associate
+  end subroutine textbook_rhs
+
+  subroutine textbook_jac(self, t, y, jac, stat)
+    class(mbdk_textbook_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: jac(:, :)
+    integer, intent(out) :: stat
+    real(dp) :: w2
+
+    stat = MBDK_SUCCESS
+    jac = 0.0_dp
+    associate (p => self%p)
+      select case (self%id)
+      case (LINEAR_GROWTH, BEAM_LINEAR)
+        continue
+      case (DECAY)
+        jac(1, 1) = -p(1)
+      case (RICCATI)
+        jac(1, 1) = 2.0_dp * p(1) * t * y(1) + p(2)
+      case (BEAM_NONLINEAR)
+        jac(1, 1) = -3.0_dp * (p(1) / p(3)) * (p(2) - t) * y(1) * sqrt(1.0_dp + y(1)**2)
+      case (DAMPED_OSCILLATOR)
+        jac(1, 2) = 1.0_dp
+        jac(2, 1) = -p(3) / p(1)
+        jac(2, 2) = -p(2) / p(1)
+      case (PENDULUM)
+        w2 = 1.5_dp * p(1) / p(2)
+        jac(1, 2) = 1.0_dp
+        jac(2, 1) = -w2 * cos(y(1))
+      case (PENDULUM_LINEAR)
+        w2 = 1.5_dp * p(1) / p(2)
+        jac(1, 2) = 1.0_dp
+        jac(2, 1) = -w2
+      case (LINEAR_SYSTEM)
+        jac = reshape(p, [self%n, self%n])
+      case default
+        stat = MBDK_ERR_INVALID_INPUT
+      end select
+    end associate
+  end subroutine textbook_jac
+
+end module mbdk_textbook
