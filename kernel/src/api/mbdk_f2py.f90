@@ -61,7 +61,8 @@ end subroutine eval_problem
 subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton_rtol, &
                           newton_atol, newton_max_iter, nsamp, t_out, y_out, stats, nwritten, &
                           status)
-  ! The slow path: F is a Python function fun(n, t, y, dydt, flag) filling dydt in place.
+  ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
+  ! (f2py hides n); flag(1) = 1 reports a failure.
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
   use mbdk_callback_problem, only: mbdk_proc_problem_t, mbdk_proc_problem_init
@@ -73,9 +74,11 @@ subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
-  integer :: cb_n, cb_flag(1)
+  ! The callback's signature for f2py: its first argument is named n so that the bounds of
+  ! cb_y and cb_dydt refer to the callback's own argument.
+  integer :: cb_flag(1)
   double precision :: cb_t, cb_y(n), cb_dydt(n)
-!f2py call fun(cb_n, cb_t, cb_y, cb_dydt, cb_flag)
+!f2py call fun(n, cb_t, cb_y, cb_dydt, cb_flag)
   type(mbdk_proc_problem_t) :: prob
   type(mbdk_options_t) :: opt
   type(mbdk_stats_t) :: st

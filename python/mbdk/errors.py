@@ -1,0 +1,136 @@
+"""Status codes (mirror of kernel/src/core/mbdk_status.f90 and mbdk.h) and the exceptions.
+
+Every failure has a named exception whose message says which field had which value and what to
+change. Failures found before the kernel runs raise at once; failures inside the kernel come back
+as a status and are raised by :func:`raise_for_status`.
+"""
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class Status(IntEnum):
+    """The kernel's status table; tests/test_status.py checks it against Fortran and C."""
+
+    SUCCESS = 0
+    NOTE_LAST_STEP_SHORTENED = 1
+    ERR_INVALID_INPUT = -1
+    ERR_UNKNOWN_METHOD = -2
+    ERR_UNKNOWN_PROBLEM = -3
+    ERR_NOT_APPLICABLE = -4
+    ERR_OUTPUT_SIZE = -5
+    ERR_STEP_TOO_SMALL = -10
+    ERR_NEWTON_DIVERGED = -20
+    ERR_SINGULAR_MATRIX = -21
+    ERR_NONFINITE = -30
+    ERR_CALLBACK_FAILED = -40
+    ERR_BACKEND = -50
+
+    @property
+    def failed(self) -> bool:
+        return self.value < 0
+
+
+class MbdkError(Exception):
+    """Base of every mbdk error; ``status`` is the kernel status it stands for."""
+
+    status = Status.ERR_INVALID_INPUT
+
+    def __init__(self, message: str, *, status: Status | None = None, result=None):
+        super().__init__(message)
+        if status is not None:
+            self.status = status
+        #: the partial result (samples written before the failure), for kernel failures
+        self.result = result
+
+
+class InvalidInputError(MbdkError, ValueError):
+    """A value given to mbdk is out of range, of the wrong size or not finite."""
+
+
+class UnknownMethodError(InvalidInputError, KeyError):
+    status = Status.ERR_UNKNOWN_METHOD
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return self.args[0]
+
+
+class UnknownProblemError(InvalidInputError, KeyError):
+    status = Status.ERR_UNKNOWN_PROBLEM
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+class UnknownParameterError(InvalidInputError, KeyError):
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+class NotApplicableError(InvalidInputError):
+    status = Status.ERR_NOT_APPLICABLE
+
+
+class StepTooSmallError(MbdkError):
+    status = Status.ERR_STEP_TOO_SMALL
+
+
+class NewtonDivergedError(MbdkError, ArithmeticError):
+    status = Status.ERR_NEWTON_DIVERGED
+
+
+class SingularMatrixError(MbdkError, ArithmeticError):
+    status = Status.ERR_SINGULAR_MATRIX
+
+
+class NonFiniteSolutionError(MbdkError, FloatingPointError):
+    """The solution overflowed to inf or NaN: the method is unstable at this step."""
+
+    status = Status.ERR_NONFINITE
+
+
+class CallbackError(MbdkError):
+    status = Status.ERR_CALLBACK_FAILED
+
+
+class BackendError(MbdkError):
+    status = Status.ERR_BACKEND
+
+
+_BY_STATUS = {
+    Status.ERR_INVALID_INPUT: InvalidInputError,
+    Status.ERR_UNKNOWN_METHOD: UnknownMethodError,
+    Status.ERR_UNKNOWN_PROBLEM: UnknownProblemError,
+    Status.ERR_NOT_APPLICABLE: NotApplicableError,
+    Status.ERR_OUTPUT_SIZE: InvalidInputError,
+    Status.ERR_STEP_TOO_SMALL: StepTooSmallError,
+    Status.ERR_NEWTON_DIVERGED: NewtonDivergedError,
+    Status.ERR_SINGULAR_MATRIX: SingularMatrixError,
+    Status.ERR_NONFINITE: NonFiniteSolutionError,
+    Status.ERR_CALLBACK_FAILED: CallbackError,
+    Status.ERR_BACKEND: BackendError,
+}
+
+
+def exception_for(status: Status) -> type[MbdkError]:
+    """The exception class that stands for a failure status."""
+    return _BY_STATUS.get(Status(status), MbdkError)
+
+
+def status_message(status: int) -> str:
+    """The kernel's own message for a status code."""
+    from . import _kernel
+
+    for i in range(1, len(Status) + 1):
+        code, _name, msg = _kernel.status_entry(i)
+        if code == status:
+            return _decode(msg)
+    return f"unknown status code {status}"
+
+
+def _decode(b) -> str:
+    if isinstance(b, bytes):
+        return b.decode("ascii", "replace").strip()
+    if hasattr(b, "tobytes"):
+        return b.tobytes().decode("ascii", "replace").strip("\x00 ")
+    return str(b).strip()

@@ -1,0 +1,72 @@
+"""The method registry: names and ids come from the kernel (kernel/src/core/mbdk_methods.f90),
+the properties a user compares methods by are stated here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import _kernel
+from .errors import UnknownMethodError, _decode
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    name: str
+    id: int
+    family: str          # explicit_rk | euler_cromer | implicit_lmm
+    order: int
+    implicit: bool
+    steps: int           # previous values used (1 for one-step methods)
+    stability: str
+    reference: str
+
+
+_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm"}
+
+_ABOUT = {
+    "explicit_euler": ("conditionally stable: |1 + h*lambda| <= 1", "Fekete (2023) (4.6)"),
+    "heun": ("conditionally stable: |1 + z + z^2/2| <= 1 (h < 2/|lambda| on the real axis)",
+             "Fekete (2023) (4.23)"),
+    "rk4": ("conditionally stable: real-axis limit h*|lambda| < 2.785", "Fekete (2023) (4.24)"),
+    "euler_cromer": ("symplectic; stable for h*omega < 2 on oscillators", "Fekete (2023) (4.31)-(4.32); Cromer (1981)"),
+    "implicit_euler": ("A-stable, L-stable", "Fekete (2023) (4.19)-(4.22)"),
+    "trapezoidal": ("A-stable, not L-stable", "Fekete (2023) (3.12); Hairer-Wanner II"),
+    "bdf1": ("A-stable, L-stable (same formula as implicit_euler)", "Gear (1971)"),
+    "bdf2": ("A-stable", "Gear (1971)"),
+    "bdf3": ("A(alpha)-stable, alpha = 86.03 deg", "Gear (1971)"),
+    "bdf4": ("A(alpha)-stable, alpha = 73.35 deg", "Fekete (2023) (4.80); Gear (1971)"),
+    "bdf5": ("A(alpha)-stable, alpha = 51.84 deg", "Gear (1971)"),
+    "bdf6": ("A(alpha)-stable, alpha = 17.84 deg", "Gear (1971)"),
+}
+
+
+def _load() -> dict[str, MethodInfo]:
+    out = {}
+    i = 1
+    while True:
+        name, family, order = _kernel.method_info(i)
+        if family == 0:
+            break
+        name = _decode(name)
+        fam = _FAMILIES[int(family)]
+        steps = int(name[3:]) if name.startswith("bdf") else 1
+        stability, ref = _ABOUT[name]
+        out[name] = MethodInfo(name, i, fam, int(order), fam == "implicit_lmm", steps, stability, ref)
+        i += 1
+    return out
+
+
+_REGISTRY = _load()
+
+
+def methods() -> dict[str, MethodInfo]:
+    """Every method, by name, with its properties."""
+    return dict(_REGISTRY)
+
+
+def method(name: str) -> MethodInfo:
+    try:
+        return _REGISTRY[name]
+    except (KeyError, TypeError):
+        raise UnknownMethodError(
+            f"unknown method {name!r}; known methods: {', '.join(_REGISTRY)}") from None

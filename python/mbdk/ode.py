@@ -1,0 +1,185 @@
+"""solve_ode: the compiled textbook ODEs and users' own right-hand sides, integrated by the
+kernel's fixed-step methods with the whole time loop in Fortran.
+
+A Python function f(t, y) is accepted too. That path calls back into Python at every
+evaluation of F (about 1 us each): it is the documented slow path, for convenience only.
+"""
+from __future__ import annotations
+
+import math
+import platform
+import threading
+from functools import lru_cache
+from numbers import Integral, Real
+
+import numpy as np
+
+from . import _kernel
+from .errors import (CallbackError, InvalidInputError, NotApplicableError, Status, _decode,
+                     exception_for, status_message)
+from .methods import method as _method
+from .problems import problem as _problem, resolve_params
+from .result import ODEResult, Stats
+
+NEWTON_RTOL = 1e-10
+NEWTON_ATOL = 1e-12
+NEWTON_MAX_ITER = 10
+
+# f2py's callback machinery keeps the Python function in module state: one callback solve at a
+# time (compiled problems need no lock).
+_CALLBACK_LOCK = threading.Lock()
+
+
+@lru_cache(maxsize=1)
+def build_info() -> dict:
+    compiler, options = _kernel.build_info()
+    try:
+        from importlib.metadata import version
+        ver = version("mbdk")
+    except Exception:  # pragma: no cover - running from a source tree without metadata
+        ver = "0+unknown"
+    return {"version": ver, "compiler": _decode(compiler), "compiler_flags": _decode(options),
+            "numpy": np.__version__, "python": platform.python_version(),
+            "machine": platform.machine()}
+
+
+def _real(name: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise InvalidInputError(f"{name} = {value!r} is not a real number")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidInputError(f"{name} = {v} is not finite; give a finite number")
+    return v
+
+
+def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, bool]:
+    """(steps, samples, last_step_shortened) for an interval, as the kernel will take them."""
+    nsteps, nsamp, status = _kernel.sample_count(t0, t_end, h, every)
+    if status < 0:
+        raise InvalidInputError(f"h = {h}, t0 = {t0}, t_end = {t_end}, every = {every} give no "
+                                "valid step plan (need 0 < h <= t_end - t0 and every >= 1)")
+    return int(nsteps), int(nsamp), status == Status.NOTE_LAST_STEP_SHORTENED
+
+
+def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, y0=None,
+              params: dict | None = None, every: int = 1, nq: int = 0,
+              fd_jacobian: bool = False, raise_on_failure: bool = True) -> ODEResult:
+    """Integrate a compiled textbook problem (by name) or a Python f(t, y) with a fixed step.
+
+    problem: a name from mbdk.problems(), or a callable f(t, y) -> dy/dt (slow path; y0 needed,
+             nq > 0 declares y = [q; v] for euler_cromer).
+    method:  a name from mbdk.methods().
+    h:       step; t_end: end time; every: keep every k-th step (and the last) as a sample.
+    params:  overrides of the problem's parameters, by name.
+    raise_on_failure: a failure inside the kernel raises its named exception (default); with
+             False the partial result is returned with its status.
+    """
+    info_m = _method(method)
+    t0 = _real("t0", t0)
+    t_end = _real("t_end", t_end)
+    h = _real("h", h)
+    if not h > 0:
+        raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
+    if not t_end > t0:
+        raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
+    if h > (t_end - t0) * (1 + 1e-12):
+        raise InvalidInputError(f"h = {h} is larger than the interval t_end - t0 = {t_end - t0}; "
+                                "give a step no larger than the interval")
+    if isinstance(every, bool) or not isinstance(every, Integral) or every < 1:
+        raise InvalidInputError(f"every = {every!r} must be a whole number >= 1")
+    nsteps, nsamp, shortened = plan(t0, t_end, h, int(every))
+    if shortened and info_m.steps > 1:
+        n_lo = math.floor((t_end - t0) / h)
+        raise InvalidInputError(
+            f"{method} needs equal steps, but (t_end - t0)/h = {(t_end - t0) / h:.6g} is not a whole "
+            f"number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or h = {(t_end - t0) / (n_lo + 1):.12g}")
+
+    if callable(problem):
+        return _solve_callback(problem, info_m, h, t0, t_end, y0, int(every), nq, nsamp,
+                               raise_on_failure)
+
+    info_p = _problem(problem)
+    if y0 is None:
+        if info_p.y0 is None:
+            raise InvalidInputError(f"problem {problem!r} has no default y0; give y0")
+        y0 = info_p.y0
+    y0 = _state("y0", y0, info_p.n if info_p.n > 0 else None)
+    if info_m.family == "euler_cromer" and not info_p.second_order:
+        raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
+                                 f"{problem!r} is first order. Use explicit_euler, heun or rk4")
+    merged, pvec = resolve_params(info_p, params, len(y0))
+    t, y, stats, nw, status = _kernel.solve_problem(
+        info_p.id, info_m.id, y0, t0, t_end, h, int(every), pvec, NEWTON_RTOL, NEWTON_ATOL,
+        NEWTON_MAX_ITER, int(bool(fd_jacobian)), nsamp)
+    manifest = {**build_info(), "problem": problem, "method": method, "h": h, "t0": t0,
+                "t_end": t_end, "every": int(every), "steps": nsteps,
+                "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
+                           for k, v in merged.items()},
+                "y0": y0.tolist(), "jacobian": "finite differences" if fd_jacobian else "analytic where available",
+                "newton": {"rtol": NEWTON_RTOL, "atol": NEWTON_ATOL, "max_iter": NEWTON_MAX_ITER}}
+    return _finish(t, y, stats, nw, status, manifest, problem, method, merged, t0, y0,
+                   raise_on_failure, None)
+
+
+def _state(name: str, value, n: int | None) -> np.ndarray:
+    try:
+        y = np.array(value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} = {value!r} is not a vector of numbers") from None
+    if n is not None and y.size != n:
+        raise InvalidInputError(f"{name} has {y.size} entries, the problem has {n} states")
+    if y.size == 0:
+        raise InvalidInputError(f"{name} is empty")
+    bad = np.flatnonzero(~np.isfinite(y))
+    if bad.size:
+        raise InvalidInputError(f"{name}[{bad[0]}] = {y[bad[0]]} is not finite")
+    return y
+
+
+def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
+            raise_on_failure, failure_note):
+    status = Status(int(status))
+    result = ODEResult(t=np.array(t[:nw]), y=np.array(y[:, :nw].T), stats=Stats.from_array(stats),
+                       status=status, message=status_message(status), manifest=manifest,
+                       problem=problem if isinstance(problem, str) else "",
+                       method=method, params=params, t0=t0, y0=y0)
+    if status.failed and raise_on_failure:
+        where = f"at t = {result.t[-1]:.6g}" if nw else "before the first step"
+        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {result.message} ({where})"
+        if failure_note:
+            msg += f": {failure_note}"
+        raise exception_for(status)(msg, status=status, result=result)
+    return result
+
+
+def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, raise_on_failure):
+    if y0 is None:
+        raise InvalidInputError("a Python right-hand side needs y0")
+    y0 = _state("y0", y0, None)
+    n = y0.size
+    if isinstance(nq, bool) or not isinstance(nq, Integral) or nq < 0 or (nq and 2 * nq != n):
+        raise InvalidInputError(f"nq = {nq!r} must be 0 or half the state size {n}")
+    if info_m.family == "euler_cromer" and nq == 0:
+        raise NotApplicableError("euler_cromer needs y = [q, q']: pass nq = len(y0) // 2")
+    failure = []
+
+    def cb(t, y, dydt, flag):
+        try:
+            dydt[:] = fun(t, y)
+        except BaseException as exc:  # reported as a status; re-raised below with its cause
+            flag[0] = 1
+            if not failure:
+                failure.append(exc)
+
+    with _CALLBACK_LOCK:
+        t, y, stats, nw, status = _kernel.solve_callback(
+            cb, y0, t0, t_end, h, info_m.id, every, nq, NEWTON_RTOL, NEWTON_ATOL,
+            NEWTON_MAX_ITER, nsamp)
+    manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,
+                "h": h, "t0": t0, "t_end": t_end, "every": every, "y0": y0.tolist()}
+    note = f"{type(failure[0]).__name__}: {failure[0]}" if failure else None
+    try:
+        return _finish(t, y, stats, nw, status, manifest, fun, info_m.name, {}, t0, y0,
+                       raise_on_failure, note)
+    except CallbackError as exc:
+        raise exc from (failure[0] if failure else None)

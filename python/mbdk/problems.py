@@ -1,0 +1,194 @@
+"""The compiled textbook problems (kernel/src/problems/mbdk_textbook.f90): parameter names in
+the kernel's order, defaults as printed in the book, the state layout and where each comes from.
+
+The book states the damped oscillator's coefficients two ways: (4.53)-(4.54) and (4.57)-(4.58)
+give y'' + 0.5 y' + 10 y = 0 (m = 10, c = 5, k = 100), while (4.56) prints
+y'' = -5 y - 0.01 y'. The worked steps (4.60) and (4.68) and tables 4.6 and 4.7 are reproduced by
+the first (studies/ch4_tables.py shows both), so that is the default here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from . import _kernel
+from .errors import InvalidInputError, UnknownParameterError, UnknownProblemError, _decode
+
+
+@dataclass(frozen=True)
+class ProblemInfo:
+    name: str
+    id: int
+    n: int                      # state size (0: given by y0)
+    params: dict                # name -> default, in the kernel's order
+    y0: tuple | None            # default initial state (None: must be given)
+    t_end: float                # the book's interval
+    states: tuple               # names of the state components
+    equation: str
+    reference: str
+    second_order: bool          # y = [q; v], euler_cromer applies
+    positive: tuple = ()        # parameters that must be > 0
+    nonzero: tuple = ()         # parameters that must be /= 0
+    energy: Callable | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def has_exact(self) -> bool:
+        from .exact import EXACT
+        return self.name in EXACT
+
+
+def _pendulum_energy(y, p):
+    """Energy per unit moment of inertia: phi'^2/2 - (3g/2l) cos(phi)."""
+    w2 = 1.5 * p["g"] / p["l"]
+    return 0.5 * y[:, 1] ** 2 - w2 * np.cos(y[:, 0])
+
+
+def _pendulum_linear_energy(y, p):
+    w2 = 1.5 * p["g"] / p["l"]
+    return 0.5 * y[:, 1] ** 2 + 0.5 * w2 * y[:, 0] ** 2
+
+
+def _oscillator_energy(y, p):
+    return 0.5 * p["m"] * y[:, 1] ** 2 + 0.5 * p["k"] * y[:, 0] ** 2
+
+
+def _crane_energy(y, p):
+    """Kinetic + spring + gravity energy of the trolley crane (J); coupling as in the kernel."""
+    m1, m2, l, g, s, c = p["m1"], p["m2"], p["l"], p["g"], p["s"], p["coupling"]
+    x, phi, v, w = y[:, 0], y[:, 1], y[:, 2], y[:, 3]
+    kin = 0.5 * (m1 + m2) * v**2 - c * 0.5 * m2 * l * np.sin(phi) * v * w + m2 * l**2 * w**2 / 6
+    return kin + 0.5 * s * x**2 + m2 * g * 0.5 * l * np.sin(phi)
+
+
+def _double_pendulum_energy(y, p):
+    m1, m2, l1, l2, g = p["m1"], p["m2"], p["l1"], p["l2"], p["g"]
+    p1, p2, w1, w2 = y[:, 0], y[:, 1], y[:, 2], y[:, 3]
+    kin = (0.5 * (m1 / 3 + m2) * l1**2 * w1**2 + m2 * l2**2 * w2**2 / 6
+           + 0.5 * m2 * l1 * l2 * np.cos(p1 - p2) * w1 * w2)
+    pot = m1 * g * 0.5 * l1 * np.sin(p1) + m2 * g * (l1 * np.sin(p1) + 0.5 * l2 * np.sin(p2))
+    return kin + pot
+
+
+_SPECS = {
+    "linear_growth": dict(params={"a": 2.0}, y0=(1.0,), t_end=10.0, states=("y",),
+                          equation="y' = a t", reference="Fekete (2023) (4.8)"),
+    "decay": dict(params={"lambda": 1.0}, y0=(1.0,), t_end=10.0, states=("y",),
+                  equation="y' = -lambda y", reference="Fekete (2023) (4.14)"),
+    "riccati": dict(params={"a": 1.0, "b": 2.0}, y0=(-5.0,), t_end=5.0, states=("x",),
+                    equation="x' = a t x^2 + b x", reference="Fekete (2023) (4.25)"),
+    "beam_linear": dict(params={"F": 5000.0, "l": 1000.0, "EI": 4.2e10}, y0=(0.0,), t_end=1000.0,
+                        states=("phi",), equation="phi' = -(F/EI)(l - x)   [x in mm]",
+                        reference="Fekete (2023) (4.42)", nonzero=("EI",)),
+    "beam_nonlinear": dict(params={"F": 5000.0, "l": 1000.0, "EI": 4.2e10}, y0=(0.0,),
+                           t_end=1000.0, states=("phi",),
+                           equation="phi' = -(F/EI)(l - x)(1 + phi^2)^(3/2)",
+                           reference="Fekete (2023) (4.50)", nonzero=("EI",)),
+    "damped_oscillator": dict(params={"m": 10.0, "c": 5.0, "k": 100.0}, y0=(5.0, 1.0), t_end=20.0,
+                              states=("y", "y'"), equation="m y'' + c y' + k y = 0",
+                              reference="Fekete (2023) (4.53)-(4.58)", positive=("m",),
+                              energy=_oscillator_energy),
+    "pendulum": dict(params={"g": 9.81, "l": 1.0}, y0=(0.523599, 0.0), t_end=5.0,
+                     states=("phi", "phi'"), equation="phi'' = -(3g/2l) sin(phi)",
+                     reference="Fekete (2023) (4.69)", positive=("l",), energy=_pendulum_energy),
+    "pendulum_linear": dict(params={"g": 9.81, "l": 1.0}, y0=(0.523599, 0.0), t_end=5.0,
+                            states=("phi", "phi'"), equation="phi'' = -(3g/2l) phi",
+                            reference="Fekete (2023) (4.77)", positive=("l",),
+                            energy=_pendulum_linear_energy),
+    "trolley_crane": dict(params={"m1": 10.0, "m2": 1.0, "l": 1.0, "g": 9.81, "k": 50.0,
+                                  "s": 3000.0, "coupling": -1.0},
+                          y0=(0.5, -0.5235, 0.0, 0.0), t_end=5.0,
+                          states=("x1", "phi", "x1'", "phi'"),
+                          equation="(4.78); coupling=-1 as printed, +1 the consistent mechanism",
+                          reference="Fekete (2023) (4.78), (3.57)", positive=("m1", "m2", "l"),
+                          energy=_crane_energy),
+    "double_pendulum": dict(params={"m1": 1.0, "m2": 2.0, "l1": 1.0, "l2": 2.0, "g": 9.81},
+                            y0=(-1.308, -1.57, 0.0, 0.0), t_end=5.0,
+                            states=("phi1", "phi2", "phi1'", "phi2'"),
+                            equation="(3.64), angles from the horizontal",
+                            reference="Fekete (2023) (3.64), 4.4.2",
+                            positive=("m1", "m2", "l1", "l2"), energy=_double_pendulum_energy),
+    "linear_system": dict(params={"A": ((0.0, 1.0), (-10.0, -0.5))}, y0=(5.0, 1.0), t_end=20.0,
+                          states=(), equation="y' = A y", reference="Fekete (2023) (4.58)"),
+}
+
+
+def _load() -> dict[str, ProblemInfo]:
+    out = {}
+    i = 1
+    while True:
+        name, n, np_ = _kernel.problem_info(i)
+        if n < 0:
+            break
+        name = _decode(name)
+        spec = dict(_SPECS[name])
+        if name != "linear_system" and len(spec["params"]) != np_:
+            raise RuntimeError(f"problem {name}: kernel has {np_} parameters, registry "
+                               f"{len(spec['params'])}")
+        out[name] = ProblemInfo(name=name, id=i, n=int(n),
+                                second_order=name in ("damped_oscillator", "pendulum",
+                                                      "pendulum_linear", "trolley_crane",
+                                                      "double_pendulum"),
+                                **spec)
+        i += 1
+    return out
+
+
+_REGISTRY = _load()
+
+
+def problems() -> dict[str, ProblemInfo]:
+    """Every compiled problem, by name."""
+    return dict(_REGISTRY)
+
+
+def problem(name: str) -> ProblemInfo:
+    try:
+        return _REGISTRY[name]
+    except (KeyError, TypeError):
+        raise UnknownProblemError(
+            f"unknown problem {name!r}; known problems: {', '.join(_REGISTRY)}") from None
+
+
+def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict, np.ndarray]:
+    """Defaults overridden by params; returns the merged dict and the flat vector for the kernel."""
+    merged = dict(info.params)
+    if params is not None:
+        if not isinstance(params, dict):
+            raise InvalidInputError(f"params must be a dict of parameter values, got "
+                                    f"{type(params).__name__}")
+        for key, value in params.items():
+            if key not in merged:
+                raise UnknownParameterError(
+                    f"problem {info.name!r} has no parameter {key!r}; its parameters are: "
+                    f"{', '.join(merged)}")
+            merged[key] = value
+    if info.name == "linear_system":
+        a = np.array(merged["A"], dtype=float)
+        if a.ndim != 2 or a.shape != (n, n):
+            raise InvalidInputError(f"params['A'] must be a {n}x{n} matrix to match y0 of size "
+                                    f"{n}, got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise InvalidInputError("params['A'] has a non-finite entry; give finite numbers")
+        merged["A"] = a
+        return merged, np.asfortranarray(a).ravel(order="F")
+    vec = []
+    for key, value in merged.items():
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"params[{key!r}] = {value!r} is not a number") from None
+        if not np.isfinite(v):
+            raise InvalidInputError(f"params[{key!r}] = {v} is not finite; give a finite number")
+        if key in info.positive and not v > 0:
+            raise InvalidInputError(f"params[{key!r}] = {v} must be > 0 for problem {info.name!r}")
+        if key in info.nonzero and v == 0:
+            raise InvalidInputError(f"params[{key!r}] = {v} must not be zero for problem "
+                                    f"{info.name!r}")
+        merged[key] = v
+        vec.append(v)
+    if info.name == "trolley_crane" and merged["coupling"] not in (-1.0, 1.0):
+        raise InvalidInputError(f"params['coupling'] = {merged['coupling']} must be -1 (the book's "
+                                "(4.78)) or +1 (the consistent mechanism)")
+    return merged, np.array(vec, dtype=float)

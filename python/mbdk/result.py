@@ -1,0 +1,76 @@
+"""Results of a solve: samples, statistics measured in the kernel, status and a manifest."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import Status
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Counted inside the kernel; cpu_time is the CPU time of the compiled time loop."""
+
+    steps: int = 0
+    rhs_evals: int = 0
+    jac_evals: int = 0
+    lu_factorizations: int = 0
+    newton_iterations: int = 0
+    startup_steps: int = 0
+    cpu_time: float = 0.0
+
+    @classmethod
+    def from_array(cls, a) -> "Stats":
+        return cls(*(int(round(x)) for x in a[:6]), float(a[6]))
+
+
+@dataclass
+class ODEResult:
+    """t (nsamp,), y (nsamp, n): one row per sample. success is False only when the caller asked
+    for failures as results (raise_on_failure=False); then t and y hold the samples written
+    before the failure."""
+
+    t: np.ndarray
+    y: np.ndarray
+    stats: Stats
+    status: Status
+    message: str
+    manifest: dict = field(default_factory=dict)
+    problem: str = ""
+    method: str = ""
+    params: dict = field(default_factory=dict)
+    t0: float = 0.0
+    y0: np.ndarray | None = None
+
+    @property
+    def success(self) -> bool:
+        return not self.status.failed
+
+    @property
+    def cpu_time(self) -> float:
+        return self.stats.cpu_time
+
+    def exact(self) -> np.ndarray | None:
+        """The exact solution at the sample times, or None where the problem has none."""
+        from .exact import exact_solution
+        return exact_solution(self.problem, self.t, self.t0, self.y0, self.params)
+
+    def max_error(self, component: int | None = None) -> float | None:
+        """Largest absolute error over the samples (all components, or one), or None."""
+        ex = self.exact()
+        if ex is None:
+            return None
+        d = np.abs(self.y - ex)
+        return float(np.max(d if component is None else d[:, component]))
+
+    def final_error(self, component: int = 0) -> float | None:
+        ex = self.exact()
+        return None if ex is None else float(abs(self.y[-1, component] - ex[-1, component]))
+
+    def energy(self) -> np.ndarray | None:
+        from .problems import problems
+        info = problems().get(self.problem)
+        if info is None or info.energy is None:
+            return None
+        return info.energy(self.y, self.params)
