@@ -4,17 +4,18 @@
     >>> r = mbdk.solve_ode("damped_oscillator", "rk4", h=0.01, t_end=10)
     >>> r.y[-1], r.stats.steps, r.cpu_time
 """
+from . import exact  # noqa: F401
 from .errors import (BackendError, CallbackError, InvalidInputError, MbdkError,
                      NewtonDivergedError, NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, Status, StepTooSmallError, UnknownMethodError,
                      UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
-from .ode import build_info, solve_ode
+from .ode import build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
 from .result import ODEResult, Stats
 
 __all__ = [
-    "solve_ode", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
+    "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",

@@ -183,3 +183,14 @@ def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, raise_on_fa
                        raise_on_failure, note)
     except CallbackError as exc:
         raise exc from (failure[0] if failure else None)
+
+
+def evaluate_rhs(problem: str, t: float, y, params: dict | None = None) -> np.ndarray:
+    """One evaluation of F(t, y) of a compiled problem, e.g. the accelerations of a worked step."""
+    info = _problem(problem)
+    y = _state("y", y, info.n if info.n > 0 else None)
+    _merged, pvec = resolve_params(info, params, len(y))
+    f, status = _kernel.eval_problem(info.id, pvec, _real("t", t), y)
+    if status < 0:
+        raise exception_for(Status(status))(f"evaluating {problem}: {status_message(status)}")
+    return np.array(f)

@@ -1,0 +1,1 @@
+"""Helpers shared by the studies: convergence measures, book-value comparison, tables, plots."""

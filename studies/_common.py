@@ -1,0 +1,26 @@
+"""Shared command line of the study scripts: --quick, --out."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def main(run, default_name: str) -> int:
+    ap = argparse.ArgumentParser(description=(run.__module__ and sys.modules[run.__module__].__doc__
+                                              or "").split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer and coarser runs (seconds)")
+    ap.add_argument("--out", type=Path, default=Path("studies/out") / default_name,
+                    help="output folder for CSV, Markdown and PNG")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    summary = run(args.out, args.quick)
+    print(f"{default_name}: {len(summary.get('tables', []))} tables, "
+          f"{len(summary.get('figures', []))} figures in {args.out} "
+          f"({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def progress(msg: str) -> None:
+    print(f"  .. {msg}", file=sys.stderr, flush=True)
