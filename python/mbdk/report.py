@@ -1,0 +1,105 @@
+"""The study report: runs every script in studies/ and assembles one HTML page with their
+tables (book disagreements highlighted) and figures, headed by the build manifest."""
+from __future__ import annotations
+
+import html
+import importlib.util
+import json
+import sys
+import time
+from pathlib import Path
+
+from .ode import build_info
+
+#: the studies in report order (file names in studies/)
+STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "benchmark_rk4"]
+
+
+def find_studies(explicit: Path | None = None) -> Path:
+    """studies/ of the source tree: given, or next to the package's source (editable install),
+    or in the working directory."""
+    candidates = [explicit] if explicit else []
+    candidates += [Path(__file__).resolve().parents[2] / "studies", Path.cwd() / "studies"]
+    for c in candidates:
+        if c is not None and (c / "ch4_tables.py").is_file():
+            return c
+    raise FileNotFoundError("studies/ not found: run from the repository root or pass "
+                            "--studies PATH")
+
+
+def load_study(folder: Path, name: str):
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(f"mbdk_study_{name}", folder / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _table_html(t: dict) -> str:
+    cols = t["columns"]
+    from .analysis.tables import fmt
+    out = [f"<h3>{html.escape(t['title'])}</h3>",
+           f"<p class='files'>{html.escape(t['csv'].name)} · {html.escape(t['md'].name)}</p>",
+           "<table><thead><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+           + "</tr></thead><tbody>"]
+    for r in t["rows"]:
+        cls = " class='flag'" if r.get("verdict") == "FLAG" else ""
+        out.append(f"<tr{cls}>" + "".join(f"<td>{html.escape(fmt(r.get(c)))}</td>" for c in cols)
+                   + "</tr>")
+    out.append("</tbody></table>")
+    if t.get("notes"):
+        out.append(f"<p class='note'>{html.escape(t['notes'])}</p>")
+    return "\n".join(out)
+
+
+def build_report(out: Path, quick: bool = False, studies: Path | None = None,
+                 only: list[str] | None = None) -> Path:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    folder = find_studies(studies)
+    sections = []
+    started = time.perf_counter()
+    names = [n for n in STUDIES if not only or n in only]
+    for i, name in enumerate(names, 1):
+        print(f"[{i}/{len(names)}] {name} ...", flush=True)
+        t0 = time.perf_counter()
+        summary = load_study(folder, name).run(out / name, quick)
+        dt = time.perf_counter() - t0
+        print(f"[{i}/{len(names)}] {name}: {len(summary['tables'])} tables, "
+              f"{len(summary['figures'])} figures, {dt:.1f} s", flush=True)
+        doc = (load_study(folder, name).__doc__ or "").strip()
+        parts = [f"<h2 id='{name}'>{html.escape(summary['title'])}</h2>",
+                 f"<pre class='doc'>{html.escape(doc)}</pre>",
+                 f"<p class='files'>studies/{name}.py · {dt:.1f} s</p>"]
+        if summary.get("verdict"):
+            parts.append(f"<p class='verdict'>{html.escape(summary['verdict'])}</p>")
+        for fig in summary["figures"]:
+            rel = Path(fig).relative_to(out)
+            parts.append(f"<figure><img src='{html.escape(str(rel))}' alt='{html.escape(rel.stem)}'>"
+                         f"<figcaption>{html.escape(rel.name)}</figcaption></figure>")
+        for t in summary["tables"]:
+            parts.append(_table_html(t))
+        sections.append((name, summary["title"], "\n".join(parts)))
+    manifest = {**build_info(), "quick": quick,
+                "generated": time.strftime("%Y-%m-%d %H:%M:%S"),
+                "total_seconds": round(time.perf_counter() - started, 1)}
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    toc = "".join(f"<li><a href='#{n}'>{html.escape(t)}</a></li>" for n, t, _ in sections)
+    page = f"""<!doctype html><html><head><meta charset='utf-8'><title>mbdk study report</title>
+<style>body{{font-family:sans-serif;max-width:1300px;margin:auto;padding:1em}}
+table{{border-collapse:collapse;font-size:12px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:2px 5px}}
+th{{background:#eee}}tr.flag{{background:#ffe3e3}}img{{max-width:100%}}.note,.verdict{{background:#f5f5ff;padding:0.5em}}
+.files{{color:#777;font-size:11px}}pre.doc{{white-space:pre-wrap;background:#fafafa;padding:0.5em}}</style></head><body>
+<h1>mbdk study report</h1>
+<p>Every number below was computed by the kernel in this run; rows where the book's printed value
+disagrees beyond its rounding are highlighted and the note says why. Every error is shown with the
+CPU time it took.</p>
+<pre>{html.escape(json.dumps(manifest, indent=2))}</pre>
+<ul>{toc}</ul>
+{''.join(s for _, _, s in sections)}
+</body></html>"""
+    index = out / "index.html"
+    index.write_text(page)
+    print(f"report: {index} ({manifest['total_seconds']} s)")
+    return index
