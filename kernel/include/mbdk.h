@@ -41,7 +41,11 @@ typedef struct mbdk_options {
     int newton_max_iter;
     int fd_jacobian;     /* callbacks have no Jacobian: finite differences are always used */
     int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
+    int startup;         /* k-step methods: MBDK_STARTUP_RK4 (the book) or MBDK_STARTUP_BDF */
 } mbdk_options;
+
+/* Start-up of bdf2..bdf6: RK4 steps (the book, (4.80)) or BDF steps of rising order. */
+enum mbdk_startup { MBDK_STARTUP_RK4 = 0, MBDK_STARTUP_BDF = 1 };
 
 typedef struct mbdk_stats {
     int64_t steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, startup_steps;

@@ -29,6 +29,8 @@ NEWTON_MAX_ITER = 10
 # time (compiled problems need no lock).
 _CALLBACK_LOCK = threading.Lock()
 
+_STARTUP = {"rk4": 0, "bdf": 1}
+
 
 @lru_cache(maxsize=1)
 def build_info() -> dict:
@@ -63,7 +65,8 @@ def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, b
 
 def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, y0=None,
               params: dict | None = None, every: int = 1, nq: int = 0,
-              fd_jacobian: bool = False, raise_on_failure: bool = True) -> ODEResult:
+              fd_jacobian: bool = False, startup: str = "rk4",
+              raise_on_failure: bool = True) -> ODEResult:
     """Integrate a compiled textbook problem (by name) or a Python f(t, y) with a fixed step.
 
     problem: a name from mbdk.problems(), or a callable f(t, y) -> dy/dt (slow path; y0 needed,
@@ -71,9 +74,15 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     method:  a name from mbdk.methods().
     h:       step; t_end: end time; every: keep every k-th step (and the last) as a sample.
     params:  overrides of the problem's parameters, by name.
+    startup: how bdf2..bdf6 get their first values: "rk4" (RK4 steps, the book's (4.80),
+             Richardson-extrapolated so that bdf6 keeps order 6) or "bdf" (BDF steps of rising
+             order 1..k-1: stable on stiff problems, where RK4 steps blow up, but the order-1
+             first step limits the global order to 2).
     raise_on_failure: a failure inside the kernel raises its named exception (default); with
              False the partial result is returned with its status.
     """
+    if startup not in _STARTUP:
+        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(_STARTUP)}")
     info_m = _method(method)
     t0 = _real("t0", t0)
     t_end = _real("t_end", t_end)
@@ -96,7 +105,7 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
 
     if callable(problem):
         return _solve_callback(problem, info_m, h, t0, t_end, y0, int(every), nq, nsamp,
-                               raise_on_failure)
+                               _STARTUP[startup], raise_on_failure)
 
     info_p = _problem(problem)
     if y0 is None:
@@ -110,12 +119,13 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     merged, pvec = resolve_params(info_p, params, len(y0))
     t, y, stats, nw, status = _kernel.solve_problem(
         info_p.id, info_m.id, y0, t0, t_end, h, int(every), pvec, NEWTON_RTOL, NEWTON_ATOL,
-        NEWTON_MAX_ITER, int(bool(fd_jacobian)), nsamp)
+        NEWTON_MAX_ITER, int(bool(fd_jacobian)), _STARTUP[startup], nsamp)
     manifest = {**build_info(), "problem": problem, "method": method, "h": h, "t0": t0,
                 "t_end": t_end, "every": int(every), "steps": nsteps,
                 "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
                            for k, v in merged.items()},
-                "y0": y0.tolist(), "jacobian": "finite differences" if fd_jacobian else "analytic where available",
+                "y0": y0.tolist(), "startup": startup,
+                "jacobian": "finite differences" if fd_jacobian else "analytic where available",
                 "newton": {"rtol": NEWTON_RTOL, "atol": NEWTON_ATOL, "max_iter": NEWTON_MAX_ITER}}
     return _finish(t, y, stats, nw, status, manifest, problem, method, merged, t0, y0,
                    raise_on_failure, None)
@@ -152,7 +162,7 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
     return result
 
 
-def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, raise_on_failure):
+def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, startup, raise_on_failure):
     if y0 is None:
         raise InvalidInputError("a Python right-hand side needs y0")
     y0 = _state("y0", y0, None)
@@ -174,7 +184,7 @@ def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, raise_on_fa
     with _CALLBACK_LOCK:
         t, y, stats, nw, status = _kernel.solve_callback(
             cb, y0, t0, t_end, h, info_m.id, every, nq, NEWTON_RTOL, NEWTON_ATOL,
-            NEWTON_MAX_ITER, nsamp)
+            NEWTON_MAX_ITER, startup, nsamp)
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,
                 "h": h, "t0": t0, "t_end": t_end, "every": every, "y0": y0.tolist()}
     note = f"{type(failure[0]).__name__}: {failure[0]}" if failure else None

@@ -23,6 +23,7 @@ module mbdk_capi
     integer(c_int) :: newton_max_iter
     integer(c_int) :: fd_jacobian
     integer(c_int) :: nq
+    integer(c_int) :: startup
   end type mbdk_c_options
 
   !> Mirrors struct mbdk_stats in mbdk.h.
@@ -45,6 +46,7 @@ contains
     opt%newton_max_iter = int(d%newton_max_iter, c_int)
     opt%fd_jacobian = merge(1_c_int, 0_c_int, d%fd_jacobian)
     opt%nq = 0
+    opt%startup = int(d%startup, c_int)
   end subroutine mbdk_default_options
 
   integer(c_int) function mbdk_c_method_id(name) bind(C, name='mbdk_method_id')
@@ -100,6 +102,7 @@ contains
     o%newton_atol = opt%newton_atol
     o%newton_max_iter = int(opt%newton_max_iter)
     o%fd_jacobian = opt%fd_jacobian /= 0
+    o%startup = int(opt%startup)
     call solve(y_out(1:n * nsamp))
     nwritten = int(nw, c_int)
     stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &

@@ -4,7 +4,7 @@
 ! Python calls these only through python/mbdk (ode.py, methods.py, errors.py).
 
 subroutine solve_problem(problem_id, method_id, n, y0, t0, t_end, h, every, np, params, &
-                         newton_rtol, newton_atol, newton_max_iter, fd_jacobian, nsamp, &
+                         newton_rtol, newton_atol, newton_max_iter, fd_jacobian, startup, nsamp, &
                          t_out, y_out, stats, nwritten, status)
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS
@@ -14,6 +14,7 @@ subroutine solve_problem(problem_id, method_id, n, y0, t0, t_end, h, every, np, 
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   implicit none
   integer, intent(in) :: problem_id, method_id, n, every, np, nsamp, newton_max_iter, fd_jacobian
+  integer, intent(in) :: startup
   double precision, intent(in) :: y0(n), t0, t_end, h, params(np), newton_rtol, newton_atol
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7)
   integer, intent(out) :: nwritten, status
@@ -36,6 +37,7 @@ subroutine solve_problem(problem_id, method_id, n, y0, t0, t_end, h, every, np, 
   opt%newton_atol = newton_atol
   opt%newton_max_iter = newton_max_iter
   opt%fd_jacobian = fd_jacobian /= 0
+  opt%startup = startup
   call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
   stats = mbdk_stats_to_array(st)
 end subroutine solve_problem
@@ -59,8 +61,8 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
 end subroutine eval_problem
 
 subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton_rtol, &
-                          newton_atol, newton_max_iter, nsamp, t_out, y_out, stats, nwritten, &
-                          status)
+                          newton_atol, newton_max_iter, startup, nsamp, t_out, y_out, stats, &
+                          nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
   ! (f2py hides n); flag(1) = 1 reports a failure.
   use mbdk_options, only: mbdk_options_t
@@ -69,7 +71,7 @@ subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   implicit none
   external fun
-  integer, intent(in) :: n, method_id, every, nq, nsamp, newton_max_iter
+  integer, intent(in) :: n, method_id, every, nq, nsamp, newton_max_iter, startup
   double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7)
   integer, intent(out) :: nwritten, status
@@ -94,6 +96,7 @@ subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton
   opt%newton_rtol = newton_rtol
   opt%newton_atol = newton_atol
   opt%newton_max_iter = newton_max_iter
+  opt%startup = startup
   call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
   stats = mbdk_stats_to_array(st)
 end subroutine solve_callback

@@ -7,7 +7,11 @@
 !> (MBDK_ERR_INVALID_INPUT). Samples: the initial point, every `every`-th step and the last one.
 !>
 !> Start-up of a k-step method: the first k-1 steps are RK4 steps of the same h (the book's
-!> remark on the Gear formula (4.80)); they are counted in stats%startup_steps.
+!> remark on the Gear formula (4.80)), each extrapolated from one step h and two steps h/2
+!> (y = y_{h/2} + (y_{h/2} - y_h)/15, local error O(h^6)): plain RK4 start values (local error
+!> O(h^5)) would cap bdf6 at order 5. Or, with opt%startup = MBDK_STARTUP_BDF, BDF steps of
+!> order 1, 2, ..., k-1 (stable on stiff problems, where RK4 start-up steps amplify by |R(h*lambda)|
+!> each). They are counted in stats%startup_steps.
 !>
 !> After every step the state is checked: inf or NaN ends the solve with MBDK_ERR_NONFINITE,
 !> keeping the samples written so far. CPU time of the loop is measured with cpu_time.
@@ -15,10 +19,10 @@ module mbdk_fixed_step
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_options, only: mbdk_options_t
+  use mbdk_options, only: mbdk_options_t, MBDK_STARTUP_RK4, MBDK_STARTUP_BDF
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_EXPLICIT_RK, MBDK_FAMILY_EULER_CROMER, &
-    MBDK_FAMILY_IMPLICIT_LMM, MBDK_RK4, MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_IMPLICIT_LMM, MBDK_RK4, MBDK_BDF1, MBDK_METHOD_NAME_LEN
   use mbdk_butcher, only: mbdk_butcher_t, mbdk_butcher_table, MBDK_MAX_STAGES
   use mbdk_explicit_rk, only: mbdk_explicit_rk_step
   use mbdk_euler_cromer, only: mbdk_euler_cromer_step
@@ -79,9 +83,9 @@ contains
     integer(i8) :: nsteps, i
     logical :: shortened, ok
     type(mbdk_butcher_t) :: rk, rk_start
-    type(mbdk_lmm_t) :: lmm
+    type(mbdk_lmm_t) :: lmm, lmm_start
     type(mbdk_newton_work_t) :: nw
-    real(dp), allocatable :: k(:, :), ytmp(:), y(:), hist(:, :), fn(:), c(:)
+    real(dp), allocatable :: k(:, :), ytmp(:), y(:), hist(:, :), fn(:), c(:), yfull(:)
     real(dp) :: t, hi, cpu0, cpu1
 
     nwritten = 0
@@ -112,12 +116,13 @@ contains
       call mbdk_lmm_table(opt%method, lmm, ok)
       stat = MBDK_ERR_INVALID_INPUT
       if (lmm%k > 1 .and. shortened) return
+      if (opt%startup /= MBDK_STARTUP_RK4 .and. opt%startup /= MBDK_STARTUP_BDF) return
       if (opt%newton_max_iter < 1 .or. .not. (opt%newton_rtol > 0.0_dp) .or. &
           .not. (opt%newton_atol > 0.0_dp)) return
       nstart = lmm%k - 1
       call mbdk_butcher_table(MBDK_RK4, rk_start, ok)
       call mbdk_newton_work_init(nw, n)
-      allocate (hist(n, lmm%k), fn(n), c(n))
+      allocate (hist(n, lmm%k), fn(n), c(n), yfull(n))
       hist(:, 1) = y0
     end select
 
@@ -143,8 +148,19 @@ contains
       case (MBDK_FAMILY_EULER_CROMER)
         call mbdk_euler_cromer_step(prob, t, hi, y, ytmp, st, stat)
       case (MBDK_FAMILY_IMPLICIT_LMM)
-        if (i <= nstart) then
-          call mbdk_explicit_rk_step(prob, rk_start, t, hi, y, k, ytmp, st, stat)
+        if (i <= nstart .and. opt%startup == MBDK_STARTUP_BDF) then
+          call mbdk_lmm_table(MBDK_BDF1 + int(i) - 1, lmm_start, ok)
+          call mbdk_implicit_lmm_step(prob, lmm_start, opt, t, hi, y, hist, fn, c, nw, st, stat)
+          st%startup_steps = st%startup_steps + 1
+        else if (i <= nstart) then
+          yfull = y
+          call mbdk_explicit_rk_step(prob, rk_start, t, hi, yfull, k, ytmp, st, stat)
+          if (stat == MBDK_SUCCESS) &
+            call mbdk_explicit_rk_step(prob, rk_start, t, 0.5_dp * hi, y, k, ytmp, st, stat)
+          if (stat == MBDK_SUCCESS) &
+            call mbdk_explicit_rk_step(prob, rk_start, t + 0.5_dp * hi, 0.5_dp * hi, y, k, ytmp, &
+                                       st, stat)
+          y = y + (y - yfull) / 15.0_dp
           hist(:, 2:lmm%k) = hist(:, 1:lmm%k - 1)
           hist(:, 1) = y
           st%startup_steps = st%startup_steps + 1

@@ -41,7 +41,7 @@ contains
     if (tab%beta1 /= 0.0_dp) c = c + (h * tab%beta1) * fn
     call mbdk_newton_solve(prob, opt, t + h, h * tab%beta0, c, y, w, st, stat)
     if (stat /= MBDK_SUCCESS) return
-    do j = tab%k, 2, -1
+    do j = size(hist, 2), 2, -1   ! the whole history: a start-up step keeps it for later steps
       hist(:, j) = hist(:, j - 1)
     end do
     hist(:, 1) = y
