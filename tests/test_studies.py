@@ -1,0 +1,206 @@
+"""Every study runs with --quick, and its key numbers agree with values derived here
+independently (closed forms, numpy matrix powers, scipy's integrators) - never copied from the
+study's own output."""
+import csv
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mbdk
+
+
+def rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def num(s):
+    return float(s) if s not in ("", None) else None
+
+
+@pytest.fixture(scope="module")
+def ch4(tmp_path_factory, root):
+    out = tmp_path_factory.mktemp("ch4")
+    subprocess.run([sys.executable, str(root / "studies" / "ch4_tables.py"), "--quick", "--out",
+                    str(out)], check=True, capture_output=True)
+    return {name: rows(out / f"{name}.csv") for name in
+            ("ch4_tables", "ch4_worked_steps", "ch4_stability_claims", "ch4_flagged")}
+
+
+def pick(table, tab, row, quantity):
+    hits = [r for r in table if r["table"] == tab and r["row"] == row and r["quantity"] == quantity]
+    assert len(hits) == 1, (tab, row, quantity)
+    return hits[0]
+
+
+def test_table_4_1_is_the_closed_form_of_euler(ch4):
+    """Euler on y' = 2x from y(0) = 1: y_n = 1 + sum_{i<n} 2 (i h) h = 1 + h^2 n (n - 1)."""
+    for h in (1.0, 0.5, 0.1):
+        n = round(10 / h)
+        r = pick(ch4["ch4_tables"], "4.1", f"h={h}", "y(10)")
+        assert num(r["computed"]) == pytest.approx(1 + h * h * n * (n - 1), rel=1e-12)
+    bad = pick(ch4["ch4_tables"], "4.1", "h=0.5", "error % at x=10")
+    assert bad["verdict"] == "FLAG" and num(bad["computed"]) == pytest.approx(500 / 101)
+
+
+def test_table_4_3_rk2_is_exact_and_euler_has_error_h_over_l(ch4):
+    """For a slope linear in x, Heun is the trapezoidal sum: exact. Euler's left sums give
+    phi_n = -(F/EI) h sum_{i<n} (l - i h)."""
+    k = 5000.0 / 4.2e10
+    for i in range(1, 11):
+        x = 100.0 * i
+        rk2 = pick(ch4["ch4_tables"], "4.3", f"step {i}", "phi RK2 (rad)")
+        assert num(rk2["computed"]) == pytest.approx(-k * (1000 * x - x * x / 2), rel=1e-12)
+        eu = pick(ch4["ch4_tables"], "4.3", f"step {i}", "phi Euler (rad)")
+        assert num(eu["computed"]) == pytest.approx(-k * 100 * sum(1000 - 100 * j for j in range(i)),
+                                                   rel=1e-12)
+        assert eu["verdict"] != "FLAG" and rk2["verdict"] != "FLAG"
+
+
+def test_table_4_5_reproduces_the_book(ch4):
+    table = [r for r in ch4["ch4_tables"] if r["table"] == "4.5" and r["row"].startswith("step")]
+    assert len(table) == 20 and all(r["verdict"] != "FLAG" for r in table)
+    end = pick(ch4["ch4_tables"], "4.5", "end", "nonlinear RK2 vs linear at x=l (%)")
+    assert end["verdict"] == "FLAG"
+
+
+def test_tables_4_6_and_4_7_are_matrix_powers(ch4):
+    """Explicit Euler is (I + hA)^n y0, implicit Euler (I - hA)^-n y0 (numpy, independently)."""
+    a = np.array([[0.0, 1.0], [-10.0, -0.5]])
+    y0 = np.array([5.0, 1.0])
+    for h in (0.01, 0.005, 0.0025):
+        n = round(10 / h)
+        ex = np.linalg.matrix_power(np.eye(2) + h * a, n) @ y0
+        im = np.linalg.matrix_power(np.linalg.inv(np.eye(2) - h * a), n) @ y0
+        assert num(pick(ch4["ch4_tables"], "4.6", f"h={h}", "y(10)")["computed"]) == \
+            pytest.approx(ex[0], rel=1e-9)
+        assert num(pick(ch4["ch4_tables"], "4.7", f"h={h}", "y(10)")["computed"]) == \
+            pytest.approx(im[0], rel=1e-9)
+    # the book's 0.6001 at h = 0.0075 is 1334 steps (t = 10.005): (I + hA)^1334 y0
+    r = pick(ch4["ch4_tables"], "4.6", "h=0.0075", "y(10)")
+    y1334 = np.linalg.matrix_power(np.eye(2) + 0.0075 * a, 1334) @ y0
+    assert round(y1334[0], 4) == pytest.approx(0.6002, abs=1.5e-4)
+    assert "10.005" in r["note"] and r["verdict"] == "FLAG"
+
+
+def test_worked_steps_by_hand(ch4):
+    """(4.26) by hand: k1 = h f(0, -5) = -1, k2 = h f(0.1, -6) = 0.1 (0.1*36 - 12) = -0.84."""
+    ws = ch4["ch4_worked_steps"]
+    assert num(pick(ws, "(4.26)", "y1", "x")["computed"]) == pytest.approx(-5.92, abs=1e-12)
+    # (4.60): y1 = y0 + h A y0
+    a = np.array([[0.0, 1.0], [-10.0, -0.5]])
+    y1 = np.array([5.0, 1.0]) + 0.1 * a @ [5.0, 1.0]
+    assert num(pick(ws, "(4.60)", "y1", "y'")["computed"]) == pytest.approx(y1[1], abs=1e-12)
+    # (4.79): x1''(0) from (4.78) by hand at phi0 = -30 deg
+    p = -math.pi / 6
+    acc = (-4 * 3000 * 0.5 + 1.5 * 9.81 * math.sin(2 * p)) / (41 + 3 * math.cos(p) ** 2)
+    assert num(pick(ws, "(4.79)", "step 0", "x1'' (m/s^2)")["computed"]) == pytest.approx(acc)
+
+
+def test_stability_limits_are_two(ch4):
+    """|1 - h| <= 1 and |1 - h + h^2/2| <= 1 both end at h = 2 (real axis)."""
+    c = ch4["ch4_stability_claims"]
+    assert num(pick(c, "(4.18)", "explicit Euler", "largest stable h on y' = -y")["computed"]) == \
+        pytest.approx(2.0, abs=1e-9)
+    rk2 = pick(c, "(4.29)", "RK2 (heun)", "largest stable h on y' = -y")
+    assert num(rk2["computed"]) == pytest.approx(2.0, abs=1e-9) and rk2["verdict"] == "FLAG"
+
+
+def test_every_flag_has_a_reason(ch4):
+    assert ch4["ch4_flagged"]
+    for r in ch4["ch4_flagged"]:
+        assert r["note"].strip() or r["table"] in ("(4.76)",), r
+
+
+def test_pendulum_study(tmp_path, root):
+    sys.path.insert(0, str(root / "studies"))
+    import pendulum
+    summary = pendulum.run(tmp_path, quick=True)
+    assert len(summary["figures"]) == 3 and all(p.exists() for p in summary["figures"])
+    drift = [r for r in rows(tmp_path / "pendulum_drift.csv") if r["method"] == "explicit_euler"]
+    d = [num(r["max_rel_energy_error_5s"]) for r in drift]
+    assert d[-1] < d[0] / 8                     # falls as h falls: no divergence at fixed T
+    assert d[-2] / d[-1] == pytest.approx(2.0, rel=0.1)   # first order
+    energy = {r["method"]: r for r in rows(tmp_path / "pendulum_energy.csv")}
+    ec = energy["euler_cromer"]
+    assert num(ec["max_rel_energy_error_last_5s"]) == pytest.approx(
+        num(ec["max_rel_energy_error_first_5s"]), rel=0.05)           # bounded band
+    # explicit Euler multiplies the small-angle energy by 1 + h^2 w^2 per step: relative error
+    # ~ exp(h w^2 t) - 1 = 0.44 at 5 s and 3.3 at 20 s (quick run); the swing saturates it a little
+    ee = energy["explicit_euler"]
+    w2h = 1.5 * 9.81 * 0.005
+    assert num(ee["max_rel_energy_error_first_5s"]) == pytest.approx(math.expm1(w2h * 5), rel=0.1)
+    assert num(ee["max_rel_energy_error_last_5s"]) > 3 * num(ee["max_rel_energy_error_first_5s"])
+    # period ratio against an independent quadrature: T = 4 int_0^{pi/2} du / sqrt(1 - k^2 sin^2 u) / w
+    from scipy.integrate import quad
+    for r in rows(tmp_path / "pendulum_linear_vs_nonlinear.csv"):
+        if r["case"].endswith("deg"):
+            k2 = math.sin(math.radians(float(r["case"].split()[0])) / 2) ** 2
+            kk = quad(lambda u: 1 / math.sqrt(1 - k2 * math.sin(u) ** 2), 0, math.pi / 2)[0]
+            assert num(r["period_nonlinear_over_linear"]) == pytest.approx(2 * kk / math.pi, rel=1e-9)
+
+
+def test_phase_portraits_study_against_scipy(tmp_path, root):
+    from scipy.integrate import solve_ivp
+    sys.path.insert(0, str(root / "studies"))
+    import phase_portraits
+    from test_problems import book_3_64
+    summary = phase_portraits.run(tmp_path, quick=True)
+    assert all(p.exists() for p in summary["figures"])
+    row = rows(tmp_path / "double_pendulum.csv")[0]
+    # independent reference: scipy's DOP853 on (3.64) as printed
+    p = dict(m1=1.0, m2=2.0, l1=1.0, l2=2.0, g=9.81)
+    h = float(row["h"])
+    ec = mbdk.solve_ode("double_pendulum", "euler_cromer", h=h, t_end=5.0, every=10)
+    ref = solve_ivp(lambda t, y: book_3_64(y, **p), (0, 5), [-1.308, -1.57, 0, 0], method="DOP853",
+                    rtol=1e-12, atol=1e-12, t_eval=ec.t)
+    dev = math.degrees(np.max(np.abs(ec.y[:, :2] - ref.y[:2].T)))
+    assert num(row["max_|phi-phi_ref|_deg"]) == pytest.approx(dev, rel=0.05)
+    chaos = {r["method"]: r for r in rows(tmp_path / "double_pendulum_chaos.csv")}
+    assert chaos["bdf4"]["departs_from_reference_at_s (|dphi2| > 0.1 rad)"] in ("", None)
+
+
+def test_work_precision_study(tmp_path, root):
+    sys.path.insert(0, str(root / "studies"))
+    import work_precision
+    summary = work_precision.run(tmp_path, quick=True)
+    assert len(summary["figures"]) == 3
+    data = rows(tmp_path / "work_precision_riccati.csv")
+    nominal = {"explicit_euler": 1, "heun": 2, "rk4": 4, "trapezoidal": 2, "bdf2": 2, "bdf3": 3}
+    for m, p in nominal.items():
+        last = [r for r in data if r["method"] == m][-1]
+        assert num(last["observed_order"]) == pytest.approx(p, abs=0.3), m
+        assert num(last["cpu_s"]) > 0
+    # the max error over samples equals an independent comparison with the closed form
+    last = [r for r in data if r["method"] == "rk4"][-1]
+    n = int(last["steps"])
+    r = mbdk.solve_ode("riccati", "rk4", h=5.0 / n, t_end=5.0, every=n // 100)
+    u = -r.t / 2 + 0.25 - 0.45 * np.exp(-2 * r.t)
+    assert num(last["max_error"]) == pytest.approx(np.max(np.abs(r.y[:, 0] - 1 / u)), rel=1e-6)
+
+
+def test_benchmark_study(tmp_path, root):
+    from scipy.integrate import solve_ivp
+    sys.path.insert(0, str(root / "studies"))
+    import benchmark_rk4
+    from test_problems import book_3_64
+    benchmark_rk4.run(tmp_path, quick=True)
+    data = {r["implementation"]: r for r in rows(tmp_path / "benchmark_rk4.csv")}
+    assert {"kernel (mbdk rk4)", "pure Python, scalars", "Python + numpy"} <= set(data)
+    n = int(data["kernel (mbdk rk4)"]["steps_for_1e-6_at_t10"])
+    ref = solve_ivp(lambda t, y: book_3_64(y, m1=1.0, m2=2.0, l1=1.0, l2=2.0, g=9.81), (0, 10),
+                    [-1.308, -1.57, 0, 0], method="DOP853", rtol=1e-13, atol=1e-13).y[:, -1]
+    r = mbdk.solve_ode("double_pendulum", "rk4", h=10.0 / n, t_end=10.0, every=n)
+    assert np.max(np.abs(r.y[-1] - ref)) <= 1.1e-6
+
+
+def test_report_assembles_html(tmp_path, root):
+    r = subprocess.run([sys.executable, "-m", "mbdk", "report", "--quick", "--out", str(tmp_path),
+                        "--studies", str(root / "studies"), "--only", "ch4_tables"],
+                       capture_output=True, text=True, check=True)
+    page = (tmp_path / "index.html").read_text()
+    assert "class='flag'" in page and "ch4_convergence.png" in page
+    assert (tmp_path / "manifest.json").exists() and "[1/1] ch4_tables" in r.stdout
