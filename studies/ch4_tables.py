@@ -119,24 +119,31 @@ def _riccati_min():
     return float(t[i]), float(x[i])
 
 
+def _beam_steps(table, problem, euler, rk2):
+    """The book's step-by-step Euler and RK2 columns (h = 100 mm over 10 steps) against the
+    kernel, with the exact slope; returns the rows, the RK2 result and the exact values."""
+    rows = []
+    re = mbdk.solve_ode(problem, "explicit_euler", h=100.0, t_end=1000.0)
+    rr = mbdk.solve_ode(problem, "heun", h=100.0, t_end=1000.0)
+    ex = re.exact()[:, 0]
+    for i in range(1, 11):
+        for label, res, book in (("phi Euler (rad)", re, euler), ("phi RK2 (rad)", rr, rk2)):
+            rows.append(_row(table, f"step {i}", label, book[i - 1], float(res.y[i, 0]), h=100.0,
+                             res=res if i == 10 else None, exact=float(ex[i])))
+    return rows, rr, ex
+
+
 def table_4_3_4_4():
     """Linear beam slope phi' = -(F/EI)(l - x), h = 100 mm: Euler, RK2, analytic (table 4.3) and
     the end slope in degrees (table 4.4)."""
-    rows = []
     euler = ["-0.011904762", "-0.022619048", "-0.032142857", "-0.04047619", "-0.047619048",
              "-0.053571429", "-0.058333333", "-0.061904762", "-0.064285714", "-0.06547619"]
     rk2 = ["-0.011309524", "-0.021428571", "-0.030357143", "-0.038095238", "-0.044642857",
            "-0.05", "-0.054166667", "-0.057142857", "-0.058928571", "-0.05952381"]
     analytic = ["-0.01131", "-0.021429", "-0.030357", "-0.038095", "-0.044643", "-0.05",
                 "-0.054167", "-0.057143", "-0.058929", "-0.059524"]
-    re = mbdk.solve_ode("beam_linear", "explicit_euler", h=100.0, t_end=1000.0)
-    rr = mbdk.solve_ode("beam_linear", "heun", h=100.0, t_end=1000.0)
-    ex = re.exact()[:, 0]
+    rows, _rr, ex = _beam_steps("4.3", "beam_linear", euler, rk2)
     for i in range(1, 11):
-        rows.append(_row("4.3", f"step {i}", "phi Euler (rad)", euler[i - 1], float(re.y[i, 0]),
-                         h=100.0, res=re if i == 10 else None, exact=float(ex[i])))
-        rows.append(_row("4.3", f"step {i}", "phi RK2 (rad)", rk2[i - 1], float(rr.y[i, 0]),
-                         h=100.0, res=rr if i == 10 else None, exact=float(ex[i])))
         rows.append(_row("4.3", f"step {i}", "phi analytic (rad)", analytic[i - 1], float(ex[i])))
     exact_deg = math.degrees(float(ex[-1]))
     rows.append(_row("4.4", "analytic", "phi(1000) deg", "-3.41", exact_deg,
@@ -165,19 +172,11 @@ def table_4_3_4_4():
 
 def table_4_5():
     """Nonlinear beam phi' = -(F/EI)(l - x)(1 + phi^2)^1.5, h = 100 mm."""
-    rows = []
     euler = ["-0.011904762", "-0.022621325", "-0.032152446", "-0.040498705", "-0.047659142",
              "-0.053631815", "-0.05841428", "-0.062004004", "-0.0643987", "-0.06559659"]
     rk2 = ["-0.01131066", "-0.02143420", "-0.03037205", "-0.03812395", "-0.04468851",
            "-0.05006375", "-0.05424743", "-0.05723749", "-0.05903224", "-0.05963059"]
-    re = mbdk.solve_ode("beam_nonlinear", "explicit_euler", h=100.0, t_end=1000.0)
-    rr = mbdk.solve_ode("beam_nonlinear", "heun", h=100.0, t_end=1000.0)
-    ex = re.exact()[:, 0]
-    for i in range(1, 11):
-        rows.append(_row("4.5", f"step {i}", "phi Euler (rad)", euler[i - 1], float(re.y[i, 0]),
-                         h=100.0, res=re if i == 10 else None, exact=float(ex[i])))
-        rows.append(_row("4.5", f"step {i}", "phi RK2 (rad)", rk2[i - 1], float(rr.y[i, 0]),
-                         h=100.0, res=rr if i == 10 else None, exact=float(ex[i])))
+    rows, rr, ex = _beam_steps("4.5", "beam_nonlinear", euler, rk2)
     lin = float(mbdk.solve_ode("beam_linear", "heun", h=100.0, t_end=1000.0).y[-1, 0])
     diff = (float(rr.y[-1, 0]) / lin - 1) * 100
     rows.append(_row("4.5", "end", "nonlinear RK2 vs linear at x=l (%)", "0.6", diff,

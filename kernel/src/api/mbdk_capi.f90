@@ -2,7 +2,7 @@
 !> Every function returns a status (or an id) and never prints or stops the process.
 module mbdk_capi
   use, intrinsic :: iso_c_binding, only: c_int, c_int64_t, c_double, c_char, c_ptr, c_funptr, &
-    c_null_char, c_associated, c_funloc
+    c_null_char, c_associated
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
