@@ -80,15 +80,14 @@ def figure(problem: str, rows, out: Path):
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     styles = {"explicit_rk": "-", "euler_cromer": "-.", "implicit_lmm": "--"}
     infos = mbdk.methods()
-    for name in dict.fromkeys(r["method"] for r in rows):
+    for i, name in enumerate(infos):       # a fixed colour per method across all figures
         pts = [r for r in rows if r["method"] == name and r["max_error"] is not None]
         if not pts:
             continue
         st = styles[infos[name].family]
-        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], "o" + st,
-                     ms=3, label=name)
-        ax[1].loglog([p["h"] for p in pts], [p["max_error"] for p in pts], "o" + st, ms=3,
-                     label=name)
+        kw = dict(ms=3, label=name, color=plt.cm.tab20(i))
+        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
+        ax[1].loglog([p["h"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
     ax[0].set_xlabel("CPU time of the kernel loop (s)")
     ax[0].set_ylabel("max |error| over the interval")
     ax[0].set_title(f"{problem}: what accuracy costs")
