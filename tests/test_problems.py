@@ -119,3 +119,10 @@ def test_pendulum_exact_solution_against_scipy_quadrature_period():
     ex = mbdk.exact.pendulum(t, 0.0, [phi0, 0.0], {"g": 9.81, "l": 1.0})
     assert ex[1, 0] == pytest.approx(phi0, abs=1e-9)
     assert ex[1, 1] == pytest.approx(0.0, abs=1e-8)
+
+
+def test_nonlinear_beam_exact_solution_refuses_past_vertical():
+    """s = -(F/EI)(l x - x^2/2) reaches -1 for F/EI = 2e-6 at x = 1000 - sqrt(1e6 - 1e6) = 1000."""
+    with pytest.raises(mbdk.InvalidInputError, match="no solution past x"):
+        mbdk.exact.beam_nonlinear(np.linspace(0, 1000, 11), 0.0, [0.0],
+                                  {"F": 2.0, "EI": 1.0e6, "l": 1000.0})

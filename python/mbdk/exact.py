@@ -49,8 +49,14 @@ def beam_nonlinear(t, t0, y0, p):
     s = phi0/sqrt(1 + phi0^2) - (F/EI)(l x - x^2/2):  phi = s / sqrt(1 - s^2)  (|s| < 1).
     The book says (4.39) has no closed-form solution; for phi(x) it has this one."""
     s = y0[0] / np.sqrt(1.0 + y0[0] ** 2) - _moment_integral(t, t0, p)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (s / np.sqrt(1.0 - s**2))[:, None]
+    bad = np.flatnonzero(np.abs(s) >= 1.0)
+    if bad.size:
+        from .errors import InvalidInputError
+        i = bad[0]
+        raise InvalidInputError(
+            f"beam_nonlinear has no solution past x = {t[i]:g}: there phi/sqrt(1+phi^2) = {s[i]:.4g}"
+            " reaches +-1 (the slope turns vertical); reduce F/EI or the interval")
+    return (s / np.sqrt(1.0 - s**2))[:, None]
 
 
 def expm2(a, tau):
