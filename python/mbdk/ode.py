@@ -30,6 +30,8 @@ NEWTON_MAX_ITER = 10
 _CALLBACK_LOCK = threading.Lock()
 
 _STARTUP = {"rk4": 0, "bdf": 1}
+MAX_STEPS = 2_000_000_000        # the kernel's limit (mbdk_fixed_step: MAX_STEPS)
+_INT_MAX = 2**31 - 1
 
 
 @lru_cache(maxsize=1)
@@ -56,6 +58,10 @@ def _real(name: str, value) -> float:
 
 def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, bool]:
     """(steps, samples, last_step_shortened) for an interval, as the kernel will take them."""
+    steps = (t_end - t0) / h if h > 0 else math.inf
+    if steps > MAX_STEPS:
+        raise InvalidInputError(f"h = {h} gives {steps:.3g} steps over t_end - t0 = {t_end - t0}; "
+                                f"the kernel takes at most {MAX_STEPS:.0e}: give a larger h")
     nsteps, nsamp, status = _kernel.sample_count(t0, t_end, h, every)
     if status < 0:
         raise InvalidInputError(f"h = {h}, t0 = {t0}, t_end = {t_end}, every = {every} give no "
@@ -94,8 +100,8 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     if h > (t_end - t0) * (1 + 1e-12):
         raise InvalidInputError(f"h = {h} is larger than the interval t_end - t0 = {t_end - t0}; "
                                 "give a step no larger than the interval")
-    if isinstance(every, bool) or not isinstance(every, Integral) or every < 1:
-        raise InvalidInputError(f"every = {every!r} must be a whole number >= 1")
+    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
+        raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
     nsteps, nsamp, shortened = plan(t0, t_end, h, int(every))
     if shortened and info_m.steps > 1:
         n_lo = math.floor((t_end - t0) / h)
@@ -133,9 +139,12 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
 
 def _state(name: str, value, n: int | None) -> np.ndarray:
     try:
-        y = np.array(value, dtype=float).ravel()
+        y = np.array(value, dtype=float)
     except (TypeError, ValueError):
         raise InvalidInputError(f"{name} = {value!r} is not a vector of numbers") from None
+    if y.ndim > 1:
+        raise InvalidInputError(f"{name} must be a flat vector, got an array of shape {y.shape}")
+    y = y.ravel()
     if n is not None and y.size != n:
         raise InvalidInputError(f"{name} has {y.size} entries, the problem has {n} states")
     if y.size == 0:

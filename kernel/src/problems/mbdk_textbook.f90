@@ -55,6 +55,7 @@ module mbdk_textbook
   type, extends(mbdk_problem_t), public :: mbdk_textbook_t
     integer :: id = 0
     real(dp), allocatable :: p(:)
+    real(dp), allocatable :: a(:, :)   !< linear_system: A, built once at init
   contains
     procedure :: rhs => textbook_rhs
     procedure :: jac => textbook_jac
@@ -118,6 +119,7 @@ contains
     prob%id = id
     prob%n = n
     prob%p = p
+    if (id == LINEAR_SYSTEM) prob%a = reshape(p, [n, n])
     prob%nq = 0
     if (id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) prob%nq = n / 2
     prob%has_jac = .not. (id == TROLLEY_CRANE .or. id == DOUBLE_PENDULUM)
@@ -186,7 +188,7 @@ contains
         f(3) = (m22 * r1 - m12 * r2) / det
         f(4) = (m11 * r2 - m12 * r1) / det
       case (LINEAR_SYSTEM)
-        f = matmul(reshape(p, [self%n, self%n]), y)
+        f = matmul(self%a, y)
       end select
     end associate
   end subroutine textbook_rhs
@@ -223,7 +225,7 @@ contains
         jac(1, 2) = 1.0_dp
         jac(2, 1) = -w2
       case (LINEAR_SYSTEM)
-        jac = reshape(p, [self%n, self%n])
+        jac = self%a
       case default
         stat = MBDK_ERR_INVALID_INPUT
       end select
