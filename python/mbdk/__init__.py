@@ -13,11 +13,13 @@ from .methods import MethodInfo, methods
 from .ode import build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
 from .result import ODEResult, Stats
+from . import stability  # noqa: F401,E402
+from .stability import StabilityRegion, stability_region
 
 __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
-    "BackendError",
+    "BackendError", "stability_region", "StabilityRegion",
 ]

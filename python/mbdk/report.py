@@ -12,7 +12,8 @@ from pathlib import Path
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
-STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "benchmark_rk4"]
+STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "benchmark_rk4",
+           "stability"]
 
 
 def find_studies(explicit: Path | None = None) -> Path:

@@ -115,6 +115,36 @@ subroutine sample_count(t0, t_end, h, every, nsteps, nsamp, status)
   nsteps = dble(ns)
 end subroutine sample_count
 
+subroutine step_history_length(method_id, k)
+  ! Past states one step of the method reads (k of a k-step method, 1 otherwise, 0 unknown).
+  use mbdk_step_matrix, only: mbdk_step_history_length
+  implicit none
+  integer, intent(in) :: method_id
+  integer, intent(out) :: k
+  k = mbdk_step_history_length(method_id)
+end subroutine step_history_length
+
+subroutine step_matrices(method_id, n, npts, nk, a, h, newton_rtol, newton_atol, m, status)
+  ! m(:, :, p) = the step matrix of the method with step h(p) on y' = a(:, :, p) y, from the
+  ! kernel's own step routine (mbdk_step_matrix); status(p) per matrix.
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_step_matrix, only: mbdk_step_matrix_eval
+  implicit none
+  integer, intent(in) :: method_id, n, npts, nk
+  double precision, intent(in) :: a(n, n, npts), h(npts), newton_rtol, newton_atol
+  double precision, intent(out) :: m(nk, nk, npts)
+  integer, intent(out) :: status(npts)
+!f2py integer intent(hide), depend(a) :: n = shape(a, 0)
+!f2py integer intent(hide), depend(a) :: npts = shape(a, 2)
+  type(mbdk_options_t) :: opt
+  integer :: p
+  opt%newton_rtol = newton_rtol
+  opt%newton_atol = newton_atol
+  do p = 1, npts
+    call mbdk_step_matrix_eval(method_id, a(:, :, p), h(p), opt, m(:, :, p), status(p))
+  end do
+end subroutine step_matrices
+
 subroutine method_id(name, id)
   use mbdk_methods, only: mbdk_method_id
   implicit none
