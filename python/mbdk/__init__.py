@@ -15,11 +15,14 @@ from .problems import ProblemInfo, problems
 from .result import ODEResult, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
+from .scene import Scene, SceneError, load_scene, scene, scenes
+from .simulate import RedundantConstraintsError, SceneResult, simulate
 
 __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
-    "BackendError", "stability_region", "StabilityRegion",
+    "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
+    "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError",
 ]

@@ -225,3 +225,138 @@ subroutine build_info(compiler, options)
   compiler = compiler_version()
   options = compiler_options()
 end subroutine build_info
+
+! ---------------------------------------------------------------------------------------------
+! Scenes (kernel/src/model): the tables of mbdk_joints and mbdk_force_elements, built by
+! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
+
+subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                       formulation, fpar, method_id, n, y0, t0, t_end, h, every, newton_rtol, &
+                       newton_atol, newton_max_iter, startup, nsamp, t_out, y_out, nwritten, &
+                       stats, visits, status)
+  ! Integrates a scene with a fixed-step method; the whole loop is compiled.
+  use mbdk_kinds, only: i8
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, MBDK_VISIT_COUNT
+  use mbdk_fixed_step, only: mbdk_fixed_step_solve
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, method_id, n, every
+  integer, intent(in) :: newton_max_iter, startup, nsamp
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7), visits(9)
+  integer, intent(out) :: nwritten, status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+  type(mbdk_model_t) :: model
+  type(mbdk_options_t) :: opt
+  type(mbdk_stats_t) :: st
+  integer(i8) :: vis(MBDK_VISIT_COUNT)
+
+  nwritten = 0
+  stats = 0.0d0
+  visits = 0.0d0
+  t_out = 0.0d0
+  y_out = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), formulation, fpar, vis, status)
+  if (status /= MBDK_SUCCESS) return
+  opt%method = method_id
+  opt%h = h
+  opt%every = every
+  opt%newton_rtol = newton_rtol
+  opt%newton_atol = newton_atol
+  opt%newton_max_iter = newton_max_iter
+  opt%startup = startup
+  call mbdk_fixed_step_solve(model, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
+  stats = mbdk_stats_to_array(st)
+  visits = dble(vis(1:9))
+end subroutine model_solve
+
+subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                      formulation, fpar, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, status)
+  ! Phi, D, gamma, Phi_t, the generalised forces and the formulation's accelerations and
+  ! multipliers at one state: for assembly, diagnosis and tests.
+  use mbdk_kinds, only: i8
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
+    mbdk_model_accelerations, MBDK_VISIT_COUNT
+  use mbdk_force_elements, only: mbdk_forces_eval
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: t, y(2 * nc)
+  double precision, intent(out) :: phi(m), d(m, nc), gam(m), phit(m), fq(nc), acc(nc), lam(m)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
+  type(mbdk_model_t) :: model
+  integer(i8) :: vis(MBDK_VISIT_COUNT)
+
+  phi = 0.0d0; d = 0.0d0; gam = 0.0d0; phit = 0.0d0; fq = 0.0d0; acc = 0.0d0; lam = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), formulation, fpar, vis, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (model%m /= m) return
+  call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), phi, d, gam, phit)
+  call mbdk_forces_eval(model%fint, model%freal, model%mass, y(1:nc), y(nc + 1:), t, fq, &
+                        vis(5:), status)
+  if (status /= MBDK_SUCCESS) return
+  call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
+end subroutine model_eval
+
+subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                         formulation, fpar, m, nc, ns, t, y, acc, lam, reac, energy, resid, &
+                         nok, status)
+  ! The sampled outputs (accelerations, multipliers, reactions, energy parts, residuals) at
+  ! every sample of a trajectory; nok samples were evaluated before a failure.
+  use mbdk_kinds, only: i8
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_outputs, MBDK_VISIT_COUNT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc, ns
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: t(ns), y(2 * nc, ns)
+  double precision, intent(out) :: acc(nc, ns), lam(m, ns), reac(3, nj1, ns), energy(6, ns)
+  double precision, intent(out) :: resid(3, ns)
+  integer, intent(out) :: nok, status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
+!f2py integer intent(hide), depend(t) :: ns = len(t)
+  type(mbdk_model_t) :: model
+  integer(i8) :: vis(MBDK_VISIT_COUNT)
+  integer :: k
+
+  acc = 0.0d0; lam = 0.0d0; reac = 0.0d0; energy = 0.0d0; resid = 0.0d0
+  nok = 0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), formulation, fpar, vis, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (model%m /= m) return
+  status = MBDK_SUCCESS
+  do k = 1, ns
+    call mbdk_model_outputs(model, t(k), y(:, k), acc(:, k), lam(:, k), reac(:, 1:nj, k), &
+                            energy(:, k), resid(:, k), status)
+    if (status /= MBDK_SUCCESS) return
+    nok = k
+  end do
+end subroutine model_outputs

@@ -5,7 +5,7 @@
 !> (MBDK_SUCCESS or a failure code such as MBDK_ERR_CALLBACK_FAILED); it must not print or stop.
 module mbdk_problem
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_ERR_NOT_APPLICABLE
+  use mbdk_status, only: MBDK_ERR_NOT_APPLICABLE, MBDK_SUCCESS
   implicit none
   private
 
@@ -13,9 +13,12 @@ module mbdk_problem
     integer :: n = 0             !< number of states
     integer :: nq = 0            !< > 0: y = [q; v], q' = v, n = 2*nq
     logical :: has_jac = .false. !< .true. when jac gives the analytic dF/dy
+    logical :: has_post_step = .false. !< .true.: the driver calls post_step after every step
   contains
+
     procedure(rhs_iface), deferred :: rhs
     procedure :: jac => no_jac
+    procedure :: post_step => no_post_step
   end type mbdk_problem_t
 
   abstract interface
@@ -40,5 +43,14 @@ contains
     jac = 0.0_dp
     stat = MBDK_ERR_NOT_APPLICABLE  ! callers check has_jac first
   end subroutine no_jac
+
+  !> Default: nothing to do after a step (a projection onto a manifold overrides this).
+  subroutine no_post_step(self, t, y, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: y(:)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+  end subroutine no_post_step
 
 end module mbdk_problem

@@ -13,6 +13,9 @@
 !> order 1, 2, ..., k-1 (stable on stiff problems, where RK4 start-up steps amplify by |R(h*lambda)|
 !> each). They are counted in stats%startup_steps.
 !>
+!> A problem with has_post_step (the projection formulation of scenes) gets post_step(t, y)
+!> after every step; a multistep history then continues from the projected state.
+!>
 !> After every step the state is checked: inf or NaN ends the solve with MBDK_ERR_NONFINITE,
 !> keeping the samples written so far. CPU time of the loop is measured with cpu_time.
 module mbdk_fixed_step
@@ -169,6 +172,22 @@ contains
         end if
       end select
       if (stat /= MBDK_SUCCESS) exit
+      if (prob%has_post_step) then   ! e.g. projection onto the constraint manifold
+        if (i == nsteps) then
+          call prob%post_step(t_end, y, stat)
+        else
+          call prob%post_step(t0 + real(i, dp) * opt%h, y, stat)
+        end if
+        if (stat /= MBDK_SUCCESS) exit
+        if (family == MBDK_FAMILY_IMPLICIT_LMM) then
+          hist(:, 1) = y
+          if (lmm%beta1 /= 0.0_dp) then
+            call prob%rhs(t0 + real(i, dp) * opt%h, y, fn, stat)
+            st%rhs_evals = st%rhs_evals + 1
+            if (stat /= MBDK_SUCCESS) exit
+          end if
+        end if
+      end if
       if (.not. all(abs(y) <= huge(1.0_dp))) then
         stat = MBDK_ERR_NONFINITE
         exit

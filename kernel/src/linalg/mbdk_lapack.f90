@@ -1,10 +1,11 @@
-!> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs).
+!> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs) and
+!> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs).
 module mbdk_lapack
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
   implicit none
   private
-  public :: mbdk_lu_factor, mbdk_lu_solve
+  public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
 
   interface
     subroutine dgetrf(m, n, a, lda, ipiv, info)
@@ -22,6 +23,21 @@ module mbdk_lapack
       real(dp), intent(inout) :: b(ldb, *)
       integer, intent(out) :: info
     end subroutine dgetrs
+    subroutine dpotrf(uplo, n, a, lda, info)
+      import :: dp
+      character(len=1), intent(in) :: uplo
+      integer, intent(in) :: n, lda
+      real(dp), intent(inout) :: a(lda, *)
+      integer, intent(out) :: info
+    end subroutine dpotrf
+    subroutine dpotrs(uplo, n, nrhs, a, lda, b, ldb, info)
+      import :: dp
+      character(len=1), intent(in) :: uplo
+      integer, intent(in) :: n, nrhs, lda, ldb
+      real(dp), intent(in) :: a(lda, *)
+      real(dp), intent(inout) :: b(ldb, *)
+      integer, intent(out) :: info
+    end subroutine dpotrs
   end interface
 
 contains
@@ -54,5 +70,26 @@ contains
     call dgetrs('N', n, 1, lu, n, ipiv, b, n, info)
     stat = merge(MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, info == 0)
   end subroutine mbdk_lu_solve
+
+  !> In-place Cholesky (lower); MBDK_ERR_SINGULAR_MATRIX when A is not positive definite.
+  subroutine mbdk_chol_factor(a, stat)
+    real(dp), intent(inout) :: a(:, :)
+    integer, intent(out) :: stat
+    integer :: info, n
+    n = size(a, 1)
+    call dpotrf('L', n, a, n, info)
+    stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info == 0)
+  end subroutine mbdk_chol_factor
+
+  !> Solves A x = b with the factor of mbdk_chol_factor; b is overwritten by x.
+  subroutine mbdk_chol_solve(l, b, stat)
+    real(dp), intent(in) :: l(:, :)
+    real(dp), intent(inout) :: b(:)
+    integer, intent(out) :: stat
+    integer :: info, n
+    n = size(l, 1)
+    call dpotrs('L', n, 1, l, n, b, n, info)
+    stat = merge(MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, info == 0)
+  end subroutine mbdk_chol_solve
 
 end module mbdk_lapack

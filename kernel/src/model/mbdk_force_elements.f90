@@ -1,0 +1,139 @@
+!> Force elements of planar scenes, as generalised forces f(q, v, t) by virtual power
+!> (Fekete (2023) section 2.3: the spring bar (2.95)-(2.99) and the spring-and-damper bar
+!> (2.120)-(2.126)), with their potential energy and power.
+!>
+!> Table fint(4, nf) = (type, body1, body2, coordinate); freal(12, nf), time function in 8:12:
+!>   1 gravity              g = freal(1:2) on every body (only when the scene declares it)
+!>   2 point force          F(t) = freal(3:4) * f(t) at the body-fixed point freal(1:2) of body1
+!>   3 torque               T(t) = freal(1) * f(t) on body1
+!>   4 spring-damper        between s1 = freal(1:2) on body1 and s2 = freal(3:4) on body2 (0:
+!>                          ground, global point); tension F = k (L - L0) + c dL/dt with
+!>                          k = freal(5), L0 = freal(6), c = freal(7); pulls the points together
+!>                          when positive. A pure spring has c = 0, a pure damper k = 0.
+!>   5 coordinate spring-damper on q(3 body1 - 3 + coordinate): -k (q - q0) - c q',
+!>                          k = freal(1), c = freal(2), q0 = freal(3) (the trolley's -s x1 - k x1')
+!> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE.
+module mbdk_force_elements
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
+  use mbdk_time_function, only: mbdk_time_fn
+  use mbdk_joints, only: mbdk_body_point
+  implicit none
+  private
+  public :: mbdk_forces_eval, mbdk_forces_energy
+
+  integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
+    MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
+    MBDK_FORCE_TYPES = 5
+
+contains
+
+  !> f(nc) += the generalised forces of every element; visits(1:5) counts them per type.
+  subroutine mbdk_forces_eval(fint, freal, mass, q, v, t, f, visits, stat)
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :), mass(:), q(:), v(:), t
+    real(dp), intent(inout) :: f(:)
+    integer(i8), intent(inout) :: visits(:)
+    integer, intent(out) :: stat
+    integer :: e, b, nb, k
+    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), el(2)
+    real(dp) :: len, ldot, ften, tf, tfd, tfdd, fv(2)
+
+    stat = MBDK_SUCCESS
+    nb = size(mass) / 3
+    do e = 1, size(fint, 2)
+      visits(fint(1, e)) = visits(fint(1, e)) + 1
+      select case (fint(1, e))
+      case (MBDK_FORCE_GRAVITY)
+        do b = 1, nb
+          f(3 * b - 2) = f(3 * b - 2) + mass(3 * b - 2) * freal(1, e)
+          f(3 * b - 1) = f(3 * b - 1) + mass(3 * b - 1) * freal(2, e)
+        end do
+      case (MBDK_FORCE_POINT)
+        b = fint(2, e)
+        call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
+        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        fv = freal(3:4, e) * tf
+        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + fv
+        f(3 * b) = f(3 * b) + rho1(1) * fv(2) - rho1(2) * fv(1)
+      case (MBDK_FORCE_TORQUE)
+        b = fint(2, e)
+        call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
+        f(3 * b) = f(3 * b) + freal(1, e) * tf
+      case (MBDK_FORCE_SPRING_DAMPER)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        dd = p1 - p2
+        len = norm2(dd)
+        if (.not. (len > 0.0_dp)) then
+          stat = MBDK_ERR_NONFINITE
+          return
+        end if
+        el = dd / len
+        ldot = dot_product(el, pv1 - pv2)
+        ften = freal(5, e) * (len - freal(6, e)) + freal(7, e) * ldot
+        fv = -ften * el                       ! on point 1; the opposite on point 2
+        b = fint(2, e)
+        if (b > 0) then
+          f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + fv
+          f(3 * b) = f(3 * b) + rho1(1) * fv(2) - rho1(2) * fv(1)
+        end if
+        b = fint(3, e)
+        if (b > 0) then
+          f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) - fv
+          f(3 * b) = f(3 * b) - (rho2(1) * fv(2) - rho2(2) * fv(1))
+        end if
+      case (MBDK_FORCE_COORDINATE)
+        k = 3 * fint(2, e) - 3 + fint(4, e)
+        f(k) = f(k) - freal(1, e) * (q(k) - freal(3, e)) - freal(2, e) * v(k)
+      end select
+    end do
+  end subroutine mbdk_forces_eval
+
+  !> Potential energy of gravity and of the springs, the power dissipated by the dampers (>= 0)
+  !> and the power of the applied loads (point forces and torques).
+  subroutine mbdk_forces_energy(fint, freal, mass, q, v, t, v_gravity, v_springs, p_damp, p_load)
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :), mass(:), q(:), v(:), t
+    real(dp), intent(out) :: v_gravity, v_springs, p_damp, p_load
+    integer :: e, b, nb, k
+    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), len, ldot
+    real(dp) :: tf, tfd, tfdd
+
+    v_gravity = 0.0_dp
+    v_springs = 0.0_dp
+    p_damp = 0.0_dp
+    p_load = 0.0_dp
+    nb = size(mass) / 3
+    do e = 1, size(fint, 2)
+      select case (fint(1, e))
+      case (MBDK_FORCE_GRAVITY)
+        do b = 1, nb
+          v_gravity = v_gravity - mass(3 * b - 2) * dot_product(freal(1:2, e), q(3 * b - 2:3 * b - 1))
+        end do
+      case (MBDK_FORCE_POINT)
+        b = fint(2, e)
+        call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
+        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        p_load = p_load + dot_product(freal(3:4, e) * tf, pv1)
+      case (MBDK_FORCE_TORQUE)
+        call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
+        p_load = p_load + freal(1, e) * tf * v(3 * fint(2, e))
+      case (MBDK_FORCE_SPRING_DAMPER)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        dd = p1 - p2
+        len = norm2(dd)
+        ldot = 0.0_dp
+        if (len > 0.0_dp) ldot = dot_product(dd / len, pv1 - pv2)
+        v_springs = v_springs + 0.5_dp * freal(5, e) * (len - freal(6, e))**2
+        p_damp = p_damp + freal(7, e) * ldot**2
+      case (MBDK_FORCE_COORDINATE)
+        k = 3 * fint(2, e) - 3 + fint(4, e)
+        v_springs = v_springs + 0.5_dp * freal(1, e) * (q(k) - freal(3, e))**2
+        p_damp = p_damp + freal(2, e) * v(k)**2
+      end select
+    end do
+  end subroutine mbdk_forces_energy
+
+end module mbdk_force_elements

@@ -1,0 +1,412 @@
+!> A planar multibody scene as a problem y' = F(t, y) for every integrator of the kernel:
+!> y = [q; v], q = (x, y, theta) per body in absolute coordinates (nq = 3 bodies), and
+!>
+!>   M q'' + D^T lambda = f(q, v, t),        Phi(q, t) = 0          (Fekete (2023) (2.54))
+!>
+!> turned into accelerations by the formulation (Fekete (2023) section 3):
+!>   1 reduced     D q'' = gamma                                            (3.18)-(3.28)
+!>   2 baumgarte   D q'' = gamma - 2 alpha Phi' - beta^2 Phi                 (3.29)-(3.34)
+!>   3 penalty     (M + ap D^T D) q'' = f - ap D^T (-gamma + 2 mu w Phi' + w^2 Phi),
+!>                 lambda = ap (D q'' - gamma + 2 mu w Phi' + w^2 Phi)       (3.35)-(3.40)
+!>   4 projection  reduced, then after every step q is projected onto Phi = 0 and v onto
+!>                 Phi' = 0 (mass-weighted least change; Euclidean if a body has zero inertia)
+!> with Phi' = D v + Phi_t.
+!>
+!> Linear solves: when M is positive (every body has mass and inertia) the constrained systems
+!> are solved through the Schur complement S = D M^-1 D^T (M diagonal), by an in-house Cholesky
+!> up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems) or
+!> LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised with
+!> LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
+!> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
+!>
+!> Only the elements a scene declares are visited; visits(:) counts the evaluations of each
+!> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
+!> nothing. The counters sit behind a pointer because rhs receives the problem read-only.
+module mbdk_model
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status
+  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, MBDK_JOINT_TYPES
+  use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES
+  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_small_dense, only: mbdk_small_chol_factor, mbdk_small_chol_solve, MBDK_SMALL_DENSE_MAX
+  implicit none
+  private
+  public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
+
+  integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
+    MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
+  integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3
+  integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
+  !> outputs per sample: energy parts and residuals
+  integer, parameter, public :: MBDK_OUT_ENERGY = 6, MBDK_OUT_RESID = 3
+  real(dp), parameter :: SINGULAR_TOL = 1.0e-11_dp
+
+  type, extends(mbdk_problem_t), public :: mbdk_model_t
+    integer :: nb = 0, nc = 0, m = 0
+    real(dp), allocatable :: mass(:), winv(:)     !< diagonal of M (nc) and of the projection weight
+    logical :: m_positive = .false.
+    integer, allocatable :: jint(:, :), row0(:), fint(:, :)
+    real(dp), allocatable :: jreal(:, :), freal(:, :)
+    integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
+    logical :: small_dense = .true.
+    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp               !< Baumgarte
+    real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp   !< Jalon-Bayo
+    real(dp) :: proj_tol = 1.0e-12_dp
+    integer :: proj_max_iter = 20
+    integer(i8), pointer :: visits(:) => null()
+  contains
+    procedure :: rhs => model_rhs
+    procedure :: post_step => model_post_step
+  end type mbdk_model_t
+
+contains
+
+  !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
+  !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense).
+  !> MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python layer names the element.
+  subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, formulation, fpar, &
+                             visits, stat)
+    type(mbdk_model_t), intent(out) :: model
+    real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), fpar(8)
+    integer, intent(in) :: jint(:, :), fint(:, :), formulation
+    integer(i8), target, intent(inout) :: visits(:)
+    integer, intent(out) :: stat
+    integer :: b, j, rows
+
+    stat = MBDK_ERR_INVALID_INPUT
+    model%nb = size(mass)
+    if (model%nb < 1 .or. size(inertia) /= model%nb) return
+    if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
+    if (size(visits) < MBDK_VISIT_COUNT) return
+    if (formulation < MBDK_FORM_REDUCED .or. formulation > MBDK_FORM_PROJECTION) return
+    model%nc = 3 * model%nb
+    model%n = 2 * model%nc
+    model%nq = model%nc
+    allocate (model%mass(model%nc), model%winv(model%nc))
+    do b = 1, model%nb
+      model%mass(3 * b - 2:3 * b - 1) = mass(b)
+      model%mass(3 * b) = inertia(b)
+    end do
+    model%m_positive = all(model%mass > 0.0_dp)
+    if (model%m_positive) then
+      model%winv = 1.0_dp / model%mass
+    else
+      model%winv = 1.0_dp
+    end if
+    allocate (model%row0(size(jint, 2)))
+    rows = 0
+    do j = 1, size(jint, 2)
+      if (mbdk_joint_rows(jint(1, j)) == 0) return
+      if (jint(2, j) < 0 .or. jint(2, j) > model%nb .or. jint(3, j) < 0 .or. &
+          jint(3, j) > model%nb) return
+      if (jint(2, j) == 0) return
+      if (jint(4, j) < 0 .or. jint(4, j) > 3) return
+      model%row0(j) = rows + 1
+      rows = rows + mbdk_joint_rows(jint(1, j))
+    end do
+    model%m = rows
+    if (model%m > model%nc) return
+    do j = 1, size(fint, 2)
+      if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES) return
+      if (fint(2, j) < 0 .or. fint(2, j) > model%nb .or. fint(3, j) < 0 .or. &
+          fint(3, j) > model%nb .or. fint(4, j) < 0 .or. fint(4, j) > 3) return
+    end do
+    if (size(jreal, 1) /= 12 .or. size(jreal, 2) /= size(jint, 2)) return
+    if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
+    if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
+    if (.not. all(abs(fpar) <= huge(1.0_dp))) return
+    model%jint = jint
+    model%jreal = jreal
+    model%fint = fint
+    model%freal = freal
+    model%formulation = formulation
+    model%alpha = fpar(1)
+    model%beta = fpar(2)
+    model%pen_alpha = fpar(3)
+    model%pen_omega = fpar(4)
+    model%pen_mu = fpar(5)
+    model%proj_tol = fpar(6)
+    model%solver = nint(fpar(7))
+    model%small_dense = fpar(8) /= 0.0_dp
+    if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_KKT) return
+    if (model%solver == MBDK_SOLVER_SCHUR .and. .not. model%m_positive) return
+    if (formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
+    if (formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
+    model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
+    visits = 0
+    model%visits => visits
+    model%has_jac = .false.
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_model_init
+
+  !> Phi, D (m x nc), gamma, Phi_t at (q, v, t).
+  subroutine mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    real(dp), intent(out) :: phi(:), d(:, :), gam(:), phit(:)
+    d = 0.0_dp
+    if (self%m == 0) return
+    call mbdk_joints_eval(self%jint, self%jreal, self%row0, q, v, t, phi, d, gam, phit, &
+                          self%visits(1:MBDK_JOINT_TYPES))
+  end subroutine mbdk_model_constraints
+
+  subroutine model_rhs(self, t, y, f, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(dp) :: lam(self%m)
+    integer :: nc
+    nc = self%nc
+    f(1:nc) = y(nc + 1:2 * nc)
+    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), lam, stat)
+  end subroutine model_rhs
+
+  !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation.
+  subroutine mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    real(dp), intent(out) :: a(:), lam(:)
+    integer, intent(out) :: stat
+    integer :: nc, m, i, form
+    real(dp) :: fq(self%nc), phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m)
+    real(dp) :: rc(self%m), pm(self%nc, self%nc), dphi(self%m), w2, tmu
+
+    nc = self%nc
+    m = self%m
+    if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) then
+      stat = MBDK_ERR_NONFINITE
+      return
+    end if
+    fq = 0.0_dp
+    call mbdk_forces_eval(self%fint, self%freal, self%mass, q, v, t, fq, &
+                          self%visits(MBDK_JOINT_TYPES + 1:), stat)
+    if (stat /= MBDK_SUCCESS) return
+    if (m == 0) then
+      if (.not. self%m_positive) then
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
+      a = fq * self%winv
+      return
+    end if
+    call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
+    form = self%formulation
+    select case (form)
+    case (MBDK_FORM_REDUCED, MBDK_FORM_PROJECTION)
+      rc = gam
+    case (MBDK_FORM_BAUMGARTE)
+      rc = gam - 2.0_dp * self%alpha * (matmul(d, v) + phit) - self%beta**2 * phi
+    case (MBDK_FORM_PENALTY)
+      w2 = self%pen_omega**2
+      tmu = 2.0_dp * self%pen_mu * self%pen_omega
+      dphi = matmul(d, v) + phit
+      rc = -gam + tmu * dphi + w2 * phi
+      a = fq - self%pen_alpha * matmul(rc, d)
+      pm = self%pen_alpha * matmul(transpose(d), d)
+      do i = 1, nc
+        pm(i, i) = pm(i, i) + self%mass(i)
+      end do
+      if (self%small_dense .and. nc <= MBDK_SMALL_DENSE_MAX) then
+        call mbdk_small_chol_factor(pm, nc, 1.0e-15_dp, stat)
+        if (stat == MBDK_SUCCESS) call mbdk_small_chol_solve(pm, nc, a)
+      else
+        call mbdk_chol_factor(pm, stat)
+        if (stat == MBDK_SUCCESS) call mbdk_chol_solve(pm, a, stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+      lam = self%pen_alpha * (matmul(d, a) + rc)
+      return
+    end select
+    call solve_constrained(self, d, fq, rc, a, lam, stat)
+  end subroutine mbdk_model_accelerations
+
+  !> M a + D^T lam = fq, D a = rc: Schur complement (M positive, not forced to KKT) or KKT LU.
+  subroutine solve_constrained(self, d, fq, rc, a, lam, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: d(:, :), fq(:), rc(:)
+    real(dp), intent(out) :: a(:), lam(:)
+    integer, intent(out) :: stat
+    integer :: nc, m, i, j, k, nk
+    real(dp) :: s(self%m, self%m), wd(self%m, self%nc), umax, umin
+    real(dp), allocatable :: kkt(:, :), rhs(:)
+    integer, allocatable :: ipiv(:)
+
+    nc = self%nc
+    m = self%m
+    if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
+      do k = 1, nc
+        wd(:, k) = d(:, k) * self%winv(k)
+      end do
+      ! S = D W D^T (symmetric: lower triangle), lam-rhs = D W fq - rc
+      do j = 1, m
+        do i = j, m
+          s(i, j) = dot_product(wd(i, :), d(j, :))
+        end do
+        lam(j) = dot_product(wd(j, :), fq) - rc(j)
+      end do
+      if (self%small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
+        call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call mbdk_small_chol_solve(s, m, lam)
+      else
+        do j = 1, m
+          do i = 1, j - 1
+            s(i, j) = s(j, i)
+          end do
+        end do
+        call mbdk_chol_factor(s, stat)
+        if (stat == MBDK_SUCCESS) call check_chol_pivots(s, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call mbdk_chol_solve(s, lam, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      a = self%winv * (fq - matmul(lam, d))
+      return
+    end if
+    nk = nc + m
+    allocate (kkt(nk, nk), rhs(nk), ipiv(nk))
+    kkt = 0.0_dp
+    do i = 1, nc
+      kkt(i, i) = self%mass(i)
+    end do
+    kkt(nc + 1:nk, 1:nc) = d
+    kkt(1:nc, nc + 1:nk) = transpose(d)
+    rhs(1:nc) = fq
+    rhs(nc + 1:nk) = rc
+    call mbdk_lu_factor(kkt, ipiv, stat)
+    if (stat /= MBDK_SUCCESS) return
+    umax = 0.0_dp
+    umin = huge(1.0_dp)
+    do i = 1, nk
+      umax = max(umax, abs(kkt(i, i)))
+      umin = min(umin, abs(kkt(i, i)))
+    end do
+    if (umin <= SINGULAR_TOL * umax * max(1.0_dp, maxval(self%mass))) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      return
+    end if
+    call mbdk_lu_solve(kkt, ipiv, rhs, stat)
+    if (stat /= MBDK_SUCCESS) return
+    a = rhs(1:nc)
+    lam = rhs(nc + 1:nk)
+  end subroutine solve_constrained
+
+  subroutine check_chol_pivots(l, stat)
+    real(dp), intent(in) :: l(:, :)
+    integer, intent(out) :: stat
+    integer :: i
+    real(dp) :: dmax, dmin
+    dmax = 0.0_dp
+    dmin = huge(1.0_dp)
+    do i = 1, size(l, 1)
+      dmax = max(dmax, l(i, i)**2)
+      dmin = min(dmin, l(i, i)**2)
+    end do
+    stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, dmin > SINGULAR_TOL * dmax)
+  end subroutine check_chol_pivots
+
+  !> Projection after a step: q onto Phi(q, t) = 0 by Gauss-Newton with the weight W (M^-1, or
+  !> the identity when a body has zero inertia), then v onto D v + Phi_t = 0.
+  subroutine model_post_step(self, t, y, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: y(:)
+    integer, intent(out) :: stat
+    integer :: nc, m, it, i, j, k
+    real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), s(self%m, self%m)
+    real(dp) :: wd(self%m, self%nc), mu(self%m)
+
+    nc = self%nc
+    m = self%m
+    stat = MBDK_SUCCESS
+    do it = 0, self%proj_max_iter
+      call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), phi, d, gam, phit)
+      if (it > 0 .and. maxval(abs(phi)) <= self%proj_tol) exit
+      if (it == self%proj_max_iter) then
+        stat = MBDK_ERR_NEWTON_DIVERGED
+        return
+      end if
+      call schur(stat)
+      if (stat /= MBDK_SUCCESS) return
+      mu = phi
+      call mbdk_small_chol_solve(s, m, mu)
+      y(1:nc) = y(1:nc) - matmul(mu, wd)
+      if (it == 0 .and. maxval(abs(phi)) <= self%proj_tol) exit
+    end do
+    call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), phi, d, gam, phit)
+    call schur(stat)
+    if (stat /= MBDK_SUCCESS) return
+    mu = matmul(d, y(nc + 1:2 * nc)) + phit
+    call mbdk_small_chol_solve(s, m, mu)
+    y(nc + 1:2 * nc) = y(nc + 1:2 * nc) - matmul(mu, wd)
+
+  contains
+
+    subroutine schur(st)
+      integer, intent(out) :: st
+      do k = 1, nc
+        wd(:, k) = d(:, k) * self%winv(k)
+      end do
+      do j = 1, m
+        do i = j, m
+          s(i, j) = dot_product(wd(i, :), d(j, :))
+        end do
+      end do
+      call mbdk_small_chol_factor(s, m, SINGULAR_TOL, st)
+    end subroutine schur
+
+  end subroutine model_post_step
+
+  !> Everything sampled with the trajectory at (t, y): accelerations a(nc), multipliers lam(m),
+  !> reac(3, nj) = the force (x, y) and the moment about the joint point that each joint exerts
+  !> on its first body, global frame (-D_body1^T lam), energy(6) = kinetic, gravity potential,
+  !> spring potential, damper power (dissipated), constraint power (-lam . D v: the work rate
+  !> of the constraint forces, nonzero only through drift, stabilisation and drivers), load
+  !> power; resid(3) = max |Phi|, max |D v + Phi_t|, max |D a - gamma| (the latter with
+  !> gamma of the reduced form).
+  subroutine mbdk_model_outputs(self, t, y, a, lam, reac, energy, resid, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: a(:), lam(:), reac(:, :), energy(MBDK_OUT_ENERGY), resid(MBDK_OUT_RESID)
+    integer, intent(out) :: stat
+    integer :: nc, m, j, r, k, b1, c
+    real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), q(self%nc), v(self%nc)
+    real(dp) :: p(2), rho(2), pv(2), w, qf(3)
+
+    nc = self%nc
+    m = self%m
+    q = y(1:nc)
+    v = y(nc + 1:2 * nc)
+    call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
+    energy(1) = 0.5_dp * sum(self%mass * v**2)
+    call mbdk_forces_energy(self%fint, self%freal, self%mass, q, v, t, energy(2), energy(3), &
+                            energy(4), energy(6))
+    resid = 0.0_dp
+    energy(5) = 0.0_dp
+    if (m > 0) then
+      energy(5) = -dot_product(lam, matmul(d, v))
+      resid(1) = maxval(abs(phi))
+      resid(2) = maxval(abs(matmul(d, v) + phit))
+      resid(3) = maxval(abs(matmul(d, a) - gam))
+    end if
+    reac = 0.0_dp
+    do j = 1, size(self%jint, 2)
+      r = self%row0(j)
+      k = mbdk_joint_rows(self%jint(1, j))
+      b1 = self%jint(2, j)
+      do c = 1, 3
+        qf(c) = -dot_product(d(r:r + k - 1, 3 * b1 - 3 + c), lam(r:r + k - 1))
+      end do
+      rho = 0.0_dp
+      if (self%jint(1, j) /= 4) call mbdk_body_point(b1, self%jreal(1:2, j), q, v, p, rho, pv, w)
+      reac(1:2, j) = qf(1:2)
+      reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
+    end do
+  end subroutine mbdk_model_outputs
+
+end module mbdk_model

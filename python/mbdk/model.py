@@ -1,0 +1,214 @@
+"""Scene -> the kernel's element tables (kernel/src/model), evaluation at one state, assembly of
+initial conditions, and the diagnosis of dependent (redundant) constraints.
+
+The table layouts are documented in kernel/src/model/mbdk_joints.f90 and
+mbdk_force_elements.f90; this module is their only writer.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _kernel
+from .errors import Status, exception_for
+from .scene import COORDS, GROUND, Scene, SceneError
+
+FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+SOLVERS = {"auto": 1, "schur": 2, "kkt": 3}
+JOINT_CODES = {"revolute": 1, "prismatic": 2, "fixed": 3, "driver": 4}
+JOINT_ROWS = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}
+FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring": 4, "damper": 4,
+               "spring_damper": 4, "coordinate_spring": 5, "coordinate_damper": 5,
+               "coordinate_spring_damper": 5}
+#: the kernel's visit counters, in order (joints 1..4, forces 5..9)
+VISIT_NAMES = ["revolute", "prismatic", "fixed", "driver", "gravity", "point_force", "torque",
+               "spring_damper", "coordinate_spring_damper"]
+
+
+@dataclass
+class Tables:
+    mass: np.ndarray
+    inertia: np.ndarray
+    nj: int
+    jint: np.ndarray
+    jreal: np.ndarray
+    nf: int
+    fint: np.ndarray
+    freal: np.ndarray
+    m: int
+    nc: int
+    rows: list          # (joint name, first row (0-based), count)
+
+    def args(self):
+        return (self.mass, self.inertia, self.nj, self.jint, self.jreal, self.nf, self.fint,
+                self.freal)
+
+
+def _rot(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+def _point(sc: Scene, q, body: str, s):
+    if body == GROUND:
+        return np.asarray(s, float)
+    i = sc.body_index(body) - 1
+    return q[3 * i:3 * i + 2] + _rot(q[3 * i + 2]) @ np.asarray(s, float)
+
+
+def build_tables(sc: Scene, q0=None) -> Tables:
+    """The kernel's tables for a scene. Defaults that depend on the initial configuration (a
+    spring's rest length, a prismatic or fixed joint's relative angle) are taken at q0."""
+    q0 = np.asarray(sc.q0() if q0 is None else q0, float)
+    nb = len(sc.bodies)
+    mass = np.array([b.mass for b in sc.bodies], float)
+    inertia = np.array([b.inertia for b in sc.bodies], float)
+    nj, nf = len(sc.joints), len(sc.forces)
+    jint = np.zeros((4, max(nj, 1)), np.int32, order="F")
+    jreal = np.zeros((12, max(nj, 1)), order="F")
+    rows, r = [], 0
+    for k, j in enumerate(sc.joints):
+        b1, b2 = sc.body_index(j.body1), (sc.body_index(j.body2) if j.type != "driver" else 0)
+        jint[:, k] = [JOINT_CODES[j.type], b1, b2, COORDS[j.coordinate] if j.type == "driver" else 0]
+        jreal[0:2, k] = j.point1
+        jreal[2:4, k] = j.point2
+        jreal[4:6, k] = j.axis
+        if j.type in ("prismatic", "fixed"):
+            th1 = q0[3 * b1 - 1]
+            th2 = q0[3 * b2 - 1] if b2 > 0 else 0.0
+            jreal[6, k] = th1 - th2 if j.angle0 is None else j.angle0
+        if j.type == "driver":
+            jreal[7:12, k] = j.function
+        rows.append((j.name, r, JOINT_ROWS[j.type]))
+        r += JOINT_ROWS[j.type]
+    fint = np.zeros((4, max(nf, 1)), np.int32, order="F")
+    freal = np.zeros((12, max(nf, 1)), order="F")
+    for k, f in enumerate(sc.forces):
+        code = FORCE_CODES[f.type]
+        b1 = sc.body_index(f.body1) if f.body1 else 0
+        b2 = sc.body_index(f.body2) if code == 4 else 0
+        fint[:, k] = [code, b1, b2, COORDS[f.coordinate] if code == 5 else 0]
+        if code == 1:
+            freal[0:2, k] = f.g
+        elif code == 2:
+            freal[0:2, k] = f.point1
+            freal[2:4, k] = f.force
+            freal[7:12, k] = f.function
+        elif code == 3:
+            freal[0, k] = f.torque
+            freal[7:12, k] = f.function
+        elif code == 4:
+            freal[0:2, k] = f.point1
+            freal[2:4, k] = f.point2
+            freal[4, k] = f.stiffness
+            if f.rest_length is None:
+                length = float(np.linalg.norm(_point(sc, q0, f.body1, f.point1)
+                                              - _point(sc, q0, f.body2, f.point2)))
+            else:
+                length = f.rest_length
+            freal[5, k] = length
+            freal[6, k] = f.damping
+        else:
+            freal[0, k] = f.stiffness
+            freal[1, k] = f.damping
+            freal[2, k] = f.rest
+    return Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows)
+
+
+def fpar_vector(alpha=0.0, beta=0.0, penalty=(1e7, 10.0, 1.0), projection_tol=1e-12,
+                solver="auto", small_dense=True) -> np.ndarray:
+    return np.array([alpha, beta, penalty[0], penalty[1], penalty[2], projection_tol,
+                     SOLVERS[solver], 1.0 if small_dense else 0.0])
+
+
+def evaluate(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None) -> dict:
+    """Phi, D, gamma, Phi_t, generalised forces f, accelerations a and multipliers lam at one
+    state, from the kernel."""
+    fpar = fpar_vector() if fpar is None else fpar
+    y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
+    phi, d, gam, phit, fq, acc, lam, status = _kernel.model_eval(
+        *tab.args(), FORMULATIONS[formulation], fpar, tab.m, float(t), y)
+    return {"phi": phi, "D": d, "gamma": gam, "phit": phit, "f": fq, "a": acc, "lam": lam,
+            "status": Status(int(status))}
+
+
+def dependent_rows(d: np.ndarray, tol: float = 1e-9):
+    """Rows of D that are linear combinations of the others: the left null space of D."""
+    if d.shape[0] == 0:
+        return []
+    u, s, _ = np.linalg.svd(d)
+    smax = s[0] if s.size else 0.0
+    rank = int(np.sum(s > tol * max(smax, 1.0)))
+    if rank == d.shape[0]:
+        return []
+    null = u[:, rank:]
+    return [i for i in range(d.shape[0]) if np.max(np.abs(null[i])) > 1e-8]
+
+
+def rows_to_joints(tab: Tables, rows) -> list[str]:
+    out = []
+    for name, r0, n in tab.rows:
+        if any(r0 <= r < r0 + n for r in rows):
+            out.append(name)
+    return out
+
+
+def assemble(sc: Scene, tab: Tables, t0: float = 0.0, tol: float = 1e-12, max_iter: int = 50):
+    """Initial q, v satisfying Phi = 0 and D v + Phi_t = 0, changing only the coordinates the
+    scene does not mark as given (least change, Gauss-Newton). Returns (q, v, report)."""
+    q = np.array(sc.q0(), float)
+    v = np.array(sc.v0(), float)
+    if tab.m == 0:
+        return q, v, {"moved_q": 0.0, "moved_v": 0.0, "iterations": 0, "changes": {}}
+    given_q, given_v = np.zeros(q.size, bool), np.zeros(q.size, bool)
+    for i, b in enumerate(sc.bodies):
+        for k, c in enumerate(("x", "y", "angle")):
+            given_q[3 * i + k] = c in b.given
+        for k, c in enumerate(("vx", "vy", "omega")):
+            given_v[3 * i + k] = c in b.given
+    free_q, free_v = ~given_q, ~given_v
+    q_in, v_in = q.copy(), v.copy()
+    it = 0
+    for it in range(max_iter + 1):
+        e = evaluate(tab, q, v, t0)
+        if np.max(np.abs(e["phi"])) <= tol:
+            break
+        if it == max_iter:
+            break
+        dq = np.linalg.lstsq(e["D"][:, free_q], -e["phi"], rcond=None)[0]
+        q[free_q] += dq
+    e = evaluate(tab, q, v, t0)
+    if np.max(np.abs(e["phi"])) > 1e-9:
+        bad = np.argsort(-np.abs(e["phi"]))[:3]
+        names = rows_to_joints(tab, [i for i in bad if abs(e["phi"][i]) > 1e-9])
+        raise SceneError(f"{sc.source}: the initial position cannot be assembled: joint(s) "
+                         f"{', '.join(names)} stay violated by up to {np.max(np.abs(e['phi'])):.3g} "
+                         "after Newton on the coordinates not marked 'given'. Check the lengths "
+                         "and points of these joints, or un-mark given coordinates")
+    d = e["D"]
+    rhs = -e["phit"] - d[:, given_v] @ v[given_v] - d[:, free_v] @ v[free_v]
+    v[free_v] += np.linalg.lstsq(d[:, free_v], rhs, rcond=None)[0]
+    e = evaluate(tab, q, v, t0)
+    vres = np.max(np.abs(e["D"] @ v + e["phit"]))
+    if vres > 1e-9:
+        bad = [i for i in np.argsort(-np.abs(e["D"] @ v + e["phit"]))[:3]]
+        raise SceneError(f"{sc.source}: the initial velocities cannot be made consistent: "
+                         f"joint(s) {', '.join(rows_to_joints(tab, bad))} keep a velocity "
+                         f"residual of {vres:.3g} with the given rates")
+    changes = {}
+    for i, b in enumerate(sc.bodies):
+        for k, c in enumerate(("x", "y", "angle")):
+            if abs(q[3 * i + k] - q_in[3 * i + k]) > 1e-12:
+                changes[f"{b.name}.{c}"] = float(q[3 * i + k] - q_in[3 * i + k])
+        for k, c in enumerate(("vx", "vy", "omega")):
+            if abs(v[3 * i + k] - v_in[3 * i + k]) > 1e-12:
+                changes[f"{b.name}.{c}"] = float(v[3 * i + k] - v_in[3 * i + k])
+    return q, v, {"moved_q": float(np.max(np.abs(q - q_in))),
+                  "moved_v": float(np.max(np.abs(v - v_in))), "iterations": it,
+                  "changes": changes}
+
+
+def raise_for(status: Status, msg: str):
+    raise exception_for(status)(msg, status=status)

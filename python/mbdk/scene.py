@@ -1,0 +1,445 @@
+"""Planar scenes: bodies, joints and force elements, from TOML files or as Python objects.
+
+A scene file (SI units; angles in radians unless a field ends in _deg)::
+
+    [scene]
+    name = "physical_pendulum"
+    description = "a uniform bar hinged at one end (Fekete 2023, 2.4.1)"
+
+    [[body]]
+    name = "bar"
+    mass = 1.0
+    shape = { type = "bar", length = 1.0 }    # or: inertia = 0.0833 (centroidal, kg m^2)
+    x = 0.25                                  # centroid and angle; vx, vy, omega: their rates
+    y = -0.4330127
+    angle_deg = -60
+    given = ["angle", "omega"]                # kept when the initial state is assembled
+
+    [[joint]]
+    name = "hinge"
+    type = "revolute"                         # revolute | prismatic | fixed | driver
+    body1 = "bar"
+    point1 = [-0.5, 0.0]                      # body-fixed, from the centroid
+    body2 = "ground"                          # ground points are global
+    point2 = [0.0, 0.0]
+
+    [[force]]
+    type = "gravity"                          # only when declared
+    g = [0.0, -9.81]
+
+Joints: revolute (body1, point1, body2, point2); prismatic (the same, plus axis: a unit vector
+fixed in body2, global for the ground, and the relative angle kept at its initial value or
+angle0); fixed (revolute plus the relative angle); driver (body1, coordinate = x | y | angle,
+function: the coordinate follows f(t)).
+
+Forces: gravity (g); point_force (body, point, force = [Fx, Fy] global, function); torque
+(body, torque, function); spring (body1, point1, body2, point2, stiffness, rest_length: default
+the initial length); damper (same points, damping); spring_damper (both); coordinate_spring,
+coordinate_damper, coordinate_spring_damper (body, coordinate, stiffness, damping, rest: the
+trolley's -s x1 - k x1').
+
+A time function is a table {offset, rate, amplitude, omega, phase}: f(t) = offset + rate t +
+amplitude sin(omega t + phase); a number is a constant. Loads are multiplied by f(t) (default 1).
+
+Bad scenes raise SceneError naming the file, the element and the field.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InvalidInputError
+
+GROUND = "ground"
+COORDS = {"x": 1, "y": 2, "angle": 3}
+
+
+class SceneError(InvalidInputError):
+    """A scene that cannot be simulated: the message names the file, element and field."""
+
+
+@dataclass
+class Body:
+    name: str
+    mass: float
+    inertia: float
+    x: float = 0.0
+    y: float = 0.0
+    angle: float = 0.0
+    vx: float = 0.0
+    vy: float = 0.0
+    omega: float = 0.0
+    given: tuple = ()
+
+
+@dataclass
+class Joint:
+    name: str
+    type: str
+    body1: str
+    body2: str = GROUND
+    point1: tuple = (0.0, 0.0)
+    point2: tuple = (0.0, 0.0)
+    axis: tuple = (1.0, 0.0)
+    angle0: float | None = None
+    coordinate: str = "angle"
+    function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@dataclass
+class Force:
+    type: str
+    name: str = ""
+    body1: str = ""
+    body2: str = GROUND
+    point1: tuple = (0.0, 0.0)
+    point2: tuple = (0.0, 0.0)
+    g: tuple = (0.0, -9.81)
+    force: tuple = (0.0, 0.0)
+    torque: float = 0.0
+    stiffness: float = 0.0
+    damping: float = 0.0
+    rest_length: float | None = None
+    rest: float = 0.0
+    coordinate: str = "x"
+    function: tuple = (1.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@dataclass
+class Scene:
+    name: str
+    bodies: list[Body]
+    joints: list[Joint] = field(default_factory=list)
+    forces: list[Force] = field(default_factory=list)
+    description: str = ""
+    source: str = "<python>"
+
+    def body_index(self, name: str) -> int:
+        """1-based index of a body; 0 for the ground."""
+        if name == GROUND:
+            return 0
+        for i, b in enumerate(self.bodies, 1):
+            if b.name == name:
+                return i
+        raise SceneError(f"{self.source}: no body named {name!r}")
+
+    def q0(self):
+        out = []
+        for b in self.bodies:
+            out += [b.x, b.y, b.angle]
+        return out
+
+    def v0(self):
+        out = []
+        for b in self.bodies:
+            out += [b.vx, b.vy, b.omega]
+        return out
+
+
+JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver"}
+FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
+               "coordinate_spring", "coordinate_damper", "coordinate_spring_damper"}
+
+
+class _Reader:
+    """Reads one element's table, naming file, element and field in every error."""
+
+    def __init__(self, source: str, kind: str, index: int, table: dict):
+        self.source, self.kind, self.index, self.t = source, kind, index, table
+        self.used = set()
+        nm = table.get("name")
+        self.label = f"{kind} {nm!r}" if isinstance(nm, str) else f"{kind} #{index + 1}"
+        if not isinstance(table, dict):
+            raise SceneError(f"{source}: {kind} #{index + 1} is not a table")
+
+    def err(self, fld, msg):
+        return SceneError(f"{self.source}: {self.label}: field {fld!r} {msg}")
+
+    def has(self, fld):
+        return fld in self.t
+
+    def get(self, fld, default=None, required=False):
+        self.used.add(fld)
+        if fld not in self.t:
+            if required:
+                raise self.err(fld, "is missing")
+            return default
+        return self.t[fld]
+
+    def num(self, fld, default=None, required=False, positive=False, nonneg=False):
+        v = self.get(fld, default, required)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.err(fld, f"= {v!r} is not a number")
+        v = float(v)
+        if not math.isfinite(v):
+            raise self.err(fld, f"= {v} is not finite")
+        if positive and not v > 0:
+            raise self.err(fld, f"= {v} must be positive")
+        if nonneg and v < 0:
+            raise self.err(fld, f"= {v} must not be negative")
+        return v
+
+    def angle(self, fld, default=0.0):
+        if fld + "_deg" in self.t:
+            if fld in self.t:
+                raise self.err(fld, f"and {fld}_deg are both given; give one")
+            return math.radians(self.num(fld + "_deg"))
+        return self.num(fld, default)
+
+    def vec(self, fld, default=None, required=False):
+        v = self.get(fld, default, required)
+        if v is None:
+            return None
+        if not isinstance(v, (list, tuple)) or len(v) != 2:
+            raise self.err(fld, f"= {v!r} must be a pair [x, y]")
+        out = []
+        for c in v:
+            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
+                raise self.err(fld, f"= {v!r} must hold two finite numbers")
+            out.append(float(c))
+        return tuple(out)
+
+    def name(self, fld, required=True, default=None):
+        v = self.get(fld, default, required)
+        if v is not None and not isinstance(v, str):
+            raise self.err(fld, f"= {v!r} must be a name (a string)")
+        return v
+
+    def coordinate(self, fld, default):
+        v = self.name(fld, required=False, default=default)
+        if v not in COORDS:
+            raise self.err(fld, f"= {v!r} must be one of x, y, angle")
+        return v
+
+    def function(self, fld, default):
+        v = self.get(fld, None)
+        if v is None:
+            return default
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if not math.isfinite(v):
+                raise self.err(fld, f"= {v} is not finite")
+            return (float(v), 0.0, 0.0, 0.0, 0.0)
+        if not isinstance(v, dict):
+            raise self.err(fld, f"= {v!r} must be a number or a table {{offset, rate, amplitude, "
+                                "omega, phase}")
+        keys = ["offset", "rate", "amplitude", "omega", "phase"]
+        bad = [k for k in v if k not in keys]
+        if bad:
+            raise self.err(fld, f"has unknown entry {bad[0]!r}; known: {', '.join(keys)}")
+        out = []
+        for k in keys:
+            c = v.get(k, 0.0)
+            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
+                raise self.err(fld, f"entry {k!r} = {c!r} is not a finite number")
+            out.append(float(c))
+        return tuple(out)
+
+    def done(self):
+        extra = [k for k in self.t if k not in self.used and k.removesuffix("_deg") not in self.used]
+        if extra:
+            raise self.err(extra[0], "is not a field of this element type")
+
+
+def _body(r: _Reader) -> Body:
+    name = r.name("name")
+    mass = r.num("mass", required=True, positive=True)
+    if r.has("inertia") and r.has("shape"):
+        raise r.err("inertia", "and 'shape' are both given; give one")
+    if r.has("shape"):
+        shape = r.get("shape")
+        if not isinstance(shape, dict) or shape.get("type") not in ("bar", "point", "disc",
+                                                                     "rectangle"):
+            raise r.err("shape", f"= {shape!r} must be {{type = bar | point | disc | rectangle, ...}}")
+        sr = _Reader(r.source, f"{r.label} shape", 0, shape)
+        sr.get("type")
+        kind = shape["type"]
+        if kind == "bar":
+            inertia = mass * sr.num("length", required=True, positive=True) ** 2 / 12
+        elif kind == "disc":
+            inertia = mass * sr.num("radius", required=True, positive=True) ** 2 / 2
+        elif kind == "rectangle":
+            inertia = mass * (sr.num("width", required=True, positive=True) ** 2
+                              + sr.num("height", required=True, positive=True) ** 2) / 12
+        else:
+            inertia = 0.0
+        sr.done()
+    else:
+        inertia = r.num("inertia", required=True, nonneg=True)
+    given = r.get("given", [])
+    ok = {"x", "y", "angle", "vx", "vy", "omega"}
+    if not isinstance(given, list) or any(g not in ok for g in given):
+        raise r.err("given", f"= {given!r} must list some of {', '.join(sorted(ok))}")
+    b = Body(name, mass, inertia, r.num("x", 0.0), r.num("y", 0.0), r.angle("angle"),
+             r.num("vx", 0.0), r.num("vy", 0.0), r.num("omega", 0.0), tuple(given))
+    r.done()
+    return b
+
+
+def _joint(r: _Reader) -> Joint:
+    typ = r.name("type")
+    if typ not in JOINT_TYPES:
+        raise r.err("type", f"= {typ!r} is not a joint type; known: {', '.join(sorted(JOINT_TYPES))}")
+    name = r.name("name", required=False, default=f"joint{r.index + 1}")
+    if typ == "driver":
+        j = Joint(name, typ, r.name("body1"), coordinate=r.coordinate("coordinate", "angle"),
+                  function=r.function("function", None))
+        if j.function is None:
+            raise r.err("function", "is missing (the driven coordinate's f(t))")
+    else:
+        j = Joint(name, typ, r.name("body1"), r.name("body2", required=False, default=GROUND),
+                  r.vec("point1", (0.0, 0.0)), r.vec("point2", (0.0, 0.0)))
+        if typ == "prismatic":
+            ax = r.vec("axis", required=True)
+            n = math.hypot(*ax)
+            if n == 0:
+                raise r.err("axis", "= [0, 0] has no direction")
+            j.axis = (ax[0] / n, ax[1] / n)
+        if typ in ("prismatic", "fixed") and (r.has("angle0") or r.has("angle0_deg")):
+            j.angle0 = r.angle("angle0")
+    r.done()
+    return j
+
+
+def _force(r: _Reader) -> Force:
+    typ = r.name("type")
+    if typ not in FORCE_TYPES:
+        raise r.err("type", f"= {typ!r} is not a force type; known: {', '.join(sorted(FORCE_TYPES))}")
+    f = Force(typ, r.name("name", required=False, default=f"{typ}{r.index + 1}"))
+    if typ == "gravity":
+        f.g = r.vec("g", required=True)
+    elif typ == "point_force":
+        f.body1 = r.name("body")
+        f.point1 = r.vec("point", (0.0, 0.0))
+        f.force = r.vec("force", required=True)
+        f.function = r.function("function", f.function)
+    elif typ == "torque":
+        f.body1 = r.name("body")
+        f.torque = r.num("torque", required=True)
+        f.function = r.function("function", f.function)
+    elif typ in ("spring", "damper", "spring_damper"):
+        f.body1 = r.name("body1")
+        f.point1 = r.vec("point1", (0.0, 0.0))
+        f.body2 = r.name("body2", required=False, default=GROUND)
+        f.point2 = r.vec("point2", (0.0, 0.0))
+        if typ != "damper":
+            f.stiffness = r.num("stiffness", required=True, nonneg=True)
+            f.rest_length = r.num("rest_length", None, nonneg=True)
+        if typ != "spring":
+            f.damping = r.num("damping", required=True, nonneg=True)
+    else:
+        f.body1 = r.name("body")
+        f.coordinate = r.coordinate("coordinate", "x")
+        if typ != "coordinate_damper":
+            f.stiffness = r.num("stiffness", required=True, nonneg=True)
+            f.rest = r.num("rest", 0.0)
+        if typ != "coordinate_spring":
+            f.damping = r.num("damping", required=True, nonneg=True)
+    r.done()
+    return f
+
+
+def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
+    """Builds and checks a Scene from the parsed TOML structure."""
+    if not isinstance(data, dict):
+        raise SceneError(f"{source}: a scene is a table")
+    known = {"scene", "body", "joint", "force"}
+    extra = [k for k in data if k not in known]
+    if extra:
+        raise SceneError(f"{source}: unknown section {extra[0]!r}; a scene has "
+                         "[scene], [[body]], [[joint]] and [[force]]")
+    head = data.get("scene", {})
+    hr = _Reader(source, "scene", 0, head)
+    name = hr.name("name", required=False, default=Path(source).stem)
+    desc = hr.get("description", "")
+    hr.get("reference")
+    hr.done()
+
+    def items(key):
+        v = data.get(key, [])
+        if not isinstance(v, list):
+            raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
+        return v
+
+    bodies = [_body(_Reader(source, "body", i, t)) for i, t in enumerate(items("body"))]
+    joints = [_joint(_Reader(source, "joint", i, t)) for i, t in enumerate(items("joint"))]
+    forces = [_force(_Reader(source, "force", i, t)) for i, t in enumerate(items("force"))]
+    sc = Scene(name, bodies, joints, forces, desc, source)
+    check_scene(sc)
+    return sc
+
+
+def check_scene(sc: Scene) -> None:
+    """References, duplicates and counts; raises SceneError naming the element and field."""
+    src = sc.source
+    if not sc.bodies:
+        raise SceneError(f"{src}: the scene has no [[body]]")
+    seen = {}
+    for kind, items in (("body", sc.bodies), ("joint", sc.joints), ("force", sc.forces)):
+        for e in items:
+            key = (kind, e.name)
+            if e.name and key in seen:
+                raise SceneError(f"{src}: {kind} {e.name!r}: field 'name' is used twice")
+            seen[key] = True
+            if kind == "body" and e.name == GROUND:
+                raise SceneError(f"{src}: body 'ground': field 'name' is reserved for the ground")
+    names = [b.name for b in sc.bodies]
+    for kind, items in (("joint", sc.joints), ("force", sc.forces)):
+        for e in items:
+            for fld in ("body1", "body2"):
+                v = getattr(e, fld)
+                if kind == "force" and e.type in ("gravity",):
+                    continue
+                if kind == "joint" and e.type == "driver" and fld == "body2":
+                    continue
+                if kind == "force" and fld == "body2" and e.type not in ("spring", "damper",
+                                                                       "spring_damper"):
+                    continue
+                shown = fld if not (kind == "force" and e.type in (
+                    "point_force", "torque") or e.type.startswith("coordinate")) else "body"
+                if v != GROUND and v not in names:
+                    raise SceneError(f"{src}: {kind} {e.name!r}: field {shown!r} = {v!r} names no "
+                                     f"body; bodies: {', '.join(names)}, ground")
+                if v == GROUND and fld == "body1":
+                    raise SceneError(f"{src}: {kind} {e.name!r}: field {shown!r} must name a "
+                                     "body, not the ground")
+            if kind == "joint" and e.type != "driver" and e.body1 == e.body2:
+                raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = {e.body2!r} is body1 "
+                                 "itself")
+    rows = sum({"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}[j.type] for j in sc.joints)
+    if rows > 3 * len(sc.bodies):
+        raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
+                         f"({len(sc.bodies)} bodies): more constraints than coordinates")
+
+
+def load_scene(path) -> Scene:
+    """Reads a scene file (TOML)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read the scene file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    return scene_from_dict(data, str(path))
+
+
+SCENE_DIR = Path(__file__).resolve().parent / "scenes"
+
+
+def scenes() -> list[str]:
+    """Names of the built-in scenes."""
+    return sorted(p.stem for p in SCENE_DIR.glob("*.toml"))
+
+
+def scene(name: str) -> Scene:
+    """A built-in scene by name (python/mbdk/scenes/NAME.toml)."""
+    p = SCENE_DIR / f"{name}.toml"
+    if not isinstance(name, str) or not p.is_file():
+        raise SceneError(f"no built-in scene {name!r}; built-in scenes: {', '.join(scenes())}")
+    return load_scene(p)
