@@ -367,3 +367,18 @@ def test_result_carries_the_done_means_fields():
                                    "work_constraints"}
     assert r.cpu_time > 0 and r.stats.steps == 10000
     assert r.manifest["formulation"] == "baumgarte" and r.manifest["alpha"] == pytest.approx(1000)
+
+
+def test_scene_drift_study(tmp_path):
+    import csv
+    import scene_drift
+    summary = scene_drift.run(tmp_path, quick=True)
+    assert all(f.exists() for f in summary["figures"])
+    rows = list(csv.DictReader(open(tmp_path / "scene_drift.csv")))
+    by = {(r["scene"], r["formulation"]): r for r in rows}
+    for sc in ("double_pendulum", "four_bar"):
+        assert float(by[(sc, "projection")]["max_phi"]) < 1e-12
+        assert float(by[(sc, "reduced")]["max_phi"]) > 100 * float(by[(sc, "projection")]["max_phi"])
+        assert all(float(r["cpu_s"]) > 0 for r in rows)
+    speed = list(csv.DictReader(open(tmp_path / "scene_speed.csv")))
+    assert len(speed) == 4 and all(float(r["ns_per_rk4_step"]) > 0 for r in speed)

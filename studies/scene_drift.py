@@ -1,0 +1,131 @@
+"""Planar scenes (Fekete 2023, chapters 2-3): constraint drift, energy and cost of the
+formulations, the speed of one reduced rk4 step, and the reaction forces of the pendulum.
+
+1. Drift and energy over 100 s (20 s with --quick) for the double pendulum and the four-bar,
+   rk4 at h = 1e-3: no stabilisation (reduced), Baumgarte with the book's (3.34) defaults
+   alpha = 1/h, beta = sqrt2/h and with alpha = beta = 5 (its (3.30) suggestion), Jalon-Bayo
+   penalty (1e7, 10, 1) and projection; with the CPU time of every run. The book says
+   stabilisation is needed from about 10 s: the table gives the residual at 10 s and at the end.
+2. One rk4 step of the double pendulum, reduced formulation: ns per step with the Schur
+   complement by the in-house Cholesky, by LAPACK dpotrf/dpotrs, and with the KKT LU (LAPACK).
+3. The physical pendulum's hinge reaction against time and angle (figures 4.29-4.30).
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import main, progress  # noqa: E402
+
+import mbdk  # noqa: E402
+from mbdk.analysis import plotting  # noqa: E402
+from mbdk.analysis.tables import write_table  # noqa: E402
+
+VARIANTS = [("reduced", {}), ("baumgarte", {}), ("baumgarte", {"alpha": 5.0, "beta": 5.0}),
+            ("penalty", {}), ("projection", {})]
+
+
+def _label(form, kw):
+    return form + (f" (alpha = beta = {kw['alpha']:g})" if kw else
+                   " (alpha = 1/h, beta = sqrt2/h)" if form == "baumgarte" else "")
+
+
+def drift(out: Path, quick: bool):
+    import matplotlib.pyplot as plt
+    t_end = 20.0 if quick else 100.0
+    h = 1e-3
+    rows = []
+    fig, axes = plt.subplots(2, 2, figsize=(14, 8))
+    for col, name in enumerate(["double_pendulum", "four_bar"]):
+        for form, kw in VARIANTS:
+            progress(f"{name} / {_label(form, kw)}")
+            r = mbdk.simulate(mbdk.scene(name), "rk4", formulation=form, h=h, t_end=t_end,
+                              every=100, **kw)
+            e0 = r.energy[0]
+            scale = max(r.energy_parts["kinetic"].max(), 1e-12)
+            at10 = r.residuals[r.t <= 10.0 + 1e-9, 0].max()
+            rows.append({"scene": name, "formulation": _label(form, kw), "t_end": t_end,
+                         "max_phi_to_10s": at10, "max_phi": r.residuals[:, 0].max(),
+                         "max_dphi": r.residuals[:, 1].max(),
+                         "energy_error_rel": float(np.abs(r.energy - e0).max() / scale),
+                         "cpu_s": r.cpu_time, "ns_per_step": 1e9 * r.cpu_time / r.stats.steps})
+            lab = f"{_label(form, kw)} ({r.cpu_time:.2f} s)"
+            axes[0, col].semilogy(r.t, np.maximum(r.residuals[:, 0], 1e-17), label=lab)
+            axes[1, col].semilogy(r.t, np.maximum(np.abs(r.energy - e0) / scale, 1e-17), label=lab)
+        axes[0, col].set_title(f"{name}: max |Phi| (rk4, h = {h:g})")
+        axes[1, col].set_title(f"{name}: |E - E0| / max kinetic energy")
+        for ax in axes[:, col]:
+            ax.set_xlabel("t (s)")
+            ax.legend(fontsize=7)
+    fig.suptitle("Drift and energy by formulation; legend: CPU time of the kernel loop")
+    table = write_table(rows, ["scene", "formulation", "t_end", "max_phi_to_10s", "max_phi",
+                               "max_dphi", "energy_error_rel", "cpu_s", "ns_per_step"], out,
+                        "scene_drift", f"Constraint drift and energy over {t_end:g} s (rk4, h = 1e-3)",
+                        "max_phi: largest position residual max|Phi| over the run; max_dphi: "
+                        "velocity residual; energy_error_rel: max |E - E0| / max kinetic energy "
+                        "(the scenes are conservative); cpu_s: kernel loop CPU time.")
+    return table, plotting.save(fig, out, "scene_drift")
+
+
+def speed(out: Path, quick: bool):
+    sc = mbdk.scene("double_pendulum")
+    t_end = 2.0 if quick else 20.0
+    rows = []
+    for label, kw in [("Schur, in-house Cholesky", dict(solver="schur", small_dense=True)),
+                      ("Schur, LAPACK dpotrf/dpotrs", dict(solver="schur", small_dense=False)),
+                      ("KKT, LAPACK dgetrf/dgetrs", dict(solver="kkt"))]:
+        best = math.inf
+        for _ in range(3):
+            r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=t_end, every=10**6, **kw)
+            best = min(best, r.cpu_time / r.stats.steps)
+        rows.append({"linear_solve": label, "ns_per_rk4_step": 1e9 * best,
+                     "ns_per_evaluation": 1e9 * best / 4, "steps": r.stats.steps,
+                     "cpu_s": best * r.stats.steps})
+    mini = mbdk.solve_ode("double_pendulum", "rk4", h=1e-4, t_end=t_end, every=10**6)
+    rows.append({"linear_solve": "minimal coordinates (textbook ODE, 2 x 2 solve)",
+                 "ns_per_rk4_step": 1e9 * mini.cpu_time / mini.stats.steps,
+                 "ns_per_evaluation": 1e9 * mini.cpu_time / mini.stats.steps / 4,
+                 "steps": mini.stats.steps, "cpu_s": mini.cpu_time})
+    return write_table(rows, ["linear_solve", "ns_per_rk4_step", "ns_per_evaluation", "steps",
+                              "cpu_s"], out, "scene_speed",
+                       "One rk4 step of the double pendulum in absolute coordinates (reduced)",
+                       "Best of 3 runs; kernel CPU time of the whole loop divided by the steps. "
+                       "Target of issue 3: at most 500 ns per step.")
+
+
+def reactions(out: Path, quick: bool):
+    import matplotlib.pyplot as plt
+    r = mbdk.simulate(mbdk.scene("physical_pendulum"), "rk4", h=1e-3, t_end=5.0, every=5)
+    R = r.reaction("hinge")
+    phi = np.degrees(r.q[:, 2] + math.pi / 2)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    axes[0].plot(r.t, R[:, 0], label="Fx on the bar")
+    axes[0].plot(r.t, R[:, 1], label="Fy on the bar")
+    axes[0].set_xlabel("t (s)")
+    axes[1].plot(phi, R[:, 0], label="Fx")
+    axes[1].plot(phi, R[:, 1], label="Fy")
+    axes[1].set_xlabel("phi (deg, from the vertical)")
+    for ax in axes:
+        ax.set_ylabel("hinge reaction (N)")
+        ax.legend()
+    fig.suptitle(f"Physical pendulum, hinge force on the bar (global frame), rk4 h = 1e-3 "
+                 f"({r.cpu_time:.3f} s CPU); cf. figures 4.29-4.30")
+    return plotting.save(fig, out, "pendulum_reactions")
+
+
+def run(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    t1, f1 = drift(out, quick)
+    progress("speed of one reduced rk4 step")
+    t2 = speed(out, quick)
+    f2 = reactions(out, quick)
+    return {"title": "Planar scenes: drift, energy, cost and reactions", "tables": [t1, t2],
+            "figures": [f1, f2]}
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(run, "scene_drift"))
