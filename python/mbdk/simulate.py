@@ -203,7 +203,6 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
 
 def _outputs(tab: Tables, formulation: str, fpar, t, y) -> dict:
     ns = len(t)
-    nj1 = tab.jint.shape[1]
     if ns == 0:
         z = np.zeros((0,))
         return {"a": np.zeros((0, tab.nc)), "lam": np.zeros((0, tab.m)),
@@ -216,6 +215,5 @@ def _outputs(tab: Tables, formulation: str, fpar, t, y) -> dict:
              "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
              "dissipated_dampers": _cumtrapz(t, pd), "work_constraints": _cumtrapz(t, pc),
              "work_loads": _cumtrapz(t, pl)}
-    del nj1
     return {"a": acc.T, "lam": lam.T, "reac": np.transpose(reac[:, :tab.nj, :], (2, 1, 0)),
             "energy": kin + vg + vs, "resid": resid.T, "parts": parts}

@@ -26,7 +26,8 @@ module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, MBDK_JOINT_TYPES
+  use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, MBDK_JOINT_TYPES, &
+    MBDK_JOINT_DRIVER
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_chol_factor, mbdk_small_chol_solve, MBDK_SMALL_DENSE_MAX
@@ -403,7 +404,7 @@ contains
         qf(c) = -dot_product(d(r:r + k - 1, 3 * b1 - 3 + c), lam(r:r + k - 1))
       end do
       rho = 0.0_dp
-      if (self%jint(1, j) /= 4) call mbdk_body_point(b1, self%jreal(1:2, j), q, v, p, rho, pv, w)
+      if (self%jint(1, j) /= MBDK_JOINT_DRIVER) call mbdk_body_point(b1, self%jreal(1:2, j), q, v, p, rho, pv, w)
       reac(1:2, j) = qf(1:2)
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
     end do
