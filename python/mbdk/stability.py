@@ -405,7 +405,7 @@ def _run_is_stable(problem, method, h, t_span, growth, params, y0, scale):
     i = int(np.argmax(ratio))
     if ratio[i] > growth:
         name = _problem(problem).states[i]
-        return False, f"growth: max|{name}| = {ratio[i]:.3g} x its reference amplitude", cpu
+        return False, f"growth: max abs({name}) = {ratio[i]:.3g} x its reference amplitude", cpu
     return True, "", cpu
 
 
