@@ -329,6 +329,9 @@ BAD = [
      "5 constraint equations for 3 coordinates"),
     ({"body": [{"name": "a", "mass": 1, "inertia": 1, "colour": "red"}]},
      "body 'a': field 'colour' is not a field of this element type"),
+    ({"body": [1]}, "body #1 = 1 is not a table"),
+    ({"body": [{"name": "a", "mass": 1, "inertia": 1}], "joint": ["hinge"]},
+     "joint #1 = 'hinge' is not a table"),
     ({"body": [{"name": "a", "mass": 1, "inertia": 1}], "force": [{"type": "spring", "body1": "a"}]},
      "force #1: field 'stiffness' is missing"),
 ]
@@ -340,6 +343,13 @@ def test_bad_scenes_name_file_element_and_field(data, message):
         scene_from_dict(data, "bad.toml")
     assert str(exc.value).startswith("bad.toml: ")
     assert message in str(exc.value)
+
+
+def test_spring_without_direction_is_refused():
+    sc = mbdk.scene("spring_bar")
+    sc.forces[0].point2 = (1.0, 0.0)          # the bar's free end sits exactly there
+    with pytest.raises(mbdk.SceneError, match="force 'spring': fields 'point1' and 'point2' coincide"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01)
 
 
 def test_bad_files(tmp_path):
@@ -357,7 +367,7 @@ def test_bad_files(tmp_path):
 
 def test_result_carries_the_done_means_fields():
     r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", formulation="baumgarte", h=1e-3,
-                      t_end=10)
+                      t_end=10, every=np.int64(1))     # numpy integers are whole numbers too
     n = len(r.t)
     assert n == 10001
     for a in (r.q, r.v, r.a, r.multipliers, r.energy, r.residuals):

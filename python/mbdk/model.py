@@ -103,11 +103,13 @@ def build_tables(sc: Scene, q0=None) -> Tables:
             freal[0:2, k] = f.point1
             freal[2:4, k] = f.point2
             freal[4, k] = f.stiffness
-            if f.rest_length is None:
-                length = float(np.linalg.norm(_point(sc, q0, f.body1, f.point1)
-                                              - _point(sc, q0, f.body2, f.point2)))
-            else:
-                length = f.rest_length
+            length0 = float(np.linalg.norm(_point(sc, q0, f.body1, f.point1)
+                                           - _point(sc, q0, f.body2, f.point2)))
+            if length0 == 0.0:
+                raise SceneError(f"{sc.source}: force {f.name!r}: fields 'point1' and 'point2' "
+                                 "coincide at the initial pose, so the element has no direction; "
+                                 "move one attachment point")
+            length = length0 if f.rest_length is None else f.rest_length
             freal[5, k] = length
             freal[6, k] = f.damping
         else:

@@ -147,12 +147,13 @@ class _Reader:
     """Reads one element's table, naming file, element and field in every error."""
 
     def __init__(self, source: str, kind: str, index: int, table: dict):
+        if not isinstance(table, dict):
+            raise SceneError(f"{source}: {kind} #{index + 1} = {table!r} is not a table; write it "
+                             f"as [[{kind}]] with its fields")
         self.source, self.kind, self.index, self.t = source, kind, index, table
         self.used = set()
         nm = table.get("name")
         self.label = f"{kind} {nm!r}" if isinstance(nm, str) else f"{kind} #{index + 1}"
-        if not isinstance(table, dict):
-            raise SceneError(f"{source}: {kind} #{index + 1} is not a table")
 
     def err(self, fld, msg):
         return SceneError(f"{self.source}: {self.label}: field {fld!r} {msg}")

@@ -16,6 +16,7 @@ residuals (max |Phi|, max |Phi'|, max |D a - gamma|).
 from __future__ import annotations
 
 import math
+from numbers import Integral
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -112,8 +113,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
         raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
     if not t_end > t0:
         raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    if isinstance(every, bool) or not isinstance(every, int) or not 1 <= every <= _INT_MAX:
+    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
+    every = int(every)
     alpha = 1.0 / h if alpha is None else float(alpha)
     beta = math.sqrt(2.0) / h if beta is None else float(beta)
     if formulation == "baumgarte" and not (alpha >= 0 and beta >= 0 and math.isfinite(alpha)
