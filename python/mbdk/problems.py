@@ -71,6 +71,61 @@ def _double_pendulum_energy(y, p):
     return kin + pot
 
 
+_FOUR_BAR = {"a": 0.6, "b": 1.8, "c": 1.2, "d": 2.0, "m1": 0.6, "m2": 1.8, "m3": 1.2, "g": 9.81,
+             "alpha": 0.0, "beta": 0.0}
+
+
+def four_bar_points(p: dict, crank: float) -> tuple[np.ndarray, np.ndarray]:
+    """Joints B and C of the four-bar at crank angle `crank` (rad), on the branch with C above
+    the line BD (the built-in scene 'four_bar' is assembled on the same branch)."""
+    a, b, c, d = p["a"], p["b"], p["c"], p["d"]
+    rb = np.array([a * np.cos(crank), a * np.sin(crank)])
+    rd = np.array([d, 0.0])
+    bd = rd - rb
+    L = float(np.hypot(*bd))
+    if not abs(b - c) < L < b + c:
+        raise InvalidInputError(f"the four-bar cannot be assembled at crank = {crank} rad: "
+                                f"|BD| = {L:.6g} is outside ({abs(b - c):.6g}, {b + c:.6g})")
+    u = bd / L
+    along = (b**2 - c**2 + L**2) / (2 * L)
+    across = np.sqrt(b**2 - along**2)
+    rc = rb + along * u + across * np.array([-u[1], u[0]])
+    return rb, rc
+
+
+def four_bar_state(form: str, p: dict | None = None, crank: float = np.pi / 3) -> tuple:
+    """Consistent state at rest at crank angle `crank` for form 'relative' or 'natural'."""
+    p = {**_FOUR_BAR, **(p or {})}
+    rb, rc = four_bar_points(p, crank)
+    if form == "relative":
+        e2 = rc - rb
+        e3 = np.array([p["d"], 0.0]) - rc
+        return (crank, float(np.arctan2(e2[1], e2[0])), float(np.arctan2(e3[1], e3[0])),
+                0.0, 0.0, 0.0)
+    if form == "natural":
+        return (*map(float, rb), *map(float, rc), 0.0, 0.0, 0.0, 0.0)
+    raise InvalidInputError(f"four-bar form {form!r} must be 'relative' or 'natural'")
+
+
+def _four_bar_relative_energy(y, p):
+    a, b, c, m1, m2, m3, g = (p[k] for k in ("a", "b", "c", "m1", "m2", "m3", "g"))
+    p1, p2, p3, w1, w2, w3 = y.T
+    kin = (0.5 * (m1 / 3 + m2) * a**2 * w1**2 + m2 * b**2 * w2**2 / 6 + m3 * c**2 * w3**2 / 6
+           + 0.5 * m2 * a * b * np.cos(p1 - p2) * w1 * w2)
+    pot = g * ((0.5 * m1 + m2) * a * np.sin(p1) + 0.5 * m2 * b * np.sin(p2)
+               - 0.5 * m3 * c * np.sin(p3))
+    return kin + pot
+
+
+def _four_bar_natural_energy(y, p):
+    m1, m2, m3, g = (p[k] for k in ("m1", "m2", "m3", "g"))
+    vb, vc = y[:, 4:6], y[:, 6:8]
+    kin = ((m1 + m2) / 6 * (vb**2).sum(1) + (m2 + m3) / 6 * (vc**2).sum(1)
+           + m2 / 6 * (vb * vc).sum(1))
+    pot = 0.5 * g * ((m1 + m2) * y[:, 1] + (m2 + m3) * y[:, 3])
+    return kin + pot
+
+
 _SPECS = {
     "linear_growth": dict(params={"a": 2.0}, y0=(1.0,), t_end=10.0, states=("y",),
                           equation="y' = a t", reference="Fekete (2023) (4.8)"),
@@ -111,6 +166,19 @@ _SPECS = {
                             positive=("m1", "m2", "l1", "l2"), energy=_double_pendulum_energy),
     "linear_system": dict(params={"A": ((0.0, 1.0), (-10.0, -0.5))}, y0=(5.0, 1.0), t_end=20.0,
                           states=(), equation="y' = A y", reference="Fekete (2023) (4.58)"),
+    "four_bar_relative": dict(params=dict(_FOUR_BAR), y0=four_bar_state("relative"), t_end=5.0,
+                              states=("phi1", "phi2", "phi3", "phi1'", "phi2'", "phi3'"),
+                              equation="four-bar, relative coordinates: (3.28) with Phi of (1.29); "
+                                       "phi3 is the direction C->D",
+                              reference="Fekete (2023) (1.28)-(1.29)",
+                              positive=("a", "b", "c", "d", "m1", "m2", "m3"),
+                              energy=_four_bar_relative_energy),
+    "four_bar_natural": dict(params=dict(_FOUR_BAR), y0=four_bar_state("natural"), t_end=5.0,
+                             states=("xB", "yB", "xC", "yC", "xB'", "yB'", "xC'", "yC'"),
+                             equation="four-bar, natural coordinates: (3.28) with Phi of (1.31)",
+                             reference="Fekete (2023) (1.30)-(1.31)",
+                             positive=("a", "b", "c", "d", "m1", "m2", "m3"),
+                             energy=_four_bar_natural_energy),
 }
 
 
@@ -129,7 +197,8 @@ def _load() -> dict[str, ProblemInfo]:
         out[name] = ProblemInfo(name=name, id=i, n=int(n),
                                 second_order=name in ("damped_oscillator", "pendulum",
                                                       "pendulum_linear", "trolley_crane",
-                                                      "double_pendulum"),
+                                                      "double_pendulum", "four_bar_relative",
+                                                      "four_bar_natural"),
                                 **spec)
         i += 1
     return out

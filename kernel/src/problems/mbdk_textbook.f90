@@ -17,6 +17,9 @@
 !>  10 double_pendulum    4   m1 (1), m2 (2), l1 (1),     y = [phi1, phi2, phi1', phi2'] (3.64)
 !>                            l2 (2), g (9.81)
 !>  11 linear_system      n   A (n x n, column-major)     y' = A y                      (4.58)
+!>  12 four_bar_relative  6   a, b, c, d, m1, m2, m3, g,  four-bar in relative coordinates (1.29)
+!>                            alpha, beta                 (mbdk_four_bar_forms)
+!>  13 four_bar_natural   8   same as 12                  four-bar in natural coordinates (1.31)
 !>
 !> trolley_crane: trolley m1 on a spring s and damper k, a uniform bar (m2, l) hinged to it.
 !> coupling = -1 reproduces the book's (4.78) as printed; that equation is the reduction of
@@ -31,26 +34,29 @@
 !> which is algebraically identical to the book's closed form (3.64) (tests/test_problems.py
 !> evaluates (3.64) as printed and compares).
 !>
-!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9 and 10.
+!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10, 12 and 13.
 module mbdk_textbook
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_UNKNOWN_PROBLEM
   use mbdk_problem, only: mbdk_problem_t
+  use mbdk_four_bar_forms, only: mbdk_four_bar_relative_rhs, mbdk_four_bar_natural_rhs, &
+    mbdk_four_bar_params_ok
   implicit none
   private
 
-  integer, parameter, public :: MBDK_PROBLEM_COUNT = 11
+  integer, parameter, public :: MBDK_PROBLEM_COUNT = 13
   integer, parameter, public :: MBDK_PROBLEM_NAME_LEN = 24
   integer, parameter :: LINEAR_GROWTH = 1, DECAY = 2, RICCATI = 3, BEAM_LINEAR = 4, &
     BEAM_NONLINEAR = 5, DAMPED_OSCILLATOR = 6, PENDULUM = 7, PENDULUM_LINEAR = 8, &
-    TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11
+    TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11, &
+    FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13
 
   character(len=MBDK_PROBLEM_NAME_LEN), parameter :: names(MBDK_PROBLEM_COUNT) = [character( &
     len=MBDK_PROBLEM_NAME_LEN) :: 'linear_growth', 'decay', 'riccati', 'beam_linear', &
     'beam_nonlinear', 'damped_oscillator', 'pendulum', 'pendulum_linear', 'trolley_crane', &
-    'double_pendulum', 'linear_system']
-  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0]
-  integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1]
+    'double_pendulum', 'linear_system', 'four_bar_relative', 'four_bar_natural']
+  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8]
+  integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1, 10, 10]
 
   type, extends(mbdk_problem_t), public :: mbdk_textbook_t
     integer :: id = 0
@@ -115,14 +121,18 @@ contains
       if (abs(p(7)) /= 1.0_dp) return
     case (DOUBLE_PENDULUM)
       if (any(p(1:4) <= 0.0_dp)) return
+    case (FOUR_BAR_RELATIVE, FOUR_BAR_NATURAL)
+      if (.not. mbdk_four_bar_params_ok(p)) return
     end select
     prob%id = id
     prob%n = n
     prob%p = p
     if (id == LINEAR_SYSTEM) prob%a = reshape(p, [n, n])
     prob%nq = 0
-    if (id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) prob%nq = n / 2
-    prob%has_jac = .not. (id == TROLLEY_CRANE .or. id == DOUBLE_PENDULUM)
+    if ((id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) .or. id >= FOUR_BAR_RELATIVE) &
+      prob%nq = n / 2
+    prob%has_jac = .not. (id == TROLLEY_CRANE .or. id == DOUBLE_PENDULUM .or. &
+                          id >= FOUR_BAR_RELATIVE)
     stat = MBDK_SUCCESS
   end subroutine mbdk_textbook_init
 
@@ -189,6 +199,10 @@ contains
         f(4) = (m11 * r2 - m12 * r1) / det
       case (LINEAR_SYSTEM)
         f = matmul(self%a, y)
+      case (FOUR_BAR_RELATIVE)
+        call mbdk_four_bar_relative_rhs(p, y, f, stat)
+      case (FOUR_BAR_NATURAL)
+        call mbdk_four_bar_natural_rhs(p, y, f, stat)
       end select
     end associate
   end subroutine textbook_rhs
