@@ -136,6 +136,20 @@ def evaluate(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None) -> dict
             "status": Status(int(status))}
 
 
+def profile(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None,
+            nrep: int = 100000) -> dict:
+    """ns per evaluation of the assembly alone (forces, Phi, D, gamma) and of a full evaluation
+    (assembly + the formulation's linear solve), timed in the kernel over nrep repetitions."""
+    fpar = fpar_vector() if fpar is None else fpar
+    y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
+    sec, status = _kernel.model_profile(*tab.args(), FORMULATIONS[formulation], fpar, float(t),
+                                        y, int(nrep))
+    if status != 0:
+        raise exception_for(Status(int(status)))(f"profiling failed: {Status(int(status)).name}")
+    return {"assembly_ns": 1e9 * sec[0] / nrep, "evaluation_ns": 1e9 * sec[1] / nrep,
+            "solve_ns": 1e9 * (sec[1] - sec[0]) / nrep}
+
+
 def dependent_rows(d: np.ndarray, tol: float = 1e-9):
     """Rows of D that are linear combinations of the others: the left null space of D."""
     if d.shape[0] == 0:

@@ -238,7 +238,7 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
   use mbdk_kinds, only: i8
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, MBDK_VISIT_COUNT
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
@@ -256,7 +256,7 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
   type(mbdk_model_t) :: model
   type(mbdk_options_t) :: opt
   type(mbdk_stats_t) :: st
-  integer(i8) :: vis(MBDK_VISIT_COUNT)
+  type(mbdk_model_work_t), target :: work
 
   nwritten = 0
   stats = 0.0d0
@@ -266,7 +266,7 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb) return
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, vis, status)
+                       freal(:, 1:nf), formulation, fpar, work, status)
   if (status /= MBDK_SUCCESS) return
   opt%method = method_id
   opt%h = h
@@ -277,7 +277,7 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
   opt%startup = startup
   call mbdk_fixed_step_solve(model, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
   stats = mbdk_stats_to_array(st)
-  visits = dble(vis(1:9))
+  visits = dble(work%visits(1:9))
 end subroutine model_solve
 
 subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
@@ -286,7 +286,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   ! multipliers at one state: for assembly, diagnosis and tests.
   use mbdk_kinds, only: i8
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
-    mbdk_model_accelerations, MBDK_VISIT_COUNT
+    mbdk_model_accelerations, mbdk_model_work_t
   use mbdk_force_elements, only: mbdk_forces_eval
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
@@ -301,19 +301,19 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
 !f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
   type(mbdk_model_t) :: model
-  integer(i8) :: vis(MBDK_VISIT_COUNT)
+  type(mbdk_model_work_t), target :: work
 
   phi = 0.0d0; d = 0.0d0; gam = 0.0d0; phit = 0.0d0; fq = 0.0d0; acc = 0.0d0; lam = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, vis, status)
+                       freal(:, 1:nf), formulation, fpar, work, status)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return
   call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), phi, d, gam, phit)
   call mbdk_forces_eval(model%fint, model%freal, model%mass, y(1:nc), y(nc + 1:), t, fq, &
-                        vis(5:), status)
+                        work%visits(5:), status)
   if (status /= MBDK_SUCCESS) return
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
@@ -324,7 +324,7 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   ! The sampled outputs (accelerations, multipliers, reactions, energy parts, residuals) at
   ! every sample of a trajectory; nok samples were evaluated before a failure.
   use mbdk_kinds, only: i8
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_outputs, MBDK_VISIT_COUNT
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_outputs, mbdk_model_work_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc, ns
@@ -340,7 +340,7 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
 !f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
 !f2py integer intent(hide), depend(t) :: ns = len(t)
   type(mbdk_model_t) :: model
-  integer(i8) :: vis(MBDK_VISIT_COUNT)
+  type(mbdk_model_work_t), target :: work
   integer :: k
 
   acc = 0.0d0; lam = 0.0d0; reac = 0.0d0; energy = 0.0d0; resid = 0.0d0
@@ -348,7 +348,7 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, vis, status)
+                       freal(:, 1:nf), formulation, fpar, work, status)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return
@@ -360,3 +360,56 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
     nok = k
   end do
 end subroutine model_outputs
+
+subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                         formulation, fpar, nc, t, y, nrep, seconds, status)
+  ! Where an evaluation's time goes: seconds(1) = nrep evaluations of the assembly alone
+  ! (forces, Phi, D, gamma), seconds(2) = nrep full evaluations (assembly + the formulation's
+  ! linear solve). The linear solve is the difference; the integrator's share follows from a
+  ! timed run (studies/scene_drift.py).
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
+    mbdk_model_accelerations, mbdk_model_work_t
+  use mbdk_joints, only: MBDK_JOINT_TYPES
+  use mbdk_force_elements, only: mbdk_forces_eval
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, nc, nrep
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: t, y(2 * nc)
+  double precision, intent(out) :: seconds(2)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
+  type(mbdk_model_t) :: model
+  type(mbdk_model_work_t), target :: work
+  double precision :: c0, c1, acc(nc)
+  double precision, allocatable :: lam(:)
+  integer :: k
+
+  seconds = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. nrep < 1) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), formulation, fpar, work, status)
+  if (status /= MBDK_SUCCESS) return
+  allocate (lam(model%m))
+  call cpu_time(c0)
+  do k = 1, nrep
+    work%fq = 0.0d0
+    call mbdk_forces_eval(model%fint, model%freal, model%mass, y(1:nc), y(nc + 1:), t, work%fq, &
+                          work%visits(MBDK_JOINT_TYPES + 1:), status)
+    call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), work%phi, work%d, work%gam, &
+                                work%phit)
+  end do
+  call cpu_time(c1)
+  seconds(1) = c1 - c0
+  call cpu_time(c0)
+  do k = 1, nrep
+    call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
+  end do
+  call cpu_time(c1)
+  seconds(2) = c1 - c0
+end subroutine model_profile

@@ -15,7 +15,8 @@ module mbdk_small_dense
 
 contains
 
-  !> In place: the lower triangle of a becomes L with A = L L^T.
+  !> In place: the strict lower triangle of a becomes that of L with A = L L^T, and the diagonal
+  !> holds 1 / L(j, j) (so that the solve multiplies instead of dividing).
   pure subroutine mbdk_small_chol_factor(a, n, tol, stat)
     integer, intent(in) :: n
     real(dp), intent(inout) :: a(n, n)
@@ -34,19 +35,19 @@ contains
         s = s - a(j, k)**2
       end do
       if (.not. (s > tol * dmax)) return
-      a(j, j) = sqrt(s)
+      a(j, j) = 1.0_dp / sqrt(s)
       do i = j + 1, n
         s = a(i, j)
         do k = 1, j - 1
           s = s - a(i, k) * a(j, k)
         end do
-        a(i, j) = s / a(j, j)
+        a(i, j) = s * a(j, j)
       end do
     end do
     stat = MBDK_SUCCESS
   end subroutine mbdk_small_chol_factor
 
-  !> Solves L L^T x = b; b is overwritten by x.
+  !> Solves L L^T x = b with the factor of mbdk_small_chol_factor; b is overwritten by x.
   pure subroutine mbdk_small_chol_solve(l, n, b)
     integer, intent(in) :: n
     real(dp), intent(in) :: l(n, n)
@@ -56,13 +57,13 @@ contains
       do k = 1, i - 1
         b(i) = b(i) - l(i, k) * b(k)
       end do
-      b(i) = b(i) / l(i, i)
+      b(i) = b(i) * l(i, i)
     end do
     do i = n, 1, -1
       do k = i + 1, n
         b(i) = b(i) - l(k, i) * b(k)
       end do
-      b(i) = b(i) / l(i, i)
+      b(i) = b(i) * l(i, i)
     end do
   end subroutine mbdk_small_chol_solve
 

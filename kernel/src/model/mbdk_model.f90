@@ -19,9 +19,11 @@
 !> LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
 !>
-!> Only the elements a scene declares are visited; visits(:) counts the evaluations of each
+!> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
-!> nothing. The counters sit behind a pointer because rhs receives the problem read-only.
+!> nothing. The counters and the evaluation buffers live in a mbdk_model_work_t that the caller
+!> owns and the model points to (rhs receives the problem read-only): an evaluation allocates
+!> nothing, which matters at a few hundred nanoseconds per evaluation.
 module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -43,6 +45,15 @@ module mbdk_model
   integer, parameter, public :: MBDK_OUT_ENERGY = 6, MBDK_OUT_RESID = 3
   real(dp), parameter :: SINGULAR_TOL = 1.0e-11_dp
 
+  !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
+  type, public :: mbdk_model_work_t
+    integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
+    real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
+    real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
+    real(dp), allocatable :: s(:, :), wd(:, :), pm(:, :), kkt(:, :), rhs(:)
+    integer, allocatable :: ipiv(:)
+  end type mbdk_model_work_t
+
   type, extends(mbdk_problem_t), public :: mbdk_model_t
     integer :: nb = 0, nc = 0, m = 0
     real(dp), allocatable :: mass(:), winv(:)     !< diagonal of M (nc) and of the projection weight
@@ -55,7 +66,7 @@ module mbdk_model
     real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp   !< Jalon-Bayo
     real(dp) :: proj_tol = 1.0e-12_dp
     integer :: proj_max_iter = 20
-    integer(i8), pointer :: visits(:) => null()
+    type(mbdk_model_work_t), pointer :: work => null()
   contains
     procedure :: rhs => model_rhs
     procedure :: post_step => model_post_step
@@ -65,21 +76,21 @@ contains
 
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
   !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense).
-  !> MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python layer names the element.
+  !> work must outlive the model. MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python
+  !> layer names the element.
   subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, formulation, fpar, &
-                             visits, stat)
+                             work, stat)
     type(mbdk_model_t), intent(out) :: model
     real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), fpar(8)
     integer, intent(in) :: jint(:, :), fint(:, :), formulation
-    integer(i8), target, intent(inout) :: visits(:)
+    type(mbdk_model_work_t), target, intent(inout) :: work
     integer, intent(out) :: stat
-    integer :: b, j, rows
+    integer :: b, j, rows, nc, m
 
     stat = MBDK_ERR_INVALID_INPUT
     model%nb = size(mass)
     if (model%nb < 1 .or. size(inertia) /= model%nb) return
     if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
-    if (size(visits) < MBDK_VISIT_COUNT) return
     if (formulation < MBDK_FORM_REDUCED .or. formulation > MBDK_FORM_PROJECTION) return
     model%nc = 3 * model%nb
     model%n = 2 * model%nc
@@ -135,8 +146,25 @@ contains
     if (formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
     if (formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
     model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
-    visits = 0
-    model%visits => visits
+    nc = model%nc
+    m = model%m
+    work%visits = 0
+    if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
+                                        work%rc, work%lam_rhs, work%s, work%wd, work%pm, work%kkt, &
+                                        work%rhs, work%ipiv)
+    allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
+              work%lam_rhs(m), work%s(m, m), work%wd(m, nc))
+    if (formulation == MBDK_FORM_PENALTY) then
+      allocate (work%pm(nc, nc))
+    else
+      allocate (work%pm(0, 0))
+    end if
+    if (.not. model%m_positive .or. model%solver == MBDK_SOLVER_KKT) then
+      allocate (work%kkt(nc + m, nc + m), work%rhs(nc + m), work%ipiv(nc + m))
+    else
+      allocate (work%kkt(0, 0), work%rhs(0), work%ipiv(0))
+    end if
+    model%work => work
     model%has_jac = .false.
     stat = MBDK_SUCCESS
   end subroutine mbdk_model_init
@@ -149,7 +177,7 @@ contains
     d = 0.0_dp
     if (self%m == 0) return
     call mbdk_joints_eval(self%jint, self%jreal, self%row0, q, v, t, phi, d, gam, phit, &
-                          self%visits(1:MBDK_JOINT_TYPES))
+                          self%work%visits(1:MBDK_JOINT_TYPES))
   end subroutine mbdk_model_constraints
 
   subroutine model_rhs(self, t, y, f, stat)
@@ -158,22 +186,22 @@ contains
     real(dp), intent(in) :: y(:)
     real(dp), intent(out) :: f(:)
     integer, intent(out) :: stat
-    real(dp) :: lam(self%m)
     integer :: nc
     nc = self%nc
     f(1:nc) = y(nc + 1:2 * nc)
-    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), lam, stat)
+    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                  self%work%lam_rhs, stat)
   end subroutine model_rhs
 
-  !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation.
+  !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
+  !> self%work%lam_rhs; no argument may alias the other work buffers.
   subroutine mbdk_model_accelerations(self, t, q, v, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     real(dp), intent(out) :: a(:), lam(:)
     integer, intent(out) :: stat
-    integer :: nc, m, i, form
-    real(dp) :: fq(self%nc), phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m)
-    real(dp) :: rc(self%m), pm(self%nc, self%nc), dphi(self%m), w2, tmu
+    integer :: nc, m, i, k, r
+    real(dp) :: w2, tmu, x
 
     nc = self%nc
     m = self%m
@@ -181,119 +209,170 @@ contains
       stat = MBDK_ERR_NONFINITE
       return
     end if
-    fq = 0.0_dp
-    call mbdk_forces_eval(self%fint, self%freal, self%mass, q, v, t, fq, &
-                          self%visits(MBDK_JOINT_TYPES + 1:), stat)
-    if (stat /= MBDK_SUCCESS) return
-    if (m == 0) then
-      if (.not. self%m_positive) then
-        stat = MBDK_ERR_SINGULAR_MATRIX
+    associate (w => self%work)
+      w%fq = 0.0_dp
+      call mbdk_forces_eval(self%fint, self%freal, self%mass, q, v, t, w%fq, &
+                            w%visits(MBDK_JOINT_TYPES + 1:), stat)
+      if (stat /= MBDK_SUCCESS) return
+      if (m == 0) then
+        if (.not. self%m_positive) then
+          stat = MBDK_ERR_SINGULAR_MATRIX
+          return
+        end if
+        a = w%fq * self%winv
         return
       end if
-      a = fq * self%winv
-      return
-    end if
-    call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
-    form = self%formulation
-    select case (form)
-    case (MBDK_FORM_REDUCED, MBDK_FORM_PROJECTION)
-      rc = gam
-    case (MBDK_FORM_BAUMGARTE)
-      rc = gam - 2.0_dp * self%alpha * (matmul(d, v) + phit) - self%beta**2 * phi
-    case (MBDK_FORM_PENALTY)
-      w2 = self%pen_omega**2
-      tmu = 2.0_dp * self%pen_mu * self%pen_omega
-      dphi = matmul(d, v) + phit
-      rc = -gam + tmu * dphi + w2 * phi
-      a = fq - self%pen_alpha * matmul(rc, d)
-      pm = self%pen_alpha * matmul(transpose(d), d)
-      do i = 1, nc
-        pm(i, i) = pm(i, i) + self%mass(i)
-      end do
-      if (self%small_dense .and. nc <= MBDK_SMALL_DENSE_MAX) then
-        call mbdk_small_chol_factor(pm, nc, 1.0e-15_dp, stat)
-        if (stat == MBDK_SUCCESS) call mbdk_small_chol_solve(pm, nc, a)
-      else
-        call mbdk_chol_factor(pm, stat)
-        if (stat == MBDK_SUCCESS) call mbdk_chol_solve(pm, a, stat)
-      end if
-      if (stat /= MBDK_SUCCESS) return
-      lam = self%pen_alpha * (matmul(d, a) + rc)
-      return
-    end select
-    call solve_constrained(self, d, fq, rc, a, lam, stat)
+      call mbdk_model_constraints(self, t, q, v, w%phi, w%d, w%gam, w%phit)
+      select case (self%formulation)
+      case (MBDK_FORM_REDUCED, MBDK_FORM_PROJECTION)
+        w%rc = w%gam
+      case (MBDK_FORM_BAUMGARTE)
+        do r = 1, m
+          x = w%phit(r)
+          do k = 1, nc
+            x = x + w%d(r, k) * v(k)
+          end do
+          w%rc(r) = w%gam(r) - 2.0_dp * self%alpha * x - self%beta**2 * w%phi(r)
+        end do
+      case (MBDK_FORM_PENALTY)
+        w2 = self%pen_omega**2
+        tmu = 2.0_dp * self%pen_mu * self%pen_omega
+        do r = 1, m
+          x = w%phit(r)
+          do k = 1, nc
+            x = x + w%d(r, k) * v(k)
+          end do
+          w%rc(r) = -w%gam(r) + tmu * x + w2 * w%phi(r)
+        end do
+        do k = 1, nc
+          a(k) = w%fq(k) - self%pen_alpha * dot_product(w%rc, w%d(:, k))
+          do i = k, nc
+            w%pm(i, k) = self%pen_alpha * dot_product(w%d(:, i), w%d(:, k))
+            w%pm(k, i) = w%pm(i, k)
+          end do
+          w%pm(k, k) = w%pm(k, k) + self%mass(k)
+        end do
+        if (self%small_dense .and. nc <= MBDK_SMALL_DENSE_MAX) then
+          call mbdk_small_chol_factor(w%pm, nc, 1.0e-15_dp, stat)
+          if (stat == MBDK_SUCCESS) call mbdk_small_chol_solve(w%pm, nc, a)
+        else
+          call mbdk_chol_factor(w%pm, stat)
+          if (stat == MBDK_SUCCESS) call mbdk_chol_solve(w%pm, a, stat)
+        end if
+        if (stat /= MBDK_SUCCESS) return
+        do r = 1, m
+          lam(r) = self%pen_alpha * (dot_product(w%d(r, :), a) + w%rc(r))
+        end do
+        return
+      end select
+      call solve_constrained(self, w, a, lam, stat)
+    end associate
   end subroutine mbdk_model_accelerations
 
-  !> M a + D^T lam = fq, D a = rc: Schur complement (M positive, not forced to KKT) or KKT LU.
-  subroutine solve_constrained(self, d, fq, rc, a, lam, stat)
+  !> M a + D^T lam = fq, D a = rc (from w): Schur complement (M positive, not forced to KKT) or
+  !> KKT LU.
+  subroutine solve_constrained(self, w, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
-    real(dp), intent(in) :: d(:, :), fq(:), rc(:)
+    type(mbdk_model_work_t), intent(inout) :: w
     real(dp), intent(out) :: a(:), lam(:)
     integer, intent(out) :: stat
     integer :: nc, m, i, j, k, nk
-    real(dp) :: s(self%m, self%m), wd(self%m, self%nc), umax, umin
-    real(dp), allocatable :: kkt(:, :), rhs(:)
-    integer, allocatable :: ipiv(:)
+    real(dp) :: umax, umin, x
 
     nc = self%nc
     m = self%m
     if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
-      do k = 1, nc
-        wd(:, k) = d(:, k) * self%winv(k)
-      end do
-      ! S = D W D^T (symmetric: lower triangle), lam-rhs = D W fq - rc
-      do j = 1, m
-        do i = j, m
-          s(i, j) = dot_product(wd(i, :), d(j, :))
-        end do
-        lam(j) = dot_product(wd(j, :), fq) - rc(j)
-      end do
       if (self%small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
-        call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
-        if (stat /= MBDK_SUCCESS) return
-        call mbdk_small_chol_solve(s, m, lam)
-      else
-        do j = 1, m
-          do i = 1, j - 1
-            s(i, j) = s(j, i)
-          end do
-        end do
-        call mbdk_chol_factor(s, stat)
-        if (stat == MBDK_SUCCESS) call check_chol_pivots(s, stat)
-        if (stat /= MBDK_SUCCESS) return
-        call mbdk_chol_solve(s, lam, stat)
-        if (stat /= MBDK_SUCCESS) return
+        call schur_small(m, nc, w%d, self%winv, w%fq, w%rc, w%s, w%wd, lam, a, stat)
+        return
       end if
-      a = self%winv * (fq - matmul(lam, d))
+      do k = 1, nc
+        w%wd(:, k) = w%d(:, k) * self%winv(k)
+      end do
+      do j = 1, m
+        do i = 1, m
+          w%s(i, j) = dot_product(w%wd(i, :), w%d(j, :))
+        end do
+        lam(j) = dot_product(w%wd(j, :), w%fq) - w%rc(j)
+      end do
+      call mbdk_chol_factor(w%s, stat)
+      if (stat == MBDK_SUCCESS) call check_chol_pivots(w%s, stat)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_chol_solve(w%s, lam, stat)
+      if (stat /= MBDK_SUCCESS) return
+      do k = 1, nc
+        x = w%fq(k)
+        do j = 1, m
+          x = x - w%d(j, k) * lam(j)
+        end do
+        a(k) = self%winv(k) * x
+      end do
       return
     end if
     nk = nc + m
-    allocate (kkt(nk, nk), rhs(nk), ipiv(nk))
-    kkt = 0.0_dp
+    w%kkt = 0.0_dp
     do i = 1, nc
-      kkt(i, i) = self%mass(i)
+      w%kkt(i, i) = self%mass(i)
     end do
-    kkt(nc + 1:nk, 1:nc) = d
-    kkt(1:nc, nc + 1:nk) = transpose(d)
-    rhs(1:nc) = fq
-    rhs(nc + 1:nk) = rc
-    call mbdk_lu_factor(kkt, ipiv, stat)
+    do k = 1, nc
+      do j = 1, m
+        w%kkt(nc + j, k) = w%d(j, k)
+        w%kkt(k, nc + j) = w%d(j, k)
+      end do
+    end do
+    w%rhs(1:nc) = w%fq
+    w%rhs(nc + 1:nk) = w%rc
+    call mbdk_lu_factor(w%kkt, w%ipiv, stat)
     if (stat /= MBDK_SUCCESS) return
     umax = 0.0_dp
     umin = huge(1.0_dp)
     do i = 1, nk
-      umax = max(umax, abs(kkt(i, i)))
-      umin = min(umin, abs(kkt(i, i)))
+      umax = max(umax, abs(w%kkt(i, i)))
+      umin = min(umin, abs(w%kkt(i, i)))
     end do
     if (umin <= SINGULAR_TOL * umax * max(1.0_dp, maxval(self%mass))) then
       stat = MBDK_ERR_SINGULAR_MATRIX
       return
     end if
-    call mbdk_lu_solve(kkt, ipiv, rhs, stat)
+    call mbdk_lu_solve(w%kkt, w%ipiv, w%rhs, stat)
     if (stat /= MBDK_SUCCESS) return
-    a = rhs(1:nc)
-    lam = rhs(nc + 1:nk)
+    a = w%rhs(1:nc)
+    lam = w%rhs(nc + 1:nk)
   end subroutine solve_constrained
+
+  !> The Schur-complement solve for small m with the in-house Cholesky, on explicit-shape
+  !> (contiguous) arrays: S = D W D^T, S lam = D W fq - rc, a = W (fq - D^T lam).
+  pure subroutine schur_small(m, nc, d, winv, fq, rc, s, wd, lam, a, stat)
+    integer, intent(in) :: m, nc
+    real(dp), intent(in) :: d(m, nc), winv(nc), fq(nc), rc(m)
+    real(dp), intent(out) :: s(m, m), wd(m, nc), lam(m), a(nc)
+    integer, intent(out) :: stat
+    integer :: i, j, k
+    real(dp) :: x
+    do k = 1, nc
+      wd(:, k) = d(:, k) * winv(k)
+    end do
+    lam = -rc
+    s = 0.0_dp
+    do k = 1, nc
+      lam = lam + wd(:, k) * fq(k)
+      do j = 1, m
+        do i = j, m
+          s(i, j) = s(i, j) + wd(i, k) * d(j, k)
+        end do
+      end do
+    end do
+    call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_small_chol_solve(s, m, lam)
+    do k = 1, nc
+      x = fq(k)
+      do j = 1, m
+        x = x - d(j, k) * lam(j)
+      end do
+      a(k) = winv(k) * x
+    end do
+  end subroutine schur_small
 
   subroutine check_chol_pivots(l, stat)
     real(dp), intent(in) :: l(:, :)
