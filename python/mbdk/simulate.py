@@ -54,6 +54,7 @@ class SceneResult:
     assembly: dict = field(default_factory=dict)
     joints: list = field(default_factory=list)
     bodies: list = field(default_factory=list)
+    iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
 
     @property
     def success(self) -> bool:
@@ -97,10 +98,21 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")
+    from .index3 import INDEX3_FORMULATIONS, simulate_index3
+    if method == "trapezoidal_index3" or formulation in INDEX3_FORMULATIONS:
+        if method != "trapezoidal_index3" or formulation not in INDEX3_FORMULATIONS:
+            raise InvalidInputError(
+                f"method {method!r} with formulation {formulation!r}: trapezoidal_index3 runs "
+                f"the formulations {', '.join(INDEX3_FORMULATIONS)} and only those; the ODE "
+                f"methods run {', '.join(FORMULATIONS)}")
+        return simulate_index3(scene, formulation, h=h, t_end=t_end, t0=t0, every=every,
+                               rtol=newton_rtol, atol=newton_atol, alpha=alpha,
+                               assemble_initial=assemble_initial,
+                               raise_on_failure=raise_on_failure)
     if formulation not in FORMULATIONS:
         raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}"
-                                + ("; index3 comes with the trapezoidal_index3 method"
-                                   if formulation in ("index3", "ggl", "index1") else ""))
+                                ", and index3 / augmented_lagrangian with method "
+                                "trapezoidal_index3")
     if solver not in SOLVERS:
         raise InvalidInputError(f"solver = {solver!r}; known: {', '.join(SOLVERS)}")
     if startup not in _STARTUP:
@@ -203,15 +215,23 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     return result
 
 
-def _outputs(tab: Tables, formulation: str, fpar, t, y) -> dict:
+def _outputs(tab: Tables, formulation: str, fpar, t, y, given=None) -> dict:
+    """Sampled outputs; given = (a, lambda) of an integrator that computes its own (index-3)."""
     ns = len(t)
     if ns == 0:
         z = np.zeros((0,))
         return {"a": np.zeros((0, tab.nc)), "lam": np.zeros((0, tab.m)),
                 "reac": np.zeros((0, tab.nj, 3)), "energy": z, "resid": np.zeros((0, 3)),
                 "parts": {}}
-    acc, lam, reac, energy, resid, nok, status = _kernel.model_outputs(
-        *tab.args(), FORMULATIONS[formulation], fpar, tab.m, t, np.asfortranarray(y))
+    if given is None:
+        acc = np.zeros((tab.nc, ns), order="F")
+        lam = np.zeros((tab.m, ns), order="F")
+    else:
+        acc = np.asfortranarray(given[0], dtype=float)
+        lam = np.asfortranarray(given[1], dtype=float)
+    reac, energy, resid, nok, status = _kernel.model_outputs(
+        *tab.args(), FORMULATIONS[formulation], fpar, t, np.asfortranarray(y),
+        0 if given is None else 1, acc, lam)
     kin, vg, vs, pd, pc, pl = energy
     parts = {"kinetic": kin, "potential_gravity": vg, "potential_springs": vs,
              "power_dampers": pd, "power_constraints": pc, "power_loads": pl,

@@ -319,19 +319,21 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
 end subroutine model_eval
 
 subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                         formulation, fpar, m, nc, ns, t, y, acc, lam, reac, energy, resid, &
-                         nok, status)
+                         formulation, fpar, m, nc, ns, t, y, given, acc, lam, reac, energy, &
+                         resid, nok, status)
   ! The sampled outputs (accelerations, multipliers, reactions, energy parts, residuals) at
-  ! every sample of a trajectory; nok samples were evaluated before a failure.
+  ! every sample of a trajectory; nok samples were evaluated before a failure. given /= 0: acc
+  ! and lam are inputs (an index-3 integrator's own), not recomputed.
   use mbdk_kinds, only: i8
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_outputs, mbdk_model_work_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc, ns
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc, ns, given
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t(ns), y(2 * nc, ns)
-  double precision, intent(out) :: acc(nc, ns), lam(m, ns), reac(3, nj1, ns), energy(6, ns)
+  double precision, intent(in out) :: acc(nc, ns), lam(m, ns)
+  double precision, intent(out) :: reac(3, nj1, ns), energy(6, ns)
   double precision, intent(out) :: resid(3, ns)
   integer, intent(out) :: nok, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
@@ -343,7 +345,10 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   type(mbdk_model_work_t), target :: work
   integer :: k
 
-  acc = 0.0d0; lam = 0.0d0; reac = 0.0d0; energy = 0.0d0; resid = 0.0d0
+  if (given == 0) then
+    acc = 0.0d0; lam = 0.0d0
+  end if
+  reac = 0.0d0; energy = 0.0d0; resid = 0.0d0
   nok = 0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
@@ -355,7 +360,7 @@ subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   status = MBDK_SUCCESS
   do k = 1, ns
     call mbdk_model_outputs(model, t(k), y(:, k), acc(:, k), lam(:, k), reac(:, 1:nj, k), &
-                            energy(:, k), resid(:, k), status)
+                            energy(:, k), resid(:, k), status, given /= 0)
     if (status /= MBDK_SUCCESS) return
     nok = k
   end do
@@ -413,3 +418,88 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   call cpu_time(c1)
   seconds(2) = c1 - c0
 end subroutine model_profile
+
+subroutine model_index3_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                              fpar, variant, n, y0, t0, t_end, h, every, rtol, atol, max_iter, &
+                              alpha, nsamp, m1, t_out, y_out, a_out, lam_out, iters_out, &
+                              nwritten, stats, visits, status)
+  ! trapezoidal_index3 on a scene (kernel/src/dae/mbdk_trapezoidal_index3.f90): variant 1 =
+  ! the book's index-3 scheme, 2 = augmented Lagrangian with projections. m1 = max(m, 1).
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
+  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_opt_t
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, variant, n, every, max_iter, nsamp, m1
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: y0(n), t0, t_end, h, rtol, atol, alpha
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), a_out(n / 2, nsamp)
+  double precision, intent(out) :: lam_out(m1, nsamp), stats(7), visits(9)
+  integer, intent(out) :: iters_out(nsamp), nwritten, status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+  type(mbdk_model_t) :: model
+  type(mbdk_model_work_t), target :: work
+  type(mbdk_index3_opt_t) :: opt
+  type(mbdk_stats_t) :: st
+
+  nwritten = 0
+  stats = 0.0d0
+  visits = 0.0d0
+  t_out = 0.0d0; y_out = 0.0d0; a_out = 0.0d0; lam_out = 0.0d0; iters_out = 0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), MBDK_FORM_REDUCED, fpar, work, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (m1 /= max(model%m, 1)) return
+  opt%formulation = variant
+  opt%h = h
+  opt%every = every
+  opt%rtol = rtol
+  opt%atol = atol
+  opt%newton_max_iter = max_iter
+  opt%alpha = alpha
+  call mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out(1:model%m, :), &
+                         iters_out, nwritten, st, status)
+  stats = mbdk_stats_to_array(st)
+  visits = dble(work%visits(1:9))
+end subroutine model_index3_solve
+
+subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+                               fpar, nc, m, t, y, lam, h, scaling, jac, status)
+  ! The Newton matrix of trapezoidal_index3 at (q, v, lambda): scaling 0 unscaled, 1 the
+  ! book's (3.15)-(3.16), 2 the solver's (dynamic rows times h^2/4, unknown h^2/4 lambda).
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
+  use mbdk_trapezoidal_index3, only: mbdk_index3_newton_matrix
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nc, m, scaling
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(in) :: t, y(2 * nc), lam(m), h
+  double precision, intent(out) :: jac(nc + m, nc + m)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
+!f2py integer intent(hide), depend(lam) :: m = len(lam)
+  type(mbdk_model_t) :: model
+  type(mbdk_model_work_t), target :: work
+
+  jac = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), MBDK_FORM_REDUCED, fpar, work, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (model%m /= m) return
+  call mbdk_index3_newton_matrix(model, t, y(1:nc), y(nc + 1:), lam, h, scaling, jac, status)
+end subroutine model_index3_matrix

@@ -20,7 +20,7 @@ module mbdk_force_elements
   use mbdk_joints, only: mbdk_body_point
   implicit none
   private
-  public :: mbdk_forces_eval, mbdk_forces_energy
+  public :: mbdk_forces_eval, mbdk_forces_energy, mbdk_forces_tangent
 
   integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
     MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
@@ -135,5 +135,89 @@ contains
       end select
     end do
   end subroutine mbdk_forces_energy
+
+  !> Tangent stiffness kf += -df/dq and damping cf += -df/dv of every element (nc x nc), for
+  !> the Newton matrix of the index-3 integrators. Gravity and torques are constant in q and v.
+  !> Point force at rho: (th, th) += rho . F. Spring-damper with G = dd/dq (2 x nc: I, perp(rho1)
+  !> at body 1; -I, -perp(rho2) at body 2), e = d/L, tension T = k (L - L0) + c L', f = -T G^T e:
+  !>   cf = c (G^T e)(G^T e)^T
+  !>   kf = (G^T e)(k G^T e + c dL'/dq)^T + T [G^T (I - e e^T) G / L + (e.-rho1 at th1,th1;
+  !>        e.rho2 at th2,th2)],  dL'/dq = G^T (I - e e^T) G v / L + H^T e,
+  !>   H = d(G v)/dq: -w1 rho1 in column th1, +w2 rho2 in column th2.
+  !> Coordinate spring-damper: kf(k, k) += k, cf(k, k) += c.
+  subroutine mbdk_forces_tangent(fint, freal, q, v, t, kf, cf, stat)
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :), q(:), v(:), t
+    real(dp), intent(inout) :: kf(:, :), cf(:, :)
+    integer, intent(out) :: stat
+    integer :: e, b, k, nc, i, j
+    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), el(2)
+    real(dp) :: len, ldot, ten, tf, tfd, tfdd, g(2, size(q)), ge(size(q)), pe(2, 2)
+    real(dp) :: dldq(size(q)), pg(2, size(q)), gv(2)
+
+    stat = MBDK_SUCCESS
+    nc = size(q)
+    do e = 1, size(fint, 2)
+      select case (fint(1, e))
+      case (MBDK_FORCE_POINT)
+        b = fint(2, e)
+        call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
+        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        kf(3 * b, 3 * b) = kf(3 * b, 3 * b) + dot_product(rho1, freal(3:4, e) * tf)
+      case (MBDK_FORCE_SPRING_DAMPER)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        dd = p1 - p2
+        len = norm2(dd)
+        if (.not. (len > 0.0_dp)) then
+          stat = MBDK_ERR_NONFINITE
+          return
+        end if
+        el = dd / len
+        g = 0.0_dp
+        b = fint(2, e)
+        if (b > 0) then
+          g(1, 3 * b - 2) = 1.0_dp
+          g(2, 3 * b - 1) = 1.0_dp
+          g(:, 3 * b) = [-rho1(2), rho1(1)]
+        end if
+        b = fint(3, e)
+        if (b > 0) then
+          g(1, 3 * b - 2) = g(1, 3 * b - 2) - 1.0_dp
+          g(2, 3 * b - 1) = g(2, 3 * b - 1) - 1.0_dp
+          g(:, 3 * b) = g(:, 3 * b) - [-rho2(2), rho2(1)]
+        end if
+        gv = pv1 - pv2
+        ldot = dot_product(el, gv)
+        ten = freal(5, e) * (len - freal(6, e)) + freal(7, e) * ldot
+        ge = matmul(el, g)
+        pe(:, 1) = ([1.0_dp, 0.0_dp] - el(1) * el) / len
+        pe(:, 2) = ([0.0_dp, 1.0_dp] - el(2) * el) / len
+        pg = matmul(pe, g)
+        dldq = matmul(gv, pg)
+        if (fint(2, e) > 0) dldq(3 * fint(2, e)) = dldq(3 * fint(2, e)) - w1 * dot_product(el, rho1)
+        if (fint(3, e) > 0) dldq(3 * fint(3, e)) = dldq(3 * fint(3, e)) + w2 * dot_product(el, rho2)
+        do j = 1, nc
+          do i = 1, nc
+            cf(i, j) = cf(i, j) + freal(7, e) * ge(i) * ge(j)
+            kf(i, j) = kf(i, j) + ge(i) * (freal(5, e) * ge(j) + freal(7, e) * dldq(j)) &
+                       + ten * dot_product(g(:, i), pg(:, j))
+          end do
+        end do
+        if (fint(2, e) > 0) then
+          b = 3 * fint(2, e)
+          kf(b, b) = kf(b, b) - ten * dot_product(el, rho1)
+        end if
+        if (fint(3, e) > 0) then
+          b = 3 * fint(3, e)
+          kf(b, b) = kf(b, b) + ten * dot_product(el, rho2)
+        end if
+      case (MBDK_FORCE_COORDINATE)
+        k = 3 * fint(2, e) - 3 + fint(4, e)
+        kf(k, k) = kf(k, k) + freal(1, e)
+        cf(k, k) = cf(k, k) + freal(2, e)
+      end select
+    end do
+  end subroutine mbdk_forces_tangent
 
 end module mbdk_force_elements

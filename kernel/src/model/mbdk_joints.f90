@@ -20,7 +20,7 @@ module mbdk_joints
   use mbdk_time_function, only: mbdk_time_fn
   implicit none
   private
-  public :: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point
+  public :: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, mbdk_joints_tangent
 
   integer, parameter, public :: MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, &
     MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_TYPES = 4
@@ -155,5 +155,65 @@ contains
     end subroutine angle_row
 
   end subroutine mbdk_joints_eval
+
+  !> kc(nc, nc) += d(D^T lam)/dq: the geometric stiffness of the constraint forces at fixed
+  !> multipliers lam (the second derivatives of Phi, weighted by lam), for the Newton matrix of
+  !> the index-3 integrators. Angle rows and drivers are linear in q and contribute nothing.
+  !> With d = P1 - P2, perp(x) = (-x2, x1), dP/dtheta = perp(rho), d perp(rho)/dtheta = -rho:
+  !>   revolute/fixed: (th1, th1) -= rho1 . lam(r:r+1);  (th2, th2) += rho2 . lam(r:r+1)
+  !>   prismatic row n2 . d (n2 turns with body 2, dn2/dth2 = -u2, du2/dth2 = n2), times lam:
+  !>     (th1, th1) -n2.rho1;  (r1, th2) -u2;  (th1, th2) -u2.perp(rho1);  (r2, th2) +u2;
+  !>     (th2, th2) -n2.d + 2 u2.perp(rho2) + n2.rho2   (symmetric)
+  subroutine mbdk_joints_tangent(jint, jreal, row0, q, lam, kc)
+    integer, intent(in) :: jint(:, :), row0(:)
+    real(dp), intent(in) :: jreal(:, :), q(:), lam(:)
+    real(dp), intent(inout) :: kc(:, :)
+    integer :: j, r, b1, b2, i1, i2, c
+    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, u2(2), n2(2), dd(2)
+    real(dp) :: l, cs, sn, zero(size(q)), x
+
+    zero = 0.0_dp
+    do j = 1, size(jint, 2)
+      r = row0(j)
+      b1 = jint(2, j)
+      b2 = jint(3, j)
+      i1 = 3 * b1
+      i2 = 3 * b2
+      select case (jint(1, j))
+      case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_FIXED)
+        call mbdk_body_point(b1, jreal(1:2, j), q, zero, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), q, zero, p2, rho2, pv2, w2)
+        if (b1 > 0) kc(i1, i1) = kc(i1, i1) - dot_product(rho1, lam(r:r + 1))
+        if (b2 > 0) kc(i2, i2) = kc(i2, i2) + dot_product(rho2, lam(r:r + 1))
+      case (MBDK_JOINT_PRISMATIC)
+        l = lam(r + 1)
+        call mbdk_body_point(b1, jreal(1:2, j), q, zero, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), q, zero, p2, rho2, pv2, w2)
+        if (b2 > 0) then
+          cs = cos(q(i2))
+          sn = sin(q(i2))
+          u2 = [cs * jreal(5, j) - sn * jreal(6, j), sn * jreal(5, j) + cs * jreal(6, j)]
+        else
+          u2 = jreal(5:6, j)
+        end if
+        n2 = [-u2(2), u2(1)]
+        dd = p1 - p2
+        kc(i1, i1) = kc(i1, i1) - l * dot_product(n2, rho1)
+        if (b2 > 0) then
+          do c = 1, 2
+            kc(i1 - 3 + c, i2) = kc(i1 - 3 + c, i2) - l * u2(c)
+            kc(i2, i1 - 3 + c) = kc(i2, i1 - 3 + c) - l * u2(c)
+            kc(i2 - 3 + c, i2) = kc(i2 - 3 + c, i2) + l * u2(c)
+            kc(i2, i2 - 3 + c) = kc(i2, i2 - 3 + c) + l * u2(c)
+          end do
+          x = -l * dot_product(u2, [-rho1(2), rho1(1)])
+          kc(i1, i2) = kc(i1, i2) + x
+          kc(i2, i1) = kc(i2, i1) + x
+          kc(i2, i2) = kc(i2, i2) + l * (-dot_product(n2, dd) &
+                       + 2.0_dp * dot_product(u2, [-rho2(2), rho2(1)]) + dot_product(n2, rho2))
+        end if
+      end select
+    end do
+  end subroutine mbdk_joints_tangent
 
 end module mbdk_joints

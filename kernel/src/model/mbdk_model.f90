@@ -447,11 +447,15 @@ contains
   !> of the constraint forces, nonzero only through drift, stabilisation and drivers), load
   !> power; resid(3) = max |Phi|, max |D v + Phi_t|, max |D a - gamma| (the latter with
   !> gamma of the reduced form).
-  subroutine mbdk_model_outputs(self, t, y, a, lam, reac, energy, resid, stat)
+  !> With given = .true., a and lam are inputs (an integrator's own accelerations and
+  !> multipliers, as trapezoidal_index3 produces them) and are not recomputed.
+  subroutine mbdk_model_outputs(self, t, y, a, lam, reac, energy, resid, stat, given)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    real(dp), intent(out) :: a(:), lam(:), reac(:, :), energy(MBDK_OUT_ENERGY), resid(MBDK_OUT_RESID)
+    real(dp), intent(inout) :: a(:), lam(:)
+    real(dp), intent(out) :: reac(:, :), energy(MBDK_OUT_ENERGY), resid(MBDK_OUT_RESID)
     integer, intent(out) :: stat
+    logical, intent(in), optional :: given
     integer :: nc, m, j, r, k, b1, c
     real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), q(self%nc), v(self%nc)
     real(dp) :: p(2), rho(2), pv(2), w, qf(3)
@@ -460,7 +464,12 @@ contains
     m = self%m
     q = y(1:nc)
     v = y(nc + 1:2 * nc)
-    call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+    stat = MBDK_SUCCESS
+    if (.not. present(given)) then
+      call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+    else if (.not. given) then
+      call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+    end if
     if (stat /= MBDK_SUCCESS) return
     call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
     energy(1) = 0.5_dp * sum(self%mass * v**2)
