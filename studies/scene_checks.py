@@ -110,6 +110,17 @@ def book_elements(out: Path):
          "book": "y + (l/4) sin(phi) - l", "mbdk": "y - (l/4) sin(phi) - l",
          "verdict": "book sign slip against (2.115) and (2.118); it vanishes at phi = 0, so the "
                     "printed numbers are not affected"},
+        {"eq": "(1.27)", "quantity": "row 3, joint B of the four-bar",
+         "book": "x1 + (a/2) cos(phi1) - x2 + (a/2) cos(phi2)",
+         "mbdk": "x1 + (a/2) cos(phi1) - x2 + (b/2) cos(phi2)",
+         "verdict": "book misprint: B is the coupler's end, b/2 from its centre; the scene "
+                    "'four_bar' uses b/2 and agrees with (1.29) and (1.31) "
+                    "(tests/test_four_bar_forms.py)"},
+        {"eq": "(3.16)", "quantity": "Newton matrix blocks a and b",
+         "book": "a = the residual of (3.15); b = (h^2/4) D^T lambda",
+         "mbdk": "a = M + (h^2/4)(K_c + K_f) + (h/2) C_f; b = (h^2/4) D^T",
+         "verdict": "book wrong: a Newton matrix holds derivatives; the kernel's analytic matrix "
+                    "matches finite differences of the residual (tests/test_index3.py)"},
     ]
     return write_table(rows, ["eq", "quantity", "book", "mbdk", "verdict"], out, "book_elements",
                        "Spring and damper vectors: book as printed against the kernel",
