@@ -26,7 +26,7 @@ from . import _kernel
 from .errors import InvalidInputError, Status, exception_for, status_message
 from .model import VISIT_NAMES, assemble, build_tables, dependent_rows, evaluate, fpar_vector, \
     rows_to_joints
-from .ode import _INT_MAX, build_info, plan
+from .ode import build_info, plan
 from .result import Stats
 from .scene import Scene
 
@@ -40,19 +40,11 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                     every: int = 1, rtol: float | None = None, atol: float | None = None,
                     max_iter: int = NEWTON_MAX_ITER, alpha: float | None = None,
                     assemble_initial: bool = True, raise_on_failure: bool = True):
-    from .simulate import SceneResult, _outputs
+    from .simulate import SceneResult, _outputs, check_run
     if formulation not in INDEX3_FORMULATIONS:
         raise InvalidInputError(f"formulation = {formulation!r}; trapezoidal_index3 runs "
                                 f"{', '.join(INDEX3_FORMULATIONS)}")
-    for name, val in (("h", h), ("t_end", t_end), ("t0", t0)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise InvalidInputError(f"{name} = {val!r} must be a finite number")
-    if not h > 0:
-        raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
-    if not t_end > t0:
-        raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
-        raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
+    check_run(h, t_end, t0, every)
     rtol = NEWTON_RTOL if rtol is None else float(rtol)
     atol = NEWTON_ATOL if atol is None else float(atol)
     if not (rtol >= 0 and atol > 0):

@@ -83,6 +83,19 @@ def _cumtrapz(t, p):
     return out
 
 
+def check_run(h, t_end, t0, every) -> None:
+    """The step, interval and sampling of a scene run, as named errors."""
+    for name, val in (("h", h), ("t_end", t_end), ("t0", t0)):
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+            raise InvalidInputError(f"{name} = {val!r} must be a finite number")
+    if not h > 0:
+        raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
+    if not t_end > t0:
+        raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
+    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
+        raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
+
+
 def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: str = "reduced",
              t0: float = 0.0, every: int = 1, alpha: float | None = None,
              beta: float | None = None, penalty: tuple = (1e7, 10.0, 1.0),
@@ -118,15 +131,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     if startup not in _STARTUP:
         raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(_STARTUP)}")
     info_m = _method(method)
-    for name, val in (("h", h), ("t_end", t_end), ("t0", t0)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise InvalidInputError(f"{name} = {val!r} must be a finite number")
-    if not h > 0:
-        raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
-    if not t_end > t0:
-        raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
-        raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
+    check_run(h, t_end, t0, every)
     every = int(every)
     alpha = 1.0 / h if alpha is None else float(alpha)
     beta = math.sqrt(2.0) / h if beta is None else float(beta)
