@@ -50,6 +50,7 @@ enum mbdk_startup { MBDK_STARTUP_RK4 = 0, MBDK_STARTUP_BDF = 1 };
 typedef struct mbdk_stats {
     int64_t steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, startup_steps;
     double cpu_time;     /* CPU seconds of the time loop, measured in the kernel */
+    int64_t rejected_steps, newton_failures;  /* step-size control: error test, Newton */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure

@@ -9,11 +9,18 @@ Formulations:
                         v and a come from the trapezoidal relations and drift off Phi' = 0,
                         Phi'' = 0.
   augmented_lagrangian  the index-3 augmented Lagrangian with mass-orthogonal projections of
-                        v and a (ALI3-P); alpha is its penalty factor (default 1e8).
+                        v and a (ALI3-P); alpha is its penalty factor (default 0: at every
+                        step 1e3 max(M) / (h^2/4), so the penalty outweighs the mass matrix
+                        1000-fold whatever h).
 
 Newton: rtol/atol on the position update (defaults 1e-10, 1e-12) and max |Phi| <= atol;
 max_iter iterations (default 20). The result's `a` and `multipliers` are the integrator's own;
 `iterations` holds the Newton iterations of the step behind each sample.
+
+Step size: fixed (h, every) by default. adaptive=True starts from h and controls the step by a
+local-error estimate on q and v (multipliers excluded) against err_rtol/err_atol (defaults
+1e-6, 1e-8); samples every dt_out (default h * every), each one landed on exactly. Rejected
+steps and Newton failures (the step is retried at h/4) are counted in stats.
 """
 from __future__ import annotations
 
@@ -23,22 +30,25 @@ from numbers import Integral
 import numpy as np
 
 from . import _kernel
-from .errors import InvalidInputError, Status, exception_for, status_message
+from .errors import InvalidInputError, NotApplicableError, Status, exception_for, status_message
 from .model import VISIT_NAMES, assemble, build_tables, dependent_rows, evaluate, fpar_vector, \
     rows_to_joints
-from .ode import build_info, plan
+from .ode import build_info
 from .result import Stats
 from .scene import Scene
 
 INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
 SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
-DEFAULT_ALPHA = 1e8
+DEFAULT_ALPHA = 0.0   # 0: per step, 1e3 max(M) / (h^2/4) (kernel's MBDK_INDEX3_KAPPA)
+INDEX3_OPTIONS = {"adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", "max_iter"}
 NEWTON_RTOL, NEWTON_ATOL, NEWTON_MAX_ITER = 1e-10, 1e-12, 20
 
 
 def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t0: float = 0.0,
                     every: int = 1, rtol: float | None = None, atol: float | None = None,
                     max_iter: int = NEWTON_MAX_ITER, alpha: float | None = None,
+                    adaptive: bool = False, err_rtol: float = 1e-6, err_atol: float = 1e-8,
+                    dt_out: float | None = None, h_min: float = 0.0, h_max: float = 0.0,
                     assemble_initial: bool = True, raise_on_failure: bool = True):
     from .simulate import SceneResult, _outputs, check_run
     if formulation not in INDEX3_FORMULATIONS:
@@ -53,10 +63,38 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
     if isinstance(max_iter, bool) or not isinstance(max_iter, Integral) or max_iter < 1:
         raise InvalidInputError(f"max_iter = {max_iter!r} must be a whole number >= 1")
     alpha = DEFAULT_ALPHA if alpha is None else float(alpha)
-    if formulation == "augmented_lagrangian" and not (alpha > 0 and math.isfinite(alpha)):
+    if formulation == "augmented_lagrangian" and not (alpha >= 0 and math.isfinite(alpha)):
         raise InvalidInputError(f"alpha = {alpha}: the augmented Lagrangian's penalty factor "
-                                "must be finite and > 0 (default 1e8)")
+                                "must be finite and > 0, or 0 for the default (1e3 max(M) "
+                                "/ (h^2/4) at every step)")
     every = int(every)
+    dt_out = h * every if dt_out is None else dt_out
+    if adaptive and formulation == "index3":
+        raise NotApplicableError(
+            "adaptive=True with formulation 'index3': the book's scheme leaves its velocities "
+            "off Phi' = 0 by a period-2 oscillation that grows with time and soon exceeds the "
+            "local error, so an error test on q and v would shrink h without end (studies/"
+            "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
+            "step-size control, or a fixed h")
+    if adaptive:
+        for name, val, low in (("err_rtol", err_rtol, 0.0), ("err_atol", err_atol, None),
+                               ("dt_out", dt_out, None), ("h_min", h_min, 0.0),
+                               ("h_max", h_max, 0.0)):
+            ok = isinstance(val, (int, float)) and not isinstance(val, bool) and \
+                math.isfinite(val) and (val >= low if low is not None else val > 0)
+            if not ok:
+                raise InvalidInputError(f"{name} = {val!r} must be a finite number "
+                                        f"{'>= 0' if low is not None else '> 0'}")
+        if h_max and h_min > h_max:
+            raise InvalidInputError(f"h_min = {h_min} exceeds h_max = {h_max}")
+    nsteps, nsamp, status = _kernel.index3_plan(t0, t_end, h, every, int(adaptive), err_rtol,
+                                                err_atol, dt_out, h_min, h_max)
+    if status < 0:
+        raise InvalidInputError(
+            f"h = {h}, t0 = {t0}, t_end = {t_end}, every = {every}"
+            + (f", dt_out = {dt_out}" if adaptive else "")
+            + " give no valid plan: need 0 < " + ("dt_out" if adaptive else "h")
+            + " <= t_end - t0 and at most 2e9 " + ("samples" if adaptive else "steps"))
     tab = build_tables(scene)
     if assemble_initial:
         q0, v0, report = assemble(scene, tab, t0)
@@ -74,11 +112,11 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                 "pose: the index-3 Newton matrix is singular. Remove the redundant joint, or use "
                 "an ODE method with formulation = 'penalty'", status=Status.ERR_SINGULAR_MATRIX)
     y0 = np.concatenate([q0, v0])
-    nsteps, nsamp, _ = plan(t0, t_end, h, every)
     m1 = max(tab.m, 1)
     t, y, a, lam, iters, nw, stats, visits, status = _kernel.model_index3_solve(
         *tab.args(), fpar, INDEX3_FORMULATIONS[formulation], y0, t0, t_end, h, every, rtol,
-        atol, int(max_iter), alpha, nsamp, m1)
+        atol, int(max_iter), alpha, int(adaptive), err_rtol, err_atol, dt_out, h_min, h_max,
+        nsamp, m1)
     status = Status(int(status))
     nw = int(nw)
     t, y = np.array(t[:nw]), np.array(y[:, :nw])
@@ -87,11 +125,15 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
     nc = tab.nc
     manifest = {**build_info(), "scene": scene.name, "source": scene.source,
                 "method": "trapezoidal_index3", "formulation": formulation, "h": h, "t0": t0,
-                "t_end": t_end, "every": every, "steps": nsteps,
+                "t_end": t_end, "every": every, "steps": int(stats[0]),
                 "newton": {"rtol": rtol, "atol": atol, "max_iter": int(max_iter),
                            "matrix": "analytic, LAPACK LU, reused while Newton contracts"}}
     if formulation == "augmented_lagrangian":
-        manifest["alpha"] = alpha
+        manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
+    if adaptive:
+        manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
+                                    "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
+                                    "estimate": "h^2/12 |a+ - a| on q, h^3/12 |a''| on v"}
     result = SceneResult(
         t=t, q=y[:nc].T, v=y[nc:].T, a=a.T, multipliers=lam.T, reactions=out["reac"],
         energy=out["energy"], energy_parts=out["parts"], residuals=out["resid"],

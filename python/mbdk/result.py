@@ -19,10 +19,13 @@ class Stats:
     newton_iterations: int = 0
     startup_steps: int = 0
     cpu_time: float = 0.0
+    rejected_steps: int = 0        # step-size control: steps rejected by the error test
+    newton_failures: int = 0       # step-size control: steps retried because Newton failed
 
     @classmethod
     def from_array(cls, a) -> "Stats":
-        return cls(*(int(round(x)) for x in a[:6]), float(a[6]))
+        extra = [int(round(x)) for x in a[7:9]]
+        return cls(*(int(round(x)) for x in a[:6]), float(a[6]), *extra)
 
 
 @dataclass

@@ -102,26 +102,37 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
              projection_tol: float = 1e-12, solver: str = "auto", small_dense: bool = True,
              assemble_initial: bool = True, startup: str = "rk4",
              newton_rtol: float | None = None, newton_atol: float | None = None,
-             raise_on_failure: bool = True) -> SceneResult:
+             raise_on_failure: bool = True, **index3_options) -> SceneResult:
     """Integrate a scene. See the module docstring for formulations and outputs.
 
     newton_rtol/atol (implicit methods): default 1e-10/1e-12, but 1e-7/1e-9 for the penalty
     formulation, whose accelerations carry roundoff amplified by alpha_p (~1e-9 at 1e7): a
-    tighter test would never pass."""
+    tighter test would never pass.
+
+    index3_options (method trapezoidal_index3 only): adaptive, err_rtol, err_atol, dt_out,
+    h_min, h_max (step-size control) and max_iter (Newton); see mbdk.index3."""
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")
-    from .index3 import INDEX3_FORMULATIONS, simulate_index3
+    from .index3 import INDEX3_FORMULATIONS, INDEX3_OPTIONS, simulate_index3
     if method == "trapezoidal_index3" or formulation in INDEX3_FORMULATIONS:
         if method != "trapezoidal_index3" or formulation not in INDEX3_FORMULATIONS:
             raise InvalidInputError(
                 f"method {method!r} with formulation {formulation!r}: trapezoidal_index3 runs "
                 f"the formulations {', '.join(INDEX3_FORMULATIONS)} and only those; the ODE "
                 f"methods run {', '.join(FORMULATIONS)}")
+        unknown = set(index3_options) - INDEX3_OPTIONS
+        if unknown:
+            raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
+                                    f"trapezoidal_index3 also takes {', '.join(sorted(INDEX3_OPTIONS))}")
         return simulate_index3(scene, formulation, h=h, t_end=t_end, t0=t0, every=every,
                                rtol=newton_rtol, atol=newton_atol, alpha=alpha,
                                assemble_initial=assemble_initial,
-                               raise_on_failure=raise_on_failure)
+                               raise_on_failure=raise_on_failure, **index3_options)
+    if index3_options:
+        raise InvalidInputError(f"{', '.join(sorted(index3_options))}: options of "
+                                "trapezoidal_index3 only (adaptive, err_rtol, err_atol, dt_out, "
+                                "h_min, h_max, max_iter)")
     if formulation not in FORMULATIONS:
         raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}"
                                 ", and index3 / augmented_lagrangian with method "

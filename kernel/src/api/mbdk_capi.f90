@@ -31,6 +31,7 @@ module mbdk_capi
     integer(c_int64_t) :: steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, &
       startup_steps
     real(c_double) :: cpu_time
+    integer(c_int64_t) :: rejected_steps, newton_failures
   end type mbdk_c_stats
 
 contains
@@ -85,7 +86,7 @@ contains
     integer :: stat, nw
 
     nwritten = 0
-    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double)
+    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double, 0, 0)
     if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
       return
@@ -106,7 +107,7 @@ contains
     call solve(y_out(1:n * nsamp))
     nwritten = int(nw, c_int)
     stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
-      st%newton_iterations, st%startup_steps, st%cpu_time)
+      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
     mbdk_c_solve_ode = int(stat, c_int)
 
   contains

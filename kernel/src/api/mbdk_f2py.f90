@@ -16,7 +16,7 @@ subroutine solve_problem(problem_id, method_id, n, y0, t0, t_end, h, every, np, 
   integer, intent(in) :: problem_id, method_id, n, every, np, nsamp, newton_max_iter, fd_jacobian
   integer, intent(in) :: startup
   double precision, intent(in) :: y0(n), t0, t_end, h, params(np), newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(params) :: np = len(params)
@@ -73,7 +73,7 @@ subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton
   external fun
   integer, intent(in) :: n, method_id, every, nq, nsamp, newton_max_iter, startup
   double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
   ! The callback's signature for f2py: its first argument is named n so that the bounds of
@@ -247,7 +247,7 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(7), visits(9)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9), visits(9)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
@@ -421,22 +421,25 @@ end subroutine model_profile
 
 subroutine model_index3_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                               fpar, variant, n, y0, t0, t_end, h, every, rtol, atol, max_iter, &
-                              alpha, nsamp, m1, t_out, y_out, a_out, lam_out, iters_out, &
+                              alpha, adaptive, err_rtol, err_atol, dt_out, h_min, h_max, &
+                              nsamp, m1, t_out, y_out, a_out, lam_out, iters_out, &
                               nwritten, stats, visits, status)
   ! trapezoidal_index3 on a scene (kernel/src/dae/mbdk_trapezoidal_index3.f90): variant 1 =
   ! the book's index-3 scheme, 2 = augmented Lagrangian with projections. m1 = max(m, 1).
+  ! adaptive /= 0: step-size control (err_rtol, err_atol on q and v), samples every dt_out.
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_opt_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, variant, n, every, max_iter, nsamp, m1
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, variant, n, every, max_iter, nsamp, m1, adaptive
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: y0(n), t0, t_end, h, rtol, atol, alpha
+  double precision, intent(in) :: err_rtol, err_atol, dt_out, h_min, h_max
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), a_out(n / 2, nsamp)
-  double precision, intent(out) :: lam_out(m1, nsamp), stats(7), visits(9)
+  double precision, intent(out) :: lam_out(m1, nsamp), stats(9), visits(9)
   integer, intent(out) :: iters_out(nsamp), nwritten, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
@@ -465,6 +468,12 @@ subroutine model_index3_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, 
   opt%atol = atol
   opt%newton_max_iter = max_iter
   opt%alpha = alpha
+  opt%adaptive = adaptive /= 0
+  opt%err_rtol = err_rtol
+  opt%err_atol = err_atol
+  opt%dt_out = dt_out
+  opt%h_min = h_min
+  opt%h_max = h_max
   call mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out(1:model%m, :), &
                          iters_out, nwritten, st, status)
   stats = mbdk_stats_to_array(st)
@@ -503,3 +512,28 @@ subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1,
   if (model%m /= m) return
   call mbdk_index3_newton_matrix(model, t, y(1:nc), y(nc + 1:), lam, h, scaling, jac, status)
 end subroutine model_index3_matrix
+
+subroutine index3_plan(t0, t_end, h, every, adaptive, err_rtol, err_atol, dt_out, h_min, h_max, &
+                       nsteps, nsamp, status)
+  ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
+  use mbdk_kinds, only: i8
+  use mbdk_trapezoidal_index3, only: mbdk_index3_plan, mbdk_index3_opt_t
+  implicit none
+  double precision, intent(in) :: t0, t_end, h, err_rtol, err_atol, dt_out, h_min, h_max
+  integer, intent(in) :: every, adaptive
+  double precision, intent(out) :: nsteps
+  integer, intent(out) :: nsamp, status
+  type(mbdk_index3_opt_t) :: opt
+  integer(i8) :: ns
+  logical :: shortened
+  opt%h = h
+  opt%every = every
+  opt%adaptive = adaptive /= 0
+  opt%err_rtol = err_rtol
+  opt%err_atol = err_atol
+  opt%dt_out = dt_out
+  opt%h_min = h_min
+  opt%h_max = h_max
+  call mbdk_index3_plan(opt, t0, t_end, ns, nsamp, shortened, status)
+  nsteps = dble(ns)
+end subroutine index3_plan

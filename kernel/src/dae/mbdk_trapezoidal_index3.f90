@@ -10,9 +10,14 @@
 !>
 !> Formulations (mbdk_index3_opt_t%formulation):
 !>   1 index3     the book's scheme: Newton-Raphson (3.16) on (q+, lambda+) for r = 0 and
-!>                Phi(q+) = 0, multiplier predictor lambda+ = 2 lambda - lambda- (3.11), position
-!>                predictor q + h v + (h^2/2) a. v+ and a+ follow from the trapezoidal relations
-!>                and do not satisfy Phi' = 0, Phi'' = 0: the weakness the book names.
+!>                Phi(q+) = 0, multiplier predictor (3.11) lambda+ = lambda + (h/h-)(lambda -
+!>                lambda-), position predictor q + h v + (h^2/2) a. v+ and a+ follow from the
+!>                trapezoidal relations and do not satisfy Phi' = 0, Phi'' = 0: the weakness the
+!>                book names. Worse, the errors of v and a in the constraint directions
+!>                alternate in sign from step to step with a growing amplitude (the trapezoidal
+!>                rule on an index-3 system is unstable there: Cardona and Geradin 1989): on the
+!>                double pendulum, the four-bar and the crane |D a - gamma| grows about 15-fold
+!>                per 1.4 s whatever h, until Newton fails after 4-9 s (studies/index3.py).
 !>   2 augmented  the index-3 augmented Lagrangian with projections (ALI3-P: Bayo and Ledesma
 !>                1996; Cuadrado, Cardenal and Bayo 1997; the family the book cites in [6], [20],
 !>                [23]): Newton on q+ alone for
@@ -20,25 +25,49 @@
 !>                with lam* <- lam* + alpha Phi after every iteration (lam* starts from the last
 !>                step's multipliers), then mass-orthogonal projections of v+ onto D v + Phi_t = 0
 !>                and of a+ onto D a = gamma (KKT solves with M). lambda+ = lam* + alpha Phi.
-!>                Parameters: alpha (penalty factor, force per unit of Phi; default 1e8: on
-!>                the double pendulum at h = 1e-3, alpha = 1e7 needs 17 Newton iterations per
-!>                step, 1e8 5.5; on the four-bar at h = 5e-3, alpha >= 1e9 stalls Newton) and
-!>                newton_max_iter (default 20).
+!>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
+!>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
+!>                D^T D outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
+!>                per multiplier update. A fixed alpha (the literature's 1e7-1e9) converges
+!>                slowly at small h (s alpha ~ M: the step-size controller then stalls) and
+!>                makes the matrix ill-conditioned at large h. newton_max_iter: default 20.
 !>
 !> Newton matrix (analytic; tangent stiffness and damping of the force elements from
 !> mbdk_forces_tangent, geometric stiffness of the joints from mbdk_joints_tangent):
-!>   index3:    [M + s (K_c + K_f) + (h/2) C_f, D^T; D, 0] in the unknowns (dq, s dlambda)
-!>   augmented: M + s (K_c + K_f + alpha D^T D) + (h/2) C_f
+!>   index3:    [M + s (K_c(lambda) + K_f) + (h/2) C_f, D^T; D, 0] in the unknowns (dq, s dlambda)
+!>   augmented: M + s (K_c(lam*) + K_f + alpha D^T D) + (h/2) C_f. K_c takes lam* without
+!>              alpha Phi: that term vanishes at the solution, and far from it (the predictor)
+!>              it inflates the geometric stiffness until Newton's first step overshoots.
 !> The book scales both rows by s (3.15)-(3.16) with lambda itself as unknown: its matrix
 !> [M + .., s D^T; s D, 0] has a condition number growing like h^-4. Scaling the unknown to
 !> s lambda and leaving Phi unscaled gives the same Newton iterates (row and column scalings do
 !> not change Newton's steps) with a condition number bounded as h -> 0 (studies/index3.py
 !> measures both; mbdk_index3_newton_matrix builds all three forms).
-!> The matrix is factorised by LAPACK (dgetrf) and reused across iterations and steps while
-!> Newton contracts; it is rebuilt at the current iterate when the contraction rate exceeds
-!> 0.5, when the step size changes, or when an update grows with an old matrix. A step converges when the weighted update norm
-!> (atol + rtol |q|) is below 1 and max |Phi| <= atol; after newton_max_iter iterations with a
-!> fresh matrix it fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
+!>
+!> Newton. The matrix is factorised by LAPACK (dgetrf) and reused across iterations and steps
+!> while Newton contracts. It is rebuilt at the current iterate when the contraction rate
+!> exceeds 0.5 or two more iterations at the current rate would not reach the tolerance (an
+!> iteration costs about a factorisation), and when h changes. When an update grows with an old
+!> matrix, the step restarts once from the predictor with a matrix built there (the augmented
+!> form's multiplier update can spoil the iterate beyond repair), and the next 8 steps start with
+!> fresh matrices. A step converges when the weighted update norm (atol + rtol |q|), or while
+!> contracting the error left after it, rate/(1 - rate) times the update, is below 1, and
+!> max |Phi| <= atol (not below 64 eps max|q|); after newton_max_iter iterations it fails with
+!> MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
+!>
+!> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). Adaptive
+!> (opt%adaptive, augmented form only): from the initial step opt%h, the local error of q and
+!> v (multipliers excluded, as index-3 codes do), -h^3/12 q(3) and -h^3/12 q(4) with the
+!> derivatives from divided differences of the step-mean accelerations, is measured in the
+!> weighted RMS norm (err_atol + err_rtol |y|). err <= 1 accepts the step; the next
+!> h = h min(5, max(0.2, 0.9 err^(-1/3))), held while that would grow it by less than 20 %
+!> (the matrix stays valid; a change of 5 % or less keeps the old matrix too). A rejected step is
+!> retried with that h (stats%rejected_steps); a Newton failure retries at h/4
+!> (stats%newton_failures); below h_min (default 1e-12 of the interval) the solve ends with
+!> MBDK_ERR_STEP_TOO_SMALL. Samples every opt%dt_out, landed on exactly (a step within 1.1 h of
+!> a sample is stretched to it, within 2 h halved). The book's scheme is refused
+!> (MBDK_ERR_NOT_APPLICABLE): its velocity error in the constraint directions grows without
+!> bound, and any error test on v would shrink h forever.
 !>
 !> Per step the solve records the Newton iterations (iters_out at each sample: those of the step
 !> that produced it) and counts factorizations in the stats.
@@ -53,9 +82,12 @@ module mbdk_trapezoidal_index3
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
   private
-  public :: mbdk_index3_solve, mbdk_index3_newton_matrix
+  public :: mbdk_index3_solve, mbdk_index3_newton_matrix, mbdk_index3_plan
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
+  !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
+  !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
+  real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
   integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
     MBDK_INDEX3_SCALED = 2
 
@@ -65,7 +97,10 @@ module mbdk_trapezoidal_index3
     integer :: every = 1
     real(dp) :: rtol = 1.0e-10_dp, atol = 1.0e-12_dp
     integer :: newton_max_iter = 20
-    real(dp) :: alpha = 1.0e8_dp
+    real(dp) :: alpha = 0.0_dp
+    logical :: adaptive = .false.
+    real(dp) :: err_rtol = 1.0e-6_dp, err_atol = 1.0e-8_dp
+    real(dp) :: dt_out = 0.0_dp, h_min = 0.0_dp, h_max = 0.0_dp
   end type mbdk_index3_opt_t
 
 contains
@@ -128,9 +163,11 @@ contains
     end if
   end subroutine book_matrix
 
-  !> Integrates the scene from (q, v) = y0 over [t0, t_end] with step opt%h. Samples: t_out,
-  !> y_out (= [q; v]), a_out, lam_out, iters_out (Newton iterations of the step). nwritten
-  !> samples are valid; on failure the samples before it are kept.
+  !> Integrates the scene from (q, v) = y0 over [t0, t_end]: with the fixed step opt%h, or, when
+  !> opt%adaptive, with the step-size controller from the initial step opt%h and samples every
+  !> opt%dt_out. Samples: t_out, y_out (= [q; v]), a_out, lam_out, iters_out (Newton iterations
+  !> of the step that produced the sample). nwritten samples are valid; on failure the samples
+  !> before it are kept.
   subroutine mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out, &
                                iters_out, nwritten, st, stat)
     type(mbdk_model_t), intent(in) :: model
@@ -141,10 +178,11 @@ contains
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
     integer(i8) :: nsteps, i
-    integer :: nsamp, nc, m, nk, iters, plan_stat
+    integer :: nsamp, nc, m, nk, iters, plan_stat, cool
     logical :: shortened, have_lu
     real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
-    real(dp) :: t, tn, h, h_lu, cpu0, cpu1
+    real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
+    real(dp) :: ln(model%m), t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
     real(dp), allocatable :: lu(:, :)
     integer, allocatable :: ipiv(:)
 
@@ -154,9 +192,13 @@ contains
     m = model%m
     if (opt%formulation /= MBDK_INDEX3_BOOK .and. opt%formulation /= MBDK_INDEX3_AUGMENTED) return
     if (.not. (opt%rtol >= 0.0_dp .and. opt%atol > 0.0_dp) .or. opt%newton_max_iter < 1) return
-    if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha > 0.0_dp)) return
+    if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
     if (size(y0) /= 2 * nc) return
-    call mbdk_step_plan(t0, t_end, opt%h, opt%every, nsteps, nsamp, shortened, plan_stat)
+    if (opt%adaptive .and. opt%formulation == MBDK_INDEX3_BOOK) then
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    call mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, plan_stat)
     if (plan_stat < 0) return
     if (size(t_out) < nsamp .or. size(y_out, 2) < nsamp .or. size(a_out, 2) < nsamp .or. &
         size(lam_out, 2) < nsamp .or. size(iters_out) < nsamp) then
@@ -175,71 +217,158 @@ contains
     call mbdk_model_accelerations(model, t, q, v, a, lam, stat)
     if (stat /= MBDK_SUCCESS) return
     lam_old = lam
+    a_prev = a
+    a_prev2 = a
+    h_prev = 0.0_dp
+    h_prev2 = 0.0_dp
     st%rhs_evals = 1
-    call write_sample(0)
+    iters = 0
+    call write_sample()
     have_lu = .false.
     h_lu = 0.0_dp
-    do i = 1, nsteps
-      tn = t0 + real(i, dp) * opt%h
-      if (i == nsteps) tn = t_end
-      h = tn - t
-      if (opt%formulation == MBDK_INDEX3_BOOK) then
-        call step_book(stat)
-      else
-        call step_augmented(stat)
-      end if
-      if (stat /= MBDK_SUCCESS) exit
-      t = tn
-      st%steps = st%steps + 1
-      if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample(iters)
-    end do
+    cool = 0
+    if (opt%adaptive) then
+      call adaptive_loop(stat)
+    else
+      do i = 1, nsteps
+        tn = t0 + real(i, dp) * opt%h
+        if (i == nsteps) tn = t_end
+        h = tn - t
+        call attempt(stat)
+        if (stat /= MBDK_SUCCESS) exit
+        call commit()
+        if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample()
+      end do
+      if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
+    end if
     call cpu_time(cpu1)
     st%cpu_time = cpu1 - cpu0
-    if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
 
   contains
 
-    subroutine write_sample(it)
-      integer, intent(in) :: it
+    subroutine write_sample()
       nwritten = nwritten + 1
       t_out(nwritten) = t
       y_out(1:nc, nwritten) = q
       y_out(nc + 1:2 * nc, nwritten) = v
       a_out(1:nc, nwritten) = a
       if (m > 0) lam_out(1:m, nwritten) = lam
-      iters_out(nwritten) = it
+      iters_out(nwritten) = iters
     end subroutine write_sample
 
-    !> f at (q+, v+, t+) and the constraint quantities; s-scaled residual r(1:nc).
-    subroutine residual(qn, vn, lmb, r, phi, d, gam, phit, s, qhat, ierr)
-      real(dp), intent(in) :: qn(:), vn(:), lmb(:), s, qhat(:)
-      real(dp), intent(out) :: r(:), phi(:), d(:, :), gam(:), phit(:)
-      integer, intent(out) :: ierr
-      real(dp) :: fq(nc)
-      integer :: k
-      fq = 0.0_dp
-      call mbdk_forces_eval(model%fint, model%freal, model%mass, qn, vn, tn, fq, &
-                            model%work%visits(5:), ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      st%rhs_evals = st%rhs_evals + 1
-      d = 0.0_dp
-      if (m > 0) call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-      do k = 1, nc
-        r(k) = model%mass(k) * (qn(k) - qhat(k)) - s * fq(k)
-      end do
-      if (m > 0) r = r + s * matmul(lmb, d)
-    end subroutine residual
+    subroutine commit()
+      a_prev2 = a_prev
+      h_prev2 = h_prev
+      a_prev = a
+      h_prev = h
+      lam_old = lam
+      q = qn
+      v = vn
+      a = an
+      lam = ln
+      t = tn
+      st%steps = st%steps + 1
+      if (cool > 0) cool = cool - 1
+    end subroutine commit
 
-    subroutine factor(mat, ierr)
-      real(dp), intent(in) :: mat(:, :)
+    !> The step-size controller (see the module header). Samples land on t0 + k dt_out.
+    subroutine adaptive_loop(ierr)
       integer, intent(out) :: ierr
-      lu = mat
-      call mbdk_lu_factor(lu, ipiv, ierr)
-      st%lu_factorizations = st%lu_factorizations + 1
-      st%jac_evals = st%jac_evals + 1
-      have_lu = ierr == MBDK_SUCCESS
-      h_lu = h
-    end subroutine factor
+      integer :: k
+      real(dp) :: t_s, h_nat, h_min, h_max, err, fac, facmax, span
+      span = t_end - t0
+      h_max = span
+      if (opt%h_max > 0.0_dp) h_max = min(opt%h_max, span)
+      h_min = 1.0e-12_dp * max(abs(t0), abs(t_end), span)
+      if (opt%h_min > 0.0_dp) h_min = max(opt%h_min, h_min)
+      h_nat = min(opt%h, h_max)
+      facmax = 5.0_dp
+      ierr = MBDK_SUCCESS
+      do k = 1, nsamp - 1
+        t_s = t0 + real(k, dp) * opt%dt_out
+        if (k == nsamp - 1) t_s = t_end
+        do while (t < t_s)
+          h = h_nat
+          if (t_s - t <= 1.1_dp * h) then
+            h = t_s - t
+          else if (t_s - t < 2.0_dp * h) then
+            h = 0.5_dp * (t_s - t)
+          end if
+          tn = t + h
+          if (t_s - tn <= 1.0e-12_dp * max(1.0_dp, abs(t_s))) tn = t_s
+          h = tn - t
+          ! keep the last matrix when the step changed little (modified Newton absorbs it)
+          if (have_lu .and. abs(h - h_lu) <= 0.05_dp * h_lu) h_lu = h
+          call attempt(ierr)
+          if (ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
+              ierr == MBDK_ERR_SINGULAR_MATRIX) then
+            st%newton_failures = st%newton_failures + 1
+            have_lu = .false.
+            h_nat = 0.25_dp * h
+            facmax = 1.0_dp
+            if (h_nat < h_min) then
+              ierr = MBDK_ERR_STEP_TOO_SMALL
+              return
+            end if
+            cycle
+          else if (ierr /= MBDK_SUCCESS) then
+            return
+          end if
+          err = error_estimate()
+          fac = 0.9_dp * max(err, 1.0e-10_dp)**(-1.0_dp / 3.0_dp)
+          if (err > 1.0_dp) then
+            st%rejected_steps = st%rejected_steps + 1
+            h_nat = max(0.2_dp, fac) * h
+            facmax = 1.0_dp
+            if (h_nat < h_min) then
+              ierr = MBDK_ERR_STEP_TOO_SMALL
+              return
+            end if
+            cycle
+          end if
+          call commit()
+          fac = min(fac, facmax)
+          facmax = 5.0_dp
+          ! hold h while the controller asks for up to 20 % more: the matrix stays valid
+          if (.not. (h >= 0.999_dp * h_nat .and. fac >= 1.0_dp .and. fac <= 1.2_dp)) &
+            h_nat = min(max(fac * h, 0.2_dp * h), 5.0_dp * max(h_nat, h), h_max)
+        end do
+        call write_sample()
+      end do
+    end subroutine adaptive_loop
+
+    !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
+    !> rule, -h^3/12 q(3) and -h^3/12 q(4). The derivatives are divided differences of the step
+    !> mean accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
+    !> period-2 oscillation of the book scheme's accelerations, which would otherwise dominate.
+    !> The first two steps have no q(4) from history: it is taken as q(3) / (h + h_prev)
+    !> (large, so those steps are judged conservatively).
+    real(dp) function error_estimate()
+      real(dp) :: eq, ev, wq, wv, d1, d0, sum2, b2, b1, b0
+      integer :: k
+      sum2 = 0.0_dp
+      do k = 1, nc
+        b2 = 0.5_dp * (a(k) + an(k))
+        if (h_prev > 0.0_dp) then
+          b1 = 0.5_dp * (a_prev(k) + a(k))
+          d1 = (b2 - b1) / (0.5_dp * (h + h_prev))                     ! q(3)
+        else
+          d1 = (an(k) - a(k)) / h
+        end if
+        eq = h**3 / 12.0_dp * d1
+        if (h_prev2 > 0.0_dp) then
+          b0 = 0.5_dp * (a_prev2(k) + a_prev(k))
+          d0 = (b1 - b0) / (0.5_dp * (h_prev + h_prev2))
+          ev = h**3 / 12.0_dp * (d1 - d0) / (0.5_dp * h + h_prev + 0.5_dp * h_prev2) * 2.0_dp
+        else
+          ev = h**3 / 12.0_dp * d1 / (h + h_prev)
+        end if
+        wq = opt%err_atol + opt%err_rtol * max(abs(q(k)), abs(qn(k)))
+        wv = opt%err_atol + opt%err_rtol * max(abs(v(k)), abs(vn(k)))
+        sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
+      end do
+      error_estimate = sqrt(sum2 / real(2 * nc, dp))
+    end function error_estimate
 
     logical function finite_all(x)
       real(dp), intent(in) :: x(:)
@@ -257,29 +386,63 @@ contains
       wnorm = maxval(abs(dx) / (opt%atol + opt%rtol * abs(x)))
     end function wnorm
 
-    subroutine step_book(ierr)
+    !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
+    !> Newton as in the module header; both formulations share this loop.
+    subroutine attempt(ierr)
       integer, intent(out) :: ierr
-      real(dp) :: s, qhat(nc), qn(nc), vn(nc), lmb(m), r(nc + m), phi(m), d(m, nc), gam(m)
-      real(dp) :: phit(m), jac(nc + m, nc + m), dnorm, dnorm_old, rate
-      logical :: fresh
+      real(dp) :: s, qhat(nc), qp(nc), lp(m), lt(m), fq(nc), r(nk), phi(m), d(m, nc), gam(m)
+      real(dp) :: phit(m), full(nc + m, nc + m), dnorm, dnorm_old, rate
+      logical :: fresh, restarted, book
+      integer :: k, kk
+      book = opt%formulation == MBDK_INDEX3_BOOK
       s = 0.25_dp * h * h
+      alpha = opt%alpha
+      if (alpha == 0.0_dp) alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / s
       qhat = q + h * v + s * a
-      qn = q + h * v + 0.5_dp * h * h * a
-      lmb = 2.0_dp * lam - lam_old                                  ! (3.11)
-      if (have_lu .and. abs(h - h_lu) > 1.0e-12_dp * h) have_lu = .false.
+      qp = q + h * v + 0.5_dp * h * h * a
+      lp = lam
+      if (book .and. h_prev > 0.0_dp) lp = lam + (h / h_prev) * (lam - lam_old)   ! (3.11)
+      if (have_lu .and. (abs(h - h_lu) > 1.0e-12_dp * h .or. cool > 0)) have_lu = .false.
+      qn = qp
+      ln = lp
+      restarted = .false.
       fresh = .false.
       dnorm_old = huge(1.0_dp)
       iters = 0
+      k = 0
+      phi = 0.0_dp
+      d = 0.0_dp
       do
         vn = (2.0_dp / h) * (qn - q) - v
-        call residual(qn, vn, lmb, r(1:nc), phi, d, gam, phit, s, qhat, ierr)
+        if (m > 0) call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
+        lt = ln
+        if (.not. book) then
+          if (k > 0) ln = ln + alpha * phi
+          lt = ln + alpha * phi
+        end if
+        fq = 0.0_dp
+        call mbdk_forces_eval(model%fint, model%freal, model%mass, qn, vn, tn, fq, &
+                              model%work%visits(5:), ierr)
         if (ierr /= MBDK_SUCCESS) return
-        r(nc + 1:) = phi
+        st%rhs_evals = st%rhs_evals + 1
+        do kk = 1, nc
+          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) - s * fq(kk)
+        end do
+        if (m > 0) r(1:nc) = r(1:nc) + s * matmul(lt, d)
+        if (book) r(nc + 1:) = phi
         if (.not. have_lu) then
-          call book_matrix(model, tn, qn, vn, lmb, h, jac, ierr)
+          ! the geometric stiffness of the augmented form takes lam* alone: alpha Phi, large
+          ! while the iterate is off the constraints, vanishes at the solution
+          call book_matrix(model, tn, qn, vn, ln, h, full, ierr)
           if (ierr /= MBDK_SUCCESS) return
-          call factor(jac, ierr)
+          lu = full(1:nk, 1:nk)
+          if (.not. book .and. m > 0) lu = lu + (s * alpha) * matmul(transpose(d), d)
+          call mbdk_lu_factor(lu, ipiv, ierr)
+          st%lu_factorizations = st%lu_factorizations + 1
+          st%jac_evals = st%jac_evals + 1
           if (ierr /= MBDK_SUCCESS) return
+          have_lu = .true.
+          h_lu = h
           fresh = .true.
         end if
         r = -r
@@ -290,97 +453,48 @@ contains
           return
         end if
         iters = iters + 1
+        k = k + 1
         st%newton_iterations = st%newton_iterations + 1
         dnorm = wnorm(r(1:nc), qn)
         rate = dnorm / dnorm_old
-        if (rate > 1.0_dp .and. iters > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
-          ! growing with an old matrix (not just roundoff below the tolerance): rebuild it at
-          ! this iterate and take a true Newton step instead
+        if (rate > 1.0_dp .and. k > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
+          ! growing with an old matrix (not roundoff below the tolerance). The first time the
+          ! iterate may be spoilt (the augmented form's multiplier update amplifies it), so
+          ! restart from the predictor with a matrix built there, and build fresh matrices
+          ! for the next steps; later, rebuild the matrix at this iterate.
           have_lu = .false.
           dnorm_old = huge(1.0_dp)
+          if (.not. restarted) then
+            restarted = .true.
+            cool = 8
+            qn = qp
+            ln = lp
+            k = 0
+          end if
           cycle
         end if
         qn = qn + r(1:nc)
-        lmb = lmb + r(nc + 1:) / s
-        if (dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) exit
+        if (book) ln = ln + r(nc + 1:) / s
+        ! converged: the update (or, while contracting, the error left after it) is below
+        ! tolerance, and Phi, checked before the update, was too
+        if ((dnorm <= 1.0_dp .or. (k > 1 .and. rate < 0.9_dp .and. &
+             rate / (1.0_dp - rate) * dnorm <= 1.0_dp)) .and. &
+            (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) exit
         if (iters >= opt%newton_max_iter) then
           ierr = MBDK_ERR_NEWTON_DIVERGED
           return
         end if
-        if (rate > 0.5_dp) have_lu = .false.
-        fresh = .false.
-        dnorm_old = dnorm
-      end do
-      ! converged: the last update is below tolerance and Phi, checked before it, was too
-      vn = (2.0_dp / h) * (qn - q) - v
-      a = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
-      lam_old = lam
-      lam = lmb
-      q = qn
-      v = vn
-      if (.not. (finite_all(q) .and. finite_all(v))) ierr = MBDK_ERR_NONFINITE
-    end subroutine step_book
-
-    subroutine step_augmented(ierr)
-      integer, intent(out) :: ierr
-      real(dp) :: s, qhat(nc), qn(nc), vn(nc), an(nc), lstar(m), r(nc), phi(m), d(m, nc)
-      real(dp) :: gam(m), phit(m), jac(nc, nc), dnorm, dnorm_old, rate, lt(m)
-      logical :: fresh
-      integer :: k
-      s = 0.25_dp * h * h
-      qhat = q + h * v + s * a
-      qn = q + h * v + 0.5_dp * h * h * a
-      lstar = lam
-      if (have_lu .and. abs(h - h_lu) > 1.0e-12_dp * h) have_lu = .false.
-      fresh = .false.
-      dnorm_old = huge(1.0_dp)
-      iters = 0
-      do
-        vn = (2.0_dp / h) * (qn - q) - v
-        phi = 0.0_dp
-        if (m > 0) call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        if (iters > 0) lstar = lstar + opt%alpha * phi
-        lt = lstar + opt%alpha * phi
-        call residual(qn, vn, lt, r, phi, d, gam, phit, s, qhat, ierr)
-        if (ierr /= MBDK_SUCCESS) return
-        if (.not. have_lu) then
-          call augmented_matrix(qn, vn, lt, d, s, jac, ierr)
-          if (ierr /= MBDK_SUCCESS) return
-          call factor(jac, ierr)
-          if (ierr /= MBDK_SUCCESS) return
-          fresh = .true.
-        end if
-        r = -r
-        call mbdk_lu_solve(lu, ipiv, r, ierr)
-        if (ierr /= MBDK_SUCCESS) return
-        if (.not. finite_all(r)) then
-          ierr = MBDK_ERR_NONFINITE
-          return
-        end if
-        iters = iters + 1
-        st%newton_iterations = st%newton_iterations + 1
-        dnorm = wnorm(r, qn)
-        rate = dnorm / dnorm_old
-        if (rate > 1.0_dp .and. iters > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
-          have_lu = .false.
-          dnorm_old = huge(1.0_dp)
-          cycle
-        end if
-        qn = qn + r
-        if (dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) exit
-        if (iters >= opt%newton_max_iter) then
-          ierr = MBDK_ERR_NEWTON_DIVERGED
-          return
-        end if
-        if (rate > 0.5_dp) have_lu = .false.
+        ! rebuild the matrix when two more iterations at this rate would not reach the
+        ! tolerance (an iteration costs about as much as a factorisation)
+        if (rate > 0.5_dp .or. dnorm * rate * rate > 1.0_dp) have_lu = .false.
         fresh = .false.
         dnorm_old = dnorm
       end do
       vn = (2.0_dp / h) * (qn - q) - v
       an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
-      if (m > 0) then
+      if (.not. book .and. m > 0) then
         call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        lam = lstar + opt%alpha * phi
+        ln = ln + alpha * phi
         ! mass-orthogonal projections: v onto D v + Phi_t = 0, a onto D a = gamma
         call project(d, -(matmul(d, vn) + phit), vn, ierr)
         if (ierr /= MBDK_SUCCESS) return
@@ -388,24 +502,9 @@ contains
         call project(d, gam - matmul(d, an), an, ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
-      q = qn
-      v = vn
-      a = an
-      do k = 1, nc
-        if (.not. abs(q(k)) <= huge(1.0_dp)) ierr = MBDK_ERR_NONFINITE
-      end do
-    end subroutine step_augmented
-
-    subroutine augmented_matrix(qn, vn, lt, d, s, jac, ierr)
-      real(dp), intent(in) :: qn(:), vn(:), lt(:), d(:, :), s
-      real(dp), intent(out) :: jac(:, :)
-      integer, intent(out) :: ierr
-      real(dp) :: full(nc + m, nc + m)
-      call book_matrix(model, tn, qn, vn, lt, h, full, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      jac = full(1:nc, 1:nc)
-      if (m > 0) jac = jac + (s * opt%alpha) * matmul(transpose(d), d)
-    end subroutine augmented_matrix
+      if (.not. (finite_all(qn) .and. finite_all(vn) .and. finite_all(an))) &
+        ierr = MBDK_ERR_NONFINITE
+    end subroutine attempt
 
     !> x += dx with M dx + D^T mu = 0, D dx = rc (the mass-orthogonal correction).
     subroutine project(d, rc, x, ierr)
@@ -430,5 +529,27 @@ contains
     end subroutine project
 
   end subroutine mbdk_index3_solve
+
+  !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
+  !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).
+  subroutine mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, stat)
+    type(mbdk_index3_opt_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end
+    integer(i8), intent(out) :: nsteps
+    integer, intent(out) :: nsamp, stat
+    logical, intent(out) :: shortened
+    if (opt%adaptive) then
+      stat = MBDK_ERR_INVALID_INPUT
+      nsteps = 0
+      nsamp = 0
+      shortened = .false.
+      if (.not. (opt%h > 0.0_dp .and. opt%err_rtol >= 0.0_dp .and. opt%err_atol > 0.0_dp)) return
+      if (.not. (opt%h_min >= 0.0_dp .and. opt%h_max >= 0.0_dp)) return
+      call mbdk_step_plan(t0, t_end, opt%dt_out, 1, nsteps, nsamp, shortened, stat)
+      if (stat > 0) stat = MBDK_SUCCESS
+    else
+      call mbdk_step_plan(t0, t_end, opt%h, opt%every, nsteps, nsamp, shortened, stat)
+    end if
+  end subroutine mbdk_index3_plan
 
 end module mbdk_trapezoidal_index3
