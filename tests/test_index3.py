@@ -295,3 +295,55 @@ def test_step_size_control_refuses_the_book_scheme_and_bad_options():
     with pytest.raises(mbdk.InvalidInputError, match="not an option"):
         mbdk.simulate(sc, "trapezoidal_index3", formulation="augmented_lagrangian", h=1e-3,
                       t_end=1.0, adaptiv=True)
+
+
+def test_index3_study(tmp_path):
+    """studies/index3.py --quick: its numbers against quantities computed here. The book-scaled
+    Newton matrix is rebuilt from the kernel's M and D (independent of the solver's assembly of
+    it) and its condition number compared; the orders must be about 2 for the projected form
+    in q, v and lambda; the book's scheme must fail or drift off Phi'' = 0 in the long runs,
+    the projected form must not."""
+    import csv
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
+    import index3 as study
+    summary = study.run(tmp_path, quick=True)
+    assert len(summary["tables"]) == 4 and all(Path(f).is_file() for f in summary["figures"])
+
+    def rows(name):
+        with open(tmp_path / f"{name}.csv", newline="") as fh:
+            return list(csv.DictReader(fh))
+
+    cond = rows("index3_conditioning")
+    sc = mbdk.scene("double_pendulum")
+    tab = M.build_tables(sc)
+    q, v, _ = M.assemble(sc, tab)
+    tab = M.build_tables(sc, q)
+    e = M.evaluate(tab, q, v)
+    nc = 3 * len(tab.mass)
+    for row in cond[:3]:
+        h = float(row["h"])
+        s = h * h / 4
+        m = tab.m
+        book = np.zeros((nc + m, nc + m))
+        book[:nc, :nc] = newton_matrix(tab, q, v, e["lam"], h, "scaled")[:nc, :nc]
+        book[:nc, nc:] = s * e["D"].T
+        book[nc:, :nc] = s * e["D"]
+        assert float(row["cond_book"]) == pytest.approx(np.linalg.cond(book), rel=1e-6)
+    assert float(cond[0]["slope_book"]) < -3.5 and abs(float(cond[0]["slope_scaled"])) < 0.1
+    orders = [r for r in rows("index3_orders") if r["formulation"] == "augmented_lagrangian"
+              and r["order_q"]]
+    finest = {}
+    for r in orders:
+        finest[r["scene"]] = r
+    assert len(finest) == 3
+    for r in finest.values():
+        for key in ("order_q", "order_v", "order_lambda"):
+            assert 1.8 < float(r[key]) < 2.2, (r["scene"], key, r[key])
+    longs = rows("index3_long_runs")
+    for name in ("double_pendulum", "four_bar"):
+        book = next(r for r in longs if r["scene"] == name and r["integration"].startswith("book"))
+        proj = next(r for r in longs if r["scene"] == name and "projected" in r["integration"])
+        assert proj["status"] == "SUCCESS" and float(proj["max_ddphi"]) < 1e-10
+        assert book["status"] != "SUCCESS" or float(book["max_ddphi"]) > 1e3

@@ -24,7 +24,9 @@
 !>                  M (q+ - qhat) + s (D^T (lam* + alpha Phi) - f) = 0,
 !>                with lam* <- lam* + alpha Phi after every iteration (lam* starts from the last
 !>                step's multipliers), then mass-orthogonal projections of v+ onto D v + Phi_t = 0
-!>                and of a+ onto D a = gamma (KKT solves with M). lambda+ = lam* + alpha Phi.
+!>                and of a+ onto D a = gamma (KKT solves with M, multiplier mu of the latter).
+!>                lambda+ = lam* + alpha Phi + mu: the multipliers of the projected a, second
+!>                order (lam* + alpha Phi alone belongs to the unprojected a: first order).
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
 !>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
 !>                D^T D outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
@@ -182,7 +184,8 @@ contains
     logical :: shortened, have_lu
     real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
     real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
-    real(dp) :: ln(model%m), t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
+    real(dp) :: ln(model%m), lst(model%m), lstn(model%m)
+    real(dp) :: t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
     real(dp), allocatable :: lu(:, :)
     integer, allocatable :: ipiv(:)
 
@@ -217,6 +220,8 @@ contains
     call mbdk_model_accelerations(model, t, q, v, a, lam, stat)
     if (stat /= MBDK_SUCCESS) return
     lam_old = lam
+    lst = lam
+    lstn = lam
     a_prev = a
     a_prev2 = a
     h_prev = 0.0_dp
@@ -266,6 +271,7 @@ contains
       v = vn
       a = an
       lam = ln
+      lst = lstn
       t = tn
       st%steps = st%steps + 1
       if (cool > 0) cool = cool - 1
@@ -391,7 +397,7 @@ contains
     subroutine attempt(ierr)
       integer, intent(out) :: ierr
       real(dp) :: s, qhat(nc), qp(nc), lp(m), lt(m), fq(nc), r(nk), phi(m), d(m, nc), gam(m)
-      real(dp) :: phit(m), full(nc + m, nc + m), dnorm, dnorm_old, rate
+      real(dp) :: phit(m), full(nc + m, nc + m), dnorm, dnorm_old, rate, mu(m)
       logical :: fresh, restarted, book
       integer :: k, kk
       book = opt%formulation == MBDK_INDEX3_BOOK
@@ -400,7 +406,8 @@ contains
       if (alpha == 0.0_dp) alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / s
       qhat = q + h * v + s * a
       qp = q + h * v + 0.5_dp * h * h * a
-      lp = lam
+      lp = lst
+      if (book) lp = lam
       if (book .and. h_prev > 0.0_dp) lp = lam + (h / h_prev) * (lam - lam_old)   ! (3.11)
       if (have_lu .and. (abs(h - h_lu) > 1.0e-12_dp * h .or. cool > 0)) have_lu = .false.
       qn = qp
@@ -495,22 +502,29 @@ contains
       if (.not. book .and. m > 0) then
         call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
         ln = ln + alpha * phi
+        lstn = ln
         ! mass-orthogonal projections: v onto D v + Phi_t = 0, a onto D a = gamma
         call project(d, -(matmul(d, vn) + phit), vn, ierr)
         if (ierr /= MBDK_SUCCESS) return
         call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        call project(d, gam - matmul(d, an), an, ierr)
+        call project(d, gam - matmul(d, an), an, ierr, mu)
         if (ierr /= MBDK_SUCCESS) return
+        ! M a+ = f - D^T lambda+ before the projection, so after it M a = f - D^T (lambda + mu):
+        ! the multipliers consistent with the projected a (second order, where lambda+ alone
+        ! is first order). The next step starts lam* from lambda+ without mu: near a singular
+        ! configuration mu is ill-determined, and would spoil the start
+        ln = ln + mu
       end if
       if (.not. (finite_all(qn) .and. finite_all(vn) .and. finite_all(an))) &
         ierr = MBDK_ERR_NONFINITE
     end subroutine attempt
 
     !> x += dx with M dx + D^T mu = 0, D dx = rc (the mass-orthogonal correction).
-    subroutine project(d, rc, x, ierr)
+    subroutine project(d, rc, x, ierr, mu)
       real(dp), intent(in) :: d(:, :), rc(:)
       real(dp), intent(inout) :: x(:)
       integer, intent(out) :: ierr
+      real(dp), intent(out), optional :: mu(:)
       real(dp) :: kkt(nc + m, nc + m), rhs(nc + m)
       integer :: piv(nc + m), k
       kkt = 0.0_dp
@@ -526,6 +540,7 @@ contains
       call mbdk_lu_solve(kkt, piv, rhs, ierr)
       if (ierr /= MBDK_SUCCESS) return
       x = x + rhs(1:nc)
+      if (present(mu)) mu = rhs(nc + 1:)
     end subroutine project
 
   end subroutine mbdk_index3_solve

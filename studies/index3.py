@@ -1,0 +1,262 @@
+"""Direct index-3 integration (Fekete 2023, 3.2.1): the book's trapezoidal Newton scheme beside
+the projected augmented Lagrangian (ALI3-P) and the chapter-3 reductions, with the CPU time of
+every run.
+
+1. Observed order of q, v and the multipliers against h on the double pendulum, the four-bar and
+   the trolley crane over 1 s (2 s full), both formulations. Reference: rk4 on the reduced ODE
+   at h = 2.5e-5 (its error, O(h^4), is below 1e-12 here); errors are the largest over samples
+   every 0.05 s. Newton iterations and factorisations per step beside them.
+2. Conditioning of the Newton matrix against h at the double pendulum's initial state:
+   unscaled [M + .., D^T; D, 0], the book's scaling (3.15)-(3.16) (both rows times h^2/4,
+   lambda unknown) and the solver's (unknown h^2/4 lambda, Phi unscaled); 2-norm condition
+   numbers by numpy (SVD).
+3. Long runs, 100 s (20 s quick), h = 1e-3, double pendulum and four-bar: the book's scheme,
+   the projected form, and the reductions with rk4 (reduced, Baumgarte alpha = beta = 5,
+   projection): max residuals at position, velocity and acceleration level, energy error,
+   where a run failed and why, CPU time. Figure: residuals and energy against time.
+4. Cost: one fixed step of the double pendulum (best of 3) with Newton iterations and
+   factorisations per step, and the CPU time to reach a 1e-6 error in q at t = 10 s, fixed step
+   (the largest h of a halving sequence that meets it) and adaptive (the loosest err_rtol of a
+   decade sequence), against rk4 at h = 1e-5.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import main, progress  # noqa: E402
+
+import mbdk  # noqa: E402
+from mbdk import model as M  # noqa: E402
+from mbdk.analysis import plotting  # noqa: E402
+from mbdk.analysis.tables import write_table  # noqa: E402
+from mbdk.index3 import newton_matrix  # noqa: E402
+
+FORMS = ["index3", "augmented_lagrangian"]
+SCENES = ["double_pendulum", "four_bar", "trolley_crane"]
+T_SAMPLE = 0.05
+
+
+def _run(sc, method, form, h, t_end, **kw):
+    return mbdk.simulate(sc, method, formulation=form, h=h, t_end=t_end,
+                         raise_on_failure=False, **kw)
+
+
+def orders(out: Path, quick: bool):
+    t_end = 1.0 if quick else 2.0
+    hs = [0.025 / 2 ** k for k in range(4 if quick else 5)]
+    rows = []
+    for name in SCENES:
+        sc = mbdk.scene(name)
+        ref = _run(sc, "rk4", "reduced", 2.5e-5, t_end, every=round(T_SAMPLE / 2.5e-5))
+        for form in FORMS:
+            progress(f"orders: {name} / {form}")
+            prev = None
+            for h in hs:
+                r = _run(sc, "trapezoidal_index3", form, h, t_end, every=round(T_SAMPLE / h))
+                row = {"scene": name, "formulation": form, "h": h, "status": r.status.name}
+                if r.success:
+                    eq = float(np.abs(r.q - ref.q).max())
+                    ev = float(np.abs(r.v - ref.v).max())
+                    el = float(np.abs(r.multipliers - ref.multipliers).max())
+                    row.update(err_q=eq, err_v=ev, err_lambda=el)
+                    if prev is not None:
+                        for key in ("q", "v", "lambda"):
+                            row[f"order_{key}"] = math.log2(prev[f"err_{key}"] / row[f"err_{key}"])
+                    prev = row
+                else:
+                    prev = None
+                st = r.stats
+                row.update(newton_per_step=st.newton_iterations / max(st.steps, 1),
+                           lu_per_step=st.lu_factorizations / max(st.steps, 1),
+                           cpu_s=r.cpu_time)
+                rows.append(row)
+    return write_table(rows, ["scene", "formulation", "h", "status", "err_q", "order_q", "err_v",
+                              "order_v", "err_lambda", "order_lambda", "newton_per_step",
+                              "lu_per_step", "cpu_s"], out, "index3_orders",
+                       f"Observed order of trapezoidal_index3 over {t_end:g} s",
+                       "Errors: max over samples every 0.05 s against rk4 (reduced) at h = 2.5e-5. "
+                       "order = log2 of the error ratio of successive halvings. The book's "
+                       "and the projected form: q, v and lambda second order over this short run "
+                       "(the book scheme's oscillation in v and a has not grown yet: see "
+                       "index3_long_runs).")
+
+
+def conditioning(out: Path, quick: bool):
+    import matplotlib.pyplot as plt
+    sc = mbdk.scene("double_pendulum")
+    tab = M.build_tables(sc)
+    q, v, _ = M.assemble(sc, tab)
+    tab = M.build_tables(sc, q)
+    lam = M.evaluate(tab, q, v)["lam"]
+    hs = np.logspace(-1, -5, 5 if quick else 9)
+    rows = []
+    conds = {s: [] for s in ("unscaled", "book", "scaled")}
+    for h in hs:
+        row = {"h": h}
+        for s in conds:
+            c = float(np.linalg.cond(newton_matrix(tab, q, v, lam, h, s)))
+            conds[s].append(c)
+            row[f"cond_{s}"] = c
+        rows.append(row)
+    slope = {s: float(np.polyfit(np.log10(hs), np.log10(conds[s]), 1)[0]) for s in conds}
+    for row in rows:
+        row.update({f"slope_{s}": slope[s] for s in conds})
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for s, lab in (("unscaled", "unscaled"), ("book", "book (3.15)-(3.16): rows times h^2/4"),
+                   ("scaled", "solver: unknown h^2/4 lambda")):
+        ax.loglog(hs, conds[s], "o-", label=f"{lab} (slope {slope[s]:.2f})")
+    ax.set_xlabel("h (s)")
+    ax.set_ylabel("2-norm condition number")
+    ax.set_title("Newton matrix of the double pendulum at t = 0")
+    ax.legend(fontsize=8)
+    table = write_table(rows, ["h", "cond_unscaled", "cond_book", "cond_scaled", "slope_unscaled",
+                               "slope_book", "slope_scaled"], out, "index3_conditioning",
+                        "Condition number of the index-3 Newton matrix against h",
+                        "slope: d log10(cond) / d log10(h) fitted over the table. Unscaled and "
+                        "book-scaled matrices both grow like h^-4 (the saddle point pairs blocks "
+                        "whose sizes differ by h^2: M/s against D, or M against s D), which is "
+                        "the ill-conditioning at small h the book warns of: the h^2/4 row "
+                        "scaling alone does not cure it. Scaling the multiplier unknown to "
+                        "s lambda and leaving Phi unscaled (what the solver factorises; same "
+                        "Newton iterates) keeps it constant. numpy SVD of 10 x 10 matrices.")
+    return table, plotting.save(fig, out, "index3_conditioning")
+
+
+def long_runs(out: Path, quick: bool):
+    import matplotlib.pyplot as plt
+    t_end = 20.0 if quick else 100.0
+    h = 1e-3
+    variants = [("trapezoidal_index3", "index3", {}, "book index-3 scheme"),
+                ("trapezoidal_index3", "augmented_lagrangian", {}, "augmented Lagrangian, projected"),
+                ("rk4", "reduced", {}, "rk4, reduced (DAE -> ODE)"),
+                ("rk4", "baumgarte", {"alpha": 5.0, "beta": 5.0}, "rk4, Baumgarte 5/5"),
+                ("rk4", "projection", {}, "rk4, projection")]
+    rows = []
+    fig, axes = plt.subplots(2, 2, figsize=(14, 8))
+    every = 100
+    for col, name in enumerate(["double_pendulum", "four_bar"]):
+        sc = mbdk.scene(name)
+        for method, form, kw, label in variants:
+            progress(f"long run: {name} / {label}")
+            r = _run(sc, method, form, h, t_end, every=every, **kw)
+            e0 = r.energy[0]
+            scale = max(float(np.nanmax(r.energy_parts["kinetic"])), 1e-12)
+            res = r.residuals
+            rows.append({"scene": name, "integration": label, "h": h, "t_end": t_end,
+                         "status": r.status.name, "reached_t": float(r.t[-1]),
+                         "max_phi": float(res[:, 0].max()), "max_dphi": float(res[:, 1].max()),
+                         "max_ddphi": float(res[:, 2].max()),
+                         "energy_error_rel": float(np.abs(r.energy - e0).max() / scale),
+                         "newton_per_step": (r.stats.newton_iterations / max(r.stats.steps, 1)
+                                             if method == "trapezoidal_index3" else None),
+                         "cpu_s": r.cpu_time})
+            lab = f"{label} ({r.cpu_time:.2f} s" + ("" if r.success else
+                                                   f", fails at {r.t[-1]:.1f} s") + ")"
+            axes[0, col].semilogy(r.t, np.maximum(res.max(axis=1), 1e-17), label=lab)
+            axes[1, col].semilogy(r.t, np.maximum(np.abs(r.energy - e0) / scale, 1e-17), label=lab)
+        axes[0, col].set_title(f"{name}: largest of the 3 residuals (h = {h:g})")
+        axes[1, col].set_title(f"{name}: |E - E0| / max kinetic energy")
+        for ax in axes[:, col]:
+            ax.set_xlabel("t (s)")
+            ax.legend(fontsize=7)
+    fig.suptitle("Long runs: the book's index-3 scheme, the projected form and the reductions; "
+                 "legend: CPU time")
+    table = write_table(rows, ["scene", "integration", "h", "t_end", "status", "reached_t",
+                               "max_phi", "max_dphi", "max_ddphi", "energy_error_rel",
+                               "newton_per_step", "cpu_s"], out, "index3_long_runs",
+                        f"Long runs, {t_end:g} s at h = {h:g}: residuals at three levels, energy, "
+                        "CPU time",
+                        "max_phi, max_dphi, max_ddphi: max |Phi|, |Phi'|, |D a - gamma| over "
+                        "samples every 0.1 s. The book's scheme keeps Phi to the Newton "
+                        "tolerance, but its v and a leave the derived constraints by a period-2 "
+                        "oscillation growing about 15-fold per 1.4 s (whatever h: the trapezoidal "
+                        "rule is unstable on the index-3 constrained directions, Cardona and "
+                        "Geradin 1989), until Newton fails. The projection keeps all three levels "
+                        "at roundoff for the whole run.")
+    return table, plotting.save(fig, out, "index3_long_runs")
+
+
+def cost(out: Path, quick: bool):
+    sc = mbdk.scene("double_pendulum")
+    rows = []
+    t_step = 2.0 if quick else 10.0
+    for form in FORMS:
+        best = None
+        for _ in range(3):
+            r = _run(sc, "trapezoidal_index3", form, 1e-3, min(t_step, 4.0), every=10**6)
+            if best is None or r.cpu_time < best.cpu_time:
+                best = r
+        st = best.stats
+        rows.append({"measure": "one step, h = 1e-3", "formulation": form,
+                     "us_per_step": 1e6 * best.cpu_time / st.steps,
+                     "newton_per_step": st.newton_iterations / st.steps,
+                     "lu_per_step": st.lu_factorizations / st.steps, "steps": st.steps,
+                     "cpu_s": best.cpu_time, "status": best.status.name})
+    t_end = 4.0 if quick else 10.0
+    ref = _run(sc, "rk4", "reduced", 1e-5, t_end, every=10**7)
+    target = 1e-6
+
+    def err(r):
+        return float(np.abs(r.q[-1] - ref.q[-1]).max()) if r.success and \
+            abs(r.t[-1] - t_end) < 1e-9 else math.inf
+
+    form = "augmented_lagrangian"
+    progress("cost: time to 1e-6, fixed step")
+    h = 0.01
+    hit = None
+    while h > 1e-5 and hit is None:
+        r = _run(sc, "trapezoidal_index3", form, h, t_end, every=10**7)
+        if err(r) <= target:
+            hit = (h, r)
+        h /= 2
+    if hit:
+        h, r = hit
+        rows.append({"measure": f"1e-6 at t = {t_end:g} s, fixed h = {h:.3g}", "formulation": form,
+                     "us_per_step": 1e6 * r.cpu_time / r.stats.steps,
+                     "newton_per_step": r.stats.newton_iterations / r.stats.steps,
+                     "lu_per_step": r.stats.lu_factorizations / r.stats.steps,
+                     "steps": r.stats.steps, "error": err(r), "cpu_s": r.cpu_time,
+                     "status": r.status.name})
+    progress("cost: time to 1e-6, adaptive")
+    for tol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+        r = _run(sc, "trapezoidal_index3", form, 1e-3, t_end, adaptive=True, err_rtol=tol,
+                 err_atol=tol, dt_out=t_end)
+        if err(r) <= target:
+            st = r.stats
+            rows.append({"measure": f"1e-6 at t = {t_end:g} s, adaptive err_rtol = {tol:g}",
+                         "formulation": form, "us_per_step": 1e6 * r.cpu_time / st.steps,
+                         "newton_per_step": st.newton_iterations / st.steps,
+                         "lu_per_step": st.lu_factorizations / st.steps, "steps": st.steps,
+                         "rejected": st.rejected_steps, "error": err(r), "cpu_s": r.cpu_time,
+                         "status": r.status.name})
+            break
+    return write_table(rows, ["measure", "formulation", "us_per_step", "newton_per_step",
+                              "lu_per_step", "steps", "rejected", "error", "cpu_s", "status"],
+                       out, "index3_cost", "Cost of trapezoidal_index3 on the double pendulum",
+                       "Kernel CPU time of the whole loop. The issue's target is 1 us per step "
+                       "(not met: see us_per_step); Exudyn's generalized-alpha index-3 solver "
+                       "is quoted there at 6-8 us per step and 0.4-0.5 s to a 1e-6 error at "
+                       "t = 10 s (quoted, not measured here). The book's scheme fails before "
+                       "t = 10 s (table index3_long_runs), so the time to 1e-6 is the projected "
+                       "form's. error: max |q - q_ref| at t_end against rk4 (reduced) at "
+                       "h = 1e-5.")
+
+
+def run(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    t1 = orders(out, quick)
+    progress("conditioning of the Newton matrix")
+    t2, f2 = conditioning(out, quick)
+    t3, f3 = long_runs(out, quick)
+    t4 = cost(out, quick)
+    return {"title": "Direct index-3 integration: the book's scheme, the projected form and the "
+                     "reductions", "tables": [t1, t2, t3, t4], "figures": [f2, f3]}
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(run, "index3"))
