@@ -73,6 +73,41 @@ int mbdk_solve_ode(mbdk_rhs_fn f, void *user_data, int n, double t0, double t_en
                    const double *y0, const mbdk_options *opt, int nsamp, double *t_out,
                    double *y_out, int *nwritten, mbdk_stats *stats);
 
+/* trapezoidal_index3 (kernel/src/dae/mbdk_trapezoidal_index3.f90 is its manual): the index-3
+ * DAE of a planar scene integrated by the implicit trapezoidal rule with Newton-Raphson. */
+enum mbdk_index3_formulation { MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2 };
+
+typedef struct mbdk_index3_options {
+    int formulation;       /* MBDK_INDEX3_BOOK (the book's scheme) or MBDK_INDEX3_AUGMENTED */
+    double h;              /* fixed step, or the first step when adaptive */
+    int every;             /* fixed step: keep every k-th step as a sample */
+    double newton_rtol, newton_atol;   /* on the position update; max |Phi| <= newton_atol */
+    int newton_max_iter;
+    double alpha;          /* augmented penalty; 0 = 1e3 max(M) / (h^2/4) at every step */
+    int adaptive;          /* non-zero: step-size control (augmented only), samples every dt_out */
+    double err_rtol, err_atol, dt_out, h_min, h_max;   /* h_min, h_max: 0 = automatic */
+} mbdk_index3_options;
+
+void mbdk_index3_default_options(mbdk_index3_options *opt);
+
+/* Samples an mbdk_index3_solve will write (fixed: as mbdk_sample_count; adaptive: one per dt_out
+ * and t_end). Returns a status. */
+int mbdk_index3_sample_count(const mbdk_index3_options *opt, double t0, double t_end, int *nsamp);
+
+/* Integrates a scene given by its tables (what mbdk.model.build_tables(scene) makes in Python):
+ * nb bodies with mass[nb], inertia[nb]; nj joints, jint[nj][4] = (type, body1, body2,
+ * coordinate), jreal[nj][12]; nf force elements, fint[nf][4], freal[nf][12]. Codes and fields:
+ * kernel/src/model/mbdk_joints.f90 and mbdk_force_elements.f90 (bodies 1-based, 0 = ground).
+ * y0[6 nb] = (q, v), q = (x, y, theta) per body, consistent with the constraints.
+ * Outputs, row per sample: t_out[nsamp], y_out[nsamp][6 nb], a_out[nsamp][3 nb],
+ * lam_out[nsamp][m] (m = constraint rows), iters_out[nsamp] (Newton iterations of the step).
+ * *nwritten samples are valid (fewer only on failure). Returns a status. */
+int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj, const int *jint,
+                      const double *jreal, int nf, const int *fint, const double *freal,
+                      const mbdk_index3_options *opt, double t0, double t_end, const double *y0,
+                      int nsamp, double *t_out, double *y_out, double *a_out, double *lam_out,
+                      int *iters_out, int *nwritten, mbdk_stats *stats);
+
 /* Copies the message of a status into buf (NUL-terminated). */
 int mbdk_status_message(int status, char *buf, int buflen);
 

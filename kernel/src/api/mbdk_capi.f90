@@ -10,6 +10,8 @@ module mbdk_capi
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
+  use mbdk_trapezoidal_index3, only: mbdk_index3_opt_t, mbdk_index3_solve, mbdk_index3_plan
   implicit none
   private
 
@@ -34,7 +36,117 @@ module mbdk_capi
     integer(c_int64_t) :: rejected_steps, newton_failures
   end type mbdk_c_stats
 
+  !> Mirrors struct mbdk_index3_options in mbdk.h.
+  type, bind(C) :: mbdk_c_index3_options
+    integer(c_int) :: formulation
+    real(c_double) :: h
+    integer(c_int) :: every
+    real(c_double) :: newton_rtol, newton_atol
+    integer(c_int) :: newton_max_iter
+    real(c_double) :: alpha
+    integer(c_int) :: adaptive
+    real(c_double) :: err_rtol, err_atol, dt_out, h_min, h_max
+  end type mbdk_c_index3_options
+
 contains
+
+  subroutine mbdk_c_index3_default_options(opt) bind(C, name='mbdk_index3_default_options')
+    type(mbdk_c_index3_options), intent(out) :: opt
+    type(mbdk_index3_opt_t) :: d
+    opt = mbdk_c_index3_options(d%formulation, d%h, d%every, d%rtol, d%atol, &
+      d%newton_max_iter, d%alpha, merge(1, 0, d%adaptive), d%err_rtol, d%err_atol, d%dt_out, &
+      d%h_min, d%h_max)
+  end subroutine mbdk_c_index3_default_options
+
+  function to_index3_opt(c) result(o)
+    type(mbdk_c_index3_options), intent(in) :: c
+    type(mbdk_index3_opt_t) :: o
+    o%formulation = int(c%formulation)
+    o%h = c%h
+    o%every = int(c%every)
+    o%rtol = c%newton_rtol
+    o%atol = c%newton_atol
+    o%newton_max_iter = int(c%newton_max_iter)
+    o%alpha = c%alpha
+    o%adaptive = c%adaptive /= 0
+    o%err_rtol = c%err_rtol
+    o%err_atol = c%err_atol
+    o%dt_out = c%dt_out
+    o%h_min = c%h_min
+    o%h_max = c%h_max
+  end function to_index3_opt
+
+  integer(c_int) function mbdk_c_index3_sample_count(opt, t0, t_end, nsamp) &
+      bind(C, name='mbdk_index3_sample_count')
+    type(mbdk_c_index3_options), intent(in) :: opt
+    real(c_double), value :: t0, t_end
+    integer(c_int), intent(out) :: nsamp
+    integer(kind=8) :: nsteps
+    integer :: ns, stat
+    logical :: shortened
+    call mbdk_index3_plan(to_index3_opt(opt), t0, t_end, nsteps, ns, shortened, stat)
+    nsamp = int(ns, c_int)
+    mbdk_c_index3_sample_count = int(stat, c_int)
+  end function mbdk_c_index3_sample_count
+
+  !> trapezoidal_index3 on a scene given by its tables (layouts in mbdk_joints.f90 and
+  !> mbdk_force_elements.f90; row-major C arrays jint[nj][4] are Fortran jint(4, nj)).
+  integer(c_int) function mbdk_c_index3_solve(nb, mass, inertia, nj, jint, jreal, nf, fint, &
+      freal, opt, t0, t_end, y0, nsamp, t_out, y_out, a_out, lam_out, iters_out, nwritten, &
+      stats) bind(C, name='mbdk_index3_solve')
+    integer(c_int), value :: nb, nj, nf, nsamp
+    real(c_double), intent(in) :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in) :: jint(*), fint(*)
+    type(mbdk_c_index3_options), intent(in) :: opt
+    real(c_double), value :: t0, t_end
+    real(c_double), intent(out) :: t_out(*), y_out(*), a_out(*), lam_out(*)
+    integer(c_int), intent(out) :: iters_out(*), nwritten
+    type(mbdk_c_stats), intent(out) :: stats
+    type(mbdk_model_t) :: model
+    type(mbdk_model_work_t), target :: work
+    type(mbdk_stats_t) :: st
+    real(dp) :: fpar(8)
+    integer :: stat, nw, nc, m
+    integer, allocatable :: ji(:, :), fi(:, :), it(:)
+    real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
+
+    nwritten = 0
+    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double, 0, 0)
+    mbdk_c_index3_solve = int(MBDK_ERR_INVALID_INPUT, c_int)
+    if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nsamp < 1) return
+    ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
+    jr = reshape(jreal(1:12 * nj), [12, int(nj)])
+    fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
+    fr = reshape(freal(1:12 * nf), [12, int(nf)])
+    ! the reduced formulation's defaults (solver auto, in-house small dense): used only for the
+    ! consistent a and lambda at t0
+    fpar = [0.0_dp, 0.0_dp, 1.0e7_dp, 10.0_dp, 1.0_dp, 1.0e-12_dp, 1.0_dp, 1.0_dp]
+    call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, MBDK_FORM_REDUCED, &
+                         fpar, work, stat)
+    if (stat /= MBDK_SUCCESS) then
+      mbdk_c_index3_solve = int(stat, c_int)
+      return
+    end if
+    nc = model%nc
+    m = model%m
+    allocate (lam(max(m, 1), nsamp), it(nsamp))
+    call solve(y_out(1:2 * nc * nsamp), a_out(1:nc * nsamp))
+    if (m > 0) lam_out(1:m * nw) = reshape(lam(1:m, 1:nw), [m * nw])
+    iters_out(1:nw) = int(it(1:nw), c_int)
+    nwritten = int(nw, c_int)
+    stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
+      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
+    mbdk_c_index3_solve = int(stat, c_int)
+
+  contains
+
+    subroutine solve(yflat, aflat)
+      real(c_double), intent(inout), target :: yflat(2 * nc, nsamp), aflat(nc, nsamp)
+      call mbdk_index3_solve(model, to_index3_opt(opt), t0, t_end, y0(1:2 * nc), &
+                             t_out(1:nsamp), yflat, aflat, lam(1:m, :), it, nw, st, stat)
+    end subroutine solve
+
+  end function mbdk_c_index3_solve
 
   subroutine mbdk_default_options(opt) bind(C, name='mbdk_default_options')
     type(mbdk_c_options), intent(out) :: opt
