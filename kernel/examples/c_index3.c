@@ -115,6 +115,11 @@ int main(void)
     /* statuses: the book's scheme refuses step-size control, an unknown formulation is bad input */
     opt.formulation = MBDK_INDEX3_BOOK;
     if (run(&opt, 1.0, qc, &st) != MBDK_ERR_NOT_APPLICABLE) { fprintf(stderr, "book+adaptive\n"); fails++; }
+    opt.formulation = MBDK_INDEX3_AUGMENTED;
+    opt.h_min = 0.1;
+    opt.h_max = 0.01;
+    if (run(&opt, 1.0, qc, &st) != -1000) { fprintf(stderr, "h_min > h_max\n"); fails++; }
+    opt.h_min = opt.h_max = 0.0;
     opt.adaptive = 0;
     opt.formulation = 7;
     if (run(&opt, 1.0, qc, &st) != MBDK_ERR_INVALID_INPUT) { fprintf(stderr, "formulation 7\n"); fails++; }

@@ -10,7 +10,8 @@ module mbdk_capi
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED, &
+    mbdk_model_default_fpar
   use mbdk_trapezoidal_index3, only: mbdk_index3_opt_t, mbdk_index3_solve, mbdk_index3_plan
   implicit none
   private
@@ -49,6 +50,13 @@ module mbdk_capi
   end type mbdk_c_index3_options
 
 contains
+
+  pure function to_c_stats(st) result(c)
+    type(mbdk_stats_t), intent(in) :: st
+    type(mbdk_c_stats) :: c
+    c = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
+      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
+  end function to_c_stats
 
   subroutine mbdk_c_index3_default_options(opt) bind(C, name='mbdk_index3_default_options')
     type(mbdk_c_index3_options), intent(out) :: opt
@@ -105,24 +113,21 @@ contains
     type(mbdk_model_t) :: model
     type(mbdk_model_work_t), target :: work
     type(mbdk_stats_t) :: st
-    real(dp) :: fpar(8)
     integer :: stat, nw, nc, m
     integer, allocatable :: ji(:, :), fi(:, :), it(:)
     real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
 
     nwritten = 0
-    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double, 0, 0)
+    stats = to_c_stats(st)
     mbdk_c_index3_solve = int(MBDK_ERR_INVALID_INPUT, c_int)
     if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nsamp < 1) return
     ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
     jr = reshape(jreal(1:12 * nj), [12, int(nj)])
     fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
     fr = reshape(freal(1:12 * nf), [12, int(nf)])
-    ! the reduced formulation's defaults (solver auto, in-house small dense): used only for the
-    ! consistent a and lambda at t0
-    fpar = [0.0_dp, 0.0_dp, 1.0e7_dp, 10.0_dp, 1.0_dp, 1.0e-12_dp, 1.0_dp, 1.0_dp]
+    ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, MBDK_FORM_REDUCED, &
-                         fpar, work, stat)
+                         mbdk_model_default_fpar(), work, stat)
     if (stat /= MBDK_SUCCESS) then
       mbdk_c_index3_solve = int(stat, c_int)
       return
@@ -134,8 +139,7 @@ contains
     if (m > 0) lam_out(1:m * nw) = reshape(lam(1:m, 1:nw), [m * nw])
     iters_out(1:nw) = int(it(1:nw), c_int)
     nwritten = int(nw, c_int)
-    stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
-      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
+    stats = to_c_stats(st)
     mbdk_c_index3_solve = int(stat, c_int)
 
   contains
@@ -198,7 +202,7 @@ contains
     integer :: stat, nw
 
     nwritten = 0
-    stats = mbdk_c_stats(0, 0, 0, 0, 0, 0, 0.0_c_double, 0, 0)
+    stats = to_c_stats(st)
     if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
       return
@@ -218,8 +222,7 @@ contains
     o%startup = int(opt%startup)
     call solve(y_out(1:n * nsamp))
     nwritten = int(nw, c_int)
-    stats = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
-      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
+    stats = to_c_stats(st)
     mbdk_c_solve_ode = int(stat, c_int)
 
   contains

@@ -197,6 +197,7 @@ contains
     if (.not. (opt%rtol >= 0.0_dp .and. opt%atol > 0.0_dp) .or. opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
     if (size(y0) /= 2 * nc) return
+    if (.not. all(abs(y0) <= huge(1.0_dp))) return
     if (opt%adaptive .and. opt%formulation == MBDK_INDEX3_BOOK) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
@@ -282,6 +283,7 @@ contains
       integer, intent(out) :: ierr
       integer :: k
       real(dp) :: t_s, h_nat, h_min, h_max, err, fac, facmax, span
+      logical :: retry
       span = t_end - t0
       h_max = span
       if (opt%h_max > 0.0_dp) h_max = min(opt%h_max, span)
@@ -306,26 +308,26 @@ contains
           ! keep the last matrix when the step changed little (modified Newton absorbs it)
           if (have_lu .and. abs(h - h_lu) <= 0.05_dp * h_lu) h_lu = h
           call attempt(ierr)
+          retry = .true.
           if (ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
               ierr == MBDK_ERR_SINGULAR_MATRIX) then
             st%newton_failures = st%newton_failures + 1
             have_lu = .false.
             h_nat = 0.25_dp * h
-            facmax = 1.0_dp
-            if (h_nat < h_min) then
-              ierr = MBDK_ERR_STEP_TOO_SMALL
-              return
-            end if
-            cycle
           else if (ierr /= MBDK_SUCCESS) then
             return
+          else
+            err = error_estimate()
+            fac = 0.9_dp * max(err, 1.0e-10_dp)**(-1.0_dp / 3.0_dp)
+            retry = err > 1.0_dp
+            if (retry) then
+              st%rejected_steps = st%rejected_steps + 1
+              h_nat = max(0.2_dp, fac) * h
+            end if
           end if
-          err = error_estimate()
-          fac = 0.9_dp * max(err, 1.0e-10_dp)**(-1.0_dp / 3.0_dp)
-          if (err > 1.0_dp) then
-            st%rejected_steps = st%rejected_steps + 1
-            h_nat = max(0.2_dp, fac) * h
+          if (retry) then
             facmax = 1.0_dp
+            ierr = MBDK_SUCCESS
             if (h_nat < h_min) then
               ierr = MBDK_ERR_STEP_TOO_SMALL
               return
@@ -560,6 +562,7 @@ contains
       shortened = .false.
       if (.not. (opt%h > 0.0_dp .and. opt%err_rtol >= 0.0_dp .and. opt%err_atol > 0.0_dp)) return
       if (.not. (opt%h_min >= 0.0_dp .and. opt%h_max >= 0.0_dp)) return
+      if (opt%h_max > 0.0_dp .and. opt%h_min > opt%h_max) return
       call mbdk_step_plan(t0, t_end, opt%dt_out, 1, nsteps, nsamp, shortened, stat)
       if (stat > 0) stat = MBDK_SUCCESS
     else

@@ -36,6 +36,7 @@ module mbdk_model
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
+  public :: mbdk_model_default_fpar
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -73,6 +74,15 @@ module mbdk_model
   end type mbdk_model_t
 
 contains
+
+  !> The fpar vector of mbdk_model_init holding the model's own defaults (what embedders pass
+  !> when they want none of the formulation options).
+  pure function mbdk_model_default_fpar() result(fpar)
+    real(dp) :: fpar(8)
+    type(mbdk_model_t) :: d
+    fpar = [d%alpha, d%beta, d%pen_alpha, d%pen_omega, d%pen_mu, d%proj_tol, real(d%solver, dp), &
+            merge(1.0_dp, 0.0_dp, d%small_dense)]
+  end function mbdk_model_default_fpar
 
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
   !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense).
