@@ -49,7 +49,8 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                     max_iter: int = NEWTON_MAX_ITER, alpha: float | None = None,
                     adaptive: bool = False, err_rtol: float = 1e-6, err_atol: float = 1e-8,
                     dt_out: float | None = None, h_min: float = 0.0, h_max: float = 0.0,
-                    assemble_initial: bool = True, raise_on_failure: bool = True):
+                    small_dense: bool = True, assemble_initial: bool = True,
+                    raise_on_failure: bool = True):
     from .simulate import SceneResult, _outputs, check_run
     if formulation not in INDEX3_FORMULATIONS:
         raise InvalidInputError(f"formulation = {formulation!r}; trapezoidal_index3 runs "
@@ -101,7 +102,7 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
     else:
         q0, v0, report = np.array(scene.q0(), float), np.array(scene.v0(), float), {}
     tab = build_tables(scene, q0)
-    fpar = fpar_vector()
+    fpar = fpar_vector(small_dense=small_dense)
     if tab.m:
         d0 = evaluate(tab, q0, v0, t0)["D"]
         dep = dependent_rows(d0)
@@ -127,7 +128,8 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                 "method": "trapezoidal_index3", "formulation": formulation, "h": h, "t0": t0,
                 "t_end": t_end, "every": every, "steps": int(stats[0]),
                 "newton": {"rtol": rtol, "atol": atol, "max_iter": int(max_iter),
-                           "matrix": "analytic, LAPACK LU, reused while Newton contracts"}}
+                           "matrix": "analytic, reused while Newton contracts; LU "
+                                     + ("in-house up to 12 rows" if small_dense else "LAPACK")}}
     if formulation == "augmented_lagrangian":
         manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
     if adaptive:

@@ -127,7 +127,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
                                     f"trapezoidal_index3 also takes {', '.join(sorted(INDEX3_OPTIONS))}")
         return simulate_index3(scene, formulation, h=h, t_end=t_end, t0=t0, every=every,
                                rtol=newton_rtol, atol=newton_atol, alpha=alpha,
-                               assemble_initial=assemble_initial,
+                               small_dense=small_dense, assemble_initial=assemble_initial,
                                raise_on_failure=raise_on_failure, **index3_options)
     if index3_options:
         raise InvalidInputError(f"{', '.join(sorted(index3_options))}: options of "

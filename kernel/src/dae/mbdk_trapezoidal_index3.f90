@@ -22,11 +22,20 @@
 !>                1996; Cuadrado, Cardenal and Bayo 1997; the family the book cites in [6], [20],
 !>                [23]): Newton on q+ alone for
 !>                  M (q+ - qhat) + s (D^T (lam* + alpha Phi) - f) = 0,
-!>                with lam* <- lam* + alpha Phi after every iteration (lam* starts from the last
-!>                step's multipliers), then mass-orthogonal projections of v+ onto D v + Phi_t = 0
-!>                and of a+ onto D a = gamma (KKT solves with M, multiplier mu of the latter).
-!>                lambda+ = lam* + alpha Phi + mu: the multipliers of the projected a, second
-!>                order (lam* + alpha Phi alone belongs to the unprojected a: first order).
+!>                with lam* <- lam* + alpha Phi after every iteration, from the predictor
+!>                q + h v + s (a + a_x), a_x = a + (h/h-)(a - a-) (the rule itself with a+
+!>                extrapolated: O(h^4)) and lam* extrapolated likewise. Then the mass-orthogonal
+!>                projections of v+ onto D v + Phi_t = 0 and of a+ onto D a = gamma (one
+!>                factorisation of [M D^T; D 0], through D M^-1 D^T when M > 0), computed so that
+!>                the Newton error of q+ is not amplified: P removes every M^-1 D^T term, so
+!>                  v+ = P (v + (h/2)(a + a~)),  a~ any solution of M a~ = f - D^T (..),
+!>                equals P (2/h (q+ - q) - v) once Newton has converged, without its 2/h times
+!>                the Newton error; and a+, lambda+ solve M a + D^T lambda = f, D a = gamma(q+,
+!>                v+), the projection of a+ with its multipliers (second order), without the
+!>                4/h^2 times the Newton error of the trapezoidal a+. Taken from the relations,
+!>                a Newton tolerance of 1e-10 capped the error at 1e-5 on the double pendulum
+!>                (10 s) and made it grow as h fell below 3e-4; now the error is second order
+!>                down to h = 6e-5 (1.9e-7) and the Newton tolerance adds below 2 %.
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
 !>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
 !>                D^T D outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
@@ -46,16 +55,21 @@
 !> not change Newton's steps) with a condition number bounded as h -> 0 (studies/index3.py
 !> measures both; mbdk_index3_newton_matrix builds all three forms).
 !>
-!> Newton. The matrix is factorised by LAPACK (dgetrf) and reused across iterations and steps
+!> Newton. The matrix is factorised by an in-house LU with partial pivoting up to
+!> MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such systems; model%small_dense
+!> = false, or more rows, take LAPACK's dgetrf/dgetrs) and reused across iterations and steps
 !> while Newton contracts. It is rebuilt at the current iterate when the contraction rate
 !> exceeds 0.5 or two more iterations at the current rate would not reach the tolerance (an
 !> iteration costs about a factorisation), and when h changes. When an update grows with an old
 !> matrix, the step restarts once from the predictor with a matrix built there (the augmented
 !> form's multiplier update can spoil the iterate beyond repair), and the next 8 steps start with
-!> fresh matrices. A step converges when the weighted update norm (atol + rtol |q|), or while
-!> contracting the error left after it, rate/(1 - rate) times the update, is below 1, and
-!> max |Phi| <= atol (not below 64 eps max|q|); after newton_max_iter iterations it fails with
-!> MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
+!> fresh matrices, twice as many after each such failure until a step is served by an old
+!> matrix again (with alpha D^T D a thousand times M, a matrix from the last step fails once
+!> h |omega| is above about 1e-3). A step converges when the update computed at an iterate is
+!> below 1 in the weighted norm (atol + rtol |q|) and max |Phi| <= atol there (not below
+!> 64 eps max|q|); that last update is applied. At least two evaluations per step, so both tests
+!> are made on evaluated residuals, never on predicted ones. After newton_max_iter updates it
+!> fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
 !>
 !> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). Adaptive
 !> (opt%adaptive, augmented form only): from the initial step opt%h, the local error of q and
@@ -72,7 +86,8 @@
 !> bound, and any error test on v would shrink h forever.
 !>
 !> Per step the solve records the Newton iterations (iters_out at each sample: those of the step
-!> that produced it) and counts factorizations in the stats.
+!> that produced it; every update computed, the last, converged one included) and counts
+!> factorizations in the stats.
 module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -81,6 +96,8 @@ module mbdk_trapezoidal_index3
   use mbdk_joints, only: mbdk_joints_tangent
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
+  use mbdk_small_dense, only: mbdk_small_chol_factor, mbdk_small_chol_solve, mbdk_small_lu_factor, &
+    mbdk_small_lu_solve, MBDK_SMALL_DENSE_MAX
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
   private
@@ -90,6 +107,8 @@ module mbdk_trapezoidal_index3
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
   !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
+  !> a Cholesky pivot of D M^-1 D^T below this times the largest counts as singular (as the model)
+  real(dp), parameter :: KKT_SINGULAR_TOL = 1.0e-11_dp
   integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
     MBDK_INDEX3_SCALED = 2
 
@@ -116,12 +135,14 @@ contains
     integer, intent(in) :: scaling
     real(dp), intent(out) :: jac(:, :)
     integer, intent(out) :: stat
-    real(dp) :: s
+    real(dp) :: s, phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
+    real(dp) :: kk(model%nc, model%nc), cc(model%nc, model%nc)
     integer :: nc, m
     nc = model%nc
     m = model%m
     s = 0.25_dp * h * h
-    call book_matrix(model, t, q, v, lam, h, jac, stat)
+    call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
+    call book_matrix(model, t, q, v, lam, h, d, kk, cc, jac, stat)
     if (stat /= MBDK_SUCCESS) return
     select case (scaling)
     case (MBDK_INDEX3_UNSCALED)
@@ -136,14 +157,14 @@ contains
     end select
   end subroutine mbdk_index3_newton_matrix
 
-  !> [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] at (q, v, lam, t).
-  subroutine book_matrix(model, t, q, v, lam, h, jac, stat)
+  !> [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] at (q, v, lam, t), with D = d given there;
+  !> kk and cc (nc, nc) are work arrays.
+  subroutine book_matrix(model, t, q, v, lam, h, d, kk, cc, jac, stat)
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, q(:), v(:), lam(:), h
-    real(dp), intent(out) :: jac(:, :)
+    real(dp), intent(in) :: t, q(:), v(:), lam(:), h, d(:, :)
+    real(dp), intent(out) :: kk(:, :), cc(:, :), jac(:, :)
     integer, intent(out) :: stat
-    real(dp) :: kk(model%nc, model%nc), cc(model%nc, model%nc), phi(model%m)
-    real(dp) :: d(model%m, model%nc), gam(model%m), phit(model%m), s
+    real(dp) :: s
     integer :: nc, m, i
     nc = model%nc
     m = model%m
@@ -153,7 +174,6 @@ contains
     call mbdk_forces_tangent(model%fint, model%freal, q, v, t, kk, cc, stat)
     if (stat /= MBDK_SUCCESS) return
     if (m > 0) call mbdk_joints_tangent(model%jint, model%jreal, model%row0, q, lam, kk)
-    call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
     jac = 0.0_dp
     jac(1:nc, 1:nc) = s * kk + 0.5_dp * h * cc
     do i = 1, nc
@@ -180,13 +200,23 @@ contains
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
     integer(i8) :: nsteps, i
-    integer :: nsamp, nc, m, nk, iters, plan_stat, cool
+    integer :: nsamp, nc, m, nk, iters, plan_stat, cool, cool_len
     logical :: shortened, have_lu
     real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
     real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
-    real(dp) :: ln(model%m), lst(model%m), lstn(model%m)
+    real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
     real(dp) :: t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
-    real(dp), allocatable :: lu(:, :)
+    real(dp) :: ks(model%m, model%m), kwd(model%m, model%nc), kkt(model%nc + model%m, &
+      model%nc + model%m), zero_nc(model%nc), zero_m(model%m)
+    integer :: kpiv(model%nc + model%m)
+    logical :: schur, small_lu
+    ! the step's work arrays, allocated once per solve
+    real(dp) :: qhat(model%nc), qp(model%nc), lp(model%m), lt(model%m), fq(model%nc)
+    real(dp) :: phi(model%m), d(model%m, model%nc), gam(model%m)
+    real(dp) :: phit(model%m), full(model%nc + model%m, model%nc + model%m)
+    real(dp) :: kk_w(model%nc, model%nc), cc_w(model%nc, model%nc), krhs(model%nc + model%m)
+    real(dp) :: rc(model%m), corr(model%nc), mu(model%m)
+    real(dp), allocatable :: lu(:, :), r(:)
     integer, allocatable :: ipiv(:)
 
     nwritten = 0
@@ -211,7 +241,11 @@ contains
     end if
     nk = nc
     if (opt%formulation == MBDK_INDEX3_BOOK) nk = nc + m
-    allocate (lu(nk, nk), ipiv(nk))
+    allocate (lu(nk, nk), ipiv(nk), r(nk))
+    schur = model%m_positive .and. model%small_dense .and. m <= MBDK_SMALL_DENSE_MAX
+    small_lu = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
+    zero_nc = 0.0_dp
+    zero_m = 0.0_dp
     call cpu_time(cpu0)
 
     q = y0(1:nc)
@@ -223,6 +257,7 @@ contains
     lam_old = lam
     lst = lam
     lstn = lam
+    lst_old = lam
     a_prev = a
     a_prev2 = a
     h_prev = 0.0_dp
@@ -233,6 +268,7 @@ contains
     have_lu = .false.
     h_lu = 0.0_dp
     cool = 0
+    cool_len = 8
     if (opt%adaptive) then
       call adaptive_loop(stat)
     else
@@ -268,6 +304,7 @@ contains
       a_prev = a
       h_prev = h
       lam_old = lam
+      lst_old = lst
       q = qn
       v = vn
       a = an
@@ -398,20 +435,26 @@ contains
     !> Newton as in the module header; both formulations share this loop.
     subroutine attempt(ierr)
       integer, intent(out) :: ierr
-      real(dp) :: s, qhat(nc), qp(nc), lp(m), lt(m), fq(nc), r(nk), phi(m), d(m, nc), gam(m)
-      real(dp) :: phit(m), full(nc + m, nc + m), dnorm, dnorm_old, rate, mu(m)
-      logical :: fresh, restarted, book
+      real(dp) :: s, dnorm, dnorm_old, rate
+      logical :: fresh, restarted, book, reused
       integer :: k, kk
       book = opt%formulation == MBDK_INDEX3_BOOK
       s = 0.25_dp * h * h
       alpha = opt%alpha
       if (alpha == 0.0_dp) alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / s
       qhat = q + h * v + s * a
-      qp = q + h * v + 0.5_dp * h * h * a
-      lp = lst
+      if (book .or. h_prev <= 0.0_dp) then
+        qp = q + h * v + 0.5_dp * h * h * a
+        lp = lst
+      else
+        ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
+        qp = qhat + s * (a + (h / h_prev) * (a - a_prev))
+        lp = lst + (h / h_prev) * (lst - lst_old)
+      end if
       if (book) lp = lam
       if (book .and. h_prev > 0.0_dp) lp = lam + (h / h_prev) * (lam - lam_old)   ! (3.11)
       if (have_lu .and. (abs(h - h_lu) > 1.0e-12_dp * h .or. cool > 0)) have_lu = .false.
+      reused = have_lu
       qn = qp
       ln = lp
       restarted = .false.
@@ -424,39 +467,47 @@ contains
       do
         vn = (2.0_dp / h) * (qn - q) - v
         if (m > 0) call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        lt = ln
-        if (.not. book) then
-          if (k > 0) ln = ln + alpha * phi
-          lt = ln + alpha * phi
-        end if
         fq = 0.0_dp
         call mbdk_forces_eval(model%fint, model%freal, model%mass, qn, vn, tn, fq, &
                               model%work%visits(5:), ierr)
         if (ierr /= MBDK_SUCCESS) return
         st%rhs_evals = st%rhs_evals + 1
+        lt = ln
+        if (.not. book) then
+          if (k > 0) ln = ln + alpha * phi
+          lt = ln + alpha * phi
+        end if
         do kk = 1, nc
-          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) - s * fq(kk)
+          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) + s * (dot_product(lt, d(:, kk)) - fq(kk))
         end do
-        if (m > 0) r(1:nc) = r(1:nc) + s * matmul(lt, d)
         if (book) r(nc + 1:) = phi
         if (.not. have_lu) then
           ! the geometric stiffness of the augmented form takes lam* alone: alpha Phi, large
           ! while the iterate is off the constraints, vanishes at the solution
-          call book_matrix(model, tn, qn, vn, ln, h, full, ierr)
+          call book_matrix(model, tn, qn, vn, ln, h, d, kk_w, cc_w, full, ierr)
           if (ierr /= MBDK_SUCCESS) return
           lu = full(1:nk, 1:nk)
-          if (.not. book .and. m > 0) lu = lu + (s * alpha) * matmul(transpose(d), d)
-          call mbdk_lu_factor(lu, ipiv, ierr)
+          if (.not. book .and. m > 0) call add_penalty(lu, d, s * alpha)
+          if (small_lu) then
+            call mbdk_small_lu_factor(lu, nk, ipiv, ierr)
+          else
+            call mbdk_lu_factor(lu, ipiv, ierr)
+          end if
           st%lu_factorizations = st%lu_factorizations + 1
           st%jac_evals = st%jac_evals + 1
           if (ierr /= MBDK_SUCCESS) return
           have_lu = .true.
           h_lu = h
           fresh = .true.
+          reused = .false.
         end if
         r = -r
-        call mbdk_lu_solve(lu, ipiv, r, ierr)
-        if (ierr /= MBDK_SUCCESS) return
+        if (small_lu) then
+          call mbdk_small_lu_solve(lu, nk, ipiv, r)
+        else
+          call mbdk_lu_solve(lu, ipiv, r, ierr)
+          if (ierr /= MBDK_SUCCESS) return
+        end if
         if (.not. finite_all(r)) then
           ierr = MBDK_ERR_NONFINITE
           return
@@ -465,6 +516,18 @@ contains
         k = k + 1
         st%newton_iterations = st%newton_iterations + 1
         dnorm = wnorm(r(1:nc), qn)
+        ! converged: the update from this iterate is below tolerance, and so is Phi here. The
+        ! update is applied (the Newton error left in q is then its square, or the rate times
+        ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
+        if (k > 1 .and. dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) then
+          qn = qn + r(1:nc)
+          if (book) ln = ln + r(nc + 1:) / s
+          exit
+        end if
+        if (iters >= opt%newton_max_iter) then
+          ierr = MBDK_ERR_NEWTON_DIVERGED
+          return
+        end if
         rate = dnorm / dnorm_old
         if (rate > 1.0_dp .and. k > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
           ! growing with an old matrix (not roundoff below the tolerance). The first time the
@@ -475,7 +538,10 @@ contains
           dnorm_old = huge(1.0_dp)
           if (.not. restarted) then
             restarted = .true.
-            cool = 8
+            ! fresh matrices for cool_len steps, twice as many after each failed reuse
+            cool = cool_len
+            cool_len = min(2 * cool_len, 1024)
+            reused = .false.
             qn = qp
             ln = lp
             k = 0
@@ -484,66 +550,111 @@ contains
         end if
         qn = qn + r(1:nc)
         if (book) ln = ln + r(nc + 1:) / s
-        ! converged: the update (or, while contracting, the error left after it) is below
-        ! tolerance, and Phi, checked before the update, was too
-        if ((dnorm <= 1.0_dp .or. (k > 1 .and. rate < 0.9_dp .and. &
-             rate / (1.0_dp - rate) * dnorm <= 1.0_dp)) .and. &
-            (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) exit
-        if (iters >= opt%newton_max_iter) then
-          ierr = MBDK_ERR_NEWTON_DIVERGED
-          return
-        end if
         ! rebuild the matrix when two more iterations at this rate would not reach the
         ! tolerance (an iteration costs about as much as a factorisation)
         if (rate > 0.5_dp .or. dnorm * rate * rate > 1.0_dp) have_lu = .false.
         fresh = .false.
         dnorm_old = dnorm
       end do
-      vn = (2.0_dp / h) * (qn - q) - v
-      an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
-      if (.not. book .and. m > 0) then
-        call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        ln = ln + alpha * phi
+      ! a matrix carried over from an earlier step served the whole step: reuse pays again
+      if (reused) cool_len = 8
+      if (book .or. m == 0) then
+        an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
+      else
         lstn = ln
-        ! mass-orthogonal projections: v onto D v + Phi_t = 0, a onto D a = gamma
-        call project(d, -(matmul(d, vn) + phit), vn, ierr)
-        if (ierr /= MBDK_SUCCESS) return
+        vn = (2.0_dp / h) * (qn - q) - v
         call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
-        call project(d, gam - matmul(d, an), an, ierr, mu)
+        call kkt_factor(d, ierr)
         if (ierr /= MBDK_SUCCESS) return
-        ! M a+ = f - D^T lambda+ before the projection, so after it M a = f - D^T (lambda + mu):
-        ! the multipliers consistent with the projected a (second order, where lambda+ alone
-        ! is first order). The next step starts lam* from lambda+ without mu: near a singular
-        ! configuration mu is ill-determined, and would spoil the start
-        ln = ln + mu
+        ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
+        ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
+        ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),
+        ! without the Newton error that v+ = (2/h)(q+ - q) - v would carry amplified by 2/h.
+        ! Then a+ and lambda+ from M a + D^T lambda = f, D a = gamma(q+, v+): the projection
+        ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
+        ! error (4/h^2) that a+ = (4/h^2)(q+ - q) - .. would carry.
+        call kkt_solve(d, fq, zero_m, an, ln)
+        vn = v + (0.5_dp * h) * (a + an)
+        call project_v(d, phit)
+        call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
+        call kkt_solve(d, fq, gam, an, ln)
       end if
       if (.not. (finite_all(qn) .and. finite_all(vn) .and. finite_all(an))) &
         ierr = MBDK_ERR_NONFINITE
     end subroutine attempt
 
-    !> x += dx with M dx + D^T mu = 0, D dx = rc (the mass-orthogonal correction).
-    subroutine project(d, rc, x, ierr, mu)
-      real(dp), intent(in) :: d(:, :), rc(:)
-      real(dp), intent(inout) :: x(:)
+    !> vn onto D v + Phi_t = 0 (mass-orthogonal), with the factors of kkt_factor.
+    subroutine project_v(d, phit)
+      real(dp), intent(in) :: d(:, :), phit(:)
+      integer :: j
+      do j = 1, m
+        rc(j) = dot_product(d(j, :), vn) + phit(j)
+      end do
+      call kkt_solve(d, zero_nc, rc, corr, mu)
+      vn = vn - corr
+    end subroutine project_v
+
+    !> a += w D^T D, a(nc, nc) top-left (the penalty term of the augmented form).
+    subroutine add_penalty(a, d, w)
+      real(dp), intent(inout) :: a(:, :)
+      real(dp), intent(in) :: d(:, :), w
+      integer :: i, j
+      do j = 1, nc
+        do i = 1, nc
+          a(i, j) = a(i, j) + w * dot_product(d(:, i), d(:, j))
+        end do
+      end do
+    end subroutine add_penalty
+
+    !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T and the
+    !> in-house Cholesky when M is positive and m small (as the reduced formulation), else by
+    !> LAPACK's LU of the whole matrix. Dependent rows: MBDK_ERR_SINGULAR_MATRIX.
+    subroutine kkt_factor(d, ierr)
+      real(dp), intent(in) :: d(:, :)
       integer, intent(out) :: ierr
-      real(dp), intent(out), optional :: mu(:)
-      real(dp) :: kkt(nc + m, nc + m), rhs(nc + m)
-      integer :: piv(nc + m), k
+      integer :: i, j, k
+      if (schur) then
+        do k = 1, nc
+          kwd(:, k) = d(:, k) * model%winv(k)
+        end do
+        do j = 1, m
+          do i = j, m
+            ks(i, j) = dot_product(kwd(i, :), d(j, :))
+          end do
+        end do
+        call mbdk_small_chol_factor(ks, m, KKT_SINGULAR_TOL, ierr)
+        return
+      end if
       kkt = 0.0_dp
       do k = 1, nc
         kkt(k, k) = model%mass(k)
       end do
       kkt(nc + 1:, 1:nc) = d
       kkt(1:nc, nc + 1:) = transpose(d)
-      rhs = 0.0_dp
-      rhs(nc + 1:) = rc
-      call mbdk_lu_factor(kkt, piv, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      call mbdk_lu_solve(kkt, piv, rhs, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      x = x + rhs(1:nc)
-      if (present(mu)) mu = rhs(nc + 1:)
-    end subroutine project
+      call mbdk_lu_factor(kkt, kpiv, ierr)
+    end subroutine kkt_factor
+
+    !> M x + D^T mu = b, D x = c with the factors of kkt_factor.
+    subroutine kkt_solve(d, b, c, x, mu)
+      real(dp), intent(in) :: d(:, :), b(:), c(:)
+      real(dp), intent(out) :: x(:), mu(:)
+      integer :: k, ierr
+      if (schur) then
+        do k = 1, m
+          mu(k) = dot_product(kwd(k, :), b) - c(k)
+        end do
+        call mbdk_small_chol_solve(ks, m, mu)
+        do k = 1, nc
+          x(k) = model%winv(k) * (b(k) - dot_product(d(:, k), mu))
+        end do
+        return
+      end if
+      krhs(1:nc) = b
+      krhs(nc + 1:) = c
+      call mbdk_lu_solve(kkt, kpiv, krhs, ierr)
+      x = krhs(1:nc)
+      mu = krhs(nc + 1:)
+    end subroutine kkt_solve
 
   end subroutine mbdk_index3_solve
 
