@@ -206,54 +206,59 @@ def cost(out: Path, quick: bool):
             abs(r.t[-1] - t_end) < 1e-9 else math.inf
 
     form = "augmented_lagrangian"
+
+    def row(measure, r, **extra):
+        st = r.stats
+        return {"measure": measure, "formulation": form,
+                "us_per_step": 1e6 * r.cpu_time / max(st.steps, 1),
+                "newton_per_step": st.newton_iterations / max(st.steps, 1),
+                "lu_per_step": st.lu_factorizations / max(st.steps, 1), "steps": st.steps,
+                "error": err(r), "cpu_s": r.cpu_time, "status": r.status.name, **extra}
+
     progress("cost: time to 1e-6, fixed step")
-    h = 0.01
-    hit = None
-    best = None
+    # halve h until the target is met, then try the h that the O(h^2) error of the last miss
+    # predicts (with a 10 % margin): the largest fixed step found that meets it
+    h, miss, hit = 0.01, None, None
     while h > 1e-5 and hit is None:
         r = _run(sc, "trapezoidal_index3", form, h, t_end, every=10**7)
         if err(r) <= target:
             hit = (h, r)
-        if best is None or err(r) < best[2]:
-            best = (h, r, err(r))
+        else:
+            miss = (h, r)
         h /= 2
-    if not hit and best:
-        h, r, e = best
-        rows.append({"measure": f"1e-6 at t = {t_end:g} s NOT reached by a fixed h >= 1e-5; "
-                                f"best h = {h:.3g}", "formulation": form,
-                     "us_per_step": 1e6 * r.cpu_time / max(r.stats.steps, 1),
-                     "steps": r.stats.steps, "error": e, "cpu_s": r.cpu_time,
-                     "status": r.status.name})
+    if hit and miss and math.isfinite(err(miss[1])):
+        h_model = 0.9 * miss[0] * math.sqrt(target / err(miss[1]))
+        h_model = t_end / math.ceil(t_end / h_model)          # whole steps to t_end
+        if h_model > hit[0]:
+            r = _run(sc, "trapezoidal_index3", form, h_model, t_end, every=10**7)
+            if err(r) <= target:
+                hit = (h_model, r)
     if hit:
-        h, r = hit
-        rows.append({"measure": f"1e-6 at t = {t_end:g} s, fixed h = {h:.3g}", "formulation": form,
-                     "us_per_step": 1e6 * r.cpu_time / r.stats.steps,
-                     "newton_per_step": r.stats.newton_iterations / r.stats.steps,
-                     "lu_per_step": r.stats.lu_factorizations / r.stats.steps,
-                     "steps": r.stats.steps, "error": err(r), "cpu_s": r.cpu_time,
-                     "status": r.status.name})
+        rows.append(row(f"1e-6 at t = {t_end:g} s, fixed h = {hit[0]:.3g}", hit[1]))
+    else:
+        rows.append(row(f"1e-6 at t = {t_end:g} s NOT reached by a fixed h >= 1e-5", miss[1]))
     progress("cost: time to 1e-6, adaptive")
-    for tol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+    tols = (1e-8, 1e-9, 1e-10, 3e-11, 1e-11, 3e-12)
+    for tol in tols:
         r = _run(sc, "trapezoidal_index3", form, 1e-3, t_end, adaptive=True, err_rtol=tol,
                  err_atol=tol, dt_out=t_end)
-        if tol == 1e-10 and err(r) > target:
-            rows.append({"measure": f"1e-6 at t = {t_end:g} s NOT reached with err_rtol down "
-                                    "to 1e-10", "formulation": form, "steps": r.stats.steps,
-                         "error": err(r), "cpu_s": r.cpu_time, "status": r.status.name})
         if err(r) <= target:
-            st = r.stats
-            rows.append({"measure": f"1e-6 at t = {t_end:g} s, adaptive err_rtol = {tol:g}",
-                         "formulation": form, "us_per_step": 1e6 * r.cpu_time / st.steps,
-                         "newton_per_step": st.newton_iterations / st.steps,
-                         "lu_per_step": st.lu_factorizations / st.steps, "steps": st.steps,
-                         "rejected": st.rejected_steps, "error": err(r), "cpu_s": r.cpu_time,
-                         "status": r.status.name})
+            rows.append(row(f"1e-6 at t = {t_end:g} s, adaptive err_rtol = err_atol = {tol:g}",
+                            r, rejected=r.stats.rejected_steps))
             break
+        if tol == tols[-1]:
+            rows.append(row(f"1e-6 at t = {t_end:g} s NOT reached with err_rtol down to {tol:g}",
+                            r, rejected=r.stats.rejected_steps))
+    met = [r["measure"] for r in rows if r["measure"].startswith("one step")
+           and r["formulation"] == form and r["us_per_step"] <= 1.0]
+    target_note = ("met by the projected form" if met else
+                   "not met at h = 1e-3: see us_per_step; at the h of the 1e-6 row it is closer, "
+                   "since the matrix is reused there")
     return write_table(rows, ["measure", "formulation", "us_per_step", "newton_per_step",
                               "lu_per_step", "steps", "rejected", "error", "cpu_s", "status"],
                        out, "index3_cost", "Cost of trapezoidal_index3 on the double pendulum",
                        "Kernel CPU time of the whole loop. The issue's target is 1 us per step "
-                       "(not met: see us_per_step); Exudyn's generalized-alpha index-3 solver "
+                       f"({target_note}); Exudyn's generalized-alpha index-3 solver "
                        "is quoted there at 6-8 us per step and 0.4-0.5 s to a 1e-6 error at "
                        "t = 10 s (quoted, not measured here). The book's scheme fails before "
                        "t = 10 s (table index3_long_runs), so the time to 1e-6 is the projected "

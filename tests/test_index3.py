@@ -389,3 +389,7 @@ def test_index3_study(tmp_path):
         proj = next(r for r in longs if r["scene"] == name and "projected" in r["integration"])
         assert proj["status"] == "SUCCESS" and float(proj["max_ddphi"]) < 1e-10
         assert book["status"] != "SUCCESS" or float(book["max_ddphi"]) > 1e3
+    cost = rows("index3_cost")
+    fixed = next(r for r in cost if r["measure"].startswith("1e-6") and "fixed" in r["measure"])
+    assert "NOT" not in fixed["measure"] and float(fixed["error"]) <= 1e-6
+    assert float(fixed["cpu_s"]) > 0 and int(fixed["steps"]) > 0

@@ -17,7 +17,8 @@
 !>                alternate in sign from step to step with a growing amplitude (the trapezoidal
 !>                rule on an index-3 system is unstable there: Cardona and Geradin 1989): on the
 !>                double pendulum, the four-bar and the crane |D a - gamma| grows about 15-fold
-!>                per 1.4 s whatever h, until Newton fails after 4-9 s (studies/index3.py).
+!>                per 1.4 s whatever h, until Newton fails after a few seconds (3.7 s on the
+!>                four-bar, 7.7 s on the double pendulum at h = 1e-3: studies/index3.py).
 !>   2 augmented  the index-3 augmented Lagrangian with projections (ALI3-P: Bayo and Ledesma
 !>                1996; Cuadrado, Cardenal and Bayo 1997; the family the book cites in [6], [20],
 !>                [23]): Newton on q+ alone for
