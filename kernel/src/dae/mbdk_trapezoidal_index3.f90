@@ -36,7 +36,8 @@
 !>                4/h^2 times the Newton error of the trapezoidal a+. Taken from the relations,
 !>                a Newton tolerance of 1e-10 capped the error at 1e-5 on the double pendulum
 !>                (10 s) and made it grow as h fell below 3e-4; now the error is second order
-!>                down to h = 6e-5 (1.9e-7) and the Newton tolerance adds below 2 %.
+!>                down to h = 6e-5 (1.9e-7) and the Newton tolerance adds below 2 %. Without
+!>                constraints the same path gives a+ = M^-1 f.
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
 !>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
 !>                D^T D outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
@@ -559,7 +560,7 @@ contains
       end do
       ! a matrix carried over from an earlier step served the whole step: reuse pays again
       if (reused) cool_len = 8
-      if (book .or. m == 0) then
+      if (book) then
         an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
       else
         lstn = ln
