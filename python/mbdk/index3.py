@@ -11,10 +11,14 @@ Formulations:
   augmented_lagrangian  the index-3 augmented Lagrangian with mass-orthogonal projections of
                         v and a (ALI3-P); alpha is its penalty factor (default 0: at every
                         step 1e3 max(M) / (h^2/4), so the penalty outweighs the mass matrix
-                        1000-fold whatever h).
+                        1000-fold whatever h). v and a come from the equations of
+                        motion (projected), so the Newton tolerance does not limit the
+                        accuracy.
 
-Newton: rtol/atol on the position update (defaults 1e-10, 1e-12) and max |Phi| <= atol;
-max_iter iterations (default 20). The result's `a` and `multipliers` are the integrator's own;
+Newton: converged when the update computed at an iterate is within rtol/atol (defaults 1e-10,
+1e-12; simulate's newton_rtol/newton_atol) and max |Phi| <= atol there; max_iter updates
+(default 20). small_dense=False takes LAPACK's LU instead of the in-house one for the Newton
+and projection matrices. The result's `a` and `multipliers` are the integrator's own;
 `iterations` holds the Newton iterations of the step behind each sample.
 
 Step size: fixed (h, every) by default. adaptive=True starts from h and controls the step by a
