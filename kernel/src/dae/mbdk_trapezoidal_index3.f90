@@ -17,8 +17,8 @@
 !>                alternate in sign from step to step with a growing amplitude (the trapezoidal
 !>                rule on an index-3 system is unstable there: Cardona and Geradin 1989): on the
 !>                double pendulum, the four-bar and the crane |D a - gamma| grows about 15-fold
-!>                per 1.4 s whatever h, until Newton fails after a few seconds (3.7 s on the
-!>                four-bar, 7.7 s on the double pendulum at h = 1e-3: studies/index3.py).
+!>                per 1.4 s whatever h, until Newton fails after a few seconds (5.0 s on the
+!>                four-bar, 10.7 s on the double pendulum at h = 1e-3: studies/index3.py).
 !>   2 augmented  the index-3 augmented Lagrangian with projections (ALI3-P: Bayo and Ledesma
 !>                1996; Cuadrado, Cardenal and Bayo 1997; the family the book cites in [6], [20],
 !>                [23]): Newton on q+ alone for
@@ -561,6 +561,7 @@ contains
       ! a matrix carried over from an earlier step served the whole step: reuse pays again
       if (reused) cool_len = 8
       if (book) then
+        vn = (2.0_dp / h) * (qn - q) - v
         an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
       else
         lstn = ln
