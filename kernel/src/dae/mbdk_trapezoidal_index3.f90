@@ -94,11 +94,12 @@ module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations
+  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations, &
+    mbdk_model_schur_factor
   use mbdk_joints, only: mbdk_joints_tangent
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
-  use mbdk_small_dense, only: mbdk_small_chol_factor, mbdk_small_chol_solve, mbdk_small_lu_factor, &
+  use mbdk_small_dense, only: mbdk_small_chol_solve, mbdk_small_lu_factor, &
     mbdk_small_lu_solve, MBDK_SMALL_DENSE_MAX
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
@@ -109,8 +110,6 @@ module mbdk_trapezoidal_index3
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
   !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
-  !> a Cholesky pivot of D M^-1 D^T below this times the largest counts as singular (as the model)
-  real(dp), parameter :: KKT_SINGULAR_TOL = 1.0e-11_dp
   integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
     MBDK_INDEX3_SCALED = 2
 
@@ -615,17 +614,9 @@ contains
     subroutine kkt_factor(d, ierr)
       real(dp), intent(in) :: d(:, :)
       integer, intent(out) :: ierr
-      integer :: i, j, k
+      integer :: k
       if (schur) then
-        do k = 1, nc
-          kwd(:, k) = d(:, k) * model%winv(k)
-        end do
-        do j = 1, m
-          do i = j, m
-            ks(i, j) = dot_product(kwd(i, :), d(j, :))
-          end do
-        end do
-        call mbdk_small_chol_factor(ks, m, KKT_SINGULAR_TOL, ierr)
+        call mbdk_model_schur_factor(model, d, kwd, ks, ierr)
         return
       end if
       kkt = 0.0_dp

@@ -36,7 +36,7 @@ module mbdk_model
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_default_fpar
+  public :: mbdk_model_default_fpar, mbdk_model_schur_factor
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -384,6 +384,27 @@ contains
     end do
   end subroutine schur_small
 
+  !> wd = D W and the in-house Cholesky factor of S = D W D^T (W = self%winv, the inverse mass
+  !> or projection weight), for mass-orthogonal projections: x - (wd^T S^-1 r) puts D x onto
+  !> D x - r. Dependent rows: MBDK_ERR_SINGULAR_MATRIX (pivot below SINGULAR_TOL).
+  subroutine mbdk_model_schur_factor(self, d, wd, s, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: d(:, :)
+    real(dp), intent(out) :: wd(:, :), s(:, :)
+    integer, intent(out) :: stat
+    integer :: i, j, k, m
+    m = size(d, 1)
+    do k = 1, size(d, 2)
+      wd(:, k) = d(:, k) * self%winv(k)
+    end do
+    do j = 1, m
+      do i = j, m
+        s(i, j) = dot_product(wd(i, :), d(j, :))
+      end do
+    end do
+    call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
+  end subroutine mbdk_model_schur_factor
+
   subroutine check_chol_pivots(l, stat)
     real(dp), intent(in) :: l(:, :)
     integer, intent(out) :: stat
@@ -405,7 +426,7 @@ contains
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     integer, intent(out) :: stat
-    integer :: nc, m, it, i, j, k
+    integer :: nc, m, it
     real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), s(self%m, self%m)
     real(dp) :: wd(self%m, self%nc), mu(self%m)
 
@@ -437,15 +458,7 @@ contains
 
     subroutine schur(st)
       integer, intent(out) :: st
-      do k = 1, nc
-        wd(:, k) = d(:, k) * self%winv(k)
-      end do
-      do j = 1, m
-        do i = j, m
-          s(i, j) = dot_product(wd(i, :), d(j, :))
-        end do
-      end do
-      call mbdk_small_chol_factor(s, m, SINGULAR_TOL, st)
+      call mbdk_model_schur_factor(self, d, wd, s, st)
     end subroutine schur
 
   end subroutine model_post_step
