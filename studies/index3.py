@@ -264,7 +264,7 @@ def cost(out: Path, quick: bool):
                        out, "index3_cost", "Cost of trapezoidal_index3 on the double pendulum",
                        "Kernel CPU time of the whole loop (best of 3 for the one-step rows; "
                        "'LAPACK LU': small_dense = False, dgetrf/dgetrs instead of the in-house "
-                       "LU and Schur-Cholesky). The issue's target is 1 us per step "
+                       "LU and the Schur complement's LDL^T). The issue's target is 1 us per step "
                        f"({target_note}); Exudyn's generalized-alpha index-3 solver "
                        "is quoted there at 6-8 us per step and 0.4-0.5 s to a 1e-6 error at "
                        "t = 10 s (quoted, not measured here). The book's scheme fails before "

@@ -7,8 +7,9 @@ formulations, the speed of one reduced rk4 step, and the reaction forces of the 
    penalty (1e7, 10, 1) and projection; with the CPU time of every run. The book says
    stabilisation is needed from about 10 s: the table gives the residual at 10 s and at the end.
 2. One rk4 step of the double pendulum, reduced formulation: ns per step with the Schur
-   complement by the in-house Cholesky, by LAPACK dpotrf/dpotrs, and with the KKT LU (LAPACK),
-   and the share of the step spent in assembly, in the linear solve and in the integrator.
+   complement (assembled from the nonzeros of D) by the in-house LDL^T with joint blocks, by
+   LAPACK dpotrf/dpotrs, and with the KKT LU (LAPACK, dense D), and the share of the step spent
+   in assembly, in the linear solve and in the integrator.
 3. The physical pendulum's hinge reaction against time and angle (figures 4.29-4.30).
 """
 from __future__ import annotations
@@ -81,8 +82,10 @@ def speed(out: Path, quick: bool):
     tab = M.build_tables(sc, q)
     v = v + 0.5                       # a moving state: velocity terms are evaluated
     rows = []
-    for label, kw in [("Schur, in-house Cholesky", dict(solver="schur", small_dense=True)),
-                      ("Schur, LAPACK dpotrf/dpotrs", dict(solver="schur", small_dense=False)),
+    for label, kw in [("Schur (sparse), in-house block LDL^T",
+                       dict(solver="schur", small_dense=True)),
+                      ("Schur (sparse), LAPACK dpotrf/dpotrs",
+                       dict(solver="schur", small_dense=False)),
                       ("KKT, LAPACK dgetrf/dgetrs", dict(solver="kkt"))]:
         best = math.inf
         for _ in range(3):

@@ -251,7 +251,9 @@ def test_singular_four_bar_passes_its_collinear_configurations(form):
     isolated instants: they must stay on the parallelogram branch (coupler horizontal: its
     angle is 0 exactly in the true motion, by the parallelogram's geometry) with Phi = 0 at
     every step and energy kept. The reduced ODE (rk4, h = 1e-3), whose KKT matrix is singular
-    there, leaves the constraints and the branch."""
+    there, leaves the constraints and the branch; whether it then also overflows before 3 s
+    depends on roundoff (the Schur and KKT solves differ there), so its samples up to the end
+    or to the overflow are what is checked."""
     sc = _parallelogram()
     r = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=1e-3, t_end=3.0)
     crank = np.degrees(r.q[:, 2])
@@ -259,7 +261,7 @@ def test_singular_four_bar_passes_its_collinear_configurations(form):
     assert np.abs(r.q[:, 5]).max() < 1e-9                         # coupler angle
     assert r.residuals[:, 0].max() < 1e-10
     assert np.abs(r.energy - r.energy[0]).max() < 2e-3            # of a 0 J start, 47 J swing
-    red = mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0)
+    red = mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0, raise_on_failure=False)
     assert red.residuals[:, 0].max() > 1e-3 and np.abs(red.q[:, 5]).max() > 0.1
 
 

@@ -43,9 +43,9 @@ def test_jacobian_and_gamma_against_finite_differences(name):
     assert np.max(np.abs(e["gamma"] + dd @ v)) < 1e-6 * max(1, np.abs(e["gamma"]).max())
 
 
-def test_prismatic_fixed_and_driver_rows_against_finite_differences():
+def _every_joint_type():
     """A prismatic joint between two moving bodies, a fixed joint and a rheonomic driver."""
-    data = {
+    return {
         "body": [
             {"name": "a", "mass": 2.0, "inertia": 0.3, "x": 0.1, "y": 0.2, "angle": 0.4},
             {"name": "b", "mass": 1.0, "inertia": 0.1, "x": 0.9, "y": 0.5, "angle": 0.7},
@@ -59,7 +59,10 @@ def test_prismatic_fixed_and_driver_rows_against_finite_differences():
              "function": {"offset": 0.4, "rate": 0.5, "amplitude": 0.2, "omega": 3.0}},
         ],
     }
-    sc = scene_from_dict(data, "inline.toml")
+
+
+def test_prismatic_fixed_and_driver_rows_against_finite_differences():
+    sc = scene_from_dict(_every_joint_type(), "inline.toml")
     tab = M.build_tables(sc)
     rng = np.random.default_rng(5)
     q = np.array(sc.q0()) + rng.normal(0, 0.1, 9)
@@ -250,15 +253,36 @@ def test_every_integrator_on_every_formulation(method, formulation):
     assert abs(r.q[-1, 2] + math.pi / 2 - ref.y[-1, 0]) < tol
 
 
-def test_linear_solvers_agree():
-    sc, tab, q, v = state("four_bar")
+@pytest.mark.parametrize("formulation", ["reduced", "baumgarte"])
+@pytest.mark.parametrize("name", ["four_bar", "every_joint_type"])
+def test_linear_solvers_agree(name, formulation):
+    """The Schur complement assembled from the nonzeros of D and factorised by joint blocks
+    (in-house, small_dense) or by LAPACK's dpotrf, against LAPACK's LU of the dense KKT
+    matrix: 2-row (revolute, prismatic), 3-row (fixed) and 1-row (driver) pivot blocks, off
+    the constraint manifold (so that Baumgarte's D v and Phi terms count)."""
+    if name == "every_joint_type":
+        sc = scene_from_dict(_every_joint_type(), "inline.toml")
+        tab = M.build_tables(sc)
+        rng = np.random.default_rng(5)
+        q = np.array(sc.q0()) + rng.normal(0, 0.1, 9)
+        v = rng.normal(0, 1, 9)
+    else:
+        sc, tab, q, v = state(name)
+        q = q + np.random.default_rng(2).normal(0, 0.01, q.size)
     outs = []
     for solver in ("schur", "kkt"):
         for small in (True, False):
-            e = M.evaluate(tab, q, v, 0.0, "reduced", M.fpar_vector(solver=solver, small_dense=small))
+            e = M.evaluate(tab, q, v, 0.7, formulation,
+                           M.fpar_vector(solver=solver, small_dense=small, alpha=3.0, beta=4.0))
             outs.append(np.concatenate([e["a"], e["lam"]]))
     for o in outs[1:]:
         assert np.max(np.abs(o - outs[0])) < 1e-9 * np.abs(outs[0]).max()
+    # and the KKT equations themselves
+    e = M.evaluate(tab, q, v, 0.7, formulation, M.fpar_vector(alpha=3.0, beta=4.0))
+    mass = np.repeat(tab.mass, 3)
+    mass[2::3] = tab.inertia
+    assert np.max(np.abs(mass * e["a"] + e["D"].T @ e["lam"] - e["f"])) < 1e-9 * max(
+        np.abs(e["f"]).max(), np.abs(e["D"].T @ e["lam"]).max())
 
 
 def test_energy_of_conservative_scene_and_balance_of_damped_one():

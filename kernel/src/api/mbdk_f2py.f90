@@ -286,8 +286,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   ! multipliers at one state: for assembly, diagnosis and tests.
   use mbdk_kinds, only: i8
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
-    mbdk_model_accelerations, mbdk_model_work_t
-  use mbdk_force_elements, only: mbdk_forces_eval
+    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_assemble
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc
@@ -312,9 +311,9 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return
   call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), phi, d, gam, phit)
-  call mbdk_forces_eval(model%fint, model%freal, model%mass, y(1:nc), y(nc + 1:), t, fq, &
-                        work%visits(5:), status)
+  call mbdk_model_assemble(model, t, y(1:nc), y(nc + 1:), status)
   if (status /= MBDK_SUCCESS) return
+  fq = work%fq
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
 
@@ -369,13 +368,11 @@ end subroutine model_outputs
 subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                          formulation, fpar, nc, t, y, nrep, seconds, status)
   ! Where an evaluation's time goes: seconds(1) = nrep evaluations of the assembly alone
-  ! (forces, Phi, D, gamma), seconds(2) = nrep full evaluations (assembly + the formulation's
-  ! linear solve). The linear solve is the difference; the integrator's share follows from a
-  ! timed run (studies/scene_drift.py).
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
+  ! (rotations, forces, Phi, D in compact rows, gamma: mbdk_model_assemble), seconds(2) = nrep
+  ! full evaluations (assembly + the formulation's linear solve). The linear solve is the
+  ! difference; the integrator's share follows from a timed run (studies/scene_drift.py).
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_assemble, &
     mbdk_model_accelerations, mbdk_model_work_t
-  use mbdk_joints, only: MBDK_JOINT_TYPES
-  use mbdk_force_elements, only: mbdk_forces_eval
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, nc, nrep
@@ -403,11 +400,7 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   allocate (lam(model%m))
   call cpu_time(c0)
   do k = 1, nrep
-    work%fq = 0.0d0
-    call mbdk_forces_eval(model%fint, model%freal, model%mass, y(1:nc), y(nc + 1:), t, work%fq, &
-                          work%visits(MBDK_JOINT_TYPES + 1:), status)
-    call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), work%phi, work%d, work%gam, &
-                                work%phit)
+    call mbdk_model_assemble(model, t, y(1:nc), y(nc + 1:), status)
   end do
   call cpu_time(c1)
   seconds(1) = c1 - c0

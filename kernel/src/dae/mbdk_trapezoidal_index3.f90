@@ -95,11 +95,13 @@ module mbdk_trapezoidal_index3
   use mbdk_status
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations, &
-    mbdk_model_schur_factor
+    MBDK_MODEL_SINGULAR_TOL
   use mbdk_joints, only: mbdk_joints_tangent
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
-  use mbdk_small_dense, only: mbdk_small_chol_solve, mbdk_small_lu_factor, &
+  use mbdk_sparse_schur, only: mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
+    mbdk_sparse_w_residual
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
     mbdk_small_lu_solve, MBDK_SMALL_DENSE_MAX
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
@@ -158,8 +160,9 @@ contains
     end select
   end subroutine mbdk_index3_newton_matrix
 
-  !> [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] at (q, v, lam, t), with D = d given there;
-  !> kk and cc (nc, nc) are work arrays.
+  !> [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] at (q, v, lam, t), with D = d given there
+  !> and the body rotations model%work%rot at q (both callers evaluate the constraints, or the
+  !> rotations, at q just before); kk and cc (nc, nc) are work arrays.
   subroutine book_matrix(model, t, q, v, lam, h, d, kk, cc, jac, stat)
     type(mbdk_model_t), intent(in) :: model
     real(dp), intent(in) :: t, q(:), v(:), lam(:), h, d(:, :)
@@ -172,9 +175,10 @@ contains
     s = 0.25_dp * h * h
     kk = 0.0_dp
     cc = 0.0_dp
-    call mbdk_forces_tangent(model%fint, model%freal, q, v, t, kk, cc, stat)
+    call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, kk, cc, stat)
     if (stat /= MBDK_SUCCESS) return
-    if (m > 0) call mbdk_joints_tangent(model%jint, model%jreal, model%row0, q, lam, kk)
+    if (m > 0) call mbdk_joints_tangent(model%jint, model%jreal, model%row0, model%work%rot, q, &
+                                        lam, kk)
     jac = 0.0_dp
     jac(1:nc, 1:nc) = s * kk + 0.5_dp * h * cc
     do i = 1, nc
@@ -207,7 +211,7 @@ contains
     real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
     real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
     real(dp) :: t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
-    real(dp) :: ks(model%m, model%m), kwd(model%m, model%nc), kkt(model%nc + model%m, &
+    real(dp) :: ks(model%m, model%m), kkt(model%nc + model%m, &
       model%nc + model%m), zero_nc(model%nc), zero_m(model%m)
     integer :: kpiv(model%nc + model%m)
     logical :: schur, small_lu
@@ -467,9 +471,10 @@ contains
       d = 0.0_dp
       do
         vn = (2.0_dp / h) * (qn - q) - v
-        if (m > 0) call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
+        ! (leaves work%rot at qn, for the forces and book_matrix)
+        call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
         fq = 0.0_dp
-        call mbdk_forces_eval(model%fint, model%freal, model%mass, qn, vn, tn, fq, &
+        call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, qn, vn, tn, fq, &
                               model%work%visits(5:), ierr)
         if (ierr /= MBDK_SUCCESS) return
         st%rhs_evals = st%rhs_evals + 1
@@ -608,15 +613,18 @@ contains
       end do
     end subroutine add_penalty
 
-    !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T and the
-    !> in-house Cholesky when M is positive and m small (as the reduced formulation), else by
-    !> LAPACK's LU of the whole matrix. Dependent rows: MBDK_ERR_SINGULAR_MATRIX.
+    !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T, from
+    !> the compact rows of D in model%work%dz (the last mbdk_model_constraints call, at the
+    !> same q as d), and the in-house LDL^T when M is positive and m small (as the reduced
+    !> formulation), else by LAPACK's LU of the whole matrix. Dependent rows:
+    !> MBDK_ERR_SINGULAR_MATRIX.
     subroutine kkt_factor(d, ierr)
       real(dp), intent(in) :: d(:, :)
       integer, intent(out) :: ierr
       integer :: k
       if (schur) then
-        call mbdk_model_schur_factor(model, d, kwd, ks, ierr)
+        call mbdk_sparse_schur_assemble(model%sp, model%work%dz, ks)
+        call mbdk_small_ldlt_factor(ks, m, model%blk, MBDK_MODEL_SINGULAR_TOL, ierr)
         return
       end if
       kkt = 0.0_dp
@@ -628,19 +636,17 @@ contains
       call mbdk_lu_factor(kkt, kpiv, ierr)
     end subroutine kkt_factor
 
-    !> M x + D^T mu = b, D x = c with the factors of kkt_factor.
+    !> M x + D^T mu = b, D x = c with the factors of kkt_factor (D: d, or its compact rows in
+    !> model%work%dz, unchanged since kkt_factor).
     subroutine kkt_solve(d, b, c, x, mu)
       real(dp), intent(in) :: d(:, :), b(:), c(:)
       real(dp), intent(out) :: x(:), mu(:)
-      integer :: k, ierr
+      integer :: ierr
       if (schur) then
-        do k = 1, m
-          mu(k) = dot_product(kwd(k, :), b) - c(k)
-        end do
-        call mbdk_small_chol_solve(ks, m, mu)
-        do k = 1, nc
-          x(k) = model%winv(k) * (b(k) - dot_product(d(:, k), mu))
-        end do
+        call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)
+        mu = mu - c
+        call mbdk_small_ldlt_solve(ks, m, model%blk, mu)
+        call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, b, mu, x, nc)
         return
       end if
       krhs(1:nc) = b

@@ -1,10 +1,10 @@
-!> Cholesky and LU factorisations and solves for the tiny systems of planar mechanisms (the
+!> LDL^T and LU factorisations and solves for the tiny systems of planar mechanisms (the
 !> Schur complement D M^-1 D^T of a few constraints, the Newton matrix of trapezoidal_index3),
 !> without LAPACK's call overhead. Measured against dpotrf/dpotrs and dgetrf/dgetrs in
-!> studies/scene_benchmark.py and studies/index3.py; the kernel uses them up to
+!> studies/scene_drift.py (table scene_speed) and studies/index3.py; the kernel uses them up to
 !> MBDK_SMALL_DENSE_MAX rows unless told otherwise.
 !>
-!> Cholesky: a pivot below tol * (largest diagonal entry of A) counts as singular: for a Schur
+!> LDL^T: a pivot below tol * (largest diagonal entry of A) counts as singular: for a Schur
 !> complement that means dependent (redundant) constraint rows, reported as
 !> MBDK_ERR_SINGULAR_MATRIX. LU: partial pivoting as dgetf2; a zero or non-finite pivot is
 !> MBDK_ERR_SINGULAR_MATRIX (as dgetrf's info > 0).
@@ -13,62 +13,158 @@ module mbdk_small_dense
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
   implicit none
   private
-  public :: mbdk_small_chol_factor, mbdk_small_chol_solve, mbdk_small_lu_factor, mbdk_small_lu_solve
+  public :: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, mbdk_small_lu_solve
   integer, parameter, public :: MBDK_SMALL_DENSE_MAX = 12
 
 contains
 
-  !> In place: the strict lower triangle of a becomes that of L with A = L L^T, and the diagonal
-  !> holds 1 / L(j, j) (so that the solve multiplies instead of dividing).
-  pure subroutine mbdk_small_chol_factor(a, n, tol, stat)
-    integer, intent(in) :: n
+  !> In place: A = L B L^T, the root-free (block) Cholesky with pivot blocks of 1 to 3 rows:
+  !> block k is rows blk(k) .. blk(k+1)-1 (blk(1) = 1, blk(nblk+1) = n+1). With blk = 1..n+1
+  !> this is the scalar LDL^T; for a Schur complement D M^-1 D^T the blocks are the joints,
+  !> whose rows couple most, and a block costs one division where the scalar form needs one
+  !> per row: the critical path of a tiny factorisation is that chain of divisions.
+  !> The strict lower triangle outside the pivot blocks becomes that of the unit block-lower
+  !> L; each pivot block's lower triangle holds its symmetric inverse (closed form: adjugate
+  !> over determinant). Only the lower triangle of A is read.
+  !> Singular: a pivot of the scalar LDL^T within a block (the ratio of consecutive leading
+  !> minors of the block) at or below tol * (largest diagonal entry of A), or NaN, is
+  !> MBDK_ERR_SINGULAR_MATRIX; for a Schur complement that means dependent (redundant)
+  !> constraint rows. A block of more than 3 rows is refused as MBDK_ERR_SINGULAR_MATRIX.
+  pure subroutine mbdk_small_ldlt_factor(a, n, blk, tol, stat)
+    integer, intent(in) :: n, blk(:)
     real(dp), intent(inout) :: a(n, n)
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
-    integer :: i, j, k
-    real(dp) :: s, dmax
+    integer :: i, k, kb, r0, nb
+    real(dp) :: dmax, t, l1, l2, l3, c11, c21, c31, c22, c32, c33, det, y
     dmax = 0.0_dp
     do i = 1, n
       dmax = max(dmax, a(i, i))
     end do
+    t = tol * dmax
     stat = MBDK_ERR_SINGULAR_MATRIX
-    do j = 1, n
-      s = a(j, j)
-      do k = 1, j - 1
-        s = s - a(j, k)**2
-      end do
-      if (.not. (s > tol * dmax)) return
-      a(j, j) = 1.0_dp / sqrt(s)
-      do i = j + 1, n
-        s = a(i, j)
-        do k = 1, j - 1
-          s = s - a(i, k) * a(j, k)
-        end do
-        a(i, j) = s * a(j, j)
+    do kb = 1, size(blk) - 1
+      r0 = blk(kb)
+      nb = blk(kb + 1) - r0
+      ! the pivot block's inverse, in place (lower triangle)
+      select case (nb)
+      case (1)
+        if (.not. (a(r0, r0) > t)) return
+        a(r0, r0) = 1.0_dp / a(r0, r0)
+      case (2)
+        if (.not. (a(r0, r0) > t)) return
+        det = a(r0, r0) * a(r0 + 1, r0 + 1) - a(r0 + 1, r0)**2
+        if (.not. (det > t * a(r0, r0))) return
+        y = 1.0_dp / det
+        c11 = a(r0 + 1, r0 + 1) * y
+        a(r0 + 1, r0 + 1) = a(r0, r0) * y
+        a(r0, r0) = c11
+        a(r0 + 1, r0) = -a(r0 + 1, r0) * y
+      case (3)
+        associate (b => a(r0:r0 + 2, r0:r0 + 2))
+          if (.not. (b(1, 1) > t)) return
+          c33 = b(1, 1) * b(2, 2) - b(2, 1)**2
+          if (.not. (c33 > t * b(1, 1))) return
+          c11 = b(2, 2) * b(3, 3) - b(3, 2)**2
+          c21 = b(3, 2) * b(3, 1) - b(2, 1) * b(3, 3)
+          c31 = b(2, 1) * b(3, 2) - b(2, 2) * b(3, 1)
+          c22 = b(1, 1) * b(3, 3) - b(3, 1)**2
+          c32 = b(2, 1) * b(3, 1) - b(1, 1) * b(3, 2)
+          det = b(1, 1) * c11 + b(2, 1) * c21 + b(3, 1) * c31
+          if (.not. (det > t * c33)) return
+          y = 1.0_dp / det
+          b(1, 1) = c11 * y
+          b(2, 1) = c21 * y
+          b(3, 1) = c31 * y
+          b(2, 2) = c22 * y
+          b(3, 2) = c32 * y
+          b(3, 3) = c33 * y
+        end associate
+      case default
+        return
+      end select
+      ! for each row k below: L(k, block) = A(k, block) B^-1, the trailing update
+      ! A(i, k) -= A(i, block) L(k, block)^T (i >= k, A(i, block) not yet scaled), then L
+      ! replaces A(k, block)
+      do k = r0 + nb, n
+        select case (nb)
+        case (1)
+          l1 = a(k, r0) * a(r0, r0)
+          do i = k, n
+            a(i, k) = a(i, k) - a(i, r0) * l1
+          end do
+          a(k, r0) = l1
+        case (2)
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2)
+          end do
+          a(k, r0) = l1
+          a(k, r0 + 1) = l2
+        case (3)
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0) + a(k, r0 + 2) * a(r0 + 2, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 1)
+          l3 = a(k, r0) * a(r0 + 2, r0) + a(k, r0 + 1) * a(r0 + 2, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 2)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2 + a(i, r0 + 2) * l3)
+          end do
+          a(k, r0) = l1
+          a(k, r0 + 1) = l2
+          a(k, r0 + 2) = l3
+        end select
       end do
     end do
     stat = MBDK_SUCCESS
-  end subroutine mbdk_small_chol_factor
+  end subroutine mbdk_small_ldlt_factor
 
-  !> Solves L L^T x = b with the factor of mbdk_small_chol_factor; b is overwritten by x.
-  pure subroutine mbdk_small_chol_solve(l, n, b)
-    integer, intent(in) :: n
+  !> Solves L B L^T x = b with the factor of mbdk_small_ldlt_factor (the same blk); b becomes x.
+  pure subroutine mbdk_small_ldlt_solve(l, n, blk, b)
+    integer, intent(in) :: n, blk(:)
     real(dp), intent(in) :: l(n, n)
     real(dp), intent(inout) :: b(n)
-    integer :: i, k
-    do i = 1, n
-      do k = 1, i - 1
-        b(i) = b(i) - l(i, k) * b(k)
+    integer :: i, kb, r0, r1, c, nblk
+    real(dp) :: x1, x2, x3
+    nblk = size(blk) - 1
+    do kb = 1, nblk
+      r1 = blk(kb + 1) - 1
+      do c = blk(kb), r1
+        x1 = b(c)
+        do i = r1 + 1, n
+          b(i) = b(i) - l(i, c) * x1
+        end do
       end do
-      b(i) = b(i) * l(i, i)
     end do
-    do i = n, 1, -1
-      do k = i + 1, n
-        b(i) = b(i) - l(k, i) * b(k)
+    do kb = nblk, 1, -1
+      r0 = blk(kb)
+      r1 = blk(kb + 1) - 1
+      select case (r1 - r0)
+      case (0)
+        b(r0) = b(r0) * l(r0, r0)
+      case (1)
+        x1 = b(r0)
+        x2 = b(r0 + 1)
+        b(r0) = l(r0, r0) * x1 + l(r0 + 1, r0) * x2
+        b(r0 + 1) = l(r0 + 1, r0) * x1 + l(r0 + 1, r0 + 1) * x2
+      case (2)
+        x1 = b(r0)
+        x2 = b(r0 + 1)
+        x3 = b(r0 + 2)
+        b(r0) = l(r0, r0) * x1 + l(r0 + 1, r0) * x2 + l(r0 + 2, r0) * x3
+        b(r0 + 1) = l(r0 + 1, r0) * x1 + l(r0 + 1, r0 + 1) * x2 + l(r0 + 2, r0 + 1) * x3
+        b(r0 + 2) = l(r0 + 2, r0) * x1 + l(r0 + 2, r0 + 1) * x2 + l(r0 + 2, r0 + 2) * x3
+      end select
+      do c = r0, r1
+        x1 = b(c)
+        do i = r1 + 1, n
+          x1 = x1 - l(i, c) * b(i)
+        end do
+        b(c) = x1
       end do
-      b(i) = b(i) * l(i, i)
     end do
-  end subroutine mbdk_small_chol_solve
+  end subroutine mbdk_small_ldlt_solve
 
   !> In place: A = P L U with unit lower L below the diagonal and U on and above it; ipiv(j) is
   !> the row swapped with row j at step j (as dgetrf), and the diagonal holds 1 / U(j, j).

@@ -13,6 +13,7 @@
 !>   5 coordinate spring-damper on q(3 body1 - 3 + coordinate): -k (q - q0) - c q',
 !>                          k = freal(1), c = freal(2), q0 = freal(3) (the trolley's -s x1 - k x1')
 !> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE.
+!> Every routine takes the rotations rot(2, nb) of the bodies at q (mbdk_joints).
 module mbdk_force_elements
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
@@ -29,9 +30,9 @@ module mbdk_force_elements
 contains
 
   !> f(nc) += the generalised forces of every element; visits(1:5) counts them per type.
-  subroutine mbdk_forces_eval(fint, freal, mass, q, v, t, f, visits, stat)
+  subroutine mbdk_forces_eval(fint, freal, mass, rot, q, v, t, f, visits, stat)
     integer, intent(in) :: fint(:, :)
-    real(dp), intent(in) :: freal(:, :), mass(:), q(:), v(:), t
+    real(dp), intent(in) :: freal(:, :), mass(:), rot(:, :), q(:), v(:), t
     real(dp), intent(inout) :: f(:)
     integer(i8), intent(inout) :: visits(:)
     integer, intent(out) :: stat
@@ -52,7 +53,7 @@ contains
       case (MBDK_FORCE_POINT)
         b = fint(2, e)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
-        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
         fv = freal(3:4, e) * tf
         f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + fv
         f(3 * b) = f(3 * b) + rho1(1) * fv(2) - rho1(2) * fv(1)
@@ -61,8 +62,8 @@ contains
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         f(3 * b) = f(3 * b) + freal(1, e) * tf
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
         dd = p1 - p2
         len = norm2(dd)
         if (.not. (len > 0.0_dp)) then
@@ -92,9 +93,10 @@ contains
 
   !> Potential energy of gravity and of the springs, the power dissipated by the dampers (>= 0)
   !> and the power of the applied loads (point forces and torques).
-  subroutine mbdk_forces_energy(fint, freal, mass, q, v, t, v_gravity, v_springs, p_damp, p_load)
+  subroutine mbdk_forces_energy(fint, freal, mass, rot, q, v, t, v_gravity, v_springs, p_damp, &
+                                p_load)
     integer, intent(in) :: fint(:, :)
-    real(dp), intent(in) :: freal(:, :), mass(:), q(:), v(:), t
+    real(dp), intent(in) :: freal(:, :), mass(:), rot(:, :), q(:), v(:), t
     real(dp), intent(out) :: v_gravity, v_springs, p_damp, p_load
     integer :: e, b, nb, k
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), len, ldot
@@ -114,14 +116,14 @@ contains
       case (MBDK_FORCE_POINT)
         b = fint(2, e)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
-        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
         p_load = p_load + dot_product(freal(3:4, e) * tf, pv1)
       case (MBDK_FORCE_TORQUE)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         p_load = p_load + freal(1, e) * tf * v(3 * fint(2, e))
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
         dd = p1 - p2
         len = norm2(dd)
         ldot = 0.0_dp
@@ -145,9 +147,9 @@ contains
   !>        e.rho2 at th2,th2)],  dL'/dq = G^T (I - e e^T) G v / L + H^T e,
   !>   H = d(G v)/dq: -w1 rho1 in column th1, +w2 rho2 in column th2.
   !> Coordinate spring-damper: kf(k, k) += k, cf(k, k) += c.
-  subroutine mbdk_forces_tangent(fint, freal, q, v, t, kf, cf, stat)
+  subroutine mbdk_forces_tangent(fint, freal, rot, q, v, t, kf, cf, stat)
     integer, intent(in) :: fint(:, :)
-    real(dp), intent(in) :: freal(:, :), q(:), v(:), t
+    real(dp), intent(in) :: freal(:, :), rot(:, :), q(:), v(:), t
     real(dp), intent(inout) :: kf(:, :), cf(:, :)
     integer, intent(out) :: stat
     integer :: e, b, k, nc, i, j
@@ -162,11 +164,11 @@ contains
       case (MBDK_FORCE_POINT)
         b = fint(2, e)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
-        call mbdk_body_point(b, freal(1:2, e), q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
         kf(3 * b, 3 * b) = kf(3 * b, 3 * b) + dot_product(rho1, freal(3:4, e) * tf)
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), q, v, p2, rho2, pv2, w2)
+        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
         dd = p1 - p2
         len = norm2(dd)
         if (.not. (len > 0.0_dp)) then

@@ -4,7 +4,16 @@
 !>
 !> Coordinates: body b (1-based) owns q(3b-2:3b) = (x, y, theta) of its centroid; body 0 is the
 !> ground. A body-fixed point s has the global offset rho = A(theta) s and dP/dtheta = perp(rho)
-!> = (-rho_y, rho_x).
+!> = (-rho_y, rho_x). The rotation of every body is computed once per evaluation
+!> (mbdk_body_rotations: one sin/cos pair per body, rot(1:2, b) = (cos, sin) of theta_b) and
+!> handed to every joint and force element that needs it (mbdk_body_point), so that a body
+!> with several joints and springs pays for one sin/cos. (The body kinematics live in this
+!> module so that gfortran inlines them into the joint evaluation.)
+!>
+!> D is produced in compact rows: row r of D is dz(1:6, r) = the derivatives by (x, y, theta) of
+!> body1 (slots 1-3) and of body2 (slots 4-6). mbdk_joints_pattern gives each slot's column of
+!> D (0 for the ground) and whether it can be nonzero at all; mbdk_joints_scatter makes the
+!> dense D. The compact rows are what the sparse Schur complement (mbdk_sparse_schur) reads.
 !>
 !> Table jint(4, nj) = (type, body1, body2, coordinate); jreal(12, nj):
 !>   1 revolute   (2 rows)  P1 - P2 = 0,           s1 = jreal(1:2), s2 = jreal(3:4) (for the
@@ -20,12 +29,48 @@ module mbdk_joints
   use mbdk_time_function, only: mbdk_time_fn
   implicit none
   private
-  public :: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, mbdk_joints_tangent
+  public :: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_tangent, mbdk_joints_pattern, &
+    mbdk_joints_scatter, mbdk_body_rotations, mbdk_body_point
 
   integer, parameter, public :: MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, &
     MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_TYPES = 4
+  !> slots of a compact row of D: (x, y, theta) of body1, then of body2
+  integer, parameter, public :: MBDK_JOINT_SLOTS = 6
 
 contains
+
+  !> rot(1:2, b) = (cos, sin) of theta_b for b = 1..size(rot, 2).
+  pure subroutine mbdk_body_rotations(q, rot)
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: rot(:, :)
+    integer :: b
+    do b = 1, size(rot, 2)
+      rot(1, b) = cos(q(3 * b))
+      rot(2, b) = sin(q(3 * b))
+    end do
+  end subroutine mbdk_body_rotations
+
+  !> Global position p, offset rho = A s, velocity pv and angular velocity w of the point s of
+  !> body b (b = 0: the ground, s is global), with rot from mbdk_body_rotations at q.
+  pure subroutine mbdk_body_point(b, s, rot, q, v, p, rho, pv, w)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(2), rot(:, :), q(:), v(:)
+    real(dp), intent(out) :: p(2), rho(2), pv(2), w
+    if (b == 0) then
+      p = s
+      rho = s
+      pv = 0.0_dp
+      w = 0.0_dp
+      return
+    end if
+    rho(1) = rot(1, b) * s(1) - rot(2, b) * s(2)
+    rho(2) = rot(2, b) * s(1) + rot(1, b) * s(2)
+    p(1) = q(3 * b - 2) + rho(1)
+    p(2) = q(3 * b - 1) + rho(2)
+    w = v(3 * b)
+    pv(1) = v(3 * b - 2) - w * rho(2)
+    pv(2) = v(3 * b - 1) + w * rho(1)
+  end subroutine mbdk_body_point
 
   pure integer function mbdk_joint_rows(jtype)
     integer, intent(in) :: jtype
@@ -41,39 +86,70 @@ contains
     end select
   end function mbdk_joint_rows
 
-  !> Global position p, offset rho = A s, velocity pv and angular velocity w of the point s of
-  !> body b (b = 0: the ground, s is global).
-  pure subroutine mbdk_body_point(b, s, q, v, p, rho, pv, w)
-    integer, intent(in) :: b
-    real(dp), intent(in) :: s(2), q(:), v(:)
-    real(dp), intent(out) :: p(2), rho(2), pv(2), w
-    real(dp) :: c, sn
-    if (b == 0) then
-      p = s
-      rho = s
-      pv = 0.0_dp
-      w = 0.0_dp
-      return
-    end if
-    c = cos(q(3 * b))
-    sn = sin(q(3 * b))
-    rho = [c * s(1) - sn * s(2), sn * s(1) + c * s(2)]
-    p = q(3 * b - 2:3 * b - 1) + rho
-    w = v(3 * b)
-    pv = v(3 * b - 2:3 * b - 1) + w * [-rho(2), rho(1)]
-  end subroutine mbdk_body_point
-
-  !> phi(m), d(m, nc) (only the joints' entries are written: zero it first), gam(m), phit(m).
-  !> visits(1:4) counts the evaluations per joint type.
-  subroutine mbdk_joints_eval(jint, jreal, row0, q, v, t, phi, d, gam, phit, visits)
+  !> The sparsity of D in compact rows: col(k, r) is the column of D of slot k of row r (0 when
+  !> the slot belongs to the ground), nz(k, r) whether it can be nonzero: the revolute rows do
+  !> not depend on theta when the joint point is the centroid (s = 0), angle rows depend on the
+  !> angles only, a driver on its coordinate only.
+  pure subroutine mbdk_joints_pattern(jint, jreal, row0, col, nz)
     integer, intent(in) :: jint(:, :), row0(:)
-    real(dp), intent(in) :: jreal(:, :), q(:), v(:), t
-    real(dp), intent(out) :: phi(:), gam(:), phit(:)
-    real(dp), intent(inout) :: d(:, :)
-    integer(i8), intent(inout) :: visits(:)
+    real(dp), intent(in) :: jreal(:, :)
+    integer, intent(out) :: col(:, :)
+    logical, intent(out) :: nz(:, :)
     integer :: j, r, b1, b2, k
+    logical :: rot1, rot2
+    col = 0
+    nz = .false.
+    do j = 1, size(jint, 2)
+      r = row0(j)
+      b1 = jint(2, j)
+      b2 = jint(3, j)
+      rot1 = any(jreal(1:2, j) /= 0.0_dp)
+      rot2 = any(jreal(3:4, j) /= 0.0_dp)
+      do k = r, r + mbdk_joint_rows(jint(1, j)) - 1
+        if (b1 > 0) col(1:3, k) = [3 * b1 - 2, 3 * b1 - 1, 3 * b1]
+        if (b2 > 0) col(4:6, k) = [3 * b2 - 2, 3 * b2 - 1, 3 * b2]
+      end do
+      select case (jint(1, j))
+      case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_FIXED)
+        nz(:, r) = [.true., .false., rot1, .true., .false., rot2]
+        nz(:, r + 1) = [.false., .true., rot1, .false., .true., rot2]
+        if (jint(1, j) == MBDK_JOINT_FIXED) nz(:, r + 2) = [.false., .false., .true., .false., &
+                                                             .false., .true.]
+      case (MBDK_JOINT_PRISMATIC)
+        nz(:, r) = [.false., .false., .true., .false., .false., .true.]
+        nz(:, r + 1) = [.true., .true., rot1, .true., .true., .true.]
+      case (MBDK_JOINT_DRIVER)
+        nz(jint(4, j), r) = .true.
+      end select
+    end do
+    nz = nz .and. col > 0
+  end subroutine mbdk_joints_pattern
+
+  !> Dense d(m, nc) from the compact rows dz and the columns col of mbdk_joints_pattern.
+  pure subroutine mbdk_joints_scatter(col, dz, d)
+    integer, intent(in) :: col(:, :)
+    real(dp), intent(in) :: dz(:, :)
+    real(dp), intent(out) :: d(:, :)
+    integer :: r, k
+    d = 0.0_dp
+    do r = 1, size(dz, 2)
+      do k = 1, MBDK_JOINT_SLOTS
+        if (col(k, r) > 0) d(r, col(k, r)) = d(r, col(k, r)) + dz(k, r)
+      end do
+    end do
+  end subroutine mbdk_joints_scatter
+
+  !> phi(m), the compact rows dz(6, m) of D (every slot written; ground slots 0), gam(m),
+  !> phit(m) at (q, v, t); rot from mbdk_body_rotations at q. visits(1:4) counts the
+  !> evaluations per joint type.
+  subroutine mbdk_joints_eval(jint, jreal, row0, rot, q, v, t, phi, dz, gam, phit, visits)
+    integer, intent(in) :: jint(:, :), row0(:)
+    real(dp), intent(in) :: jreal(:, :), rot(:, :), q(:), v(:), t
+    real(dp), intent(out) :: phi(:), dz(:, :), gam(:), phit(:)
+    integer(i8), intent(inout) :: visits(:)
+    integer :: j, r, b1, b2
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), ddot(2)
-    real(dp) :: u2(2), n2(2), c, sn, f, fd, fdd
+    real(dp) :: u2(2), n2(2), f, fd, fdd
 
     do j = 1, size(jint, 2)
       r = row0(j)
@@ -82,32 +158,24 @@ contains
       visits(jint(1, j)) = visits(jint(1, j)) + 1
       select case (jint(1, j))
       case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_FIXED)
-        call mbdk_body_point(b1, jreal(1:2, j), q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), q, v, p2, rho2, pv2, w2)
-        phi(r:r + 1) = p1 - p2
-        phit(r:r + 1) = 0.0_dp
-        gam(r:r + 1) = w1**2 * rho1 - w2**2 * rho2
-        if (b1 > 0) then
-          d(r, 3 * b1 - 2) = 1.0_dp
-          d(r + 1, 3 * b1 - 1) = 1.0_dp
-          d(r, 3 * b1) = -rho1(2)
-          d(r + 1, 3 * b1) = rho1(1)
-        end if
-        if (b2 > 0) then
-          d(r, 3 * b2 - 2) = -1.0_dp
-          d(r + 1, 3 * b2 - 1) = -1.0_dp
-          d(r, 3 * b2) = rho2(2)
-          d(r + 1, 3 * b2) = -rho2(1)
-        end if
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho2, pv2, w2)
+        phi(r) = p1(1) - p2(1)
+        phi(r + 1) = p1(2) - p2(2)
+        phit(r) = 0.0_dp
+        phit(r + 1) = 0.0_dp
+        gam(r) = w1**2 * rho1(1) - w2**2 * rho2(1)
+        gam(r + 1) = w1**2 * rho1(2) - w2**2 * rho2(2)
+        dz(:, r) = [1.0_dp, 0.0_dp, -rho1(2), -1.0_dp, 0.0_dp, rho2(2)]
+        dz(:, r + 1) = [0.0_dp, 1.0_dp, rho1(1), 0.0_dp, -1.0_dp, -rho2(1)]
         if (jint(1, j) == MBDK_JOINT_FIXED) call angle_row(r + 2)
       case (MBDK_JOINT_PRISMATIC)
         call angle_row(r)
-        call mbdk_body_point(b1, jreal(1:2, j), q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), q, v, p2, rho2, pv2, w2)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho2, pv2, w2)
         if (b2 > 0) then
-          c = cos(q(3 * b2))
-          sn = sin(q(3 * b2))
-          u2 = [c * jreal(5, j) - sn * jreal(6, j), sn * jreal(5, j) + c * jreal(6, j)]
+          u2 = [rot(1, b2) * jreal(5, j) - rot(2, b2) * jreal(6, j), &
+                rot(2, b2) * jreal(5, j) + rot(1, b2) * jreal(6, j)]
         else
           u2 = jreal(5:6, j)
         end if
@@ -120,22 +188,17 @@ contains
         !                                 - w2^2 n2.dd
         gam(r + 1) = -(dot_product(n2, -w1**2 * rho1 + w2**2 * rho2) &
                        - 2.0_dp * w2 * dot_product(u2, ddot) - w2**2 * dot_product(n2, dd))
-        if (b1 > 0) then
-          d(r + 1, 3 * b1 - 2:3 * b1 - 1) = n2
-          d(r + 1, 3 * b1) = n2(1) * (-rho1(2)) + n2(2) * rho1(1)
-        end if
-        if (b2 > 0) then
-          d(r + 1, 3 * b2 - 2:3 * b2 - 1) = -n2
-          d(r + 1, 3 * b2) = -dot_product(u2, dd) - (n2(1) * (-rho2(2)) + n2(2) * rho2(1))
-        end if
+        dz(:, r + 1) = [n2(1), n2(2), n2(1) * (-rho1(2)) + n2(2) * rho1(1), -n2(1), -n2(2), &
+                        -dot_product(u2, dd) - (n2(1) * (-rho2(2)) + n2(2) * rho2(1))]
       case (MBDK_JOINT_DRIVER)
-        k = 3 * b1 - 3 + jint(4, j)
         call mbdk_time_fn(jreal(8:12, j), t, f, fd, fdd)
-        phi(r) = q(k) - f
+        phi(r) = q(3 * b1 - 3 + jint(4, j)) - f
         phit(r) = -fd
         gam(r) = fdd
-        d(r, k) = 1.0_dp
+        dz(:, r) = 0.0_dp
+        dz(jint(4, j), r) = 1.0_dp
       end select
+      if (b2 == 0) dz(4:6, r:r + mbdk_joint_rows(jint(1, j)) - 1) = 0.0_dp
     end do
 
   contains
@@ -150,27 +213,26 @@ contains
       phi(rr) = th1 - th2 - jreal(7, j)
       phit(rr) = 0.0_dp
       gam(rr) = 0.0_dp
-      if (b1 > 0) d(rr, 3 * b1) = 1.0_dp
-      if (b2 > 0) d(rr, 3 * b2) = -1.0_dp
+      dz(:, rr) = [0.0_dp, 0.0_dp, 1.0_dp, 0.0_dp, 0.0_dp, -1.0_dp]
     end subroutine angle_row
 
   end subroutine mbdk_joints_eval
 
   !> kc(nc, nc) += d(D^T lam)/dq: the geometric stiffness of the constraint forces at fixed
   !> multipliers lam (the second derivatives of Phi, weighted by lam), for the Newton matrix of
-  !> the index-3 integrators. Angle rows and drivers are linear in q and contribute nothing.
+  !> the index-3 integrators; rot from mbdk_body_rotations at q. Angle rows and drivers are linear in q and contribute nothing.
   !> With d = P1 - P2, perp(x) = (-x2, x1), dP/dtheta = perp(rho), d perp(rho)/dtheta = -rho:
   !>   revolute/fixed: (th1, th1) -= rho1 . lam(r:r+1);  (th2, th2) += rho2 . lam(r:r+1)
   !>   prismatic row n2 . d (n2 turns with body 2, dn2/dth2 = -u2, du2/dth2 = n2), times lam:
   !>     (th1, th1) -n2.rho1;  (r1, th2) -u2;  (th1, th2) -u2.perp(rho1);  (r2, th2) +u2;
   !>     (th2, th2) -n2.d + 2 u2.perp(rho2) + n2.rho2   (symmetric)
-  subroutine mbdk_joints_tangent(jint, jreal, row0, q, lam, kc)
+  subroutine mbdk_joints_tangent(jint, jreal, row0, rot, q, lam, kc)
     integer, intent(in) :: jint(:, :), row0(:)
-    real(dp), intent(in) :: jreal(:, :), q(:), lam(:)
+    real(dp), intent(in) :: jreal(:, :), rot(:, :), q(:), lam(:)
     real(dp), intent(inout) :: kc(:, :)
     integer :: j, r, b1, b2, i1, i2, c
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, u2(2), n2(2), dd(2)
-    real(dp) :: l, cs, sn, zero(size(q)), x
+    real(dp) :: l, zero(size(q)), x
 
     zero = 0.0_dp
     do j = 1, size(jint, 2)
@@ -181,18 +243,17 @@ contains
       i2 = 3 * b2
       select case (jint(1, j))
       case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_FIXED)
-        call mbdk_body_point(b1, jreal(1:2, j), q, zero, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), q, zero, p2, rho2, pv2, w2)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, zero, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, zero, p2, rho2, pv2, w2)
         if (b1 > 0) kc(i1, i1) = kc(i1, i1) - dot_product(rho1, lam(r:r + 1))
         if (b2 > 0) kc(i2, i2) = kc(i2, i2) + dot_product(rho2, lam(r:r + 1))
       case (MBDK_JOINT_PRISMATIC)
         l = lam(r + 1)
-        call mbdk_body_point(b1, jreal(1:2, j), q, zero, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), q, zero, p2, rho2, pv2, w2)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, zero, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, zero, p2, rho2, pv2, w2)
         if (b2 > 0) then
-          cs = cos(q(i2))
-          sn = sin(q(i2))
-          u2 = [cs * jreal(5, j) - sn * jreal(6, j), sn * jreal(5, j) + cs * jreal(6, j)]
+          u2 = [rot(1, b2) * jreal(5, j) - rot(2, b2) * jreal(6, j), &
+                rot(2, b2) * jreal(5, j) + rot(1, b2) * jreal(6, j)]
         else
           u2 = jreal(5:6, j)
         end if

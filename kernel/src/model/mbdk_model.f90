@@ -13,11 +13,17 @@
 !> with Phi' = D v + Phi_t.
 !>
 !> Linear solves: when M is positive (every body has mass and inertia) the constrained systems
-!> are solved through the Schur complement S = D M^-1 D^T (M diagonal), by an in-house Cholesky
-!> up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems) or
-!> LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised with
-!> LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
+!> are solved through the Schur complement S = D M^-1 D^T (M diagonal), assembled from the
+!> nonzeros of D only (mbdk_sparse_schur) and factorised by an in-house root-free Cholesky
+!> (LDL^T) up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems)
+!> or LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised
+!> with LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
+!>
+!> An evaluation (mbdk_model_assemble) computes the sin/cos of every body's angle once, the
+!> forces, and Phi, gamma, Phi_t and D in the compact rows of mbdk_joints; the dense D
+!> (mbdk_model_constraints) is scattered from those rows for the penalty and KKT solves and for
+!> the index-3 integrators.
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
@@ -28,15 +34,18 @@ module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_body_point, MBDK_JOINT_TYPES, &
-    MBDK_JOINT_DRIVER
+  use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
+    mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_SLOTS, &
+    mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
-  use mbdk_small_dense, only: mbdk_small_chol_factor, mbdk_small_chol_solve, MBDK_SMALL_DENSE_MAX
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, MBDK_SMALL_DENSE_MAX
+  use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
+    mbdk_sparse_schur_assemble, mbdk_sparse_d_times, mbdk_sparse_w_residual
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_default_fpar, mbdk_model_schur_factor
+  public :: mbdk_model_default_fpar, mbdk_model_schur_factor, mbdk_model_assemble
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -44,12 +53,15 @@ module mbdk_model
   integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
   !> outputs per sample: energy parts and residuals
   integer, parameter, public :: MBDK_OUT_ENERGY = 6, MBDK_OUT_RESID = 3
-  real(dp), parameter :: SINGULAR_TOL = 1.0e-11_dp
+  !> relative pivot below which S = D M^-1 D^T (or the KKT matrix) counts as singular
+  real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = 1.0e-11_dp
+  real(dp), parameter :: SINGULAR_TOL = MBDK_MODEL_SINGULAR_TOL
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
   type, public :: mbdk_model_work_t
     integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
+    real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
     real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
     real(dp), allocatable :: s(:, :), wd(:, :), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
@@ -60,6 +72,11 @@ module mbdk_model
     real(dp), allocatable :: mass(:), winv(:)     !< diagonal of M (nc) and of the projection weight
     logical :: m_positive = .false.
     integer, allocatable :: jint(:, :), row0(:), fint(:, :)
+    integer, allocatable :: col(:, :)             !< column of D of each compact slot
+    !> pivot blocks of the LDL^T factorisations: the joints' rows for S = D M^-1 D^T, the
+    !> single rows for M + ap D^T D
+    integer, allocatable :: blk(:), row_blk(:)
+    type(mbdk_sparse_schur_t) :: sp               !< pattern of D and of S = D M^-1 D^T
     real(dp), allocatable :: jreal(:, :), freal(:, :)
     integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
     logical :: small_dense = .true.
@@ -158,12 +175,21 @@ contains
     model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
     nc = model%nc
     m = model%m
+    block
+      logical :: nz(MBDK_JOINT_SLOTS, m)
+      allocate (model%col(MBDK_JOINT_SLOTS, m))
+      call mbdk_joints_pattern(jint, jreal, model%row0, model%col, nz)
+      call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv)
+    end block
+    model%blk = [model%row0, m + 1]
+    model%row_blk = [(j, j = 1, nc + 1)]
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
-                                        work%rc, work%lam_rhs, work%s, work%wd, work%pm, work%kkt, &
-                                        work%rhs, work%ipiv)
+                                        work%rc, work%rot, work%dz, work%lam_rhs, work%s, &
+                                        work%wd, work%pm, work%kkt, work%rhs, work%ipiv)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
-              work%lam_rhs(m), work%s(m, m), work%wd(m, nc))
+              work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
+              work%s(m, m), work%wd(m, nc))
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%pm(nc, nc))
     else
@@ -179,16 +205,40 @@ contains
     stat = MBDK_SUCCESS
   end subroutine mbdk_model_init
 
-  !> Phi, D (m x nc), gamma, Phi_t at (q, v, t).
+  !> Phi, the dense D (m x nc), gamma, Phi_t at (q, v, t). Leaves work%rot and work%dz at q
+  !> (work%rot also when there are no constraints).
   subroutine mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     real(dp), intent(out) :: phi(:), d(:, :), gam(:), phit(:)
-    d = 0.0_dp
+    call mbdk_body_rotations(q, self%work%rot)
     if (self%m == 0) return
-    call mbdk_joints_eval(self%jint, self%jreal, self%row0, q, v, t, phi, d, gam, phit, &
-                          self%work%visits(1:MBDK_JOINT_TYPES))
+    call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, q, v, t, phi, &
+                          self%work%dz, gam, phit, self%work%visits(1:MBDK_JOINT_TYPES))
+    call mbdk_joints_scatter(self%col, self%work%dz, d)
   end subroutine mbdk_model_constraints
+
+  !> One evaluation's assembly at (t, q, v) into the work buffers: rot (one sin/cos pair per
+  !> body), fq, and phi, dz (D in compact rows), gam, phit. Non-finite q or v:
+  !> MBDK_ERR_NONFINITE; a force element's failure is passed on.
+  subroutine mbdk_model_assemble(self, t, q, v, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    integer, intent(out) :: stat
+    if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) then
+      stat = MBDK_ERR_NONFINITE
+      return
+    end if
+    associate (w => self%work)
+      call mbdk_body_rotations(q, w%rot)
+      w%fq = 0.0_dp
+      call mbdk_forces_eval(self%fint, self%freal, self%mass, w%rot, q, v, t, w%fq, &
+                            w%visits(MBDK_JOINT_TYPES + 1:), stat)
+      if (stat /= MBDK_SUCCESS .or. self%m == 0) return
+      call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, w%dz, &
+                            w%gam, w%phit, w%visits(1:MBDK_JOINT_TYPES))
+    end associate
+  end subroutine mbdk_model_assemble
 
   subroutine model_rhs(self, t, y, f, stat)
     class(mbdk_model_t), intent(in) :: self
@@ -215,15 +265,9 @@ contains
 
     nc = self%nc
     m = self%m
-    if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) then
-      stat = MBDK_ERR_NONFINITE
-      return
-    end if
+    call mbdk_model_assemble(self, t, q, v, stat)
+    if (stat /= MBDK_SUCCESS) return
     associate (w => self%work)
-      w%fq = 0.0_dp
-      call mbdk_forces_eval(self%fint, self%freal, self%mass, q, v, t, w%fq, &
-                            w%visits(MBDK_JOINT_TYPES + 1:), stat)
-      if (stat /= MBDK_SUCCESS) return
       if (m == 0) then
         if (.not. self%m_positive) then
           stat = MBDK_ERR_SINGULAR_MATRIX
@@ -232,19 +276,14 @@ contains
         a = w%fq * self%winv
         return
       end if
-      call mbdk_model_constraints(self, t, q, v, w%phi, w%d, w%gam, w%phit)
       select case (self%formulation)
       case (MBDK_FORM_REDUCED, MBDK_FORM_PROJECTION)
         w%rc = w%gam
       case (MBDK_FORM_BAUMGARTE)
-        do r = 1, m
-          x = w%phit(r)
-          do k = 1, nc
-            x = x + w%d(r, k) * v(k)
-          end do
-          w%rc(r) = w%gam(r) - 2.0_dp * self%alpha * x - self%beta**2 * w%phi(r)
-        end do
+        call mbdk_sparse_d_times(self%sp, w%dz, v, w%rc, .false.)
+        w%rc = w%gam - 2.0_dp * self%alpha * (w%rc + w%phit) - self%beta**2 * w%phi
       case (MBDK_FORM_PENALTY)
+        call mbdk_joints_scatter(self%col, w%dz, w%d)
         w2 = self%pen_omega**2
         tmu = 2.0_dp * self%pen_mu * self%pen_omega
         do r = 1, m
@@ -263,8 +302,8 @@ contains
           w%pm(k, k) = w%pm(k, k) + self%mass(k)
         end do
         if (self%small_dense .and. nc <= MBDK_SMALL_DENSE_MAX) then
-          call mbdk_small_chol_factor(w%pm, nc, 1.0e-15_dp, stat)
-          if (stat == MBDK_SUCCESS) call mbdk_small_chol_solve(w%pm, nc, a)
+          call mbdk_small_ldlt_factor(w%pm, nc, self%row_blk, 1.0e-15_dp, stat)
+          if (stat == MBDK_SUCCESS) call mbdk_small_ldlt_solve(w%pm, nc, self%row_blk, a)
         else
           call mbdk_chol_factor(w%pm, stat)
           if (stat == MBDK_SUCCESS) call mbdk_chol_solve(w%pm, a, stat)
@@ -279,46 +318,37 @@ contains
     end associate
   end subroutine mbdk_model_accelerations
 
-  !> M a + D^T lam = fq, D a = rc (from w): Schur complement (M positive, not forced to KKT) or
-  !> KKT LU.
+  !> M a + D^T lam = fq, D a = rc (from w): Schur complement (M positive, not forced to KKT),
+  !> assembled sparse, or KKT LU.
   subroutine solve_constrained(self, w, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
     type(mbdk_model_work_t), intent(inout) :: w
     real(dp), intent(out) :: a(:), lam(:)
     integer, intent(out) :: stat
     integer :: nc, m, i, j, k, nk
-    real(dp) :: umax, umin, x
+    real(dp) :: umax, umin
 
     nc = self%nc
     m = self%m
     if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
+      call mbdk_sparse_schur_assemble(self%sp, w%dz, w%s)
+      call mbdk_sparse_d_times(self%sp, w%dz, w%fq, lam, .true.)
+      lam = lam - w%rc
       if (self%small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
-        call schur_small(m, nc, w%d, self%winv, w%fq, w%rc, w%s, w%wd, lam, a, stat)
-        return
+        call mbdk_small_ldlt_factor(w%s, m, self%blk, SINGULAR_TOL, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call mbdk_small_ldlt_solve(w%s, m, self%blk, lam)
+      else
+        call mbdk_chol_factor(w%s, stat)
+        if (stat == MBDK_SUCCESS) call check_chol_pivots(w%s, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call mbdk_chol_solve(w%s, lam, stat)
+        if (stat /= MBDK_SUCCESS) return
       end if
-      do k = 1, nc
-        w%wd(:, k) = w%d(:, k) * self%winv(k)
-      end do
-      do j = 1, m
-        do i = 1, m
-          w%s(i, j) = dot_product(w%wd(i, :), w%d(j, :))
-        end do
-        lam(j) = dot_product(w%wd(j, :), w%fq) - w%rc(j)
-      end do
-      call mbdk_chol_factor(w%s, stat)
-      if (stat == MBDK_SUCCESS) call check_chol_pivots(w%s, stat)
-      if (stat /= MBDK_SUCCESS) return
-      call mbdk_chol_solve(w%s, lam, stat)
-      if (stat /= MBDK_SUCCESS) return
-      do k = 1, nc
-        x = w%fq(k)
-        do j = 1, m
-          x = x - w%d(j, k) * lam(j)
-        end do
-        a(k) = self%winv(k) * x
-      end do
+      call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, w%fq, lam, a, nc)
       return
     end if
+    call mbdk_joints_scatter(self%col, w%dz, w%d)
     nk = nc + m
     w%kkt = 0.0_dp
     do i = 1, nc
@@ -350,41 +380,7 @@ contains
     lam = w%rhs(nc + 1:nk)
   end subroutine solve_constrained
 
-  !> The Schur-complement solve for small m with the in-house Cholesky, on explicit-shape
-  !> (contiguous) arrays: S = D W D^T, S lam = D W fq - rc, a = W (fq - D^T lam).
-  pure subroutine schur_small(m, nc, d, winv, fq, rc, s, wd, lam, a, stat)
-    integer, intent(in) :: m, nc
-    real(dp), intent(in) :: d(m, nc), winv(nc), fq(nc), rc(m)
-    real(dp), intent(out) :: s(m, m), wd(m, nc), lam(m), a(nc)
-    integer, intent(out) :: stat
-    integer :: i, j, k
-    real(dp) :: x
-    do k = 1, nc
-      wd(:, k) = d(:, k) * winv(k)
-    end do
-    lam = -rc
-    s = 0.0_dp
-    do k = 1, nc
-      lam = lam + wd(:, k) * fq(k)
-      do j = 1, m
-        do i = j, m
-          s(i, j) = s(i, j) + wd(i, k) * d(j, k)
-        end do
-      end do
-    end do
-    call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
-    if (stat /= MBDK_SUCCESS) return
-    call mbdk_small_chol_solve(s, m, lam)
-    do k = 1, nc
-      x = fq(k)
-      do j = 1, m
-        x = x - d(j, k) * lam(j)
-      end do
-      a(k) = winv(k) * x
-    end do
-  end subroutine schur_small
-
-  !> wd = D W and the in-house Cholesky factor of S = D W D^T (W = self%winv, the inverse mass
+  !> wd = D W and the in-house LDL^T factor of S = D W D^T (W = self%winv, the inverse mass
   !> or projection weight), for mass-orthogonal projections: x - (wd^T S^-1 r) puts D x onto
   !> D x - r. Dependent rows: MBDK_ERR_SINGULAR_MATRIX (pivot below SINGULAR_TOL).
   subroutine mbdk_model_schur_factor(self, d, wd, s, stat)
@@ -402,7 +398,7 @@ contains
         s(i, j) = dot_product(wd(i, :), d(j, :))
       end do
     end do
-    call mbdk_small_chol_factor(s, m, SINGULAR_TOL, stat)
+    call mbdk_small_ldlt_factor(s, m, self%blk, SINGULAR_TOL, stat)
   end subroutine mbdk_model_schur_factor
 
   subroutine check_chol_pivots(l, stat)
@@ -443,7 +439,7 @@ contains
       call schur(stat)
       if (stat /= MBDK_SUCCESS) return
       mu = phi
-      call mbdk_small_chol_solve(s, m, mu)
+      call mbdk_small_ldlt_solve(s, m, self%blk, mu)
       y(1:nc) = y(1:nc) - matmul(mu, wd)
       if (it == 0 .and. maxval(abs(phi)) <= self%proj_tol) exit
     end do
@@ -451,7 +447,7 @@ contains
     call schur(stat)
     if (stat /= MBDK_SUCCESS) return
     mu = matmul(d, y(nc + 1:2 * nc)) + phit
-    call mbdk_small_chol_solve(s, m, mu)
+    call mbdk_small_ldlt_solve(s, m, self%blk, mu)
     y(nc + 1:2 * nc) = y(nc + 1:2 * nc) - matmul(mu, wd)
 
   contains
@@ -496,8 +492,9 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
     energy(1) = 0.5_dp * sum(self%mass * v**2)
-    call mbdk_forces_energy(self%fint, self%freal, self%mass, q, v, t, energy(2), energy(3), &
-                            energy(4), energy(6))
+    call mbdk_body_rotations(q, self%work%rot)
+    call mbdk_forces_energy(self%fint, self%freal, self%mass, self%work%rot, q, v, t, energy(2), &
+                            energy(3), energy(4), energy(6))
     resid = 0.0_dp
     energy(5) = 0.0_dp
     if (m > 0) then
@@ -515,7 +512,8 @@ contains
         qf(c) = -dot_product(d(r:r + k - 1, 3 * b1 - 3 + c), lam(r:r + k - 1))
       end do
       rho = 0.0_dp
-      if (self%jint(1, j) /= MBDK_JOINT_DRIVER) call mbdk_body_point(b1, self%jreal(1:2, j), q, v, p, rho, pv, w)
+      if (self%jint(1, j) /= MBDK_JOINT_DRIVER) &
+        call mbdk_body_point(b1, self%jreal(1:2, j), self%work%rot, q, v, p, rho, pv, w)
       reac(1:2, j) = qf(1:2)
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
     end do
