@@ -646,7 +646,7 @@ contains
         call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)
         mu = mu - c
         call mbdk_small_ldlt_solve(ks, m, model%blk, mu)
-        call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, b, mu, x, nc)
+        call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, mu, x, nc, b)
         return
       end if
       krhs(1:nc) = b

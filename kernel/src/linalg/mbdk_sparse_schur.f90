@@ -146,18 +146,20 @@ contains
     end do
   end subroutine mbdk_sparse_d_times
 
-  !> a = W (f - D^T lam), a(nc): with f the forces and lam the multipliers of S lam = D W f - r,
-  !> the constrained accelerations; with f = 0 and lam = S^-1 D x, the correction that takes
-  !> x onto D x = 0 in the W^-1 norm.
-  pure subroutine mbdk_sparse_w_residual(sp, dz, w, f, lam, a, nc)
+  !> a = W (f - D^T lam), a(nc) (f absent: 0): with f the forces and lam the multipliers of
+  !> S lam = D W f - r, the constrained accelerations; without f and with lam = S^-1 r, the
+  !> least change (in the W^-1 norm) that moves D x by -r.
+  pure subroutine mbdk_sparse_w_residual(sp, dz, w, lam, a, nc, f)
     type(mbdk_sparse_schur_t), intent(in) :: sp
     integer, intent(in) :: nc
-    real(dp), intent(in) :: dz(*), w(nc), f(nc), lam(*)
+    real(dp), intent(in) :: dz(*), w(nc), lam(*)
     real(dp), intent(out) :: a(nc)
+    real(dp), intent(in), optional :: f(nc)
     integer :: c, k
     real(dp) :: x
     do c = 1, nc
-      x = f(c)
+      x = 0.0_dp
+      if (present(f)) x = f(c)
       do k = sp%cptr(c), sp%cptr(c + 1) - 1
         x = x - dz(sp%cz(k)) * lam(sp%crow(k))
       end do

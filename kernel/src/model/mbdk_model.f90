@@ -15,8 +15,8 @@
 !> Linear solves: when M is positive (every body has mass and inertia) the constrained systems
 !> are solved through the Schur complement S = D M^-1 D^T (M diagonal), assembled from the
 !> nonzeros of D only (mbdk_sparse_schur) and factorised by an in-house root-free Cholesky
-!> (LDL^T) up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems)
-!> or LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised
+!> (LDL^T) with the joints as pivot blocks up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call
+!> overhead dominates such tiny systems) or LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised
 !> with LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
 !>
@@ -45,7 +45,7 @@ module mbdk_model
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_default_fpar, mbdk_model_schur_factor, mbdk_model_assemble
+  public :: mbdk_model_default_fpar, mbdk_model_assemble
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -63,7 +63,7 @@ module mbdk_model
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
     real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
     real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
-    real(dp), allocatable :: s(:, :), wd(:, :), pm(:, :), kkt(:, :), rhs(:)
+    real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
   end type mbdk_model_work_t
 
@@ -186,10 +186,10 @@ contains
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%s, &
-                                        work%wd, work%pm, work%kkt, work%rhs, work%ipiv)
+                                        work%xc, work%pm, work%kkt, work%rhs, work%ipiv)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%s(m, m), work%wd(m, nc))
+              work%s(m, m), work%xc(nc))
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%pm(nc, nc))
     else
@@ -345,7 +345,7 @@ contains
         call mbdk_chol_solve(w%s, lam, stat)
         if (stat /= MBDK_SUCCESS) return
       end if
-      call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, w%fq, lam, a, nc)
+      call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, lam, a, nc, w%fq)
       return
     end if
     call mbdk_joints_scatter(self%col, w%dz, w%d)
@@ -380,27 +380,6 @@ contains
     lam = w%rhs(nc + 1:nk)
   end subroutine solve_constrained
 
-  !> wd = D W and the in-house LDL^T factor of S = D W D^T (W = self%winv, the inverse mass
-  !> or projection weight), for mass-orthogonal projections: x - (wd^T S^-1 r) puts D x onto
-  !> D x - r. Dependent rows: MBDK_ERR_SINGULAR_MATRIX (pivot below SINGULAR_TOL).
-  subroutine mbdk_model_schur_factor(self, d, wd, s, stat)
-    class(mbdk_model_t), intent(in) :: self
-    real(dp), intent(in) :: d(:, :)
-    real(dp), intent(out) :: wd(:, :), s(:, :)
-    integer, intent(out) :: stat
-    integer :: i, j, k, m
-    m = size(d, 1)
-    do k = 1, size(d, 2)
-      wd(:, k) = d(:, k) * self%winv(k)
-    end do
-    do j = 1, m
-      do i = j, m
-        s(i, j) = dot_product(wd(i, :), d(j, :))
-      end do
-    end do
-    call mbdk_small_ldlt_factor(s, m, self%blk, SINGULAR_TOL, stat)
-  end subroutine mbdk_model_schur_factor
-
   subroutine check_chol_pivots(l, stat)
     real(dp), intent(in) :: l(:, :)
     integer, intent(out) :: stat
@@ -416,46 +395,55 @@ contains
   end subroutine check_chol_pivots
 
   !> Projection after a step: q onto Phi(q, t) = 0 by Gauss-Newton with the weight W (M^-1, or
-  !> the identity when a body has zero inertia), then v onto D v + Phi_t = 0.
+  !> the identity when a body has zero inertia), then v onto D v + Phi_t = 0; each correction
+  !> is -W D^T S^-1 r with S = D W D^T from the nonzeros of D (mbdk_sparse_schur).
   subroutine model_post_step(self, t, y, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     integer, intent(out) :: stat
     integer :: nc, m, it
-    real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), s(self%m, self%m)
-    real(dp) :: wd(self%m, self%nc), mu(self%m)
 
     nc = self%nc
     m = self%m
     stat = MBDK_SUCCESS
-    do it = 0, self%proj_max_iter
-      call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), phi, d, gam, phit)
-      if (it > 0 .and. maxval(abs(phi)) <= self%proj_tol) exit
-      if (it == self%proj_max_iter) then
-        stat = MBDK_ERR_NEWTON_DIVERGED
-        return
-      end if
-      call schur(stat)
+    associate (w => self%work)
+      do it = 0, self%proj_max_iter
+        call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), w%phi, w%d, w%gam, &
+                                    w%phit)
+        if (it > 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
+        if (it == self%proj_max_iter) then
+          stat = MBDK_ERR_NEWTON_DIVERGED
+          return
+        end if
+        w%rc = w%phi
+        call correct(stat)
+        if (stat /= MBDK_SUCCESS) return
+        y(1:nc) = y(1:nc) + w%xc
+        if (it == 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
+      end do
+      call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), w%phi, w%d, w%gam, w%phit)
+      w%xc = y(nc + 1:2 * nc)
+      call mbdk_sparse_d_times(self%sp, w%dz, w%xc, w%rc, .false.)
+      w%rc = w%rc + w%phit
+      call correct(stat)
       if (stat /= MBDK_SUCCESS) return
-      mu = phi
-      call mbdk_small_ldlt_solve(s, m, self%blk, mu)
-      y(1:nc) = y(1:nc) - matmul(mu, wd)
-      if (it == 0 .and. maxval(abs(phi)) <= self%proj_tol) exit
-    end do
-    call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), phi, d, gam, phit)
-    call schur(stat)
-    if (stat /= MBDK_SUCCESS) return
-    mu = matmul(d, y(nc + 1:2 * nc)) + phit
-    call mbdk_small_ldlt_solve(s, m, self%blk, mu)
-    y(nc + 1:2 * nc) = y(nc + 1:2 * nc) - matmul(mu, wd)
+      y(nc + 1:2 * nc) = y(nc + 1:2 * nc) + w%xc
+    end associate
 
   contains
 
-    subroutine schur(st)
+    !> xc = -W D^T S^-1 rc at the current compact rows
+    subroutine correct(st)
       integer, intent(out) :: st
-      call mbdk_model_schur_factor(self, d, wd, s, st)
-    end subroutine schur
+      associate (w => self%work)
+        call mbdk_sparse_schur_assemble(self%sp, w%dz, w%s)
+        call mbdk_small_ldlt_factor(w%s, m, self%blk, SINGULAR_TOL, st)
+        if (st /= MBDK_SUCCESS) return
+        call mbdk_small_ldlt_solve(w%s, m, self%blk, w%rc)
+        call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, w%rc, w%xc, nc)
+      end associate
+    end subroutine correct
 
   end subroutine model_post_step
 
