@@ -21,7 +21,7 @@ module mbdk_sparse_schur
   integer, parameter :: SLOTS = 6
 
   type, public :: mbdk_sparse_schur_t
-    integer :: m = 0, nnz = 0, nent = 0, nterm = 0
+    integer :: m = 0, nnz = 0, nent = 0
     !> nonzeros of row r: rptr(r) .. rptr(r+1)-1; flat index into dz, column, W of the column
     integer, allocatable :: rptr(:), rz(:), rcol(:)
     real(dp), allocatable :: rw(:)
@@ -99,7 +99,6 @@ contains
       end do
       if (pass == 1) then
         sp%nent = ne
-        sp%nterm = nt
         allocate (sp%eptr(ne + 1), sp%epos(ne), sp%ta(nt), sp%tb(nt), sp%tw(nt))
       end if
     end do

@@ -72,6 +72,19 @@ contains
     pv(2) = v(3 * b - 1) + w * rho(1)
   end subroutine mbdk_body_point
 
+  !> The unit axis u2 of a prismatic joint in the global frame: A(theta_b2) axis, or the
+  !> axis itself on the ground (b2 = 0).
+  pure function prismatic_axis(b2, axis, rot) result(u2)
+    integer, intent(in) :: b2
+    real(dp), intent(in) :: axis(2), rot(:, :)
+    real(dp) :: u2(2)
+    if (b2 > 0) then
+      u2 = [rot(1, b2) * axis(1) - rot(2, b2) * axis(2), rot(2, b2) * axis(1) + rot(1, b2) * axis(2)]
+    else
+      u2 = axis
+    end if
+  end function prismatic_axis
+
   pure integer function mbdk_joint_rows(jtype)
     integer, intent(in) :: jtype
     select case (jtype)
@@ -173,12 +186,7 @@ contains
         call angle_row(r)
         call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho1, pv1, w1)
         call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho2, pv2, w2)
-        if (b2 > 0) then
-          u2 = [rot(1, b2) * jreal(5, j) - rot(2, b2) * jreal(6, j), &
-                rot(2, b2) * jreal(5, j) + rot(1, b2) * jreal(6, j)]
-        else
-          u2 = jreal(5:6, j)
-        end if
+        u2 = prismatic_axis(b2, jreal(5:6, j), rot)
         n2 = [-u2(2), u2(1)]
         dd = p1 - p2
         ddot = pv1 - pv2
@@ -251,12 +259,7 @@ contains
         l = lam(r + 1)
         call mbdk_body_point(b1, jreal(1:2, j), rot, q, zero, p1, rho1, pv1, w1)
         call mbdk_body_point(b2, jreal(3:4, j), rot, q, zero, p2, rho2, pv2, w2)
-        if (b2 > 0) then
-          u2 = [rot(1, b2) * jreal(5, j) - rot(2, b2) * jreal(6, j), &
-                rot(2, b2) * jreal(5, j) + rot(1, b2) * jreal(6, j)]
-        else
-          u2 = jreal(5:6, j)
-        end if
+        u2 = prismatic_axis(b2, jreal(5:6, j), rot)
         n2 = [-u2(2), u2(1)]
         dd = p1 - p2
         kc(i1, i1) = kc(i1, i1) - l * dot_product(n2, rho1)
