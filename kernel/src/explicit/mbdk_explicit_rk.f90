@@ -21,8 +21,8 @@ contains
     class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_butcher_t), intent(in) :: tab
     real(dp), intent(in) :: t, h
-    real(dp), intent(inout) :: y(:)
-    real(dp), intent(inout) :: k(:, :), ytmp(:)
+    real(dp), intent(inout), contiguous :: y(:)
+    real(dp), intent(inout), contiguous :: k(:, :), ytmp(:)
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
     integer :: i, j

@@ -31,10 +31,11 @@ contains
 
   !> f(nc) += the generalised forces of every element; visits(1:5) counts them per type.
   subroutine mbdk_forces_eval(fint, freal, mass, rot, q, v, t, f, visits, stat)
-    integer, intent(in) :: fint(:, :)
-    real(dp), intent(in) :: freal(:, :), mass(:), rot(:, :), q(:), v(:), t
-    real(dp), intent(inout) :: f(:)
-    integer(i8), intent(inout) :: visits(:)
+    integer, intent(in), contiguous :: fint(:, :)
+    real(dp), intent(in), contiguous :: freal(:, :), mass(:), rot(:, :), q(:), v(:)
+    real(dp), intent(in) :: t
+    real(dp), intent(inout), contiguous :: f(:)
+    integer(i8), intent(inout), contiguous :: visits(:)
     integer, intent(out) :: stat
     integer :: e, b, nb, k
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), el(2)

@@ -41,8 +41,8 @@ contains
 
   !> rot(1:2, b) = (cos, sin) of theta_b for b = 1..size(rot, 2).
   pure subroutine mbdk_body_rotations(q, rot)
-    real(dp), intent(in) :: q(:)
-    real(dp), intent(out) :: rot(:, :)
+    real(dp), intent(in), contiguous :: q(:)
+    real(dp), intent(out), contiguous :: rot(:, :)
     integer :: b
     do b = 1, size(rot, 2)
       rot(1, b) = cos(q(3 * b))
@@ -156,10 +156,11 @@ contains
   !> phit(m) at (q, v, t); rot from mbdk_body_rotations at q. visits(1:4) counts the
   !> evaluations per joint type.
   subroutine mbdk_joints_eval(jint, jreal, row0, rot, q, v, t, phi, dz, gam, phit, visits)
-    integer, intent(in) :: jint(:, :), row0(:)
-    real(dp), intent(in) :: jreal(:, :), rot(:, :), q(:), v(:), t
-    real(dp), intent(out) :: phi(:), dz(:, :), gam(:), phit(:)
-    integer(i8), intent(inout) :: visits(:)
+    integer, intent(in), contiguous :: jint(:, :), row0(:)
+    real(dp), intent(in), contiguous :: jreal(:, :), rot(:, :), q(:), v(:)
+    real(dp), intent(in) :: t
+    real(dp), intent(out), contiguous :: phi(:), dz(:, :), gam(:), phit(:)
+    integer(i8), intent(inout), contiguous :: visits(:)
     integer :: j, r, b1, b2
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), ddot(2)
     real(dp) :: u2(2), n2(2), f, fd, fdd

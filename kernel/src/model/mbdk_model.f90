@@ -63,6 +63,7 @@ module mbdk_model
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
     real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
     real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
+    real(dp), allocatable :: y_rhs(:), a_rhs(:)   !< contiguous copies of rhs's y and a
     real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
   end type mbdk_model_work_t
@@ -186,10 +187,11 @@ contains
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%s, &
-                                        work%xc, work%pm, work%kkt, work%rhs, work%ipiv)
+                                        work%xc, work%pm, work%kkt, work%rhs, work%ipiv, &
+                                        work%y_rhs, work%a_rhs)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%s(m, m), work%xc(nc))
+              work%s(m, m), work%xc(nc), work%y_rhs(2 * nc), work%a_rhs(nc))
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%pm(nc, nc))
     else
@@ -223,7 +225,8 @@ contains
   !> MBDK_ERR_NONFINITE; a force element's failure is passed on.
   subroutine mbdk_model_assemble(self, t, q, v, stat)
     class(mbdk_model_t), intent(in) :: self
-    real(dp), intent(in) :: t, q(:), v(:)
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
     integer, intent(out) :: stat
     if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) then
       stat = MBDK_ERR_NONFINITE
@@ -248,17 +251,24 @@ contains
     integer, intent(out) :: stat
     integer :: nc
     nc = self%nc
-    f(1:nc) = y(nc + 1:2 * nc)
-    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
-                                  self%work%lam_rhs, stat)
+    ! y and f may be strided (the interface says y(:)): copied through contiguous buffers so
+    ! that nothing below packs (with a heap allocation) at every call
+    associate (w => self%work)
+      w%y_rhs = y
+      call mbdk_model_accelerations(self, t, w%y_rhs(1:nc), w%y_rhs(nc + 1:2 * nc), w%a_rhs, &
+                                    w%lam_rhs, stat)
+      f(1:nc) = w%y_rhs(nc + 1:2 * nc)
+      f(nc + 1:2 * nc) = w%a_rhs
+    end associate
   end subroutine model_rhs
 
   !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
   !> self%work%lam_rhs; no argument may alias the other work buffers.
   subroutine mbdk_model_accelerations(self, t, q, v, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
-    real(dp), intent(in) :: t, q(:), v(:)
-    real(dp), intent(out) :: a(:), lam(:)
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: a(:), lam(:)
     integer, intent(out) :: stat
     integer :: nc, m, i, k, r
     real(dp) :: w2, tmu, x
@@ -323,7 +333,7 @@ contains
   subroutine solve_constrained(self, w, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
     type(mbdk_model_work_t), intent(inout) :: w
-    real(dp), intent(out) :: a(:), lam(:)
+    real(dp), intent(out), contiguous :: a(:), lam(:)
     integer, intent(out) :: stat
     integer :: nc, m, i, j, k, nk
     real(dp) :: umax, umin
