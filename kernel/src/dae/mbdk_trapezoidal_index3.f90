@@ -165,8 +165,9 @@ contains
   !> rotations, at q just before); kk and cc (nc, nc) are work arrays.
   subroutine book_matrix(model, t, q, v, lam, h, d, kk, cc, jac, stat)
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, q(:), v(:), lam(:), h, d(:, :)
-    real(dp), intent(out) :: kk(:, :), cc(:, :), jac(:, :)
+    real(dp), intent(in) :: t, h
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:), d(:, :)
+    real(dp), intent(out), contiguous :: kk(:, :), cc(:, :), jac(:, :)
     integer, intent(out) :: stat
     real(dp) :: s
     integer :: nc, m, i
@@ -403,6 +404,7 @@ contains
           b1 = 0.5_dp * (a_prev(k) + a(k))
           d1 = (b2 - b1) / (0.5_dp * (h + h_prev))                     ! q(3)
         else
+          b1 = 0.0_dp                     ! (unused: no h_prev2 without h_prev)
           d1 = (an(k) - a(k)) / h
         end if
         eq = h**3 / 12.0_dp * d1
@@ -592,7 +594,7 @@ contains
 
     !> vn onto D v + Phi_t = 0 (mass-orthogonal), with the factors of kkt_factor.
     subroutine project_v(d, phit)
-      real(dp), intent(in) :: d(:, :), phit(:)
+      real(dp), intent(in), contiguous :: d(:, :), phit(:)
       integer :: j
       do j = 1, m
         rc(j) = dot_product(d(j, :), vn) + phit(j)
@@ -639,8 +641,8 @@ contains
     !> M x + D^T mu = b, D x = c with the factors of kkt_factor (D: d, or its compact rows in
     !> model%work%dz, unchanged since kkt_factor).
     subroutine kkt_solve(d, b, c, x, mu)
-      real(dp), intent(in) :: d(:, :), b(:), c(:)
-      real(dp), intent(out) :: x(:), mu(:)
+      real(dp), intent(in), contiguous :: d(:, :), b(:), c(:)
+      real(dp), intent(out), contiguous :: x(:), mu(:)
       integer :: ierr
       if (schur) then
         call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)

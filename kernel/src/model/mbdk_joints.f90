@@ -236,14 +236,14 @@ contains
   !>     (th1, th1) -n2.rho1;  (r1, th2) -u2;  (th1, th2) -u2.perp(rho1);  (r2, th2) +u2;
   !>     (th2, th2) -n2.d + 2 u2.perp(rho2) + n2.rho2   (symmetric)
   subroutine mbdk_joints_tangent(jint, jreal, row0, rot, q, lam, kc)
-    integer, intent(in) :: jint(:, :), row0(:)
-    real(dp), intent(in) :: jreal(:, :), rot(:, :), q(:), lam(:)
-    real(dp), intent(inout) :: kc(:, :)
+    integer, intent(in), contiguous :: jint(:, :), row0(:)
+    real(dp), intent(in), contiguous :: jreal(:, :), rot(:, :), q(:), lam(:)
+    real(dp), intent(inout), contiguous :: kc(:, :)
     integer :: j, r, b1, b2, i1, i2, c
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, u2(2), n2(2), dd(2)
-    real(dp) :: l, zero(size(q)), x
+    real(dp) :: l, x
 
-    zero = 0.0_dp
+    ! mbdk_body_point gets q in place of v: only the positions p and offsets rho are used
     do j = 1, size(jint, 2)
       r = row0(j)
       b1 = jint(2, j)
@@ -252,14 +252,14 @@ contains
       i2 = 3 * b2
       select case (jint(1, j))
       case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_FIXED)
-        call mbdk_body_point(b1, jreal(1:2, j), rot, q, zero, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), rot, q, zero, p2, rho2, pv2, w2)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, q, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, q, p2, rho2, pv2, w2)
         if (b1 > 0) kc(i1, i1) = kc(i1, i1) - dot_product(rho1, lam(r:r + 1))
         if (b2 > 0) kc(i2, i2) = kc(i2, i2) + dot_product(rho2, lam(r:r + 1))
       case (MBDK_JOINT_PRISMATIC)
         l = lam(r + 1)
-        call mbdk_body_point(b1, jreal(1:2, j), rot, q, zero, p1, rho1, pv1, w1)
-        call mbdk_body_point(b2, jreal(3:4, j), rot, q, zero, p2, rho2, pv2, w2)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, q, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, q, p2, rho2, pv2, w2)
         u2 = prismatic_axis(b2, jreal(5:6, j), rot)
         n2 = [-u2(2), u2(1)]
         dd = p1 - p2

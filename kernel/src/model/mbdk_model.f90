@@ -63,7 +63,9 @@ module mbdk_model
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
     real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
     real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
-    real(dp), allocatable :: y_rhs(:), a_rhs(:)   !< contiguous copies of rhs's y and a
+    !> contiguous copies of the state handed to rhs and post_step (which may be strided) and
+    !> of the accelerations rhs returns
+    real(dp), allocatable :: y_rhs(:), a_rhs(:)
     real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
   end type mbdk_model_work_t
@@ -211,8 +213,9 @@ contains
   !> (work%rot also when there are no constraints).
   subroutine mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
     class(mbdk_model_t), intent(in) :: self
-    real(dp), intent(in) :: t, q(:), v(:)
-    real(dp), intent(out) :: phi(:), d(:, :), gam(:), phit(:)
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: phi(:), d(:, :), gam(:), phit(:)
     call mbdk_body_rotations(q, self%work%rot)
     if (self%m == 0) return
     call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, q, v, t, phi, &
@@ -417,9 +420,11 @@ contains
     nc = self%nc
     m = self%m
     stat = MBDK_SUCCESS
-    associate (w => self%work)
+    ! on a contiguous copy (y may be strided), returned only when both projections succeed
+    associate (w => self%work, yc => self%work%y_rhs)
+      yc = y
       do it = 0, self%proj_max_iter
-        call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), w%phi, w%d, w%gam, &
+        call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, w%d, w%gam, &
                                     w%phit)
         if (it > 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
         if (it == self%proj_max_iter) then
@@ -429,16 +434,18 @@ contains
         w%rc = w%phi
         call correct(stat)
         if (stat /= MBDK_SUCCESS) return
-        y(1:nc) = y(1:nc) + w%xc
+        yc(1:nc) = yc(1:nc) + w%xc
         if (it == 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
       end do
-      call mbdk_model_constraints(self, t, y(1:nc), y(nc + 1:2 * nc), w%phi, w%d, w%gam, w%phit)
-      w%xc = y(nc + 1:2 * nc)
+      call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, w%d, w%gam, &
+                                  w%phit)
+      w%xc = yc(nc + 1:2 * nc)
       call mbdk_sparse_d_times(self%sp, w%dz, w%xc, w%rc, .false.)
       w%rc = w%rc + w%phit
       call correct(stat)
       if (stat /= MBDK_SUCCESS) return
-      y(nc + 1:2 * nc) = y(nc + 1:2 * nc) + w%xc
+      yc(nc + 1:2 * nc) = yc(nc + 1:2 * nc) + w%xc
+      y = yc
     end associate
 
   contains
