@@ -96,11 +96,11 @@ module mbdk_trapezoidal_index3
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations, &
     MBDK_MODEL_SINGULAR_TOL
-  use mbdk_joints, only: mbdk_joints_tangent
+  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_eval, MBDK_JOINT_TYPES
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_sparse_schur, only: mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_w_residual
+    mbdk_sparse_w_residual, mbdk_sparse_dtd_add
   use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
     mbdk_small_lu_solve, MBDK_SMALL_DENSE_MAX
   use mbdk_fixed_step, only: mbdk_step_plan
@@ -213,7 +213,7 @@ contains
     real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
     real(dp) :: t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
     real(dp) :: ks(model%m, model%m), kkt(model%nc + model%m, &
-      model%nc + model%m), zero_nc(model%nc), zero_m(model%m)
+      model%nc + model%m), zero_nc(model%nc), zero_m(model%m), one_nc(model%nc)
     integer :: kpiv(model%nc + model%m)
     logical :: schur, small_lu
     ! the step's work arrays, allocated once per solve
@@ -252,6 +252,7 @@ contains
     small_lu = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
     zero_nc = 0.0_dp
     zero_m = 0.0_dp
+    one_nc = 1.0_dp
     call cpu_time(cpu0)
 
     q = y0(1:nc)
@@ -485,8 +486,10 @@ contains
           if (k > 0) ln = ln + alpha * phi
           lt = ln + alpha * phi
         end if
+        ! corr = f - D^T lt over the nonzeros of D
+        call mbdk_sparse_w_residual(model%sp, model%work%dz, one_nc, lt, corr, nc, fq)
         do kk = 1, nc
-          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) + s * (dot_product(lt, d(:, kk)) - fq(kk))
+          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) - s * corr(kk)
         end do
         if (book) r(nc + 1:) = phi
         if (.not. have_lu) then
@@ -495,7 +498,8 @@ contains
           call book_matrix(model, tn, qn, vn, ln, h, d, kk_w, cc_w, full, ierr)
           if (ierr /= MBDK_SUCCESS) return
           lu = full(1:nk, 1:nk)
-          if (.not. book .and. m > 0) call add_penalty(lu, d, s * alpha)
+          if (.not. book .and. m > 0) call mbdk_sparse_dtd_add(model%sp, model%work%dz, &
+                                                               s * alpha, lu)
           if (small_lu) then
             call mbdk_small_lu_factor(lu, nk, ipiv, ierr)
           else
@@ -585,7 +589,11 @@ contains
         call kkt_solve(d, fq, zero_m, an, ln)
         vn = v + (0.5_dp * h) * (a + an)
         call project_v(d, phit)
-        call mbdk_model_constraints(model, tn, qn, vn, phi, d, gam, phit)
+        ! q+ is unchanged: work%rot still holds its sin/cos and D, Phi are the same; only gamma
+        ! changes with v+
+        if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, qn, &
+                                         vn, tn, phi, model%work%dz, gam, phit, &
+                                         model%work%visits(1:MBDK_JOINT_TYPES))
         call kkt_solve(d, fq, gam, an, ln)
       end if
       if (.not. (finite_all(qn) .and. finite_all(vn) .and. finite_all(an))) &
@@ -595,25 +603,11 @@ contains
     !> vn onto D v + Phi_t = 0 (mass-orthogonal), with the factors of kkt_factor.
     subroutine project_v(d, phit)
       real(dp), intent(in), contiguous :: d(:, :), phit(:)
-      integer :: j
-      do j = 1, m
-        rc(j) = dot_product(d(j, :), vn) + phit(j)
-      end do
+      call mbdk_sparse_d_times(model%sp, model%work%dz, vn, rc, .false.)
+      rc = rc + phit
       call kkt_solve(d, zero_nc, rc, corr, mu)
       vn = vn - corr
     end subroutine project_v
-
-    !> a += w D^T D, a(nc, nc) top-left (the penalty term of the augmented form).
-    subroutine add_penalty(a, d, w)
-      real(dp), intent(inout) :: a(:, :)
-      real(dp), intent(in) :: d(:, :), w
-      integer :: i, j
-      do j = 1, nc
-        do i = 1, nc
-          a(i, j) = a(i, j) + w * dot_product(d(:, i), d(:, j))
-        end do
-      end do
-    end subroutine add_penalty
 
     !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T, from
     !> the compact rows of D in model%work%dz (the last mbdk_model_constraints call, at the

@@ -16,7 +16,7 @@ module mbdk_sparse_schur
   implicit none
   private
   public :: mbdk_sparse_schur_init, mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_w_residual
+    mbdk_sparse_w_residual, mbdk_sparse_dtd_add
 
   integer, parameter :: SLOTS = 6
 
@@ -165,5 +165,23 @@ contains
       a(c) = w(c) * x
     end do
   end subroutine mbdk_sparse_w_residual
+
+  !> a(1:nc, 1:nc) += w D^T D, row by row over the pairs of nonzeros of each row (the penalty
+  !> term of the augmented Lagrangian: a row with k nonzeros costs k^2, not nc^2 m).
+  pure subroutine mbdk_sparse_dtd_add(sp, dz, w, a)
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in) :: dz(*), w
+    real(dp), intent(inout) :: a(:, :)
+    integer :: r, i, j
+    real(dp) :: x
+    do r = 1, sp%m
+      do j = sp%rptr(r), sp%rptr(r + 1) - 1
+        x = w * dz(sp%rz(j))
+        do i = sp%rptr(r), sp%rptr(r + 1) - 1
+          a(sp%rcol(i), sp%rcol(j)) = a(sp%rcol(i), sp%rcol(j)) + dz(sp%rz(i)) * x
+        end do
+      end do
+    end do
+  end subroutine mbdk_sparse_dtd_add
 
 end module mbdk_sparse_schur
