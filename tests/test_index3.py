@@ -265,6 +265,39 @@ def test_singular_four_bar_passes_its_collinear_configurations(form):
     assert red.residuals[:, 0].max() > 1e-3 and np.abs(red.q[:, 5]).max() > 0.1
 
 
+def test_fixed_step_cuts_a_failing_step_and_stays_on_the_grid():
+    """With max_iter = 3 at h = 2e-3 the augmented form's Newton iteration cannot converge in
+    the steps that cross the parallelogram's collinear poses (D loses a rank there): those
+    steps must be retried in substeps (newton_failures counted, more steps than the grid's),
+    the samples stay on the grid t = k h, and the run keeps the branch and the constraints as
+    the plain run does. Reference: the parallelogram's geometry (coupler angle 0 exactly)."""
+    sc = _parallelogram()
+    h = 2e-3
+    r = mbdk.simulate(sc, "trapezoidal_index3", formulation="augmented_lagrangian", h=h,
+                      t_end=3.0, max_iter=3)
+    assert r.stats.newton_failures > 0
+    assert r.stats.steps > round(3.0 / h)
+    np.testing.assert_allclose(r.t, h * np.arange(r.t.size), rtol=0, atol=1e-12)
+    assert r.t[-1] == pytest.approx(3.0)
+    assert np.degrees(r.q[:, 2]).min() < -180.0
+    assert np.abs(r.q[:, 5]).max() < 1e-9
+    assert r.residuals[:, 0].max() < 1e-10
+
+
+def test_failure_at_a_singular_configuration_says_where_and_why():
+    """The book's scheme with max_iter = 3 at h = 2e-3 cannot cross the first collinear pose
+    even in substeps: the error must name the time, and the last sample (the state the failed
+    step started from) must be that pose: crank angle within 1 deg of 0 (geometry: the links
+    are collinear at crank angles 0 and 180 deg), where D is close to losing a rank."""
+    with pytest.raises(mbdk.NewtonDivergedError, match=r"singular configuration") as err:
+        mbdk.simulate(_parallelogram(), "trapezoidal_index3", formulation="index3", h=2e-3,
+                      t_end=3.0, max_iter=3)
+    r = err.value.result
+    assert f"t = {r.t[-1]:.6g}" in str(err.value)
+    assert abs(math.degrees(r.q[-1, 2])) < 1.0
+    assert r.stats.newton_failures >= 5
+
+
 def test_singular_four_bar_started_collinear_is_refused_with_the_joints_named():
     with pytest.raises(mbdk.SingularMatrixError, match=r"joint\(s\) .* dependent"):
         mbdk.simulate(_parallelogram(0.0), "trapezoidal_index3", formulation="index3",

@@ -46,6 +46,11 @@ SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 DEFAULT_ALPHA = 0.0   # 0: per step, 1e3 max(M) / (h^2/4) (kernel's MBDK_INDEX3_KAPPA)
 INDEX3_OPTIONS = {"adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", "max_iter"}
 NEWTON_RTOL, NEWTON_ATOL, NEWTON_MAX_ITER = 1e-10, 1e-12, 20
+# a failed step's report calls D near-singular where its smallest singular value is below this
+# fraction of its largest (the collinear four-bar fails within about 1e-3 of its rank loss)
+NEAR_SINGULAR = 1e-2
+MAX_CUTS = 5          # fixed step: a failed step is retried in substeps down to h / 4^5
+                      # (kernel's MBDK_INDEX3_MAX_CUTS)
 
 
 def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t0: float = 0.0,
@@ -149,12 +154,19 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
         bodies=[b.name for b in scene.bodies], iterations=np.array(iters[:nw]))
     if status.failed and raise_on_failure:
         where = f"in the step after t = {t[-1]:.6g}" if nw else "before the first step"
+        if nw and not adaptive and status in (Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE,
+                                              Status.ERR_SINGULAR_MATRIX):
+            where += f", also in substeps down to h/{4 ** MAX_CUTS}"
         note = ""
         if nw and tab.m:
-            dep = dependent_rows(evaluate(tab, y[:nc, -1], y[nc:, -1], t[-1])["D"], tol=1e-6)
-            if dep:
-                note = (f"; joint(s) {', '.join(rows_to_joints(tab, dep))} are close to "
-                        "dependent there (a singular configuration)")
+            # the last sample is the state the failed step started from
+            u, sv, _ = np.linalg.svd(evaluate(tab, y[:nc, -1], y[nc:, -1], t[-1])["D"])
+            ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
+            if ratio < NEAR_SINGULAR:
+                rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
+                note = (f"; there D is close to losing a rank (smallest / largest singular value "
+                        f"{ratio:.1e}): joint(s) {', '.join(rows_to_joints(tab, rows))} are "
+                        "nearly dependent, a singular configuration of the mechanism")
         raise exception_for(status)(f"trapezoidal_index3/{formulation} on scene {scene.name!r}: "
                                     f"{result.message} ({where}){note}. A smaller h, or a "
                                     "larger max_iter, may get past it", status=status,

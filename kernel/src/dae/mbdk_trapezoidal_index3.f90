@@ -73,7 +73,11 @@
 !> are made on evaluated residuals, never on predicted ones. After newton_max_iter updates it
 !> fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
 !>
-!> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). Adaptive
+!> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). A step whose Newton
+!> iteration fails (diverges, meets a singular matrix or a non-finite iterate: typically near a
+!> singular configuration, where D loses rank) is retried in substeps, quartered at each failure
+!> (stats%newton_failures) and doubled back after each success, down to h / 4^5; the samples
+!> stay on the grid. Only below that is the failure returned. Adaptive
 !> (opt%adaptive, augmented form only): from the initial step opt%h, the local error of q and
 !> v (multipliers excluded, as index-3 codes do), -h^3/12 q(3) and -h^3/12 q(4) with the
 !> derivatives from divided differences of the step-mean accelerations, is measured in the
@@ -112,6 +116,8 @@ module mbdk_trapezoidal_index3
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
   !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
+  !> fixed step: a step whose Newton iteration fails is retried in substeps down to h / 4^this
+  integer, parameter, public :: MBDK_INDEX3_MAX_CUTS = 5
   integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
     MBDK_INDEX3_SCALED = 2
 
@@ -195,7 +201,7 @@ contains
   !> opt%adaptive, with the step-size controller from the initial step opt%h and samples every
   !> opt%dt_out. Samples: t_out, y_out (= [q; v]), a_out, lam_out, iters_out (Newton iterations
   !> of the step that produced the sample). nwritten samples are valid; on failure the samples
-  !> before it are kept.
+  !> before it are kept, and the last one is the state the failed step started from.
   subroutine mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out, &
                                iters_out, nwritten, st, stat)
     type(mbdk_model_t), intent(in) :: model
@@ -211,7 +217,7 @@ contains
     real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
     real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
     real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
-    real(dp) :: t, tn, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
+    real(dp) :: t, tn, t_s, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
     real(dp) :: ks(model%m, model%m), kkt(model%nc + model%m, &
       model%nc + model%m), zero_nc(model%nc), zero_m(model%m), one_nc(model%nc)
     integer :: kpiv(model%nc + model%m)
@@ -280,15 +286,17 @@ contains
       call adaptive_loop(stat)
     else
       do i = 1, nsteps
-        tn = t0 + real(i, dp) * opt%h
-        if (i == nsteps) tn = t_end
-        h = tn - t
-        call attempt(stat)
+        t_s = t0 + real(i, dp) * opt%h
+        if (i == nsteps) t_s = t_end
+        call advance_to(t_s, stat)
         if (stat /= MBDK_SUCCESS) exit
-        call commit()
         if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample()
       end do
       if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
+    end if
+    ! on failure the last sample is the state the failed step started from (where it stopped)
+    if (mbdk_is_failure(stat) .and. nwritten < size(t_out)) then
+      if (t > t_out(nwritten)) call write_sample()
     end if
     call cpu_time(cpu1)
     st%cpu_time = cpu1 - cpu0
@@ -321,6 +329,36 @@ contains
       st%steps = st%steps + 1
       if (cool > 0) cool = cool - 1
     end subroutine commit
+
+    !> Fixed step: from t to t_s in one step of h = t_s - t or, when Newton fails (diverged,
+    !> singular matrix, non-finite iterate), in substeps: each failure quarters the substep
+    !> (stats%newton_failures), each success doubles it back up to the full step. Below
+    !> h / 4^MBDK_INDEX3_MAX_CUTS the failure is returned.
+    subroutine advance_to(t_s, ierr)
+      real(dp), intent(in) :: t_s
+      integer, intent(out) :: ierr
+      real(dp) :: h_full, h_sub
+      h_full = t_s - t
+      h_sub = h_full
+      ierr = MBDK_SUCCESS
+      do while (t < t_s)
+        tn = t + h_sub
+        if (t_s - tn <= 1.0e-9_dp * h_full) tn = t_s
+        h = tn - t
+        call attempt(ierr)
+        if (ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
+            ierr == MBDK_ERR_SINGULAR_MATRIX) then
+          st%newton_failures = st%newton_failures + 1
+          have_lu = .false.
+          h_sub = 0.25_dp * h
+          if (h_sub < h_full * 0.25_dp**MBDK_INDEX3_MAX_CUTS) return
+          cycle
+        end if
+        if (ierr /= MBDK_SUCCESS) return
+        call commit()
+        h_sub = min(2.0_dp * h_sub, h_full)
+      end do
+    end subroutine advance_to
 
     !> The step-size controller (see the module header). Samples land on t0 + k dt_out.
     subroutine adaptive_loop(ierr)
