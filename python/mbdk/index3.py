@@ -49,8 +49,8 @@ NEWTON_RTOL, NEWTON_ATOL, NEWTON_MAX_ITER = 1e-10, 1e-12, 20
 # a failed step's report calls D near-singular where its smallest singular value is below this
 # fraction of its largest (the collinear four-bar fails within about 1e-3 of its rank loss)
 NEAR_SINGULAR = 1e-2
-MAX_CUTS = 5          # fixed step: a failed step is retried in substeps down to h / 4^5
-                      # (kernel's MBDK_INDEX3_MAX_CUTS)
+MAX_CUTS = 5          # fixed step, augmented form: a failed step is retried in substeps down
+                      # to h / 4^5 (kernel's MBDK_INDEX3_MAX_CUTS)
 
 
 def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t0: float = 0.0,
@@ -154,8 +154,8 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
         bodies=[b.name for b in scene.bodies], iterations=np.array(iters[:nw]))
     if status.failed and raise_on_failure:
         where = f"in the step after t = {t[-1]:.6g}" if nw else "before the first step"
-        if nw and not adaptive and status in (Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE,
-                                              Status.ERR_SINGULAR_MATRIX):
+        if nw and not adaptive and formulation == "augmented_lagrangian" and status in (
+                Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
             where += f", also in substeps down to h/{4 ** MAX_CUTS}"
         note = ""
         if nw and tab.m:
