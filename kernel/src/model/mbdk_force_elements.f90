@@ -38,7 +38,7 @@ contains
     integer(i8), intent(inout), contiguous :: visits(:)
     integer, intent(out) :: stat
     integer :: e, b, nb, k
-    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), el(2)
+    real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2), gv(2)
     real(dp) :: len, ldot, ften, tf, tfd, tfdd, fv(2)
 
     stat = MBDK_SUCCESS
@@ -63,16 +63,12 @@ contains
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         f(3 * b) = f(3 * b) + freal(1, e) * tf
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
-        dd = p1 - p2
-        len = norm2(dd)
+        call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
+                          ldot)
         if (.not. (len > 0.0_dp)) then
           stat = MBDK_ERR_NONFINITE
           return
         end if
-        el = dd / len
-        ldot = dot_product(el, pv1 - pv2)
         ften = freal(5, e) * (len - freal(6, e)) + freal(7, e) * ldot
         fv = -ften * el                       ! on point 1; the opposite on point 2
         b = fint(2, e)
@@ -100,7 +96,7 @@ contains
     real(dp), intent(in) :: freal(:, :), mass(:), rot(:, :), q(:), v(:), t
     real(dp), intent(out) :: v_gravity, v_springs, p_damp, p_load
     integer :: e, b, nb, k
-    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), len, ldot
+    real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2), gv(2), len, ldot
     real(dp) :: tf, tfd, tfdd
 
     v_gravity = 0.0_dp
@@ -123,12 +119,8 @@ contains
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         p_load = p_load + freal(1, e) * tf * v(3 * fint(2, e))
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
-        dd = p1 - p2
-        len = norm2(dd)
-        ldot = 0.0_dp
-        if (len > 0.0_dp) ldot = dot_product(dd / len, pv1 - pv2)
+        call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
+                          ldot)
         v_springs = v_springs + 0.5_dp * freal(5, e) * (len - freal(6, e))**2
         p_damp = p_damp + freal(7, e) * ldot**2
       case (MBDK_FORCE_COORDINATE)
@@ -157,7 +149,7 @@ contains
     real(dp), intent(inout), contiguous :: kf(:, :), cf(:, :)
     integer, intent(out) :: stat
     integer :: e, b, k, i, j, col(6)
-    real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), el(2)
+    real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2)
     real(dp) :: len, ldot, ten, tf, tfd, tfdd, pe(2, 2), gv(2)
     ! G on the six coordinates of the two bodies (x, y, theta of body1, then of body2)
     real(dp) :: g(2, 6), ge(6), pg(2, 6), dldq(6)
@@ -171,15 +163,12 @@ contains
         call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
         kf(3 * b, 3 * b) = kf(3 * b, 3 * b) + dot_product(rho1, freal(3:4, e) * tf)
       case (MBDK_FORCE_SPRING_DAMPER)
-        call mbdk_body_point(fint(2, e), freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
-        call mbdk_body_point(fint(3, e), freal(3:4, e), rot, q, v, p2, rho2, pv2, w2)
-        dd = p1 - p2
-        len = norm2(dd)
+        call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
+                          ldot)
         if (.not. (len > 0.0_dp)) then
           stat = MBDK_ERR_NONFINITE
           return
         end if
-        el = dd / len
         col = 0
         if (fint(2, e) > 0) col(1:3) = [(3 * fint(2, e) - 3 + k, k = 1, 3)]
         if (fint(3, e) > 0) col(4:6) = [(3 * fint(3, e) - 3 + k, k = 1, 3)]
@@ -188,8 +177,6 @@ contains
         g(:, 3) = [-rho1(2), rho1(1)]
         g(:, 4:6) = -g(:, 1:3)
         g(:, 6) = [rho2(2), -rho2(1)]
-        gv = pv1 - pv2
-        ldot = dot_product(el, gv)
         ten = freal(5, e) * (len - freal(6, e)) + freal(7, e) * ldot
         ge = matmul(el, g)
         pe(:, 1) = ([1.0_dp, 0.0_dp] - el(1) * el) / len
@@ -216,5 +203,26 @@ contains
       end select
     end do
   end subroutine mbdk_forces_tangent
+
+  !> A spring-damper's geometry at (q, v): the offsets rho and angular velocities w of its two
+  !> points, their relative velocity gv, the length len, the unit vector el from point 2 to
+  !> point 1 and dL/dt = el . gv (el = 0 and ldot = 0 when len = 0: the caller decides).
+  pure subroutine spring_state(fi, fr, rot, q, v, rho1, rho2, w1, w2, gv, len, el, ldot)
+    integer, intent(in) :: fi(:)
+    real(dp), intent(in) :: fr(:), rot(:, :), q(:), v(:)
+    real(dp), intent(out) :: rho1(2), rho2(2), w1, w2, gv(2), len, el(2), ldot
+    real(dp) :: p1(2), p2(2), pv1(2), pv2(2), dd(2)
+    call mbdk_body_point(fi(2), fr(1:2), rot, q, v, p1, rho1, pv1, w1)
+    call mbdk_body_point(fi(3), fr(3:4), rot, q, v, p2, rho2, pv2, w2)
+    dd = p1 - p2
+    gv = pv1 - pv2
+    len = norm2(dd)
+    el = 0.0_dp
+    ldot = 0.0_dp
+    if (len > 0.0_dp) then
+      el = dd / len
+      ldot = dot_product(el, gv)
+    end if
+  end subroutine spring_state
 
 end module mbdk_force_elements
