@@ -20,9 +20,11 @@ FORMS = ["index3", "augmented_lagrangian"]
 
 
 
-def _tangent_scene():
+def _tangent_scene(damped: bool = True):
     """Every element with a tangent: revolute, prismatic between moving bodies, fixed, a
-    spring-damper between bodies, a point force, a coordinate spring-damper."""
+    spring-damper between bodies, a point force, a coordinate spring-damper. Without damping
+    the tangent stiffness is symmetric."""
+    c = 1.0 if damped else 0.0
     return scene_from_dict({
         "body": [
             {"name": "a", "mass": 2.0, "inertia": 0.3, "x": 0.1, "y": 0.2, "angle": 0.4},
@@ -39,13 +41,13 @@ def _tangent_scene():
             {"type": "gravity", "g": [0.0, -9.81]},
             {"name": "sd", "type": "spring_damper", "body1": "c", "point1": [0.2, 0.1],
              "body2": "b", "point2": [-0.1, 0.2], "stiffness": 300.0, "rest_length": 0.3,
-             "damping": 7.0},
+             "damping": 7.0 * c},
             {"name": "g", "type": "spring_damper", "body1": "c", "point1": [-0.2, 0.0],
-             "body2": "ground", "point2": [2.0, 1.0], "stiffness": 50.0, "damping": 2.0},
+             "body2": "ground", "point2": [2.0, 1.0], "stiffness": 50.0, "damping": 2.0 * c},
             {"name": "pf", "type": "point_force", "body": "b", "point": [0.3, -0.2],
              "force": [4.0, -2.0]},
             {"name": "cs", "type": "coordinate_spring_damper", "body": "c", "coordinate": "y",
-             "stiffness": 80.0, "damping": 3.0},
+             "stiffness": 80.0, "damping": 3.0 * c},
         ]})
 
 
@@ -145,9 +147,11 @@ def test_unconstrained_scene_follows_the_exact_discrete_solution():
 
 def test_in_house_lu_matches_lapack():
     """small_dense = False takes LAPACK's dgetrf/dgetrs for the Newton matrix and the KKT
-    matrix of the projections; the in-house LU and Schur-Cholesky must give the same run to
-    roundoff, on a scene with every tangent (non-symmetric Newton matrix) and on the crane."""
-    for sc in (_tangent_scene(), mbdk.scene("trolley_crane")):
+    matrix of the projections; the in-house factorisations (the augmented form's block LDL^T
+    when its matrix is symmetric, else LU; the Schur complement's LDL^T) must give the same run
+    to roundoff: on a scene with every tangent (dampers: a non-symmetric Newton matrix, LU), the
+    same scene without dampers (symmetric: LDL^T) and on the crane."""
+    for sc in (_tangent_scene(), _tangent_scene(damped=False), mbdk.scene("trolley_crane")):
         for form in FORMS:
             a = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=2e-3, t_end=0.5)
             b = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=2e-3, t_end=0.5,

@@ -137,8 +137,8 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                 "method": "trapezoidal_index3", "formulation": formulation, "h": h, "t0": t0,
                 "t_end": t_end, "every": every, "steps": int(stats[0]),
                 "newton": {"rtol": rtol, "atol": atol, "max_iter": int(max_iter),
-                           "matrix": "analytic, reused while Newton contracts; LU "
-                                     + ("in-house up to 12 rows" if small_dense else "LAPACK")}}
+                           "matrix": "analytic, reused while Newton contracts; "
+                                     + _factorisation(formulation, small_dense)}}
     if formulation == "augmented_lagrangian":
         manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
     if adaptive:
@@ -172,6 +172,17 @@ def simulate_index3(scene: Scene, formulation: str, *, h: float, t_end: float, t
                                     "larger max_iter, may get past it", status=status,
                                     result=result)
     return result
+
+
+def _factorisation(formulation: str, small_dense: bool) -> str:
+    """How the kernel factorises the Newton matrix (mbdk_trapezoidal_index3.f90, factor_matrix)."""
+    if not small_dense:
+        return "LU, LAPACK"
+    lu = "LU (its explicit inverse from the third solve on)"
+    if formulation == "augmented_lagrangian":
+        return ("in-house up to 12 rows: block LDL^T with the bodies as pivot blocks when the "
+                f"matrix is symmetric positive definite (no dampers), else {lu}")
+    return f"in-house up to 12 rows: {lu}"
 
 
 def newton_matrix(tab, q, v, lam, h: float, scaling: str = "scaled", t: float = 0.0):

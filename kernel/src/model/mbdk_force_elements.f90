@@ -131,22 +131,23 @@ contains
     end do
   end subroutine mbdk_forces_energy
 
-  !> Tangent stiffness kf += -df/dq and damping cf += -df/dv of every element (nc x nc), for
-  !> the Newton matrix of the index-3 integrators. Gravity and torques are constant in q and v.
+  !> a += ks K + cs C with the tangent stiffness K = -df/dq and damping C = -df/dv of every
+  !> element (a(nc, nc) or larger: only rows and columns 1..nc are touched), for the Newton
+  !> matrix of the index-3 integrators. Gravity and torques are constant in q and v.
   !> Point force at rho: (th, th) += rho . F. Spring-damper with G = dd/dq (2 x nc: I, perp(rho1)
   !> at body 1; -I, -perp(rho2) at body 2), e = d/L, tension T = k (L - L0) + c L', f = -T G^T e:
-  !>   cf = c (G^T e)(G^T e)^T
-  !>   kf = (G^T e)(k G^T e + c dL'/dq)^T + T [G^T (I - e e^T) G / L + (e.-rho1 at th1,th1;
+  !>   C = c (G^T e)(G^T e)^T
+  !>   K = (G^T e)(k G^T e + c dL'/dq)^T + T [G^T (I - e e^T) G / L + (e.-rho1 at th1,th1;
   !>        e.rho2 at th2,th2)],  dL'/dq = G^T (I - e e^T) G v / L + H^T e,
   !>   H = d(G v)/dq: -w1 rho1 in column th1, +w2 rho2 in column th2.
-  !> Coordinate spring-damper: kf(k, k) += k, cf(k, k) += c.
+  !> Coordinate spring-damper: K(k, k) = k, C(k, k) = c.
   !> G lives on the six coordinates of the element's two bodies (O(36) per element, no
-  !> allocation), scattered into kf and cf.
-  subroutine mbdk_forces_tangent(fint, freal, rot, q, v, t, kf, cf, stat)
+  !> allocation), scattered into a. K is symmetric without dampers (c = 0); C always is.
+  subroutine mbdk_forces_tangent(fint, freal, rot, q, v, t, ks, cs, a, stat)
     integer, intent(in), contiguous :: fint(:, :)
     real(dp), intent(in), contiguous :: freal(:, :), rot(:, :), q(:), v(:)
-    real(dp), intent(in) :: t
-    real(dp), intent(inout), contiguous :: kf(:, :), cf(:, :)
+    real(dp), intent(in) :: t, ks, cs
+    real(dp), intent(inout), contiguous :: a(:, :)
     integer, intent(out) :: stat
     integer :: e, b, k, i, j, col(6)
     real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2)
@@ -161,7 +162,7 @@ contains
         b = fint(2, e)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
-        kf(3 * b, 3 * b) = kf(3 * b, 3 * b) + dot_product(rho1, freal(3:4, e) * tf)
+        a(3 * b, 3 * b) = a(3 * b, 3 * b) + ks * dot_product(rho1, freal(3:4, e) * tf)
       case (MBDK_FORCE_SPRING_DAMPER)
         call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
                           ldot)
@@ -189,17 +190,16 @@ contains
           if (col(j) == 0) cycle
           do i = 1, 6
             if (col(i) == 0) cycle
-            cf(col(i), col(j)) = cf(col(i), col(j)) + freal(7, e) * ge(i) * ge(j)
-            kf(col(i), col(j)) = kf(col(i), col(j)) + ge(i) * (freal(5, e) * ge(j) &
-                                 + freal(7, e) * dldq(j)) + ten * dot_product(g(:, i), pg(:, j))
+            a(col(i), col(j)) = a(col(i), col(j)) + cs * freal(7, e) * ge(i) * ge(j) &
+                                + ks * (ge(i) * (freal(5, e) * ge(j) + freal(7, e) * dldq(j)) &
+                                        + ten * dot_product(g(:, i), pg(:, j)))
           end do
         end do
-        if (col(3) > 0) kf(col(3), col(3)) = kf(col(3), col(3)) - ten * dot_product(el, rho1)
-        if (col(6) > 0) kf(col(6), col(6)) = kf(col(6), col(6)) + ten * dot_product(el, rho2)
+        if (col(3) > 0) a(col(3), col(3)) = a(col(3), col(3)) - ks * ten * dot_product(el, rho1)
+        if (col(6) > 0) a(col(6), col(6)) = a(col(6), col(6)) + ks * ten * dot_product(el, rho2)
       case (MBDK_FORCE_COORDINATE)
         k = 3 * fint(2, e) - 3 + fint(4, e)
-        kf(k, k) = kf(k, k) + freal(1, e)
-        cf(k, k) = cf(k, k) + freal(2, e)
+        a(k, k) = a(k, k) + ks * freal(1, e) + cs * freal(2, e)
       end select
     end do
   end subroutine mbdk_forces_tangent
