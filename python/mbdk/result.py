@@ -15,7 +15,7 @@ class Stats:
     steps: int = 0
     rhs_evals: int = 0
     jac_evals: int = 0
-    lu_factorizations: int = 0
+    lu_factorizations: int = 0     # factorisations of a Newton matrix (LU or LDL^T)
     newton_iterations: int = 0
     startup_steps: int = 0
     cpu_time: float = 0.0

@@ -9,7 +9,7 @@ module mbdk_stats
     integer(i8) :: steps = 0          !< accepted steps (including start-up steps)
     integer(i8) :: rhs_evals = 0      !< evaluations of F(t, y), finite-difference columns included
     integer(i8) :: jac_evals = 0      !< Jacobian evaluations (analytic or by finite differences)
-    integer(i8) :: lu_factorizations = 0
+    integer(i8) :: lu_factorizations = 0 !< factorisations of a Newton matrix (LU or LDL^T)
     integer(i8) :: newton_iterations = 0
     integer(i8) :: startup_steps = 0  !< steps taken by the start-up method of a multistep method
     integer(i8) :: rejected_steps = 0 !< step-size control: steps rejected by the error test

@@ -60,23 +60,24 @@
 !> Newton. Up to MBDK_SMALL_DENSE_MAX rows the matrix is factorised in-house (LAPACK's call
 !> overhead dominates such systems; model%small_dense = false, or more rows, take LAPACK's
 !> dgetrf/dgetrs): the augmented form's matrix, when symmetric to roundoff (no dampers: their
-!> tangent stiffness is unsymmetric) and positive definite, by the block LDL^T with the bodies
-!> as 3 x 3 pivot blocks (half the cost of the LU: 0.76 us per step on the double pendulum at
-!> h = 1e-3 against 1.2 us); otherwise by the LU with partial pivoting. An LU that has served
-!> two solves forms its explicit inverse for the next ones (a fixed-length column product, a
-!> quarter of the triangular sweeps at 10 rows: the book scheme's matrix serves about 30
-!> solves). The matrix is reused across iterations and steps while Newton contracts. It is rebuilt at the current iterate when the contraction rate
-!> exceeds 0.5 or two more iterations at the current rate would not reach the tolerance (an
-!> iteration costs about a factorisation), and when h changes. When an update grows with an old
-!> matrix, the step restarts once from the predictor with a matrix built there (the augmented
-!> form's multiplier update can spoil the iterate beyond repair), and the next 8 steps start with
-!> fresh matrices, twice as many after each such failure until a step is served by an old
-!> matrix again (with alpha D^T D a thousand times M, a matrix from the last step fails once
-!> h |omega| is above about 1e-3). A step converges when the update computed at an iterate is
-!> below 1 in the weighted norm (atol + rtol |q|) and max |Phi| <= atol there (not below
-!> 64 eps max|q|); that last update is applied. At least two evaluations per step, so both tests
-!> are made on evaluated residuals, never on predicted ones. After newton_max_iter updates it
-!> fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix: SINGULAR_MATRIX).
+!> tangent stiffness is unsymmetric) and positive definite, by the block LDL^T with the bodies as
+!> 3 x 3 pivot blocks (half the cost of the LU: 0.76 us per step on the double pendulum at
+!> h = 1e-3 against 1.2 us); otherwise by the LU with partial pivoting. An LU that has served two
+!> solves forms its explicit inverse for the next ones (a fixed-length column product, a quarter
+!> of the triangular sweeps at 10 rows: the book scheme's matrix serves about 30 solves;
+!> stats%lu_factorizations counts either kind). The matrix is reused across iterations and steps
+!> while Newton contracts. It is rebuilt at the current iterate when the contraction rate exceeds
+!> 0.5 or two more iterations at the current rate would not reach the tolerance (an iteration
+!> costs about a factorisation), and when h changes. When an update grows with an old matrix, the
+!> step restarts once from the predictor with a matrix built there (the augmented form's
+!> multiplier update can spoil the iterate beyond repair), and the next 8 steps start with fresh
+!> matrices, twice as many after each such failure until a step is served by an old matrix again
+!> (with alpha D^T D a thousand times M, a matrix from the last step fails once h |omega| is above
+!> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
+!> norm (atol + rtol |q|) and max |Phi| <= atol there (not below 64 eps max|q|); that last update
+!> is applied. At least two evaluations per step, so both tests are made on evaluated residuals,
+!> never on predicted ones. After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED
+!> (a singular matrix: SINGULAR_MATRIX).
 !>
 !> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). In the augmented
 !> form a step whose Newton iteration fails (diverges, meets a singular matrix or a non-finite
@@ -291,7 +292,7 @@ contains
     real(dp) :: phi(model%m), d(model%m, model%nc), gam(model%m)
     real(dp) :: phit(model%m), lw(model%m), krhs(model%nc + model%m)
     real(dp) :: rc(model%m), corr(model%nc), mu(model%m)
-    real(dp), allocatable :: lu(:, :), r(:), ainv(:, :), winv(:, :), rinv(:)
+    real(dp), allocatable :: lu(:, :), r(:), ainv(:, :), inv_work(:, :), rinv(:)
     integer, allocatable :: ipiv(:), body_blk(:)
 
     nwritten = 0
@@ -316,7 +317,7 @@ contains
     end if
     nk = nc
     if (opt%formulation == MBDK_INDEX3_BOOK) nk = nc + m
-    allocate (lu(nk, nk), ipiv(nk), r(nk), ainv(nk, nk), winv(nk, nk), rinv(nk))
+    allocate (lu(nk, nk), ipiv(nk), r(nk), ainv(nk, nk), inv_work(nk, nk), rinv(nk))
     schur = model%m_positive .and. model%small_dense .and. m <= MBDK_SMALL_DENSE_MAX
     small_lu = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
     ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
@@ -616,7 +617,7 @@ contains
         ! an LU that has served two solves is likely to serve many (modified Newton): from
         ! the third on, through its explicit inverse
         if (small_lu .and. .not. ldlt .and. nuse == 2) then
-          call mbdk_small_lu_inverse(lu, nk, ipiv, ainv, winv)
+          call mbdk_small_lu_inverse(lu, nk, ipiv, ainv, inv_work)
           have_inv = .true.
         end if
         nuse = nuse + 1
@@ -729,7 +730,7 @@ contains
       ldlt = .false.
       have_inv = .false.
       nuse = 0
-      if (book_form()) then
+      if (opt%formulation == MBDK_INDEX3_BOOK) then
         if (m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
         call book_matrix(model, tn, qn, vn, ln, h, d, lw, lu, ierr)
       else
@@ -753,10 +754,6 @@ contains
         call mbdk_lu_factor(lu, ipiv, ierr)
       end if
     end subroutine factor_matrix
-
-    logical function book_form()
-      book_form = opt%formulation == MBDK_INDEX3_BOOK
-    end function book_form
 
     !> vn onto D v + Phi_t = 0 (mass-orthogonal), with the factors of kkt_factor.
     subroutine project_v(d, phit)
