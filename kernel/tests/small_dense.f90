@@ -2,8 +2,10 @@
 !> definitions, on random matrices of every size the kernel uses them for (1 to
 !> MBDK_SMALL_DENSE_MAX rows). Exit code 0 = pass.
 !>   LU with partial pivoting (general matrices, pivoting needed): the residual of the solve,
-!>     |A x - b| <= 64 n eps |A| |x|, and the explicit inverse, |A Ainv - I| <= 64 n eps
-!>     |A| |Ainv|; applying the inverse agrees with the solve to the same bound.
+!>     max |A x - b| <= 64 n^2 eps max|A| max|x| (the usual n eps |A||x| backward-error bound,
+!>     with n for the max norms and 64 as margin), and the explicit inverse, max |A Ainv - I|
+!>     <= 64 n^2 eps max|A| max|Ainv|; applying the inverse agrees with the solve to that bound
+!>     times max|b|.
 !>   Block LDL^T (pivot blocks of 3 rows, as the bodies of trapezoidal_index3's augmented
 !>     matrix, and of 1 row): the residual of the solve on symmetric positive definite
 !>     matrices; an indefinite matrix is refused as MBDK_ERR_SINGULAR_MATRIX.
@@ -61,8 +63,8 @@ program small_dense
         call mbdk_small_ldlt_solve(f(1:n, 1:n), n, blk, x(1:n))
         tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * maxval(abs(x(1:n))) * n
         call check(maxval(abs(matmul(a(1:n, 1:n), x(1:n)) - b(1:n))) <= tol, 'LDL^T solve', n)
-        ! indefinite: one negative eigenvalue direction (a - 2 lambda_max e e^T with e a
-        ! coordinate vector makes a diagonal entry negative)
+        ! indefinite: the last diagonal entry negated (then the last pivot, a(n,n) minus a
+        ! positive semidefinite term, is negative)
         f(1:n, 1:n) = a(1:n, 1:n)
         f(n, n) = -f(n, n)
         call mbdk_small_ldlt_factor(f(1:n, 1:n), n, blk, 1.0e-14_dp, stat)
