@@ -7,8 +7,11 @@
 !>     <= 64 n^2 eps max|A| max|Ainv|; applying the inverse agrees with the solve to that bound
 !>     times max|b|.
 !>   Block LDL^T (pivot blocks of 3 rows, as the bodies of trapezoidal_index3's augmented
-!>     matrix, and of 1 row): the residual of the solve on symmetric positive definite
-!>     matrices; an indefinite matrix is refused as MBDK_ERR_SINGULAR_MATRIX.
+!>     matrix, of 2 rows, as the revolute joints of a Schur complement, and of 1 row): the
+!>     residual of the solve on symmetric positive definite matrices, for factor + solve and
+!>     for the one-pass mbdk_small_ldlt_solve_once, which must also agree with factor + solve
+!>     within 64 n^2 eps cond(A) max|x| (the forward error the residual bound allows); an
+!>     indefinite matrix is refused as MBDK_ERR_SINGULAR_MATRIX by both.
 program small_dense
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
@@ -50,12 +53,15 @@ program small_dense
       do i = 1, n
         a(i, i) = a(i, i) + 1.0_dp
       end do
-      do k = 1, 2
-        if (k == 1) then
+      do k = 1, 3
+        select case (k)
+        case (1)
           blk = [(i, i = 1, n, 3), n + 1]       ! blocks of 3 rows (the last one shorter)
-        else
+        case (2)
+          blk = [(i, i = 1, n, 2), n + 1]       ! blocks of 2 rows (the joints of a chain)
+        case default
           blk = [(i, i = 1, n + 1)]
-        end if
+        end select
         f(1:n, 1:n) = a(1:n, 1:n)
         call mbdk_small_ldlt_factor(f(1:n, 1:n), n, blk, 1.0e-14_dp, stat)
         call check(stat == MBDK_SUCCESS, 'LDL^T of an SPD matrix', n)
@@ -63,12 +69,27 @@ program small_dense
         call mbdk_small_ldlt_solve(f(1:n, 1:n), n, blk, x(1:n))
         tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * maxval(abs(x(1:n))) * n
         call check(maxval(abs(matmul(a(1:n, 1:n), x(1:n)) - b(1:n))) <= tol, 'LDL^T solve', n)
+        ! the one-pass elimination with the right-hand side: the same residual bound, and the
+        ! same solution as factor + solve to roundoff (same pivots, other summation order)
+        f(1:n, 1:n) = a(1:n, 1:n)
+        y(1:n) = b(1:n)
+        call mbdk_small_ldlt_solve_once(f(1:n, 1:n), n, blk, 1.0e-14_dp, y(1:n), stat)
+        call check(stat == MBDK_SUCCESS, 'one-pass LDL^T of an SPD matrix', n)
+        call check(maxval(abs(matmul(a(1:n, 1:n), y(1:n)) - b(1:n))) <= tol, &
+                   'one-pass LDL^T solve', n)
+        call check(maxval(abs(y(1:n) - x(1:n))) <= tol * maxval(abs(x(1:n))) &
+                   / maxval(abs(b(1:n))), 'one-pass LDL^T = factor + solve', n)
         ! indefinite: the last diagonal entry negated (then the last pivot, a(n,n) minus a
         ! positive semidefinite term, is negative)
         f(1:n, 1:n) = a(1:n, 1:n)
         f(n, n) = -f(n, n)
         call mbdk_small_ldlt_factor(f(1:n, 1:n), n, blk, 1.0e-14_dp, stat)
         call check(stat == MBDK_ERR_SINGULAR_MATRIX, 'LDL^T refuses an indefinite matrix', n)
+        f(1:n, 1:n) = a(1:n, 1:n)
+        f(n, n) = -f(n, n)
+        y(1:n) = b(1:n)
+        call mbdk_small_ldlt_solve_once(f(1:n, 1:n), n, blk, 1.0e-14_dp, y(1:n), stat)
+        call check(stat == MBDK_ERR_SINGULAR_MATRIX, 'one-pass LDL^T refuses it too', n)
       end do
     end do
   end do
@@ -76,7 +97,7 @@ program small_dense
     print '(i0, a)', nfail, ' check(s) FAILED'
     error stop 1
   end if
-  print '(a)', 'small_dense: LU solve and inverse, block LDL^T solve and refusal, n = 1..12: PASS'
+  print '(a)', 'small_dense: LU solve and inverse, block LDL^T (factor + solve, one pass) and refusal, n = 1..12: PASS'
 
 contains
 

@@ -4,7 +4,9 @@
 !> studies/scene_drift.py (table scene_speed) and studies/index3.py; the kernel uses them up to
 !> MBDK_SMALL_DENSE_MAX rows unless told otherwise.
 !>
-!> LDL^T: a pivot below tol * (largest diagonal entry of A) counts as singular: for a Schur
+!> LDL^T: factor and solve (a matrix serving several solves), or both in one pass
+!> (mbdk_small_ldlt_solve_once, one solve: no L is stored or read back).
+!> A pivot below tol * (largest diagonal entry of A) counts as singular: for a Schur
 !> complement that means dependent (redundant) constraint rows, reported as
 !> MBDK_ERR_SINGULAR_MATRIX. LU: partial pivoting as dgetf2; a zero or non-finite pivot is
 !> MBDK_ERR_SINGULAR_MATRIX (as dgetrf's info > 0).
@@ -13,7 +15,8 @@ module mbdk_small_dense
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
   implicit none
   private
-  public :: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, mbdk_small_lu_solve
+  public :: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_ldlt_solve_once
+  public :: mbdk_small_lu_factor, mbdk_small_lu_solve
   public :: mbdk_small_lu_inverse, mbdk_small_inverse_apply
   integer, parameter, public :: MBDK_SMALL_DENSE_MAX = 12
 
@@ -37,53 +40,17 @@ contains
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
     integer :: i, k, kb, r0, nb
-    real(dp) :: dmax, t, l1, l2, l3, c11, c21, c31, c22, c32, c33, det, y
+    real(dp) :: dmax, t, l1, l2, l3
     dmax = 0.0_dp
     do i = 1, n
       dmax = max(dmax, a(i, i))
     end do
     t = tol * dmax
-    stat = MBDK_ERR_SINGULAR_MATRIX
     do kb = 1, size(blk) - 1
       r0 = blk(kb)
       nb = blk(kb + 1) - r0
-      ! the pivot block's inverse, in place (lower triangle)
-      select case (nb)
-      case (1)
-        if (.not. (a(r0, r0) > t)) return
-        a(r0, r0) = 1.0_dp / a(r0, r0)
-      case (2)
-        if (.not. (a(r0, r0) > t)) return
-        det = a(r0, r0) * a(r0 + 1, r0 + 1) - a(r0 + 1, r0)**2
-        if (.not. (det > t * a(r0, r0))) return
-        y = 1.0_dp / det
-        c11 = a(r0 + 1, r0 + 1) * y
-        a(r0 + 1, r0 + 1) = a(r0, r0) * y
-        a(r0, r0) = c11
-        a(r0 + 1, r0) = -a(r0 + 1, r0) * y
-      case (3)
-        associate (b => a(r0:r0 + 2, r0:r0 + 2))
-          if (.not. (b(1, 1) > t)) return
-          c33 = b(1, 1) * b(2, 2) - b(2, 1)**2
-          if (.not. (c33 > t * b(1, 1))) return
-          c11 = b(2, 2) * b(3, 3) - b(3, 2)**2
-          c21 = b(3, 2) * b(3, 1) - b(2, 1) * b(3, 3)
-          c31 = b(2, 1) * b(3, 2) - b(2, 2) * b(3, 1)
-          c22 = b(1, 1) * b(3, 3) - b(3, 1)**2
-          c32 = b(2, 1) * b(3, 1) - b(1, 1) * b(3, 2)
-          det = b(1, 1) * c11 + b(2, 1) * c21 + b(3, 1) * c31
-          if (.not. (det > t * c33)) return
-          y = 1.0_dp / det
-          b(1, 1) = c11 * y
-          b(2, 1) = c21 * y
-          b(3, 1) = c31 * y
-          b(2, 2) = c22 * y
-          b(3, 2) = c32 * y
-          b(3, 3) = c33 * y
-        end associate
-      case default
-        return
-      end select
+      call invert_pivot(a, n, r0, nb, t, stat)
+      if (stat /= MBDK_SUCCESS) return
       ! for each row k below: L(k, block) = A(k, block) B^-1, the trailing update
       ! A(i, k) -= A(i, block) L(k, block)^T (i >= k, A(i, block) not yet scaled), then L
       ! replaces A(k, block)
@@ -166,6 +133,187 @@ contains
       end do
     end do
   end subroutine mbdk_small_ldlt_solve
+
+  !> Solves A x = b for one right-hand side, b becoming x, by the same block LDL^T
+  !> elimination as mbdk_small_ldlt_factor (same blk, tol and singular test) without storing
+  !> L: the right-hand side is reduced along with the matrix and the back substitution reads
+  !> the reduced off-diagonal blocks of A. One pass over A instead of a factorisation and a
+  !> solve: what an evaluation that solves once per matrix (the Schur complement of the
+  !> reduced accelerations, a projection step) needs. A is overwritten (its pivot blocks by
+  !> their inverses).
+  pure subroutine mbdk_small_ldlt_solve_once(a, n, blk, tol, b, stat)
+    integer, intent(in) :: n, blk(:)
+    real(dp), intent(inout) :: a(n, n), b(n)
+    real(dp), intent(in) :: tol
+    integer, intent(out) :: stat
+    integer :: i, k, kb, r0, r1, nb
+    real(dp) :: dmax, t, l1, l2, l3, x1, x2, x3
+    stat = MBDK_SUCCESS
+    dmax = 0.0_dp
+    do i = 1, n
+      dmax = max(dmax, a(i, i))
+    end do
+    t = tol * dmax
+    do kb = 1, size(blk) - 1
+      r0 = blk(kb)
+      nb = blk(kb + 1) - r0
+      ! B^-1 in place; row k below: l = A(k, block) B^-1; A(i, k) -= A(i, block) l^T (i >= k);
+      ! b(k) -= l b(block)
+      select case (nb)
+      case (1)
+        call invert1(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 1, n
+          l1 = a(k, r0) * a(r0, r0)
+          do i = k, n
+            a(i, k) = a(i, k) - a(i, r0) * l1
+          end do
+          b(k) = b(k) - l1 * b(r0)
+        end do
+      case (2)
+        call invert2(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 2, n
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2)
+          end do
+          b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1))
+        end do
+      case (3)
+        call invert3(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 3, n
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0) + a(k, r0 + 2) * a(r0 + 2, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 1)
+          l3 = a(k, r0) * a(r0 + 2, r0) + a(k, r0 + 1) * a(r0 + 2, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 2)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2 + a(i, r0 + 2) * l3)
+          end do
+          b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1) + l3 * b(r0 + 2))
+        end do
+      case default
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end select
+    end do
+    ! back substitution: x(block) = B^-1 (b(block) - A(below, block)^T x(below))
+    do kb = size(blk) - 1, 1, -1
+      r0 = blk(kb)
+      r1 = blk(kb + 1) - 1
+      select case (r1 - r0)
+      case (0)
+        x1 = b(r0)
+        do i = r1 + 1, n
+          x1 = x1 - a(i, r0) * b(i)
+        end do
+        b(r0) = a(r0, r0) * x1
+      case (1)
+        x1 = b(r0)
+        x2 = b(r0 + 1)
+        do i = r1 + 1, n
+          x1 = x1 - a(i, r0) * b(i)
+          x2 = x2 - a(i, r0 + 1) * b(i)
+        end do
+        b(r0) = a(r0, r0) * x1 + a(r0 + 1, r0) * x2
+        b(r0 + 1) = a(r0 + 1, r0) * x1 + a(r0 + 1, r0 + 1) * x2
+      case (2)
+        x1 = b(r0)
+        x2 = b(r0 + 1)
+        x3 = b(r0 + 2)
+        do i = r1 + 1, n
+          x1 = x1 - a(i, r0) * b(i)
+          x2 = x2 - a(i, r0 + 1) * b(i)
+          x3 = x3 - a(i, r0 + 2) * b(i)
+        end do
+        b(r0) = a(r0, r0) * x1 + a(r0 + 1, r0) * x2 + a(r0 + 2, r0) * x3
+        b(r0 + 1) = a(r0 + 1, r0) * x1 + a(r0 + 1, r0 + 1) * x2 + a(r0 + 2, r0 + 1) * x3
+        b(r0 + 2) = a(r0 + 2, r0) * x1 + a(r0 + 2, r0 + 1) * x2 + a(r0 + 2, r0 + 2) * x3
+      end select
+    end do
+  end subroutine mbdk_small_ldlt_solve_once
+
+  !> The pivot block a(r0:r0+nb-1, r0:r0+nb-1) (lower triangle) replaced by its symmetric
+  !> inverse (adjugate over determinant), with the singular test of mbdk_small_ldlt_factor:
+  !> each pivot of the block's scalar LDL^T (ratio of consecutive leading minors) above t.
+  !> One small routine per block size, so that gcc inlines them into the eliminations.
+  pure subroutine invert_pivot(a, n, r0, nb, t, stat)
+    integer, intent(in) :: n, r0, nb
+    real(dp), intent(inout) :: a(n, n)
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    select case (nb)
+    case (1)
+      call invert1(a, n, r0, t, stat)
+    case (2)
+      call invert2(a, n, r0, t, stat)
+    case (3)
+      call invert3(a, n, r0, t, stat)
+    case default
+      stat = MBDK_ERR_SINGULAR_MATRIX
+    end select
+  end subroutine invert_pivot
+
+  pure subroutine invert1(a, n, r0, t, stat)
+    integer, intent(in) :: n, r0
+    real(dp), intent(inout) :: a(n, n)
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (.not. (a(r0, r0) > t)) return
+    a(r0, r0) = 1.0_dp / a(r0, r0)
+    stat = MBDK_SUCCESS
+  end subroutine invert1
+
+  pure subroutine invert2(a, n, r0, t, stat)
+    integer, intent(in) :: n, r0
+    real(dp), intent(inout) :: a(n, n)
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    real(dp) :: det, y, c11
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (.not. (a(r0, r0) > t)) return
+    det = a(r0, r0) * a(r0 + 1, r0 + 1) - a(r0 + 1, r0)**2
+    if (.not. (det > t * a(r0, r0))) return
+    y = 1.0_dp / det
+    c11 = a(r0 + 1, r0 + 1) * y
+    a(r0 + 1, r0 + 1) = a(r0, r0) * y
+    a(r0, r0) = c11
+    a(r0 + 1, r0) = -a(r0 + 1, r0) * y
+    stat = MBDK_SUCCESS
+  end subroutine invert2
+
+  pure subroutine invert3(a, n, r0, t, stat)
+    integer, intent(in) :: n, r0
+    real(dp), intent(inout) :: a(n, n)
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    real(dp) :: c11, c21, c31, c22, c32, c33, det, y
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    associate (b => a(r0:r0 + 2, r0:r0 + 2))
+      if (.not. (b(1, 1) > t)) return
+      c33 = b(1, 1) * b(2, 2) - b(2, 1)**2
+      if (.not. (c33 > t * b(1, 1))) return
+      c11 = b(2, 2) * b(3, 3) - b(3, 2)**2
+      c21 = b(3, 2) * b(3, 1) - b(2, 1) * b(3, 3)
+      c31 = b(2, 1) * b(3, 2) - b(2, 2) * b(3, 1)
+      c22 = b(1, 1) * b(3, 3) - b(3, 1)**2
+      c32 = b(2, 1) * b(3, 1) - b(1, 1) * b(3, 2)
+      det = b(1, 1) * c11 + b(2, 1) * c21 + b(3, 1) * c31
+      if (.not. (det > t * c33)) return
+      y = 1.0_dp / det
+      b(1, 1) = c11 * y
+      b(2, 1) = c21 * y
+      b(3, 1) = c31 * y
+      b(2, 2) = c22 * y
+      b(3, 2) = c32 * y
+      b(3, 3) = c33 * y
+    end associate
+    stat = MBDK_SUCCESS
+  end subroutine invert3
 
   !> In place: A = P L U with unit lower L below the diagonal and U on and above it; ipiv(j) is
   !> the row swapped with row j at step j (as dgetrf), and the diagonal holds 1 / U(j, j).

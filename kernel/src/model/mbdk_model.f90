@@ -14,10 +14,12 @@
 !>
 !> Linear solves: when M is positive (every body has mass and inertia) the constrained systems
 !> are solved through the Schur complement S = D M^-1 D^T (M diagonal), assembled from the
-!> nonzeros of D only (mbdk_sparse_schur) and factorised by an in-house root-free Cholesky
-!> (LDL^T) with the joints as pivot blocks up to MBDK_SMALL_DENSE_MAX rows (LAPACK's call
-!> overhead dominates such tiny systems) or LAPACK dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised
-!> with LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
+!> nonzeros of D only (mbdk_sparse_schur) and solved by an in-house root-free Cholesky
+!> (LDL^T) with the joints as pivot blocks, eliminating the right-hand side along with the
+!> matrix in one pass (mbdk_small_ldlt_solve_once: S serves one solve), up to
+!> MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems), or by LAPACK
+!> dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised with
+!> LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
 !>
 !> An evaluation (mbdk_model_assemble) computes the sin/cos of every body's angle once, the
@@ -39,7 +41,7 @@ module mbdk_model
     mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
-  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, MBDK_SMALL_DENSE_MAX
+  use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
     mbdk_sparse_schur_assemble, mbdk_sparse_d_times, mbdk_sparse_w_residual
   implicit none
@@ -315,8 +317,7 @@ contains
           w%pm(k, k) = w%pm(k, k) + self%mass(k)
         end do
         if (self%small_dense .and. nc <= MBDK_SMALL_DENSE_MAX) then
-          call mbdk_small_ldlt_factor(w%pm, nc, self%row_blk, 1.0e-15_dp, stat)
-          if (stat == MBDK_SUCCESS) call mbdk_small_ldlt_solve(w%pm, nc, self%row_blk, a)
+          call mbdk_small_ldlt_solve_once(w%pm, nc, self%row_blk, 1.0e-15_dp, a, stat)
         else
           call mbdk_chol_factor(w%pm, stat)
           if (stat == MBDK_SUCCESS) call mbdk_chol_solve(w%pm, a, stat)
@@ -348,9 +349,8 @@ contains
       call mbdk_sparse_d_times(self%sp, w%dz, w%fq, lam, .true.)
       lam = lam - w%rc
       if (self%small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
-        call mbdk_small_ldlt_factor(w%s, m, self%blk, SINGULAR_TOL, stat)
+        call mbdk_small_ldlt_solve_once(w%s, m, self%blk, SINGULAR_TOL, lam, stat)
         if (stat /= MBDK_SUCCESS) return
-        call mbdk_small_ldlt_solve(w%s, m, self%blk, lam)
       else
         call mbdk_chol_factor(w%s, stat)
         if (stat == MBDK_SUCCESS) call check_chol_pivots(w%s, stat)
@@ -455,9 +455,8 @@ contains
       integer, intent(out) :: st
       associate (w => self%work)
         call mbdk_sparse_schur_assemble(self%sp, w%dz, w%s)
-        call mbdk_small_ldlt_factor(w%s, m, self%blk, SINGULAR_TOL, st)
+        call mbdk_small_ldlt_solve_once(w%s, m, self%blk, SINGULAR_TOL, w%rc, st)
         if (st /= MBDK_SUCCESS) return
-        call mbdk_small_ldlt_solve(w%s, m, self%blk, w%rc)
         call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, w%rc, w%xc, nc)
       end associate
     end subroutine correct
