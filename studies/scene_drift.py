@@ -9,7 +9,8 @@ formulations, the speed of one reduced rk4 step, and the reaction forces of the 
 2. One rk4 step of the double pendulum, reduced formulation: ns per step with the Schur
    complement (assembled from the nonzeros of D) by the in-house LDL^T with joint blocks, by
    LAPACK dpotrf/dpotrs, and with the KKT LU (LAPACK, dense D), and the share of the step spent
-   in assembly, in the linear solve and in the integrator.
+   in assembly, in the linear solve and in the integrator; beside them the same reduction
+   written out in C for this one mechanism (scene_yardstick.c), the cost of being table-driven.
 3. The physical pendulum's hinge reaction against time and angle (figures 4.29-4.30).
 """
 from __future__ import annotations
@@ -102,20 +103,63 @@ def speed(out: Path, quick: bool):
                      "share_assembly": 4 * prof["assembly_ns"] / step,
                      "share_solve": 4 * prof["solve_ns"] / step, "share_integrator": integ / step,
                      "steps": r.stats.steps, "cpu_s": best * r.stats.steps})
+    rows.append(yardstick(sc, tab, t_end))
     mini = mbdk.solve_ode("double_pendulum", "rk4", h=1e-4, t_end=t_end, every=10**6)
     rows.append({"linear_solve": "minimal coordinates (textbook ODE, 2 x 2 solve)",
                  "ns_per_rk4_step": 1e9 * mini.cpu_time / mini.stats.steps,
                  "steps": mini.stats.steps, "cpu_s": mini.cpu_time})
     return write_table(rows, ["linear_solve", "ns_per_rk4_step", "assembly_ns_per_eval",
                               "solve_ns_per_eval", "integrator_ns_per_step", "share_assembly",
-                              "share_solve", "share_integrator", "steps", "cpu_s"], out,
+                              "share_solve", "share_integrator", "max_diff_to_kernel", "steps",
+                              "cpu_s"], out,
                        "scene_speed",
                        "One rk4 step of the double pendulum in absolute coordinates (reduced)",
                        "Best of 3 runs; kernel CPU time of the whole loop divided by the steps. "
                        "Assembly (forces, Phi, D, gamma) and a full evaluation are timed in the "
                        "kernel (mbdk.model.profile); solve = evaluation - assembly; integrator = "
                        "step - 4 evaluations (rk4 has 4 stages). Target of issue 3: at most 500 "
-                       "ns per step.")
+                       "ns per step. The C yardstick (studies/scene_yardstick.c, built with cc "
+                       "-O3 in this run) does the kernel's reduction written out for this one "
+                       "mechanism; max_diff_to_kernel is the largest difference of its final "
+                       "state from the kernel's (same h and steps): roundoff, so the two do the "
+                       "same arithmetic and the time ratio is what the table-driven assembly "
+                       "costs.")
+
+
+def yardstick(sc, tab, t_end: float) -> dict:
+    """The scene_speed row of the hand-written C loop (studies/scene_yardstick.c), timed on the
+    same steps as the kernel, with the largest difference of the two final states."""
+    import os
+    import shutil
+    import subprocess
+    import tempfile
+    row = {"linear_solve": "C yardstick: the same reduction written out for this mechanism "
+                           "(cc -O3)"}
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    layout = (tab.jint[:, 0].tolist() == [1, 1, 0, 0] and tab.jint[:, 1].tolist() == [1, 2, 1, 0]
+              and tab.fint.shape[1] == 1 and tab.fint[0, 0] == 1)
+    if cc is None or not layout:
+        row["linear_solve"] += ": not run (no C compiler, or the scene changed)"
+        return row
+    h = 1e-4
+    r = mbdk.simulate(sc, "rk4", h=h, t_end=t_end, every=10**6)
+    y0 = np.concatenate([r.q[0], r.v[0]])
+    par = [tab.mass[0], tab.inertia[0], tab.mass[1], tab.inertia[1], *tab.jreal[0:2, 0],
+           *tab.jreal[2:4, 0], *tab.jreal[0:2, 1], *tab.jreal[2:4, 1], *tab.freal[0:2, 0]]
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = Path(tmp) / "scene_yardstick"
+        src = Path(__file__).resolve().parent / "scene_yardstick.c"
+        subprocess.run([cc, "-O3", "-o", str(exe), str(src), "-lm"], check=True)
+        args = [str(exe), str(r.stats.steps), repr(h)] + [repr(float(x)) for x in [*y0, *par]]
+        best, y = math.inf, None
+        for _ in range(3):
+            out = subprocess.run(args, check=True, capture_output=True, text=True).stdout.split()
+            best = min(best, float(out[0]))
+            y = np.array([float(x) for x in out[1:]])
+    row.update({"ns_per_rk4_step": 1e9 * best / r.stats.steps,
+                "max_diff_to_kernel": float(np.abs(y - np.concatenate([r.q[-1], r.v[-1]])).max()),
+                "steps": r.stats.steps, "cpu_s": best})
+    return row
 
 
 def reactions(out: Path, quick: bool):
