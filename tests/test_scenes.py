@@ -415,7 +415,12 @@ def test_scene_drift_study(tmp_path):
         assert float(by[(sc, "reduced")]["max_phi"]) > 100 * float(by[(sc, "projection")]["max_phi"])
         assert all(float(r["cpu_s"]) > 0 for r in rows)
     speed = list(csv.DictReader(open(tmp_path / "scene_speed.csv")))
-    assert len(speed) == 4 and all(float(r["ns_per_rk4_step"]) > 0 for r in speed)
+    assert len(speed) == 5
+    assert all(float(r["ns_per_rk4_step"]) > 0 for r in speed if "not run" not in r["linear_solve"])
+    yard = [r for r in speed if r["linear_solve"].startswith("C yardstick")]
+    assert len(yard) == 1
+    if "not run" not in yard[0]["linear_solve"]:
+        assert float(yard[0]["max_diff_to_kernel"]) < 1e-9
 
 
 def _book_bar(force):
