@@ -39,53 +39,8 @@ contains
     real(dp), intent(inout) :: a(n, n)
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
-    integer :: i, k, kb, r0, nb
-    real(dp) :: dmax, t, l1, l2, l3
-    dmax = 0.0_dp
-    do i = 1, n
-      dmax = max(dmax, a(i, i))
-    end do
-    t = tol * dmax
-    do kb = 1, size(blk) - 1
-      r0 = blk(kb)
-      nb = blk(kb + 1) - r0
-      call invert_pivot(a, n, r0, nb, t, stat)
-      if (stat /= MBDK_SUCCESS) return
-      ! for each row k below: L(k, block) = A(k, block) B^-1, the trailing update
-      ! A(i, k) -= A(i, block) L(k, block)^T (i >= k, A(i, block) not yet scaled), then L
-      ! replaces A(k, block)
-      do k = r0 + nb, n
-        select case (nb)
-        case (1)
-          l1 = a(k, r0) * a(r0, r0)
-          do i = k, n
-            a(i, k) = a(i, k) - a(i, r0) * l1
-          end do
-          a(k, r0) = l1
-        case (2)
-          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0)
-          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1)
-          do i = k, n
-            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2)
-          end do
-          a(k, r0) = l1
-          a(k, r0 + 1) = l2
-        case (3)
-          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0) + a(k, r0 + 2) * a(r0 + 2, r0)
-          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1) &
-               + a(k, r0 + 2) * a(r0 + 2, r0 + 1)
-          l3 = a(k, r0) * a(r0 + 2, r0) + a(k, r0 + 1) * a(r0 + 2, r0 + 1) &
-               + a(k, r0 + 2) * a(r0 + 2, r0 + 2)
-          do i = k, n
-            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2 + a(i, r0 + 2) * l3)
-          end do
-          a(k, r0) = l1
-          a(k, r0 + 1) = l2
-          a(k, r0 + 2) = l3
-        end select
-      end do
-    end do
-    stat = MBDK_SUCCESS
+    real(dp) :: unused(1)
+    call eliminate(a, n, blk, tol, .true., unused, stat)
   end subroutine mbdk_small_ldlt_factor
 
   !> Solves L B L^T x = b with the factor of mbdk_small_ldlt_factor (the same blk); b becomes x.
@@ -146,60 +101,10 @@ contains
     real(dp), intent(inout) :: a(n, n), b(n)
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
-    integer :: i, k, kb, r0, r1, nb
-    real(dp) :: dmax, t, l1, l2, l3, x1, x2, x3
-    stat = MBDK_SUCCESS
-    dmax = 0.0_dp
-    do i = 1, n
-      dmax = max(dmax, a(i, i))
-    end do
-    t = tol * dmax
-    do kb = 1, size(blk) - 1
-      r0 = blk(kb)
-      nb = blk(kb + 1) - r0
-      ! B^-1 in place; row k below: l = A(k, block) B^-1; A(i, k) -= A(i, block) l^T (i >= k);
-      ! b(k) -= l b(block)
-      select case (nb)
-      case (1)
-        call invert1(a, n, r0, t, stat)
-        if (stat /= MBDK_SUCCESS) return
-        do k = r0 + 1, n
-          l1 = a(k, r0) * a(r0, r0)
-          do i = k, n
-            a(i, k) = a(i, k) - a(i, r0) * l1
-          end do
-          b(k) = b(k) - l1 * b(r0)
-        end do
-      case (2)
-        call invert2(a, n, r0, t, stat)
-        if (stat /= MBDK_SUCCESS) return
-        do k = r0 + 2, n
-          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0)
-          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1)
-          do i = k, n
-            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2)
-          end do
-          b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1))
-        end do
-      case (3)
-        call invert3(a, n, r0, t, stat)
-        if (stat /= MBDK_SUCCESS) return
-        do k = r0 + 3, n
-          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0) + a(k, r0 + 2) * a(r0 + 2, r0)
-          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1) &
-               + a(k, r0 + 2) * a(r0 + 2, r0 + 1)
-          l3 = a(k, r0) * a(r0 + 2, r0) + a(k, r0 + 1) * a(r0 + 2, r0 + 1) &
-               + a(k, r0 + 2) * a(r0 + 2, r0 + 2)
-          do i = k, n
-            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2 + a(i, r0 + 2) * l3)
-          end do
-          b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1) + l3 * b(r0 + 2))
-        end do
-      case default
-        stat = MBDK_ERR_SINGULAR_MATRIX
-        return
-      end select
-    end do
+    integer :: i, kb, r0, r1
+    real(dp) :: x1, x2, x3
+    call eliminate(a, n, blk, tol, .false., b, stat)
+    if (stat /= MBDK_SUCCESS) return
     ! back substitution: x(block) = B^-1 (b(block) - A(below, block)^T x(below))
     do kb = size(blk) - 1, 1, -1
       r0 = blk(kb)
@@ -236,27 +141,91 @@ contains
     end do
   end subroutine mbdk_small_ldlt_solve_once
 
-  !> The pivot block a(r0:r0+nb-1, r0:r0+nb-1) (lower triangle) replaced by its symmetric
-  !> inverse (adjugate over determinant), with the singular test of mbdk_small_ldlt_factor:
-  !> each pivot of the block's scalar LDL^T (ratio of consecutive leading minors) above t.
-  !> One small routine per block size, so that gcc inlines them into the eliminations.
-  pure subroutine invert_pivot(a, n, r0, nb, t, stat)
-    integer, intent(in) :: n, r0, nb
-    real(dp), intent(inout) :: a(n, n)
-    real(dp), intent(in) :: t
+  !> The block elimination shared by mbdk_small_ldlt_factor (keep_l: L(k, block) =
+  !> A(k, block) B^-1 replaces A(k, block)) and mbdk_small_ldlt_solve_once (not keep_l: the
+  !> right-hand side b(k) -= L(k, block) b(block) instead, A(k, block) kept for the back
+  !> substitution). Pivot blocks inverted in place, trailing update A(i, k) -= A(i, block)
+  !> L(k, block)^T for i >= k; the singular test of mbdk_small_ldlt_factor. b is not touched
+  !> with keep_l.
+  pure subroutine eliminate(a, n, blk, tol, keep_l, b, stat)
+    integer, intent(in) :: n, blk(:)
+    real(dp), intent(inout) :: a(n, n), b(*)
+    real(dp), intent(in) :: tol
+    logical, intent(in) :: keep_l
     integer, intent(out) :: stat
-    select case (nb)
-    case (1)
-      call invert1(a, n, r0, t, stat)
-    case (2)
-      call invert2(a, n, r0, t, stat)
-    case (3)
-      call invert3(a, n, r0, t, stat)
-    case default
-      stat = MBDK_ERR_SINGULAR_MATRIX
-    end select
-  end subroutine invert_pivot
+    integer :: i, k, kb, r0, nb
+    real(dp) :: dmax, t, l1, l2, l3
+    stat = MBDK_SUCCESS
+    dmax = 0.0_dp
+    do i = 1, n
+      dmax = max(dmax, a(i, i))
+    end do
+    t = tol * dmax
+    do kb = 1, size(blk) - 1
+      r0 = blk(kb)
+      nb = blk(kb + 1) - r0
+      select case (nb)
+      case (1)
+        call invert1(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 1, n
+          l1 = a(k, r0) * a(r0, r0)
+          do i = k, n
+            a(i, k) = a(i, k) - a(i, r0) * l1
+          end do
+          if (keep_l) then
+            a(k, r0) = l1
+          else
+            b(k) = b(k) - l1 * b(r0)
+          end if
+        end do
+      case (2)
+        call invert2(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 2, n
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2)
+          end do
+          if (keep_l) then
+            a(k, r0) = l1
+            a(k, r0 + 1) = l2
+          else
+            b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1))
+          end if
+        end do
+      case (3)
+        call invert3(a, n, r0, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do k = r0 + 3, n
+          l1 = a(k, r0) * a(r0, r0) + a(k, r0 + 1) * a(r0 + 1, r0) + a(k, r0 + 2) * a(r0 + 2, r0)
+          l2 = a(k, r0) * a(r0 + 1, r0) + a(k, r0 + 1) * a(r0 + 1, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 1)
+          l3 = a(k, r0) * a(r0 + 2, r0) + a(k, r0 + 1) * a(r0 + 2, r0 + 1) &
+               + a(k, r0 + 2) * a(r0 + 2, r0 + 2)
+          do i = k, n
+            a(i, k) = a(i, k) - (a(i, r0) * l1 + a(i, r0 + 1) * l2 + a(i, r0 + 2) * l3)
+          end do
+          if (keep_l) then
+            a(k, r0) = l1
+            a(k, r0 + 1) = l2
+            a(k, r0 + 2) = l3
+          else
+            b(k) = b(k) - (l1 * b(r0) + l2 * b(r0 + 1) + l3 * b(r0 + 2))
+          end if
+        end do
+      case default
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end select
+    end do
+  end subroutine eliminate
 
+  !> invert1, invert2, invert3: the pivot block a(r0:r0+nb-1, r0:r0+nb-1) (lower triangle)
+  !> replaced by its symmetric inverse (adjugate over determinant), with the singular test of
+  !> mbdk_small_ldlt_factor: each pivot of the block's scalar LDL^T (ratio of consecutive
+  !> leading minors) above t. One small routine per block size, so that gcc inlines them.
   pure subroutine invert1(a, n, r0, t, stat)
     integer, intent(in) :: n, r0
     real(dp), intent(inout) :: a(n, n)
