@@ -16,7 +16,11 @@ formulations, the speed of one reduced rk4 step, and the reaction forces of the 
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -126,41 +130,50 @@ def speed(out: Path, quick: bool):
                        "costs.")
 
 
+def yardstick_layout(tab) -> bool:
+    """Whether the scene tables are the mechanism scene_yardstick.c writes out: bar1 hinged to
+    the ground, bar2 hinged to bar1 (revolute joints in that order), gravity alone."""
+    return (tab.jint[:, 0].tolist() == [1, 1, 0, 0] and tab.jint[:, 1].tolist() == [1, 2, 1, 0]
+            and tab.fint.shape[1] == 1 and tab.fint[0, 0] == 1)
+
+
+def yardstick_build(cc: str, tmp: Path) -> Path:
+    exe = Path(tmp) / "scene_yardstick"
+    src = Path(__file__).resolve().parent / "scene_yardstick.c"
+    subprocess.run([cc, "-O3", "-o", str(exe), str(src), "-lm"], check=True)
+    return exe
+
+
+def yardstick_run(exe: Path, tab, y0, steps: int, h: float):
+    """CPU seconds of the C loop and its final state y (12) after steps rk4 steps from y0."""
+    par = [tab.mass[0], tab.inertia[0], tab.mass[1], tab.inertia[1], *tab.jreal[0:2, 0],
+           *tab.jreal[2:4, 0], *tab.jreal[0:2, 1], *tab.jreal[2:4, 1], *tab.freal[0:2, 0]]
+    args = [str(exe), str(steps), repr(h)] + [repr(float(x)) for x in [*y0, *par]]
+    out = subprocess.run(args, check=True, capture_output=True, text=True).stdout.split()
+    return float(out[0]), np.array([float(x) for x in out[1:]])
+
+
 def yardstick(sc, tab, t_end: float) -> dict:
     """The scene_speed row of the hand-written C loop (studies/scene_yardstick.c), timed on the
     same steps as the kernel, with the largest difference of the two final states."""
-    import os
-    import shutil
-    import subprocess
-    import tempfile
     row = {"linear_solve": "C yardstick: the same reduction written out for this mechanism "
                            "(cc -O3)"}
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    layout = (tab.jint[:, 0].tolist() == [1, 1, 0, 0] and tab.jint[:, 1].tolist() == [1, 2, 1, 0]
-              and tab.fint.shape[1] == 1 and tab.fint[0, 0] == 1)
-    if cc is None or not layout:
+    if cc is None or not yardstick_layout(tab):
         row["linear_solve"] += ": not run (no C compiler, or the scene changed)"
         return row
     h = 1e-4
     r = mbdk.simulate(sc, "rk4", h=h, t_end=t_end, every=10**6)
-    y0 = np.concatenate([r.q[0], r.v[0]])
-    par = [tab.mass[0], tab.inertia[0], tab.mass[1], tab.inertia[1], *tab.jreal[0:2, 0],
-           *tab.jreal[2:4, 0], *tab.jreal[0:2, 1], *tab.jreal[2:4, 1], *tab.freal[0:2, 0]]
     with tempfile.TemporaryDirectory() as tmp:
-        exe = Path(tmp) / "scene_yardstick"
-        src = Path(__file__).resolve().parent / "scene_yardstick.c"
-        subprocess.run([cc, "-O3", "-o", str(exe), str(src), "-lm"], check=True)
-        args = [str(exe), str(r.stats.steps), repr(h)] + [repr(float(x)) for x in [*y0, *par]]
-        best, y = math.inf, None
-        for _ in range(3):
-            out = subprocess.run(args, check=True, capture_output=True, text=True).stdout.split()
-            best = min(best, float(out[0]))
-            y = np.array([float(x) for x in out[1:]])
+        exe = yardstick_build(cc, Path(tmp))
+        runs = [yardstick_run(exe, tab, np.concatenate([r.q[0], r.v[0]]), r.stats.steps, h)
+                for _ in range(3)]
+    best = min(cpu for cpu, _ in runs)
+    y = runs[-1][1]
     row.update({"ns_per_rk4_step": 1e9 * best / r.stats.steps,
                 "max_diff_to_kernel": float(np.abs(y - np.concatenate([r.q[-1], r.v[-1]])).max()),
                 "steps": r.stats.steps, "cpu_s": best})
     return row
-
 
 def reactions(out: Path, quick: bool):
     import matplotlib.pyplot as plt
