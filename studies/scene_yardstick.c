@@ -1,7 +1,7 @@
 /* The yardstick of studies/scene_drift.py (table scene_speed): rk4 on the double pendulum in
    absolute coordinates, reduced formulation, written out by hand for this one mechanism. The
-   kernel's arithmetic (S = D W D^T from the nonzeros of D, block LDL^T with the two joints as
-   pivot blocks, a = W (f - D^T lam)) with nothing table-driven: what the generality costs.
+   kernel's arithmetic (S = D W D^T, block LDL^T with the two joints as pivot blocks,
+   a = W (f - D^T lam)) with nothing table-driven: what the generality costs.
    argv: n h y0[12] m1 I1 m2 I2 sO[2] gO[2] sA2[2] sA1[2] g[2]
    (joint O: bar1 point sO on the ground point gO; joint A: bar2 point sA2 on bar1 point sA1).
    Prints the CPU time of the loop and the final state. */

@@ -257,9 +257,10 @@ def test_every_integrator_on_every_formulation(method, formulation):
 @pytest.mark.parametrize("name", ["four_bar", "every_joint_type"])
 def test_linear_solvers_agree(name, formulation):
     """The Schur complement assembled from the nonzeros of D and factorised by joint blocks
-    (in-house, small_dense) or by LAPACK's dpotrf, against LAPACK's LU of the dense KKT
-    matrix: 2-row (revolute, prismatic), 3-row (fixed) and 1-row (driver) pivot blocks, off
-    the constraint manifold (so that Baumgarte's D v and Phi terms count)."""
+    (in-house, small_dense) or by LAPACK's dpotrf, and (every joint revolute) the closed-form
+    2 x 2 blocks of mbdk_revolute_schur, against LAPACK's LU of the dense KKT matrix: 2-row
+    (revolute, prismatic), 3-row (fixed) and 1-row (driver) pivot blocks, off the constraint
+    manifold (so that Baumgarte's D v and Phi terms count)."""
     if name == "every_joint_type":
         sc = scene_from_dict(_every_joint_type(), "inline.toml")
         tab = M.build_tables(sc)
@@ -269,12 +270,16 @@ def test_linear_solvers_agree(name, formulation):
     else:
         sc, tab, q, v = state(name)
         q = q + np.random.default_rng(2).normal(0, 0.01, q.size)
+    runs = [("schur", True), ("schur", False), ("kkt", True), ("kkt", False)]
+    if name == "four_bar":
+        runs.append(("revolute_schur", True))
     outs = []
-    for solver in ("schur", "kkt"):
-        for small in (True, False):
-            e = M.evaluate(tab, q, v, 0.7, formulation,
-                           M.fpar_vector(solver=solver, small_dense=small, alpha=3.0, beta=4.0))
-            outs.append(np.concatenate([e["a"], e["lam"]]))
+    for solver, small in runs:
+        e = M.evaluate(tab, q, v, 0.7, formulation,
+                       M.fpar_vector(solver=solver, small_dense=small, alpha=3.0, beta=4.0))
+        assert e["status"] == mbdk.Status.SUCCESS
+        assert e["solve"].startswith(solver)      # the path asked for is the one taken
+        outs.append(np.concatenate([e["a"], e["lam"]]))
     for o in outs[1:]:
         assert np.max(np.abs(o - outs[0])) < 1e-9 * np.abs(outs[0]).max()
     # and the KKT equations themselves
@@ -283,6 +288,92 @@ def test_linear_solvers_agree(name, formulation):
     mass[2::3] = tab.inertia
     assert np.max(np.abs(mass * e["a"] + e["D"].T @ e["lam"] - e["f"])) < 1e-9 * max(
         np.abs(e["f"]).max(), np.abs(e["D"].T @ e["lam"]).max())
+    # the closed form takes revolute joints only: the kernel refuses the others
+    if name == "every_joint_type":
+        e = M.evaluate(tab, q, v, 0.7, formulation, M.fpar_vector(solver="revolute_schur"))
+        assert e["status"] == mbdk.Status.ERR_INVALID_INPUT
+
+
+def _all_revolute(sc):
+    return all(j.type == "revolute" for j in sc.joints)
+
+
+def _plate_with_two_bars():
+    """A plate hinged to the ground with a bar hinged at each lower corner: three joints on one
+    body, so every block of S couples (the chains of the built-in scenes give a block
+    tridiagonal S, whose elimination never updates an off-diagonal block)."""
+    return {
+        "body": [
+            {"name": "plate", "mass": 3.0, "inertia": 0.4, "x": 0.0, "y": 0.0, "angle": 0.0,
+             "omega": 1.5},
+            {"name": "u", "mass": 1.0, "shape": {"type": "bar", "length": 0.5}, "x": -0.4,
+             "y": -0.45, "angle": 0.0, "omega": -2.0},
+            {"name": "w", "mass": 0.7, "shape": {"type": "bar", "length": 0.5}, "x": 0.4,
+             "y": -0.45, "angle": 0.0, "omega": 3.0},
+        ],
+        "joint": [
+            {"name": "left", "type": "revolute", "body1": "u", "point1": [0.0, 0.25],
+             "body2": "plate", "point2": [-0.4, -0.2]},
+            {"name": "top", "type": "revolute", "body1": "plate", "point1": [0.0, 0.3],
+             "point2": [0.0, 0.3]},
+            {"name": "right", "type": "revolute", "body1": "w", "point1": [0.0, 0.25],
+             "body2": "plate", "point2": [0.4, -0.2]},
+        ],
+        "force": [{"type": "gravity", "g": [0.0, -9.81]}],
+    }
+
+
+def test_auto_solver_takes_the_closed_form_exactly_when_every_joint_is_revolute():
+    taken = set()
+    for name in ALL:
+        sc, tab, q, v = state(name)
+        e = M.evaluate(tab, q, v)
+        closed = _all_revolute(sc) and tab.m > 0 and np.all(tab.inertia > 0) and tab.m <= 12
+        assert e["solve"].startswith("revolute_schur") == closed, name
+        if closed:
+            taken.add(name)
+    assert {"double_pendulum", "four_bar", "three_link_pendulum",
+            "parallelogram_redundant"} <= taken
+    # the generic path for every other joint type
+    sc = scene_from_dict(_every_joint_type(), "inline.toml")
+    assert M.evaluate(M.build_tables(sc), sc.q0(), sc.v0())["solve"].startswith("schur:")
+
+
+@pytest.mark.parametrize("formulation", ["reduced", "baumgarte", "projection"])
+@pytest.mark.parametrize("name", ["double_pendulum", "four_bar", "three_link_pendulum",
+                                  "physical_pendulum", "plate_with_two_bars"])
+def test_closed_form_revolute_schur_follows_the_table_driven_one(name, formulation):
+    """Whole runs with the closed-form 2 x 2 blocks of S (mbdk_revolute_schur) against the
+    Schur complement assembled from the nonzeros of D (mbdk_sparse_schur): two independent
+    assemblies and eliminations of the same S, so 1 s of rk4 agrees to roundoff (chaotic
+    double pendulum included: the gap after 1000 steps is about 1e-13), while a wrong weight,
+    sign or block in either moves the state by the size of the accelerations."""
+    sc = (scene_from_dict(_plate_with_two_bars(), "inline.toml") if name == "plate_with_two_bars"
+          else mbdk.scene(name))
+    a, b = (mbdk.simulate(sc, "rk4", formulation=formulation, h=1e-3, t_end=1.0, every=50,
+                          solver=s) for s in ("revolute_schur", "schur"))
+    assert a.manifest["linear_solve"].startswith("revolute_schur")
+    assert b.manifest["linear_solve"].startswith("schur:")
+    assert np.ptp(a.q, axis=0).max() > 0.1
+    np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(a.v, b.v, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=0,
+                               atol=1e-10 * np.abs(b.multipliers).max())
+
+
+def test_closed_form_revolute_schur_reports_the_redundant_parallelogram():
+    """The parallelogram's third crank repeats a constraint pair: S is singular, and the 2 x 2
+    block elimination must say so (MBDK_ERR_SINGULAR_MATRIX) as the generic one does, not
+    divide by a roundoff pivot."""
+    sc = mbdk.scene("parallelogram_redundant")
+    tab = M.build_tables(sc)
+    q, v, _ = M.assemble(sc, tab)
+    for solver in ("revolute_schur", "schur", "auto"):
+        e = M.evaluate(tab, q, v, fpar=M.fpar_vector(solver=solver))
+        assert e["status"] == mbdk.Status.ERR_SINGULAR_MATRIX, solver
+    with pytest.raises(mbdk.InvalidInputError, match="not revolute: slider .prismatic."):
+        mbdk.simulate(mbdk.scene("trolley_crane"), "rk4", h=1e-3, t_end=0.1,
+                      solver="revolute_schur")
 
 
 def test_energy_of_conservative_scene_and_balance_of_damped_one():
@@ -415,7 +506,7 @@ def test_scene_drift_study(tmp_path):
         assert float(by[(sc, "reduced")]["max_phi"]) > 100 * float(by[(sc, "projection")]["max_phi"])
         assert all(float(r["cpu_s"]) > 0 for r in rows)
     speed = list(csv.DictReader(open(tmp_path / "scene_speed.csv")))
-    assert len(speed) == 5
+    assert len(speed) == 6
     assert all(float(r["ns_per_rk4_step"]) > 0 for r in speed if "not run" not in r["linear_solve"])
     yard = [r for r in speed if r["linear_solve"].startswith("C yardstick")]
     assert len(yard) == 1
@@ -486,12 +577,13 @@ def test_scene_checks_study(tmp_path):
 
 
 def test_reduced_rk4_matches_the_hand_written_c_yardstick(tmp_path):
-    """The generic table-driven path against the same reduction written out by hand for the
-    double pendulum (studies/scene_yardstick.c, the yardstick of table scene_speed): S from the
-    nonzeros of D, the two joints as LDL^T pivot blocks, a = W (f - D^T lam), rk4. Identical
-    arithmetic up to the order of sums, so 2000 steps (2 s of swinging) agree to roundoff; a
-    wrong slot, sign or weight anywhere in the assembly or the solve moves the state by far
-    more (the steps change q by about 0.3)."""
+    """Both kernel paths (the closed-form revolute blocks that solver = 'auto' takes here, and
+    the table-driven Schur complement from the nonzeros of D) against the same reduction
+    written out by hand for the double pendulum (studies/scene_yardstick.c, the yardstick of
+    table scene_speed): the two joints as LDL^T pivot blocks, a = W (f - D^T lam), rk4.
+    Identical arithmetic up to the order of sums, so 2000 steps (2 s of swinging) agree to
+    roundoff; a wrong slot, sign or weight anywhere in the assembly or the solve moves the
+    state by far more (the steps change q by about 0.3)."""
     import shutil
     import scene_drift
     cc = shutil.which("cc") or shutil.which("gcc")
@@ -501,8 +593,10 @@ def test_reduced_rk4_matches_the_hand_written_c_yardstick(tmp_path):
     tab = M.build_tables(sc)
     assert scene_drift.yardstick_layout(tab)
     h, n = 1e-3, 2000
-    r = mbdk.simulate(sc, "rk4", h=h, t_end=n * h, every=n)
-    y0 = np.concatenate([r.q[0], r.v[0]])
-    _, y = scene_drift.yardstick_run(scene_drift.yardstick_build(cc, tmp_path), tab, y0, n, h)
-    assert np.abs(y - y0).max() > 0.1
-    np.testing.assert_allclose(y, np.concatenate([r.q[-1], r.v[-1]]), rtol=0, atol=1e-11)
+    exe = scene_drift.yardstick_build(cc, tmp_path)
+    for solver in ("auto", "schur"):
+        r = mbdk.simulate(sc, "rk4", h=h, t_end=n * h, every=n, solver=solver)
+        y0 = np.concatenate([r.q[0], r.v[0]])
+        _, y = scene_drift.yardstick_run(exe, tab, y0, n, h)
+        assert np.abs(y - y0).max() > 0.1
+        np.testing.assert_allclose(y, np.concatenate([r.q[-1], r.v[-1]]), rtol=0, atol=1e-11)

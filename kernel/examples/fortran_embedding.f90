@@ -16,8 +16,8 @@ contains
   subroutine forced_rhs(self, t, y, f, stat)
     class(forced_decay_t), intent(in) :: self
     real(dp), intent(in) :: t
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: f(:)
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     f(1) = -y(1) + sin(t)
     stat = MBDK_SUCCESS

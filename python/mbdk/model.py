@@ -16,7 +16,17 @@ from .errors import Status, exception_for
 from .scene import COORDS, GROUND, Scene, SceneError
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
-SOLVERS = {"auto": 1, "schur": 2, "kkt": 3}
+#: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
+#: constraint rows), else schur when M is positive, else kkt (kernel/src/model/mbdk_model.f90)
+SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4}
+#: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (evaluate()["solve"])
+LINEAR_SOLVES = {0: "none (no constraints)",
+                 1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
+                 2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",
+                 3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
+                 4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
+                 5: "penalty: M + ap D^T D, in-house LDL^T",
+                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs"}
 JOINT_CODES = {"revolute": 1, "prismatic": 2, "fixed": 3, "driver": 4}
 JOINT_ROWS = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}
 FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring": 4, "damper": 4,
@@ -127,13 +137,13 @@ def fpar_vector(alpha=0.0, beta=0.0, penalty=(1e7, 10.0, 1.0), projection_tol=1e
 
 def evaluate(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None) -> dict:
     """Phi, D, gamma, Phi_t, generalised forces f, accelerations a and multipliers lam at one
-    state, from the kernel."""
+    state, from the kernel; solve: the linear solve the kernel took (LINEAR_SOLVES)."""
     fpar = fpar_vector() if fpar is None else fpar
     y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
-    phi, d, gam, phit, fq, acc, lam, status = _kernel.model_eval(
+    phi, d, gam, phit, fq, acc, lam, path, status = _kernel.model_eval(
         *tab.args(), FORMULATIONS[formulation], fpar, tab.m, float(t), y)
     return {"phi": phi, "D": d, "gamma": gam, "phit": phit, "f": fq, "a": acc, "lam": lam,
-            "status": Status(int(status))}
+            "solve": LINEAR_SOLVES.get(int(path), "not built"), "status": Status(int(status))}
 
 
 def profile(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None,

@@ -7,6 +7,14 @@ Formulations (Fekete 2023, section 3; kernel/src/model/mbdk_model.f90 is their m
   penalty     Jalon-Bayo (3.35)-(3.40): alpha_p, omega_p, mu_p = 1e7, 10, 1
   projection  reduced + projection of q onto Phi = 0 and of v onto Phi' = 0 after every step
 
+Linear solves (solver=; the manifest's linear_solve says which one ran):
+  auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
+                  schur when every body has mass and inertia, else kkt
+  revolute_schur  S = D M^-1 D^T in closed 2 x 2 blocks from the joint points, block LDL^T
+  schur           S from the nonzeros of D (any joint type), in-house block LDL^T up to 12 rows
+                  (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
+  kkt             [M D^T; D 0] by LAPACK's LU
+
 Outputs, one row per sample: t, q, v, a, multipliers, reactions (per joint: Fx, Fy and the
 moment about the joint point, exerted by the joint on its body1, global frame: -D_body1^T
 lambda), energy (kinetic + potential) with its parts, the work of dampers, constraints and
@@ -168,8 +176,14 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     tab = build_tables(scene)
     fpar = fpar_vector(alpha, beta, tuple(float(p) for p in penalty), projection_tol, solver,
                        small_dense)
-    if solver == "schur" and np.any(tab.inertia == 0):
-        raise InvalidInputError(f"solver = 'schur' needs every body to have inertia; "
+    if solver == "revolute_schur":
+        other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
+        if other:
+            raise InvalidInputError(f"{scene.source}: solver = 'revolute_schur' needs every joint "
+                                    f"to be revolute; not revolute: {', '.join(other)}. Use "
+                                    "solver = 'schur' or 'auto'")
+    if solver in ("schur", "revolute_schur") and np.any(tab.inertia == 0):
+        raise InvalidInputError(f"solver = {solver!r} needs every body to have inertia; "
                                 f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
                                 "use solver = 'kkt' or 'auto'")
     if assemble_initial:
@@ -177,8 +191,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     else:
         q0, v0, report = np.array(scene.q0(), float), np.array(scene.v0(), float), {}
     tab = build_tables(scene, q0)   # rest lengths and joint angles at the assembled pose
+    e0 = evaluate(tab, q0, v0, t0, formulation, fpar)
     if formulation != "penalty" and tab.m:
-        d0 = evaluate(tab, q0, v0, t0)["D"]
+        d0 = e0["D"]
         dep = dependent_rows(d0)
         if dep:
             names = rows_to_joints(tab, dep)
@@ -202,7 +217,8 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
     nc = tab.nc
     manifest = {**build_info(), "scene": scene.name, "source": scene.source, "method": method,
                 "formulation": formulation, "h": h, "t0": t0, "t_end": t_end, "every": every,
-                "steps": nsteps, "solver": solver, "small_dense": small_dense, "startup": startup,
+                "steps": nsteps, "solver": solver, "linear_solve": e0["solve"],
+                "small_dense": small_dense, "startup": startup,
                 "newton": {"rtol": newton_rtol, "atol": newton_atol, "max_iter": NEWTON_MAX_ITER}}
     if formulation == "baumgarte":
         manifest.update(alpha=alpha, beta=beta)

@@ -281,12 +281,13 @@ subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, f
 end subroutine model_solve
 
 subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                      formulation, fpar, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, status)
+                      formulation, fpar, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, path, status)
   ! Phi, D, gamma, Phi_t, the generalised forces and the formulation's accelerations and
-  ! multipliers at one state: for assembly, diagnosis and tests.
+  ! multipliers at one state: for assembly, diagnosis and tests. path: the linear solve the
+  ! evaluation took (MBDK_SOLVE_* of mbdk_model).
   use mbdk_kinds, only: i8
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
-    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_assemble
+    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_assemble, mbdk_model_linear_solve
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc
@@ -294,7 +295,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc)
   double precision, intent(out) :: phi(m), d(m, nc), gam(m), phit(m), fq(nc), acc(nc), lam(m)
-  integer, intent(out) :: status
+  integer, intent(out) :: path, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
@@ -302,12 +303,14 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
 
+  path = -1
   phi = 0.0d0; d = 0.0d0; gam = 0.0d0; phit = 0.0d0; fq = 0.0d0; acc = 0.0d0; lam = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
                        freal(:, 1:nf), formulation, fpar, work, status)
   if (status /= MBDK_SUCCESS) return
+  path = mbdk_model_linear_solve(model)
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return
   call mbdk_model_constraints(model, t, y(1:nc), y(nc + 1:), phi, d, gam, phit)

@@ -12,20 +12,28 @@
 !>                 Phi' = 0 (mass-weighted least change; Euclidean if a body has zero inertia)
 !> with Phi' = D v + Phi_t.
 !>
-!> Linear solves: when M is positive (every body has mass and inertia) the constrained systems
-!> are solved through the Schur complement S = D M^-1 D^T (M diagonal), assembled from the
-!> nonzeros of D only (mbdk_sparse_schur) and solved by an in-house root-free Cholesky
-!> (LDL^T) with the joints as pivot blocks, eliminating the right-hand side along with the
-!> matrix in one pass (mbdk_small_ldlt_solve_once: S serves one solve), up to
-!> MBDK_SMALL_DENSE_MAX rows (LAPACK's call overhead dominates such tiny systems), or by LAPACK
-!> dpotrf/dpotrs; otherwise (or when asked) the KKT matrix [M D^T; D 0] is factorised with
-!> LAPACK dgetrf. Dependent (redundant) constraint rows make S or the KKT matrix singular:
+!> Linear solves (solver = fpar(7)): when M is positive (every body has mass and inertia) the
+!> constrained systems are solved through the Schur complement S = D M^-1 D^T (M diagonal):
+!>   - every joint revolute (solver auto up to MBDK_SMALL_DENSE_MAX rows, or solver revolute):
+!>     S in closed form, 2 x 2 block by block, from the joint points' offsets, and its block
+!>     LDL^T written out for 2 x 2 pivots (mbdk_revolute_schur); the right-hand side of
+!>     D a = rc comes out of the same pass over the joints as gamma;
+!>   - otherwise (solver auto or schur) S assembled from the nonzeros of D (mbdk_sparse_schur)
+!>     and solved by an in-house root-free Cholesky (LDL^T) with the joints as pivot blocks,
+!>     eliminating the right-hand side along with the matrix in one pass
+!>     (mbdk_small_ldlt_solve_once: S serves one solve), up to MBDK_SMALL_DENSE_MAX rows
+!>     (LAPACK's call overhead dominates such tiny systems), or by LAPACK dpotrf/dpotrs;
+!>   - otherwise (or solver kkt) the KKT matrix [M D^T; D 0] is factorised with LAPACK dgetrf.
+!> Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
+!> Solver schur or revolute without M positive, or revolute with a joint of another type:
+!> MBDK_ERR_INVALID_INPUT at mbdk_model_init.
 !>
 !> An evaluation (mbdk_model_assemble) computes the sin/cos of every body's angle once, the
-!> forces, and Phi, gamma, Phi_t and D in the compact rows of mbdk_joints; the dense D
-!> (mbdk_model_constraints) is scattered from those rows for the penalty and KKT solves and for
-!> the index-3 integrators.
+!> forces, and Phi, gamma, Phi_t and D in the compact rows of mbdk_joints (on the revolute
+!> path: Phi, gamma, the joint points' offsets and the right-hand side rc instead of D); the
+!> dense D (mbdk_model_constraints) is scattered from those rows for the penalty and KKT solves
+!> and for the index-3 integrators.
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
@@ -44,14 +52,21 @@ module mbdk_model
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
     mbdk_sparse_schur_assemble, mbdk_sparse_d_times, mbdk_sparse_w_residual
+  use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
+    mbdk_revolute_kinematics, mbdk_revolute_solve
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_default_fpar, mbdk_model_assemble
+  public :: mbdk_model_default_fpar, mbdk_model_assemble, mbdk_model_linear_solve
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
-  integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3
+  integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3, &
+    MBDK_SOLVER_REVOLUTE = 4
+  !> the linear solve an evaluation takes (mbdk_model_linear_solve)
+  integer, parameter, public :: MBDK_SOLVE_NONE = 0, MBDK_SOLVE_REVOLUTE = 1, &
+    MBDK_SOLVE_SCHUR_SMALL = 2, MBDK_SOLVE_SCHUR_LAPACK = 3, MBDK_SOLVE_KKT = 4, &
+    MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
   integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
   !> outputs per sample: energy parts and residuals
   integer, parameter, public :: MBDK_OUT_ENERGY = 6, MBDK_OUT_RESID = 3
@@ -64,10 +79,11 @@ module mbdk_model
     integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
     real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
+    real(dp), allocatable :: pp(:, :)   !< perp(rho) of the joint ends (revolute path)
     real(dp), allocatable :: lam_rhs(:)   !< multipliers of rhs calls; never read inside them
-    !> contiguous copies of the state handed to rhs and post_step (which may be strided) and
-    !> of the accelerations rhs returns
-    real(dp), allocatable :: y_rhs(:), a_rhs(:)
+    !> the copy of the state post_step projects (y is returned only when both projections
+    !> succeed)
+    real(dp), allocatable :: y_post(:)
     real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
   end type mbdk_model_work_t
@@ -82,6 +98,9 @@ module mbdk_model
     !> single rows for M + ap D^T D
     integer, allocatable :: blk(:), row_blk(:)
     type(mbdk_sparse_schur_t) :: sp               !< pattern of D and of S = D M^-1 D^T
+    !> every joint revolute and S solved in-house: the closed-form Schur complement
+    logical :: revolute = .false.
+    type(mbdk_revolute_schur_t) :: rs
     real(dp), allocatable :: jreal(:, :), freal(:, :)
     integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
     logical :: small_dense = .true.
@@ -107,8 +126,8 @@ contains
   end function mbdk_model_default_fpar
 
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
-  !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense).
-  !> work must outlive the model. MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python
+  !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense), solver
+  !> one of MBDK_SOLVER_AUTO, _SCHUR, _KKT, _REVOLUTE. work must outlive the model. MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python
   !> layer names the element.
   subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, formulation, fpar, &
                              work, stat)
@@ -173,8 +192,9 @@ contains
     model%proj_tol = fpar(6)
     model%solver = nint(fpar(7))
     model%small_dense = fpar(8) /= 0.0_dp
-    if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_KKT) return
-    if (model%solver == MBDK_SOLVER_SCHUR .and. .not. model%m_positive) return
+    if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_REVOLUTE) return
+    if ((model%solver == MBDK_SOLVER_SCHUR .or. model%solver == MBDK_SOLVER_REVOLUTE) .and. &
+        .not. model%m_positive) return
     if (formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
     if (formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
     model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
@@ -186,16 +206,24 @@ contains
       call mbdk_joints_pattern(jint, jreal, model%row0, model%col, nz)
       call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv)
     end block
+    if (model%m > 0 .and. formulation /= MBDK_FORM_PENALTY .and. &
+        (model%solver == MBDK_SOLVER_REVOLUTE .or. (model%solver == MBDK_SOLVER_AUTO .and. &
+         model%m_positive .and. model%small_dense .and. model%m <= MBDK_SMALL_DENSE_MAX))) then
+      call mbdk_revolute_schur_init(model%rs, jint, jreal, model%winv, model%revolute)
+      if (model%solver == MBDK_SOLVER_REVOLUTE .and. .not. model%revolute) return
+    end if
     model%blk = [model%row0, m + 1]
     model%row_blk = [(j, j = 1, nc + 1)]
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%s, &
                                         work%xc, work%pm, work%kkt, work%rhs, work%ipiv, &
-                                        work%y_rhs, work%a_rhs)
+                                        work%y_post, work%pp)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%s(m, m), work%xc(nc), work%y_rhs(2 * nc), work%a_rhs(nc))
+              work%s(m, m), work%xc(nc), work%y_post(2 * nc), &
+              work%pp(2, 2 * size(jint, 2)))
+    work%phit = 0.0_dp
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%pm(nc, nc))
     else
@@ -210,6 +238,25 @@ contains
     model%has_jac = .false.
     stat = MBDK_SUCCESS
   end subroutine mbdk_model_init
+
+  !> Which linear solve mbdk_model_accelerations takes (MBDK_SOLVE_*), as solve_constrained
+  !> and the penalty branch decide it: for the manifest of a run.
+  pure integer function mbdk_model_linear_solve(self) result(path)
+    class(mbdk_model_t), intent(in) :: self
+    if (self%m == 0) then
+      path = MBDK_SOLVE_NONE
+    else if (self%formulation == MBDK_FORM_PENALTY) then
+      path = merge(MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK, &
+                   self%small_dense .and. self%nc <= MBDK_SMALL_DENSE_MAX)
+    else if (self%revolute) then
+      path = MBDK_SOLVE_REVOLUTE
+    else if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
+      path = merge(MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
+                   self%small_dense .and. self%m <= MBDK_SMALL_DENSE_MAX)
+    else
+      path = MBDK_SOLVE_KKT
+    end if
+  end function mbdk_model_linear_solve
 
   !> Phi, the dense D (m x nc), gamma, Phi_t at (q, v, t). Leaves work%rot and work%dz at q
   !> (work%rot also when there are no constraints).
@@ -226,7 +273,9 @@ contains
   end subroutine mbdk_model_constraints
 
   !> One evaluation's assembly at (t, q, v) into the work buffers: rot (one sin/cos pair per
-  !> body), fq, and phi, dz (D in compact rows), gam, phit. Non-finite q or v:
+  !> body), fq, and phi, dz (D in compact rows), gam, phit; on the revolute path phi, gam, pp
+  !> (the joint points' perp(rho)) and rc (the right-hand side of D a = rc) instead of dz and
+  !> phit. Non-finite q or v:
   !> MBDK_ERR_NONFINITE; a force element's failure is passed on.
   subroutine mbdk_model_assemble(self, t, q, v, stat)
     class(mbdk_model_t), intent(in) :: self
@@ -243,6 +292,17 @@ contains
       call mbdk_forces_eval(self%fint, self%freal, self%mass, w%rot, q, v, t, w%fq, &
                             w%visits(MBDK_JOINT_TYPES + 1:), stat)
       if (stat /= MBDK_SUCCESS .or. self%m == 0) return
+      if (self%revolute) then
+        w%visits(1) = w%visits(1) + self%rs%nj
+        if (self%formulation == MBDK_FORM_BAUMGARTE) then
+          call mbdk_revolute_kinematics(self%rs, w%rot, q, v, 2.0_dp * self%alpha, &
+                                        self%beta**2, w%pp, w%phi, w%gam, w%rc)
+        else
+          call mbdk_revolute_kinematics(self%rs, w%rot, q, v, 0.0_dp, 0.0_dp, w%pp, w%phi, &
+                                        w%gam, w%rc)
+        end if
+        return
+      end if
       call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, w%dz, &
                             w%gam, w%phit, w%visits(1:MBDK_JOINT_TYPES))
     end associate
@@ -251,20 +311,17 @@ contains
   subroutine model_rhs(self, t, y, f, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: f(:)
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
-    integer :: nc
+    integer :: nc, i
     nc = self%nc
-    ! y and f may be strided (the interface says y(:)): copied through contiguous buffers so
-    ! that nothing below packs (with a heap allocation) at every call
-    associate (w => self%work)
-      w%y_rhs = y
-      call mbdk_model_accelerations(self, t, w%y_rhs(1:nc), w%y_rhs(nc + 1:2 * nc), w%a_rhs, &
-                                    w%lam_rhs, stat)
-      f(1:nc) = w%y_rhs(nc + 1:2 * nc)
-      f(nc + 1:2 * nc) = w%a_rhs
-    end associate
+    ! y and f contiguous (mbdk_problem): the accelerations are written into f in place
+    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                  self%work%lam_rhs, stat)
+    do i = 1, nc
+      f(i) = y(nc + i)
+    end do
   end subroutine model_rhs
 
   !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
@@ -289,6 +346,11 @@ contains
           return
         end if
         a = w%fq * self%winv
+        return
+      end if
+      if (self%revolute) then   ! rc from mbdk_model_assemble
+        call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%s, SINGULAR_TOL, &
+                                 a, lam, stat)
         return
       end if
       select case (self%formulation)
@@ -421,7 +483,7 @@ contains
     m = self%m
     stat = MBDK_SUCCESS
     ! on a contiguous copy (y may be strided), returned only when both projections succeed
-    associate (w => self%work, yc => self%work%y_rhs)
+    associate (w => self%work, yc => self%work%y_post)
       yc = y
       do it = 0, self%proj_max_iter
         call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, w%d, w%gam, &

@@ -76,8 +76,8 @@ contains
   subroutine c_problem_rhs(self, t, y, f, stat)
     class(mbdk_c_problem_t), intent(in) :: self
     real(dp), intent(in) :: t
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: f(:)
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     stat = MBDK_SUCCESS
     if (self%f(int(self%n, c_int), t, y, f, self%user_data) /= 0) stat = MBDK_ERR_CALLBACK_FAILED
@@ -86,8 +86,8 @@ contains
   subroutine proc_problem_rhs(self, t, y, f, stat)
     class(mbdk_proc_problem_t), intent(in) :: self
     real(dp), intent(in) :: t
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: f(:)
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     integer :: flag(1)
     flag = 0

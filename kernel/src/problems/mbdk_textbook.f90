@@ -139,8 +139,8 @@ contains
   subroutine textbook_rhs(self, t, y, f, stat)
     class(mbdk_textbook_t), intent(in) :: self
     real(dp), intent(in) :: t
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: f(:)
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     real(dp) :: w2, a, sn, cs, d, m11, m12, m22, r1, r2, det, sd, cd
 
