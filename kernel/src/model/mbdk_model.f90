@@ -37,7 +37,8 @@
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
-!> nothing. The counters and the evaluation buffers live in a mbdk_model_work_t that the caller
+!> nothing. Gravity, constant in (q, v, t), is summed once at init and counted at every
+!> evaluation that starts from it. The counters and the evaluation buffers live in a mbdk_model_work_t that the caller
 !> owns and the model points to (rhs receives the problem read-only): an evaluation allocates
 !> nothing, which matters at a few hundred nanoseconds per evaluation.
 module mbdk_model
@@ -47,7 +48,8 @@ module mbdk_model
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_SLOTS, &
     mbdk_body_rotations, mbdk_body_point
-  use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES
+  use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
+    MBDK_FORCE_GRAVITY
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
@@ -102,6 +104,12 @@ module mbdk_model
     logical :: revolute = .false.
     type(mbdk_revolute_schur_t) :: rs
     real(dp), allocatable :: jreal(:, :), freal(:, :)
+    !> gravity's generalised force (constant: summed once at init) and how many gravity
+    !> elements it holds; the other force elements, which an evaluation visits
+    real(dp), allocatable :: fconst(:)
+    integer :: ngrav = 0
+    integer, allocatable :: fint_v(:, :)
+    real(dp), allocatable :: freal_v(:, :)
     integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
     logical :: small_dense = .true.
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp               !< Baumgarte
@@ -236,8 +244,33 @@ contains
     end if
     model%work => work
     model%has_jac = .false.
-    stat = MBDK_SUCCESS
+    call split_forces(model, stat)
   end subroutine mbdk_model_init
+
+  !> Gravity does not depend on (q, v, t): its generalised force is summed once (fconst, by
+  !> mbdk_forces_eval itself) and an evaluation starts from it, visiting only the other
+  !> elements (fint_v, freal_v, in table order).
+  subroutine split_forces(model, stat)
+    type(mbdk_model_t), intent(inout) :: model
+    integer, intent(out) :: stat
+    integer :: e, nf
+    integer(i8) :: unused(MBDK_FORCE_TYPES)
+    logical, allocatable :: grav(:)
+    integer, allocatable :: idx(:)
+    real(dp) :: rot(2, model%nb), y0(model%nc)
+    nf = size(model%fint, 2)
+    grav = model%fint(1, :) == MBDK_FORCE_GRAVITY
+    idx = [(e, e = 1, nf)]
+    model%ngrav = count(grav)
+    model%fint_v = model%fint(:, pack(idx, .not. grav))
+    model%freal_v = model%freal(:, pack(idx, .not. grav))
+    allocate (model%fconst(model%nc))
+    model%fconst = 0.0_dp
+    rot = 0.0_dp
+    y0 = 0.0_dp
+    call mbdk_forces_eval(model%fint(:, pack(idx, grav)), model%freal(:, pack(idx, grav)), &
+                          model%mass, rot, y0, y0, 0.0_dp, model%fconst, unused, stat)
+  end subroutine split_forces
 
   !> Which linear solve mbdk_model_accelerations takes (MBDK_SOLVE_*), as solve_constrained
   !> and the penalty branch decide it: for the manifest of a run.
@@ -288,9 +321,13 @@ contains
     end if
     associate (w => self%work)
       call mbdk_body_rotations(q, w%rot)
-      w%fq = 0.0_dp
-      call mbdk_forces_eval(self%fint, self%freal, self%mass, w%rot, q, v, t, w%fq, &
-                            w%visits(MBDK_JOINT_TYPES + 1:), stat)
+      w%fq = self%fconst
+      w%visits(MBDK_JOINT_TYPES + MBDK_FORCE_GRAVITY) = &
+        w%visits(MBDK_JOINT_TYPES + MBDK_FORCE_GRAVITY) + self%ngrav
+      stat = MBDK_SUCCESS
+      if (size(self%fint_v, 2) > 0) &
+        call mbdk_forces_eval(self%fint_v, self%freal_v, self%mass, w%rot, q, v, t, w%fq, &
+                              w%visits(MBDK_JOINT_TYPES + 1:), stat)
       if (stat /= MBDK_SUCCESS .or. self%m == 0) return
       if (self%revolute) then
         w%visits(1) = w%visits(1) + self%rs%nj
