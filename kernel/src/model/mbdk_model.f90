@@ -38,9 +38,10 @@
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
 !> nothing. Gravity, constant in (q, v, t), is summed once at init and counted at every
-!> evaluation that starts from it. The counters and the evaluation buffers live in a mbdk_model_work_t that the caller
-!> owns and the model points to (rhs receives the problem read-only): an evaluation allocates
-!> nothing, which matters at a few hundred nanoseconds per evaluation.
+!> evaluation that starts from it. The counters and the evaluation buffers live in a
+!> mbdk_model_work_t that the caller owns and the model points to (rhs receives the problem
+!> read-only): an evaluation allocates nothing, which matters at a hundred nanoseconds per
+!> evaluation.
 module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -135,8 +136,8 @@ contains
 
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
   !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense), solver
-  !> one of MBDK_SOLVER_AUTO, _SCHUR, _KKT, _REVOLUTE. work must outlive the model. MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python
-  !> layer names the element.
+  !> one of MBDK_SOLVER_AUTO, _SCHUR, _KKT, _REVOLUTE. work must outlive the model.
+  !> MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python layer names the element.
   subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, formulation, fpar, &
                              work, stat)
     type(mbdk_model_t), intent(out) :: model

@@ -3,7 +3,7 @@
 !> is the general one, and the two are checked against each other in tests/test_scenes.py).
 !>
 !> A revolute joint j between body b1 and body b2 (b2 = 0: the ground) has two rows,
-!> Phi_j = P1 - P2 (Fekete (2023) (1.16)), and its rows of D are, per end e on body b with sign
+!> Phi_j = P1 - P2 (Fekete (2023) section 1.3), and its rows of D are, per end e on body b with sign
 !> sigma_e = +1 (body1) or -1 (body2),
 !>
 !>   D_je = sigma_e [ I2, p_e ],     p_e = perp(rho_e) = (-rho_y, rho_x),  rho_e = A(theta_b) s_e
@@ -15,13 +15,16 @@
 !>
 !> (one term per pair of joint ends on a common body: a chain's S is block tridiagonal), and
 !>
-!>   S lam = D W f - r,      a = W (f - D^T lam),   (D^T lam)_b = sum_e sigma_e (lam_j, p_e . lam_j).
+!>   S lam = D W f - r,    a = W (f - D^T lam),    (D^T lam)_b = sum_e sigma_e (lam_j, p_e . lam_j).
 !>
-!> mbdk_revolute_schur_init lists the pairs of ends once per model with their weights
-!> sigma_e sigma_f w; an evaluation (mbdk_revolute_kinematics, then mbdk_revolute_solve) does
-!> the arithmetic of a hand-written reduction of the mechanism: no per-nonzero index lists, no
-!> compact rows of D. The solve is the block LDL^T of mbdk_small_dense with the joints as
-!> 2 x 2 pivot blocks (same singular test: dependent rows are MBDK_ERR_SINGULAR_MATRIX).
+!> mbdk_revolute_schur_init lists the pairs of ends of two different joints on a common body,
+!> once per model, with their weights sigma_e sigma_f w; an evaluation
+!> (mbdk_revolute_kinematics, then mbdk_revolute_solve) sums each diagonal block joint by
+!> joint and each off-diagonal one pair by pair: the arithmetic of a hand-written reduction
+!> of the mechanism, with no per-nonzero index lists and no compact rows of D. The solve is the
+!> block LDL^T of mbdk_small_dense with the joints as 2 x 2 pivot blocks, written out for that
+!> size (same singular test: dependent rows are MBDK_ERR_SINGULAR_MATRIX). A joint between a
+!> body and itself (which scenes refuse) is left to the general path.
 module mbdk_revolute_schur
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
@@ -36,8 +39,8 @@ module mbdk_revolute_schur
     !> ground end, the global point)
     integer, allocatable :: b(:, :)
     real(dp), allocatable :: s(:, :)
-    !> pairs of ends on a common body: flat position in s(m, m) of the (row, column) corner
-    !> of the 2 x 2 block (j >= k), the two ends (2 j - 1 or 2 j: end 1 or 2 of joint j), and
+    !> pairs of ends of joints j > k on a common body: flat position of the block S_jk in the
+    !> storage of block2_solve, the two ends (2 j - 1 or 2 j: end 1 or 2 of joint j), and
     !> sigma_e sigma_f w_m, sigma_e sigma_f w_I of the body
     integer, allocatable :: ppos(:), pe(:), pf(:)
     real(dp), allocatable :: pwm(:), pwi(:)
@@ -46,20 +49,19 @@ module mbdk_revolute_schur
 contains
 
   !> The lists of a model with joint table jint(4, nj), jreal(12, nj) (layout of mbdk_joints)
-  !> and weights winv(3 nb). ok = .false. when a joint is not revolute (the caller then takes
-  !> the general path).
+  !> and weights winv(3 nb). ok = .false. when a joint is not revolute or joins a body to
+  !> itself (the caller then takes the general path).
   subroutine mbdk_revolute_schur_init(rs, jint, jreal, winv, ok)
     type(mbdk_revolute_schur_t), intent(out) :: rs
     integer, intent(in) :: jint(:, :)
     real(dp), intent(in) :: jreal(:, :), winv(:)
     logical, intent(out) :: ok
-    integer :: nj, m, j, k, e, f, bj, pass, np
+    integer :: nj, j, k, e, f, bj, pass, np
     real(dp) :: sg
     nj = size(jint, 2)
     ok = all(jint(1, :) == MBDK_JOINT_REVOLUTE .and. jint(2, :) /= jint(3, :))
     if (.not. ok) return
     rs%nj = nj
-    m = 2 * nj
     rs%b = jint(2:3, :)
     rs%s = jreal(1:4, :)
     ! two passes: count, then fill
@@ -147,7 +149,9 @@ contains
 
   !> M a + D^T lam = f, D a = rc, with pp from mbdk_revolute_kinematics and winv = M^-1 (the
   !> weights of mbdk_revolute_schur_init): S lam = D W f - rc by block LDL^T, then
-  !> a = W (f - D^T lam). s(m, m) is a work array; tol the relative pivot of the singular test.
+  !> a = W (f - D^T lam). s is a work array of at least 2 nj (nj + 1) entries (the block
+  !> storage of block2_solve); tol the relative pivot of the singular test. Dependent rows:
+  !> MBDK_ERR_SINGULAR_MATRIX, with a and lam undefined.
   pure subroutine mbdk_revolute_solve(rs, nc, pp, f, winv, rc, s, tol, a, lam, stat)
     type(mbdk_revolute_schur_t), intent(in) :: rs
     integer, intent(in) :: nc
