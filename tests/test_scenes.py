@@ -334,9 +334,13 @@ def test_auto_solver_takes_the_closed_form_exactly_when_every_joint_is_revolute(
             taken.add(name)
     assert {"double_pendulum", "four_bar", "three_link_pendulum",
             "parallelogram_redundant"} <= taken
-    # the generic path for every other joint type
+    # the generic path for every other joint type; the penalty formulation's own matrix
     sc = scene_from_dict(_every_joint_type(), "inline.toml")
     assert M.evaluate(M.build_tables(sc), sc.q0(), sc.v0())["solve"].startswith("schur:")
+    sc, tab, q, v = state("double_pendulum")
+    for small, name in ((True, "in-house"), (False, "LAPACK")):
+        e = M.evaluate(tab, q, v, 0.0, "penalty", M.fpar_vector(small_dense=small))
+        assert e["solve"].startswith("penalty:") and name in e["solve"]
 
 
 @pytest.mark.parametrize("formulation", ["reduced", "baumgarte", "projection"])

@@ -47,8 +47,8 @@ module mbdk_model
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
-    mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_SLOTS, &
-    mbdk_body_rotations, mbdk_body_point
+    mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
+    MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
     MBDK_FORCE_GRAVITY
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
@@ -331,7 +331,7 @@ contains
                               w%visits(MBDK_JOINT_TYPES + 1:), stat)
       if (stat /= MBDK_SUCCESS .or. self%m == 0) return
       if (self%revolute) then
-        w%visits(1) = w%visits(1) + self%rs%nj
+        w%visits(MBDK_JOINT_REVOLUTE) = w%visits(MBDK_JOINT_REVOLUTE) + self%rs%nj
         if (self%formulation == MBDK_FORM_BAUMGARTE) then
           call mbdk_revolute_kinematics(self%rs, w%rot, q, v, 2.0_dp * self%alpha, &
                                         self%beta**2, w%pp, w%phi, w%gam, w%rc)
