@@ -101,16 +101,7 @@ module mbdk_model
     !> single rows for M + ap D^T D
     integer, allocatable :: blk(:), row_blk(:)
     type(mbdk_sparse_schur_t) :: sp               !< pattern of D and of S = D M^-1 D^T
-    !> every joint revolute and S solved in-house: the closed-form Schur complement
-    logical :: revolute = .false.
-    type(mbdk_revolute_schur_t) :: rs
     real(dp), allocatable :: jreal(:, :), freal(:, :)
-    !> gravity's generalised force (constant: summed once at init) and how many gravity
-    !> elements it holds; the other force elements, which an evaluation visits
-    real(dp), allocatable :: fconst(:)
-    integer :: ngrav = 0
-    integer, allocatable :: fint_v(:, :)
-    real(dp), allocatable :: freal_v(:, :)
     integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
     logical :: small_dense = .true.
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp               !< Baumgarte
@@ -118,6 +109,15 @@ module mbdk_model
     real(dp) :: proj_tol = 1.0e-12_dp
     integer :: proj_max_iter = 20
     type(mbdk_model_work_t), pointer :: work => null()
+    !> every joint revolute and S solved in-house: the closed-form Schur complement
+    logical :: revolute = .false.
+    type(mbdk_revolute_schur_t) :: rs
+    !> gravity's generalised force (constant: summed once at init) and how many gravity
+    !> elements it holds; the other force elements, which an evaluation visits
+    real(dp), allocatable :: fconst(:)
+    integer :: ngrav = 0
+    integer, allocatable :: fint_v(:, :)
+    real(dp), allocatable :: freal_v(:, :)
   contains
     procedure :: rhs => model_rhs
     procedure :: post_step => model_post_step
