@@ -72,7 +72,7 @@ def orders(out: Path, quick: bool):
                     prev = None
                 st = r.stats
                 row.update(newton_per_step=st.newton_iterations / max(st.steps, 1),
-                           lu_per_step=st.lu_factorizations / max(st.steps, 1),
+                           lu_per_step=st.nlu / max(st.steps, 1),
                            cpu_s=r.cpu_time)
                 rows.append(row)
     return write_table(rows, ["scene", "formulation", "h", "status", "err_q", "order_q", "err_v",
@@ -200,7 +200,7 @@ def cost(out: Path, quick: bool):
                      "formulation": form,
                      "us_per_step": 1e6 * best.cpu_time / st.steps,
                      "newton_per_step": st.newton_iterations / st.steps,
-                     "lu_per_step": st.lu_factorizations / st.steps, "steps": st.steps,
+                     "lu_per_step": st.nlu / st.steps, "steps": st.steps,
                      "cpu_s": best.cpu_time, "status": best.status.name})
     t_end = 4.0 if quick else 10.0
     ref = _run(sc, "rk4", "reduced", 1e-5, t_end, every=10**7)
@@ -217,7 +217,7 @@ def cost(out: Path, quick: bool):
         return {"measure": measure, "formulation": form,
                 "us_per_step": 1e6 * r.cpu_time / max(st.steps, 1),
                 "newton_per_step": st.newton_iterations / max(st.steps, 1),
-                "lu_per_step": st.lu_factorizations / max(st.steps, 1), "steps": st.steps,
+                "lu_per_step": st.nlu / max(st.steps, 1), "steps": st.steps,
                 "error": err(r), "cpu_s": r.cpu_time, "status": r.status.name, **extra}
 
     progress("cost: time to 1e-6, fixed step")

@@ -111,7 +111,7 @@ def chaos(out: Path, quick: bool):
         sep = r.t[np.argmax(dev > 0.1)] if np.any(dev > 0.1) else None
         e = r.energy()
         rows.append({"method": m, "h": h, "steps": r.stats.steps,
-                     "rhs_evals": r.stats.rhs_evals,
+                     "nfev": r.stats.nfev,
                      "departs_from_reference_at_s (|dphi2| > 0.1 rad)": sep,
                      "max_|E-E0|_J": float(np.max(np.abs(e - e[0]))), "cpu_s": r.cpu_time})
         ax[0].plot(r.t, np.degrees(r.y[:, 1]), label=m)

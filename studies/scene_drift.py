@@ -98,7 +98,7 @@ def speed(out: Path, quick: bool):
         for _ in range(3):
             r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=t_end, every=10**6, **kw)
             best = min(best, r.cpu_time / r.stats.steps)
-        prof = min((M.profile(tab, q, v, fpar=M.fpar_vector(**kw), nrep=20000 if quick else 200000)
+        prof = min((M.profile(tab, q, v, options=M.model_options(**kw), nrep=20000 if quick else 200000)
                     for _ in range(3)), key=lambda p: p["evaluation_ns"])
         step = 1e9 * best
         integ = max(step - 4 * prof["evaluation_ns"], 0.0)

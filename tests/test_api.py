@@ -12,11 +12,11 @@ def test_issue_example():
     want = np.linalg.matrix_power(np.eye(2) + 0.01 * a, 1000) @ [5.0, 1.0]
     assert np.allclose(r.y[-1], want, rtol=1e-11)
     assert r.success and r.status == mbdk.Status.SUCCESS and r.message == "success"
-    assert r.stats.steps == 1000 and r.stats.rhs_evals == 1000 and r.cpu_time >= 0
+    assert r.stats.steps == 1000 and r.stats.nfev == 1000 and r.cpu_time >= 0
 
 
 @pytest.mark.parametrize("problem", sorted(mbdk.problems()))
-@pytest.mark.parametrize("method", sorted(mbdk.methods()))
+@pytest.mark.parametrize("method", sorted(mbdk.methods("ode")))
 def test_every_method_and_problem_by_name(problem, method):
     info = mbdk.problems()[problem]
     if method == "euler_cromer" and not info.second_order:
@@ -69,9 +69,9 @@ def test_listings_carry_properties():
 def test_newton_statistics_are_counted():
     r = mbdk.solve_ode("damped_oscillator", "implicit_euler", h=0.01, t_end=1.0)
     s = r.stats
-    assert s.steps == 100 and s.jac_evals >= 100 and s.lu_factorizations >= 100
+    assert s.steps == 100 and s.njev >= 100 and s.nlu >= 100
     # a linear problem: the first Newton update is exact, the second confirms it
     assert 100 <= s.newton_iterations <= 200
     fd = mbdk.solve_ode("damped_oscillator", "implicit_euler", h=0.01, t_end=1.0,
                         fd_jacobian=True)
-    assert np.allclose(fd.y, r.y, rtol=1e-7) and fd.stats.rhs_evals > s.rhs_evals
+    assert np.allclose(fd.y, r.y, rtol=1e-7) and fd.stats.nfev > s.nfev

@@ -37,4 +37,7 @@ def test_every_failure_has_a_named_exception_and_message():
         assert status_message(s) != f"unknown status code {s.value}"
         if s.failed:
             cls = exception_for(s)
-            assert issubclass(cls, MbdkError) and cls is not MbdkError
+            if s == Status.ERR_INTERRUPTED:   # Ctrl-C stays a KeyboardInterrupt, not an Exception
+                assert issubclass(cls, KeyboardInterrupt) and not issubclass(cls, Exception)
+            else:
+                assert issubclass(cls, MbdkError) and cls is not MbdkError

@@ -73,7 +73,7 @@ static int run(mbdk_index3_options *opt, double t_end, double *q_end, mbdk_stats
         printf("  formulation %d adaptive %d: %d samples, %lld steps, %lld Newton, %lld LU, "
                "%lld rejected, max|Phi| %.2e, max|dE| %.2e, %.4f s\n", opt->formulation,
                opt->adaptive, nw, (long long)st->steps, (long long)st->newton_iterations,
-               (long long)st->lu_factorizations, (long long)st->rejected_steps, worst_phi,
+               (long long)st->nlu, (long long)st->rejected_steps, worst_phi,
                worst_e, st->cpu_time);
         if (nw != nsamp || worst_phi > 1e-10 || worst_e > 1e-3) status = -1001;
         for (int i = 0; i < 6; i++) q_end[i] = y[12 * (nw - 1) + i];

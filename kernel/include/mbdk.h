@@ -3,7 +3,9 @@
  * Link with libmbdk (static, PIC): `pkg-config --cflags --libs mbdk`.
  * Every function returns a status (0 success, > 0 success with a note, < 0 failure) or an id;
  * nothing prints and nothing stops the process. The status table is mirrored from
- * kernel/src/core/mbdk_status.f90; tests/test_status.py checks that the two agree.
+ * kernel/src/core/mbdk_status.f90; tests/test_status.py checks that the two agree. The structs
+ * (options, statistics) are the kernel's bind(C) types; kernel/tests/c_struct_layout.c checks
+ * every field's offset against the kernel's own layout (mbdk_struct_field).
  */
 #ifndef MBDK_H
 #define MBDK_H
@@ -28,16 +30,20 @@ enum mbdk_status {
     MBDK_ERR_SINGULAR_MATRIX = -21,
     MBDK_ERR_NONFINITE = -30,
     MBDK_ERR_CALLBACK_FAILED = -40,
-    MBDK_ERR_BACKEND = -50
+    MBDK_ERR_BACKEND = -50,
+    MBDK_ERR_INTERRUPTED = -60
 };
 
-/* Options of a fixed-step solve; fill with mbdk_default_options, then set method and h. */
+/* Options of a fixed-step solve (kernel/src/core/mbdk_options.f90); fill with
+ * mbdk_default_options, then set method and h. */
 typedef struct mbdk_options {
-    int method;          /* from mbdk_method_id("rk4") etc. */
     double h;            /* step size */
-    int every;           /* keep every k-th step as a sample (the last one always) */
     double newton_rtol;  /* implicit methods: Newton stops when WRMS(update) < 1 */
     double newton_atol;
+    volatile int *interrupt;  /* NULL, or a flag another thread (or a signal handler) sets
+                                 non-zero to stop the solve: MBDK_ERR_INTERRUPTED */
+    int method;          /* from mbdk_method_id("rk4") etc. */
+    int every;           /* keep every k-th step as a sample (the last one always) */
     int newton_max_iter;
     int fd_jacobian;     /* callbacks have no Jacobian: finite differences are always used */
     int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
@@ -47,10 +53,19 @@ typedef struct mbdk_options {
 /* Start-up of bdf2..bdf6: RK4 steps (the book, (4.80)) or BDF steps of rising order. */
 enum mbdk_startup { MBDK_STARTUP_RK4 = 0, MBDK_STARTUP_BDF = 1 };
 
+/* Statistics of a solve (kernel/src/core/mbdk_stats.f90); SciPy's names where they mean the
+ * same. */
 typedef struct mbdk_stats {
-    int64_t steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, startup_steps;
-    double cpu_time;     /* CPU seconds of the time loop, measured in the kernel */
-    int64_t rejected_steps, newton_failures;  /* step-size control: error test, Newton */
+    int64_t steps;              /* accepted steps (start-up steps included) */
+    int64_t nfev;               /* evaluations of F (finite-difference columns included) */
+    int64_t njev;               /* Jacobian evaluations */
+    int64_t nlu;                /* factorisations of a Newton matrix (LU or LDL^T) */
+    int64_t newton_iterations;
+    int64_t startup_steps;      /* steps of a multistep method's start-up */
+    int64_t rejected_steps;     /* step-size control: rejected by the error test */
+    int64_t newton_failures;    /* steps retried because Newton failed */
+    double cpu_time;            /* CPU seconds of the solving thread in the time loop */
+    double wall_time;           /* wall-clock seconds of the time loop */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure
@@ -78,14 +93,15 @@ int mbdk_solve_ode(mbdk_rhs_fn f, void *user_data, int n, double t0, double t_en
 enum mbdk_index3_formulation { MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2 };
 
 typedef struct mbdk_index3_options {
-    int formulation;       /* MBDK_INDEX3_BOOK (the book's scheme) or MBDK_INDEX3_AUGMENTED */
     double h;              /* fixed step, or the first step when adaptive */
-    int every;             /* fixed step: keep every k-th step as a sample */
     double newton_rtol, newton_atol;   /* on the position update; max |Phi| <= newton_atol */
-    int newton_max_iter;
     double alpha;          /* augmented penalty; 0 = 1e3 max(M) / (h^2/4) at every step */
+    double err_rtol, err_atol, dt_out, h_min, h_max;   /* adaptive; h_min, h_max: 0 = automatic */
+    volatile int *interrupt;   /* NULL, or a flag set non-zero to stop: MBDK_ERR_INTERRUPTED */
+    int formulation;       /* MBDK_INDEX3_BOOK (the book's scheme) or MBDK_INDEX3_AUGMENTED */
+    int every;             /* fixed step: keep every k-th step as a sample */
+    int newton_max_iter;
     int adaptive;          /* non-zero: step-size control (augmented only), samples every dt_out */
-    double err_rtol, err_atol, dt_out, h_min, h_max;   /* h_min, h_max: 0 = automatic */
 } mbdk_index3_options;
 
 void mbdk_index3_default_options(mbdk_index3_options *opt);
@@ -107,6 +123,29 @@ int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj,
                       const mbdk_index3_options *opt, double t0, double t_end, const double *y0,
                       int nsamp, double *t_out, double *y_out, double *a_out, double *lam_out,
                       int *iters_out, int *nwritten, mbdk_stats *stats);
+
+/* Options of a scene model (kernel/src/model/mbdk_model.f90): the formulation of the ODE
+ * methods, the linear solver and the formulations' parameters. mbdk_index3_solve uses the
+ * defaults. */
+enum mbdk_formulation { MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, MBDK_FORM_PENALTY = 3,
+                        MBDK_FORM_PROJECTION = 4 };
+enum mbdk_solver { MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3,
+                   MBDK_SOLVER_REVOLUTE = 4 };
+typedef struct mbdk_model_options {
+    double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
+    double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */
+    double projection_tol;        /* max |Phi| after the projection of q */
+    int formulation;              /* enum mbdk_formulation */
+    int solver;                   /* enum mbdk_solver */
+    int small_dense;              /* 0: LAPACK for every factorisation */
+    int projection_max_iter;
+} mbdk_model_options;
+
+/* The kernel's layout of the structs above, for checking a binding against it: struct id
+ * 1 mbdk_stats, 2 mbdk_options, 3 mbdk_index3_options, 4 mbdk_model_options. Field types:
+ * 1 int, 2 int64_t, 3 double, 4 pointer. Both return MBDK_ERR_INVALID_INPUT past the end. */
+int mbdk_struct_info(int id, char *name, int namelen, int *nbytes, int *nfields);
+int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *type);
 
 /* Copies the message of a status into buf (NUL-terminated). */
 int mbdk_status_message(int status, char *buf, int buflen);

@@ -22,6 +22,7 @@ int main(void)
         {"ERR_NONFINITE", MBDK_ERR_NONFINITE},
         {"ERR_CALLBACK_FAILED", MBDK_ERR_CALLBACK_FAILED},
         {"ERR_BACKEND", MBDK_ERR_BACKEND},
+        {"ERR_INTERRUPTED", MBDK_ERR_INTERRUPTED},
     };
     const int nheader = (int)(sizeof header / sizeof header[0]);
     int i, code, nkernel = 0, fails = 0;

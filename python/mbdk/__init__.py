@@ -7,11 +7,12 @@
 from . import exact  # noqa: F401
 from .errors import (BackendError, CallbackError, InvalidInputError, MbdkError,
                      NewtonDivergedError, NonFiniteSolutionError, NotApplicableError,
-                     SingularMatrixError, Status, StepTooSmallError, UnknownMethodError,
-                     UnknownParameterError, UnknownProblemError)
+                     SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
+                     UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
 from .ode import build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
+from .options import Index3Options, ModelOptions, ODEOptions
 from .result import ODEResult, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
@@ -24,5 +25,6 @@ __all__ = [
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
-    "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError",
+    "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
+    "ODEOptions", "Index3Options", "ModelOptions",
 ]

@@ -25,6 +25,7 @@ class Status(IntEnum):
     ERR_NONFINITE = -30
     ERR_CALLBACK_FAILED = -40
     ERR_BACKEND = -50
+    ERR_INTERRUPTED = -60
 
     @property
     def failed(self) -> bool:
@@ -97,6 +98,18 @@ class BackendError(MbdkError):
     status = Status.ERR_BACKEND
 
 
+class SolveInterrupted(KeyboardInterrupt):
+    """A solve stopped by Ctrl-C (or its interrupt flag): a KeyboardInterrupt, so that code which
+    catches Exception does not swallow it, carrying the partial result (the samples up to the
+    interruption) and the kernel status ERR_INTERRUPTED."""
+
+    status = Status.ERR_INTERRUPTED
+
+    def __init__(self, message: str, *, status: Status | None = None, result=None):
+        super().__init__(message)
+        self.result = result
+
+
 _BY_STATUS = {
     Status.ERR_INVALID_INPUT: InvalidInputError,
     Status.ERR_UNKNOWN_METHOD: UnknownMethodError,
@@ -109,10 +122,11 @@ _BY_STATUS = {
     Status.ERR_NONFINITE: NonFiniteSolutionError,
     Status.ERR_CALLBACK_FAILED: CallbackError,
     Status.ERR_BACKEND: BackendError,
+    Status.ERR_INTERRUPTED: SolveInterrupted,
 }
 
 
-def exception_for(status: Status) -> type[MbdkError]:
+def exception_for(status: Status) -> type:
     """The exception class that stands for a failure status."""
     return _BY_STATUS.get(Status(status), MbdkError)
 

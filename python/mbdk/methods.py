@@ -13,15 +13,21 @@ from .errors import UnknownMethodError, _decode
 class MethodInfo:
     name: str
     id: int
-    family: str          # explicit_rk | euler_cromer | implicit_lmm
+    family: str          # explicit_rk | euler_cromer | implicit_lmm | dae_index3
     order: int
     implicit: bool
     steps: int           # previous values used (1 for one-step methods)
     stability: str
     reference: str
 
+    @property
+    def solves(self) -> str:
+        """'ode': any y' = F(t, y), scenes through a formulation; 'dae': scenes only (their
+        index-3 DAE, formulations index3 and augmented_lagrangian)."""
+        return "dae" if self.family == "dae_index3" else "ode"
 
-_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm"}
+
+_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3"}
 
 _ABOUT = {
     "explicit_euler": ("conditionally stable: |1 + h*lambda| <= 1", "Fekete (2023) (4.6)"),
@@ -37,6 +43,10 @@ _ABOUT = {
     "bdf4": ("A(alpha)-stable, alpha = 73.35 deg", "Fekete (2023) (4.80); Gear (1971)"),
     "bdf5": ("A(alpha)-stable, alpha = 51.84 deg", "Gear (1971)"),
     "bdf6": ("A(alpha)-stable, alpha = 17.84 deg", "Gear (1971)"),
+    "trapezoidal_index3": ("no numerical damping; the book's scheme is unstable in the "
+                           "constrained directions, the augmented Lagrangian with projections "
+                           "(ALI3-P) is not", "Fekete (2023) (3.11)-(3.16); Bayo and Ledesma "
+                           "(1996)"),
 }
 
 
@@ -51,7 +61,8 @@ def _load() -> dict[str, MethodInfo]:
         fam = _FAMILIES[int(family)]
         steps = int(name[3:]) if name.startswith("bdf") else 1
         stability, ref = _ABOUT[name]
-        out[name] = MethodInfo(name, i, fam, int(order), fam == "implicit_lmm", steps, stability, ref)
+        out[name] = MethodInfo(name, i, fam, int(order), fam in ("implicit_lmm", "dae_index3"),
+                               steps, stability, ref)
         i += 1
     return out
 
@@ -59,9 +70,12 @@ def _load() -> dict[str, MethodInfo]:
 _REGISTRY = _load()
 
 
-def methods() -> dict[str, MethodInfo]:
-    """Every method, by name, with its properties."""
-    return dict(_REGISTRY)
+def methods(solves: str | None = None) -> dict[str, MethodInfo]:
+    """Every method, by name, with its properties; solves='ode' (what solve_ode and the scene
+    formulations take) or 'dae' (trapezoidal_index3: scenes only) selects one kind."""
+    if solves not in (None, "ode", "dae"):
+        raise ValueError(f"solves = {solves!r} must be None, 'ode' or 'dae'")
+    return {k: m for k, m in _REGISTRY.items() if solves is None or m.solves == solves}
 
 
 def method(name: str) -> MethodInfo:

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _kernel
 from .errors import Status, exception_for
+from .options import ModelOptions
 from .scene import COORDS, GROUND, Scene, SceneError
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
@@ -32,9 +33,19 @@ JOINT_ROWS = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}
 FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring": 4, "damper": 4,
                "spring_damper": 4, "coordinate_spring": 5, "coordinate_damper": 5,
                "coordinate_spring_damper": 5}
-#: the kernel's visit counters, in order (joints 1..4, forces 5..9)
-VISIT_NAMES = ["revolute", "prismatic", "fixed", "driver", "gravity", "point_force", "torque",
-               "spring_damper", "coordinate_spring_damper"]
+def _visit_names() -> list[str]:
+    from .errors import _decode
+    out, i = [], 1
+    while True:
+        name = _decode(_kernel.visit_name(i))
+        if not name:
+            return out
+        out.append(name)
+        i += 1
+
+
+#: the kernel's visit counters, in its order (mbdk_model's MBDK_VISIT_NAMES)
+VISIT_NAMES = _visit_names()
 
 
 @dataclass
@@ -129,31 +140,42 @@ def build_tables(sc: Scene, q0=None) -> Tables:
     return Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows)
 
 
-def fpar_vector(alpha=0.0, beta=0.0, penalty=(1e7, 10.0, 1.0), projection_tol=1e-12,
-                solver="auto", small_dense=True) -> np.ndarray:
-    return np.array([alpha, beta, penalty[0], penalty[1], penalty[2], projection_tol,
-                     SOLVERS[solver], 1.0 if small_dense else 0.0])
+def model_options(formulation: str = "reduced", alpha: float = 0.0, beta: float = 0.0,
+                  penalty=(1e7, 10.0, 1.0), projection_tol: float = 1e-12, solver: str = "auto",
+                  small_dense: bool = True) -> ModelOptions:
+    """The kernel model's options (struct mbdk_model_options) from simulate's names: alpha and
+    beta are Baumgarte's, penalty = (alpha_p, omega_p, mu_p) Jalon-Bayo's."""
+    return ModelOptions(baumgarte_alpha=float(alpha), baumgarte_beta=float(beta),
+                        penalty_alpha=float(penalty[0]), penalty_omega=float(penalty[1]),
+                        penalty_mu=float(penalty[2]), projection_tol=float(projection_tol),
+                        formulation=FORMULATIONS[formulation], solver=SOLVERS[solver],
+                        small_dense=int(bool(small_dense)))
 
 
-def evaluate(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None) -> dict:
+def _options(formulation: str, options: ModelOptions | None) -> ModelOptions:
+    from dataclasses import replace
+    return replace(options or ModelOptions(), formulation=FORMULATIONS[formulation])
+
+
+def evaluate(tab: Tables, q, v, t=0.0, formulation="reduced",
+             options: ModelOptions | None = None) -> dict:
     """Phi, D, gamma, Phi_t, generalised forces f, accelerations a and multipliers lam at one
-    state, from the kernel; solve: the linear solve the kernel took (LINEAR_SOLVES)."""
-    fpar = fpar_vector() if fpar is None else fpar
+    state, from the kernel; solve: the linear solve the kernel took (LINEAR_SOLVES). options:
+    model_options(...) for the solver and the formulation's parameters."""
     y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
     phi, d, gam, phit, fq, acc, lam, path, status = _kernel.model_eval(
-        *tab.args(), FORMULATIONS[formulation], fpar, tab.m, float(t), y)
+        *tab.args(), _options(formulation, options).pack(), tab.m, float(t), y)
     return {"phi": phi, "D": d, "gamma": gam, "phit": phit, "f": fq, "a": acc, "lam": lam,
             "solve": LINEAR_SOLVES.get(int(path), "not built"), "status": Status(int(status))}
 
 
-def profile(tab: Tables, q, v, t=0.0, formulation="reduced", fpar=None,
-            nrep: int = 100000) -> dict:
+def profile(tab: Tables, q, v, t=0.0, formulation="reduced",
+            options: ModelOptions | None = None, nrep: int = 100000) -> dict:
     """ns per evaluation of the assembly alone (forces, Phi, D, gamma) and of a full evaluation
     (assembly + the formulation's linear solve), timed in the kernel over nrep repetitions."""
-    fpar = fpar_vector() if fpar is None else fpar
     y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
-    sec, status = _kernel.model_profile(*tab.args(), FORMULATIONS[formulation], fpar, float(t),
-                                        y, int(nrep))
+    sec, status = _kernel.model_profile(*tab.args(), _options(formulation, options).pack(),
+                                        float(t), y, int(nrep))
     if status != 0:
         raise exception_for(Status(int(status)))(f"profiling failed: {Status(int(status)).name}")
     return {"assembly_ns": 1e9 * sec[0] / nrep, "evaluation_ns": 1e9 * sec[1] / nrep,

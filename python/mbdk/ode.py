@@ -14,22 +14,21 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from . import _kernel
-from .errors import (CallbackError, InvalidInputError, NotApplicableError, Status, _decode,
-                     exception_for, status_message)
-from .methods import method as _method
+from . import _compiled, _kernel
+from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
+                     Status, _decode, exception_for, status_message)
+from .methods import method as _method, methods
+from .options import ODEOptions, empty
 from .problems import problem as _problem, resolve_params
 from .result import ODEResult, Stats
 
-NEWTON_RTOL = 1e-10
-NEWTON_ATOL = 1e-12
-NEWTON_MAX_ITER = 10
-
 # f2py's callback machinery keeps the Python function in module state: one callback solve at a
-# time (compiled problems need no lock).
+# time (compiled problems need no lock), and none started from inside a callback (the inner one
+# would wait for the lock its own caller holds).
 _CALLBACK_LOCK = threading.Lock()
+_IN_CALLBACK = threading.local()
 
-_STARTUP = {"rk4": 0, "bdf": 1}
+STARTUP = {"rk4": 0, "bdf": 1}
 MAX_STEPS = 2_000_000_000        # the kernel's limit (mbdk_fixed_step: MAX_STEPS)
 _INT_MAX = 2**31 - 1
 
@@ -87,9 +86,13 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     raise_on_failure: a failure inside the kernel raises its named exception (default); with
              False the partial result is returned with its status.
     """
-    if startup not in _STARTUP:
-        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(_STARTUP)}")
+    if startup not in STARTUP:
+        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
     info_m = _method(method)
+    if info_m.solves != "ode":
+        raise NotApplicableError(f"{method} integrates a scene's index-3 DAE, not an ODE: use "
+                                 f"mbdk.simulate(scene, {method!r}, ...); for ODEs one of "
+                                 f"{', '.join(methods('ode'))}")
     t0 = _real("t0", t0)
     t_end = _real("t_end", t_end)
     h = _real("h", h)
@@ -103,6 +106,8 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
     nsteps, nsamp, shortened = plan(t0, t_end, h, int(every))
+    opt = ODEOptions(h=h, method=info_m.id, every=int(every), startup=STARTUP[startup],
+                     fd_jacobian=int(bool(fd_jacobian)))
     if shortened and info_m.steps > 1:
         n_lo = math.floor((t_end - t0) / h)
         raise InvalidInputError(
@@ -110,8 +115,7 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
             f"number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or h = {(t_end - t0) / (n_lo + 1):.12g}")
 
     if callable(problem):
-        return _solve_callback(problem, info_m, h, t0, t_end, y0, int(every), nq, nsamp,
-                               _STARTUP[startup], raise_on_failure)
+        return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure)
 
     info_p = _problem(problem)
     if y0 is None:
@@ -123,18 +127,20 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
         raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
                                  f"{problem!r} is first order. Use explicit_euler, heun or rk4")
     merged, pvec = resolve_params(info_p, params, len(y0))
-    t, y, stats, nw, status = _kernel.solve_problem(
-        info_p.id, info_m.id, y0, t0, t_end, h, int(every), pvec, NEWTON_RTOL, NEWTON_ATOL,
-        NEWTON_MAX_ITER, int(bool(fd_jacobian)), _STARTUP[startup], nsamp)
+    stats, flag = empty("mbdk_stats"), _compiled.new_flag()
+    (t, y, nw, status), interrupted = _compiled.call(
+        _kernel.solve_problem, (info_p.id, y0, t0, t_end, pvec, opt.pack(), flag, nsamp, stats),
+        flag, nsteps * len(y0))
     manifest = {**build_info(), "problem": problem, "method": method, "h": h, "t0": t0,
                 "t_end": t_end, "every": int(every), "steps": nsteps,
                 "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
                            for k, v in merged.items()},
                 "y0": y0.tolist(), "startup": startup,
                 "jacobian": "finite differences" if fd_jacobian else "analytic where available",
-                "newton": {"rtol": NEWTON_RTOL, "atol": NEWTON_ATOL, "max_iter": NEWTON_MAX_ITER}}
+                "newton": {"rtol": opt.newton_rtol, "atol": opt.newton_atol,
+                           "max_iter": opt.newton_max_iter}}
     return _finish(t, y, stats, nw, status, manifest, problem, method, merged, t0, y0,
-                   raise_on_failure, None)
+                   raise_on_failure, None, interrupted)
 
 
 def _state(name: str, value, n: int | None) -> np.ndarray:
@@ -156,12 +162,16 @@ def _state(name: str, value, n: int | None) -> np.ndarray:
 
 
 def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
-            raise_on_failure, failure_note):
+            raise_on_failure, failure_note, interrupted=False):
     status = Status(int(status))
-    result = ODEResult(t=np.array(t[:nw]), y=np.array(y[:, :nw].T), stats=Stats.from_array(stats),
+    result = ODEResult(t=np.array(t[:nw]), y=np.array(y[:, :nw].T), stats=Stats.from_words(stats),
                        status=status, message=status_message(status), manifest=manifest,
                        problem=problem if isinstance(problem, str) else "",
                        method=method, params=params, t0=t0, y0=y0)
+    if status == Status.ERR_INTERRUPTED or interrupted:
+        # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
+        raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else
+                               f"{method}: interrupted", status=status, result=result)
     if status.failed and raise_on_failure:
         where = f"at t = {result.t[-1]:.6g}" if nw else "before the first step"
         msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {result.message} ({where})"
@@ -171,7 +181,12 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
     return result
 
 
-def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, startup, raise_on_failure):
+def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure):
+    if getattr(_IN_CALLBACK, "active", False):
+        raise NotApplicableError(
+            "solve_ode with a Python right-hand side was called from inside a Python right-hand "
+            "side: nested callback solves are refused (f2py keeps one Python callback per "
+            "solve). Use a compiled problem for the inner solve, or run it outside the callback")
     if y0 is None:
         raise InvalidInputError("a Python right-hand side needs y0")
     y0 = _state("y0", y0, None)
@@ -190,16 +205,23 @@ def _solve_callback(fun, info_m, h, t0, t_end, y0, every, nq, nsamp, startup, ra
             if not failure:
                 failure.append(exc)
 
+    from dataclasses import replace
+    opt = replace(opt, nq=int(nq))
+    stats = empty("mbdk_stats")
     with _CALLBACK_LOCK:
-        t, y, stats, nw, status = _kernel.solve_callback(
-            cb, y0, t0, t_end, h, info_m.id, every, nq, NEWTON_RTOL, NEWTON_ATOL,
-            NEWTON_MAX_ITER, startup, nsamp)
+        _IN_CALLBACK.active = True
+        try:
+            t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), nsamp,
+                                                      stats)
+        finally:
+            _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,
-                "h": h, "t0": t0, "t_end": t_end, "every": every, "y0": y0.tolist()}
+                "h": opt.h, "t0": t0, "t_end": t_end, "every": opt.every, "y0": y0.tolist()}
     note = f"{type(failure[0]).__name__}: {failure[0]}" if failure else None
     try:
         return _finish(t, y, stats, nw, status, manifest, fun, info_m.name, {}, t0, y0,
-                       raise_on_failure, note)
+                       raise_on_failure, note,
+                       bool(failure) and isinstance(failure[0], KeyboardInterrupt))
     except CallbackError as exc:
         raise exc from (failure[0] if failure else None)
 

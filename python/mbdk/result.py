@@ -10,22 +10,26 @@ from .errors import Status
 
 @dataclass(frozen=True)
 class Stats:
-    """Counted inside the kernel; cpu_time is the CPU time of the compiled time loop."""
+    """struct mbdk_stats, counted inside the kernel (kernel/src/core/mbdk_stats.f90; the counters
+    SciPy users know keep SciPy's names). cpu_time is the solving thread's CPU time of the
+    compiled time loop, wall_time its wall-clock time."""
 
     steps: int = 0
-    rhs_evals: int = 0
-    jac_evals: int = 0
-    lu_factorizations: int = 0     # factorisations of a Newton matrix (LU or LDL^T)
+    nfev: int = 0                  # evaluations of F, finite-difference columns included
+    njev: int = 0                  # Jacobian evaluations
+    nlu: int = 0                   # factorisations of a Newton matrix (LU or LDL^T)
     newton_iterations: int = 0
     startup_steps: int = 0
-    cpu_time: float = 0.0
     rejected_steps: int = 0        # step-size control: steps rejected by the error test
-    newton_failures: int = 0       # step-size control: steps retried because Newton failed
+    newton_failures: int = 0       # steps retried because Newton failed
+    cpu_time: float = 0.0
+    wall_time: float = 0.0
 
     @classmethod
-    def from_array(cls, a) -> "Stats":
-        extra = [int(round(x)) for x in a[7:9]]
-        return cls(*(int(round(x)) for x in a[:6]), float(a[6]), *extra)
+    def from_words(cls, words) -> "Stats":
+        """From the kernel's struct bytes (8-byte words), field by field by name."""
+        from .options import unpack
+        return cls(**unpack("mbdk_stats", words))
 
 
 @dataclass

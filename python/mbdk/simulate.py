@@ -1,11 +1,20 @@
-"""simulate(scene, method, formulation=..., h=..., t_end=...): a planar scene integrated by any
-fixed-step kernel method on any chapter-3 formulation, the whole time loop compiled.
+"""simulate(scene, method, formulation=..., h=..., t_end=...): the one entry that runs a scene,
+for every method and formulation. The kernel builds the model once, integrates it with the whole
+time loop compiled, and computes the outputs asked for at the samples, all in one call
+(kernel/src/api/mbdk_f2py.f90, scene_run).
 
-Formulations (Fekete 2023, section 3; kernel/src/model/mbdk_model.f90 is their manual):
-  reduced     DAE -> ODE: [M D^T; D 0][q''; lambda] = [f; gamma] at every evaluation
-  baumgarte   gamma - 2 alpha Phi' - beta^2 Phi (defaults alpha = 1/h, beta = sqrt(2)/h, (3.34))
-  penalty     Jalon-Bayo (3.35)-(3.40): alpha_p, omega_p, mu_p = 1e7, 10, 1
-  projection  reduced + projection of q onto Phi = 0 and of v onto Phi' = 0 after every step
+Methods and formulations (mbdk.methods() lists the methods):
+  the ODE methods (rk4, bdf4, ...) on the DAE reduced to an ODE (Fekete 2023, section 3;
+  kernel/src/model/mbdk_model.f90 is their manual):
+    reduced     [M D^T; D 0][q''; lambda] = [f; gamma] at every evaluation (the default)
+    baumgarte   gamma - 2 alpha Phi' - beta^2 Phi (defaults alpha = 1/h, beta = sqrt(2)/h, (3.34))
+    penalty     Jalon-Bayo (3.35)-(3.40): alpha_p, omega_p, mu_p = 1e7, 10, 1
+    projection  reduced + projection of q onto Phi = 0 and of v onto Phi' = 0 after every step
+  trapezoidal_index3 on the index-3 DAE itself (kernel/src/dae/mbdk_trapezoidal_index3.f90):
+    augmented_lagrangian  ALI3-P, the augmented Lagrangian with projections (the default)
+    index3                the book's scheme (3.11)-(3.16)
+    with a fixed step, or adaptive=True (err_rtol, err_atol, dt_out, h_min, h_max), and Newton's
+    max_iter (default 20).
 
 Linear solves (solver=; the manifest's linear_solve says which one ran):
   auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
@@ -15,28 +24,36 @@ Linear solves (solver=; the manifest's linear_solve says which one ran):
                   (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
   kkt             [M D^T; D 0] by LAPACK's LU
 
-Outputs, one row per sample: t, q, v, a, multipliers, reactions (per joint: Fx, Fy and the
-moment about the joint point, exerted by the joint on its body1, global frame: -D_body1^T
-lambda), energy (kinetic + potential) with its parts, the work of dampers, constraints and
-loads accumulated by the trapezoidal rule over the samples (exact only as every -> 1), and
-residuals (max |Phi|, max |Phi'|, max |D a - gamma|).
+Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing per sample):
+  "a" accelerations, "multipliers", "reactions" (per joint: Fx, Fy and the moment about the
+  joint point, exerted by the joint on its body1, global frame: -D_body1^T lambda), "energy"
+  (kinetic + potential, its parts, and the work of dampers, constraints and loads accumulated by
+  the trapezoidal rule over the samples: exact only as every -> 1), "residuals" (max |Phi|,
+  max |Phi'|, max |D a - gamma|). An output not asked for is None in the result.
 """
 from __future__ import annotations
 
 import math
-from numbers import Integral
 from dataclasses import dataclass, field
+from numbers import Integral
 
 import numpy as np
 
-from . import _kernel
-from .errors import InvalidInputError, SingularMatrixError, Status, exception_for, status_message
+from . import _compiled, _kernel
+from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
+                     Status, exception_for, status_message)
+from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 from .methods import method as _method
-from .model import (FORMULATIONS, SOLVERS, VISIT_NAMES, Tables, assemble, build_tables,
-                    dependent_rows, evaluate, fpar_vector, rows_to_joints)
-from .ode import NEWTON_ATOL, NEWTON_MAX_ITER, NEWTON_RTOL, _INT_MAX, _STARTUP, build_info, plan
+from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assemble,
+                    build_tables, dependent_rows, evaluate, model_options, rows_to_joints)
+from .ode import STARTUP, build_info, plan
+from .options import Index3Options, ODEOptions, empty
 from .result import Stats
 from .scene import Scene
+
+#: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
+OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
+_INT_MAX = 2**31 - 1
 
 
 class RedundantConstraintsError(SingularMatrixError):
@@ -48,12 +65,12 @@ class SceneResult:
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
-    a: np.ndarray
-    multipliers: np.ndarray
-    reactions: np.ndarray          # (nsamp, njoints, 3)
-    energy: np.ndarray             # kinetic + potential, one per sample
-    energy_parts: dict
-    residuals: np.ndarray          # (nsamp, 3): position, velocity, acceleration
+    a: np.ndarray | None
+    multipliers: np.ndarray | None
+    reactions: np.ndarray | None   # (nsamp, njoints, 3)
+    energy: np.ndarray | None      # kinetic + potential, one per sample
+    energy_parts: dict | None
+    residuals: np.ndarray | None   # (nsamp, 3): position, velocity, acceleration
     stats: Stats
     status: Status
     message: str
@@ -74,10 +91,16 @@ class SceneResult:
 
     def reaction(self, joint: str) -> np.ndarray:
         """(nsamp, 3): Fx, Fy, moment of the named joint on its body1."""
+        if self.reactions is None:
+            raise NotApplicableError("this run did not compute reactions: pass outputs "
+                                     "including 'reactions' to simulate")
         return self.reactions[:, self.joints.index(joint), :]
 
     def energy_balance(self) -> np.ndarray:
         """E(t) + damper work - load work - constraint work - E(0): zero for an exact solution."""
+        if self.energy is None:
+            raise NotApplicableError("this run did not compute the energy: pass outputs "
+                                     "including 'energy' to simulate")
         p = self.energy_parts
         return (self.energy + p["dissipated_dampers"] - p["work_loads"] - p["work_constraints"]
                 - self.energy[0])
@@ -104,54 +127,170 @@ def check_run(h, t_end, t0, every) -> None:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
 
 
-def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: str = "reduced",
-             t0: float = 0.0, every: int = 1, alpha: float | None = None,
-             beta: float | None = None, penalty: tuple = (1e7, 10.0, 1.0),
-             projection_tol: float = 1e-12, solver: str = "auto", small_dense: bool = True,
-             assemble_initial: bool = True, startup: str = "rk4",
-             newton_rtol: float | None = None, newton_atol: float | None = None,
-             raise_on_failure: bool = True, **index3_options) -> SceneResult:
-    """Integrate a scene. See the module docstring for formulations and outputs.
+def _want(outputs) -> int:
+    if isinstance(outputs, str):
+        outputs = (outputs,)
+    try:
+        names = list(outputs)
+    except TypeError:
+        raise InvalidInputError(f"outputs = {outputs!r} must be a list of names from "
+                                f"{', '.join(OUTPUTS)}") from None
+    bad = [o for o in names if o not in OUTPUTS]
+    if bad:
+        raise InvalidInputError(f"outputs: {', '.join(map(repr, bad))} unknown; known: "
+                                f"{', '.join(OUTPUTS)}")
+    return sum({OUTPUTS[o] for o in names})
 
-    newton_rtol/atol (implicit methods): default 1e-10/1e-12, but 1e-7/1e-9 for the penalty
-    formulation, whose accelerations carry roundoff amplified by alpha_p (~1e-9 at 1e7): a
-    tighter test would never pass.
 
-    index3_options (method trapezoidal_index3 only): adaptive, err_rtol, err_atol, dt_out,
-    h_min, h_max (step-size control) and max_iter (Newton); see mbdk.index3."""
+_INDEX3_ONLY = ("adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", "max_iter")
+
+
+def simulate(scene: Scene, method: str, *, h: float, t_end: float,
+             formulation: str | None = None, t0: float = 0.0, every: int = 1,
+             outputs=tuple(OUTPUTS), alpha: float | None = None, beta: float | None = None,
+             penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float = 1e-12,
+             solver: str = "auto", small_dense: bool = True, assemble_initial: bool = True,
+             startup: str = "rk4", newton_rtol: float | None = None,
+             newton_atol: float | None = None, max_iter: int | None = None,
+             adaptive: bool | None = None, err_rtol: float | None = None,
+             err_atol: float | None = None, dt_out: float | None = None,
+             h_min: float | None = None, h_max: float | None = None,
+             raise_on_failure: bool = True, **unknown) -> SceneResult:
+    """Integrate a scene. See the module docstring for methods, formulations and outputs.
+
+    formulation: default "reduced" for the ODE methods, "augmented_lagrangian" for
+    trapezoidal_index3. alpha: Baumgarte's alpha, or the augmented Lagrangian's penalty factor
+    (default 0: 1e3 max(M) / (h^2/4) per step).
+
+    newton_rtol/atol: the ODE methods' Newton (implicit ones) default to 1e-10/1e-12, but
+    1e-7/1e-9 for the penalty formulation, whose accelerations carry roundoff amplified by
+    alpha_p (~1e-9 at 1e7): a tighter test would never pass. trapezoidal_index3: 1e-10/1e-12.
+
+    adaptive, err_rtol, err_atol, dt_out, h_min, h_max, max_iter: trapezoidal_index3 only
+    (step-size control and Newton's iteration limit; mbdk.index3 says what they do)."""
+    if unknown:
+        raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
+                                f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")
-    from .index3 import INDEX3_FORMULATIONS, INDEX3_OPTIONS, simulate_index3
-    if method == "trapezoidal_index3" or formulation in INDEX3_FORMULATIONS:
-        if method != "trapezoidal_index3" or formulation not in INDEX3_FORMULATIONS:
-            raise InvalidInputError(
-                f"method {method!r} with formulation {formulation!r}: trapezoidal_index3 runs "
-                f"the formulations {', '.join(INDEX3_FORMULATIONS)} and only those; the ODE "
-                f"methods run {', '.join(FORMULATIONS)}")
-        unknown = set(index3_options) - INDEX3_OPTIONS
-        if unknown:
-            raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
-                                    f"trapezoidal_index3 also takes {', '.join(sorted(INDEX3_OPTIONS))}")
-        return simulate_index3(scene, formulation, h=h, t_end=t_end, t0=t0, every=every,
-                               rtol=newton_rtol, atol=newton_atol, alpha=alpha,
-                               small_dense=small_dense, assemble_initial=assemble_initial,
-                               raise_on_failure=raise_on_failure, **index3_options)
-    if index3_options:
-        raise InvalidInputError(f"{', '.join(sorted(index3_options))}: options of "
-                                "trapezoidal_index3 only (adaptive, err_rtol, err_atol, dt_out, "
-                                "h_min, h_max, max_iter)")
-    if formulation not in FORMULATIONS:
-        raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}"
-                                ", and index3 / augmented_lagrangian with method "
-                                "trapezoidal_index3")
+    info_m = _method(method)
+    index3 = info_m.family == "dae_index3"
+    if formulation is None:
+        formulation = "augmented_lagrangian" if index3 else "reduced"
+    if index3 != (formulation in INDEX3_FORMULATIONS):
+        if formulation not in FORMULATIONS and formulation not in INDEX3_FORMULATIONS:
+            raise InvalidInputError(f"formulation = {formulation!r}; known: "
+                                    f"{', '.join(FORMULATIONS)}, and "
+                                    f"{', '.join(INDEX3_FORMULATIONS)} with trapezoidal_index3")
+        raise InvalidInputError(
+            f"method {method!r} with formulation {formulation!r}: trapezoidal_index3 runs "
+            f"the formulations {', '.join(INDEX3_FORMULATIONS)} and only those; the ODE "
+            f"methods run {', '.join(FORMULATIONS)}")
+    if formulation not in FORMULATIONS and formulation not in INDEX3_FORMULATIONS:
+        raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}")
+    given3 = {k: v for k, v in dict(adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol,
+                                     dt_out=dt_out, h_min=h_min, h_max=h_max,
+                                     max_iter=max_iter).items() if v is not None}
+    if given3 and not index3:
+        raise InvalidInputError(f"{', '.join(sorted(given3))}: options of trapezoidal_index3 "
+                                f"only ({', '.join(_INDEX3_ONLY)})")
     if solver not in SOLVERS:
         raise InvalidInputError(f"solver = {solver!r}; known: {', '.join(SOLVERS)}")
-    if startup not in _STARTUP:
-        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(_STARTUP)}")
-    info_m = _method(method)
+    if startup not in STARTUP:
+        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
+    want = _want(outputs)
     check_run(h, t_end, t0, every)
     every = int(every)
+    if index3:
+        plan_ = _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_atol,
+                             given3, small_dense)
+        mopt = model_options(solver=solver, small_dense=small_dense)
+    else:
+        plan_ = _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty,
+                          projection_tol, startup, newton_rtol, newton_atol)
+        mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
+                             projection_tol, solver, small_dense)
+    if solver == "revolute_schur":
+        other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
+        if other:
+            raise InvalidInputError(f"{scene.source}: solver = 'revolute_schur' needs every joint "
+                                    f"to be revolute; not revolute: {', '.join(other)}. Use "
+                                    "solver = 'schur' or 'auto'")
+    if solver in ("schur", "revolute_schur") and any(b.inertia == 0 for b in scene.bodies):
+        raise InvalidInputError(f"solver = {solver!r} needs every body to have inertia; "
+                                f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
+                                "use solver = 'kkt' or 'auto'")
+
+    tab = build_tables(scene)
+    if assemble_initial:
+        q0, v0, report = assemble(scene, tab, t0)
+    else:
+        q0, v0, report = np.array(scene.q0(), float), np.array(scene.v0(), float), {}
+    tab = build_tables(scene, q0)   # rest lengths and joint angles at the assembled pose
+    y0 = np.concatenate([q0, v0])
+    nsamp, nc, m = plan_["nsamp"], tab.nc, tab.m
+
+    def cols(bit):   # an output not asked for gets one column the kernel leaves alone
+        return nsamp if (want & bit) or index3 else 1
+    a_out = np.zeros((nc, cols(1)), order="F")
+    lam_out = np.zeros((max(m, 1), cols(2)), order="F")
+    iters = np.zeros(nsamp if index3 else 1, np.int32)
+    reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
+    energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
+    resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+    stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
+    args = (*tab.args(), mopt.pack(), info_m.id, plan_["ode"].pack(), plan_["index3"].pack(),
+            flag, y0, t0, t_end, want, nsamp, a_out, lam_out, iters, reac, energy, resid,
+            stats, visits)
+    (t, y, nw, path, status), interrupted = _compiled.call(
+        _kernel.scene_run, args, flag, plan_["steps"] * y0.size)
+    status = Status(int(status))
+    nw = int(nw)
+    t, y = np.array(t[:nw]), np.array(y[:, :nw])
+    stats = Stats.from_words(stats)
+    manifest = {**build_info(), "scene": scene.name, "source": scene.source, "method": method,
+                "formulation": formulation, "h": h, "t0": t0, "t_end": t_end, "every": every,
+                "outputs": [o for o in OUTPUTS if want & OUTPUTS[o]],
+                "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
+                "small_dense": small_dense, **plan_["manifest"]}
+    if index3:
+        manifest["steps"] = stats.steps
+    result = SceneResult(
+        t=t, q=y[:nc].T, v=y[nc:].T,
+        a=a_out[:, :nw].T.copy() if want & 1 else None,
+        multipliers=lam_out[:m, :nw].T.copy() if want & 2 else None,
+        reactions=np.transpose(reac[:, :tab.nj, :nw], (2, 1, 0)).copy() if want & 4 else None,
+        energy=None, energy_parts=None,
+        residuals=resid[:, :nw].T.copy() if want & 16 else None,
+        stats=stats, status=status, message=status_message(status),
+        visits=dict(zip(VISIT_NAMES, (int(x) for x in visits))), manifest=manifest,
+        assembly=report, joints=[j.name for j in scene.joints],
+        bodies=[b.name for b in scene.bodies],
+        iterations=np.array(iters[:nw]) if index3 else None)
+    if want & 8:
+        kin, vg, vs, pd, pc, pl = energy[:, :nw]
+        result.energy = kin + vg + vs
+        result.energy_parts = {
+            "kinetic": kin, "potential_gravity": vg, "potential_springs": vs,
+            "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
+            "dissipated_dampers": _cumtrapz(t, pd), "work_constraints": _cumtrapz(t, pc),
+            "work_loads": _cumtrapz(t, pl)}
+    if status == Status.ERR_INTERRUPTED or interrupted:
+        raise SolveInterrupted(f"{method}/{formulation} on scene {scene.name!r}: interrupted"
+                               + (f" at t = {t[-1]:.6g}" if nw else ""), status=status,
+                               result=result)
+    if status == Status.ERR_SINGULAR_MATRIX and m and nw <= 1:
+        _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result)
+    if status.failed and raise_on_failure:
+        raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
+                                                     plan_, result), status=status,
+                                    result=result)
+    return result
+
+
+def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, projection_tol,
+              startup, newton_rtol, newton_atol) -> dict:
     alpha = 1.0 / h if alpha is None else float(alpha)
     beta = math.sqrt(2.0) / h if beta is None else float(beta)
     if formulation == "baumgarte" and not (alpha >= 0 and beta >= 0 and math.isfinite(alpha)
@@ -165,109 +304,139 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float, formulation: 
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
     if info_m.steps > 1 and abs((t_end - t0) / h - round((t_end - t0) / h)) > 1e-9 * (t_end - t0) / h:
         n_lo = math.floor((t_end - t0) / h)
-        raise InvalidInputError(f"{method} needs equal steps; use h = {(t_end - t0) / max(n_lo, 1):.12g}")
-
+        raise InvalidInputError(f"{info_m.name} needs equal steps; use h = "
+                                f"{(t_end - t0) / max(n_lo, 1):.12g}")
     if newton_rtol is None:
-        newton_rtol = 1e-7 if formulation == "penalty" else NEWTON_RTOL
+        newton_rtol = 1e-7 if formulation == "penalty" else ODEOptions.newton_rtol
     if newton_atol is None:
-        newton_atol = 1e-9 if formulation == "penalty" else NEWTON_ATOL
+        newton_atol = 1e-9 if formulation == "penalty" else ODEOptions.newton_atol
     if not (newton_rtol > 0 and newton_atol > 0):
         raise InvalidInputError(f"newton_rtol = {newton_rtol}, newton_atol = {newton_atol} must be > 0")
-    tab = build_tables(scene)
-    fpar = fpar_vector(alpha, beta, tuple(float(p) for p in penalty), projection_tol, solver,
-                       small_dense)
-    if solver == "revolute_schur":
-        other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
-        if other:
-            raise InvalidInputError(f"{scene.source}: solver = 'revolute_schur' needs every joint "
-                                    f"to be revolute; not revolute: {', '.join(other)}. Use "
-                                    "solver = 'schur' or 'auto'")
-    if solver in ("schur", "revolute_schur") and np.any(tab.inertia == 0):
-        raise InvalidInputError(f"solver = {solver!r} needs every body to have inertia; "
-                                f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
-                                "use solver = 'kkt' or 'auto'")
-    if assemble_initial:
-        q0, v0, report = assemble(scene, tab, t0)
-    else:
-        q0, v0, report = np.array(scene.q0(), float), np.array(scene.v0(), float), {}
-    tab = build_tables(scene, q0)   # rest lengths and joint angles at the assembled pose
-    e0 = evaluate(tab, q0, v0, t0, formulation, fpar)
-    if formulation != "penalty" and tab.m:
-        d0 = e0["D"]
-        dep = dependent_rows(d0)
-        if dep:
-            names = rows_to_joints(tab, dep)
-            rank = np.linalg.matrix_rank(d0, tol=1e-9 * max(1.0, np.abs(d0).max()))
-            raise RedundantConstraintsError(
-                f"{scene.source}: the constraints of joint(s) {', '.join(names)} are dependent "
-                f"(redundant) at the initial pose: D has rank {rank} < {tab.m} rows, so the "
-                f"{formulation} formulation has no unique multipliers. "
-                "Remove the redundant joint or use formulation = 'penalty', which handles it",
-                status=Status.ERR_SINGULAR_MATRIX)
-
-    y0 = np.concatenate([q0, v0])
     nsteps, nsamp, _ = plan(t0, t_end, h, every)
-    t, y, nw, stats, visits, status = _kernel.model_solve(
-        *tab.args(), FORMULATIONS[formulation], fpar, info_m.id, y0, t0, t_end, h, every,
-        newton_rtol, newton_atol, NEWTON_MAX_ITER, _STARTUP[startup], nsamp)
-    status = Status(int(status))
-    nw = int(nw)
-    t, y = np.array(t[:nw]), np.array(y[:, :nw])
-    out = _outputs(tab, formulation, fpar, t, y)
-    nc = tab.nc
-    manifest = {**build_info(), "scene": scene.name, "source": scene.source, "method": method,
-                "formulation": formulation, "h": h, "t0": t0, "t_end": t_end, "every": every,
-                "steps": nsteps, "solver": solver, "linear_solve": e0["solve"],
-                "small_dense": small_dense, "startup": startup,
-                "newton": {"rtol": newton_rtol, "atol": newton_atol, "max_iter": NEWTON_MAX_ITER}}
+    ode = ODEOptions(h=h, newton_rtol=newton_rtol, newton_atol=newton_atol, every=every,
+                     startup=STARTUP[startup])
+    manifest = {"steps": nsteps, "startup": startup,
+                "newton": {"rtol": newton_rtol, "atol": newton_atol,
+                           "max_iter": ode.newton_max_iter}}
     if formulation == "baumgarte":
         manifest.update(alpha=alpha, beta=beta)
     if formulation == "penalty":
         manifest.update(alpha_p=penalty[0], omega_p=penalty[1], mu_p=penalty[2])
     if formulation == "projection":
         manifest.update(projection_tol=projection_tol)
-    result = SceneResult(
-        t=t, q=y[:nc].T, v=y[nc:].T, a=out["a"], multipliers=out["lam"],
-        reactions=out["reac"], energy=out["energy"], energy_parts=out["parts"],
-        residuals=out["resid"], stats=Stats.from_array(stats), status=status,
-        message=status_message(status), visits=dict(zip(VISIT_NAMES, (int(x) for x in visits))),
-        manifest=manifest, assembly=report, joints=[j.name for j in scene.joints],
-        bodies=[b.name for b in scene.bodies])
-    if status.failed and raise_on_failure:
-        where = f"at t = {t[-1]:.6g}" if nw else "before the first step"
+    return {"ode": ode, "index3": Index3Options(), "nsamp": nsamp, "steps": nsteps,
+            "manifest": manifest, "alpha": alpha, "beta": beta}
+
+
+def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_atol,
+                 given3, small_dense) -> dict:
+    d = Index3Options()
+    rtol = d.newton_rtol if newton_rtol is None else float(newton_rtol)
+    atol = d.newton_atol if newton_atol is None else float(newton_atol)
+    if not (rtol >= 0 and atol > 0):
+        raise InvalidInputError(f"newton_rtol = {rtol}, newton_atol = {atol}: need rtol >= 0 "
+                                "and atol > 0")
+    max_iter = given3.get("max_iter", d.newton_max_iter)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, Integral) or max_iter < 1:
+        raise InvalidInputError(f"max_iter = {max_iter!r} must be a whole number >= 1")
+    alpha = d.alpha if alpha is None else float(alpha)
+    if formulation == "augmented_lagrangian" and not (alpha >= 0 and math.isfinite(alpha)):
+        raise InvalidInputError(f"alpha = {alpha}: the augmented Lagrangian's penalty factor "
+                                "must be finite and > 0, or 0 for the default (1e3 max(M) "
+                                "/ (h^2/4) at every step)")
+    adaptive = bool(given3.get("adaptive", False))
+    err_rtol = given3.get("err_rtol", d.err_rtol)
+    err_atol = given3.get("err_atol", d.err_atol)
+    dt_out = given3.get("dt_out", h * every)
+    h_min = given3.get("h_min", d.h_min)
+    h_max = given3.get("h_max", d.h_max)
+    if adaptive and formulation == "index3":
+        raise NotApplicableError(
+            "adaptive=True with formulation 'index3': the book's scheme leaves its velocities "
+            "off Phi' = 0 by a period-2 oscillation that grows with time and soon exceeds the "
+            "local error, so an error test on q and v would shrink h without end (studies/"
+            "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
+            "step-size control, or a fixed h")
+    if adaptive:
+        for name, val, low in (("err_rtol", err_rtol, 0.0), ("err_atol", err_atol, None),
+                               ("dt_out", dt_out, None), ("h_min", h_min, 0.0),
+                               ("h_max", h_max, 0.0)):
+            ok = isinstance(val, (int, float)) and not isinstance(val, bool) and \
+                math.isfinite(val) and (val >= low if low is not None else val > 0)
+            if not ok:
+                raise InvalidInputError(f"{name} = {val!r} must be a finite number "
+                                        f"{'>= 0' if low is not None else '> 0'}")
+        if h_max and h_min > h_max:
+            raise InvalidInputError(f"h_min = {h_min} exceeds h_max = {h_max}")
+    opt = Index3Options(h=h, newton_rtol=rtol, newton_atol=atol, alpha=alpha,
+                        err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
+                        h_max=h_max, formulation=INDEX3_FORMULATIONS[formulation],
+                        every=every, newton_max_iter=int(max_iter), adaptive=int(adaptive))
+    nsteps, nsamp, status = _kernel.index3_plan(opt.pack(), t0, t_end)
+    if status < 0:
+        raise InvalidInputError(
+            f"h = {h}, t0 = {t0}, t_end = {t_end}, every = {every}"
+            + (f", dt_out = {dt_out}" if adaptive else "")
+            + " give no valid plan: need 0 < " + ("dt_out" if adaptive else "h")
+            + " <= t_end - t0 and at most 2e9 " + ("samples" if adaptive else "steps"))
+    manifest = {"newton": {"rtol": rtol, "atol": atol, "max_iter": int(max_iter),
+                           "matrix": "analytic, reused while Newton contracts; "
+                                     + factorisation(formulation, small_dense)}}
+    if formulation == "augmented_lagrangian":
+        manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
+    if adaptive:
+        manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
+                                    "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
+                                    "estimate": "h^2/12 |a+ - a| on q, h^3/12 |a''| on v"}
+    return {"ode": ODEOptions(), "index3": opt, "nsamp": int(nsamp),
+            "steps": float(nsteps) * (1 if not adaptive else 4), "manifest": manifest,
+            "adaptive": adaptive}
+
+
+def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
+    """A singular solve at the initial state: name the dependent joints, if any."""
+    d0 = evaluate(tab, q0, v0, t0)["D"]
+    dep = dependent_rows(d0)
+    if not dep:
+        return
+    names = rows_to_joints(tab, dep)
+    rank = np.linalg.matrix_rank(d0, tol=1e-9 * max(1.0, np.abs(d0).max()))
+    if index3:
+        what = ("the index-3 Newton matrix is singular. Remove the redundant joint, or use an "
+                "ODE method with formulation = 'penalty'")
+    else:
+        what = (f"so the {formulation} formulation has no unique multipliers. Remove the "
+                "redundant joint or use formulation = 'penalty', which handles it")
+    raise RedundantConstraintsError(
+        f"{scene.source}: the constraints of joint(s) {', '.join(names)} are dependent "
+        f"(redundant) at the initial pose: D has rank {rank} < {tab.m} rows, {what}",
+        status=Status.ERR_SINGULAR_MATRIX, result=result)
+
+
+def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) -> str:
+    nw = len(r.t)
+    if not index3:
+        where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
         note = ""
-        if status == Status.ERR_SINGULAR_MATRIX and nw:
-            dep = dependent_rows(evaluate(tab, y[:nc, -1], y[nc:, -1], t[-1])["D"])
+        if r.status == Status.ERR_SINGULAR_MATRIX and nw:
+            dep = dependent_rows(evaluate(tab, r.q[-1], r.v[-1], r.t[-1])["D"])
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
-        raise exception_for(status)(f"{method}/{formulation} on scene {scene.name!r}: "
-                                    f"{result.message} ({where}){note}", status=status,
-                                    result=result)
-    return result
-
-
-def _outputs(tab: Tables, formulation: str, fpar, t, y, given=None) -> dict:
-    """Sampled outputs; given = (a, lambda) of an integrator that computes its own (index-3)."""
-    ns = len(t)
-    if ns == 0:
-        z = np.zeros((0,))
-        return {"a": np.zeros((0, tab.nc)), "lam": np.zeros((0, tab.m)),
-                "reac": np.zeros((0, tab.nj, 3)), "energy": z, "resid": np.zeros((0, 3)),
-                "parts": {}}
-    if given is None:
-        acc = np.zeros((tab.nc, ns), order="F")
-        lam = np.zeros((tab.m, ns), order="F")
-    else:
-        acc = np.asfortranarray(given[0], dtype=float)
-        lam = np.asfortranarray(given[1], dtype=float)
-    reac, energy, resid, nok, status = _kernel.model_outputs(
-        *tab.args(), FORMULATIONS[formulation], fpar, t, np.asfortranarray(y),
-        0 if given is None else 1, acc, lam)
-    kin, vg, vs, pd, pc, pl = energy
-    parts = {"kinetic": kin, "potential_gravity": vg, "potential_springs": vs,
-             "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
-             "dissipated_dampers": _cumtrapz(t, pd), "work_constraints": _cumtrapz(t, pc),
-             "work_loads": _cumtrapz(t, pl)}
-    return {"a": acc.T, "lam": lam.T, "reac": np.transpose(reac[:, :tab.nj, :], (2, 1, 0)),
-            "energy": kin + vg + vs, "resid": resid.T, "parts": parts}
+        return f"{method}/{formulation} on scene {scene.name!r}: {r.message} ({where}){note}"
+    where = f"in the step after t = {r.t[-1]:.6g}" if nw else "before the first step"
+    if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
+            Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
+        where += f", also in substeps down to h/{4 ** MAX_CUTS}"
+    note = ""
+    if nw and tab.m:
+        # the last sample is the state the failed step started from
+        u, sv, _ = np.linalg.svd(evaluate(tab, r.q[-1], r.v[-1], r.t[-1])["D"])
+        ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
+        if ratio < NEAR_SINGULAR:
+            rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
+            note = (f"; there D is close to losing a rank (smallest / largest singular value "
+                    f"{ratio:.1e}): joint(s) {', '.join(rows_to_joints(tab, rows))} are "
+                    "nearly dependent, a singular configuration of the mechanism")
+    return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
+            f"{note}. A smaller h, or a larger max_iter, may get past it")

@@ -31,7 +31,7 @@ module mbdk_step_matrix
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_EXPLICIT_RK, MBDK_FAMILY_EULER_CROMER, &
-    MBDK_FAMILY_IMPLICIT_LMM, MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, MBDK_METHOD_NAME_LEN
   use mbdk_butcher, only: mbdk_butcher_t, mbdk_butcher_table, MBDK_MAX_STAGES
   use mbdk_explicit_rk, only: mbdk_explicit_rk_step
   use mbdk_euler_cromer, only: mbdk_euler_cromer_step
@@ -88,6 +88,8 @@ contains
     call mbdk_method_info(method, name, family, order)
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (family == 0) return
+    stat = MBDK_ERR_NOT_APPLICABLE   ! no step on y' = A y: the method integrates index-3 DAEs
+    if (family == MBDK_FAMILY_DAE_INDEX3) return
     n = size(a, 1)
     k = mbdk_step_history_length(method)
     stat = MBDK_ERR_INVALID_INPUT

@@ -10,89 +10,29 @@ module mbdk_capi
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED, &
-    mbdk_model_default_fpar
-  use mbdk_trapezoidal_index3, only: mbdk_index3_opt_t, mbdk_index3_solve, mbdk_index3_plan
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
+  use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
+  use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
   implicit none
   private
 
-  !> Mirrors struct mbdk_options in mbdk.h.
-  type, bind(C) :: mbdk_c_options
-    integer(c_int) :: method
-    real(c_double) :: h
-    integer(c_int) :: every
-    real(c_double) :: newton_rtol
-    real(c_double) :: newton_atol
-    integer(c_int) :: newton_max_iter
-    integer(c_int) :: fd_jacobian
-    integer(c_int) :: nq
-    integer(c_int) :: startup
-  end type mbdk_c_options
-
-  !> Mirrors struct mbdk_stats in mbdk.h.
-  type, bind(C) :: mbdk_c_stats
-    integer(c_int64_t) :: steps, rhs_evals, jac_evals, lu_factorizations, newton_iterations, &
-      startup_steps
-    real(c_double) :: cpu_time
-    integer(c_int64_t) :: rejected_steps, newton_failures
-  end type mbdk_c_stats
-
-  !> Mirrors struct mbdk_index3_options in mbdk.h.
-  type, bind(C) :: mbdk_c_index3_options
-    integer(c_int) :: formulation
-    real(c_double) :: h
-    integer(c_int) :: every
-    real(c_double) :: newton_rtol, newton_atol
-    integer(c_int) :: newton_max_iter
-    real(c_double) :: alpha
-    integer(c_int) :: adaptive
-    real(c_double) :: err_rtol, err_atol, dt_out, h_min, h_max
-  end type mbdk_c_index3_options
-
 contains
 
-  pure function to_c_stats(st) result(c)
-    type(mbdk_stats_t), intent(in) :: st
-    type(mbdk_c_stats) :: c
-    c = mbdk_c_stats(st%steps, st%rhs_evals, st%jac_evals, st%lu_factorizations, &
-      st%newton_iterations, st%startup_steps, st%cpu_time, st%rejected_steps, st%newton_failures)
-  end function to_c_stats
-
   subroutine mbdk_c_index3_default_options(opt) bind(C, name='mbdk_index3_default_options')
-    type(mbdk_c_index3_options), intent(out) :: opt
-    type(mbdk_index3_opt_t) :: d
-    opt = mbdk_c_index3_options(d%formulation, d%h, d%every, d%rtol, d%atol, &
-      d%newton_max_iter, d%alpha, merge(1, 0, d%adaptive), d%err_rtol, d%err_atol, d%dt_out, &
-      d%h_min, d%h_max)
+    type(mbdk_index3_options_t), intent(out) :: opt
+    type(mbdk_index3_options_t) :: d
+    opt = d
   end subroutine mbdk_c_index3_default_options
-
-  function to_index3_opt(c) result(o)
-    type(mbdk_c_index3_options), intent(in) :: c
-    type(mbdk_index3_opt_t) :: o
-    o%formulation = int(c%formulation)
-    o%h = c%h
-    o%every = int(c%every)
-    o%rtol = c%newton_rtol
-    o%atol = c%newton_atol
-    o%newton_max_iter = int(c%newton_max_iter)
-    o%alpha = c%alpha
-    o%adaptive = c%adaptive /= 0
-    o%err_rtol = c%err_rtol
-    o%err_atol = c%err_atol
-    o%dt_out = c%dt_out
-    o%h_min = c%h_min
-    o%h_max = c%h_max
-  end function to_index3_opt
 
   integer(c_int) function mbdk_c_index3_sample_count(opt, t0, t_end, nsamp) &
       bind(C, name='mbdk_index3_sample_count')
-    type(mbdk_c_index3_options), intent(in) :: opt
+    type(mbdk_index3_options_t), intent(in) :: opt
     real(c_double), value :: t0, t_end
     integer(c_int), intent(out) :: nsamp
     integer(kind=8) :: nsteps
     integer :: ns, stat
     logical :: shortened
-    call mbdk_index3_plan(to_index3_opt(opt), t0, t_end, nsteps, ns, shortened, stat)
+    call mbdk_index3_plan(opt, t0, t_end, nsteps, ns, shortened, stat)
     nsamp = int(ns, c_int)
     mbdk_c_index3_sample_count = int(stat, c_int)
   end function mbdk_c_index3_sample_count
@@ -105,20 +45,21 @@ contains
     integer(c_int), value :: nb, nj, nf, nsamp
     real(c_double), intent(in) :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
     integer(c_int), intent(in) :: jint(*), fint(*)
-    type(mbdk_c_index3_options), intent(in) :: opt
+    type(mbdk_index3_options_t), intent(in) :: opt
     real(c_double), value :: t0, t_end
     real(c_double), intent(out) :: t_out(*), y_out(*), a_out(*), lam_out(*)
     integer(c_int), intent(out) :: iters_out(*), nwritten
-    type(mbdk_c_stats), intent(out) :: stats
+    type(mbdk_stats_t), intent(out) :: stats
     type(mbdk_model_t) :: model
     type(mbdk_model_work_t), target :: work
     type(mbdk_stats_t) :: st
+    type(mbdk_model_options_t) :: mopt
     integer :: stat, nw, nc, m
     integer, allocatable :: ji(:, :), fi(:, :), it(:)
     real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
 
     nwritten = 0
-    stats = to_c_stats(st)
+    stats = st
     mbdk_c_index3_solve = int(MBDK_ERR_INVALID_INPUT, c_int)
     if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nsamp < 1) return
     ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
@@ -126,8 +67,7 @@ contains
     fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
     fr = reshape(freal(1:12 * nf), [12, int(nf)])
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
-    call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, MBDK_FORM_REDUCED, &
-                         mbdk_model_default_fpar(), work, stat)
+    call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, work, stat)
     if (stat /= MBDK_SUCCESS) then
       mbdk_c_index3_solve = int(stat, c_int)
       return
@@ -139,31 +79,23 @@ contains
     if (m > 0) lam_out(1:m * nw) = reshape(lam(1:m, 1:nw), [m * nw])
     iters_out(1:nw) = int(it(1:nw), c_int)
     nwritten = int(nw, c_int)
-    stats = to_c_stats(st)
+    stats = st
     mbdk_c_index3_solve = int(stat, c_int)
 
   contains
 
     subroutine solve(yflat, aflat)
       real(c_double), intent(inout), target :: yflat(2 * nc, nsamp), aflat(nc, nsamp)
-      call mbdk_index3_solve(model, to_index3_opt(opt), t0, t_end, y0(1:2 * nc), &
+      call mbdk_index3_solve(model, opt, t0, t_end, y0(1:2 * nc), &
                              t_out(1:nsamp), yflat, aflat, lam(1:m, :), it, nw, st, stat)
     end subroutine solve
 
   end function mbdk_c_index3_solve
 
   subroutine mbdk_default_options(opt) bind(C, name='mbdk_default_options')
-    type(mbdk_c_options), intent(out) :: opt
+    type(mbdk_options_t), intent(out) :: opt
     type(mbdk_options_t) :: d
-    opt%method = int(d%method, c_int)
-    opt%h = d%h
-    opt%every = int(d%every, c_int)
-    opt%newton_rtol = d%newton_rtol
-    opt%newton_atol = d%newton_atol
-    opt%newton_max_iter = int(d%newton_max_iter, c_int)
-    opt%fd_jacobian = merge(1_c_int, 0_c_int, d%fd_jacobian)
-    opt%nq = 0
-    opt%startup = int(d%startup, c_int)
+    opt = d
   end subroutine mbdk_default_options
 
   integer(c_int) function mbdk_c_method_id(name) bind(C, name='mbdk_method_id')
@@ -191,18 +123,17 @@ contains
     integer(c_int), value :: n, nsamp
     real(c_double), value :: t0, t_end
     real(c_double), intent(in) :: y0(*)
-    type(mbdk_c_options), intent(in) :: opt
+    type(mbdk_options_t), intent(in) :: opt
     real(c_double), intent(out) :: t_out(*)
     real(c_double), intent(out) :: y_out(*)
     integer(c_int), intent(out) :: nwritten
-    type(mbdk_c_stats), intent(out) :: stats
+    type(mbdk_stats_t), intent(out) :: stats
     type(mbdk_c_problem_t) :: prob
-    type(mbdk_options_t) :: o
     type(mbdk_stats_t) :: st
     integer :: stat, nw
 
     nwritten = 0
-    stats = to_c_stats(st)
+    stats = st
     if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
       return
@@ -212,24 +143,16 @@ contains
       return
     end if
     call mbdk_c_problem_init(prob, f, user_data, int(n), int(opt%nq))
-    o%method = int(opt%method)
-    o%h = opt%h
-    o%every = int(opt%every)
-    o%newton_rtol = opt%newton_rtol
-    o%newton_atol = opt%newton_atol
-    o%newton_max_iter = int(opt%newton_max_iter)
-    o%fd_jacobian = opt%fd_jacobian /= 0
-    o%startup = int(opt%startup)
     call solve(y_out(1:n * nsamp))
     nwritten = int(nw, c_int)
-    stats = to_c_stats(st)
+    stats = st
     mbdk_c_solve_ode = int(stat, c_int)
 
   contains
 
     subroutine solve(yflat)
       real(c_double), intent(inout), target :: yflat(n, nsamp)
-      call mbdk_fixed_step_solve(prob, o, t0, t_end, y0(1:n), t_out(1:nsamp), yflat, nw, st, stat)
+      call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0(1:n), t_out(1:nsamp), yflat, nw, st, stat)
     end subroutine solve
 
   end function mbdk_c_solve_ode
@@ -275,6 +198,56 @@ contains
     name(m + 1) = c_null_char
     mbdk_c_status_entry = MBDK_SUCCESS
   end function mbdk_c_status_entry
+
+  !> Struct id (1-based; MBDK_STRUCT_* of mbdk_structs): its C name, size and field count.
+  !> MBDK_ERR_INVALID_INPUT past the last struct. Lets a C program (kernel/tests/
+  !> c_struct_layout.c) check mbdk.h's structs against the kernel's own layout.
+  integer(c_int) function mbdk_c_struct_info(id, name, namelen, nbytes, nfields) &
+      bind(C, name='mbdk_struct_info')
+    integer(c_int), value :: id, namelen
+    character(kind=c_char), intent(out) :: name(*)
+    integer(c_int), intent(out) :: nbytes, nfields
+    character(len=MBDK_STRUCT_NAME_LEN) :: nm
+    integer :: nb, nf
+    mbdk_c_struct_info = MBDK_ERR_INVALID_INPUT
+    call mbdk_struct_info(int(id), nm, nb, nf)
+    nbytes = int(nb, c_int)
+    nfields = int(nf, c_int)
+    if (nf == 0 .or. namelen < 1) return
+    call to_c(nm, name, int(namelen))
+    mbdk_c_struct_info = MBDK_SUCCESS
+  end function mbdk_c_struct_info
+
+  !> Field i (1-based) of struct id: name, byte offset and type (1 int, 2 int64_t, 3 double,
+  !> 4 pointer). MBDK_ERR_INVALID_INPUT past the last field.
+  integer(c_int) function mbdk_c_struct_field(id, i, name, namelen, offset, ftype) &
+      bind(C, name='mbdk_struct_field')
+    integer(c_int), value :: id, i, namelen
+    character(kind=c_char), intent(out) :: name(*)
+    integer(c_int), intent(out) :: offset, ftype
+    character(len=MBDK_STRUCT_NAME_LEN) :: nm
+    integer :: off, ft
+    mbdk_c_struct_field = MBDK_ERR_INVALID_INPUT
+    call mbdk_struct_field(int(id), int(i), nm, off, ft)
+    offset = int(off, c_int)
+    ftype = int(ft, c_int)
+    if (ft == 0 .or. namelen < 1) return
+    call to_c(nm, name, int(namelen))
+    mbdk_c_struct_field = MBDK_SUCCESS
+  end function mbdk_c_struct_field
+
+  !> s (trimmed) into buf as a NUL-terminated string of at most buflen bytes
+  subroutine to_c(s, buf, buflen)
+    character(len=*), intent(in) :: s
+    character(kind=c_char), intent(out) :: buf(*)
+    integer, intent(in) :: buflen
+    integer :: j, m
+    m = min(len_trim(s), buflen - 1)
+    do j = 1, m
+      buf(j) = s(j:j)
+    end do
+    buf(m + 1) = c_null_char
+  end subroutine to_c
 
   function from_c(s) result(r)
     character(kind=c_char), intent(in) :: s(*)

@@ -1,45 +1,52 @@
 ! The f2py-facing layer: plain external subroutines with double precision scalars and
 ! explicit-shape arrays only, so that numpy.f2py can wrap them as mbdk._kernel. They translate
 ! to the kernel's modules and derived types and return statuses; nothing here prints or stops.
-! Python calls these only through python/mbdk (ode.py, methods.py, errors.py).
+! Python calls these only through python/mbdk.
+!
+! Options and statistics cross as the raw bytes of the kernel's bind(C) structs, in 8-byte words
+! (optbuf, statbuf): Python lays them out by name from the kernel's own table (struct_field,
+! python/mbdk/options.py), so no field travels by array position. A size that does not match the
+! struct is refused (MBDK_ERR_INVALID_INPUT).
+!
+! The solves are marked threadsafe: f2py releases the GIL around them, so two Python threads run
+! two solves at once. interrupt(1) is a flag Python may set from another thread to stop a solve
+! (the options' interrupt field points at it). The callback solve keeps the GIL: it calls Python.
 
-subroutine solve_problem(problem_id, method_id, n, y0, t0, t_end, h, every, np, params, &
-                         newton_rtol, newton_atol, newton_max_iter, fd_jacobian, startup, nsamp, &
-                         t_out, y_out, stats, nwritten, status)
-  use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS
+subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf, interrupt, &
+                         nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
+  use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
-  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
+  use mbdk_stats, only: mbdk_stats_t
   use mbdk_textbook, only: mbdk_textbook_t, mbdk_textbook_init
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   implicit none
-  integer, intent(in) :: problem_id, method_id, n, every, np, nsamp, newton_max_iter, fd_jacobian
-  integer, intent(in) :: startup
-  double precision, intent(in) :: y0(n), t0, t_end, h, params(np), newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9)
+  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw
+  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw)
+  integer, intent(in), target :: interrupt(1)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
+  double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
+!f2py threadsafe
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(params) :: np = len(params)
+!f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   type(mbdk_textbook_t) :: prob
   type(mbdk_options_t) :: opt
   type(mbdk_stats_t) :: st
 
   nwritten = 0
-  stats = 0.0d0
   t_out = 0.0d0
   y_out = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
+  opt = transfer(optbuf, opt)
+  opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
   call mbdk_textbook_init(prob, problem_id, n, params, status)
   if (status /= MBDK_SUCCESS) return
-  opt%method = method_id
-  opt%h = h
-  opt%every = every
-  opt%newton_rtol = newton_rtol
-  opt%newton_atol = newton_atol
-  opt%newton_max_iter = newton_max_iter
-  opt%fd_jacobian = fd_jacobian /= 0
-  opt%startup = startup
   call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
-  stats = mbdk_stats_to_array(st)
+  statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_problem
 
 subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
@@ -60,22 +67,26 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
   call prob%rhs(t, y, f, status)
 end subroutine eval_problem
 
-subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton_rtol, &
-                          newton_atol, newton_max_iter, startup, nsamp, t_out, y_out, stats, &
-                          nwritten, status)
+subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, nsamp, t_out, y_out, nstatw, &
+                          statbuf, nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
-  ! (f2py hides n); flag(1) = 1 reports a failure.
+  ! (f2py hides n); flag(1) = 1 reports a failure. Not threadsafe: it calls Python.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
-  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
+  use mbdk_stats, only: mbdk_stats_t
   use mbdk_callback_problem, only: mbdk_proc_problem_t, mbdk_proc_problem_init
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   implicit none
   external fun
-  integer, intent(in) :: n, method_id, every, nq, nsamp, newton_max_iter, startup
-  double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9)
+  integer, intent(in) :: n, noptw, nsamp, nstatw
+  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
+  double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
+!f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   ! The callback's signature for f2py: its first argument is named n so that the bounds of
   ! cb_y and cb_dydt refer to the callback's own argument.
   integer :: cb_flag(1)
@@ -86,19 +97,14 @@ subroutine solve_callback(fun, n, y0, t0, t_end, h, method_id, every, nq, newton
   type(mbdk_stats_t) :: st
 
   nwritten = 0
-  stats = 0.0d0
   t_out = 0.0d0
   y_out = 0.0d0
-  call mbdk_proc_problem_init(prob, fun, n, nq)
-  opt%method = method_id
-  opt%h = h
-  opt%every = every
-  opt%newton_rtol = newton_rtol
-  opt%newton_atol = newton_atol
-  opt%newton_max_iter = newton_max_iter
-  opt%startup = startup
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
+  opt = transfer(optbuf, opt)
+  call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
   call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
-  stats = mbdk_stats_to_array(st)
+  statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_callback
 
 subroutine sample_count(t0, t_end, h, every, nsteps, nsamp, status)
@@ -230,68 +236,187 @@ end subroutine build_info
 ! Scenes (kernel/src/model): the tables of mbdk_joints and mbdk_force_elements, built by
 ! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
 
-subroutine model_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                       formulation, fpar, method_id, n, y0, t0, t_end, h, every, newton_rtol, &
-                       newton_atol, newton_max_iter, startup, nsamp, t_out, y_out, nwritten, &
-                       stats, visits, status)
-  ! Integrates a scene with a fixed-step method; the whole loop is compiled.
-  use mbdk_kinds, only: i8
+subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
+                     method_id, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, t0, t_end, want, &
+                     nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, a_out, lam_out, &
+                     iters_out, reac, energy, resid, nwritten, nstatw, statbuf, nvis, visits, &
+                     linear_solve, status)
+  ! The one entry that runs a scene: the model is built once from its tables and options, the
+  ! method integrates it (a fixed-step ODE method on the model's formulation, or
+  ! trapezoidal_index3 with its own options), and the outputs asked for (want: MBDK_OUT_* bits of
+  ! mbdk_model) are computed at the samples in the same call. An output array not asked for may
+  ! have one column; trapezoidal_index3 writes a_out, lam_out and iters_out whatever want says
+  ! (they are its own). Samples whose outputs cannot be computed (the state a failed run stopped
+  ! at) get NaN there. visits: the model's visit counters over the whole call (steps and
+  ! outputs); linear_solve: the path the model's solves take (MBDK_SOLVE_*).
+  use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_options, only: mbdk_options_t
-  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_METHOD_NAME_LEN
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
+    mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
+    MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, method_id, n, every
-  integer, intent(in) :: newton_max_iter, startup, nsamp
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, noptw, ni3w, n, want, nsamp
+  integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
-  double precision, intent(in) :: y0(n), t0, t_end, h, newton_rtol, newton_atol
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), stats(9), visits(9)
-  integer, intent(out) :: nwritten, status
+  double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w)
+  integer, intent(in), target :: interrupt(1)
+  double precision, intent(in) :: y0(n), t0, t_end
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
+  double precision, intent(inout) :: a_out(nc, na), lam_out(m1, nl), reac(3, nj1, nr)
+  double precision, intent(inout) :: energy(6, ne), resid(3, nrs), statbuf(nstatw), visits(nvis)
+  integer, intent(inout) :: iters_out(ni)
+  integer, intent(out) :: nwritten, linear_solve, status
+!f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mobuf) :: nmow = len(mobuf)
+!f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
+!f2py integer intent(hide), depend(a_out) :: nc = shape(a_out, 0)
+!f2py integer intent(hide), depend(a_out) :: na = shape(a_out, 1)
+!f2py integer intent(hide), depend(lam_out) :: m1 = shape(lam_out, 0)
+!f2py integer intent(hide), depend(lam_out) :: nl = shape(lam_out, 1)
+!f2py integer intent(hide), depend(iters_out) :: ni = len(iters_out)
+!f2py integer intent(hide), depend(reac) :: nr = shape(reac, 2)
+!f2py integer intent(hide), depend(energy) :: ne = shape(energy, 1)
+!f2py integer intent(hide), depend(resid) :: nrs = shape(resid, 1)
+!f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
+!f2py integer intent(hide), depend(visits) :: nvis = len(visits)
   type(mbdk_model_t) :: model
-  type(mbdk_options_t) :: opt
-  type(mbdk_stats_t) :: st
   type(mbdk_model_work_t), target :: work
+  type(mbdk_model_options_t) :: mopt
+  type(mbdk_options_t) :: opt
+  type(mbdk_index3_options_t) :: i3
+  type(mbdk_stats_t) :: st
+  character(len=MBDK_METHOD_NAME_LEN) :: name
+  integer :: family, order, m, k, ostat
+  logical :: index3
+  double precision :: nan
+  double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
 
   nwritten = 0
-  stats = 0.0d0
-  visits = 0.0d0
+  linear_solve = -1
   t_out = 0.0d0
   y_out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb) return
+  if (8 * nmow /= c_sizeof(mopt) .or. 8 * noptw /= c_sizeof(opt) .or. &
+      8 * ni3w /= c_sizeof(i3) .or. 8 * nstatw /= c_sizeof(st)) return
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb .or. nc /= 3 * nb) return
+  if (want < 0 .or. want > MBDK_OUT_ALL .or. nvis /= MBDK_VISIT_COUNT) return
+  call mbdk_method_info(method_id, name, family, order)
+  index3 = family == MBDK_FAMILY_DAE_INDEX3
+  mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, work, status)
+                       freal(:, 1:nf), mopt, work, status)
   if (status /= MBDK_SUCCESS) return
-  opt%method = method_id
-  opt%h = h
-  opt%every = every
-  opt%newton_rtol = newton_rtol
-  opt%newton_atol = newton_atol
-  opt%newton_max_iter = newton_max_iter
-  opt%startup = startup
-  call mbdk_fixed_step_solve(model, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
-  stats = mbdk_stats_to_array(st)
-  visits = dble(work%visits(1:9))
-end subroutine model_solve
+  linear_solve = mbdk_model_linear_solve(model)
+  m = model%m
+  status = MBDK_ERR_OUTPUT_SIZE
+  if (m1 < max(m, 1)) return
+  if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
+  if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
+  if (index3 .and. ni < nsamp) return
+  if (iand(want, MBDK_OUT_REACTIONS) /= 0 .and. nr < nsamp) return
+  if (iand(want, MBDK_OUT_ENERGY) /= 0 .and. ne < nsamp) return
+  if (iand(want, MBDK_OUT_RESIDUALS) /= 0 .and. nrs < nsamp) return
+
+  if (index3) then
+    i3 = transfer(i3buf, i3)
+    i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    call mbdk_index3_solve(model, i3, t0, t_end, y0, t_out, y_out, a_out(:, 1:nsamp), &
+                           lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
+  else
+    opt = transfer(optbuf, opt)
+    opt%method = method_id
+    opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    call mbdk_fixed_step_solve(model, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
+  end if
+
+  if (want /= 0 .and. nwritten > 0) then
+    nan = ieee_value(nan, ieee_quiet_nan)
+    allocate (a_s(nc), lam_s(m), reac_s(3, max(nj, 1)), en_s(6), res_s(3))
+    do k = 1, nwritten
+      if (index3) then
+        a_s = a_out(:, k)
+        lam_s = lam_out(1:m, k)
+      end if
+      call mbdk_model_outputs(model, t_out(k), y_out(:, k), index3, want, a_s, lam_s, &
+                              reac_s(:, 1:nj), en_s, res_s, ostat)
+      if (ostat /= MBDK_SUCCESS) then
+        a_s = nan; lam_s = nan; reac_s = nan; en_s = nan; res_s = nan
+      end if
+      if (.not. index3 .and. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) a_out(:, k) = a_s
+      if (.not. index3 .and. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) lam_out(1:m, k) = lam_s
+      if (iand(want, MBDK_OUT_REACTIONS) /= 0) reac(:, 1:nj, k) = reac_s(:, 1:nj)
+      if (iand(want, MBDK_OUT_ENERGY) /= 0) energy(:, k) = en_s
+      if (iand(want, MBDK_OUT_RESIDUALS) /= 0) resid(:, k) = res_s
+    end do
+  end if
+  statbuf = transfer(st, statbuf, nstatw)
+  visits = dble(work%visits)
+end subroutine scene_run
+
+subroutine visit_name(i, name)
+  ! Name of the model's i-th visit counter (scene_run's visits(i)).
+  use mbdk_model, only: MBDK_VISIT_NAMES, MBDK_VISIT_COUNT
+  implicit none
+  integer, intent(in) :: i
+  character(len=24), intent(out) :: name
+  name = ''
+  if (i >= 1 .and. i <= MBDK_VISIT_COUNT) name = MBDK_VISIT_NAMES(i)
+end subroutine visit_name
+
+subroutine struct_info(id, cname, nbytes, nfields)
+  ! The kernel's bind(C) struct id (mbdk_structs): C name, size in bytes, field count (0: none).
+  use mbdk_structs, only: mbdk_struct_info
+  implicit none
+  integer, intent(in) :: id
+  character(len=32), intent(out) :: cname
+  integer, intent(out) :: nbytes, nfields
+  call mbdk_struct_info(id, cname, nbytes, nfields)
+end subroutine struct_info
+
+subroutine struct_field(id, i, name, offset, ftype)
+  use mbdk_structs, only: mbdk_struct_field
+  implicit none
+  integer, intent(in) :: id, i
+  character(len=32), intent(out) :: name
+  integer, intent(out) :: offset, ftype
+  call mbdk_struct_field(id, i, name, offset, ftype)
+end subroutine struct_field
+
+subroutine struct_defaults(id, nw, buf)
+  ! The default-initialised struct as bytes (nw 8-byte words).
+  use mbdk_structs, only: mbdk_struct_defaults
+  implicit none
+  integer, intent(in) :: id, nw
+  double precision, intent(out) :: buf(nw)
+  call mbdk_struct_defaults(id, buf)
+end subroutine struct_defaults
 
 subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                      formulation, fpar, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, path, status)
+                      nmow, mobuf, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, path, status)
   ! Phi, D, gamma, Phi_t, the generalised forces and the formulation's accelerations and
   ! multipliers at one state: for assembly, diagnosis and tests. path: the linear solve the
   ! evaluation took (MBDK_SOLVE_* of mbdk_model).
   use mbdk_kinds, only: i8
+  use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_constraints, &
-    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_assemble, mbdk_model_linear_solve
+    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_assemble, mbdk_model_linear_solve, &
+    mbdk_model_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, m, nc
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc)
   double precision, intent(out) :: phi(m), d(m, nc), gam(m), phit(m), fq(nc), acc(nc), lam(m)
@@ -299,16 +424,20 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mobuf) :: nmow = len(mobuf)
 !f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
+  type(mbdk_model_options_t) :: mopt
 
   path = -1
   phi = 0.0d0; d = 0.0d0; gam = 0.0d0; phit = 0.0d0; fq = 0.0d0; acc = 0.0d0; lam = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  if (8 * nmow /= c_sizeof(mopt)) return
+  mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, work, status)
+                       freal(:, 1:nf), mopt, work, status)
   if (status /= MBDK_SUCCESS) return
   path = mbdk_model_linear_solve(model)
   status = MBDK_ERR_INVALID_INPUT
@@ -320,66 +449,20 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
 
-subroutine model_outputs(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                         formulation, fpar, m, nc, ns, t, y, given, acc, lam, reac, energy, &
-                         resid, nok, status)
-  ! The sampled outputs (accelerations, multipliers, reactions, energy parts, residuals) at
-  ! every sample of a trajectory; nok samples were evaluated before a failure. given /= 0: acc
-  ! and lam are inputs (an index-3 integrator's own), not recomputed.
-  use mbdk_kinds, only: i8
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_outputs, mbdk_model_work_t
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
-  implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, m, nc, ns, given
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
-  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
-  double precision, intent(in) :: t(ns), y(2 * nc, ns)
-  double precision, intent(in out) :: acc(nc, ns), lam(m, ns)
-  double precision, intent(out) :: reac(3, nj1, ns), energy(6, ns)
-  double precision, intent(out) :: resid(3, ns)
-  integer, intent(out) :: nok, status
-!f2py integer intent(hide), depend(mass) :: nb = len(mass)
-!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
-!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
-!f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
-!f2py integer intent(hide), depend(t) :: ns = len(t)
-  type(mbdk_model_t) :: model
-  type(mbdk_model_work_t), target :: work
-  integer :: k
-
-  if (given == 0) then
-    acc = 0.0d0; lam = 0.0d0
-  end if
-  reac = 0.0d0; energy = 0.0d0; resid = 0.0d0
-  nok = 0
-  status = MBDK_ERR_INVALID_INPUT
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
-  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, work, status)
-  if (status /= MBDK_SUCCESS) return
-  status = MBDK_ERR_INVALID_INPUT
-  if (model%m /= m) return
-  status = MBDK_SUCCESS
-  do k = 1, ns
-    call mbdk_model_outputs(model, t(k), y(:, k), acc(:, k), lam(:, k), reac(:, 1:nj, k), &
-                            energy(:, k), resid(:, k), status, given /= 0)
-    if (status /= MBDK_SUCCESS) return
-    nok = k
-  end do
-end subroutine model_outputs
-
 subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                         formulation, fpar, nc, t, y, nrep, seconds, status)
+                         nmow, mobuf, nc, t, y, nrep, seconds, status)
   ! Where an evaluation's time goes: seconds(1) = nrep evaluations of the assembly alone
   ! (rotations, forces, Phi, D in compact rows, gamma: mbdk_model_assemble), seconds(2) = nrep
   ! full evaluations (assembly + the formulation's linear solve). The linear solve is the
   ! difference; the integrator's share follows from a timed run (studies/scene_drift.py).
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_clock, only: mbdk_thread_cpu_seconds
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_assemble, &
-    mbdk_model_accelerations, mbdk_model_work_t
+    mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, formulation, nc, nrep
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, nrep
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc)
   double precision, intent(out) :: seconds(2)
@@ -387,9 +470,11 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mobuf) :: nmow = len(mobuf)
 !f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
+  type(mbdk_model_options_t) :: mopt
   double precision :: c0, c1, acc(nc)
   double precision, allocatable :: lam(:)
   integer :: k
@@ -397,95 +482,37 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   seconds = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. nrep < 1) return
+  if (8 * nmow /= c_sizeof(mopt)) return
+  mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), formulation, fpar, work, status)
+                       freal(:, 1:nf), mopt, work, status)
   if (status /= MBDK_SUCCESS) return
   allocate (lam(model%m))
-  call cpu_time(c0)
+  c0 = mbdk_thread_cpu_seconds()
   do k = 1, nrep
     call mbdk_model_assemble(model, t, y(1:nc), y(nc + 1:), status)
   end do
-  call cpu_time(c1)
+  c1 = mbdk_thread_cpu_seconds()
   seconds(1) = c1 - c0
-  call cpu_time(c0)
+  c0 = mbdk_thread_cpu_seconds()
   do k = 1, nrep
     call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
   end do
-  call cpu_time(c1)
+  c1 = mbdk_thread_cpu_seconds()
   seconds(2) = c1 - c0
 end subroutine model_profile
 
-subroutine model_index3_solve(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                              fpar, variant, n, y0, t0, t_end, h, every, rtol, atol, max_iter, &
-                              alpha, adaptive, err_rtol, err_atol, dt_out, h_min, h_max, &
-                              nsamp, m1, t_out, y_out, a_out, lam_out, iters_out, &
-                              nwritten, stats, visits, status)
-  ! trapezoidal_index3 on a scene (kernel/src/dae/mbdk_trapezoidal_index3.f90): variant 1 =
-  ! the book's index-3 scheme, 2 = augmented Lagrangian with projections. m1 = max(m, 1).
-  ! adaptive /= 0: step-size control (err_rtol, err_atol on q and v), samples every dt_out.
-  use mbdk_options, only: mbdk_options_t
-  use mbdk_stats, only: mbdk_stats_t, mbdk_stats_to_array
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
-  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_opt_t
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
-  implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, variant, n, every, max_iter, nsamp, m1, adaptive
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
-  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
-  double precision, intent(in) :: y0(n), t0, t_end, h, rtol, atol, alpha
-  double precision, intent(in) :: err_rtol, err_atol, dt_out, h_min, h_max
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), a_out(n / 2, nsamp)
-  double precision, intent(out) :: lam_out(m1, nsamp), stats(9), visits(9)
-  integer, intent(out) :: iters_out(nsamp), nwritten, status
-!f2py integer intent(hide), depend(mass) :: nb = len(mass)
-!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
-!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
-!f2py integer intent(hide), depend(y0) :: n = len(y0)
-  type(mbdk_model_t) :: model
-  type(mbdk_model_work_t), target :: work
-  type(mbdk_index3_opt_t) :: opt
-  type(mbdk_stats_t) :: st
-
-  nwritten = 0
-  stats = 0.0d0
-  visits = 0.0d0
-  t_out = 0.0d0; y_out = 0.0d0; a_out = 0.0d0; lam_out = 0.0d0; iters_out = 0
-  status = MBDK_ERR_INVALID_INPUT
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb) return
-  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), MBDK_FORM_REDUCED, fpar, work, status)
-  if (status /= MBDK_SUCCESS) return
-  status = MBDK_ERR_INVALID_INPUT
-  if (m1 /= max(model%m, 1)) return
-  opt%formulation = variant
-  opt%h = h
-  opt%every = every
-  opt%rtol = rtol
-  opt%atol = atol
-  opt%newton_max_iter = max_iter
-  opt%alpha = alpha
-  opt%adaptive = adaptive /= 0
-  opt%err_rtol = err_rtol
-  opt%err_atol = err_atol
-  opt%dt_out = dt_out
-  opt%h_min = h_min
-  opt%h_max = h_max
-  call mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out(1:model%m, :), &
-                         iters_out, nwritten, st, status)
-  stats = mbdk_stats_to_array(st)
-  visits = dble(work%visits(1:9))
-end subroutine model_index3_solve
-
 subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
-                               fpar, nc, m, t, y, lam, h, scaling, jac, status)
+                               nmow, mobuf, nc, m, t, y, lam, h, scaling, jac, status)
   ! The Newton matrix of trapezoidal_index3 at (q, v, lambda): scaling 0 unscaled, 1 the
   ! book's (3.15)-(3.16), 2 the solver's (dynamic rows times h^2/4, unknown h^2/4 lambda).
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, MBDK_FORM_REDUCED
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_newton_matrix
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, nc, m, scaling
-  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), fpar(8)
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, m, scaling
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc), lam(m), h
   double precision, intent(out) :: jac(nc + m, nc + m)
@@ -493,43 +520,46 @@ subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1,
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(mobuf) :: nmow = len(mobuf)
 !f2py integer intent(hide), depend(mass) :: nc = 3 * len(mass)
 !f2py integer intent(hide), depend(lam) :: m = len(lam)
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
+  type(mbdk_model_options_t) :: mopt
 
   jac = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  if (8 * nmow /= c_sizeof(mopt)) return
+  mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), MBDK_FORM_REDUCED, fpar, work, status)
+                       freal(:, 1:nf), mopt, work, status)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return
   call mbdk_index3_newton_matrix(model, t, y(1:nc), y(nc + 1:), lam, h, scaling, jac, status)
 end subroutine model_index3_matrix
 
-subroutine index3_plan(t0, t_end, h, every, adaptive, err_rtol, err_atol, dt_out, h_min, h_max, &
-                       nsteps, nsamp, status)
+subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_kinds, only: i8
-  use mbdk_trapezoidal_index3, only: mbdk_index3_plan, mbdk_index3_opt_t
+  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
+  use mbdk_trapezoidal_index3, only: mbdk_index3_plan, mbdk_index3_options_t
   implicit none
-  double precision, intent(in) :: t0, t_end, h, err_rtol, err_atol, dt_out, h_min, h_max
-  integer, intent(in) :: every, adaptive
+  integer, intent(in) :: ni3w
+  double precision, intent(in) :: i3buf(ni3w), t0, t_end
   double precision, intent(out) :: nsteps
   integer, intent(out) :: nsamp, status
-  type(mbdk_index3_opt_t) :: opt
+!f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
+  type(mbdk_index3_options_t) :: opt
   integer(i8) :: ns
   logical :: shortened
-  opt%h = h
-  opt%every = every
-  opt%adaptive = adaptive /= 0
-  opt%err_rtol = err_rtol
-  opt%err_atol = err_atol
-  opt%dt_out = dt_out
-  opt%h_min = h_min
-  opt%h_max = h_max
+  nsteps = 0.0d0
+  nsamp = 0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * ni3w /= c_sizeof(opt)) return
+  opt = transfer(i3buf, opt)
   call mbdk_index3_plan(opt, t0, t_end, ns, nsamp, shortened, status)
   nsteps = dble(ns)
 end subroutine index3_plan

@@ -8,6 +8,8 @@ module mbdk_methods
   integer, parameter, public :: MBDK_FAMILY_EXPLICIT_RK = 1
   integer, parameter, public :: MBDK_FAMILY_EULER_CROMER = 2
   integer, parameter, public :: MBDK_FAMILY_IMPLICIT_LMM = 3
+  !> integrates a scene's index-3 DAE itself (mbdk_trapezoidal_index3), not an ODE y' = F(t, y)
+  integer, parameter, public :: MBDK_FAMILY_DAE_INDEX3 = 4
 
   integer, parameter, public :: MBDK_EXPLICIT_EULER = 1
   integer, parameter, public :: MBDK_HEUN = 2
@@ -17,14 +19,16 @@ module mbdk_methods
   integer, parameter, public :: MBDK_TRAPEZOIDAL = 6
   integer, parameter, public :: MBDK_BDF1 = 7   ! bdfk has id MBDK_BDF1 + k - 1
   integer, parameter, public :: MBDK_BDF6 = 12
-  integer, parameter, public :: MBDK_METHOD_COUNT = 12
+  integer, parameter, public :: MBDK_TRAPEZOIDAL_INDEX3 = 13
+  integer, parameter, public :: MBDK_METHOD_COUNT = 13
   integer, parameter, public :: MBDK_METHOD_NAME_LEN = 24
 
   character(len=MBDK_METHOD_NAME_LEN), parameter :: names(MBDK_METHOD_COUNT) = [character( &
     len=MBDK_METHOD_NAME_LEN) :: 'explicit_euler', 'heun', 'rk4', 'euler_cromer', &
-    'implicit_euler', 'trapezoidal', 'bdf1', 'bdf2', 'bdf3', 'bdf4', 'bdf5', 'bdf6']
-  integer, parameter :: families(MBDK_METHOD_COUNT) = [1, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3, 3]
-  integer, parameter :: orders(MBDK_METHOD_COUNT) = [1, 2, 4, 1, 1, 2, 1, 2, 3, 4, 5, 6]
+    'implicit_euler', 'trapezoidal', 'bdf1', 'bdf2', 'bdf3', 'bdf4', 'bdf5', 'bdf6', &
+    'trapezoidal_index3']
+  integer, parameter :: families(MBDK_METHOD_COUNT) = [1, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3, 3, 4]
+  integer, parameter :: orders(MBDK_METHOD_COUNT) = [1, 2, 4, 1, 1, 2, 1, 2, 3, 4, 5, 6, 2]
 
   public :: mbdk_method_id, mbdk_method_info
 

@@ -1,6 +1,8 @@
-!> Options of a fixed-step solve, by name with defaults.
+!> Options of a fixed-step ODE solve, by name with defaults. bind(C): the same struct is struct
+!> mbdk_options in mbdk.h and mbdk.options.ODEOptions in Python (tests/test_structs.py and
+!> kernel/tests/c_struct_layout.c check that the three agree field by field).
 module mbdk_options
-  use mbdk_kinds, only: dp
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_intptr_t
   implicit none
   private
 
@@ -9,15 +11,21 @@ module mbdk_options
   integer, parameter, public :: MBDK_STARTUP_RK4 = 0
   integer, parameter, public :: MBDK_STARTUP_BDF = 1
 
-  type, public :: mbdk_options_t
-    integer :: method = 0                  !< method id (mbdk_methods)
-    real(dp) :: h = 0.0_dp                 !< step size
-    integer :: every = 1                   !< keep every k-th step as a sample (the last point always)
-    real(dp) :: newton_rtol = 1.0e-10_dp   !< Newton: stop when the weighted RMS of the update < 1
-    real(dp) :: newton_atol = 1.0e-12_dp
-    integer :: newton_max_iter = 10
-    logical :: fd_jacobian = .false.       !< force finite differences even if F has a Jacobian
-    integer :: startup = MBDK_STARTUP_RK4  !< how a k-step method gets its first k-1 values
+  type, bind(C), public :: mbdk_options_t
+    real(c_double) :: h = 0.0_c_double               !< step size
+    real(c_double) :: newton_rtol = 1.0e-10_c_double !< Newton: stop when the weighted RMS of the update < 1
+    real(c_double) :: newton_atol = 1.0e-12_c_double
+    !> address of a C int the caller may set non-zero from another thread (or a signal handler)
+    !> to stop the solve at the next step with MBDK_ERR_INTERRUPTED; 0 (NULL): never interrupted.
+    !> An address, not a type(c_ptr): gfortran 12 rejects c_null_ptr as a default initialiser in
+    !> scopes that use this type without iso_c_binding.
+    integer(c_intptr_t) :: interrupt = 0
+    integer(c_int) :: method = 0                     !< method id (mbdk_methods)
+    integer(c_int) :: every = 1                      !< keep every k-th step as a sample (the last always)
+    integer(c_int) :: newton_max_iter = 10
+    integer(c_int) :: fd_jacobian = 0                !< non-zero: finite differences even if F has a Jacobian
+    integer(c_int) :: nq = 0                         !< > 0: y = [q; v] with n = 2 nq (C callbacks; euler_cromer)
+    integer(c_int) :: startup = MBDK_STARTUP_RK4     !< how a k-step method gets its first k-1 values
   end type mbdk_options_t
 
 end module mbdk_options

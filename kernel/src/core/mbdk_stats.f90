@@ -1,35 +1,23 @@
-!> Statistics of one solve, counted inside the kernel.
+!> Statistics of one solve, counted inside the kernel. bind(C): the same struct is struct
+!> mbdk_stats in mbdk.h and mbdk.Stats in Python (tests/test_structs.py and
+!> kernel/tests/c_struct_layout.c check that the three agree field by field). The counters SciPy
+!> users know keep SciPy's names (nfev, njev, nlu).
 module mbdk_stats
-  use mbdk_kinds, only: dp, i8
+  use, intrinsic :: iso_c_binding, only: c_int64_t, c_double
   implicit none
   private
-  public :: mbdk_stats_t, MBDK_NSTATS, mbdk_stats_to_array
 
-  type, public :: mbdk_stats_t
-    integer(i8) :: steps = 0          !< accepted steps (including start-up steps)
-    integer(i8) :: rhs_evals = 0      !< evaluations of F(t, y), finite-difference columns included
-    integer(i8) :: jac_evals = 0      !< Jacobian evaluations (analytic or by finite differences)
-    integer(i8) :: lu_factorizations = 0 !< factorisations of a Newton matrix (LU or LDL^T)
-    integer(i8) :: newton_iterations = 0
-    integer(i8) :: startup_steps = 0  !< steps taken by the start-up method of a multistep method
-    integer(i8) :: rejected_steps = 0 !< step-size control: steps rejected by the error test
-    integer(i8) :: newton_failures = 0 !< step-size control: steps retried because Newton failed
-    real(dp) :: cpu_time = 0.0_dp     !< CPU seconds of the time loop, measured in the kernel
+  type, bind(C), public :: mbdk_stats_t
+    integer(c_int64_t) :: steps = 0             !< accepted steps (including start-up steps)
+    integer(c_int64_t) :: nfev = 0              !< evaluations of F(t, y), finite-difference columns included
+    integer(c_int64_t) :: njev = 0              !< Jacobian evaluations (analytic or by finite differences)
+    integer(c_int64_t) :: nlu = 0               !< factorisations of a Newton matrix (LU or LDL^T)
+    integer(c_int64_t) :: newton_iterations = 0
+    integer(c_int64_t) :: startup_steps = 0     !< steps of the start-up method of a multistep method
+    integer(c_int64_t) :: rejected_steps = 0    !< step-size control: steps rejected by the error test
+    integer(c_int64_t) :: newton_failures = 0   !< steps retried because Newton failed
+    real(c_double) :: cpu_time = 0.0_c_double   !< CPU seconds of the solving thread in the time loop
+    real(c_double) :: wall_time = 0.0_c_double  !< wall-clock seconds of the time loop
   end type mbdk_stats_t
-
-  integer, parameter :: MBDK_NSTATS = 9
-
-contains
-
-  !> Flat view for the f2py layer: steps, rhs, jac, lu, newton, startup, cpu_time, rejected,
-  !> newton_failures.
-  pure function mbdk_stats_to_array(s) result(a)
-    type(mbdk_stats_t), intent(in) :: s
-    real(dp) :: a(MBDK_NSTATS)
-    a = [real(s%steps, dp), real(s%rhs_evals, dp), real(s%jac_evals, dp), &
-         real(s%lu_factorizations, dp), real(s%newton_iterations, dp), &
-         real(s%startup_steps, dp), s%cpu_time, real(s%rejected_steps, dp), &
-         real(s%newton_failures, dp)]
-  end function mbdk_stats_to_array
 
 end module mbdk_stats

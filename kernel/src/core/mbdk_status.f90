@@ -5,7 +5,7 @@
 !>   > 0    success with a note (the result is complete and usable)
 !>   < 0    failure, grouped by cause: -1..-9 invalid input, -10..-19 step control,
 !>          -20..-29 nonlinear / linear algebra, -30..-39 solution, -40..-49 user callback,
-!>          -50..-59 backends (SUNDIALS)
+!>          -50..-59 backends (SUNDIALS), -60..-69 the caller
 !>
 !> The kernel never prints and never stops the process: every public routine returns one of these.
 module mbdk_status
@@ -25,8 +25,9 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_NONFINITE = -30
   integer, parameter, public :: MBDK_ERR_CALLBACK_FAILED = -40
   integer, parameter, public :: MBDK_ERR_BACKEND = -50
+  integer, parameter, public :: MBDK_ERR_INTERRUPTED = -60
 
-  integer, parameter, public :: MBDK_STATUS_COUNT = 13
+  integer, parameter, public :: MBDK_STATUS_COUNT = 14
   integer, parameter, public :: MBDK_STATUS_NAME_LEN = 32
   integer, parameter, public :: MBDK_STATUS_MSG_LEN = 120
 
@@ -52,12 +53,14 @@ module mbdk_status
     status_entry(MBDK_ERR_NEWTON_DIVERGED, 'ERR_NEWTON_DIVERGED', &
       'Newton-Raphson iteration did not converge; reduce the step h'), &
     status_entry(MBDK_ERR_SINGULAR_MATRIX, 'ERR_SINGULAR_MATRIX', &
-      'the Newton iteration matrix I - h*gamma*J is singular; change the step h'), &
+      'a singular linear system: a Newton matrix, or D M^-1 D^T where constraints are dependent'), &
     status_entry(MBDK_ERR_NONFINITE, 'ERR_NONFINITE', &
       'the solution overflowed to inf or NaN (the method is unstable at this step); reduce h'), &
     status_entry(MBDK_ERR_CALLBACK_FAILED, 'ERR_CALLBACK_FAILED', &
       'the user right-hand side returned a failure'), &
-    status_entry(MBDK_ERR_BACKEND, 'ERR_BACKEND', 'a backend (SUNDIALS) reported an error') ]
+    status_entry(MBDK_ERR_BACKEND, 'ERR_BACKEND', 'a backend (SUNDIALS) reported an error'), &
+    status_entry(MBDK_ERR_INTERRUPTED, 'ERR_INTERRUPTED', &
+      'interrupted by the caller; the samples up to the interruption are kept') ]
 
   public :: mbdk_status_entry, mbdk_status_message, mbdk_is_failure
 

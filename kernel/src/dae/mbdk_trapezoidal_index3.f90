@@ -8,7 +8,7 @@
 !> the equations of motion at t+ = t + h, multiplied by s (3.15), read
 !>   r(q+, lambda+) = M (q+ - qhat) + s (D^T lambda+ - f) = 0,   qhat = q + h v + s a.
 !>
-!> Formulations (mbdk_index3_opt_t%formulation):
+!> Formulations (mbdk_index3_options_t%formulation):
 !>   1 index3     the book's scheme: Newton-Raphson (3.16) on (q+, lambda+) for r = 0 and
 !>                Phi(q+) = 0, multiplier predictor (3.11) lambda+ = lambda + (h/h-)(lambda -
 !>                lambda-), position predictor q + h v + (h^2/2) a. v+ and a+ follow from the
@@ -65,7 +65,7 @@
 !> h = 1e-3 against 1.2 us); otherwise by the LU with partial pivoting. An LU that has served two
 !> solves forms its explicit inverse for the next ones (a fixed-length column product, a quarter
 !> of the triangular sweeps at 10 rows: the book scheme's matrix serves about 30 solves;
-!> stats%lu_factorizations counts either kind). The matrix is reused across iterations and steps
+!> stats%nlu counts either kind). The matrix is reused across iterations and steps
 !> while Newton contracts. It is rebuilt at the current iterate when the contraction rate exceeds
 !> 0.5 or two more iterations at the current rate would not reach the tolerance (an iteration
 !> costs about a factorisation), and when h changes. When an update grows with an old matrix, the
@@ -100,13 +100,19 @@
 !> (MBDK_ERR_NOT_APPLICABLE): its velocity error in the constraint directions grows without
 !> bound, and any error test on v would shrink h forever.
 !>
+!> The caller's interrupt flag (opt%interrupt) is polled before every step (fixed: every output
+!> step); set, the solve ends with MBDK_ERR_INTERRUPTED and keeps its samples.
+!>
 !> Per step the solve records the Newton iterations (iters_out at each sample: those of the step
 !> that produced it; every update computed, the last, converged one included) and counts
 !> factorizations in the stats.
 module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
   use mbdk_status
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_intptr_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
+  use mbdk_interrupt, only: mbdk_interrupted
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations, &
     MBDK_MODEL_SINGULAR_TOL
   use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_eval, mbdk_joints_scatter, &
@@ -134,17 +140,26 @@ module mbdk_trapezoidal_index3
   integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
     MBDK_INDEX3_SCALED = 2
 
-  type, public :: mbdk_index3_opt_t
-    integer :: formulation = MBDK_INDEX3_BOOK
-    real(dp) :: h = 1.0e-3_dp
-    integer :: every = 1
-    real(dp) :: rtol = 1.0e-10_dp, atol = 1.0e-12_dp
-    integer :: newton_max_iter = 20
-    real(dp) :: alpha = 0.0_dp
-    logical :: adaptive = .false.
-    real(dp) :: err_rtol = 1.0e-6_dp, err_atol = 1.0e-8_dp
-    real(dp) :: dt_out = 0.0_dp, h_min = 0.0_dp, h_max = 0.0_dp
-  end type mbdk_index3_opt_t
+  !> Options of a solve, by name with defaults. bind(C): the same struct is struct
+  !> mbdk_index3_options in mbdk.h and mbdk.options.Index3Options in Python (tests/test_structs.py
+  !> and kernel/tests/c_struct_layout.c check that the three agree field by field).
+  type, bind(C), public :: mbdk_index3_options_t
+    real(c_double) :: h = 1.0e-3_c_double              !< fixed step, or the first step (adaptive)
+    real(c_double) :: newton_rtol = 1.0e-10_c_double   !< on the position update
+    real(c_double) :: newton_atol = 1.0e-12_c_double   !< and max |Phi| <= newton_atol
+    real(c_double) :: alpha = 0.0_c_double             !< augmented penalty; 0: KAPPA max(M) / s per step
+    real(c_double) :: err_rtol = 1.0e-6_c_double       !< adaptive: local error tolerances on q and v
+    real(c_double) :: err_atol = 1.0e-8_c_double
+    real(c_double) :: dt_out = 0.0_c_double            !< adaptive: sample interval
+    real(c_double) :: h_min = 0.0_c_double             !< adaptive: 0 = 1e-12 of the interval
+    real(c_double) :: h_max = 0.0_c_double             !< adaptive: 0 = the interval
+    !> address of a C int the caller may set non-zero to stop the solve (MBDK_ERR_INTERRUPTED)
+    integer(c_intptr_t) :: interrupt = 0
+    integer(c_int) :: formulation = MBDK_INDEX3_BOOK   !< MBDK_INDEX3_BOOK or MBDK_INDEX3_AUGMENTED
+    integer(c_int) :: every = 1                        !< fixed step: keep every k-th step
+    integer(c_int) :: newton_max_iter = 20
+    integer(c_int) :: adaptive = 0                     !< non-zero: step-size control (augmented only)
+  end type mbdk_index3_options_t
 
 contains
 
@@ -269,7 +284,7 @@ contains
   subroutine mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out, &
                                iters_out, nwritten, st, stat)
     type(mbdk_model_t), intent(in) :: model
-    type(mbdk_index3_opt_t), intent(in) :: opt
+    type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end, y0(:)
     real(dp), intent(out) :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
     integer, intent(out) :: iters_out(:), nwritten
@@ -281,7 +296,8 @@ contains
     real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
     real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
     real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
-    real(dp) :: t, tn, t_s, h, h_lu, h_prev, h_prev2, alpha, cpu0, cpu1
+    real(dp) :: t, tn, t_s, h, h_lu, h_prev, h_prev2, alpha
+    type(mbdk_timer_t) :: timer
     real(dp) :: ks(model%m, model%m), kkt(model%nc + model%m, &
       model%nc + model%m), zero_nc(model%nc), zero_m(model%m), one_nc(model%nc)
     integer :: kpiv(model%nc + model%m)
@@ -300,11 +316,11 @@ contains
     nc = model%nc
     m = model%m
     if (opt%formulation /= MBDK_INDEX3_BOOK .and. opt%formulation /= MBDK_INDEX3_AUGMENTED) return
-    if (.not. (opt%rtol >= 0.0_dp .and. opt%atol > 0.0_dp) .or. opt%newton_max_iter < 1) return
+    if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
     if (size(y0) /= 2 * nc) return
     if (.not. all(abs(y0) <= huge(1.0_dp))) return
-    if (opt%adaptive .and. opt%formulation == MBDK_INDEX3_BOOK) then
+    if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
     end if
@@ -332,7 +348,7 @@ contains
     zero_nc = 0.0_dp
     zero_m = 0.0_dp
     one_nc = 1.0_dp
-    call cpu_time(cpu0)
+    call mbdk_timer_start(timer)
 
     q = y0(1:nc)
     v = y0(nc + 1:)
@@ -348,19 +364,23 @@ contains
     a_prev2 = a
     h_prev = 0.0_dp
     h_prev2 = 0.0_dp
-    st%rhs_evals = 1
+    st%nfev = 1
     iters = 0
     call write_sample()
     have_lu = .false.
     h_lu = 0.0_dp
     cool = 0
     cool_len = 8
-    if (opt%adaptive) then
+    if (opt%adaptive /= 0) then
       call adaptive_loop(stat)
     else
       do i = 1, nsteps
         t_s = t0 + real(i, dp) * opt%h
         if (i == nsteps) t_s = t_end
+        if (mbdk_interrupted(opt%interrupt)) then
+          stat = MBDK_ERR_INTERRUPTED
+          exit
+        end if
         call advance_to(t_s, stat)
         if (stat /= MBDK_SUCCESS) exit
         if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample()
@@ -371,8 +391,7 @@ contains
     if (mbdk_is_failure(stat) .and. nwritten < size(t_out)) then
       if (t > t_out(nwritten)) call write_sample()
     end if
-    call cpu_time(cpu1)
-    st%cpu_time = cpu1 - cpu0
+    call mbdk_timer_stop(timer, st)
 
   contains
 
@@ -452,6 +471,10 @@ contains
         t_s = t0 + real(k, dp) * opt%dt_out
         if (k == nsamp - 1) t_s = t_end
         do while (t < t_s)
+          if (mbdk_interrupted(opt%interrupt)) then
+            ierr = MBDK_ERR_INTERRUPTED
+            return
+          end if
           h = h_nat
           if (t_s - t <= 1.1_dp * h) then
             h = t_s - t
@@ -543,12 +566,12 @@ contains
     !> max |Phi| accepted: atol, but not below the roundoff of the coordinates.
     real(dp) function phi_tol(x)
       real(dp), intent(in) :: x(:)
-      phi_tol = max(opt%atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(x))))
+      phi_tol = max(opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(x))))
     end function phi_tol
 
     real(dp) function wnorm(dx, x)
       real(dp), intent(in) :: dx(:), x(:)
-      wnorm = maxval(abs(dx) / (opt%atol + opt%rtol * abs(x)))
+      wnorm = maxval(abs(dx) / (opt%newton_atol + opt%newton_rtol * abs(x)))
     end function wnorm
 
     !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
@@ -591,7 +614,7 @@ contains
         call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, qn, vn, tn, fq, &
                               model%work%visits(5:), ierr)
         if (ierr /= MBDK_SUCCESS) return
-        st%rhs_evals = st%rhs_evals + 1
+        st%nfev = st%nfev + 1
         lt = ln
         if (.not. book) then
           if (k > 0) ln = ln + alpha * phi
@@ -605,8 +628,8 @@ contains
         if (book) r(nc + 1:) = phi
         if (.not. have_lu) then
           call factor_matrix(ierr)
-          st%lu_factorizations = st%lu_factorizations + 1
-          st%jac_evals = st%jac_evals + 1
+          st%nlu = st%nlu + 1
+          st%njev = st%njev + 1
           if (ierr /= MBDK_SUCCESS) return
           have_lu = .true.
           h_lu = h
@@ -812,12 +835,12 @@ contains
   !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
   !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).
   subroutine mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, stat)
-    type(mbdk_index3_opt_t), intent(in) :: opt
+    type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end
     integer(i8), intent(out) :: nsteps
     integer, intent(out) :: nsamp, stat
     logical, intent(out) :: shortened
-    if (opt%adaptive) then
+    if (opt%adaptive /= 0) then
       stat = MBDK_ERR_INVALID_INPUT
       nsteps = 0
       nsamp = 0

@@ -17,15 +17,19 @@
 !> after every step; a multistep history then continues from the projected state.
 !>
 !> After every step the state is checked: inf or NaN ends the solve with MBDK_ERR_NONFINITE,
-!> keeping the samples written so far. CPU time of the loop is measured with cpu_time.
+!> keeping the samples written so far. The caller's interrupt flag (opt%interrupt) is polled
+!> before every step: set, the solve ends with MBDK_ERR_INTERRUPTED, keeping the samples written.
+!> The loop's CPU time (of the calling thread) and wall time are in the statistics.
 module mbdk_fixed_step
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t, MBDK_STARTUP_RK4, MBDK_STARTUP_BDF
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
+  use mbdk_interrupt, only: mbdk_interrupted
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_EXPLICIT_RK, MBDK_FAMILY_EULER_CROMER, &
-    MBDK_FAMILY_IMPLICIT_LMM, MBDK_RK4, MBDK_BDF1, MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, MBDK_RK4, MBDK_BDF1, MBDK_METHOD_NAME_LEN
   use mbdk_butcher, only: mbdk_butcher_t, mbdk_butcher_table, MBDK_MAX_STAGES
   use mbdk_explicit_rk, only: mbdk_explicit_rk_step
   use mbdk_euler_cromer, only: mbdk_euler_cromer_step
@@ -89,13 +93,16 @@ contains
     type(mbdk_lmm_t) :: lmm, lmm_start
     type(mbdk_newton_work_t) :: nw
     real(dp), allocatable :: k(:, :), ytmp(:), y(:), hist(:, :), fn(:), c(:), yfull(:)
-    real(dp) :: t, hi, cpu0, cpu1
+    real(dp) :: t, hi
+    type(mbdk_timer_t) :: timer
 
     nwritten = 0
     n = prob%n
     call mbdk_method_info(opt%method, name, family, order)
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (family == 0) return
+    stat = MBDK_ERR_NOT_APPLICABLE   ! an index-3 DAE method integrates scenes, not ODEs
+    if (family == MBDK_FAMILY_DAE_INDEX3) return
     stat = MBDK_ERR_INVALID_INPUT
     if (n < 1 .or. size(y0) /= n) return
     if (.not. all(abs(y0) <= huge(1.0_dp))) return
@@ -129,7 +136,7 @@ contains
       hist(:, 1) = y0
     end select
 
-    call cpu_time(cpu0)
+    call mbdk_timer_start(timer)
     y = y0
     t = t0
     nwritten = 1
@@ -138,11 +145,15 @@ contains
     stat = MBDK_SUCCESS
     if (family == MBDK_FAMILY_IMPLICIT_LMM .and. lmm%beta1 /= 0.0_dp) then
       call prob%rhs(t0, y, fn, stat)
-      st%rhs_evals = st%rhs_evals + 1
+      st%nfev = st%nfev + 1
     end if
 
     do i = 1, nsteps
       if (stat /= MBDK_SUCCESS) exit
+      if (mbdk_interrupted(opt%interrupt)) then
+        stat = MBDK_ERR_INTERRUPTED
+        exit
+      end if
       hi = opt%h
       if (i == nsteps .and. shortened) hi = t_end - t
       select case (family)
@@ -183,7 +194,7 @@ contains
           hist(:, 1) = y
           if (lmm%beta1 /= 0.0_dp) then
             call prob%rhs(t0 + real(i, dp) * opt%h, y, fn, stat)
-            st%rhs_evals = st%rhs_evals + 1
+            st%nfev = st%nfev + 1
             if (stat /= MBDK_SUCCESS) exit
           end if
         end if
@@ -204,8 +215,7 @@ contains
         y_out(:, nwritten) = y
       end if
     end do
-    call cpu_time(cpu1)
-    st%cpu_time = cpu1 - cpu0
+    call mbdk_timer_stop(timer, st)
     if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
   end subroutine mbdk_fixed_step_solve
 

@@ -31,7 +31,7 @@ contains
 
     nq = prob%nq
     call prob%rhs(t, y, f, stat)
-    st%rhs_evals = st%rhs_evals + 1
+    st%nfev = st%nfev + 1
     if (stat /= MBDK_SUCCESS) return
     y(nq + 1:2 * nq) = y(nq + 1:2 * nq) + h * f(nq + 1:2 * nq)
     y(1:nq) = y(1:nq) + h * y(nq + 1:2 * nq)

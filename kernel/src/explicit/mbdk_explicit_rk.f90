@@ -33,7 +33,7 @@ contains
         if (tab%a(i, j) /= 0.0_dp) ytmp = ytmp + (h * tab%a(i, j)) * k(:, j)
       end do
       call prob%rhs(t + tab%c(i) * h, ytmp, k(:, i), stat)
-      st%rhs_evals = st%rhs_evals + 1
+      st%nfev = st%nfev + 1
       if (stat /= MBDK_SUCCESS) return
     end do
     do i = 1, tab%stages

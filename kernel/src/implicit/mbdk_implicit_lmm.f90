@@ -47,7 +47,7 @@ contains
     hist(:, 1) = y
     if (tab%beta1 /= 0.0_dp) then
       call prob%rhs(t + h, y, fn, stat)
-      st%rhs_evals = st%rhs_evals + 1
+      st%nfev = st%nfev + 1
     end if
   end subroutine mbdk_implicit_lmm_step
 

@@ -48,13 +48,13 @@ contains
     integer :: j
     real(dp) :: delta
 
-    st%jac_evals = st%jac_evals + 1
-    if (prob%has_jac .and. .not. opt%fd_jacobian) then
+    st%njev = st%njev + 1
+    if (prob%has_jac .and. opt%fd_jacobian == 0) then
       call prob%jac(t, y, w%jac, stat)
       return
     end if
     call prob%rhs(t, y, w%f0, stat)
-    st%rhs_evals = st%rhs_evals + 1
+    st%nfev = st%nfev + 1
     if (stat /= MBDK_SUCCESS) return
     do j = 1, size(y)
       w%ytmp = y
@@ -62,7 +62,7 @@ contains
       w%ytmp(j) = y(j) + delta
       delta = w%ytmp(j) - y(j)   ! the increment actually representable
       call prob%rhs(t, w%ytmp, w%f, stat)
-      st%rhs_evals = st%rhs_evals + 1
+      st%nfev = st%nfev + 1
       if (stat /= MBDK_SUCCESS) return
       w%jac(:, j) = (w%f - w%f0) / delta
     end do
@@ -91,7 +91,7 @@ contains
       dnorm_old = huge(1.0_dp)
       do it = 1, opt%newton_max_iter
         call prob%rhs(t, y, w%f, stat)
-        st%rhs_evals = st%rhs_evals + 1
+        st%nfev = st%nfev + 1
         if (stat /= MBDK_SUCCESS) return
         w%r = -(y - c - hg * w%f)
         call mbdk_lu_solve(w%lu, w%ipiv, w%r, stat)
@@ -128,7 +128,7 @@ contains
         w%lu(i, i) = w%lu(i, i) + 1.0_dp
       end do
       call mbdk_lu_factor(w%lu, w%ipiv, s)
-      st%lu_factorizations = st%lu_factorizations + 1
+      st%nlu = st%nlu + 1
     end subroutine factor_at
 
   end subroutine mbdk_newton_solve

@@ -12,7 +12,9 @@
 !>                 Phi' = 0 (mass-weighted least change; Euclidean if a body has zero inertia)
 !> with Phi' = D v + Phi_t.
 !>
-!> Linear solves (solver = fpar(7)): when M is positive (every body has mass and inertia) the
+!> Options: mbdk_model_options_t (formulation, solver and the formulations' parameters).
+!>
+!> Linear solves (options%solver): when M is positive (every body has mass and inertia) the
 !> constrained systems are solved through the Schur complement S = D M^-1 D^T (M diagonal):
 !>   - every joint revolute (solver auto up to MBDK_SMALL_DENSE_MAX rows, or solver revolute):
 !>     S in closed form, 2 x 2 block by block, from the joint points' offsets, and its block
@@ -43,6 +45,7 @@
 !> read-only): an evaluation allocates nothing, which matters at a hundred nanoseconds per
 !> evaluation.
 module mbdk_model
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
@@ -60,7 +63,7 @@ module mbdk_model
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_default_fpar, mbdk_model_assemble, mbdk_model_linear_solve
+  public :: mbdk_model_assemble, mbdk_model_linear_solve
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -72,10 +75,34 @@ module mbdk_model
     MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
   integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
   !> outputs per sample: energy parts and residuals
-  integer, parameter, public :: MBDK_OUT_ENERGY = 6, MBDK_OUT_RESID = 3
+  integer, parameter, public :: MBDK_ENERGY_PARTS = 6, MBDK_RESIDUALS = 3
+  !> the outputs a run asks for (mbdk_model_outputs' want, a sum of these bits); a run computes
+  !> only those, at its samples
+  integer, parameter, public :: MBDK_OUT_ACCELERATIONS = 1, MBDK_OUT_MULTIPLIERS = 2, &
+    MBDK_OUT_REACTIONS = 4, MBDK_OUT_ENERGY = 8, MBDK_OUT_RESIDUALS = 16, MBDK_OUT_ALL = 31
+  !> the visit counters' names, joints then forces (work%visits)
+  character(len=24), parameter, public :: MBDK_VISIT_NAMES(MBDK_JOINT_TYPES + MBDK_FORCE_TYPES) = &
+    [character(len=24) :: 'revolute', 'prismatic', 'fixed', 'driver', 'gravity', 'point_force', &
+     'torque', 'spring_damper', 'coordinate_spring_damper']
   !> relative pivot below which S = D M^-1 D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = 1.0e-11_dp
   real(dp), parameter :: SINGULAR_TOL = MBDK_MODEL_SINGULAR_TOL
+
+  !> Options of a model, by name with defaults. bind(C): the same struct is struct
+  !> mbdk_model_options in mbdk.h and mbdk.options.ModelOptions in Python (tests/test_structs.py
+  !> and kernel/tests/c_struct_layout.c check that the three agree field by field).
+  type, bind(C), public :: mbdk_model_options_t
+    real(c_double) :: baumgarte_alpha = 0.0_c_double    !< (3.29): 2 alpha Phi'
+    real(c_double) :: baumgarte_beta = 0.0_c_double     !< (3.29): beta^2 Phi
+    real(c_double) :: penalty_alpha = 1.0e7_c_double    !< Jalon-Bayo (3.35)-(3.40)
+    real(c_double) :: penalty_omega = 10.0_c_double
+    real(c_double) :: penalty_mu = 1.0_c_double
+    real(c_double) :: projection_tol = 1.0e-12_c_double !< max |Phi| after the projection of q
+    integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< MBDK_FORM_*
+    integer(c_int) :: solver = MBDK_SOLVER_AUTO         !< MBDK_SOLVER_*
+    integer(c_int) :: small_dense = 1                   !< 0: LAPACK for every factorisation
+    integer(c_int) :: projection_max_iter = 20          !< Gauss-Newton iterations of the projection of q
+  end type mbdk_model_options_t
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
   type, public :: mbdk_model_work_t
@@ -125,29 +152,20 @@ module mbdk_model
 
 contains
 
-  !> The fpar vector of mbdk_model_init holding the model's own defaults (what embedders pass
-  !> when they want none of the formulation options).
-  pure function mbdk_model_default_fpar() result(fpar)
-    real(dp) :: fpar(8)
-    type(mbdk_model_t) :: d
-    fpar = [d%alpha, d%beta, d%pen_alpha, d%pen_omega, d%pen_mu, d%proj_tol, real(d%solver, dp), &
-            merge(1.0_dp, 0.0_dp, d%small_dense)]
-  end function mbdk_model_default_fpar
-
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
-  !> fpar = (alpha, beta, pen_alpha, pen_omega, pen_mu, proj_tol, solver, small_dense), solver
-  !> one of MBDK_SOLVER_AUTO, _SCHUR, _KKT, _REVOLUTE. work must outlive the model.
+  !> opt: formulation, solver and their parameters. work must outlive the model.
   !> MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python layer names the element.
-  subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, formulation, fpar, &
-                             work, stat)
+  subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, opt, work, stat)
     type(mbdk_model_t), intent(out) :: model
-    real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), fpar(8)
-    integer, intent(in) :: jint(:, :), fint(:, :), formulation
+    real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :)
+    integer, intent(in) :: jint(:, :), fint(:, :)
+    type(mbdk_model_options_t), intent(in) :: opt
     type(mbdk_model_work_t), target, intent(inout) :: work
     integer, intent(out) :: stat
-    integer :: b, j, rows, nc, m
+    integer :: b, j, rows, nc, m, formulation
 
     stat = MBDK_ERR_INVALID_INPUT
+    formulation = opt%formulation
     model%nb = size(mass)
     if (model%nb < 1 .or. size(inertia) /= model%nb) return
     if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
@@ -187,20 +205,25 @@ contains
     if (size(jreal, 1) /= 12 .or. size(jreal, 2) /= size(jint, 2)) return
     if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
     if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
-    if (.not. all(abs(fpar) <= huge(1.0_dp))) return
+    if (.not. (abs(opt%baumgarte_alpha) <= huge(1.0_dp) .and. abs(opt%baumgarte_beta) <= &
+               huge(1.0_dp) .and. abs(opt%penalty_alpha) <= huge(1.0_dp) .and. &
+               abs(opt%penalty_omega) <= huge(1.0_dp) .and. abs(opt%penalty_mu) <= &
+               huge(1.0_dp) .and. abs(opt%projection_tol) <= huge(1.0_dp))) return
+    if (opt%projection_max_iter < 1) return
     model%jint = jint
     model%jreal = jreal
     model%fint = fint
     model%freal = freal
     model%formulation = formulation
-    model%alpha = fpar(1)
-    model%beta = fpar(2)
-    model%pen_alpha = fpar(3)
-    model%pen_omega = fpar(4)
-    model%pen_mu = fpar(5)
-    model%proj_tol = fpar(6)
-    model%solver = nint(fpar(7))
-    model%small_dense = fpar(8) /= 0.0_dp
+    model%alpha = opt%baumgarte_alpha
+    model%beta = opt%baumgarte_beta
+    model%pen_alpha = opt%penalty_alpha
+    model%pen_omega = opt%penalty_omega
+    model%pen_mu = opt%penalty_mu
+    model%proj_tol = opt%projection_tol
+    model%proj_max_iter = opt%projection_max_iter
+    model%solver = opt%solver
+    model%small_dense = opt%small_dense /= 0
     if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_REVOLUTE) return
     if ((model%solver == MBDK_SOLVER_SCHUR .or. model%solver == MBDK_SOLVER_REVOLUTE) .and. &
         .not. model%m_positive) return
@@ -563,51 +586,61 @@ contains
 
   end subroutine model_post_step
 
-  !> Everything sampled with the trajectory at (t, y): accelerations a(nc), multipliers lam(m),
-  !> reac(3, nj) = the force (x, y) and the moment about the joint point that each joint exerts
-  !> on its first body, global frame (-D_body1^T lam), energy(6) = kinetic, gravity potential,
-  !> spring potential, damper power (dissipated), constraint power (-lam . D v: the work rate
-  !> of the constraint forces, nonzero only through drift, stabilisation and drivers), load
-  !> power; resid(3) = max |Phi|, max |D v + Phi_t|, max |D a - gamma| (the latter with
-  !> gamma of the reduced form).
-  !> With given = .true., a and lam are inputs (an integrator's own accelerations and
-  !> multipliers, as trapezoidal_index3 produces them) and are not recomputed.
-  subroutine mbdk_model_outputs(self, t, y, a, lam, reac, energy, resid, stat, given)
+  !> What a run samples at (t, y), as far as want (MBDK_OUT_* bits) asks: accelerations a(nc),
+  !> multipliers lam(m), reac(3, nj) = the force (x, y) and the moment about the joint point that
+  !> each joint exerts on its first body, global frame (-D_body1^T lam), energy(6) = kinetic,
+  !> gravity potential, spring potential, damper power (dissipated), constraint power (-lam . D v:
+  !> the work rate of the constraint forces, nonzero only through drift, stabilisation and
+  !> drivers), load power; resid(3) = max |Phi|, max |D v + Phi_t|, max |D a - gamma| (gamma of
+  !> the reduced form). With given = .true., a and lam are inputs (an integrator's own, as
+  !> trapezoidal_index3 produces them) and are not recomputed; otherwise they are computed by the
+  !> model's formulation when anything asked for needs them. Arrays not asked for are untouched.
+  subroutine mbdk_model_outputs(self, t, y, given, want, a, lam, reac, energy, resid, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    real(dp), intent(inout) :: a(:), lam(:)
-    real(dp), intent(out) :: reac(:, :), energy(MBDK_OUT_ENERGY), resid(MBDK_OUT_RESID)
+    logical, intent(in) :: given
+    integer, intent(in) :: want
+    real(dp), intent(inout) :: a(:), lam(:), reac(:, :), energy(MBDK_ENERGY_PARTS), &
+      resid(MBDK_RESIDUALS)
     integer, intent(out) :: stat
-    logical, intent(in), optional :: given
     integer :: nc, m, j, r, k, b1, c
     real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), q(self%nc), v(self%nc)
     real(dp) :: p(2), rho(2), pv(2), w, qf(3)
+    logical :: need_a, need_d
 
     nc = self%nc
     m = self%m
     q = y(1:nc)
     v = y(nc + 1:2 * nc)
     stat = MBDK_SUCCESS
-    if (.not. present(given)) then
+    need_a = iand(want, MBDK_OUT_ACCELERATIONS + MBDK_OUT_MULTIPLIERS + MBDK_OUT_REACTIONS) /= 0 &
+      .or. (m > 0 .and. iand(want, MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS) /= 0)
+    if (need_a .and. .not. given) then
       call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
-    else if (.not. given) then
-      call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+      if (stat /= MBDK_SUCCESS) return
     end if
-    if (stat /= MBDK_SUCCESS) return
-    call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
-    energy(1) = 0.5_dp * sum(self%mass * v**2)
-    call mbdk_body_rotations(q, self%work%rot)
-    call mbdk_forces_energy(self%fint, self%freal, self%mass, self%work%rot, q, v, t, energy(2), &
-                            energy(3), energy(4), energy(6))
-    resid = 0.0_dp
-    energy(5) = 0.0_dp
-    if (m > 0) then
-      energy(5) = -dot_product(lam, matmul(d, v))
-      resid(1) = maxval(abs(phi))
-      resid(2) = maxval(abs(matmul(d, v) + phit))
-      resid(3) = maxval(abs(matmul(d, a) - gam))
+    need_d = m > 0 .and. iand(want, MBDK_OUT_REACTIONS + MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS) /= 0
+    if (need_d) call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
+    if (iand(want, MBDK_OUT_ENERGY) /= 0) then
+      energy(1) = 0.5_dp * sum(self%mass * v**2)
+      call mbdk_body_rotations(q, self%work%rot)
+      call mbdk_forces_energy(self%fint, self%freal, self%mass, self%work%rot, q, v, t, &
+                              energy(2), energy(3), energy(4), energy(6))
+      energy(5) = 0.0_dp
+      if (m > 0) energy(5) = -dot_product(lam, matmul(d, v))
     end if
+    if (iand(want, MBDK_OUT_RESIDUALS) /= 0) then
+      resid = 0.0_dp
+      if (m > 0) then
+        resid(1) = maxval(abs(phi))
+        resid(2) = maxval(abs(matmul(d, v) + phit))
+        resid(3) = maxval(abs(matmul(d, a) - gam))
+      end if
+    end if
+    if (iand(want, MBDK_OUT_REACTIONS) == 0) return
     reac = 0.0_dp
+    if (m == 0) return
+    call mbdk_body_rotations(q, self%work%rot)
     do j = 1, size(self%jint, 2)
       r = self%row0(j)
       k = mbdk_joint_rows(self%jint(1, j))

@@ -1,0 +1,53 @@
+"""How Python calls a compiled solve: without the GIL, and interruptible.
+
+The f2py layer marks the solves threadsafe, so f2py releases the GIL around them: solves in
+two Python threads run at once. Each call gets an interrupt flag (a one-element int32 array)
+whose address the kernel polls once per step; set non-zero, the solve ends with
+ERR_INTERRUPTED and keeps the samples it wrote.
+
+Ctrl-C reaches Python as KeyboardInterrupt in the main thread only, and only when the main
+thread runs Python code. So a long solve started from the main thread runs in a worker thread
+while the main thread waits on it; a KeyboardInterrupt during the wait sets the flag, the kernel
+returns within a step, and the caller raises SolveInterrupted (a KeyboardInterrupt) carrying
+the partial result. Short solves (under LONG_WORK state-steps) run in the calling thread: they
+end within milliseconds, and a thread costs tens of microseconds.
+"""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+#: steps x state size above which a solve from the main thread runs in a worker thread
+LONG_WORK = 200_000
+
+
+def new_flag() -> np.ndarray:
+    return np.zeros(1, dtype=np.int32)
+
+
+def call(fn, args: tuple, flag: np.ndarray, work: float):
+    """fn(*args) (a threadsafe kernel entry that polls flag). Returns (fn's results, whether a
+    KeyboardInterrupt was turned into the flag)."""
+    if work < LONG_WORK or threading.current_thread() is not threading.main_thread():
+        return fn(*args), False
+    box = {}
+
+    def target():
+        try:
+            box["out"] = fn(*args)
+        except BaseException as exc:  # re-raised in the caller's thread
+            box["exc"] = exc
+
+    worker = threading.Thread(target=target, name="mbdk-solve", daemon=True)
+    worker.start()
+    interrupted = False
+    while worker.is_alive():
+        try:
+            worker.join(0.1)
+        except KeyboardInterrupt:
+            flag[0] = 1
+            interrupted = True
+    if "exc" in box:
+        raise box["exc"]
+    return box["out"], interrupted

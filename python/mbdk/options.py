@@ -1,0 +1,148 @@
+"""Options and statistics: the kernel's bind(C) structs, by name.
+
+Each struct exists once, as a bind(C) type in Fortran; mbdk.h mirrors it as a C struct and this
+module as a frozen dataclass. Across the f2py boundary a struct travels as its raw bytes (in
+8-byte words), laid out with a numpy dtype built from the kernel's own table of names, offsets
+and types (kernel/src/api/mbdk_structs.f90), so no field is read or written by array position.
+tests/test_structs.py checks that the dataclasses, their defaults and the kernel agree, and
+kernel/tests/c_struct_layout.c does the same for mbdk.h.
+
+The `interrupt` field of the option structs is not mirrored here: the kernel call sets it to a
+flag of its own (mbdk._compiled).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from functools import lru_cache
+
+import numpy as np
+
+from . import _kernel
+from .errors import _decode
+
+#: struct ids of kernel/src/api/mbdk_structs.f90 (MBDK_STRUCT_*)
+STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
+              "mbdk_model_options": 4}
+_FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
+
+
+@lru_cache(maxsize=None)
+def layout(cname: str) -> np.dtype:
+    """The numpy dtype of a kernel struct, from the kernel's table (names, offsets, size)."""
+    sid = STRUCT_IDS[cname]
+    name, nbytes, nfields = _kernel.struct_info(sid)
+    if _decode(name) != cname or nfields < 1:
+        raise RuntimeError(f"kernel struct {sid} is {_decode(name)!r}, expected {cname!r}")
+    names, formats, offsets = [], [], []
+    for i in range(1, int(nfields) + 1):
+        fname, offset, ftype = _kernel.struct_field(sid, i)
+        names.append(_decode(fname))
+        formats.append(_FIELD_TYPES[int(ftype)])
+        offsets.append(int(offset))
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                     "itemsize": int(nbytes)})
+
+
+@lru_cache(maxsize=None)
+def _default_words(cname: str) -> bytes:
+    dt = layout(cname)
+    return np.asarray(_kernel.struct_defaults(STRUCT_IDS[cname], dt.itemsize // 8)).tobytes()
+
+
+def kernel_defaults(cname: str) -> dict:
+    """The kernel's default-initialised struct, field by field."""
+    rec = np.frombuffer(_default_words(cname), dtype=layout(cname))[0]
+    return {n: rec[n].item() for n in layout(cname).names}
+
+
+def pack(cname: str, values: dict) -> np.ndarray:
+    """The struct's bytes, as 8-byte words for the f2py layer: the kernel's defaults with the
+    given fields set by name (an unknown name is a KeyError)."""
+    dt = layout(cname)
+    rec = np.frombuffer(bytearray(_default_words(cname)), dtype=dt)
+    for k, v in values.items():
+        if k not in dt.names:
+            raise KeyError(f"{cname} has no field {k!r}")
+        rec[k] = v
+    return rec.view(np.float64).copy()
+
+
+def unpack(cname: str, words) -> dict:
+    rec = np.frombuffer(np.ascontiguousarray(words, dtype=np.float64).tobytes(),
+                        dtype=layout(cname))[0]
+    return {n: rec[n].item() for n in layout(cname).names}
+
+
+def empty(cname: str) -> np.ndarray:
+    """Zeroed words for a struct the kernel writes (statistics)."""
+    return np.zeros(layout(cname).itemsize // 8)
+
+
+class _Struct:
+    """Shared behaviour of the mirrors: their kernel struct's name and packing."""
+
+    _cname = ""
+
+    def pack(self) -> np.ndarray:
+        return pack(self._cname, asdict(self))
+
+
+@dataclass(frozen=True)
+class ODEOptions(_Struct):
+    """struct mbdk_options: a fixed-step ODE solve (kernel/src/core/mbdk_options.f90)."""
+
+    _cname = "mbdk_options"
+    h: float = 0.0
+    newton_rtol: float = 1e-10
+    newton_atol: float = 1e-12
+    method: int = 0
+    every: int = 1
+    newton_max_iter: int = 10
+    fd_jacobian: int = 0
+    nq: int = 0
+    startup: int = 0          # 0 rk4 (the book), 1 bdf
+
+
+@dataclass(frozen=True)
+class Index3Options(_Struct):
+    """struct mbdk_index3_options: trapezoidal_index3 (kernel/src/dae/mbdk_trapezoidal_index3.f90)."""
+
+    _cname = "mbdk_index3_options"
+    h: float = 1e-3
+    newton_rtol: float = 1e-10
+    newton_atol: float = 1e-12
+    alpha: float = 0.0
+    err_rtol: float = 1e-6
+    err_atol: float = 1e-8
+    dt_out: float = 0.0
+    h_min: float = 0.0
+    h_max: float = 0.0
+    formulation: int = 1      # 1 index3 (the book's scheme), 2 augmented_lagrangian
+    every: int = 1
+    newton_max_iter: int = 20
+    adaptive: int = 0
+
+
+@dataclass(frozen=True)
+class ModelOptions(_Struct):
+    """struct mbdk_model_options: a scene model (kernel/src/model/mbdk_model.f90)."""
+
+    _cname = "mbdk_model_options"
+    baumgarte_alpha: float = 0.0
+    baumgarte_beta: float = 0.0
+    penalty_alpha: float = 1e7
+    penalty_omega: float = 10.0
+    penalty_mu: float = 1.0
+    projection_tol: float = 1e-12
+    formulation: int = 1      # 1 reduced, 2 baumgarte, 3 penalty, 4 projection
+    solver: int = 1           # 1 auto, 2 schur, 3 kkt, 4 revolute_schur
+    small_dense: int = 1
+    projection_max_iter: int = 20
+
+
+MIRRORS = {"mbdk_options": ODEOptions, "mbdk_index3_options": Index3Options,
+           "mbdk_model_options": ModelOptions}
+
+
+def field_names(cls) -> list[str]:
+    return [f.name for f in fields(cls)]
