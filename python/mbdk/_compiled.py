@@ -32,19 +32,24 @@ def call(fn, args: tuple, flag: np.ndarray, work: float):
     if work < LONG_WORK or threading.current_thread() is not threading.main_thread():
         return fn(*args), False
     box = {}
+    done = threading.Event()
 
     def target():
         try:
             box["out"] = fn(*args)
         except BaseException as exc:  # re-raised in the caller's thread
             box["exc"] = exc
+        finally:
+            done.set()
 
-    worker = threading.Thread(target=target, name="mbdk-solve", daemon=True)
-    worker.start()
+    # waiting on an Event, not on Thread.join: a KeyboardInterrupt inside join can leave the
+    # thread looking finished while it still runs (CPython 3.11)
+    threading.Thread(target=target, name="mbdk-solve", daemon=True).start()
     interrupted = False
-    while worker.is_alive():
+    while True:
         try:
-            worker.join(0.1)
+            if done.wait(0.1):
+                break
         except KeyboardInterrupt:
             flag[0] = 1
             interrupted = True

@@ -1,0 +1,146 @@
+"""The one scene pipeline: every method through simulate, outputs only on request, solves that
+release the GIL, and Ctrl-C that stops a long solve with its partial result."""
+import _thread
+import threading
+
+import numpy as np
+import pytest
+
+import mbdk
+
+
+def test_trapezoidal_index3_is_a_method_of_the_registry():
+    info = mbdk.methods()["trapezoidal_index3"]
+    assert info.solves == "dae" and info.order == 2 and info.implicit
+    assert "trapezoidal_index3" not in mbdk.methods("ode")
+    assert set(mbdk.methods("ode")) | set(mbdk.methods("dae")) == set(mbdk.methods())
+    with pytest.raises(mbdk.NotApplicableError, match="index-3 DAE"):
+        mbdk.solve_ode("pendulum", "trapezoidal_index3", h=1e-3, t_end=1.0)
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "trapezoidal_index3", h=1e-3, t_end=0.1)
+    assert r.manifest["formulation"] == "augmented_lagrangian"
+    assert r.iterations is not None and r.iterations.shape == r.t.shape
+
+
+@pytest.mark.parametrize("method,formulation", [("rk4", "reduced"), ("bdf2", "baumgarte"),
+                                                ("rk4", "projection"),
+                                                ("trapezoidal_index3", "augmented_lagrangian"),
+                                                ("trapezoidal_index3", "index3")])
+def test_outputs_are_computed_only_when_asked_and_change_nothing_else(method, formulation):
+    sc = mbdk.scene("four_bar")
+    kw = dict(formulation=formulation, h=1e-3, t_end=0.2, every=10)
+    full = mbdk.simulate(sc, method, **kw)
+    bare = mbdk.simulate(sc, method, outputs=(), **kw)
+    assert np.array_equal(full.t, bare.t) and np.array_equal(full.q, bare.q)
+    assert np.array_equal(full.v, bare.v)
+    assert bare.a is None and bare.multipliers is None and bare.reactions is None
+    assert bare.energy is None and bare.residuals is None and bare.manifest["outputs"] == []
+    # the output pass visits the joints at every sample; a run without it does not
+    assert bare.visits["revolute"] < full.visits["revolute"]
+    one = mbdk.simulate(sc, method, outputs=("energy",), **kw)
+    assert np.array_equal(one.energy, full.energy) and one.residuals is None
+    some = mbdk.simulate(sc, method, outputs=("reactions", "residuals"), **kw)
+    assert np.array_equal(some.reactions, full.reactions)
+    assert np.array_equal(some.residuals, full.residuals)
+    with pytest.raises(mbdk.NotApplicableError, match="reactions"):
+        bare.reaction("A")
+    with pytest.raises(mbdk.NotApplicableError, match="energy"):
+        bare.energy_balance()
+
+
+def test_unknown_outputs_and_options_are_named():
+    sc = mbdk.scene("double_pendulum")
+    with pytest.raises(mbdk.InvalidInputError, match="'power'.*unknown"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, outputs=("energy", "power"))
+    with pytest.raises(mbdk.InvalidInputError, match="adaptive: options of trapezoidal_index3"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, adaptive=True)
+
+
+def _long_rk4(sc, t_end=4.0):
+    return mbdk.simulate(sc, "rk4", h=1e-5, t_end=t_end, every=50000, outputs=())
+
+
+def test_two_solves_in_two_threads_agree_bit_for_bit_with_serial_runs():
+    """f2py releases the GIL around the solve: two threads give the same bits as serial runs,
+    and each reports its own thread's CPU time (a process clock would count both threads and
+    exceed the run's wall time when they overlap)."""
+    sc1, sc2 = mbdk.scene("double_pendulum"), mbdk.scene("four_bar")
+    serial = [_long_rk4(sc1, 2.0), _long_rk4(sc2, 2.0)]
+    out = [None, None]
+
+    def run(i, sc):
+        out[i] = _long_rk4(sc, 2.0)
+    threads = [threading.Thread(target=run, args=(i, sc)) for i, sc in enumerate((sc1, sc2))]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for s, p in zip(serial, out):
+        assert np.array_equal(s.q, p.q) and np.array_equal(s.v, p.v)
+        assert p.stats.cpu_time <= 1.1 * p.stats.wall_time + 2e-3
+
+
+def test_the_gil_is_free_while_a_solve_runs():
+    """While another thread's solve runs, this thread keeps executing Python: with the GIL held
+    by the solve it could not take a single turn until the solve ended."""
+    sc = mbdk.scene("double_pendulum")
+    worker = threading.Thread(target=_long_rk4, args=(sc, 2.0))
+    turns = 0
+    worker.start()
+    while worker.is_alive():
+        turns += 1
+    worker.join()
+    assert turns > 10_000
+
+
+@pytest.mark.parametrize("method,formulation", [("rk4", "reduced"),
+                                                ("trapezoidal_index3", "augmented_lagrangian")])
+def test_ctrl_c_stops_a_long_solve_and_keeps_its_partial_result(method, formulation):
+    """A KeyboardInterrupt in the main thread (what Ctrl-C raises) while a long solve runs sets
+    its interrupt flag: the kernel stops within a step and the partial result comes back with
+    SolveInterrupted, itself a KeyboardInterrupt. The run would take minutes uninterrupted."""
+    sc = mbdk.scene("double_pendulum")
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(mbdk.SolveInterrupted) as err:
+            mbdk.simulate(sc, method, formulation=formulation, h=1e-5, t_end=1e3, every=1000)
+    finally:
+        timer.cancel()
+    assert isinstance(err.value, KeyboardInterrupt)
+    r = err.value.result
+    assert r.status == mbdk.Status.ERR_INTERRUPTED and not r.success
+    assert 0 < r.t[-1] < 1e3 and len(r.t) > 1
+    assert np.all(np.isfinite(r.q)) and r.residuals[:, 0].max() < 1e-8
+    assert r.stats.steps >= (len(r.t) - 2) * 1000   # index3 adds the state it stopped at
+
+
+def test_ctrl_c_stops_a_long_ode_solve():
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(mbdk.SolveInterrupted) as err:
+            mbdk.solve_ode("pendulum", "rk4", h=1e-6, t_end=1e3, every=100000)
+    finally:
+        timer.cancel()
+    r = err.value.result
+    assert r.status == mbdk.Status.ERR_INTERRUPTED and 0 < r.t[-1] < 1e3
+
+
+def test_a_callback_solve_inside_a_callback_is_refused_not_deadlocked():
+    def inner(t, y):
+        return [-y[0]]
+
+    def outer(t, y):
+        mbdk.solve_ode(inner, "rk4", h=0.1, t_end=0.2, y0=[1.0])
+        return [-y[0]]
+    with pytest.raises(mbdk.CallbackError) as err:
+        mbdk.solve_ode(outer, "rk4", h=0.1, t_end=0.2, y0=[1.0])
+    assert isinstance(err.value.__cause__, mbdk.NotApplicableError)
+    assert "nested callback solves are refused" in str(err.value)
+
+    # a compiled solve inside a callback is fine, and a callback solve after the refusal too
+    def with_compiled(t, y):
+        k = mbdk.solve_ode("decay", "rk4", h=0.1, t_end=0.2).y[-1, 0]
+        return [-k * 0 - y[0]]
+    r = mbdk.solve_ode(with_compiled, "rk4", h=0.1, t_end=0.2, y0=[1.0])
+    assert r.success and abs(r.y[-1, 0] - np.exp(-0.2)) < 1e-5
