@@ -207,3 +207,19 @@ def test_report_assembles_html(tmp_path, root):
     page = (tmp_path / "index.html").read_text()
     assert "class='flag'" in page and "ch4_convergence.png" in page
     assert (tmp_path / "manifest.json").exists() and "[1/1] ch4_tables" in r.stdout
+
+
+def test_pipeline_cost_study(tmp_path, root):
+    """The effects table visits each added element 4 times per rk4 step and the bare scene none;
+    the two threads give the serial runs' bits. (Its timings are the study's, not asserted.)"""
+    sys.path.insert(0, str(root / "studies"))
+    import pipeline_cost
+    pipeline_cost.run(tmp_path, quick=True)
+    eff = rows(tmp_path / "effects_cost.csv")
+    assert len(eff) == 1 + len(pipeline_cost.EFFECTS)
+    assert num(eff[0]["element_visits_per_step"]) == 0
+    assert all(num(r["element_visits_per_step"]) == 4 for r in eff[1:])
+    assert all(num(r["revolute_visits_per_step"]) == 8 for r in eff)
+    outs = {r["outputs"]: r for r in rows(tmp_path / "outputs_cost.csv")}
+    assert {"none", "all (default)", "energy"} <= set(outs)
+    assert all(r["bitwise_equal"] == "True" for r in rows(tmp_path / "threads.csv"))
