@@ -20,7 +20,7 @@ static const int jint[2][4] = {{1, 1, 0, 0}, {1, 2, 1, 0}};
 static const double jreal[2][12] = {{-0.5, 0, 0, 0, 1, 0}, {-1.0, 0, 0.5, 0, 1, 0}};
 static const int fint[1][4] = {{1, 0, 0, 0}};
 static const double freal[1][12] = {{0.0, -9.81}};
-static const double y0[12] = {0.12989094272387777, -0.48283365976110476, -1.308,
+static const double y_start[12] = {0.12989094272387777, -0.48283365976110476, -1.308,
                               0.2605782121584888, -1.9656670024540441, -1.57,
                               0, 0, 0, 0, 0, 0};
 
@@ -61,7 +61,7 @@ static int run(mbdk_index3_options *opt, double t_end, double *q_end, mbdk_stats
     double *a = malloc(sizeof(double) * 6 * nsamp), *lam = malloc(sizeof(double) * 4 * nsamp);
     int *it = malloc(sizeof(int) * nsamp);
     status = mbdk_index3_solve(2, mass, inertia, 2, &jint[0][0], &jreal[0][0], 1, &fint[0][0],
-                               &freal[0][0], opt, 0.0, t_end, y0, nsamp, t, y, a, lam, it, &nw,
+                               &freal[0][0], opt, 0.0, t_end, y_start, nsamp, t, y, a, lam, it, &nw,
                                st);
     if (status < 0) fprintf(stderr, "  solve: status %d after %d samples\n", status, nw);
     if (status >= 0) {

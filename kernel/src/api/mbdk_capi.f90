@@ -1,5 +1,8 @@
 !> The C API (bind(C) only). kernel/include/mbdk.h is its hand-written mirror.
-!> Every function returns a status (or an id) and never prints or stops the process.
+!> Every function returns a status (or an id) and never prints or stops the process. Pointer
+!> arguments are `optional` (Fortran 2018's interoperable optional dummies): a NULL pointer is an
+!> absent argument, refused with MBDK_ERR_INVALID_INPUT before anything is read or written
+!> (kernel/tests/c_null_args.c passes NULL in every position).
 module mbdk_capi
   use, intrinsic :: iso_c_binding, only: c_int, c_int64_t, c_double, c_char, c_ptr, c_funptr, &
     c_null_char, c_associated
@@ -19,37 +22,41 @@ module mbdk_capi
 contains
 
   subroutine mbdk_c_index3_default_options(opt) bind(C, name='mbdk_index3_default_options')
-    type(mbdk_index3_options_t), intent(out) :: opt
+    type(mbdk_index3_options_t), intent(out), optional :: opt
     type(mbdk_index3_options_t) :: d
-    opt = d
+    if (present(opt)) opt = d
   end subroutine mbdk_c_index3_default_options
 
   integer(c_int) function mbdk_c_index3_sample_count(opt, t0, t_end, nsamp) &
       bind(C, name='mbdk_index3_sample_count')
-    type(mbdk_index3_options_t), intent(in) :: opt
+    type(mbdk_index3_options_t), intent(in), optional :: opt
     real(c_double), value :: t0, t_end
-    integer(c_int), intent(out) :: nsamp
+    integer(c_int), intent(out), optional :: nsamp
     integer(kind=8) :: nsteps
     integer :: ns, stat
     logical :: shortened
+    mbdk_c_index3_sample_count = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(opt) .and. present(nsamp))) return
     call mbdk_index3_plan(opt, t0, t_end, nsteps, ns, shortened, stat)
     nsamp = int(ns, c_int)
     mbdk_c_index3_sample_count = int(stat, c_int)
   end function mbdk_c_index3_sample_count
 
   !> trapezoidal_index3 on a scene given by its tables (layouts in mbdk_joints.f90 and
-  !> mbdk_force_elements.f90; row-major C arrays jint[nj][4] are Fortran jint(4, nj)).
+  !> mbdk_force_elements.f90; row-major C arrays jint[nj][4] are Fortran jint(4, nj)). jint and
+  !> jreal may be NULL when nj = 0, fint and freal when nf = 0, lam_out when there are no
+  !> constraints; any other NULL is refused.
   integer(c_int) function mbdk_c_index3_solve(nb, mass, inertia, nj, jint, jreal, nf, fint, &
       freal, opt, t0, t_end, y0, nsamp, t_out, y_out, a_out, lam_out, iters_out, nwritten, &
       stats) bind(C, name='mbdk_index3_solve')
     integer(c_int), value :: nb, nj, nf, nsamp
-    real(c_double), intent(in) :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
-    integer(c_int), intent(in) :: jint(*), fint(*)
-    type(mbdk_index3_options_t), intent(in) :: opt
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jint(*), fint(*)
+    type(mbdk_index3_options_t), intent(in), optional :: opt
     real(c_double), value :: t0, t_end
-    real(c_double), intent(out) :: t_out(*), y_out(*), a_out(*), lam_out(*)
-    integer(c_int), intent(out) :: iters_out(*), nwritten
-    type(mbdk_stats_t), intent(out) :: stats
+    real(c_double), intent(out), optional :: t_out(*), y_out(*), a_out(*), lam_out(*)
+    integer(c_int), intent(out), optional :: iters_out(*), nwritten
+    type(mbdk_stats_t), intent(out), optional :: stats
     type(mbdk_model_t) :: model
     type(mbdk_model_work_t), target :: work
     type(mbdk_stats_t) :: st
@@ -58,14 +65,25 @@ contains
     integer, allocatable :: ji(:, :), fi(:, :), it(:)
     real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
 
+    mbdk_c_index3_solve = int(MBDK_ERR_INVALID_INPUT, c_int)
+    if (.not. (present(nwritten) .and. present(stats))) return
     nwritten = 0
     stats = st
-    mbdk_c_index3_solve = int(MBDK_ERR_INVALID_INPUT, c_int)
+    if (.not. (present(mass) .and. present(inertia) .and. present(opt) .and. present(y0) .and. &
+               present(t_out) .and. present(y_out) .and. present(a_out) .and. &
+               present(iters_out))) return
     if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nsamp < 1) return
-    ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
-    jr = reshape(jreal(1:12 * nj), [12, int(nj)])
-    fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
-    fr = reshape(freal(1:12 * nf), [12, int(nf)])
+    if (nj > 0 .and. .not. (present(jint) .and. present(jreal))) return
+    if (nf > 0 .and. .not. (present(fint) .and. present(freal))) return
+    allocate (ji(4, nj), jr(12, nj), fi(4, nf), fr(12, nf))
+    if (nj > 0) then
+      ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
+      jr = reshape(jreal(1:12 * nj), [12, int(nj)])
+    end if
+    if (nf > 0) then
+      fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
+      fr = reshape(freal(1:12 * nf), [12, int(nf)])
+    end if
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, work, stat)
     if (stat /= MBDK_SUCCESS) then
@@ -74,6 +92,7 @@ contains
     end if
     nc = model%nc
     m = model%m
+    if (m > 0 .and. .not. present(lam_out)) return
     allocate (lam(max(m, 1), nsamp), it(nsamp))
     call solve(y_out(1:2 * nc * nsamp), a_out(1:nc * nsamp))
     if (m > 0) lam_out(1:m * nw) = reshape(lam(1:m, 1:nw), [m * nw])
@@ -93,24 +112,27 @@ contains
   end function mbdk_c_index3_solve
 
   subroutine mbdk_default_options(opt) bind(C, name='mbdk_default_options')
-    type(mbdk_options_t), intent(out) :: opt
+    type(mbdk_options_t), intent(out), optional :: opt
     type(mbdk_options_t) :: d
-    opt = d
+    if (present(opt)) opt = d
   end subroutine mbdk_default_options
 
   integer(c_int) function mbdk_c_method_id(name) bind(C, name='mbdk_method_id')
-    character(kind=c_char), intent(in) :: name(*)
-    mbdk_c_method_id = int(mbdk_method_id(from_c(name)), c_int)
+    character(kind=c_char), intent(in), optional :: name(*)
+    mbdk_c_method_id = 0
+    if (present(name)) mbdk_c_method_id = int(mbdk_method_id(from_c(name)), c_int)
   end function mbdk_c_method_id
 
   integer(c_int) function mbdk_c_sample_count(t0, t_end, h, every, nsamp) &
       bind(C, name='mbdk_sample_count')
     real(c_double), value :: t0, t_end, h
     integer(c_int), value :: every
-    integer(c_int), intent(out) :: nsamp
+    integer(c_int), intent(out), optional :: nsamp
     integer(kind=8) :: nsteps
     integer :: ns, stat
     logical :: shortened
+    mbdk_c_sample_count = MBDK_ERR_INVALID_INPUT
+    if (.not. present(nsamp)) return
     call mbdk_step_plan(t0, t_end, h, int(every), nsteps, ns, shortened, stat)
     nsamp = int(ns, c_int)
     mbdk_c_sample_count = int(stat, c_int)
@@ -122,18 +144,21 @@ contains
     type(c_ptr), value :: user_data
     integer(c_int), value :: n, nsamp
     real(c_double), value :: t0, t_end
-    real(c_double), intent(in) :: y0(*)
-    type(mbdk_options_t), intent(in) :: opt
-    real(c_double), intent(out) :: t_out(*)
-    real(c_double), intent(out) :: y_out(*)
-    integer(c_int), intent(out) :: nwritten
-    type(mbdk_stats_t), intent(out) :: stats
+    real(c_double), intent(in), optional :: y0(*)
+    type(mbdk_options_t), intent(in), optional :: opt
+    real(c_double), intent(out), optional :: t_out(*)
+    real(c_double), intent(out), optional :: y_out(*)
+    integer(c_int), intent(out), optional :: nwritten
+    type(mbdk_stats_t), intent(out), optional :: stats
     type(mbdk_c_problem_t) :: prob
     type(mbdk_stats_t) :: st
     integer :: stat, nw
 
+    mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(nwritten) .and. present(stats))) return
     nwritten = 0
     stats = st
+    if (.not. (present(y0) .and. present(opt) .and. present(t_out) .and. present(y_out))) return
     if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
       return
@@ -161,17 +186,10 @@ contains
   integer(c_int) function mbdk_c_status_message(status, buf, buflen) &
       bind(C, name='mbdk_status_message')
     integer(c_int), value :: status, buflen
-    character(kind=c_char), intent(out) :: buf(*)
-    character(len=MBDK_STATUS_MSG_LEN) :: msg
-    integer :: i, m
+    character(kind=c_char), intent(out), optional :: buf(*)
     mbdk_c_status_message = MBDK_ERR_INVALID_INPUT
-    if (buflen < 1) return
-    msg = mbdk_status_message(int(status))
-    m = min(len_trim(msg), int(buflen) - 1)
-    do i = 1, m
-      buf(i) = msg(i:i)
-    end do
-    buf(m + 1) = c_null_char
+    if (buflen < 1 .or. .not. present(buf)) return
+    call to_c(mbdk_status_message(int(status)), buf, int(buflen))
     mbdk_c_status_message = MBDK_SUCCESS
   end function mbdk_c_status_message
 
@@ -180,22 +198,18 @@ contains
   integer(c_int) function mbdk_c_status_entry(i, code, name, namelen) &
       bind(C, name='mbdk_status_entry')
     integer(c_int), value :: i, namelen
-    integer(c_int), intent(out) :: code
-    character(kind=c_char), intent(out) :: name(*)
+    integer(c_int), intent(out), optional :: code
+    character(kind=c_char), intent(out), optional :: name(*)
     character(len=MBDK_STATUS_NAME_LEN) :: nm
     character(len=MBDK_STATUS_MSG_LEN) :: msg
-    integer :: c, j, m
-    code = 0
+    integer :: c
     mbdk_c_status_entry = MBDK_ERR_INVALID_INPUT
-    if (namelen < 1) return
+    if (namelen < 1 .or. .not. (present(code) .and. present(name))) return
+    code = 0
     call mbdk_status_entry(int(i), c, nm, msg)
     if (c == huge(0)) return
     code = int(c, c_int)
-    m = min(len_trim(nm), int(namelen) - 1)
-    do j = 1, m
-      name(j) = nm(j:j)
-    end do
-    name(m + 1) = c_null_char
+    call to_c(nm, name, int(namelen))
     mbdk_c_status_entry = MBDK_SUCCESS
   end function mbdk_c_status_entry
 
@@ -205,11 +219,12 @@ contains
   integer(c_int) function mbdk_c_struct_info(id, name, namelen, nbytes, nfields) &
       bind(C, name='mbdk_struct_info')
     integer(c_int), value :: id, namelen
-    character(kind=c_char), intent(out) :: name(*)
-    integer(c_int), intent(out) :: nbytes, nfields
+    character(kind=c_char), intent(out), optional :: name(*)
+    integer(c_int), intent(out), optional :: nbytes, nfields
     character(len=MBDK_STRUCT_NAME_LEN) :: nm
     integer :: nb, nf
     mbdk_c_struct_info = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(name) .and. present(nbytes) .and. present(nfields))) return
     call mbdk_struct_info(int(id), nm, nb, nf)
     nbytes = int(nb, c_int)
     nfields = int(nf, c_int)
@@ -223,11 +238,12 @@ contains
   integer(c_int) function mbdk_c_struct_field(id, i, name, namelen, offset, ftype) &
       bind(C, name='mbdk_struct_field')
     integer(c_int), value :: id, i, namelen
-    character(kind=c_char), intent(out) :: name(*)
-    integer(c_int), intent(out) :: offset, ftype
+    character(kind=c_char), intent(out), optional :: name(*)
+    integer(c_int), intent(out), optional :: offset, ftype
     character(len=MBDK_STRUCT_NAME_LEN) :: nm
     integer :: off, ft
     mbdk_c_struct_field = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(name) .and. present(offset) .and. present(ftype))) return
     call mbdk_struct_field(int(id), int(i), nm, off, ft)
     offset = int(off, c_int)
     ftype = int(ft, c_int)

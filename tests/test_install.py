@@ -1,0 +1,41 @@
+"""The kernel as an embedder gets it: `meson install` of the library, header and pkg-config file
+into a staging prefix, then the C examples built against that installed copy with nothing but
+`pkg-config --cflags --libs mbdk` and run (they check their own results; exit code 0 = pass)."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+def _tool(name):
+    return shutil.which(name, path=str(Path(sys.executable).parent)) or shutil.which(name)
+
+
+@pytest.mark.parametrize("example", ["c_embedding.c", "c_index3.c"])
+def test_c_example_builds_against_the_installed_copy(tmp_path, root, example):
+    build = root / "build" / f"cp{sys.version_info[0]}{sys.version_info[1]}"
+    if not (build / "build.ninja").exists():
+        pytest.skip("no meson build folder: mbdk is not an editable install from this tree")
+    meson, pkgconf, cc = _tool("meson"), _tool("pkg-config"), _tool(os.environ.get("CC", "cc"))
+    if not (meson and pkgconf and cc):
+        pytest.skip("meson, pkg-config or a C compiler is missing")
+    stage = tmp_path / "stage"
+    subprocess.run([meson, "install", "-C", str(build), "--destdir", str(stage), "--tags",
+                    "devel"], check=True, capture_output=True, text=True)
+    pcs = list(stage.rglob("mbdk.pc"))
+    assert len(pcs) == 1 and list(stage.rglob("mbdk.h")) and list(stage.rglob("libmbdk.a"))
+    prefix = re.search(r"^prefix=(.*)$", pcs[0].read_text(), re.M).group(1)
+    staged = str(stage) + prefix
+    env = {**os.environ, "PKG_CONFIG_PATH": str(pcs[0].parent)}
+    flags = subprocess.run([pkgconf, f"--define-variable=prefix={staged}", "--cflags", "--libs",
+                            "mbdk"], check=True, capture_output=True, text=True, env=env).stdout
+    assert f"-I{staged}/include" in flags and f"-L{staged}" in flags   # the installed copy
+    exe = tmp_path / "example"
+    subprocess.run([cc, str(root / "kernel" / "examples" / example), *flags.split(), "-o",
+                    str(exe)], check=True, capture_output=True, text=True)
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
