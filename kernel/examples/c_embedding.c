@@ -47,7 +47,7 @@ static int run(const char *method, double h, double tol)
     if (mbdk_sample_count(0.0, 5.0, h, opt.every, &nsamp) < 0) return 1;
     double *t = malloc(sizeof(double) * nsamp);
     double *y = malloc(sizeof(double) * 2 * nsamp);
-    status = mbdk_solve_ode(rhs, &p, 2, 0.0, 5.0, y0, &opt, nsamp, t, y, &nw, &st);
+    status = mbdk_solve_ode(rhs, NULL, &p, 2, 0.0, 5.0, y0, &opt, nsamp, t, y, &nw, &st);
     mbdk_status_message(status, msg, sizeof msg);
     double err = 0.0;
     for (int i = 0; i < nw; i++) {
@@ -78,16 +78,16 @@ int main(void)
     mbdk_default_options(&opt);
     opt.method = mbdk_method_id("rk4");
     opt.h = 0.1;
-    int status = mbdk_solve_ode(rhs, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st);
+    int status = mbdk_solve_ode(rhs, NULL, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st);
     printf("failing callback: status=%d samples=%d\n", status, nw);
     if (status != MBDK_ERR_CALLBACK_FAILED || nw != 2) fails++;
 
     /* bad input: unknown method id, negative step */
     opt.method = 999;
-    if (mbdk_solve_ode(rhs, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st) != MBDK_ERR_UNKNOWN_METHOD) fails++;
+    if (mbdk_solve_ode(rhs, NULL, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st) != MBDK_ERR_UNKNOWN_METHOD) fails++;
     opt.method = mbdk_method_id("rk4");
     opt.h = -0.1;
-    if (mbdk_solve_ode(rhs, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st) != MBDK_ERR_INVALID_INPUT) fails++;
+    if (mbdk_solve_ode(rhs, NULL, &p, 2, 0.0, 5.0, y0, &opt, 51, t, y, &nw, &st) != MBDK_ERR_INVALID_INPUT) fails++;
 
     printf(fails ? "FAIL\n" : "PASS\n");
     return fails ? 1 : 0;

@@ -2,7 +2,9 @@
 !> modules (the same path the C API takes): y' = -y + sin(t), y(0) = 1, whose exact solution is
 !> y = 1.5 e^{-t} + (sin t - cos t)/2. Integrated with trapezoidal and rk4; the errors must shrink
 !> by the nominal order when h is halved (from h = 0.025: at h = 0.1 the rk4 error on this
-!> problem is still pre-asymptotic, ratio 9.8 instead of 16). Exit code 0 = pass.
+!> problem is still pre-asymptotic, ratio 9.8 instead of 16). Then the same problem stepped one
+!> step at a time through mbdk_stepper (what mbdk_fixed_step_solve loops over): bdf3's state
+!> after 80 steps must equal the whole-interval solve's bit for bit. Exit code 0 = pass.
 module forced_decay
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS
@@ -31,12 +33,14 @@ program fortran_embedding
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
+  use mbdk_stepper, only: mbdk_stepper_t, mbdk_stepper_init, mbdk_stepper_step
   use forced_decay, only: forced_decay_t
   implicit none
   integer :: fails
   fails = 0
   call check('trapezoidal', 2)
   call check('rk4', 4)
+  call stepped('bdf3')
   if (fails == 0) then
     print '(a)', 'PASS'
   else
@@ -59,6 +63,28 @@ contains
       e(2), '  observed order=', p
     if (abs(p - order) > 0.15_dp) fails = fails + 1
   end subroutine check
+
+  subroutine stepped(method)
+    character(len=*), intent(in) :: method
+    type(forced_decay_t) :: prob
+    type(mbdk_options_t) :: opt
+    type(mbdk_stats_t) :: st
+    type(mbdk_stepper_t) :: s
+    real(dp) :: t(2), y(1, 2)
+    integer :: k, nw, stat
+    prob%n = 1
+    opt%method = mbdk_method_id(method)
+    opt%h = 0.025_dp
+    opt%every = 80
+    call mbdk_fixed_step_solve(prob, opt, 0.0_dp, 2.0_dp, [1.0_dp], t, y, nw, st, stat)
+    call mbdk_stepper_init(s, prob, opt, 0.0_dp, [1.0_dp], stat)
+    do k = 1, 80
+      if (stat == MBDK_SUCCESS) call mbdk_stepper_step(s, prob, k * opt%h, stat)
+    end do
+    print '(a12, a, i0, a, l1)', method, ': stepped 80 steps, status ', stat, &
+      ', equal to the solve: ', s%y(1) == y(1, 2)
+    if (stat /= MBDK_SUCCESS .or. s%y(1) /= y(1, 2) .or. s%st%steps /= 80) fails = fails + 1
+  end subroutine stepped
 
   real(dp) function final_error(method, h) result(err)
     character(len=*), intent(in) :: method

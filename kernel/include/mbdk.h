@@ -72,6 +72,10 @@ typedef struct mbdk_stats {
  * (the solve then stops with MBDK_ERR_CALLBACK_FAILED). */
 typedef int (*mbdk_rhs_fn)(int n, double t, const double *y, double *dydt, void *user_data);
 
+/* Jacobian of a right-hand side: dfdy[i + j*n] = dF_i/dy_j (column-major). Return 0 on success.
+ * Optional wherever it is asked for (NULL: finite differences). */
+typedef int (*mbdk_jac_fn)(int n, double t, const double *y, double *dfdy, void *user_data);
+
 void mbdk_default_options(mbdk_options *opt);
 
 /* Id of a method name ("explicit_euler", "heun", "rk4", "euler_cromer", "implicit_euler",
@@ -82,9 +86,10 @@ int mbdk_method_id(const char *name);
  * interval or every; MBDK_NOTE_LAST_STEP_SHORTENED when the interval is not whole steps). */
 int mbdk_sample_count(double t0, double t_end, double h, int every, int *nsamp);
 
-/* Integrates y' = f(t, y) from (t0, y0) to t_end. t_out[nsamp], y_out[nsamp][n] (row per
- * sample) are written; *nwritten tells how many samples (fewer only on failure). */
-int mbdk_solve_ode(mbdk_rhs_fn f, void *user_data, int n, double t0, double t_end,
+/* Integrates y' = f(t, y) from (t0, y0) to t_end; jac (may be NULL) is f's Jacobian for the
+ * implicit methods. t_out[nsamp], y_out[nsamp][n] (row per sample) are written; *nwritten tells
+ * how many samples (fewer only on failure). */
+int mbdk_solve_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0, double t_end,
                    const double *y0, const mbdk_options *opt, int nsamp, double *t_out,
                    double *y_out, int *nwritten, mbdk_stats *stats);
 
@@ -146,6 +151,28 @@ typedef struct mbdk_model_options {
  * 1 int, 2 int64_t, 3 double, 4 pointer. Both return MBDK_ERR_INVALID_INPUT past the end. */
 int mbdk_struct_info(int id, char *name, int namelen, int *nbytes, int *nfields);
 int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *type);
+
+/* A stepper: a solve advanced by the caller, one step or up to a time at a time
+ * (kernel/src/api/mbdk_capi_stepper.f90 is its manual). Steps land on t0 + k opt.h, so a stepper
+ * and mbdk_solve_ode give the same bits. A scene stepper integrates model_opt's formulation with
+ * an ODE method (trapezoidal_index3: use mbdk_index3_solve). After a failure the last good state
+ * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE. */
+typedef struct mbdk_stepper mbdk_stepper;
+
+int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,
+                            const double *y0, const mbdk_options *opt, mbdk_stepper **stepper);
+int mbdk_stepper_create_scene(int nb, const double *mass, const double *inertia, int nj,
+                              const int *jint, const double *jreal, int nf, const int *fint,
+                              const double *freal, const mbdk_model_options *model_opt,
+                              const mbdk_options *opt, double t0, const double *y0,
+                              mbdk_stepper **stepper);
+int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
+int mbdk_stepper_advance(mbdk_stepper *stepper, double t);    /* up to t, landing on it */
+int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n);
+int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
+int mbdk_stepper_multipliers(const mbdk_stepper *stepper, double *lam, int m);   /* scenes */
+int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
+int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
 /* Copies the message of a status into buf (NUL-terminated). */
 int mbdk_status_message(int status, char *buf, int buflen);

@@ -38,7 +38,7 @@ static int solve_ode(int which)
     mbdk_default_options(&opt);
     opt.method = mbdk_method_id("rk4");
     opt.h = 0.1;
-    return mbdk_solve_ode(rhs, NULL, 1, 0.0, 1.0, which == 1 ? NULL : y0, which == 2 ? NULL : &opt,
+    return mbdk_solve_ode(rhs, NULL, NULL, 1, 0.0, 1.0, which == 1 ? NULL : y0, which == 2 ? NULL : &opt,
                           11, which == 3 ? NULL : t, which == 4 ? NULL : y,
                           which == 5 ? NULL : &nw, which == 6 ? NULL : &st);
 }
@@ -98,6 +98,37 @@ int main(void)
     expect("struct_field, name NULL", mbdk_struct_field(1, 1, NULL, 10, &n1, &n2), MBDK_ERR_INVALID_INPUT);
     expect("struct_field, offset NULL", mbdk_struct_field(1, 1, buf, sizeof buf, NULL, &n2), MBDK_ERR_INVALID_INPUT);
     expect("struct_field, type NULL", mbdk_struct_field(1, 1, buf, sizeof buf, &n1, NULL), MBDK_ERR_INVALID_INPUT);
+    {
+        mbdk_options opt;
+        mbdk_model_options mopt = {0, 0, 1e7, 10, 1, 1e-12, MBDK_FORM_REDUCED, MBDK_SOLVER_AUTO, 1, 20};
+        mbdk_stepper *s = NULL, *sc = NULL;
+        mbdk_stats st;
+        double y0[1] = {1.0}, t, y[6], lam[2];
+        int n, m;
+        mbdk_default_options(&opt);
+        opt.method = mbdk_method_id("rk4");
+        opt.h = 0.1;
+        expect("stepper_create_ode, f NULL", mbdk_stepper_create_ode(NULL, NULL, NULL, 1, 0, y0, &opt, &s), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_ode, y0 NULL", mbdk_stepper_create_ode(rhs, NULL, NULL, 1, 0, NULL, &opt, &s), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_ode, opt NULL", mbdk_stepper_create_ode(rhs, NULL, NULL, 1, 0, y0, NULL, &s), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_ode", mbdk_stepper_create_ode(rhs, NULL, NULL, 1, 0, y0, &opt, &s), MBDK_SUCCESS);
+        expect("stepper_create_scene, mass NULL", mbdk_stepper_create_scene(1, NULL, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_scene, jint NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, NULL, &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_scene, model options NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_scene", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_SUCCESS);
+        expect("stepper_state, t NULL", mbdk_stepper_state(s, NULL, y, 1), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_state, y NULL", mbdk_stepper_state(s, &t, NULL, 1), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_state, handle NULL", mbdk_stepper_state(NULL, &t, y, 1), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_size, n NULL", mbdk_stepper_size(s, NULL, &m), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_size, m NULL", mbdk_stepper_size(s, &n, NULL), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_stats, NULL", mbdk_stepper_stats(s, NULL), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_multipliers, lam NULL", mbdk_stepper_multipliers(sc, NULL, 2), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_multipliers", mbdk_stepper_multipliers(sc, lam, 2), MBDK_SUCCESS);
+        expect("stepper_advance, handle NULL", mbdk_stepper_advance(NULL, 1.0), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_stats", mbdk_stepper_stats(s, &st), MBDK_SUCCESS);
+        mbdk_stepper_destroy(s);
+        mbdk_stepper_destroy(sc);
+    }
     printf("%d checks, %d failed\n", checks, bad);
     return bad != 0;
 }

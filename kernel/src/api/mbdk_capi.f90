@@ -138,9 +138,10 @@ contains
     mbdk_c_sample_count = int(stat, c_int)
   end function mbdk_c_sample_count
 
-  integer(c_int) function mbdk_c_solve_ode(f, user_data, n, t0, t_end, y0, opt, nsamp, t_out, &
-      y_out, nwritten, stats) bind(C, name='mbdk_solve_ode')
-    type(c_funptr), value :: f
+  !> jac: NULL, or the analytic Jacobian of f (column-major), used by the implicit methods
+  integer(c_int) function mbdk_c_solve_ode(f, jac, user_data, n, t0, t_end, y0, opt, nsamp, &
+      t_out, y_out, nwritten, stats) bind(C, name='mbdk_solve_ode')
+    type(c_funptr), value :: f, jac
     type(c_ptr), value :: user_data
     integer(c_int), value :: n, nsamp
     real(c_double), value :: t0, t_end
@@ -167,7 +168,7 @@ contains
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
       return
     end if
-    call mbdk_c_problem_init(prob, f, user_data, int(n), int(opt%nq))
+    call mbdk_c_problem_init(prob, f, user_data, int(n), int(opt%nq), jac)
     call solve(y_out(1:n * nsamp))
     nwritten = int(nw, c_int)
     stats = st

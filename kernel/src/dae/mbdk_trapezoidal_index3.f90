@@ -377,7 +377,7 @@ contains
       do i = 1, nsteps
         t_s = t0 + real(i, dp) * opt%h
         if (i == nsteps) t_s = t_end
-        if (mbdk_interrupted(opt%interrupt)) then
+        if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
           exit
         end if
@@ -471,7 +471,7 @@ contains
         t_s = t0 + real(k, dp) * opt%dt_out
         if (k == nsamp - 1) t_s = t_end
         do while (t < t_s)
-          if (mbdk_interrupted(opt%interrupt)) then
+          if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
             ierr = MBDK_ERR_INTERRUPTED
             return
           end if

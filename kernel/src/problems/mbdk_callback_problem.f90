@@ -1,14 +1,18 @@
 !> Problems whose right-hand side belongs to the caller:
 !>
 !>   mbdk_c_problem_t     a C function  int f(int n, double t, const double *y, double *dydt,
-!>                        void *user_data), 0 = success, non-zero = failure (mbdk.h)
+!>                        void *user_data), 0 = success, non-zero = failure (mbdk.h), and
+!>                        optionally its Jacobian  int jac(int n, double t, const double *y,
+!>                        double *dfdy, void *user_data), dfdy column-major n x n (dfdy[i + j n]
+!>                        = dF_i/dy_j), which the implicit methods' Newton then uses
 !>   mbdk_proc_problem_t  a Fortran procedure  subroutine f(n, t, y, dydt, flag); flag(1) /= 0
 !>                        signals failure. This is how a Python function reaches the kernel through
 !>                        f2py: the slow, documented "Python callback" path (~1 us per call).
 !>
 !> A failure reported by the callback becomes MBDK_ERR_CALLBACK_FAILED.
 module mbdk_callback_problem
-  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_f_procpointer
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_f_procpointer, &
+    c_associated
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_CALLBACK_FAILED
   use mbdk_problem, only: mbdk_problem_t
@@ -25,6 +29,15 @@ module mbdk_callback_problem
       type(c_ptr), value :: user_data
     end function mbdk_c_rhs
 
+    integer(c_int) function mbdk_c_jac(n, t, y, dfdy, user_data) bind(C)
+      import :: c_int, c_double, c_ptr
+      integer(c_int), value :: n
+      real(c_double), value :: t
+      real(c_double), intent(in) :: y(n)
+      real(c_double), intent(out) :: dfdy(n, n)
+      type(c_ptr), value :: user_data
+    end function mbdk_c_jac
+
     subroutine mbdk_proc_rhs(n, t, y, dydt, flag)
       import :: dp
       integer, intent(in) :: n
@@ -34,13 +47,15 @@ module mbdk_callback_problem
       integer, intent(inout) :: flag(1)
     end subroutine mbdk_proc_rhs
   end interface
-  public :: mbdk_c_rhs, mbdk_proc_rhs
+  public :: mbdk_c_rhs, mbdk_c_jac, mbdk_proc_rhs
 
   type, extends(mbdk_problem_t), public :: mbdk_c_problem_t
     procedure(mbdk_c_rhs), nopass, pointer :: f => null()
+    procedure(mbdk_c_jac), nopass, pointer :: jacf => null()
     type(c_ptr) :: user_data
   contains
     procedure :: rhs => c_problem_rhs
+    procedure :: jac => c_problem_jac
   end type mbdk_c_problem_t
 
   type, extends(mbdk_problem_t), public :: mbdk_proc_problem_t
@@ -53,12 +68,20 @@ module mbdk_callback_problem
 
 contains
 
-  subroutine mbdk_c_problem_init(prob, f, user_data, n, nq)
+  !> jac: a C Jacobian function, or c_null_funptr for none (finite differences)
+  subroutine mbdk_c_problem_init(prob, f, user_data, n, nq, jac)
     type(mbdk_c_problem_t), intent(out) :: prob
     type(c_funptr), intent(in) :: f
     type(c_ptr), intent(in) :: user_data
     integer, intent(in) :: n, nq
+    type(c_funptr), intent(in), optional :: jac
     call c_f_procpointer(f, prob%f)
+    if (present(jac)) then
+      if (c_associated(jac)) then
+        call c_f_procpointer(jac, prob%jacf)
+        prob%has_jac = .true.
+      end if
+    end if
     prob%user_data = user_data
     prob%n = n
     prob%nq = nq
@@ -82,6 +105,16 @@ contains
     stat = MBDK_SUCCESS
     if (self%f(int(self%n, c_int), t, y, f, self%user_data) /= 0) stat = MBDK_ERR_CALLBACK_FAILED
   end subroutine c_problem_rhs
+
+  subroutine c_problem_jac(self, t, y, jac, stat)
+    class(mbdk_c_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: jac(:, :)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    if (self%jacf(int(self%n, c_int), t, y, jac, self%user_data) /= 0) &
+      stat = MBDK_ERR_CALLBACK_FAILED
+  end subroutine c_problem_jac
 
   subroutine proc_problem_rhs(self, t, y, f, stat)
     class(mbdk_proc_problem_t), intent(in) :: self

@@ -1,0 +1,308 @@
+!> The C API's stepper (bind(C) only; mirrored in mbdk.h): a solve the caller advances one step,
+!> or to a time, at a time, reading the state, the multipliers and the statistics in between.
+!>
+!>   mbdk_stepper *s;
+!>   mbdk_stepper_create_ode(f, jac, user_data, n, t0, y0, &opt, &s)     or
+!>   mbdk_stepper_create_scene(nb, mass, ..., &model_opt, &opt, t0, y0, &s)
+!>   mbdk_stepper_step(s)              one step of opt.h
+!>   mbdk_stepper_advance(s, t)        steps of opt.h up to t, the last one shortened to land on t
+!>   mbdk_stepper_state(s, &t, y, n)   mbdk_stepper_multipliers(s, lam, m)   mbdk_stepper_stats(s, &st)
+!>   mbdk_stepper_destroy(s)
+!>
+!> A scene stepper integrates the model's formulation (reduced, baumgarte, penalty, projection:
+!> model_opt.formulation) with any ODE method; trapezoidal_index3 is not available here yet (its
+!> step lives inside mbdk_index3_solve; use mbdk_index3_solve). Steps land on t0 + k opt.h as
+!> in the fixed-step driver, so a stepper and mbdk_solve_ode give the same bits.
+!>
+!> After a failed step the stepper keeps the last good state (t, y) readable and refuses further
+!> steps with MBDK_ERR_NOT_APPLICABLE. Every pointer is checked: NULL gives
+!> MBDK_ERR_INVALID_INPUT. The handle owns all its memory; nothing points into the caller's
+!> arrays after create returns (user_data excepted).
+module mbdk_capi_stepper
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_loc, c_f_pointer, &
+    c_associated, c_null_ptr
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_stepper, only: mbdk_stepper_t, mbdk_stepper_init, mbdk_stepper_step
+  use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
+    mbdk_model_accelerations
+  use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_IMPLICIT_LMM, MBDK_METHOD_NAME_LEN
+  use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
+  implicit none
+  private
+
+  integer, parameter :: KIND_ODE = 1, KIND_SCENE = 2
+
+  !> What a handle points to. Allocated through a pointer, so the model may point at its work.
+  type :: stepper_box
+    integer :: kind = 0
+    type(mbdk_c_problem_t) :: cprob
+    type(mbdk_model_t) :: model
+    type(mbdk_model_work_t) :: work
+    type(mbdk_stepper_t) :: s
+    real(dp) :: t0 = 0.0_dp
+    integer(i8) :: grid_steps = 0   !< steps of opt%h on the grid t0 + k h taken so far
+    logical :: equal_steps = .false. !< a k-step method: only whole steps of opt%h
+    real(dp) :: t_good = 0.0_dp     !< the last good state (kept across a failed step)
+    real(dp), allocatable :: y_good(:)
+  end type stepper_box
+
+contains
+
+  !> The box behind a handle, or null for a NULL handle.
+  function box_of(handle) result(b)
+    type(c_ptr), intent(in) :: handle
+    type(stepper_box), pointer :: b
+    b => null()
+    if (c_associated(handle)) call c_f_pointer(handle, b)
+  end function box_of
+
+  !> Stepper for y' = f(t, y) (jac may be NULL) from (t0, y0[n]) with opt (method, h, ...).
+  integer(c_int) function mbdk_c_stepper_create_ode(f, jac, user_data, n, t0, y0, opt, handle) &
+      bind(C, name='mbdk_stepper_create_ode')
+    type(c_funptr), value :: f, jac
+    type(c_ptr), value :: user_data
+    integer(c_int), value :: n
+    real(c_double), value :: t0
+    real(c_double), intent(in), optional :: y0(*)
+    type(mbdk_options_t), intent(in), optional :: opt
+    type(c_ptr), intent(out), optional :: handle
+    type(stepper_box), pointer :: b
+    integer :: stat
+
+    mbdk_c_stepper_create_ode = MBDK_ERR_INVALID_INPUT
+    if (.not. present(handle)) return
+    handle = c_null_ptr
+    if (.not. (present(y0) .and. present(opt)) .or. .not. c_associated(f) .or. n < 1) return
+    if (opt%nq < 0 .or. (opt%nq > 0 .and. 2 * opt%nq /= n)) return
+    allocate (b)
+    b%kind = KIND_ODE
+    call mbdk_c_problem_init(b%cprob, f, user_data, int(n), int(opt%nq), jac)
+    call start(b, opt, t0, y0(1:n), stat)
+    mbdk_c_stepper_create_ode = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_ode
+
+  !> Stepper for a scene given by its tables (as mbdk_index3_solve takes them) and the model's
+  !> options (formulation, solver), from (t0, y0[6 nb] = (q, v)) with opt (method, h, ...).
+  integer(c_int) function mbdk_c_stepper_create_scene(nb, mass, inertia, nj, jint, jreal, nf, &
+      fint, freal, mopt, opt, t0, y0, handle) bind(C, name='mbdk_stepper_create_scene')
+    integer(c_int), value :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jint(*), fint(*)
+    type(mbdk_model_options_t), intent(in), optional :: mopt
+    type(mbdk_options_t), intent(in), optional :: opt
+    real(c_double), value :: t0
+    type(c_ptr), intent(out), optional :: handle
+    type(stepper_box), pointer :: b
+    integer :: stat
+    integer, allocatable :: ji(:, :), fi(:, :)
+    real(dp), allocatable :: jr(:, :), fr(:, :)
+
+    mbdk_c_stepper_create_scene = MBDK_ERR_INVALID_INPUT
+    if (.not. present(handle)) return
+    handle = c_null_ptr
+    if (.not. (present(mass) .and. present(inertia) .and. present(mopt) .and. present(opt) &
+               .and. present(y0))) return
+    if (nb < 1 .or. nj < 0 .or. nf < 0) return
+    if (nj > 0 .and. .not. (present(jint) .and. present(jreal))) return
+    if (nf > 0 .and. .not. (present(fint) .and. present(freal))) return
+    allocate (ji(4, nj), jr(12, nj), fi(4, nf), fr(12, nf))
+    if (nj > 0) then
+      ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
+      jr = reshape(jreal(1:12 * nj), [12, int(nj)])
+    end if
+    if (nf > 0) then
+      fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
+      fr = reshape(freal(1:12 * nf), [12, int(nf)])
+    end if
+    allocate (b)
+    b%kind = KIND_SCENE
+    call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
+    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb), stat)
+    mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_scene
+
+  subroutine start(b, opt, t0, y0, stat)
+    type(stepper_box), intent(inout) :: b
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, y0(:)
+    integer, intent(out) :: stat
+    character(len=MBDK_METHOD_NAME_LEN) :: name
+    integer :: family, order
+    type(mbdk_lmm_t) :: lmm
+    logical :: found
+    select case (b%kind)
+    case (KIND_ODE)
+      call mbdk_stepper_init(b%s, b%cprob, opt, t0, y0, stat)
+    case default
+      call mbdk_stepper_init(b%s, b%model, opt, t0, y0, stat)
+    end select
+    if (stat /= MBDK_SUCCESS) return
+    b%t0 = t0
+    b%t_good = t0
+    b%y_good = y0
+    call mbdk_method_info(opt%method, name, family, order)
+    if (family == MBDK_FAMILY_IMPLICIT_LMM) then
+      call mbdk_lmm_table(opt%method, lmm, found)
+      b%equal_steps = lmm%k > 1
+    end if
+  end subroutine start
+
+  integer(c_int) function finish_create(b, stat, handle)
+    type(stepper_box), pointer, intent(inout) :: b
+    integer, intent(in) :: stat
+    type(c_ptr), intent(out) :: handle
+    finish_create = int(stat, c_int)
+    if (stat /= MBDK_SUCCESS) then
+      deallocate (b)
+      handle = c_null_ptr
+      return
+    end if
+    handle = c_loc(b)
+  end function finish_create
+
+  !> One step of the stepper's problem to t_next; keeps the last good state on failure, and
+  !> counts the grid points t0 + k h passed (within 1e-9 h).
+  subroutine step_to(b, t_next, stat)
+    type(stepper_box), intent(inout) :: b
+    real(dp), intent(in) :: t_next
+    integer, intent(out) :: stat
+    select case (b%kind)
+    case (KIND_ODE)
+      call mbdk_stepper_step(b%s, b%cprob, t_next, stat)
+    case default
+      call mbdk_stepper_step(b%s, b%model, t_next, stat)
+    end select
+    if (stat /= MBDK_SUCCESS) return
+    b%t_good = b%s%t
+    b%y_good = b%s%y
+    b%grid_steps = floor((t_next - b%t0) / b%s%opt%h + 1.0e-9_dp, i8)
+  end subroutine step_to
+
+  !> One step to the next point t0 + k opt.h of the grid (a full step of opt.h unless an
+  !> advance ended off the grid).
+  integer(c_int) function mbdk_c_stepper_step(handle) bind(C, name='mbdk_stepper_step')
+    type(c_ptr), value :: handle
+    type(stepper_box), pointer :: b
+    integer :: stat
+    mbdk_c_stepper_step = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. associated(b)) return
+    call step_to(b, b%t0 + real(b%grid_steps + 1, dp) * b%s%opt%h, stat)
+    mbdk_c_stepper_step = int(stat, c_int)
+  end function mbdk_c_stepper_step
+
+  !> Steps of opt.h up to t (the grid t0 + k h), the last one shortened to land on t when t is
+  !> not on the grid (one-step methods only: a k-step method needs t on the grid,
+  !> MBDK_ERR_INVALID_INPUT otherwise). t at or before the current time: nothing to do. The
+  !> options' interrupt flag is polled before every step.
+  integer(c_int) function mbdk_c_stepper_advance(handle, t) bind(C, name='mbdk_stepper_advance')
+    type(c_ptr), value :: handle
+    real(c_double), value :: t
+    type(stepper_box), pointer :: b
+    real(dp) :: h, t_next, ratio
+    integer :: stat
+    mbdk_c_stepper_advance = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. associated(b)) return
+    if (.not. abs(t) <= huge(1.0_dp)) return
+    h = b%s%opt%h
+    ratio = (t - b%t0) / h
+    if (b%equal_steps .and. abs(ratio - anint(ratio)) > 1.0e-9_dp * max(1.0_dp, abs(ratio))) &
+      return
+    stat = MBDK_SUCCESS
+    if (b%s%failed) stat = MBDK_ERR_NOT_APPLICABLE
+    do while (stat == MBDK_SUCCESS .and. b%s%t < t)
+      if (b%s%opt%interrupt /= 0 .and. mbdk_interrupted(b%s%opt%interrupt)) then
+        stat = MBDK_ERR_INTERRUPTED
+        exit
+      end if
+      t_next = b%t0 + real(b%grid_steps + 1, dp) * h
+      ! within 1e-9 h of t (or past it): land on t
+      if (t_next >= t - 1.0e-9_dp * h) t_next = t
+      call step_to(b, t_next, stat)
+    end do
+    mbdk_c_stepper_advance = int(stat, c_int)
+  end function mbdk_c_stepper_advance
+
+  !> The current time and state (the last good one after a failure); n must be the state size.
+  integer(c_int) function mbdk_c_stepper_state(handle, t, y, n) bind(C, name='mbdk_stepper_state')
+    type(c_ptr), value :: handle
+    real(c_double), intent(out), optional :: t
+    real(c_double), intent(out), optional :: y(*)
+    integer(c_int), value :: n
+    type(stepper_box), pointer :: b
+    mbdk_c_stepper_state = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. (associated(b) .and. present(t) .and. present(y))) return
+    if (n /= size(b%y_good)) return
+    t = b%t_good
+    y(1:n) = b%y_good
+    mbdk_c_stepper_state = MBDK_SUCCESS
+  end function mbdk_c_stepper_state
+
+  !> State size n and constraint rows m (0 for an ODE).
+  integer(c_int) function mbdk_c_stepper_size(handle, n, m) bind(C, name='mbdk_stepper_size')
+    type(c_ptr), value :: handle
+    integer(c_int), intent(out), optional :: n, m
+    type(stepper_box), pointer :: b
+    mbdk_c_stepper_size = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. (associated(b) .and. present(n) .and. present(m))) return
+    n = int(size(b%y_good), c_int)
+    m = 0
+    if (b%kind == KIND_SCENE) m = int(b%model%m, c_int)
+    mbdk_c_stepper_size = MBDK_SUCCESS
+  end function mbdk_c_stepper_size
+
+  !> A scene's multipliers lam[m] at the current state, by the model's formulation (one
+  !> evaluation). MBDK_ERR_NOT_APPLICABLE for an ODE stepper.
+  integer(c_int) function mbdk_c_stepper_multipliers(handle, lam, m) &
+      bind(C, name='mbdk_stepper_multipliers')
+    type(c_ptr), value :: handle
+    real(c_double), intent(out), optional :: lam(*)
+    integer(c_int), value :: m
+    type(stepper_box), pointer :: b
+    real(dp), allocatable :: a(:), l(:)
+    integer :: stat, nc
+    mbdk_c_stepper_multipliers = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. associated(b)) return
+    if (b%kind /= KIND_SCENE) then
+      mbdk_c_stepper_multipliers = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    if (m /= b%model%m .or. (m > 0 .and. .not. present(lam))) return
+    nc = b%model%nc
+    allocate (a(nc), l(m))
+    call mbdk_model_accelerations(b%model, b%t_good, b%y_good(1:nc), b%y_good(nc + 1:2 * nc), a, &
+                                  l, stat)
+    if (stat == MBDK_SUCCESS .and. m > 0) lam(1:m) = l
+    mbdk_c_stepper_multipliers = int(stat, c_int)
+  end function mbdk_c_stepper_multipliers
+
+  integer(c_int) function mbdk_c_stepper_stats(handle, st) bind(C, name='mbdk_stepper_stats')
+    type(c_ptr), value :: handle
+    type(mbdk_stats_t), intent(out), optional :: st
+    type(stepper_box), pointer :: b
+    mbdk_c_stepper_stats = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. (associated(b) .and. present(st))) return
+    st = b%s%st
+    mbdk_c_stepper_stats = MBDK_SUCCESS
+  end function mbdk_c_stepper_stats
+
+  !> Frees the stepper; a NULL handle is nothing to free (MBDK_SUCCESS).
+  integer(c_int) function mbdk_c_stepper_destroy(handle) bind(C, name='mbdk_stepper_destroy')
+    type(c_ptr), value :: handle
+    type(stepper_box), pointer :: b
+    b => box_of(handle)
+    if (associated(b)) deallocate (b)
+    mbdk_c_stepper_destroy = MBDK_SUCCESS
+  end function mbdk_c_stepper_destroy
+
+end module mbdk_capi_stepper
