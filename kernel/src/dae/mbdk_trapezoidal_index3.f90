@@ -106,6 +106,13 @@
 !> Per step the solve records the Newton iterations (iters_out at each sample: those of the step
 !> that produced it; every update computed, the last, converged one included) and counts
 !> factorizations in the stats.
+!>
+!> Code layout. The Newton matrix and its factorisations are mbdk_index3_matrix; the step-size
+!> controller is mbdk_step_controller_t. Here: the solver's state between steps (mbdk_index3_t),
+!> one step (mbdk_index3_step: from t to a given tn, not retried), a fixed-step advance with the
+!> substep retries (mbdk_index3_advance), and the whole-interval driver with sampling, fixed or
+!> adaptive (mbdk_index3_solve). An embedder steps through mbdk_index3_init and
+!> mbdk_index3_advance (or the C stepper, mbdk_stepper_create_index3).
 module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -113,20 +120,26 @@ module mbdk_trapezoidal_index3
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted
-  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_accelerations, &
-    MBDK_MODEL_SINGULAR_TOL
-  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_eval, mbdk_joints_scatter, &
-    mbdk_body_rotations, MBDK_JOINT_TYPES
-  use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_tangent
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_MODEL_SINGULAR_TOL
+  use mbdk_joints, only: mbdk_joints_eval, mbdk_joints_scatter, mbdk_body_rotations, &
+    MBDK_JOINT_TYPES
+  use mbdk_force_elements, only: mbdk_forces_eval
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_sparse_schur, only: mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_w_residual, mbdk_sparse_dtd_add
-  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
-    mbdk_small_lu_solve, mbdk_small_lu_inverse, mbdk_small_inverse_apply, MBDK_SMALL_DENSE_MAX
+    mbdk_sparse_w_residual
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, MBDK_SMALL_DENSE_MAX
+  use mbdk_index3_matrix, only: mbdk_index3_factors_t, mbdk_index3_factors_init, &
+    mbdk_index3_factor, mbdk_index3_factors_solve, mbdk_index3_newton_matrix, &
+    MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
+  use mbdk_step_controller, only: mbdk_step_controller_t, mbdk_controller_init, &
+    mbdk_controller_next_step, mbdk_controller_accept, mbdk_controller_reject, &
+    mbdk_controller_newton_failure, mbdk_controller_too_small
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
   private
-  public :: mbdk_index3_solve, mbdk_index3_newton_matrix, mbdk_index3_plan
+  public :: mbdk_index3_solve, mbdk_index3_newton_matrix, mbdk_index3_plan, mbdk_index3_init, &
+    mbdk_index3_step, mbdk_index3_advance
+  public :: MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
@@ -134,15 +147,14 @@ module mbdk_trapezoidal_index3
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
   !> fixed step: a step whose Newton iteration fails is retried in substeps down to h / 4^this
   integer, parameter, public :: MBDK_INDEX3_MAX_CUTS = 5
-  !> a pivot of the augmented matrix's LDL^T at or below this times its largest diagonal entry:
-  !> not positive definite enough, the LU is used
-  real(dp), parameter :: LDLT_TOL = 1.0e-14_dp
-  integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
-    MBDK_INDEX3_SCALED = 2
+  !> Newton: a matrix is rebuilt when the contraction rate exceeds this
+  real(dp), parameter :: REBUILD_RATE = 0.5_dp
+  !> after a failed reuse, this many steps start with fresh matrices (doubled after each further
+  !> failure, up to COOL_MAX)
+  integer, parameter :: COOL_START = 8, COOL_MAX = 1024
+  !> adaptive: a step within this fraction of the last matrix's h keeps the matrix
+  real(dp), parameter :: KEEP_MATRIX = 0.05_dp
 
-  !> Options of a solve, by name with defaults. bind(C): the same struct is struct
-  !> mbdk_index3_options in mbdk.h and mbdk.options.Index3Options in Python (tests/test_structs.py
-  !> and kernel/tests/c_struct_layout.c check that the three agree field by field).
   type, bind(C), public :: mbdk_index3_options_t
     real(c_double) :: h = 1.0e-3_c_double              !< fixed step, or the first step (adaptive)
     real(c_double) :: newton_rtol = 1.0e-10_c_double   !< on the position update
@@ -161,120 +173,161 @@ module mbdk_trapezoidal_index3
     integer(c_int) :: adaptive = 0                     !< non-zero: step-size control (augmented only)
   end type mbdk_index3_options_t
 
+
+  !> The solver's state between steps: the accepted state (t, q, v, a, lam) with the history
+  !> the predictors and the error estimate use, the Newton matrix and its reuse policy, the work
+  !> arrays of a step (allocated once) and the statistics.
+  type, public :: mbdk_index3_t
+    type(mbdk_index3_options_t) :: opt
+    integer :: nc = 0, m = 0, nk = 0
+    logical :: book = .true.
+    logical :: schur = .false.          !< projections through D M^-1 D^T in-house
+    real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
+    real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp
+    logical :: have_lu = .false.
+    integer :: cool = 0, cool_len = COOL_START
+    integer :: iters = 0                !< Newton iterations of the last attempted step
+    type(mbdk_stats_t) :: st
+    type(mbdk_index3_factors_t) :: fa
+    real(dp), allocatable :: q(:), v(:), a(:), lam(:), lam_old(:), a_prev(:), a_prev2(:)
+    real(dp), allocatable :: qn(:), vn(:), an(:), ln(:), lst(:), lstn(:), lst_old(:)
+    real(dp), allocatable :: qhat(:), qp(:), lp(:), lt(:), fq(:), phi(:), d(:, :), gam(:)
+    real(dp), allocatable :: phit(:), lw(:), krhs(:), rc(:), corr(:), mu(:), r(:)
+    real(dp), allocatable :: ks(:, :), kkt(:, :), zero_nc(:), zero_m(:), one_nc(:)
+    integer, allocatable :: kpiv(:)
+  end type mbdk_index3_t
+
 contains
 
-  !> The Newton matrix at (q, v, lam, t) for step h: scaling UNSCALED (rows M a + D^T lam - f and
-  !> Phi, unknowns dq, dlam), SCALED_BOOK (both rows times s = h^2/4, (3.15)-(3.16)) or SCALED
-  !> (dynamic rows times s, unknown s lam, Phi unscaled: what the solver uses). jac(nc+m, nc+m).
-  subroutine mbdk_index3_newton_matrix(model, t, q, v, lam, h, scaling, jac, stat)
+  !> A solver at (t0, y0 = [q; v]) with options opt: validates them, allocates the work arrays
+  !> and computes the consistent a and lambda at t0 (the reduced formulation's solve).
+  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme), or the
+  !> failure of that first solve (MBDK_ERR_SINGULAR_MATRIX with dependent constraints).
+  subroutine mbdk_index3_init(s, model, opt, t0, y0, stat)
+    type(mbdk_index3_t), intent(out) :: s
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, q(:), v(:), lam(:), h
-    integer, intent(in) :: scaling
-    real(dp), intent(out) :: jac(:, :)
+    type(mbdk_index3_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, y0(:)
     integer, intent(out) :: stat
-    real(dp) :: s, phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
-    real(dp) :: lw(model%m), a(model%nc + model%m, model%nc + model%m)
-    integer :: nc, m
+    integer :: nc, m, nk
+
+    stat = MBDK_ERR_INVALID_INPUT
     nc = model%nc
     m = model%m
-    s = 0.25_dp * h * h
-    call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
-    call book_matrix(model, t, q, v, lam, h, d, lw, a, stat)
-    if (stat /= MBDK_SUCCESS) return
-    jac = a
-    select case (scaling)
-    case (MBDK_INDEX3_UNSCALED)
-      jac(1:nc, 1:nc) = jac(1:nc, 1:nc) / s
-    case (MBDK_INDEX3_SCALED_BOOK)
-      jac(1:nc, nc + 1:) = s * jac(1:nc, nc + 1:)
-      jac(nc + 1:, 1:nc) = s * jac(nc + 1:, 1:nc)
-    case (MBDK_INDEX3_SCALED)
-      continue
-    case default
-      stat = MBDK_ERR_INVALID_INPUT
-    end select
-  end subroutine mbdk_index3_newton_matrix
-
-  !> a = 0 but for its leading (nc, nc) block M + s (K_c(lam) + K_f) + (h/2) C_f at (q, v, lam,
-  !> t), the body rotations model%work%rot at q; lw(m) is a work array. a(nc, nc) or larger.
-  subroutine dynamic_block(model, t, q, v, lam, h, lw, a, stat)
-    type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h
-    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
-    real(dp), intent(out), contiguous :: lw(:), a(:, :)
-    integer, intent(out) :: stat
-    real(dp) :: s
-    integer :: i
-    s = 0.25_dp * h * h
-    a = 0.0_dp
-    call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, s, 0.5_dp * h, &
-                             a, stat)
-    if (stat /= MBDK_SUCCESS) return
-    if (model%m > 0) then
-      lw = s * lam
-      call mbdk_joints_tangent(model%jint, model%jreal, model%row0, model%work%rot, q, lw, a)
+    if (opt%formulation /= MBDK_INDEX3_BOOK .and. opt%formulation /= MBDK_INDEX3_AUGMENTED) return
+    if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. &
+        opt%newton_max_iter < 1) return
+    if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
+    if (size(y0) /= 2 * nc) return
+    if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
+    if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
     end if
-    do i = 1, model%nc
-      a(i, i) = a(i, i) + model%mass(i)
-    end do
-  end subroutine dynamic_block
-
-  !> The book scheme's [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] (nc+m, nc+m) at (q, v,
-  !> lam, t), with D = d given there and the body rotations model%work%rot at q (the callers
-  !> evaluate the constraints, or the rotations, at q just before); lw(m) is a work array.
-  subroutine book_matrix(model, t, q, v, lam, h, d, lw, jac, stat)
-    type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h
-    real(dp), intent(in), contiguous :: q(:), v(:), lam(:), d(:, :)
-    real(dp), intent(out), contiguous :: lw(:), jac(:, :)
-    integer, intent(out) :: stat
-    integer :: nc, m, i, k
-    nc = model%nc
-    m = model%m
-    call dynamic_block(model, t, q, v, lam, h, lw, jac, stat)
+    s%opt = opt
+    s%nc = nc
+    s%m = m
+    s%book = opt%formulation == MBDK_INDEX3_BOOK
+    nk = nc
+    if (s%book) nk = nc + m
+    s%nk = nk
+    s%schur = model%m_positive .and. model%small_dense .and. m <= MBDK_SMALL_DENSE_MAX
+    call mbdk_index3_factors_init(s%fa, model, nk)
+    allocate (s%q(nc), s%v(nc), s%a(nc), s%lam(m), s%lam_old(m), s%a_prev(nc), s%a_prev2(nc), &
+              s%qn(nc), s%vn(nc), s%an(nc), s%ln(m), s%lst(m), s%lstn(m), s%lst_old(m), &
+              s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%d(m, nc), s%gam(m), &
+              s%phit(m), s%lw(m), s%krhs(nc + m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), &
+              s%ks(m, m), s%kkt(nc + m, nc + m), s%zero_nc(nc), s%zero_m(m), s%one_nc(nc), &
+              s%kpiv(nc + m))
+    s%zero_nc = 0.0_dp
+    s%zero_m = 0.0_dp
+    s%one_nc = 1.0_dp
+    s%q = y0(1:nc)
+    s%v = y0(nc + 1:)
+    s%t = t0
+    ! consistent a and lambda at t0: the reduced formulation's solve
+    call mbdk_model_accelerations(model, s%t, s%q, s%v, s%a, s%lam, stat)
     if (stat /= MBDK_SUCCESS) return
-    do k = 1, nc
-      do i = 1, m
-        jac(nc + i, k) = d(i, k)
-        jac(k, nc + i) = d(i, k)
-      end do
-    end do
-  end subroutine book_matrix
+    s%lam_old = s%lam
+    s%lst = s%lam
+    s%lstn = s%lam
+    s%lst_old = s%lam
+    s%a_prev = s%a
+    s%a_prev2 = s%a
+    s%st%nfev = 1
+  end subroutine mbdk_index3_init
 
-  !> The augmented form's M + s (K_c(lam) + K_f + alpha D^T D) + (h/2) C_f (nc, nc) at (q, v,
-  !> lam, t): D from its compact rows model%work%dz and the rotations model%work%rot, both at q.
-  subroutine al_matrix(model, t, q, v, lam, h, alpha, lw, a, stat)
+  !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
+  subroutine commit(s)
+    type(mbdk_index3_t), intent(inout) :: s
+    s%a_prev2 = s%a_prev
+    s%h_prev2 = s%h_prev
+    s%a_prev = s%a
+    s%h_prev = s%h
+    s%lam_old = s%lam
+    s%lst_old = s%lst
+    s%q = s%qn
+    s%v = s%vn
+    s%a = s%an
+    s%lam = s%ln
+    s%lst = s%lstn
+    s%t = s%tn
+    s%st%steps = s%st%steps + 1
+    if (s%cool > 0) s%cool = s%cool - 1
+  end subroutine commit
+
+  !> One step from s%t to tn, accepted on success; on failure the state stays at s%t.
+  !> No retries (mbdk_index3_advance retries in substeps).
+  subroutine mbdk_index3_step(s, model, tn, stat)
+    type(mbdk_index3_t), intent(inout) :: s
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h, alpha
-    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
-    real(dp), intent(out), contiguous :: lw(:), a(:, :)
+    real(dp), intent(in) :: tn
     integer, intent(out) :: stat
-    call dynamic_block(model, t, q, v, lam, h, lw, a, stat)
-    if (stat /= MBDK_SUCCESS .or. model%m == 0) return
-    call mbdk_sparse_dtd_add(model%sp, model%work%dz, 0.25_dp * h * h * alpha, a)
-  end subroutine al_matrix
+    stat = MBDK_ERR_INVALID_INPUT
+    if (.not. (tn > s%t .and. tn - s%t <= huge(1.0_dp))) return
+    s%tn = tn
+    s%h = tn - s%t
+    call attempt(s, model, stat)
+    if (stat == MBDK_SUCCESS) call commit(s)
+  end subroutine mbdk_index3_step
 
-  !> True when a(n, n) is symmetric to roundoff: |a(i,j) - a(j,i)| <= 1e-13 max_k |a(k,k)|.
-  !> (Dampers make the tangent stiffness unsymmetric; springs, joints and D^T D do not, but
-  !> their two triangles may differ in the last bits.)
-  pure logical function symmetric(a, n)
-    integer, intent(in) :: n
-    real(dp), intent(in) :: a(n, n)
-    real(dp) :: tol
-    integer :: i, j
-    tol = 0.0_dp
-    do i = 1, n
-      tol = max(tol, abs(a(i, i)))
+  !> Fixed step: from s%t to t_s in one step of h = t_s - t or, when Newton fails (diverged,
+  !> singular matrix, non-finite iterate) in the augmented form, in substeps: each failure
+  !> quarters the substep (stats%newton_failures), each success doubles it back up to the
+  !> full step. Below h / 4^MBDK_INDEX3_MAX_CUTS the failure is returned.
+  subroutine mbdk_index3_advance(s, model, t_s, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t_s
+    integer, intent(out) :: ierr
+    real(dp) :: h_full, h_sub
+    h_full = t_s - s%t
+    h_sub = h_full
+    ierr = MBDK_SUCCESS
+    do while (s%t < t_s)
+      s%tn = s%t + h_sub
+      if (t_s - s%tn <= 1.0e-9_dp * h_full) s%tn = t_s
+      s%h = s%tn - s%t
+      call attempt(s, model, ierr)
+      if (newton_failed(ierr)) then
+        if (s%book) return
+        s%st%newton_failures = s%st%newton_failures + 1
+        s%have_lu = .false.
+        h_sub = 0.25_dp * s%h
+        if (h_sub < h_full * 0.25_dp**MBDK_INDEX3_MAX_CUTS) return
+        cycle
+      end if
+      if (ierr /= MBDK_SUCCESS) return
+      call commit(s)
+      h_sub = min(2.0_dp * h_sub, h_full)
     end do
-    tol = 1.0e-13_dp * tol
-    symmetric = .false.
-    do j = 1, n
-      do i = j + 1, n
-        if (.not. (abs(a(i, j) - a(j, i)) <= tol)) return
-      end do
-    end do
-    symmetric = .true.
-  end function symmetric
+  end subroutine mbdk_index3_advance
+
+  logical function newton_failed(ierr)
+    integer, intent(in) :: ierr
+    newton_failed = ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
+      ierr == MBDK_ERR_SINGULAR_MATRIX
+  end function newton_failed
 
   !> Integrates the scene from (q, v) = y0 over [t0, t_end]: with the fixed step opt%h, or, when
   !> opt%adaptive, with the step-size controller from the initial step opt%h and samples every
@@ -291,86 +344,25 @@ contains
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
     integer(i8) :: nsteps, i
-    integer :: nsamp, nc, m, nk, iters, plan_stat, cool, cool_len, k
-    logical :: shortened, have_lu
-    real(dp) :: q(model%nc), v(model%nc), a(model%nc), lam(model%m), lam_old(model%m)
-    real(dp) :: a_prev(model%nc), a_prev2(model%nc), qn(model%nc), vn(model%nc), an(model%nc)
-    real(dp) :: ln(model%m), lst(model%m), lstn(model%m), lst_old(model%m)
-    real(dp) :: t, tn, t_s, h, h_lu, h_prev, h_prev2, alpha
+    integer :: nsamp, plan_stat
+    logical :: shortened
+    real(dp) :: t_s
     type(mbdk_timer_t) :: timer
-    real(dp) :: ks(model%m, model%m), kkt(model%nc + model%m, &
-      model%nc + model%m), zero_nc(model%nc), zero_m(model%m), one_nc(model%nc)
-    integer :: kpiv(model%nc + model%m)
-    logical :: schur, small_lu, ldlt, have_inv
-    integer :: nuse
-    ! the step's work arrays, allocated once per solve
-    real(dp) :: qhat(model%nc), qp(model%nc), lp(model%m), lt(model%m), fq(model%nc)
-    real(dp) :: phi(model%m), d(model%m, model%nc), gam(model%m)
-    real(dp) :: phit(model%m), lw(model%m), krhs(model%nc + model%m)
-    real(dp) :: rc(model%m), corr(model%nc), mu(model%m)
-    real(dp), allocatable :: lu(:, :), r(:), ainv(:, :), inv_work(:, :), rinv(:)
-    integer, allocatable :: ipiv(:), body_blk(:)
+    type(mbdk_index3_t) :: s
 
     nwritten = 0
-    stat = MBDK_ERR_INVALID_INPUT
-    nc = model%nc
-    m = model%m
-    if (opt%formulation /= MBDK_INDEX3_BOOK .and. opt%formulation /= MBDK_INDEX3_AUGMENTED) return
-    if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. opt%newton_max_iter < 1) return
-    if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
-    if (size(y0) /= 2 * nc) return
-    if (.not. all(abs(y0) <= huge(1.0_dp))) return
-    if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
-      stat = MBDK_ERR_NOT_APPLICABLE
-      return
-    end if
     call mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, plan_stat)
+    stat = MBDK_ERR_INVALID_INPUT
     if (plan_stat < 0) return
     if (size(t_out) < nsamp .or. size(y_out, 2) < nsamp .or. size(a_out, 2) < nsamp .or. &
         size(lam_out, 2) < nsamp .or. size(iters_out) < nsamp) then
       stat = MBDK_ERR_OUTPUT_SIZE
       return
     end if
-    nk = nc
-    if (opt%formulation == MBDK_INDEX3_BOOK) nk = nc + m
-    allocate (lu(nk, nk), ipiv(nk), r(nk), ainv(nk, nk), inv_work(nk, nk), rinv(nk))
-    schur = model%m_positive .and. model%small_dense .and. m <= MBDK_SMALL_DENSE_MAX
-    small_lu = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
-    ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
-    if (mod(nc, 3) == 0) then
-      body_blk = [(3 * k - 2, k = 1, nc / 3 + 1)]
-    else
-      body_blk = [(k, k = 1, nc + 1)]
-    end if
-    ldlt = .false.
-    have_inv = .false.
-    nuse = 0
-    zero_nc = 0.0_dp
-    zero_m = 0.0_dp
-    one_nc = 1.0_dp
     call mbdk_timer_start(timer)
-
-    q = y0(1:nc)
-    v = y0(nc + 1:)
-    t = t0
-    ! consistent a and lambda at t0: the reduced formulation's solve
-    call mbdk_model_accelerations(model, t, q, v, a, lam, stat)
+    call mbdk_index3_init(s, model, opt, t0, y0, stat)
     if (stat /= MBDK_SUCCESS) return
-    lam_old = lam
-    lst = lam
-    lstn = lam
-    lst_old = lam
-    a_prev = a
-    a_prev2 = a
-    h_prev = 0.0_dp
-    h_prev2 = 0.0_dp
-    st%nfev = 1
-    iters = 0
     call write_sample()
-    have_lu = .false.
-    h_lu = 0.0_dp
-    cool = 0
-    cool_len = 8
     if (opt%adaptive /= 0) then
       call adaptive_loop(stat)
     else
@@ -381,7 +373,7 @@ contains
           stat = MBDK_ERR_INTERRUPTED
           exit
         end if
-        call advance_to(t_s, stat)
+        call mbdk_index3_advance(s, model, t_s, stat)
         if (stat /= MBDK_SUCCESS) exit
         if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample()
       end do
@@ -389,448 +381,330 @@ contains
     end if
     ! on failure the last sample is the state the failed step started from (where it stopped)
     if (mbdk_is_failure(stat) .and. nwritten < size(t_out)) then
-      if (t > t_out(nwritten)) call write_sample()
+      if (s%t > t_out(nwritten)) call write_sample()
     end if
+    st = s%st
     call mbdk_timer_stop(timer, st)
 
   contains
 
     subroutine write_sample()
       nwritten = nwritten + 1
-      t_out(nwritten) = t
-      y_out(1:nc, nwritten) = q
-      y_out(nc + 1:2 * nc, nwritten) = v
-      a_out(1:nc, nwritten) = a
-      if (m > 0) lam_out(1:m, nwritten) = lam
-      iters_out(nwritten) = iters
+      t_out(nwritten) = s%t
+      y_out(1:s%nc, nwritten) = s%q
+      y_out(s%nc + 1:2 * s%nc, nwritten) = s%v
+      a_out(1:s%nc, nwritten) = s%a
+      if (s%m > 0) lam_out(1:s%m, nwritten) = s%lam
+      iters_out(nwritten) = s%iters
     end subroutine write_sample
 
-    subroutine commit()
-      a_prev2 = a_prev
-      h_prev2 = h_prev
-      a_prev = a
-      h_prev = h
-      lam_old = lam
-      lst_old = lst
-      q = qn
-      v = vn
-      a = an
-      lam = ln
-      lst = lstn
-      t = tn
-      st%steps = st%steps + 1
-      if (cool > 0) cool = cool - 1
-    end subroutine commit
-
-    !> Fixed step: from t to t_s in one step of h = t_s - t or, when Newton fails (diverged,
-    !> singular matrix, non-finite iterate) in the augmented form, in substeps: each failure
-    !> quarters the substep (stats%newton_failures), each success doubles it back up to the
-    !> full step. Below h / 4^MBDK_INDEX3_MAX_CUTS the failure is returned.
-    subroutine advance_to(t_s, ierr)
-      real(dp), intent(in) :: t_s
-      integer, intent(out) :: ierr
-      real(dp) :: h_full, h_sub
-      h_full = t_s - t
-      h_sub = h_full
-      ierr = MBDK_SUCCESS
-      do while (t < t_s)
-        tn = t + h_sub
-        if (t_s - tn <= 1.0e-9_dp * h_full) tn = t_s
-        h = tn - t
-        call attempt(ierr)
-        if (ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
-            ierr == MBDK_ERR_SINGULAR_MATRIX) then
-          if (opt%formulation == MBDK_INDEX3_BOOK) return
-          st%newton_failures = st%newton_failures + 1
-          have_lu = .false.
-          h_sub = 0.25_dp * h
-          if (h_sub < h_full * 0.25_dp**MBDK_INDEX3_MAX_CUTS) return
-          cycle
-        end if
-        if (ierr /= MBDK_SUCCESS) return
-        call commit()
-        h_sub = min(2.0_dp * h_sub, h_full)
-      end do
-    end subroutine advance_to
-
-    !> The step-size controller (see the module header). Samples land on t0 + k dt_out.
+    !> The step-size controller (see the module header and mbdk_step_controller). Samples land
+    !> on t0 + k dt_out.
     subroutine adaptive_loop(ierr)
       integer, intent(out) :: ierr
       integer :: k
-      real(dp) :: t_s, h_nat, h_min, h_max, err, fac, facmax, span
-      logical :: retry
-      span = t_end - t0
-      h_max = span
-      if (opt%h_max > 0.0_dp) h_max = min(opt%h_max, span)
-      h_min = 1.0e-12_dp * max(abs(t0), abs(t_end), span)
-      if (opt%h_min > 0.0_dp) h_min = max(opt%h_min, h_min)
-      h_nat = min(opt%h, h_max)
-      facmax = 5.0_dp
+      real(dp) :: err
+      type(mbdk_step_controller_t) :: ctl
+      call mbdk_controller_init(ctl, opt%h, opt%h_min, opt%h_max, t0, t_end, 2)
       ierr = MBDK_SUCCESS
       do k = 1, nsamp - 1
         t_s = t0 + real(k, dp) * opt%dt_out
         if (k == nsamp - 1) t_s = t_end
-        do while (t < t_s)
+        do while (s%t < t_s)
           if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
             ierr = MBDK_ERR_INTERRUPTED
             return
           end if
-          h = h_nat
-          if (t_s - t <= 1.1_dp * h) then
-            h = t_s - t
-          else if (t_s - t < 2.0_dp * h) then
-            h = 0.5_dp * (t_s - t)
-          end if
-          tn = t + h
-          if (t_s - tn <= 1.0e-12_dp * max(1.0_dp, abs(t_s))) tn = t_s
-          h = tn - t
+          s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
+          s%h = s%tn - s%t
           ! keep the last matrix when the step changed little (modified Newton absorbs it)
-          if (have_lu .and. abs(h - h_lu) <= 0.05_dp * h_lu) h_lu = h
-          call attempt(ierr)
-          retry = .true.
-          if (ierr == MBDK_ERR_NEWTON_DIVERGED .or. ierr == MBDK_ERR_NONFINITE .or. &
-              ierr == MBDK_ERR_SINGULAR_MATRIX) then
-            st%newton_failures = st%newton_failures + 1
-            have_lu = .false.
-            h_nat = 0.25_dp * h
+          if (s%have_lu .and. abs(s%h - s%h_lu) <= KEEP_MATRIX * s%h_lu) s%h_lu = s%h
+          call attempt(s, model, ierr)
+          if (newton_failed(ierr)) then
+            s%st%newton_failures = s%st%newton_failures + 1
+            s%have_lu = .false.
+            call mbdk_controller_newton_failure(ctl, s%h)
           else if (ierr /= MBDK_SUCCESS) then
             return
           else
-            err = error_estimate()
-            fac = 0.9_dp * max(err, 1.0e-10_dp)**(-1.0_dp / 3.0_dp)
-            retry = err > 1.0_dp
-            if (retry) then
-              st%rejected_steps = st%rejected_steps + 1
-              h_nat = max(0.2_dp, fac) * h
+            err = error_estimate(s)
+            if (err <= 1.0_dp) then
+              call commit(s)
+              call mbdk_controller_accept(ctl, s%h, err)
+              cycle
             end if
+            s%st%rejected_steps = s%st%rejected_steps + 1
+            call mbdk_controller_reject(ctl, s%h, err)
           end if
-          if (retry) then
-            facmax = 1.0_dp
-            ierr = MBDK_SUCCESS
-            if (h_nat < h_min) then
-              ierr = MBDK_ERR_STEP_TOO_SMALL
-              return
-            end if
-            cycle
+          ierr = MBDK_SUCCESS
+          if (mbdk_controller_too_small(ctl)) then
+            ierr = MBDK_ERR_STEP_TOO_SMALL
+            return
           end if
-          call commit()
-          fac = min(fac, facmax)
-          facmax = 5.0_dp
-          ! hold h while the controller asks for up to 20 % more: the matrix stays valid
-          if (.not. (h >= 0.999_dp * h_nat .and. fac >= 1.0_dp .and. fac <= 1.2_dp)) &
-            h_nat = min(max(fac * h, 0.2_dp * h), 5.0_dp * max(h_nat, h), h_max)
         end do
         call write_sample()
       end do
     end subroutine adaptive_loop
 
-    !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
-    !> rule, -h^3/12 q(3) and -h^3/12 q(4). The derivatives are divided differences of the step
-    !> mean accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
-    !> period-2 oscillation of the book scheme's accelerations, which would otherwise dominate.
-    !> The first two steps have no q(4) from history: it is taken as q(3) / (h + h_prev)
-    !> (large, so those steps are judged conservatively).
-    real(dp) function error_estimate()
-      real(dp) :: eq, ev, wq, wv, d1, d0, sum2, b2, b1, b0
-      integer :: k
-      sum2 = 0.0_dp
-      do k = 1, nc
-        b2 = 0.5_dp * (a(k) + an(k))
-        if (h_prev > 0.0_dp) then
-          b1 = 0.5_dp * (a_prev(k) + a(k))
-          d1 = (b2 - b1) / (0.5_dp * (h + h_prev))                     ! q(3)
-        else
-          b1 = 0.0_dp                     ! (unused: no h_prev2 without h_prev)
-          d1 = (an(k) - a(k)) / h
-        end if
-        eq = h**3 / 12.0_dp * d1
-        if (h_prev2 > 0.0_dp) then
-          b0 = 0.5_dp * (a_prev2(k) + a_prev(k))
-          d0 = (b1 - b0) / (0.5_dp * (h_prev + h_prev2))
-          ev = h**3 / 12.0_dp * (d1 - d0) / (0.5_dp * h + h_prev + 0.5_dp * h_prev2) * 2.0_dp
-        else
-          ev = h**3 / 12.0_dp * d1 / (h + h_prev)
-        end if
-        wq = opt%err_atol + opt%err_rtol * max(abs(q(k)), abs(qn(k)))
-        wv = opt%err_atol + opt%err_rtol * max(abs(v(k)), abs(vn(k)))
-        sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
-      end do
-      error_estimate = sqrt(sum2 / real(2 * nc, dp))
-    end function error_estimate
-
-    logical function finite_all(x)
-      real(dp), intent(in) :: x(:)
-      finite_all = all(abs(x) <= huge(1.0_dp))
-    end function finite_all
-
-    !> max |Phi| accepted: atol, but not below the roundoff of the coordinates.
-    real(dp) function phi_tol(x)
-      real(dp), intent(in) :: x(:)
-      phi_tol = max(opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(x))))
-    end function phi_tol
-
-    real(dp) function wnorm(dx, x)
-      real(dp), intent(in) :: dx(:), x(:)
-      wnorm = maxval(abs(dx) / (opt%newton_atol + opt%newton_rtol * abs(x)))
-    end function wnorm
-
-    !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
-    !> Newton as in the module header; both formulations share this loop.
-    subroutine attempt(ierr)
-      integer, intent(out) :: ierr
-      real(dp) :: s, dnorm, dnorm_old, rate
-      logical :: fresh, restarted, book, reused
-      integer :: k, kk
-      book = opt%formulation == MBDK_INDEX3_BOOK
-      s = 0.25_dp * h * h
-      alpha = opt%alpha
-      if (alpha == 0.0_dp) alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / s
-      qhat = q + h * v + s * a
-      if (book .or. h_prev <= 0.0_dp) then
-        qp = q + h * v + 0.5_dp * h * h * a
-        lp = lst
-      else
-        ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
-        qp = qhat + s * (a + (h / h_prev) * (a - a_prev))
-        lp = lst + (h / h_prev) * (lst - lst_old)
-      end if
-      if (book) lp = lam
-      if (book .and. h_prev > 0.0_dp) lp = lam + (h / h_prev) * (lam - lam_old)   ! (3.11)
-      if (have_lu .and. (abs(h - h_lu) > 1.0e-12_dp * h .or. cool > 0)) have_lu = .false.
-      reused = have_lu
-      qn = qp
-      ln = lp
-      restarted = .false.
-      fresh = .false.
-      dnorm_old = huge(1.0_dp)
-      iters = 0
-      k = 0
-      phi = 0.0_dp
-      do
-        vn = (2.0_dp / h) * (qn - q) - v
-        ! (leaves work%rot and work%dz at qn, for the forces and the matrix)
-        call constraints_at()
-        fq = 0.0_dp
-        call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, qn, vn, tn, fq, &
-                              model%work%visits(5:), ierr)
-        if (ierr /= MBDK_SUCCESS) return
-        st%nfev = st%nfev + 1
-        lt = ln
-        if (.not. book) then
-          if (k > 0) ln = ln + alpha * phi
-          lt = ln + alpha * phi
-        end if
-        ! corr = f - D^T lt over the nonzeros of D
-        call mbdk_sparse_w_residual(model%sp, model%work%dz, one_nc, lt, corr, nc, fq)
-        do kk = 1, nc
-          r(kk) = model%mass(kk) * (qn(kk) - qhat(kk)) - s * corr(kk)
-        end do
-        if (book) r(nc + 1:) = phi
-        if (.not. have_lu) then
-          call factor_matrix(ierr)
-          st%nlu = st%nlu + 1
-          st%njev = st%njev + 1
-          if (ierr /= MBDK_SUCCESS) return
-          have_lu = .true.
-          h_lu = h
-          fresh = .true.
-          reused = .false.
-        end if
-        r = -r
-        ! an LU that has served two solves is likely to serve many (modified Newton): from
-        ! the third on, through its explicit inverse
-        if (small_lu .and. .not. ldlt .and. nuse == 2) then
-          call mbdk_small_lu_inverse(lu, nk, ipiv, ainv, inv_work)
-          have_inv = .true.
-        end if
-        nuse = nuse + 1
-        if (have_inv) then
-          call mbdk_small_inverse_apply(ainv, nk, r, rinv)
-        else if (ldlt) then
-          call mbdk_small_ldlt_solve(lu, nk, body_blk, r)
-        else if (small_lu) then
-          call mbdk_small_lu_solve(lu, nk, ipiv, r)
-        else
-          call mbdk_lu_solve(lu, ipiv, r, ierr)
-          if (ierr /= MBDK_SUCCESS) return
-        end if
-        if (.not. finite_all(r)) then
-          ierr = MBDK_ERR_NONFINITE
-          return
-        end if
-        iters = iters + 1
-        k = k + 1
-        st%newton_iterations = st%newton_iterations + 1
-        dnorm = wnorm(r(1:nc), qn)
-        ! converged: the update from this iterate is below tolerance, and so is Phi here. The
-        ! update is applied (the Newton error left in q is then its square, or the rate times
-        ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
-        if (k > 1 .and. dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(phi)) <= phi_tol(qn))) then
-          qn = qn + r(1:nc)
-          if (book) ln = ln + r(nc + 1:) / s
-          exit
-        end if
-        if (iters >= opt%newton_max_iter) then
-          ierr = MBDK_ERR_NEWTON_DIVERGED
-          return
-        end if
-        rate = dnorm / dnorm_old
-        if (rate > 1.0_dp .and. k > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
-          ! growing with an old matrix (not roundoff below the tolerance). The first time the
-          ! iterate may be spoilt (the augmented form's multiplier update amplifies it), so
-          ! restart from the predictor with a matrix built there, and build fresh matrices
-          ! for the next steps; later, rebuild the matrix at this iterate.
-          have_lu = .false.
-          dnorm_old = huge(1.0_dp)
-          if (.not. restarted) then
-            restarted = .true.
-            ! fresh matrices for cool_len steps, twice as many after each failed reuse
-            cool = cool_len
-            cool_len = min(2 * cool_len, 1024)
-            reused = .false.
-            qn = qp
-            ln = lp
-            k = 0
-          end if
-          cycle
-        end if
-        qn = qn + r(1:nc)
-        if (book) ln = ln + r(nc + 1:) / s
-        ! rebuild the matrix when two more iterations at this rate would not reach the
-        ! tolerance (an iteration costs about as much as a factorisation)
-        if (rate > 0.5_dp .or. dnorm * rate * rate > 1.0_dp) have_lu = .false.
-        fresh = .false.
-        dnorm_old = dnorm
-      end do
-      ! a matrix carried over from an earlier step served the whole step: reuse pays again
-      if (reused) cool_len = 8
-      if (book) then
-        vn = (2.0_dp / h) * (qn - q) - v
-        an = (4.0_dp / (h * h)) * (qn - q) - (4.0_dp / h) * v - a
-      else
-        lstn = ln
-        vn = (2.0_dp / h) * (qn - q) - v
-        call constraints_at()
-        if (.not. schur .and. m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
-        call kkt_factor(d, ierr)
-        if (ierr /= MBDK_SUCCESS) return
-        ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
-        ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
-        ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),
-        ! without the Newton error that v+ = (2/h)(q+ - q) - v would carry amplified by 2/h.
-        ! Then a+ and lambda+ from M a + D^T lambda = f, D a = gamma(q+, v+): the projection
-        ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
-        ! error (4/h^2) that a+ = (4/h^2)(q+ - q) - .. would carry.
-        call kkt_solve(d, fq, zero_m, an, ln)
-        vn = v + (0.5_dp * h) * (a + an)
-        call project_v(d, phit)
-        ! q+ is unchanged: work%rot still holds its sin/cos and D, Phi are the same; only gamma
-        ! changes with v+
-        if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, qn, &
-                                         vn, tn, phi, model%work%dz, gam, phit, &
-                                         model%work%visits(1:MBDK_JOINT_TYPES))
-        call kkt_solve(d, fq, gam, an, ln)
-      end if
-      if (.not. (finite_all(qn) .and. finite_all(vn) .and. finite_all(an))) &
-        ierr = MBDK_ERR_NONFINITE
-    end subroutine attempt
-
-    !> Rotations and constraints at (tn, qn, vn): model%work%rot, phi, D's compact rows
-    !> model%work%dz, gam, phit (the dense d only where it is needed: scattered by the caller).
-    subroutine constraints_at()
-      call mbdk_body_rotations(qn, model%work%rot)
-      if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, qn, &
-                                       vn, tn, phi, model%work%dz, gam, phit, &
-                                       model%work%visits(1:MBDK_JOINT_TYPES))
-    end subroutine constraints_at
-
-    !> Builds and factorises the Newton matrix at (tn, qn, vn, ln) into lu (constraints_at
-    !> there first). The augmented matrix, when symmetric (no dampers) and positive definite,
-    !> by the block LDL^T with the bodies as pivot blocks (ldlt = .true.; half the cost of the
-    !> LU); otherwise, and for the book scheme's indefinite matrix, by the LU.
-    subroutine factor_matrix(ierr)
-      integer, intent(out) :: ierr
-      ldlt = .false.
-      have_inv = .false.
-      nuse = 0
-      if (opt%formulation == MBDK_INDEX3_BOOK) then
-        if (m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
-        call book_matrix(model, tn, qn, vn, ln, h, d, lw, lu, ierr)
-      else
-        ! the geometric stiffness of the augmented form takes lam* alone: alpha Phi, large
-        ! while the iterate is off the constraints, vanishes at the solution
-        call al_matrix(model, tn, qn, vn, ln, h, alpha, lw, lu, ierr)
-        if (ierr /= MBDK_SUCCESS) return
-        if (small_lu) then
-          if (symmetric(lu, nk)) then
-            call mbdk_small_ldlt_factor(lu, nk, body_blk, LDLT_TOL, ierr)
-            ldlt = ierr == MBDK_SUCCESS
-            ! not positive definite: rebuilt for the LU
-            if (.not. ldlt) call al_matrix(model, tn, qn, vn, ln, h, alpha, lw, lu, ierr)
-          end if
-        end if
-      end if
-      if (ierr /= MBDK_SUCCESS .or. ldlt) return
-      if (small_lu) then
-        call mbdk_small_lu_factor(lu, nk, ipiv, ierr)
-      else
-        call mbdk_lu_factor(lu, ipiv, ierr)
-      end if
-    end subroutine factor_matrix
-
-    !> vn onto D v + Phi_t = 0 (mass-orthogonal), with the factors of kkt_factor.
-    subroutine project_v(d, phit)
-      real(dp), intent(in), contiguous :: d(:, :), phit(:)
-      call mbdk_sparse_d_times(model%sp, model%work%dz, vn, rc, .false.)
-      rc = rc + phit
-      call kkt_solve(d, zero_nc, rc, corr, mu)
-      vn = vn - corr
-    end subroutine project_v
-
-    !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T, from
-    !> the compact rows of D in model%work%dz (the last mbdk_model_constraints call, at the
-    !> same q as d), and the in-house LDL^T when M is positive and m small (as the reduced
-    !> formulation), else by LAPACK's LU of the whole matrix. Dependent rows:
-    !> MBDK_ERR_SINGULAR_MATRIX.
-    subroutine kkt_factor(d, ierr)
-      real(dp), intent(in) :: d(:, :)
-      integer, intent(out) :: ierr
-      integer :: k
-      if (schur) then
-        call mbdk_sparse_schur_assemble(model%sp, model%work%dz, ks)
-        call mbdk_small_ldlt_factor(ks, m, model%blk, MBDK_MODEL_SINGULAR_TOL, ierr)
-        return
-      end if
-      kkt = 0.0_dp
-      do k = 1, nc
-        kkt(k, k) = model%mass(k)
-      end do
-      kkt(nc + 1:, 1:nc) = d
-      kkt(1:nc, nc + 1:) = transpose(d)
-      call mbdk_lu_factor(kkt, kpiv, ierr)
-    end subroutine kkt_factor
-
-    !> M x + D^T mu = b, D x = c with the factors of kkt_factor (D: d, or its compact rows in
-    !> model%work%dz, unchanged since kkt_factor).
-    subroutine kkt_solve(d, b, c, x, mu)
-      real(dp), intent(in), contiguous :: d(:, :), b(:), c(:)
-      real(dp), intent(out), contiguous :: x(:), mu(:)
-      integer :: ierr
-      if (schur) then
-        call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)
-        mu = mu - c
-        call mbdk_small_ldlt_solve(ks, m, model%blk, mu)
-        call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, mu, x, nc, b)
-        return
-      end if
-      krhs(1:nc) = b
-      krhs(nc + 1:) = c
-      call mbdk_lu_solve(kkt, kpiv, krhs, ierr)
-      x = krhs(1:nc)
-      mu = krhs(nc + 1:)
-    end subroutine kkt_solve
-
   end subroutine mbdk_index3_solve
+
+  !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
+  !> rule, -h^3/12 q(3) and -h^3/12 q(4). The derivatives are divided differences of the step
+  !> mean accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
+  !> period-2 oscillation of the book scheme's accelerations, which would otherwise dominate.
+  !> The first two steps have no q(4) from history: it is taken as q(3) / (h + h_prev)
+  !> (large, so those steps are judged conservatively).
+  real(dp) function error_estimate(s)
+    type(mbdk_index3_t), intent(in) :: s
+    real(dp) :: eq, ev, wq, wv, d1, d0, sum2, b2, b1, b0, h
+    integer :: k
+    h = s%h
+    sum2 = 0.0_dp
+    do k = 1, s%nc
+      b2 = 0.5_dp * (s%a(k) + s%an(k))
+      if (s%h_prev > 0.0_dp) then
+        b1 = 0.5_dp * (s%a_prev(k) + s%a(k))
+        d1 = (b2 - b1) / (0.5_dp * (h + s%h_prev))                   ! q(3)
+      else
+        b1 = 0.0_dp                     ! (unused: no h_prev2 without h_prev)
+        d1 = (s%an(k) - s%a(k)) / h
+      end if
+      eq = h**3 / 12.0_dp * d1
+      if (s%h_prev2 > 0.0_dp) then
+        b0 = 0.5_dp * (s%a_prev2(k) + s%a_prev(k))
+        d0 = (b1 - b0) / (0.5_dp * (s%h_prev + s%h_prev2))
+        ev = h**3 / 12.0_dp * (d1 - d0) / (0.5_dp * h + s%h_prev + 0.5_dp * s%h_prev2) * 2.0_dp
+      else
+        ev = h**3 / 12.0_dp * d1 / (h + s%h_prev)
+      end if
+      wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%qn(k)))
+      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%vn(k)))
+      sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
+    end do
+    error_estimate = sqrt(sum2 / real(2 * s%nc, dp))
+  end function error_estimate
+
+  logical function finite_all(x)
+    real(dp), intent(in) :: x(:)
+    finite_all = all(abs(x) <= huge(1.0_dp))
+  end function finite_all
+
+  !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
+  !> Newton as in the module header; both formulations share this loop.
+  subroutine attempt(s, model, ierr)
+    type(mbdk_index3_t), intent(inout), target :: s
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: ierr
+    real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol
+    logical :: fresh, restarted, book, reused
+    integer :: k, kk, nc, m
+
+    nc = s%nc
+    m = s%m
+    h = s%h
+    book = s%book
+    sh = 0.25_dp * h * h
+    s%alpha = s%opt%alpha
+    if (s%alpha == 0.0_dp) s%alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / sh
+    s%qhat = s%q + h * s%v + sh * s%a
+    if (book .or. s%h_prev <= 0.0_dp) then
+      s%qp = s%q + h * s%v + 0.5_dp * h * h * s%a
+      s%lp = s%lst
+    else
+      ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
+      s%qp = s%qhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
+      s%lp = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
+    end if
+    if (book) s%lp = s%lam
+    if (book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
+    if (s%have_lu .and. (abs(h - s%h_lu) > 1.0e-12_dp * h .or. s%cool > 0)) s%have_lu = .false.
+    reused = s%have_lu
+    s%qn = s%qp
+    s%ln = s%lp
+    restarted = .false.
+    fresh = .false.
+    dnorm_old = huge(1.0_dp)
+    s%iters = 0
+    k = 0
+    s%phi = 0.0_dp
+    do
+      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
+      ! (leaves work%rot and work%dz at qn, for the forces and the matrix)
+      call constraints_at(s, model)
+      s%fq = 0.0_dp
+      call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%qn, s%vn, &
+                            s%tn, s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      s%st%nfev = s%st%nfev + 1
+      s%lt = s%ln
+      if (.not. book) then
+        if (k > 0) s%ln = s%ln + s%alpha * s%phi
+        s%lt = s%ln + s%alpha * s%phi
+      end if
+      ! corr = f - D^T lt over the nonzeros of D
+      call mbdk_sparse_w_residual(model%sp, model%work%dz, s%one_nc, s%lt, s%corr, nc, s%fq)
+      do kk = 1, nc
+        s%r(kk) = model%mass(kk) * (s%qn(kk) - s%qhat(kk)) - sh * s%corr(kk)
+      end do
+      if (book) s%r(nc + 1:) = s%phi
+      if (.not. s%have_lu) then
+        call mbdk_index3_factor(s%fa, model, book, s%tn, s%qn, s%vn, s%ln, h, s%alpha, s%d, &
+                                s%lw, ierr)
+        s%st%nlu = s%st%nlu + 1
+        s%st%njev = s%st%njev + 1
+        if (ierr /= MBDK_SUCCESS) return
+        s%have_lu = .true.
+        s%h_lu = h
+        fresh = .true.
+        reused = .false.
+      end if
+      s%r = -s%r
+      call mbdk_index3_factors_solve(s%fa, s%r, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      if (.not. finite_all(s%r)) then
+        ierr = MBDK_ERR_NONFINITE
+        return
+      end if
+      s%iters = s%iters + 1
+      k = k + 1
+      s%st%newton_iterations = s%st%newton_iterations + 1
+      dnorm = maxval(abs(s%r(1:nc)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
+      ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
+      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+      ! converged: the update from this iterate is below tolerance, and so is Phi here. The
+      ! update is applied (the Newton error left in q is then its square, or the rate times
+      ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
+      if (k > 1 .and. dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(s%phi)) <= phi_tol)) then
+        s%qn = s%qn + s%r(1:nc)
+        if (book) s%ln = s%ln + s%r(nc + 1:) / sh
+        exit
+      end if
+      if (s%iters >= s%opt%newton_max_iter) then
+        ierr = MBDK_ERR_NEWTON_DIVERGED
+        return
+      end if
+      rate = dnorm / dnorm_old
+      if (rate > 1.0_dp .and. k > 1 .and. dnorm > 1.0_dp .and. .not. fresh) then
+        ! growing with an old matrix (not roundoff below the tolerance). The first time the
+        ! iterate may be spoilt (the augmented form's multiplier update amplifies it), so
+        ! restart from the predictor with a matrix built there, and build fresh matrices
+        ! for the next steps; later, rebuild the matrix at this iterate.
+        s%have_lu = .false.
+        dnorm_old = huge(1.0_dp)
+        if (.not. restarted) then
+          restarted = .true.
+          ! fresh matrices for cool_len steps, twice as many after each failed reuse
+          s%cool = s%cool_len
+          s%cool_len = min(2 * s%cool_len, COOL_MAX)
+          reused = .false.
+          s%qn = s%qp
+          s%ln = s%lp
+          k = 0
+        end if
+        cycle
+      end if
+      s%qn = s%qn + s%r(1:nc)
+      if (book) s%ln = s%ln + s%r(nc + 1:) / sh
+      ! rebuild the matrix when two more iterations at this rate would not reach the
+      ! tolerance (an iteration costs about as much as a factorisation)
+      if (rate > REBUILD_RATE .or. dnorm * rate * rate > 1.0_dp) s%have_lu = .false.
+      fresh = .false.
+      dnorm_old = dnorm
+    end do
+    ! a matrix carried over from an earlier step served the whole step: reuse pays again
+    if (reused) s%cool_len = COOL_START
+    if (book) then
+      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
+      s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a
+    else
+      s%lstn = s%ln
+      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
+      call constraints_at(s, model)
+      if (.not. s%schur .and. m > 0) call mbdk_joints_scatter(model%col, model%work%dz, s%d)
+      call kkt_factor(s, model, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
+      ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
+      ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),
+      ! without the Newton error that v+ = (2/h)(q+ - q) - v would carry amplified by 2/h.
+      ! Then a+ and lambda+ from M a + D^T lambda = f, D a = gamma(q+, v+): the projection
+      ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
+      ! error (4/h^2) that a+ = (4/h^2)(q+ - q) - .. would carry.
+      call kkt_solve(s, model, s%fq, s%zero_m, s%an, s%ln)
+      s%vn = s%v + (0.5_dp * h) * (s%a + s%an)
+      ! vn onto D v + Phi_t = 0 (mass-orthogonal)
+      call mbdk_sparse_d_times(model%sp, model%work%dz, s%vn, s%rc, .false.)
+      s%rc = s%rc + s%phit
+      call kkt_solve(s, model, s%zero_nc, s%rc, s%corr, s%mu)
+      s%vn = s%vn - s%corr
+      ! q+ is unchanged: work%rot still holds its sin/cos and D, Phi are the same; only gamma
+      ! changes with v+
+      if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, &
+                                       s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
+                                       model%work%visits(1:MBDK_JOINT_TYPES))
+      call kkt_solve(s, model, s%fq, s%gam, s%an, s%ln)
+    end if
+    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+      ierr = MBDK_ERR_NONFINITE
+  end subroutine attempt
+
+  !> Rotations and constraints at (tn, qn, vn): model%work%rot, phi, D's compact rows
+  !> model%work%dz, gam, phit (the dense d only where it is needed: scattered by the caller).
+  subroutine constraints_at(s, model)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    call mbdk_body_rotations(s%qn, model%work%rot)
+    if (s%m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, &
+                                       s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
+                                       model%work%visits(1:MBDK_JOINT_TYPES))
+  end subroutine constraints_at
+
+  !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T, from
+  !> the compact rows of D in model%work%dz (at the same q as s%d), and the in-house LDL^T when
+  !> M is positive and m small (as the reduced formulation), else by LAPACK's LU of the whole
+  !> matrix. Dependent rows: MBDK_ERR_SINGULAR_MATRIX.
+  subroutine kkt_factor(s, model, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: ierr
+    integer :: k, nc
+    nc = s%nc
+    if (s%schur) then
+      call mbdk_sparse_schur_assemble(model%sp, model%work%dz, s%ks)
+      call mbdk_small_ldlt_factor(s%ks, s%m, model%blk, MBDK_MODEL_SINGULAR_TOL, ierr)
+      return
+    end if
+    s%kkt = 0.0_dp
+    do k = 1, nc
+      s%kkt(k, k) = model%mass(k)
+    end do
+    s%kkt(nc + 1:, 1:nc) = s%d
+    s%kkt(1:nc, nc + 1:) = transpose(s%d)
+    call mbdk_lu_factor(s%kkt, s%kpiv, ierr)
+  end subroutine kkt_factor
+
+  !> M x + D^T mu = b, D x = c with the factors of kkt_factor (D: s%d, or its compact rows in
+  !> model%work%dz, unchanged since kkt_factor).
+  subroutine kkt_solve(s, model, b, c, x, mu)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in), contiguous :: b(:), c(:)
+    real(dp), intent(out), contiguous :: x(:), mu(:)
+    integer :: ierr, nc
+    nc = s%nc
+    if (s%schur) then
+      call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)
+      mu = mu - c
+      call mbdk_small_ldlt_solve(s%ks, s%m, model%blk, mu)
+      call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, mu, x, nc, b)
+      return
+    end if
+    s%krhs(1:nc) = b
+    s%krhs(nc + 1:) = c
+    call mbdk_lu_solve(s%kkt, s%kpiv, s%krhs, ierr)
+    x = s%krhs(1:nc)
+    mu = s%krhs(nc + 1:)
+  end subroutine kkt_solve
 
   !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
   !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).

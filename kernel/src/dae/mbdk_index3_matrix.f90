@@ -1,0 +1,244 @@
+!> The Newton matrix of trapezoidal_index3 and its factorisations (mbdk_trapezoidal_index3 is
+!> the method's manual; its "Newton matrix" and "Newton" paragraphs describe what is built here).
+!>
+!>   book:      [M + s (K_c(lambda) + K_f) + (h/2) C_f, D^T; D, 0] in the unknowns (dq, s dlambda)
+!>   augmented: M + s (K_c(lam*) + K_f + alpha D^T D) + (h/2) C_f
+!>
+!> with s = h^2/4, K_f and C_f the tangent stiffness and damping of the force elements
+!> (mbdk_forces_tangent) and K_c the geometric stiffness of the joints (mbdk_joints_tangent).
+!> mbdk_index3_factors_t factorises it: up to MBDK_SMALL_DENSE_MAX rows in-house (the augmented
+!> matrix, when symmetric to roundoff and positive definite, by the block LDL^T with the bodies
+!> as 3 x 3 pivot blocks, else by the LU with partial pivoting; an LU that has served two solves
+!> forms its explicit inverse for the next ones), otherwise by LAPACK's dgetrf/dgetrs.
+module mbdk_index3_matrix
+  use mbdk_kinds, only: dp
+  use mbdk_status
+  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
+  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter
+  use mbdk_force_elements, only: mbdk_forces_tangent
+  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
+  use mbdk_sparse_schur, only: mbdk_sparse_dtd_add
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
+    mbdk_small_lu_solve, mbdk_small_lu_inverse, mbdk_small_inverse_apply, MBDK_SMALL_DENSE_MAX
+  implicit none
+  private
+  public :: mbdk_index3_newton_matrix, mbdk_index3_factors_init, mbdk_index3_factor, &
+    mbdk_index3_factors_solve
+
+  !> scalings of mbdk_index3_newton_matrix
+  integer, parameter, public :: MBDK_INDEX3_UNSCALED = 0, MBDK_INDEX3_SCALED_BOOK = 1, &
+    MBDK_INDEX3_SCALED = 2
+  !> a pivot of the augmented matrix's LDL^T at or below this times its largest diagonal entry:
+  !> not positive definite enough, the LU is used
+  real(dp), parameter :: LDLT_TOL = 1.0e-14_dp
+  !> an LU that has served this many solves forms its explicit inverse for the next ones
+  integer, parameter :: INVERSE_AFTER = 2
+
+  !> The factors of one Newton matrix and how they are held.
+  type, public :: mbdk_index3_factors_t
+    integer :: nk = 0                  !< order: nc (augmented) or nc + m (book)
+    logical :: small = .true.          !< in-house factorisations (nk <= MBDK_SMALL_DENSE_MAX)
+    logical :: ldlt = .false.          !< the current factors are a block LDL^T
+    logical :: have_inv = .false.      !< the explicit inverse ainv is formed
+    integer :: nuse = 0                !< solves served by the current factors
+    integer, allocatable :: ipiv(:), body_blk(:)
+    real(dp), allocatable :: lu(:, :), ainv(:, :), inv_work(:, :), rinv(:)
+  end type mbdk_index3_factors_t
+
+contains
+
+  !> Factors for a Newton matrix of order nk of a model with nc coordinates.
+  subroutine mbdk_index3_factors_init(fa, model, nk)
+    type(mbdk_index3_factors_t), intent(out) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(in) :: nk
+    integer :: k, nc
+    nc = model%nc
+    fa%nk = nk
+    fa%small = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
+    allocate (fa%lu(nk, nk), fa%ipiv(nk), fa%ainv(nk, nk), fa%inv_work(nk, nk), fa%rinv(nk))
+    ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
+    if (mod(nc, 3) == 0) then
+      fa%body_blk = [(3 * k - 2, k = 1, nc / 3 + 1)]
+    else
+      fa%body_blk = [(k, k = 1, nc + 1)]
+    end if
+  end subroutine mbdk_index3_factors_init
+
+  !> Builds the Newton matrix at (t, q, v, lam) for step h and factorises it. book: the book
+  !> scheme's matrix (d(m, nc) receives the dense D from model%work%dz, the compact rows at q);
+  !> otherwise the augmented one with penalty alpha. model%work%rot must hold the rotations at q.
+  !> lw(m) is a work array.
+  subroutine mbdk_index3_factor(fa, model, book, t, q, v, lam, h, alpha, d, lw, stat)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    logical, intent(in) :: book
+    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    real(dp), intent(inout), contiguous :: d(:, :), lw(:)
+    integer, intent(out) :: stat
+    fa%ldlt = .false.
+    fa%have_inv = .false.
+    fa%nuse = 0
+    if (book) then
+      if (model%m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
+      call book_matrix(model, t, q, v, lam, h, d, lw, fa%lu, stat)
+    else
+      ! the geometric stiffness of the augmented form takes lam* alone: alpha Phi, large while
+      ! the iterate is off the constraints, vanishes at the solution
+      call al_matrix(model, t, q, v, lam, h, alpha, lw, fa%lu, stat)
+      if (stat /= MBDK_SUCCESS) return
+      if (fa%small) then
+        if (symmetric(fa%lu, fa%nk)) then
+          call mbdk_small_ldlt_factor(fa%lu, fa%nk, fa%body_blk, LDLT_TOL, stat)
+          fa%ldlt = stat == MBDK_SUCCESS
+          ! not positive definite: rebuilt for the LU
+          if (.not. fa%ldlt) call al_matrix(model, t, q, v, lam, h, alpha, lw, fa%lu, stat)
+        end if
+      end if
+    end if
+    if (stat /= MBDK_SUCCESS .or. fa%ldlt) return
+    if (fa%small) then
+      call mbdk_small_lu_factor(fa%lu, fa%nk, fa%ipiv, stat)
+    else
+      call mbdk_lu_factor(fa%lu, fa%ipiv, stat)
+    end if
+  end subroutine mbdk_index3_factor
+
+  !> r <- (Newton matrix)^-1 r with the current factors.
+  subroutine mbdk_index3_factors_solve(fa, r, stat)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    real(dp), intent(inout), contiguous :: r(:)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    ! an LU that has served two solves is likely to serve many (modified Newton): from the
+    ! third on, through its explicit inverse
+    if (fa%small .and. .not. fa%ldlt .and. fa%nuse == INVERSE_AFTER) then
+      call mbdk_small_lu_inverse(fa%lu, fa%nk, fa%ipiv, fa%ainv, fa%inv_work)
+      fa%have_inv = .true.
+    end if
+    fa%nuse = fa%nuse + 1
+    if (fa%have_inv) then
+      call mbdk_small_inverse_apply(fa%ainv, fa%nk, r, fa%rinv)
+    else if (fa%ldlt) then
+      call mbdk_small_ldlt_solve(fa%lu, fa%nk, fa%body_blk, r)
+    else if (fa%small) then
+      call mbdk_small_lu_solve(fa%lu, fa%nk, fa%ipiv, r)
+    else
+      call mbdk_lu_solve(fa%lu, fa%ipiv, r, stat)
+    end if
+  end subroutine mbdk_index3_factors_solve
+
+  !> The Newton matrix at (q, v, lam, t) for step h: scaling UNSCALED (rows M a + D^T lam - f and
+  !> Phi, unknowns dq, dlam), SCALED_BOOK (both rows times s = h^2/4, (3.15)-(3.16)) or SCALED
+  !> (dynamic rows times s, unknown s lam, Phi unscaled: what the solver uses). jac(nc+m, nc+m).
+  subroutine mbdk_index3_newton_matrix(model, t, q, v, lam, h, scaling, jac, stat)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, q(:), v(:), lam(:), h
+    integer, intent(in) :: scaling
+    real(dp), intent(out) :: jac(:, :)
+    integer, intent(out) :: stat
+    real(dp) :: s, phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
+    real(dp) :: lw(model%m), a(model%nc + model%m, model%nc + model%m)
+    integer :: nc
+    nc = model%nc
+    s = 0.25_dp * h * h
+    call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
+    call book_matrix(model, t, q, v, lam, h, d, lw, a, stat)
+    if (stat /= MBDK_SUCCESS) return
+    jac = a
+    select case (scaling)
+    case (MBDK_INDEX3_UNSCALED)
+      jac(1:nc, 1:nc) = jac(1:nc, 1:nc) / s
+    case (MBDK_INDEX3_SCALED_BOOK)
+      jac(1:nc, nc + 1:) = s * jac(1:nc, nc + 1:)
+      jac(nc + 1:, 1:nc) = s * jac(nc + 1:, 1:nc)
+    case (MBDK_INDEX3_SCALED)
+      continue
+    case default
+      stat = MBDK_ERR_INVALID_INPUT
+    end select
+  end subroutine mbdk_index3_newton_matrix
+
+  !> a = 0 but for its leading (nc, nc) block M + s (K_c(lam) + K_f) + (h/2) C_f at (q, v, lam,
+  !> t), the body rotations model%work%rot at q; lw(m) is a work array. a(nc, nc) or larger.
+  subroutine dynamic_block(model, t, q, v, lam, h, lw, a, stat)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, h
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    real(dp), intent(out), contiguous :: lw(:), a(:, :)
+    integer, intent(out) :: stat
+    real(dp) :: s
+    integer :: i
+    s = 0.25_dp * h * h
+    a = 0.0_dp
+    call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, s, 0.5_dp * h, &
+                             a, stat)
+    if (stat /= MBDK_SUCCESS) return
+    if (model%m > 0) then
+      lw = s * lam
+      call mbdk_joints_tangent(model%jint, model%jreal, model%row0, model%work%rot, q, lw, a)
+    end if
+    do i = 1, model%nc
+      a(i, i) = a(i, i) + model%mass(i)
+    end do
+  end subroutine dynamic_block
+
+  !> The book scheme's [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] (nc+m, nc+m) at (q, v,
+  !> lam, t), with D = d given there and the body rotations model%work%rot at q (the callers
+  !> evaluate the constraints, or the rotations, at q just before); lw(m) is a work array.
+  subroutine book_matrix(model, t, q, v, lam, h, d, lw, jac, stat)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, h
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:), d(:, :)
+    real(dp), intent(out), contiguous :: lw(:), jac(:, :)
+    integer, intent(out) :: stat
+    integer :: nc, m, i, k
+    nc = model%nc
+    m = model%m
+    call dynamic_block(model, t, q, v, lam, h, lw, jac, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do k = 1, nc
+      do i = 1, m
+        jac(nc + i, k) = d(i, k)
+        jac(k, nc + i) = d(i, k)
+      end do
+    end do
+  end subroutine book_matrix
+
+  !> The augmented form's M + s (K_c(lam) + K_f + alpha D^T D) + (h/2) C_f (nc, nc) at (q, v,
+  !> lam, t): D from its compact rows model%work%dz and the rotations model%work%rot, both at q.
+  subroutine al_matrix(model, t, q, v, lam, h, alpha, lw, a, stat)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    real(dp), intent(out), contiguous :: lw(:), a(:, :)
+    integer, intent(out) :: stat
+    call dynamic_block(model, t, q, v, lam, h, lw, a, stat)
+    if (stat /= MBDK_SUCCESS .or. model%m == 0) return
+    call mbdk_sparse_dtd_add(model%sp, model%work%dz, 0.25_dp * h * h * alpha, a)
+  end subroutine al_matrix
+
+  !> True when a(n, n) is symmetric to roundoff: |a(i,j) - a(j,i)| <= 1e-13 max_k |a(k,k)|.
+  !> (Dampers make the tangent stiffness unsymmetric; springs, joints and D^T D do not, but
+  !> their two triangles may differ in the last bits.)
+  pure logical function symmetric(a, n)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: a(n, n)
+    real(dp) :: tol
+    integer :: i, j
+    tol = 0.0_dp
+    do i = 1, n
+      tol = max(tol, abs(a(i, i)))
+    end do
+    tol = 1.0e-13_dp * tol
+    symmetric = .false.
+    do j = 1, n
+      do i = j + 1, n
+        if (.not. (abs(a(i, j) - a(j, i)) <= tol)) return
+      end do
+    end do
+    symmetric = .true.
+  end function symmetric
+
+end module mbdk_index3_matrix
