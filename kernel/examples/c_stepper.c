@@ -9,7 +9,9 @@
  * 3. A scene: a 1 m, 1 kg bar hanging straight down from a hinge at rest (static equilibrium,
  *    reduced formulation, rk4): it stays there, and the hinge's multipliers carry the bar's
  *    weight, |lambda| = (0, m g) (the joint force -D^T lambda balances gravity).
- * 4. Failures: a right-hand side that fails at its 41st call stops the stepper with
+ * 4. trapezoidal_index3 stepped on the double pendulum (the tables of c_index3.c), both forms:
+ *    after 1000 steps the state and the multipliers equal mbdk_index3_solve's bit for bit.
+ * 5. Failures: a right-hand side that fails at its 41st call stops the stepper with
  *    MBDK_ERR_CALLBACK_FAILED, the last good state (t = 1.0) stays readable, and further steps
  *    are refused; an interrupt flag set before an advance stops it with MBDK_ERR_INTERRUPTED.
  * Exit code 0 = pass.
@@ -149,6 +151,47 @@ static void hanging_bar(void)
     mbdk_stepper_destroy(s);
 }
 
+static void index3_matches_the_solve(int formulation)
+{
+    static const double mass[2] = {1.0, 2.0};
+    static const double inertia[2] = {1.0 / 12.0, 2.0 * 4.0 / 12.0};
+    static const int jint[2][4] = {{1, 1, 0, 0}, {1, 2, 1, 0}};
+    static const double jreal[2][12] = {{-0.5, 0, 0, 0, 1, 0}, {-1.0, 0, 0.5, 0, 1, 0}};
+    static const int fint[1][4] = {{1, 0, 0, 0}};
+    static const double freal[1][12] = {{0.0, -9.81}};
+    static const double y_start[12] = {0.12989094272387777, -0.48283365976110476, -1.308,
+                                       0.2605782121584888, -1.9656670024540441, -1.57,
+                                       0, 0, 0, 0, 0, 0};
+    double t_out[2], y_out[24], a_out[12], lam_out[8], y[12], lam[4], t;
+    int it[2], nw;
+    mbdk_index3_options opt;
+    mbdk_stats st;
+    mbdk_stepper *s = NULL;
+    char what[96];
+    mbdk_index3_default_options(&opt);
+    opt.formulation = formulation;
+    opt.h = 1e-3;
+    opt.every = 1000;
+    mbdk_index3_solve(2, mass, inertia, 2, &jint[0][0], &jreal[0][0], 1, &fint[0][0],
+                      &freal[0][0], &opt, 0.0, 1.0, y_start, 2, t_out, y_out, a_out, lam_out, it,
+                      &nw, &st);
+    snprintf(what, sizeof what, "index3 stepper (formulation %d) created", formulation);
+    check(mbdk_stepper_create_index3(2, mass, inertia, 2, &jint[0][0], &jreal[0][0], 1,
+                                     &fint[0][0], &freal[0][0], &opt, 0.0, y_start, &s)
+          == MBDK_SUCCESS, what);
+    for (int k = 0; k < 1000; k++) mbdk_stepper_step(s);
+    mbdk_stepper_state(s, &t, y, 12);
+    mbdk_stepper_multipliers(s, lam, 4);
+    check(nw == 2 && t == t_out[1] && memcmp(y, y_out + 12, sizeof y) == 0
+          && memcmp(lam, lam_out + 4, sizeof lam) == 0,
+          "1000 index-3 steps = mbdk_index3_solve's state and multipliers, bit for bit");
+    mbdk_stepper_destroy(s);
+    opt.adaptive = 1;
+    check(mbdk_stepper_create_index3(2, mass, inertia, 2, &jint[0][0], &jreal[0][0], 1,
+                                     &fint[0][0], &freal[0][0], &opt, 0.0, y_start, &s)
+          == MBDK_ERR_NOT_APPLICABLE, "an adaptive index-3 stepper is refused");
+}
+
 static void failures(void)
 {
     struct oscillator p = {3.0, 0.1, 0, 40};   /* fails at its 41st call: in step 11 */
@@ -183,6 +226,8 @@ int main(void)
     oscillator_matches_solve_ode();
     stiff_with_jacobian();
     hanging_bar();
+    index3_matches_the_solve(MBDK_INDEX3_BOOK);
+    index3_matches_the_solve(MBDK_INDEX3_AUGMENTED);
     failures();
     printf("%s\n", fails ? "FAILED" : "PASS");
     return fails != 0;

@@ -155,7 +155,7 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
 /* A stepper: a solve advanced by the caller, one step or up to a time at a time
  * (kernel/src/api/mbdk_capi_stepper.f90 is its manual). Steps land on t0 + k opt.h, so a stepper
  * and mbdk_solve_ode give the same bits. A scene stepper integrates model_opt's formulation with
- * an ODE method (trapezoidal_index3: use mbdk_index3_solve). After a failure the last good state
+ * an ODE method; an index-3 stepper runs trapezoidal_index3. After a failure the last good state
  * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE. */
 typedef struct mbdk_stepper mbdk_stepper;
 
@@ -166,6 +166,11 @@ int mbdk_stepper_create_scene(int nb, const double *mass, const double *inertia,
                               const double *freal, const mbdk_model_options *model_opt,
                               const mbdk_options *opt, double t0, const double *y0,
                               mbdk_stepper **stepper);
+/* trapezoidal_index3 on a scene, fixed step (opt->adaptive must be 0) */
+int mbdk_stepper_create_index3(int nb, const double *mass, const double *inertia, int nj,
+                               const int *jint, const double *jreal, int nf, const int *fint,
+                               const double *freal, const mbdk_index3_options *opt, double t0,
+                               const double *y0, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
 int mbdk_stepper_advance(mbdk_stepper *stepper, double t);    /* up to t, landing on it */
 int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n);

@@ -116,6 +116,10 @@ int main(void)
         expect("stepper_create_scene, jint NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, NULL, &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_scene, model options NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_scene", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_SUCCESS);
+        expect("stepper_create_index3, opt NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, inertia NULL", mbdk_stepper_create_index3(1, mass, NULL, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, y0 NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, NULL, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, handle NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, yp, NULL), MBDK_ERR_INVALID_INPUT);
         expect("stepper_state, t NULL", mbdk_stepper_state(s, NULL, y, 1), MBDK_ERR_INVALID_INPUT);
         expect("stepper_state, y NULL", mbdk_stepper_state(s, &t, NULL, 1), MBDK_ERR_INVALID_INPUT);
         expect("stepper_state, handle NULL", mbdk_stepper_state(NULL, &t, y, 1), MBDK_ERR_INVALID_INPUT);

@@ -2,17 +2,20 @@
 !> or to a time, at a time, reading the state, the multipliers and the statistics in between.
 !>
 !>   mbdk_stepper *s;
-!>   mbdk_stepper_create_ode(f, jac, user_data, n, t0, y0, &opt, &s)     or
-!>   mbdk_stepper_create_scene(nb, mass, ..., &model_opt, &opt, t0, y0, &s)
+!>   mbdk_stepper_create_ode(f, jac, user_data, n, t0, y0, &opt, &s)        or
+!>   mbdk_stepper_create_scene(nb, mass, ..., &model_opt, &opt, t0, y0, &s)  or
+!>   mbdk_stepper_create_index3(nb, mass, ..., &index3_opt, t0, y0, &s)
 !>   mbdk_stepper_step(s)              one step of opt.h
 !>   mbdk_stepper_advance(s, t)        steps of opt.h up to t, the last one shortened to land on t
 !>   mbdk_stepper_state(s, &t, y, n)   mbdk_stepper_multipliers(s, lam, m)   mbdk_stepper_stats(s, &st)
 !>   mbdk_stepper_destroy(s)
 !>
 !> A scene stepper integrates the model's formulation (reduced, baumgarte, penalty, projection:
-!> model_opt.formulation) with any ODE method; trapezoidal_index3 is not available here yet (its
-!> step lives inside mbdk_index3_solve; use mbdk_index3_solve). Steps land on t0 + k opt.h as
-!> in the fixed-step driver, so a stepper and mbdk_solve_ode give the same bits.
+!> model_opt.formulation) with any ODE method; an index-3 stepper runs trapezoidal_index3 (the
+!> book's scheme or the augmented Lagrangian, fixed step: its opt.adaptive must be 0) with the
+!> substep retries of mbdk_index3_advance, and its multipliers are the integrator's own. Steps
+!> land on t0 + k h as in the whole-interval drivers, so a stepper and mbdk_solve_ode (or
+!> mbdk_index3_solve) give the same bits.
 !>
 !> After a failed step the stepper keeps the last good state (t, y) readable and refuses further
 !> steps with MBDK_ERR_NOT_APPLICABLE. Every pointer is checked: NULL gives
@@ -20,7 +23,7 @@
 !> arrays after create returns (user_data excepted).
 module mbdk_capi_stepper
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_loc, c_f_pointer, &
-    c_associated, c_null_ptr
+    c_associated, c_null_ptr, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
@@ -32,10 +35,12 @@ module mbdk_capi_stepper
     mbdk_model_accelerations
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_IMPLICIT_LMM, MBDK_METHOD_NAME_LEN
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
+  use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
+    mbdk_index3_advance
   implicit none
   private
 
-  integer, parameter :: KIND_ODE = 1, KIND_SCENE = 2
+  integer, parameter :: KIND_ODE = 1, KIND_SCENE = 2, KIND_INDEX3 = 3
 
   !> What a handle points to. Allocated through a pointer, so the model may point at its work.
   type :: stepper_box
@@ -44,11 +49,14 @@ module mbdk_capi_stepper
     type(mbdk_model_t) :: model
     type(mbdk_model_work_t) :: work
     type(mbdk_stepper_t) :: s
+    type(mbdk_index3_t) :: i3
+    real(dp) :: h = 0.0_dp          !< the grid's step
     real(dp) :: t0 = 0.0_dp
     integer(i8) :: grid_steps = 0   !< steps of opt%h on the grid t0 + k h taken so far
     logical :: equal_steps = .false. !< a k-step method: only whole steps of opt%h
     real(dp) :: t_good = 0.0_dp     !< the last good state (kept across a failed step)
     real(dp), allocatable :: y_good(:)
+    logical :: failed_i3 = .false.  !< an index-3 step failed: no further steps
   end type stepper_box
 
 contains
@@ -99,14 +107,67 @@ contains
     type(c_ptr), intent(out), optional :: handle
     type(stepper_box), pointer :: b
     integer :: stat
-    integer, allocatable :: ji(:, :), fi(:, :)
-    real(dp), allocatable :: jr(:, :), fr(:, :)
 
     mbdk_c_stepper_create_scene = MBDK_ERR_INVALID_INPUT
     if (.not. present(handle)) return
     handle = c_null_ptr
-    if (.not. (present(mass) .and. present(inertia) .and. present(mopt) .and. present(opt) &
-               .and. present(y0))) return
+    if (.not. (present(mopt) .and. present(opt) .and. present(y0))) return
+    allocate (b)
+    b%kind = KIND_SCENE
+    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb), stat)
+    mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_scene
+
+  !> Stepper running trapezoidal_index3 on a scene (fixed step opt.h; opt.adaptive must be 0:
+  !> MBDK_ERR_NOT_APPLICABLE otherwise) from (t0, y0[6 nb]).
+  integer(c_int) function mbdk_c_stepper_create_index3(nb, mass, inertia, nj, jint, jreal, nf, &
+      fint, freal, opt, t0, y0, handle) bind(C, name='mbdk_stepper_create_index3')
+    integer(c_int), value :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jint(*), fint(*)
+    type(mbdk_index3_options_t), intent(in), optional :: opt
+    real(c_double), value :: t0
+    type(c_ptr), intent(out), optional :: handle
+    type(stepper_box), pointer :: b
+    type(mbdk_model_options_t) :: mopt
+    integer :: stat
+
+    mbdk_c_stepper_create_index3 = MBDK_ERR_INVALID_INPUT
+    if (.not. present(handle)) return
+    handle = c_null_ptr
+    if (.not. (present(opt) .and. present(y0))) return
+    if (opt%adaptive /= 0) then
+      mbdk_c_stepper_create_index3 = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    if (.not. (opt%h > 0.0_dp .and. opt%h <= huge(1.0_dp))) return
+    allocate (b)
+    b%kind = KIND_INDEX3
+    ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
+    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+    if (stat == MBDK_SUCCESS) then
+      call mbdk_index3_init(b%i3, b%model, opt, t0, y0(1:6 * nb), stat)
+      b%h = opt%h
+      b%t0 = t0
+      b%t_good = t0
+      b%y_good = y0(1:6 * nb)
+    end if
+    mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_index3
+
+  !> b%model from the C tables (NULL tables allowed where their count is 0).
+  subroutine build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+    type(stepper_box), intent(inout) :: b
+    integer(c_int), intent(in) :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*)
+    integer(c_int), intent(in), optional :: jint(*), fint(*)
+    type(mbdk_model_options_t), intent(in) :: mopt
+    integer, intent(out) :: stat
+    integer, allocatable :: ji(:, :), fi(:, :)
+    real(dp), allocatable :: jr(:, :), fr(:, :)
+    stat = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(mass) .and. present(inertia))) return
     if (nb < 1 .or. nj < 0 .or. nf < 0) return
     if (nj > 0 .and. .not. (present(jint) .and. present(jreal))) return
     if (nf > 0 .and. .not. (present(fint) .and. present(freal))) return
@@ -119,12 +180,8 @@ contains
       fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
       fr = reshape(freal(1:12 * nf), [12, int(nf)])
     end if
-    allocate (b)
-    b%kind = KIND_SCENE
     call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
-    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb), stat)
-    mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
-  end function mbdk_c_stepper_create_scene
+  end subroutine build_model
 
   subroutine start(b, opt, t0, y0, stat)
     type(stepper_box), intent(inout) :: b
@@ -142,6 +199,7 @@ contains
       call mbdk_stepper_init(b%s, b%model, opt, t0, y0, stat)
     end select
     if (stat /= MBDK_SUCCESS) return
+    b%h = opt%h
     b%t0 = t0
     b%t_good = t0
     b%y_good = y0
@@ -174,13 +232,24 @@ contains
     select case (b%kind)
     case (KIND_ODE)
       call mbdk_stepper_step(b%s, b%cprob, t_next, stat)
-    case default
+    case (KIND_SCENE)
       call mbdk_stepper_step(b%s, b%model, t_next, stat)
+    case default
+      stat = MBDK_ERR_NOT_APPLICABLE
+      if (b%failed_i3) return
+      call mbdk_index3_advance(b%i3, b%model, t_next, stat)
+      b%failed_i3 = stat /= MBDK_SUCCESS
     end select
     if (stat /= MBDK_SUCCESS) return
-    b%t_good = b%s%t
-    b%y_good = b%s%y
-    b%grid_steps = floor((t_next - b%t0) / b%s%opt%h + 1.0e-9_dp, i8)
+    if (b%kind == KIND_INDEX3) then
+      b%t_good = b%i3%t
+      b%y_good(1:b%i3%nc) = b%i3%q
+      b%y_good(b%i3%nc + 1:) = b%i3%v
+    else
+      b%t_good = b%s%t
+      b%y_good = b%s%y
+    end if
+    b%grid_steps = floor((t_next - b%t0) / b%h + 1.0e-9_dp, i8)
   end subroutine step_to
 
   !> One step to the next point t0 + k opt.h of the grid (a full step of opt.h unless an
@@ -192,7 +261,7 @@ contains
     mbdk_c_stepper_step = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. associated(b)) return
-    call step_to(b, b%t0 + real(b%grid_steps + 1, dp) * b%s%opt%h, stat)
+    call step_to(b, b%t0 + real(b%grid_steps + 1, dp) * b%h, stat)
     mbdk_c_stepper_step = int(stat, c_int)
   end function mbdk_c_stepper_step
 
@@ -210,14 +279,14 @@ contains
     b => box_of(handle)
     if (.not. associated(b)) return
     if (.not. abs(t) <= huge(1.0_dp)) return
-    h = b%s%opt%h
+    h = b%h
     ratio = (t - b%t0) / h
     if (b%equal_steps .and. abs(ratio - anint(ratio)) > 1.0e-9_dp * max(1.0_dp, abs(ratio))) &
       return
     stat = MBDK_SUCCESS
-    if (b%s%failed) stat = MBDK_ERR_NOT_APPLICABLE
-    do while (stat == MBDK_SUCCESS .and. b%s%t < t)
-      if (b%s%opt%interrupt /= 0 .and. mbdk_interrupted(b%s%opt%interrupt)) then
+    if (failed(b)) stat = MBDK_ERR_NOT_APPLICABLE
+    do while (stat == MBDK_SUCCESS .and. b%t_good < t)
+      if (interrupt_of(b) /= 0 .and. mbdk_interrupted(interrupt_of(b))) then
         stat = MBDK_ERR_INTERRUPTED
         exit
       end if
@@ -228,6 +297,25 @@ contains
     end do
     mbdk_c_stepper_advance = int(stat, c_int)
   end function mbdk_c_stepper_advance
+
+  logical function failed(b)
+    type(stepper_box), intent(in) :: b
+    if (b%kind == KIND_INDEX3) then
+      failed = b%failed_i3
+    else
+      failed = b%s%failed
+    end if
+  end function failed
+
+  !> The interrupt flag's address of the stepper's options.
+  integer(c_intptr_t) function interrupt_of(b)
+    type(stepper_box), intent(in) :: b
+    if (b%kind == KIND_INDEX3) then
+      interrupt_of = b%i3%opt%interrupt
+    else
+      interrupt_of = b%s%opt%interrupt
+    end if
+  end function interrupt_of
 
   !> The current time and state (the last good one after a failure); n must be the state size.
   integer(c_int) function mbdk_c_stepper_state(handle, t, y, n) bind(C, name='mbdk_stepper_state')
@@ -255,12 +343,12 @@ contains
     if (.not. (associated(b) .and. present(n) .and. present(m))) return
     n = int(size(b%y_good), c_int)
     m = 0
-    if (b%kind == KIND_SCENE) m = int(b%model%m, c_int)
+    if (b%kind /= KIND_ODE) m = int(b%model%m, c_int)
     mbdk_c_stepper_size = MBDK_SUCCESS
   end function mbdk_c_stepper_size
 
-  !> A scene's multipliers lam[m] at the current state, by the model's formulation (one
-  !> evaluation). MBDK_ERR_NOT_APPLICABLE for an ODE stepper.
+  !> A scene's multipliers lam[m] at the current state: by the model's formulation (one
+  !> evaluation), or trapezoidal_index3's own. MBDK_ERR_NOT_APPLICABLE for an ODE stepper.
   integer(c_int) function mbdk_c_stepper_multipliers(handle, lam, m) &
       bind(C, name='mbdk_stepper_multipliers')
     type(c_ptr), value :: handle
@@ -272,11 +360,16 @@ contains
     mbdk_c_stepper_multipliers = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. associated(b)) return
-    if (b%kind /= KIND_SCENE) then
+    if (b%kind == KIND_ODE) then
       mbdk_c_stepper_multipliers = MBDK_ERR_NOT_APPLICABLE
       return
     end if
     if (m /= b%model%m .or. (m > 0 .and. .not. present(lam))) return
+    if (b%kind == KIND_INDEX3) then
+      if (m > 0) lam(1:m) = b%i3%lam
+      mbdk_c_stepper_multipliers = MBDK_SUCCESS
+      return
+    end if
     nc = b%model%nc
     allocate (a(nc), l(m))
     call mbdk_model_accelerations(b%model, b%t_good, b%y_good(1:nc), b%y_good(nc + 1:2 * nc), a, &
@@ -292,7 +385,11 @@ contains
     mbdk_c_stepper_stats = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. (associated(b) .and. present(st))) return
-    st = b%s%st
+    if (b%kind == KIND_INDEX3) then
+      st = b%i3%st
+    else
+      st = b%s%st
+    end if
     mbdk_c_stepper_stats = MBDK_SUCCESS
   end function mbdk_c_stepper_stats
 
