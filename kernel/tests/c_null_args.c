@@ -101,7 +101,7 @@ int main(void)
     {
         mbdk_options opt;
         mbdk_model_options mopt = {0, 0, 1e7, 10, 1, 1e-12, MBDK_FORM_REDUCED, MBDK_SOLVER_AUTO, 1, 20};
-        mbdk_stepper *s = NULL, *sc = NULL;
+        mbdk_stepper *s = NULL, *sc = NULL, *s3 = NULL;
         mbdk_stats st;
         double y0[1] = {1.0}, t, y[6], lam[2];
         int n, m;
@@ -116,9 +116,9 @@ int main(void)
         expect("stepper_create_scene, jint NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, NULL, &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_scene, model options NULL", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, &opt, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_scene", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &sc), MBDK_SUCCESS);
-        expect("stepper_create_index3, opt NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
-        expect("stepper_create_index3, inertia NULL", mbdk_stepper_create_index3(1, mass, NULL, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, yp, &sc), MBDK_ERR_INVALID_INPUT);
-        expect("stepper_create_index3, y0 NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, NULL, &sc), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, opt NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], NULL, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, inertia NULL", mbdk_stepper_create_index3(1, mass, NULL, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_index3, y0 NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, NULL, &s3), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_index3, handle NULL", mbdk_stepper_create_index3(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &o3, 0, yp, NULL), MBDK_ERR_INVALID_INPUT);
         expect("stepper_state, t NULL", mbdk_stepper_state(s, NULL, y, 1), MBDK_ERR_INVALID_INPUT);
         expect("stepper_state, y NULL", mbdk_stepper_state(s, &t, NULL, 1), MBDK_ERR_INVALID_INPUT);
@@ -132,6 +132,7 @@ int main(void)
         expect("stepper_stats", mbdk_stepper_stats(s, &st), MBDK_SUCCESS);
         mbdk_stepper_destroy(s);
         mbdk_stepper_destroy(sc);
+        expect("a refused create leaves a NULL handle", s3 == NULL, 1);
     }
     printf("%d checks, %d failed\n", checks, bad);
     return bad != 0;
