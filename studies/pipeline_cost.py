@@ -54,7 +54,6 @@ EFFECTS = {
                                  "coordinate": "angle", "stiffness": 2.0, "damping": 0.1,
                                  "rest": -1.5},
 }
-VISIT_KEY = {"spring": "spring_damper", "damper": "spring_damper"}
 
 
 def base_dict() -> dict:
@@ -84,7 +83,7 @@ def effects_cost(out: Path, quick: bool):
         progress(f"effect {kind or 'none'}")
         ns, r = best_ns(with_effect(kind), t_end, reps)
         base_ns = ns if kind is None else base_ns
-        key = VISIT_KEY.get(kind, kind)
+        key = kind
         rows.append({"scene": "double pendulum" + (f" + {kind}" if kind else ""),
                      "ns_per_step": ns, "ratio_to_bare": ns / base_ns,
                      "element_visits_per_step": (r.visits[key] / r.stats.steps) if kind else 0,

@@ -129,6 +129,20 @@ int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj,
                       int nsamp, double *t_out, double *y_out, double *a_out, double *lam_out,
                       int *iters_out, int *nwritten, mbdk_stats *stats);
 
+/* The element kinds of the scene tables (kernel/src/model/mbdk_elements.f90): jint[j][0] is a
+ * joint kind, fint[f][0] a force kind. kernel/tests/c_element_table.c checks these against the
+ * kernel's registry. Table layouts: mbdk_joints.f90, mbdk_force_elements.f90. */
+enum mbdk_element_class { MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3 };
+enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_JOINT_FIXED = 3,
+                       MBDK_JOINT_DRIVER = 4 };
+enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
+                       MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
+                       MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7 };
+
+/* Entry i (1-based) of the kernel's element registry: class, code, name, constraint rows,
+ * states. MBDK_ERR_INVALID_INPUT past the end. */
+int mbdk_element_kind(int i, int *cls, int *code, char *name, int namelen, int *rows, int *states);
+
 /* Options of a scene model (kernel/src/model/mbdk_model.f90): the formulation of the ODE
  * methods, the linear solver and the formulations' parameters. mbdk_index3_solve uses the
  * defaults. */

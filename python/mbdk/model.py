@@ -28,24 +28,29 @@ LINEAR_SOLVES = {0: "none (no constraints)",
                  4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
                  5: "penalty: M + ap D^T D, in-house LDL^T",
                  6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs"}
-JOINT_CODES = {"revolute": 1, "prismatic": 2, "fixed": 3, "driver": 4}
-JOINT_ROWS = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}
-FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring": 4, "damper": 4,
-               "spring_damper": 4, "coordinate_spring": 5, "coordinate_damper": 5,
-               "coordinate_spring_damper": 5}
-def _visit_names() -> list[str]:
+def _element_kinds() -> list[tuple[int, int, str, int, int]]:
+    """The kernel's element registry (kernel/src/model/mbdk_elements.f90): (class, code, name,
+    rows, states) per kind, in the order of the visit counters."""
     from .errors import _decode
     out, i = [], 1
     while True:
-        name = _decode(_kernel.visit_name(i))
-        if not name:
+        cls, code, name, rows, states = _kernel.element_kind(i)
+        if cls == 0:
             return out
-        out.append(name)
+        out.append((int(cls), int(code), _decode(name), int(rows), int(states)))
         i += 1
 
 
-#: the kernel's visit counters, in its order (mbdk_model's MBDK_VISIT_NAMES)
-VISIT_NAMES = _visit_names()
+ELEMENT_KINDS = _element_kinds()
+JOINT_CLASS, FORCE_CLASS = 1, 2
+JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+_FORCE_KIND = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
+#: scene force types -> kernel codes; the coordinate spring and damper are one kernel kind
+FORCE_CODES = {**_FORCE_KIND, "coordinate_spring": _FORCE_KIND["coordinate_spring_damper"],
+               "coordinate_damper": _FORCE_KIND["coordinate_spring_damper"]}
+#: the kernel's visit counters, in its order: one per element kind
+VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
 
 
 @dataclass
@@ -108,19 +113,21 @@ def build_tables(sc: Scene, q0=None) -> Tables:
     freal = np.zeros((12, max(nf, 1)), order="F")
     for k, f in enumerate(sc.forces):
         code = FORCE_CODES[f.type]
+        two_point = f.type in ("spring", "damper", "spring_damper")
         b1 = sc.body_index(f.body1) if f.body1 else 0
-        b2 = sc.body_index(f.body2) if code == 4 else 0
-        fint[:, k] = [code, b1, b2, COORDS[f.coordinate] if code == 5 else 0]
-        if code == 1:
+        b2 = sc.body_index(f.body2) if two_point else 0
+        fint[:, k] = [code, b1, b2, COORDS[f.coordinate] if f.type.startswith("coordinate")
+                      else 0]
+        if f.type == "gravity":
             freal[0:2, k] = f.g
-        elif code == 2:
+        elif f.type == "point_force":
             freal[0:2, k] = f.point1
             freal[2:4, k] = f.force
             freal[7:12, k] = f.function
-        elif code == 3:
+        elif f.type == "torque":
             freal[0, k] = f.torque
             freal[7:12, k] = f.function
-        elif code == 4:
+        elif two_point:
             freal[0:2, k] = f.point1
             freal[2:4, k] = f.point2
             freal[4, k] = f.stiffness

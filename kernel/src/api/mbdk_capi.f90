@@ -16,6 +16,7 @@ module mbdk_capi
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
   use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
+  use mbdk_elements, only: mbdk_element_kind, MBDK_ELEMENT_NAME_LEN
   implicit none
   private
 
@@ -252,6 +253,27 @@ contains
     call to_c(nm, name, int(namelen))
     mbdk_c_struct_field = MBDK_SUCCESS
   end function mbdk_c_struct_field
+
+  !> Entry i (1-based) of the element registry (mbdk_elements): class, code, name, rows, states.
+  integer(c_int) function mbdk_c_element_kind(i, cls, code, name, namelen, rows, states) &
+      bind(C, name='mbdk_element_kind')
+    integer(c_int), value :: i, namelen
+    integer(c_int), intent(out), optional :: cls, code, rows, states
+    character(kind=c_char), intent(out), optional :: name(*)
+    character(len=MBDK_ELEMENT_NAME_LEN) :: nm
+    integer :: c, k, r, st
+    mbdk_c_element_kind = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(cls) .and. present(code) .and. present(rows) .and. present(states) .and. &
+               present(name)) .or. namelen < 1) return
+    call mbdk_element_kind(int(i), c, k, nm, r, st)
+    cls = int(c, c_int)
+    code = int(k, c_int)
+    rows = int(r, c_int)
+    states = int(st, c_int)
+    if (c == 0) return
+    call to_c(nm, name, int(namelen))
+    mbdk_c_element_kind = MBDK_SUCCESS
+  end function mbdk_c_element_kind
 
   !> s (trimmed) into buf as a NUL-terminated string of at most buflen bytes
   subroutine to_c(s, buf, buflen)

@@ -365,15 +365,16 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   visits = dble(work%visits)
 end subroutine scene_run
 
-subroutine visit_name(i, name)
-  ! Name of the model's i-th visit counter (scene_run's visits(i)).
-  use mbdk_model, only: MBDK_VISIT_NAMES, MBDK_VISIT_COUNT
+subroutine element_kind(i, cls, code, name, rows, states)
+  ! Entry i of the element registry (mbdk_elements); cls = 0 past the end. The i-th entry's
+  ! name is also the name of scene_run's visits(i).
+  use mbdk_elements, only: mbdk_element_kind
   implicit none
   integer, intent(in) :: i
-  character(len=24), intent(out) :: name
-  name = ''
-  if (i >= 1 .and. i <= MBDK_VISIT_COUNT) name = MBDK_VISIT_NAMES(i)
-end subroutine visit_name
+  integer, intent(out) :: cls, code, rows, states
+  character(len=32), intent(out) :: name
+  call mbdk_element_kind(i, cls, code, name, rows, states)
+end subroutine element_kind
 
 subroutine struct_info(id, cname, nbytes, nfields)
   ! The kernel's bind(C) struct id (mbdk_structs): C name, size in bytes, field count (0: none).

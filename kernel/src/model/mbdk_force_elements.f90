@@ -9,12 +9,17 @@
 !>   4 spring-damper        between s1 = freal(1:2) on body1 and s2 = freal(3:4) on body2 (0:
 !>                          ground, global point); tension F = k (L - L0) + c dL/dt with
 !>                          k = freal(5), L0 = freal(6), c = freal(7); pulls the points together
-!>                          when positive. A pure spring has c = 0, a pure damper k = 0.
+!>                          when positive.
+!>   6 spring, 7 damper     the same element with c = 0, or k = 0: kinds of their own, so that a
+!>                          scene's visit counters say which it has (mbdk_elements)
 !>   5 coordinate spring-damper on q(3 body1 - 3 + coordinate): -k (q - q0) - c q',
 !>                          k = freal(1), c = freal(2), q0 = freal(3) (the trolley's -s x1 - k x1')
 !> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE.
 !> Every routine takes the rotations rot(2, nb) of the bodies at q (mbdk_joints).
 module mbdk_force_elements
+  use mbdk_elements, only: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
+    MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, &
+    MBDK_FORCE_TYPES
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   use mbdk_time_function, only: mbdk_time_fn
@@ -23,9 +28,9 @@ module mbdk_force_elements
   private
   public :: mbdk_forces_eval, mbdk_forces_energy, mbdk_forces_tangent
 
-  integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
-    MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
-    MBDK_FORCE_TYPES = 5
+  ! the force types are the element registry's (mbdk_elements)
+  public :: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, MBDK_FORCE_SPRING_DAMPER, &
+    MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_TYPES
 
 contains
 
@@ -62,7 +67,7 @@ contains
         b = fint(2, e)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         f(3 * b) = f(3 * b) + freal(1, e) * tf
-      case (MBDK_FORCE_SPRING_DAMPER)
+      case (MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER)
         call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
                           ldot)
         if (.not. (len > 0.0_dp)) then
@@ -118,7 +123,7 @@ contains
       case (MBDK_FORCE_TORQUE)
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         p_load = p_load + freal(1, e) * tf * v(3 * fint(2, e))
-      case (MBDK_FORCE_SPRING_DAMPER)
+      case (MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER)
         call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
                           ldot)
         v_springs = v_springs + 0.5_dp * freal(5, e) * (len - freal(6, e))**2
@@ -163,7 +168,7 @@ contains
         call mbdk_time_fn(freal(8:12, e), t, tf, tfd, tfdd)
         call mbdk_body_point(b, freal(1:2, e), rot, q, v, p1, rho1, pv1, w1)
         a(3 * b, 3 * b) = a(3 * b, 3 * b) + ks * dot_product(rho1, freal(3:4, e) * tf)
-      case (MBDK_FORCE_SPRING_DAMPER)
+      case (MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER)
         call spring_state(fint(:, e), freal(:, e), rot, q, v, rho1, rho2, w1, w2, gv, len, el, &
                           ldot)
         if (.not. (len > 0.0_dp)) then

@@ -25,6 +25,8 @@
 !>   4 driver     (1 row)   q(3 body1 - 3 + coordinate) - f(t) = 0, f = time function jreal(8:12)
 !> Row order is the table order; the caller gives each joint's first row.
 module mbdk_joints
+  use mbdk_elements, only: mbdk_joint_rows, MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, &
+    MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_TYPES
   use mbdk_kinds, only: dp, i8
   use mbdk_time_function, only: mbdk_time_fn
   implicit none
@@ -32,8 +34,9 @@ module mbdk_joints
   public :: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_tangent, mbdk_joints_pattern, &
     mbdk_joints_scatter, mbdk_body_rotations, mbdk_body_point
 
-  integer, parameter, public :: MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, &
-    MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_TYPES = 4
+  ! the joint types and their rows are the element registry's (mbdk_elements)
+  public :: MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, &
+    MBDK_JOINT_TYPES
   !> slots of a compact row of D: (x, y, theta) of body1, then of body2
   integer, parameter, public :: MBDK_JOINT_SLOTS = 6
 
@@ -84,20 +87,6 @@ contains
       u2 = axis
     end if
   end function prismatic_axis
-
-  pure integer function mbdk_joint_rows(jtype)
-    integer, intent(in) :: jtype
-    select case (jtype)
-    case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC)
-      mbdk_joint_rows = 2
-    case (MBDK_JOINT_FIXED)
-      mbdk_joint_rows = 3
-    case (MBDK_JOINT_DRIVER)
-      mbdk_joint_rows = 1
-    case default
-      mbdk_joint_rows = 0
-    end select
-  end function mbdk_joint_rows
 
   !> The sparsity of D in compact rows: col(k, r) is the column of D of slot k of row r (0 when
   !> the slot belongs to the ground), nz(k, r) whether it can be nonzero: the revolute rows do

@@ -53,7 +53,7 @@ module mbdk_model
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
-    MBDK_FORCE_GRAVITY
+    MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
@@ -80,10 +80,6 @@ module mbdk_model
   !> only those, at its samples
   integer, parameter, public :: MBDK_OUT_ACCELERATIONS = 1, MBDK_OUT_MULTIPLIERS = 2, &
     MBDK_OUT_REACTIONS = 4, MBDK_OUT_ENERGY = 8, MBDK_OUT_RESIDUALS = 16, MBDK_OUT_ALL = 31
-  !> the visit counters' names, joints then forces (work%visits)
-  character(len=24), parameter, public :: MBDK_VISIT_NAMES(MBDK_JOINT_TYPES + MBDK_FORCE_TYPES) = &
-    [character(len=24) :: 'revolute', 'prismatic', 'fixed', 'driver', 'gravity', 'point_force', &
-     'torque', 'spring_damper', 'coordinate_spring_damper']
   !> relative pivot below which S = D M^-1 D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = 1.0e-11_dp
   real(dp), parameter :: SINGULAR_TOL = MBDK_MODEL_SINGULAR_TOL
@@ -106,7 +102,6 @@ module mbdk_model
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
   type, public :: mbdk_model_work_t
-    integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
     real(dp), allocatable :: fq(:), phi(:), d(:, :), gam(:), phit(:), rc(:)
     real(dp), allocatable :: rot(:, :), dz(:, :)  !< (cos, sin) per body; D in compact rows
     real(dp), allocatable :: pp(:, :)   !< perp(rho) of the joint ends (revolute path)
@@ -116,6 +111,7 @@ module mbdk_model
     real(dp), allocatable :: y_post(:)
     real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
     integer, allocatable :: ipiv(:)
+    integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
   end type mbdk_model_work_t
 
   type, extends(mbdk_problem_t), public :: mbdk_model_t
@@ -199,6 +195,9 @@ contains
     if (model%m > model%nc) return
     do j = 1, size(fint, 2)
       if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES) return
+      ! a spring has no damping, a damper no stiffness (their own kinds: mbdk_elements)
+      if (fint(1, j) == MBDK_FORCE_SPRING .and. freal(7, j) /= 0.0_dp) return
+      if (fint(1, j) == MBDK_FORCE_DAMPER .and. freal(5, j) /= 0.0_dp) return
       if (fint(2, j) < 0 .or. fint(2, j) > model%nb .or. fint(3, j) < 0 .or. &
           fint(3, j) > model%nb .or. fint(4, j) < 0 .or. fint(4, j) > 3) return
     end do

@@ -1,0 +1,77 @@
+!> The element kinds a scene can declare, in one table: for each its class (joint or force;
+!> effects that carry states of their own, such as wear, get the third class), its code within
+!> the class (the first row of the scene tables jint/fint), its name (the spelling of scene files
+!> and of Python), the constraint rows it adds (joints) and the states it carries (effects).
+!> mbdk.h mirrors the codes as enums (kernel/tests/c_element_table.c checks them), Python reads
+!> the table through the f2py layer (python/mbdk/model.py; tests/test_elements.py checks the
+!> scene format against it). The position of a kind in this table is its visit counter
+!> (mbdk_model_work_t%visits): the model counts every pass over an element of that kind.
+!>
+!> Adding a kind: ARCHITECTURE.md at the top of the repository lists the files it touches.
+module mbdk_elements
+  implicit none
+  private
+  public :: mbdk_element_kind, mbdk_element_visit, mbdk_joint_rows
+
+  integer, parameter, public :: MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3
+
+  integer, parameter, public :: MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, &
+    MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_TYPES = 4
+  !> spring, damper and spring_damper share the point-to-point geometry; a spring has no
+  !> damping, a damper no stiffness (mbdk_model_init refuses tables that say otherwise)
+  integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
+    MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
+    MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_TYPES = 7
+  integer, parameter, public :: MBDK_ELEMENT_KINDS = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
+  integer, parameter, public :: MBDK_ELEMENT_NAME_LEN = 32
+
+  type :: kind_entry
+    integer :: cls, code
+    character(len=MBDK_ELEMENT_NAME_LEN) :: name
+    integer :: rows, states
+  end type kind_entry
+
+  type(kind_entry), parameter :: table(MBDK_ELEMENT_KINDS) = [ &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_REVOLUTE, 'revolute', 2, 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_PRISMATIC, 'prismatic', 2, 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_FIXED, 'fixed', 3, 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_DRIVER, 'driver', 1, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_GRAVITY, 'gravity', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_POINT, 'point_force', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_TORQUE, 'torque', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPRING_DAMPER, 'spring_damper', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_COORDINATE, 'coordinate_spring_damper', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPRING, 'spring', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_DAMPER, 'damper', 0, 0) ]
+
+contains
+
+  !> Entry i (1-based) of the table; cls = 0 past the end.
+  pure subroutine mbdk_element_kind(i, cls, code, name, rows, states)
+    integer, intent(in) :: i
+    integer, intent(out) :: cls, code, rows, states
+    character(len=*), intent(out) :: name
+    cls = 0; code = 0; rows = 0; states = 0; name = ''
+    if (i < 1 .or. i > MBDK_ELEMENT_KINDS) return
+    cls = table(i)%cls
+    code = table(i)%code
+    name = table(i)%name
+    rows = table(i)%rows
+    states = table(i)%states
+  end subroutine mbdk_element_kind
+
+  !> The visit counter of a kind: its position in the table (joints first, then forces).
+  pure integer function mbdk_element_visit(cls, code)
+    integer, intent(in) :: cls, code
+    mbdk_element_visit = code
+    if (cls == MBDK_CLASS_FORCE) mbdk_element_visit = MBDK_JOINT_TYPES + code
+  end function mbdk_element_visit
+
+  !> Constraint rows of a joint type (0 for an unknown type).
+  pure integer function mbdk_joint_rows(jtype)
+    integer, intent(in) :: jtype
+    mbdk_joint_rows = 0
+    if (jtype >= 1 .and. jtype <= MBDK_JOINT_TYPES) mbdk_joint_rows = table(jtype)%rows
+  end function mbdk_joint_rows
+
+end module mbdk_elements

@@ -1,0 +1,45 @@
+/* The element kinds of mbdk.h must be the kernel's registry (mbdk_element_kind), name by name:
+ * every kernel kind has its enum value here and every enum value here is a kernel kind.
+ * (tests/test_elements.py does the same for Python.) Exit code 0 = pass. */
+#include <stdio.h>
+#include <string.h>
+#include "mbdk.h"
+
+struct entry { int cls; const char *name; int code; };
+
+int main(void)
+{
+    const struct entry header[] = {
+        {MBDK_CLASS_JOINT, "revolute", MBDK_JOINT_REVOLUTE},
+        {MBDK_CLASS_JOINT, "prismatic", MBDK_JOINT_PRISMATIC},
+        {MBDK_CLASS_JOINT, "fixed", MBDK_JOINT_FIXED},
+        {MBDK_CLASS_JOINT, "driver", MBDK_JOINT_DRIVER},
+        {MBDK_CLASS_FORCE, "gravity", MBDK_FORCE_GRAVITY},
+        {MBDK_CLASS_FORCE, "point_force", MBDK_FORCE_POINT},
+        {MBDK_CLASS_FORCE, "torque", MBDK_FORCE_TORQUE},
+        {MBDK_CLASS_FORCE, "spring_damper", MBDK_FORCE_SPRING_DAMPER},
+        {MBDK_CLASS_FORCE, "coordinate_spring_damper", MBDK_FORCE_COORDINATE},
+        {MBDK_CLASS_FORCE, "spring", MBDK_FORCE_SPRING},
+        {MBDK_CLASS_FORCE, "damper", MBDK_FORCE_DAMPER},
+    };
+    const int nh = sizeof header / sizeof header[0];
+    int bad = 0, n = 0, cls, code, rows, states;
+    char name[64];
+    for (int i = 1; mbdk_element_kind(i, &cls, &code, name, sizeof name, &rows, &states) == MBDK_SUCCESS; i++) {
+        int found = 0;
+        n++;
+        for (int k = 0; k < nh; k++)
+            if (strcmp(header[k].name, name) == 0) {
+                found = 1;
+                if (header[k].cls != cls || header[k].code != code) {
+                    printf("%s: kernel class %d code %d, mbdk.h class %d code %d\n", name, cls,
+                           code, header[k].cls, header[k].code);
+                    bad++;
+                }
+            }
+        if (!found) { printf("kernel kind %s is not in mbdk.h\n", name); bad++; }
+    }
+    if (n != nh) { printf("kernel has %d kinds, mbdk.h %d\n", n, nh); bad++; }
+    printf("%d kinds, %d mismatches\n", n, bad);
+    return bad != 0;
+}

@@ -1,0 +1,63 @@
+"""The element registry exists once, in the kernel (kernel/src/model/mbdk_elements.f90); mbdk.h
+mirrors its codes (checked in C by kernel/tests/c_element_table.c) and Python reads it. Here:
+the header's enums, the scene format's element types and the kernel's kinds agree, and the
+kernel enforces what a kind means."""
+import re
+
+import numpy as np
+
+import mbdk
+from mbdk import _kernel, model as M
+from mbdk.scene import FORCE_TYPES, JOINT_TYPES
+
+
+def header_kinds(root):
+    text = (root / "kernel" / "include" / "mbdk.h").read_text()
+    out = {}
+    for enum, cls in (("mbdk_joint_kind", 1), ("mbdk_force_kind", 2)):
+        body = re.search(r"enum %s \{(.*?)\};" % enum, text, re.S).group(1)
+        for m in re.finditer(r"MBDK_(JOINT|FORCE)_(\w+)\s*=\s*(\d+)", body):
+            out[(cls, int(m.group(3)))] = m.group(2).lower()
+    return out
+
+
+#: the enum names that abbreviate a kind's name
+ABBREVIATED = {"point": "point_force", "coordinate": "coordinate_spring_damper"}
+
+
+def test_header_enums_are_the_kernel_registry(root):
+    kernel = {(cls, code): name for cls, code, name, _r, _s in M.ELEMENT_KINDS}
+    header = {k: ABBREVIATED.get(v, v) for k, v in header_kinds(root).items()}
+    assert len(kernel) >= 11 and kernel == header
+
+
+def test_every_scene_type_is_a_kernel_kind_and_back():
+    kinds = {name for _c, _k, name, _r, _s in M.ELEMENT_KINDS}
+    assert set(JOINT_TYPES) == set(M.JOINT_CODES) <= kinds
+    assert set(FORCE_TYPES) == set(M.FORCE_CODES)
+    assert set(M.FORCE_CODES.values()) == {k for c, k, *_ in M.ELEMENT_KINDS if c == 2}
+    assert M.VISIT_NAMES == [name for _c, _k, name, _r, _s in M.ELEMENT_KINDS]
+
+
+def test_joint_rows_are_the_kernels():
+    """The rows the registry states are the rows the kernel's Phi has (four-bar: three
+    revolute joints and a ground revolute, 8 rows; trolley: prismatic + revolute)."""
+    for name in ("four_bar", "trolley_crane", "three_link_pendulum"):
+        sc = mbdk.scene(name)
+        tab = M.build_tables(sc)
+        assert tab.m == sum(M.JOINT_ROWS[j.type] for j in sc.joints)
+        assert M.evaluate(tab, sc.q0(), sc.v0())["phi"].size == tab.m
+
+
+def test_a_spring_with_damping_is_refused_by_the_kernel():
+    """A spring is a kind without damping: tables that give one damping (a C embedder's slip)
+    are refused, not silently turned into a spring-damper."""
+    sc = mbdk.scene("spring_bar")
+    tab = M.build_tables(sc)
+    k = [f.type for f in sc.forces].index("spring")
+    assert tab.fint[0, k] == M.FORCE_CODES["spring"]
+    assert M.evaluate(tab, sc.q0(), sc.v0())["status"] == mbdk.Status.SUCCESS
+    tab.freal[6, k] = 1.0
+    y = np.concatenate([sc.q0(), sc.v0()])
+    *_, status = _kernel.model_eval(*tab.args(), mbdk.ModelOptions().pack(), tab.m, 0.0, y)
+    assert status == mbdk.Status.ERR_INVALID_INPUT
