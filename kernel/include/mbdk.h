@@ -25,6 +25,7 @@ enum mbdk_status {
     MBDK_ERR_UNKNOWN_PROBLEM = -3,
     MBDK_ERR_NOT_APPLICABLE = -4,
     MBDK_ERR_OUTPUT_SIZE = -5,
+    MBDK_ERR_INCONSISTENT_INITIAL = -6,
     MBDK_ERR_STEP_TOO_SMALL = -10,
     MBDK_ERR_NEWTON_DIVERGED = -20,
     MBDK_ERR_SINGULAR_MATRIX = -21,
@@ -138,6 +139,11 @@ enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_J
 enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
                        MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
                        MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7 };
+
+/* The 4th integer of a prismatic or fixed joint (jint[j][3]) or of a spring, damper or
+ * spring-damper (fint[f][3]): take the relative angle, or the rest length, from the initial
+ * pose (y0) instead of the table. */
+enum { MBDK_FROM_POSE = 1 };
 
 /* Entry i (1-based) of the kernel's element registry: class, code, name, constraint rows,
  * states. MBDK_ERR_INVALID_INPUT past the end. */

@@ -19,6 +19,7 @@ class Status(IntEnum):
     ERR_UNKNOWN_PROBLEM = -3
     ERR_NOT_APPLICABLE = -4
     ERR_OUTPUT_SIZE = -5
+    ERR_INCONSISTENT_INITIAL = -6
     ERR_STEP_TOO_SMALL = -10
     ERR_NEWTON_DIVERGED = -20
     ERR_SINGULAR_MATRIX = -21
@@ -116,6 +117,7 @@ _BY_STATUS = {
     Status.ERR_UNKNOWN_PROBLEM: UnknownProblemError,
     Status.ERR_NOT_APPLICABLE: NotApplicableError,
     Status.ERR_OUTPUT_SIZE: InvalidInputError,
+    Status.ERR_INCONSISTENT_INITIAL: InvalidInputError,
     Status.ERR_STEP_TOO_SMALL: StepTooSmallError,
     Status.ERR_NEWTON_DIVERGED: NewtonDivergedError,
     Status.ERR_SINGULAR_MATRIX: SingularMatrixError,

@@ -6,7 +6,6 @@ mbdk_force_elements.f90; this module is their only writer.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +13,7 @@ import numpy as np
 from . import _kernel
 from .errors import Status, exception_for
 from .options import ModelOptions
-from .scene import COORDS, GROUND, Scene, SceneError
+from .scene import COORDS, Scene, SceneError
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
@@ -72,22 +71,16 @@ class Tables:
                 self.freal)
 
 
-def _rot(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
+#: the 4th integer of a two-point force or a prismatic/fixed joint: take the value (rest length,
+#: relative angle) from the initial pose (kernel/src/model/mbdk_assembly.f90, MBDK_FROM_POSE)
+FROM_POSE = 1
 
 
-def _point(sc: Scene, q, body: str, s):
-    if body == GROUND:
-        return np.asarray(s, float)
-    i = sc.body_index(body) - 1
-    return q[3 * i:3 * i + 2] + _rot(q[3 * i + 2]) @ np.asarray(s, float)
-
-
-def build_tables(sc: Scene, q0=None) -> Tables:
-    """The kernel's tables for a scene. Defaults that depend on the initial configuration (a
-    spring's rest length, a prismatic or fixed joint's relative angle) are taken at q0."""
-    q0 = np.asarray(sc.q0() if q0 is None else q0, float)
+def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
+    """The kernel's tables for a scene. Values a scene leaves to the initial configuration (a
+    spring's rest length, a prismatic or fixed joint's relative angle) are marked FROM_POSE;
+    with resolve (the default) the kernel fills them in at q0 (the scene's own pose if None),
+    without it they stay marked for the kernel to fill in where it starts a run."""
     nb = len(sc.bodies)
     mass = np.array([b.mass for b in sc.bodies], float)
     inertia = np.array([b.inertia for b in sc.bodies], float)
@@ -102,9 +95,10 @@ def build_tables(sc: Scene, q0=None) -> Tables:
         jreal[2:4, k] = j.point2
         jreal[4:6, k] = j.axis
         if j.type in ("prismatic", "fixed"):
-            th1 = q0[3 * b1 - 1]
-            th2 = q0[3 * b2 - 1] if b2 > 0 else 0.0
-            jreal[6, k] = th1 - th2 if j.angle0 is None else j.angle0
+            if j.angle0 is None:
+                jint[3, k] = FROM_POSE
+            else:
+                jreal[6, k] = j.angle0
         if j.type == "driver":
             jreal[7:12, k] = j.function
         rows.append((j.name, r, JOINT_ROWS[j.type]))
@@ -131,20 +125,42 @@ def build_tables(sc: Scene, q0=None) -> Tables:
             freal[0:2, k] = f.point1
             freal[2:4, k] = f.point2
             freal[4, k] = f.stiffness
-            length0 = float(np.linalg.norm(_point(sc, q0, f.body1, f.point1)
-                                           - _point(sc, q0, f.body2, f.point2)))
-            if length0 == 0.0:
-                raise SceneError(f"{sc.source}: force {f.name!r}: fields 'point1' and 'point2' "
-                                 "coincide at the initial pose, so the element has no direction; "
-                                 "move one attachment point")
-            length = length0 if f.rest_length is None else f.rest_length
-            freal[5, k] = length
+            if f.rest_length is None:
+                fint[3, k] = FROM_POSE
+            else:
+                freal[5, k] = f.rest_length
             freal[6, k] = f.damping
         else:
             freal[0, k] = f.stiffness
             freal[1, k] = f.damping
             freal[2, k] = f.rest
-    return Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows)
+    tab = Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows)
+    if resolve:
+        resolve_tables(sc, tab, sc.q0() if q0 is None else q0)
+    return tab
+
+
+def resolve_tables(sc: Scene, tab: Tables, q0) -> None:
+    """Fills in the tables' FROM_POSE values at q0, in the kernel, in place."""
+    q0 = np.asarray(q0, float)
+    bad_joint, bad_force, status = _kernel.tables_resolve(len(sc.bodies), tab.nj, tab.jint,
+                                                          tab.jreal, tab.nf, tab.fint, tab.freal,
+                                                          q0)
+    if status != Status.SUCCESS:
+        raise pose_error(sc, int(bad_joint), int(bad_force))
+
+
+def pose_error(sc: Scene, bad_joint: int, bad_force: int) -> SceneError:
+    """The error for an element whose value could not be taken from the initial pose."""
+    if bad_force:
+        f = sc.forces[bad_force - 1]
+        return SceneError(f"{sc.source}: force {f.name!r}: fields 'point1' and 'point2' coincide "
+                          "at the initial pose, so the element has no direction; move one "
+                          "attachment point")
+    if bad_joint:
+        return SceneError(f"{sc.source}: joint {sc.joints[bad_joint - 1].name!r}: its relative "
+                          "angle cannot be taken from the initial pose")
+    return SceneError(f"{sc.source}: the initial pose is not finite")
 
 
 def model_options(formulation: str = "reduced", alpha: float = 0.0, beta: float = 0.0,
@@ -210,48 +226,21 @@ def rows_to_joints(tab: Tables, rows) -> list[str]:
     return out
 
 
-def assemble(sc: Scene, tab: Tables, t0: float = 0.0, tol: float = 1e-12, max_iter: int = 50):
-    """Initial q, v satisfying Phi = 0 and D v + Phi_t = 0, changing only the coordinates the
-    scene does not mark as given (least change, Gauss-Newton). Returns (q, v, report)."""
-    q = np.array(sc.q0(), float)
-    v = np.array(sc.v0(), float)
-    if tab.m == 0:
-        return q, v, {"moved_q": 0.0, "moved_v": 0.0, "iterations": 0, "changes": {}}
-    given_q, given_v = np.zeros(q.size, bool), np.zeros(q.size, bool)
+def given_mask(sc: Scene) -> np.ndarray:
+    """1 where the scene marks a coordinate (x, y, angle) or rate (vx, vy, omega) as given: the
+    kernel's assembly leaves those alone. Layout [q; v] as the state."""
+    nb = len(sc.bodies)
+    g = np.zeros(6 * nb, np.int32)
     for i, b in enumerate(sc.bodies):
         for k, c in enumerate(("x", "y", "angle")):
-            given_q[3 * i + k] = c in b.given
+            g[3 * i + k] = c in b.given
         for k, c in enumerate(("vx", "vy", "omega")):
-            given_v[3 * i + k] = c in b.given
-    free_q, free_v = ~given_q, ~given_v
-    q_in, v_in = q.copy(), v.copy()
-    it = 0
-    for it in range(max_iter + 1):
-        e = evaluate(tab, q, v, t0)
-        if np.max(np.abs(e["phi"])) <= tol:
-            break
-        if it == max_iter:
-            break
-        dq = np.linalg.lstsq(e["D"][:, free_q], -e["phi"], rcond=None)[0]
-        q[free_q] += dq
-    e = evaluate(tab, q, v, t0)
-    if np.max(np.abs(e["phi"])) > 1e-9:
-        bad = np.argsort(-np.abs(e["phi"]))[:3]
-        names = rows_to_joints(tab, [i for i in bad if abs(e["phi"][i]) > 1e-9])
-        raise SceneError(f"{sc.source}: the initial position cannot be assembled: joint(s) "
-                         f"{', '.join(names)} stay violated by up to {np.max(np.abs(e['phi'])):.3g} "
-                         "after Newton on the coordinates not marked 'given'. Check the lengths "
-                         "and points of these joints, or un-mark given coordinates")
-    d = e["D"]
-    rhs = -e["phit"] - d[:, given_v] @ v[given_v] - d[:, free_v] @ v[free_v]
-    v[free_v] += np.linalg.lstsq(d[:, free_v], rhs, rcond=None)[0]
-    e = evaluate(tab, q, v, t0)
-    vres = np.max(np.abs(e["D"] @ v + e["phit"]))
-    if vres > 1e-9:
-        bad = [i for i in np.argsort(-np.abs(e["D"] @ v + e["phit"]))[:3]]
-        raise SceneError(f"{sc.source}: the initial velocities cannot be made consistent: "
-                         f"joint(s) {', '.join(rows_to_joints(tab, bad))} keep a velocity "
-                         f"residual of {vres:.3g} with the given rates")
+            g[3 * nb + 3 * i + k] = c in b.given
+    return g
+
+
+def assembly_report(sc: Scene, q_in, v_in, q, v, iterations: int) -> dict:
+    """What the assembly changed, by body and coordinate."""
     changes = {}
     for i, b in enumerate(sc.bodies):
         for k, c in enumerate(("x", "y", "angle")):
@@ -260,9 +249,44 @@ def assemble(sc: Scene, tab: Tables, t0: float = 0.0, tol: float = 1e-12, max_it
         for k, c in enumerate(("vx", "vy", "omega")):
             if abs(v[3 * i + k] - v_in[3 * i + k]) > 1e-12:
                 changes[f"{b.name}.{c}"] = float(v[3 * i + k] - v_in[3 * i + k])
-    return q, v, {"moved_q": float(np.max(np.abs(q - q_in))),
-                  "moved_v": float(np.max(np.abs(v - v_in))), "iterations": it,
-                  "changes": changes}
+    return {"moved_q": float(np.max(np.abs(q - q_in), initial=0.0)),
+            "moved_v": float(np.max(np.abs(v - v_in), initial=0.0)), "iterations": int(iterations),
+            "changes": changes}
+
+
+def assembly_error(sc: Scene, tab: Tables, resid, velocity: bool) -> SceneError:
+    """The error of a failed assembly, naming the joints of the largest residual rows."""
+    resid = np.asarray(resid, float)[:tab.m]
+    worst = [i for i in np.argsort(-np.abs(resid))[:3] if abs(resid[i]) > 1e-9]
+    names = ", ".join(rows_to_joints(tab, worst))
+    if velocity:
+        return SceneError(f"{sc.source}: the initial velocities cannot be made consistent: "
+                          f"joint(s) {names} keep a velocity residual of "
+                          f"{np.max(np.abs(resid)):.3g} with the given rates")
+    return SceneError(f"{sc.source}: the initial position cannot be assembled: joint(s) {names} "
+                      f"stay violated by up to {np.max(np.abs(resid)):.3g} after Newton on the "
+                      "coordinates not marked 'given'. Check the lengths and points of these "
+                      "joints, or un-mark given coordinates")
+
+
+def assemble(sc: Scene, tab: Tables, t0: float = 0.0):
+    """Initial q, v satisfying Phi = 0 and D v + Phi_t = 0, changing only the coordinates the
+    scene does not mark as given (least change, Gauss-Newton: the kernel's mbdk_assembly).
+    Returns (q, v, report)."""
+    q_in = np.array(sc.q0(), float)
+    v_in = np.array(sc.v0(), float)
+    q, v = q_in.copy(), v_in.copy()
+    if tab.m == 0:
+        return q, v, assembly_report(sc, q_in, v_in, q, v, 0)
+    iters, resid, velocity, status = _kernel.model_assemble(*tab.args(), float(t0), q, v,
+                                                            given_mask(sc), max(tab.m, 1))
+    if status == Status.ERR_INCONSISTENT_INITIAL:
+        raise assembly_error(sc, tab, resid, velocity=bool(velocity))
+    if status != Status.SUCCESS:
+        raise exception_for(Status(int(status)))(f"{sc.source}: assembly failed: "
+                                                 f"{Status(int(status)).name}",
+                                                 status=Status(int(status)))
+    return q, v, assembly_report(sc, q_in, v_in, q, v, iters)
 
 
 def raise_for(status: Status, msg: str):

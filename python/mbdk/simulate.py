@@ -44,8 +44,9 @@ from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError,
                      Status, exception_for, status_message)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 from .methods import method as _method
-from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assemble,
-                    build_tables, dependent_rows, evaluate, model_options, rows_to_joints)
+from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
+                    assembly_report, build_tables, dependent_rows, evaluate, given_mask,
+                    model_options, pose_error, rows_to_joints)
 from .ode import STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty
 from .result import Stats
@@ -222,13 +223,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                                 f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
                                 "use solver = 'kkt' or 'auto'")
 
-    tab = build_tables(scene)
-    if assemble_initial:
-        q0, v0, report = assemble(scene, tab, t0)
-    else:
-        q0, v0, report = np.array(scene.q0(), float), np.array(scene.v0(), float), {}
-    tab = build_tables(scene, q0)   # rest lengths and joint angles at the assembled pose
-    y0 = np.concatenate([q0, v0])
+    # built once: the kernel fills in the values taken from the pose where it starts the run
+    tab = build_tables(scene, resolve=False)
+    y0 = np.concatenate([np.array(scene.q0(), float), np.array(scene.v0(), float)])
     nsamp, nc, m = plan_["nsamp"], tab.nc, tab.m
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
@@ -241,12 +238,19 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
     args = (*tab.args(), mopt.pack(), info_m.id, plan_["ode"].pack(), plan_["index3"].pack(),
-            flag, y0, t0, t_end, want, nsamp, a_out, lam_out, iters, reac, energy, resid,
-            stats, visits)
-    (t, y, nw, path, status), interrupted = _compiled.call(
-        _kernel.scene_run, args, flag, plan_["steps"] * y0.size)
+            flag, y0, given_mask(scene), int(bool(assemble_initial)), t0, t_end, want, nsamp,
+            a_out, lam_out, iters, reac, energy, resid, stats, visits)
+    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, status), \
+        interrupted = _compiled.call(_kernel.scene_run, args, flag, plan_["steps"] * y0.size)
     status = Status(int(status))
     nw = int(nw)
+    if bad_joint or bad_force:
+        raise pose_error(scene, int(bad_joint), int(bad_force))
+    if status == Status.ERR_INCONSISTENT_INITIAL:
+        raise assembly_error(scene, tab, asm_resid, velocity=bool(asm_velocity))
+    # the first sample is the (assembled) initial state
+    report = (assembly_report(scene, y0[:nc], y0[nc:], y[:nc, 0], y[nc:, 0], int(asm_iters))
+              if assemble_initial and nw else {})
     t, y = np.array(t[:nw]), np.array(y[:, :nw])
     stats = Stats.from_words(stats)
     manifest = {**build_info(), "scene": scene.name, "source": scene.source, "method": method,
@@ -281,7 +285,15 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                                + (f" at t = {t[-1]:.6g}" if nw else ""), status=status,
                                result=result)
     if status == Status.ERR_SINGULAR_MATRIX and m and nw <= 1:
-        _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result)
+        if nw:
+            q0, v0 = result.q[0], result.v[0]
+        else:   # the consistent start of index3 failed: the state it would start from
+            q0, v0 = y0[:nc], y0[nc:]
+            if assemble_initial:
+                from .model import assemble
+                q0, v0, _ = assemble(scene, build_tables(scene), t0)
+        _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
+                          result)
     if status.failed and raise_on_failure:
         raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
                                                      plan_, result), status=status,
@@ -413,13 +425,18 @@ def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
         status=Status.ERR_SINGULAR_MATRIX, result=result)
 
 
+def resolved(scene: Scene, r: SceneResult) -> Tables:
+    """The tables of a run as the kernel used them: pose values taken at its first sample."""
+    return build_tables(scene, r.q[0])
+
+
 def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) -> str:
     nw = len(r.t)
     if not index3:
         where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
         note = ""
         if r.status == Status.ERR_SINGULAR_MATRIX and nw:
-            dep = dependent_rows(evaluate(tab, r.q[-1], r.v[-1], r.t[-1])["D"])
+            dep = dependent_rows(evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
@@ -431,7 +448,7 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     note = ""
     if nw and tab.m:
         # the last sample is the state the failed step started from
-        u, sv, _ = np.linalg.svd(evaluate(tab, r.q[-1], r.v[-1], r.t[-1])["D"])
+        u, sv, _ = np.linalg.svd(evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
         ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
         if ratio < NEAR_SINGULAR:
             rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]

@@ -17,6 +17,7 @@ module mbdk_capi
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
   use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
   use mbdk_elements, only: mbdk_element_kind, MBDK_ELEMENT_NAME_LEN
+  use mbdk_assembly, only: mbdk_tables_resolve
   implicit none
   private
 
@@ -62,7 +63,7 @@ contains
     type(mbdk_model_work_t), target :: work
     type(mbdk_stats_t) :: st
     type(mbdk_model_options_t) :: mopt
-    integer :: stat, nw, nc, m
+    integer :: stat, nw, nc, m, bj, bf
     integer, allocatable :: ji(:, :), fi(:, :), it(:)
     real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
 
@@ -84,6 +85,12 @@ contains
     if (nf > 0) then
       fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
       fr = reshape(freal(1:12 * nf), [12, int(nf)])
+    end if
+    ! values the tables take from the pose (MBDK_FROM_POSE), at y0
+    call mbdk_tables_resolve(int(nb), ji, jr, fi, fr, y0(1:3 * nb), bj, bf, stat)
+    if (stat /= MBDK_SUCCESS) then
+      mbdk_c_index3_solve = int(stat, c_int)
+      return
     end if
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, work, stat)

@@ -37,6 +37,7 @@ module mbdk_capi_stepper
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
   use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
     mbdk_index3_advance
+  use mbdk_assembly, only: mbdk_tables_resolve
   implicit none
   private
 
@@ -114,7 +115,7 @@ contains
     if (.not. (present(mopt) .and. present(opt) .and. present(y0))) return
     allocate (b)
     b%kind = KIND_SCENE
-    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
     if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb), stat)
     mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_scene
@@ -145,7 +146,7 @@ contains
     allocate (b)
     b%kind = KIND_INDEX3
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
-    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+    call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
     if (stat == MBDK_SUCCESS) then
       call mbdk_index3_init(b%i3, b%model, opt, t0, y0(1:6 * nb), stat)
       b%h = opt%h
@@ -156,16 +157,19 @@ contains
     mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_index3
 
-  !> b%model from the C tables (NULL tables allowed where their count is 0).
-  subroutine build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, stat)
+  !> b%model from the C tables (NULL tables allowed where their count is 0), their pose values
+  !> (MBDK_FROM_POSE) taken at y0.
+  subroutine build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
     type(stepper_box), intent(inout) :: b
     integer(c_int), intent(in) :: nb, nj, nf
     real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*)
+    real(c_double), intent(in) :: y0(*)
     integer(c_int), intent(in), optional :: jint(*), fint(*)
     type(mbdk_model_options_t), intent(in) :: mopt
     integer, intent(out) :: stat
     integer, allocatable :: ji(:, :), fi(:, :)
     real(dp), allocatable :: jr(:, :), fr(:, :)
+    integer :: bj, bf
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. (present(mass) .and. present(inertia))) return
     if (nb < 1 .or. nj < 0 .or. nf < 0) return
@@ -180,6 +184,8 @@ contains
       fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
       fr = reshape(freal(1:12 * nf), [12, int(nf)])
     end if
+    call mbdk_tables_resolve(int(nb), ji, jr, fi, fr, y0(1:3 * nb), bj, bf, stat)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
   end subroutine build_model
 

@@ -237,14 +237,20 @@ end subroutine build_info
 ! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
 
 subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
-                     method_id, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, t0, t_end, want, &
-                     nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, a_out, lam_out, &
-                     iters_out, reac, energy, resid, nwritten, nstatw, statbuf, nvis, visits, &
-                     linear_solve, status)
-  ! The one entry that runs a scene: the model is built once from its tables and options, the
-  ! method integrates it (a fixed-step ODE method on the model's formulation, or
-  ! trapezoidal_index3 with its own options), and the outputs asked for (want: MBDK_OUT_* bits of
-  ! mbdk_model) are computed at the samples in the same call. An output array not asked for may
+                     method_id, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, given, assemble, &
+                     t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
+                     a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
+                     nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
+                     bad_force, status)
+  ! The one entry that runs a scene. The tables' pose defaults are filled in at y0 and the model
+  ! built (mbdk_assembly, mbdk_model); with assemble /= 0 the initial state is assembled (the
+  ! coordinates whose given(:) is 0 move; asm_iters corrections; on failure,
+  ! MBDK_ERR_INCONSISTENT_INITIAL, asm_resid holds the residual rows, of the velocities when
+  ! asm_velocity /= 0) and the pose defaults taken again at the assembled
+  ! pose; then the method integrates it (a fixed-step ODE method on the model's formulation, or
+  ! trapezoidal_index3 with its own options) from the assembled state (the first sample), and the
+  ! outputs asked for (want: MBDK_OUT_* bits of mbdk_model) are computed at the samples in the
+  ! same call. bad_joint, bad_force: the element a pose default failed on (1-based), else 0. An output array not asked for may
   ! have one column; trapezoidal_index3 writes a_out, lam_out and iters_out whatever want says
   ! (they are its own). Samples whose outputs cannot be computed (the state a failed run stopped
   ! at) get NaN there. visits: the model's visit counters over the whole call (steps and
@@ -260,6 +266,7 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
+  use mbdk_assembly, only: mbdk_tables_resolve, mbdk_assembly_run
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, noptw, ni3w, n, want, nsamp
   integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
@@ -268,11 +275,14 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w)
   integer, intent(in), target :: interrupt(1)
   double precision, intent(in) :: y0(n), t0, t_end
+  integer, intent(in) :: given(n), assemble
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: a_out(nc, na), lam_out(m1, nl), reac(3, nj1, nr)
   double precision, intent(inout) :: energy(6, ne), resid(3, nrs), statbuf(nstatw), visits(nvis)
   integer, intent(inout) :: iters_out(ni)
-  integer, intent(out) :: nwritten, linear_solve, status
+  integer, intent(out) :: nwritten, linear_solve, status, asm_iters, asm_velocity, bad_joint
+  integer, intent(out) :: bad_force
+  double precision, intent(out) :: asm_resid(m1)
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
@@ -302,9 +312,16 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   logical :: index3
   double precision :: nan
   double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
+  double precision, allocatable :: jr(:, :), fr(:, :), ys(:)
+  logical :: vel
 
   nwritten = 0
   linear_solve = -1
+  asm_iters = 0
+  asm_resid = 0.0d0
+  asm_velocity = 0
+  bad_joint = 0
+  bad_force = 0
   t_out = 0.0d0
   y_out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
@@ -315,13 +332,22 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   call mbdk_method_info(method_id, name, family, order)
   index3 = family == MBDK_FAMILY_DAE_INDEX3
   mopt = transfer(mobuf, mopt)
-  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), mopt, work, status)
+  ys = y0
+  call build(status)
   if (status /= MBDK_SUCCESS) return
-  linear_solve = mbdk_model_linear_solve(model)
   m = model%m
   status = MBDK_ERR_OUTPUT_SIZE
   if (m1 < max(m, 1)) return
+  if (assemble /= 0) then
+    call mbdk_assembly_run(model, t0, ys(1:nc), ys(nc + 1:), given(1:nc) /= 0, &
+                           given(nc + 1:) /= 0, 1.0d-12, 50, asm_iters, asm_resid(1:m), vel, &
+                           status)
+    asm_velocity = merge(1, 0, vel)
+    if (status /= MBDK_SUCCESS) return
+    call build(status)
+    if (status /= MBDK_SUCCESS) return
+  end if
+  linear_solve = mbdk_model_linear_solve(model)
   if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
   if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
   if (index3 .and. ni < nsamp) return
@@ -332,13 +358,13 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   if (index3) then
     i3 = transfer(i3buf, i3)
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    call mbdk_index3_solve(model, i3, t0, t_end, y0, t_out, y_out, a_out(:, 1:nsamp), &
+    call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
                            lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    call mbdk_fixed_step_solve(model, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
+    call mbdk_fixed_step_solve(model, opt, t0, t_end, ys, t_out, y_out, nwritten, st, status)
   end if
 
   if (want /= 0 .and. nwritten > 0) then
@@ -363,7 +389,79 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   end if
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
+
+contains
+
+  !> the model from the tables with their pose defaults taken at ys
+  subroutine build(ierr)
+    integer, intent(out) :: ierr
+    jr = jreal(:, 1:nj)
+    fr = freal(:, 1:nf)
+    call mbdk_tables_resolve(nb, jint(:, 1:nj), jr, fint(:, 1:nf), fr, ys(1:nc), bad_joint, &
+                             bad_force, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jr, fint(:, 1:nf), fr, mopt, work, &
+                         ierr)
+  end subroutine build
+
 end subroutine scene_run
+
+subroutine tables_resolve(nb, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, q, bad_joint, &
+                          bad_force, status)
+  ! The tables' pose defaults filled in at q (mbdk_assembly): rest lengths of two-point forces
+  ! and relative angles of prismatic and fixed joints marked MBDK_FROM_POSE.
+  use mbdk_assembly, only: mbdk_tables_resolve
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nc
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1)
+  double precision, intent(inout) :: jreal(12, nj1), freal(12, nf1)
+  double precision, intent(in) :: q(nc)
+  integer, intent(out) :: bad_joint, bad_force, status
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(q) :: nc = len(q)
+  call mbdk_tables_resolve(nb, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), freal(:, 1:nf), q, &
+                           bad_joint, bad_force, status)
+end subroutine tables_resolve
+
+subroutine model_assemble(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, &
+                          t0, q, v, given, m1, iterations, resid, velocity, status)
+  ! Initial conditions from the scene's (q, v) that satisfy the constraints (mbdk_assembly):
+  ! the coordinates whose given(:) is 0 move; q and v are updated in place.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
+  use mbdk_assembly, only: mbdk_assembly_run
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nc, m1
+  double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), t0
+  integer, intent(in) :: jint(4, nj1), fint(4, nf1), given(2 * nc)
+  double precision, intent(inout) :: q(nc), v(nc)
+  integer, intent(out) :: iterations, velocity, status
+  double precision, intent(out) :: resid(m1)
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(q) :: nc = len(q)
+  type(mbdk_model_t) :: model
+  type(mbdk_model_work_t), target :: work
+  type(mbdk_model_options_t) :: mopt
+  logical :: vel
+
+  iterations = 0
+  velocity = 0
+  resid = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. nc /= 3 * nb) return
+  call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
+                       freal(:, 1:nf), mopt, work, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (m1 < max(model%m, 1)) return
+  call mbdk_assembly_run(model, t0, q, v, given(1:nc) /= 0, given(nc + 1:) /= 0, 1.0d-12, 50, &
+                         iterations, resid(1:model%m), vel, status)
+  velocity = merge(1, 0, vel)
+end subroutine model_assemble
 
 subroutine element_kind(i, cls, code, name, rows, states)
   ! Entry i of the element registry (mbdk_elements); cls = 0 past the end. The i-th entry's

@@ -19,6 +19,7 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_UNKNOWN_PROBLEM = -3
   integer, parameter, public :: MBDK_ERR_NOT_APPLICABLE = -4
   integer, parameter, public :: MBDK_ERR_OUTPUT_SIZE = -5
+  integer, parameter, public :: MBDK_ERR_INCONSISTENT_INITIAL = -6
   integer, parameter, public :: MBDK_ERR_STEP_TOO_SMALL = -10
   integer, parameter, public :: MBDK_ERR_NEWTON_DIVERGED = -20
   integer, parameter, public :: MBDK_ERR_SINGULAR_MATRIX = -21
@@ -27,7 +28,7 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_BACKEND = -50
   integer, parameter, public :: MBDK_ERR_INTERRUPTED = -60
 
-  integer, parameter, public :: MBDK_STATUS_COUNT = 14
+  integer, parameter, public :: MBDK_STATUS_COUNT = 15
   integer, parameter, public :: MBDK_STATUS_NAME_LEN = 32
   integer, parameter, public :: MBDK_STATUS_MSG_LEN = 120
 
@@ -49,6 +50,8 @@ module mbdk_status
       'the method does not apply to this problem (e.g. euler_cromer needs a second-order system)'), &
     status_entry(MBDK_ERR_OUTPUT_SIZE, 'ERR_OUTPUT_SIZE', &
       'the output arrays are too small for the requested samples'), &
+    status_entry(MBDK_ERR_INCONSISTENT_INITIAL, 'ERR_INCONSISTENT_INITIAL', &
+      'the initial state cannot be made to satisfy the constraints (assembly failed)'), &
     status_entry(MBDK_ERR_STEP_TOO_SMALL, 'ERR_STEP_TOO_SMALL', 'the step size became too small'), &
     status_entry(MBDK_ERR_NEWTON_DIVERGED, 'ERR_NEWTON_DIVERGED', &
       'Newton-Raphson iteration did not converge; reduce the step h'), &

@@ -1,11 +1,13 @@
-!> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs) and
-!> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs).
+!> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs),
+!> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs),
+!> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
 module mbdk_lapack
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
   implicit none
   private
-  public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
+  public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
+    mbdk_least_squares
 
   interface
     subroutine dgetrf(m, n, a, lda, ipiv, info)
@@ -38,9 +40,48 @@ module mbdk_lapack
       real(dp), intent(inout) :: b(ldb, *)
       integer, intent(out) :: info
     end subroutine dpotrs
+    subroutine dgelsd(m, n, nrhs, a, lda, b, ldb, s, rcond, rank, work, lwork, iwork, info)
+      import :: dp
+      integer, intent(in) :: m, n, nrhs, lda, ldb, lwork
+      real(dp), intent(inout) :: a(lda, *), b(ldb, *)
+      real(dp), intent(out) :: s(*), work(*)
+      real(dp), intent(in) :: rcond
+      integer, intent(out) :: rank, iwork(*), info
+    end subroutine dgelsd
   end interface
 
 contains
+
+  !> The minimum-norm x minimising |A x - b| (A m x n, any rank): b(1:m) on entry, x = b(1:n)
+  !> on exit (b has max(m, n) entries); singular values below rcond times the largest count as
+  !> zero (rcond < 0: machine precision), rank is the effective rank. A is overwritten.
+  subroutine mbdk_least_squares(a, b, rcond, rank, stat)
+    real(dp), intent(inout) :: a(:, :), b(:)
+    real(dp), intent(in) :: rcond
+    integer, intent(out) :: rank, stat
+    integer :: m, n, info, lwork, liwork
+    real(dp) :: wq(1)
+    integer :: iq(1)
+    real(dp), allocatable :: sv(:), work(:)
+    integer, allocatable :: iwork(:)
+    m = size(a, 1)
+    n = size(a, 2)
+    rank = 0
+    stat = MBDK_ERR_INVALID_INPUT
+    if (size(b) < max(m, n, 1)) return
+    stat = MBDK_SUCCESS
+    if (m == 0 .or. n == 0) then
+      b(1:n) = 0.0_dp
+      return
+    end if
+    allocate (sv(min(m, n)))
+    call dgelsd(m, n, 1, a, m, b, size(b), sv, rcond, rank, wq, -1, iq, info)
+    lwork = max(1, int(wq(1)))
+    liwork = max(1, iq(1))
+    allocate (work(lwork), iwork(liwork))
+    call dgelsd(m, n, 1, a, m, b, size(b), sv, rcond, rank, work, lwork, iwork, info)
+    if (info /= 0) stat = MBDK_ERR_SINGULAR_MATRIX   ! the SVD did not converge
+  end subroutine mbdk_least_squares
 
   !> In-place LU with partial pivoting; MBDK_ERR_SINGULAR_MATRIX when a pivot is exactly zero.
   subroutine mbdk_lu_factor(a, ipiv, stat)

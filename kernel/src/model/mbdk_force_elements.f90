@@ -2,7 +2,9 @@
 !> (Fekete (2023) section 2.3: the spring bar (2.95)-(2.99) and the spring-and-damper bar
 !> (2.120)-(2.126)), with their potential energy and power.
 !>
-!> Table fint(4, nf) = (type, body1, body2, coordinate); freal(12, nf), time function in 8:12:
+!> Table fint(4, nf) = (type, body1, body2, coordinate or flag); freal(12, nf), time function in
+!> 8:12. The 4th integer is the coordinate of a coordinate spring-damper; for the two-point kinds
+!> MBDK_FROM_POSE (1) takes the rest length L0 from the initial pose (mbdk_assembly):
 !>   1 gravity              g = freal(1:2) on every body (only when the scene declares it)
 !>   2 point force          F(t) = freal(3:4) * f(t) at the body-fixed point freal(1:2) of body1
 !>   3 torque               T(t) = freal(1) * f(t) on body1

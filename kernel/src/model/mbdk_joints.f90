@@ -15,7 +15,9 @@
 !> D (0 for the ground) and whether it can be nonzero at all; mbdk_joints_scatter makes the
 !> dense D. The compact rows are what the sparse Schur complement (mbdk_sparse_schur) reads.
 !>
-!> Table jint(4, nj) = (type, body1, body2, coordinate); jreal(12, nj):
+!> Table jint(4, nj) = (type, body1, body2, coordinate or flag); jreal(12, nj). The 4th integer is
+!> the driven coordinate of a driver; for prismatic and fixed joints MBDK_FROM_POSE (1) takes
+!> theta0 from the initial pose (mbdk_assembly). Types and rows: mbdk_elements.
 !>   1 revolute   (2 rows)  P1 - P2 = 0,           s1 = jreal(1:2), s2 = jreal(3:4) (for the
 !>                                                    ground: the global point)
 !>   2 prismatic  (2 rows)  theta1 - theta2 - theta0 = 0 and n2 . (P1 - P2) = 0, with the axis

@@ -1,0 +1,156 @@
+!> A scene's initial state: the values its tables take from the initial pose, and initial
+!> conditions that satisfy the constraints.
+!>
+!> Pose defaults. An element may take a value from the initial pose instead of the table: a
+!> spring, damper or spring-damper its rest length (freal(6) = the distance of its points),
+!> a prismatic or fixed joint its relative angle (jreal(7) = theta1 - theta2), when the 4th
+!> integer of its table entry is MBDK_FROM_POSE (that slot is the coordinate of drivers and
+!> coordinate forces, and unused otherwise). mbdk_tables_resolve fills them in at q; a
+!> two-point force whose points coincide there has no direction: MBDK_ERR_INVALID_INPUT with the
+!> force named (bad_force).
+!>
+!> Assembly (mbdk_assembly_run). The coordinates the scene does not mark as given move as little
+!> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
+!> solution of D_free dq = -Phi (LAPACK dgelsd, so redundant constraints are no obstacle), until
+!> max |Phi| <= tol; then the velocities not given, v_free = least-squares solution of
+!> D_free v_free = -Phi_t - D_given v_given. Either residual above 1e-9 at the end:
+!> MBDK_ERR_INCONSISTENT_INITIAL, with the residual rows returned so that the caller can name the
+!> joints.
+module mbdk_assembly
+  use mbdk_kinds, only: dp
+  use mbdk_status
+  use mbdk_lapack, only: mbdk_least_squares
+  use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
+    MBDK_JOINT_FIXED
+  use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
+  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
+  implicit none
+  private
+  public :: mbdk_tables_resolve, mbdk_assembly_run
+
+  !> the 4th integer of a two-point force or a prismatic/fixed joint: take the value from the pose
+  integer, parameter, public :: MBDK_FROM_POSE = 1
+  !> residuals an assembled state must meet
+  real(dp), parameter :: ASSEMBLED_TOL = 1.0e-9_dp
+
+contains
+
+  !> Fills in the pose defaults of the tables at q (nc = 3 nb coordinates). bad_joint, bad_force:
+  !> the element (1-based) that made it fail, else 0.
+  subroutine mbdk_tables_resolve(nb, jint, jreal, fint, freal, q, bad_joint, bad_force, stat)
+    integer, intent(in) :: nb
+    integer, intent(in) :: jint(:, :), fint(:, :)
+    real(dp), intent(inout) :: jreal(:, :), freal(:, :)
+    real(dp), intent(in) :: q(:)
+    integer, intent(out) :: bad_joint, bad_force, stat
+    real(dp) :: rot(2, nb), v(size(q)), p1(2), p2(2), rho(2), pv(2), w, th1, th2, len
+    integer :: j, b1, b2
+    bad_joint = 0
+    bad_force = 0
+    stat = MBDK_ERR_INVALID_INPUT
+    if (size(q) /= 3 * nb .or. .not. all(abs(q) <= huge(1.0_dp))) return
+    v = 0.0_dp
+    call mbdk_body_rotations(q, rot)
+    do j = 1, size(jint, 2)
+      if (jint(4, j) /= MBDK_FROM_POSE) cycle
+      if (jint(1, j) /= MBDK_JOINT_PRISMATIC .and. jint(1, j) /= MBDK_JOINT_FIXED) cycle
+      b1 = jint(2, j)
+      b2 = jint(3, j)
+      if (b1 < 1 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
+        bad_joint = j
+        return
+      end if
+      th1 = q(3 * b1)
+      th2 = 0.0_dp
+      if (b2 > 0) th2 = q(3 * b2)
+      jreal(7, j) = th1 - th2
+    end do
+    ! every two-point force needs a direction at the start; marked ones take their rest length
+    do j = 1, size(fint, 2)
+      if (fint(1, j) /= MBDK_FORCE_SPRING_DAMPER .and. fint(1, j) /= MBDK_FORCE_SPRING .and. &
+          fint(1, j) /= MBDK_FORCE_DAMPER) cycle
+      b1 = fint(2, j)
+      b2 = fint(3, j)
+      if (b1 < 0 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
+        bad_force = j
+        return
+      end if
+      call mbdk_body_point(b1, freal(1:2, j), rot, q, v, p1, rho, pv, w)
+      call mbdk_body_point(b2, freal(3:4, j), rot, q, v, p2, rho, pv, w)
+      len = sqrt((p1(1) - p2(1))**2 + (p1(2) - p2(2))**2)
+      if (.not. (len > 0.0_dp)) then
+        bad_force = j
+        return
+      end if
+      if (fint(4, j) == MBDK_FROM_POSE) freal(6, j) = len
+    end do
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_tables_resolve
+
+  !> Assembles (q, v) at t0 in place, moving only the coordinates whose given_q / given_v is
+  !> false (see the module header). iterations: Gauss-Newton corrections taken; on failure
+  !> resid(m) is the position residual Phi, or (velocity = .true.: the positions assembled) the
+  !> velocity residual D v + Phi_t.
+  subroutine mbdk_assembly_run(model, t0, q, v, given_q, given_v, tol, max_iter, iterations, &
+                               resid, velocity, stat)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t0, tol
+    real(dp), intent(inout) :: q(:), v(:)
+    logical, intent(in) :: given_q(:), given_v(:)
+    integer, intent(in) :: max_iter
+    integer, intent(out) :: iterations, stat
+    real(dp), intent(out) :: resid(:)
+    logical, intent(out) :: velocity
+    real(dp) :: phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
+    real(dp), allocatable :: a(:, :), b(:)
+    integer, allocatable :: free(:)
+    integer :: nc, m, it, rank, k
+    real(dp) :: rcond
+
+    nc = model%nc
+    m = model%m
+    iterations = 0
+    resid = 0.0_dp
+    velocity = .false.
+    stat = MBDK_SUCCESS
+    if (m == 0) return
+    free = pack([(k, k = 1, nc)], .not. given_q)
+    rcond = epsilon(1.0_dp) * max(m, size(free))
+    do it = 0, max_iter
+      call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+      if (maxval(abs(phi)) <= tol .or. it == max_iter .or. size(free) == 0) exit
+      a = d(:, free)
+      allocate (b(max(m, size(free))))
+      b(1:m) = -phi
+      call mbdk_least_squares(a, b, rcond, rank, stat)
+      if (stat /= MBDK_SUCCESS) return
+      q(free) = q(free) + b(1:size(free))
+      deallocate (b)
+      iterations = it + 1
+    end do
+    resid = phi
+    if (.not. (maxval(abs(phi)) <= ASSEMBLED_TOL)) then
+      stat = MBDK_ERR_INCONSISTENT_INITIAL
+      return
+    end if
+    free = pack([(k, k = 1, nc)], .not. given_v)
+    if (size(free) > 0) then
+      a = d(:, free)
+      allocate (b(max(m, size(free))))
+      b(1:m) = -phit - matmul(d, v)
+      call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(free)), rank, stat)
+      if (stat /= MBDK_SUCCESS) return
+      v(free) = v(free) + b(1:size(free))
+    end if
+    call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+    resid = matmul(d, v) + phit
+    velocity = .true.
+    if (.not. (maxval(abs(resid)) <= ASSEMBLED_TOL)) then
+      stat = MBDK_ERR_INCONSISTENT_INITIAL
+      return
+    end if
+    resid = 0.0_dp
+    velocity = .false.
+  end subroutine mbdk_assembly_run
+
+end module mbdk_assembly
