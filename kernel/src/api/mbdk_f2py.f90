@@ -266,7 +266,7 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   use mbdk_fixed_step, only: mbdk_fixed_step_solve
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
-  use mbdk_assembly, only: mbdk_tables_resolve, mbdk_assembly_run
+  use mbdk_assembly, only: mbdk_model_start
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, noptw, ni3w, n, want, nsamp
   integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
@@ -312,7 +312,7 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   logical :: index3
   double precision :: nan
   double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
-  double precision, allocatable :: jr(:, :), fr(:, :), ys(:)
+  double precision, allocatable :: ys(:)
   logical :: vel
 
   nwritten = 0
@@ -333,20 +333,15 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   index3 = family == MBDK_FAMILY_DAE_INDEX3
   mopt = transfer(mobuf, mopt)
   ys = y0
-  call build(status)
+  call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
+                        fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys, given(1:nc) /= 0, &
+                        given(nc + 1:) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
+                        bad_joint, bad_force, status)
+  asm_velocity = merge(1, 0, vel)
   if (status /= MBDK_SUCCESS) return
   m = model%m
   status = MBDK_ERR_OUTPUT_SIZE
   if (m1 < max(m, 1)) return
-  if (assemble /= 0) then
-    call mbdk_assembly_run(model, t0, ys(1:nc), ys(nc + 1:), given(1:nc) /= 0, &
-                           given(nc + 1:) /= 0, 1.0d-12, 50, asm_iters, asm_resid(1:m), vel, &
-                           status)
-    asm_velocity = merge(1, 0, vel)
-    if (status /= MBDK_SUCCESS) return
-    call build(status)
-    if (status /= MBDK_SUCCESS) return
-  end if
   linear_solve = mbdk_model_linear_solve(model)
   if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
   if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
@@ -389,20 +384,6 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   end if
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
-
-contains
-
-  !> the model from the tables with their pose defaults taken at ys
-  subroutine build(ierr)
-    integer, intent(out) :: ierr
-    jr = jreal(:, 1:nj)
-    fr = freal(:, 1:nf)
-    call mbdk_tables_resolve(nb, jint(:, 1:nj), jr, fint(:, 1:nf), fr, ys(1:nc), bad_joint, &
-                             bad_force, ierr)
-    if (ierr /= MBDK_SUCCESS) return
-    call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jr, fint(:, 1:nf), fr, mopt, work, &
-                         ierr)
-  end subroutine build
 
 end subroutine scene_run
 

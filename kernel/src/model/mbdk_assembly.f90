@@ -23,10 +23,11 @@ module mbdk_assembly
   use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
-  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
+  use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
+    mbdk_model_work_t, mbdk_model_options_t
   implicit none
   private
-  public :: mbdk_tables_resolve, mbdk_assembly_run
+  public :: mbdk_tables_resolve, mbdk_assembly_run, mbdk_model_start
 
   !> the 4th integer of a two-point force or a prismatic/fixed joint: take the value from the pose
   integer, parameter, public :: MBDK_FROM_POSE = 1
@@ -152,5 +153,60 @@ contains
     resid = 0.0_dp
     velocity = .false.
   end subroutine mbdk_assembly_run
+
+  !> A run's model at its initial state y = [q; v] (updated in place): with assemble, y is
+  !> assembled first (on a model of its own, resolved at the given y: asm_iters, asm_resid,
+  !> velocity as mbdk_assembly_run's), then the tables' pose values are taken at y and the run's
+  !> model built once there. bad_joint, bad_force: the element a pose value failed on.
+  subroutine mbdk_model_start(model, work, mass, inertia, jint, jreal, fint, freal, opt, t0, y, &
+                              given_q, given_v, assemble, asm_iters, asm_resid, velocity, &
+                              bad_joint, bad_force, stat)
+    type(mbdk_model_t), intent(out) :: model
+    type(mbdk_model_work_t), target, intent(inout) :: work
+    real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), t0
+    integer, intent(in) :: jint(:, :), fint(:, :)
+    type(mbdk_model_options_t), intent(in) :: opt
+    real(dp), intent(inout) :: y(:)
+    logical, intent(in) :: given_q(:), given_v(:), assemble
+    integer, intent(out) :: asm_iters, bad_joint, bad_force, stat
+    real(dp), intent(out) :: asm_resid(:)
+    logical, intent(out) :: velocity
+    real(dp), allocatable :: jr(:, :), fr(:, :)
+    integer :: nb, nc
+    nb = size(mass)
+    nc = 3 * nb
+    asm_iters = 0
+    asm_resid = 0.0_dp
+    velocity = .false.
+    stat = MBDK_ERR_INVALID_INPUT
+    if (size(y) /= 2 * nc .or. size(given_q) /= nc .or. size(given_v) /= nc) return
+    if (assemble) then
+      block
+        type(mbdk_model_t) :: amodel
+        type(mbdk_model_work_t), target :: awork
+        call build(amodel, awork)
+        if (stat /= MBDK_SUCCESS) return
+        stat = MBDK_ERR_INVALID_INPUT
+        if (size(asm_resid) < amodel%m) return
+        call mbdk_assembly_run(amodel, t0, y(1:nc), y(nc + 1:), given_q, given_v, 1.0e-12_dp, &
+                               50, asm_iters, asm_resid(1:amodel%m), velocity, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end block
+    end if
+    call build(model, work)
+
+  contains
+
+    subroutine build(mdl, wrk)
+      type(mbdk_model_t), intent(out) :: mdl
+      type(mbdk_model_work_t), target, intent(inout) :: wrk
+      jr = jreal
+      fr = freal
+      call mbdk_tables_resolve(nb, jint, jr, fint, fr, y(1:nc), bad_joint, bad_force, stat)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_model_init(mdl, mass, inertia, jint, jr, fint, fr, opt, wrk, stat)
+    end subroutine build
+
+  end subroutine mbdk_model_start
 
 end module mbdk_assembly

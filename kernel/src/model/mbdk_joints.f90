@@ -27,8 +27,8 @@
 !>   4 driver     (1 row)   q(3 body1 - 3 + coordinate) - f(t) = 0, f = time function jreal(8:12)
 !> Row order is the table order; the caller gives each joint's first row.
 module mbdk_joints
-  use mbdk_elements, only: mbdk_joint_rows, MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, &
-    MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_TYPES
+  use mbdk_elements, only: mbdk_joint_rows, MBDK_JOINT_ROW_COUNT, MBDK_JOINT_REVOLUTE, &
+    MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_TYPES
   use mbdk_kinds, only: dp, i8
   use mbdk_time_function, only: mbdk_time_fn
   implicit none
@@ -198,7 +198,8 @@ contains
         dz(:, r) = 0.0_dp
         dz(jint(4, j), r) = 1.0_dp
       end select
-      if (b2 == 0) dz(4:6, r:r + mbdk_joint_rows(jint(1, j)) - 1) = 0.0_dp
+      ! (the types were checked at mbdk_model_init)
+      if (b2 == 0) dz(4:6, r:r + MBDK_JOINT_ROW_COUNT(jint(1, j)) - 1) = 0.0_dp
     end do
 
   contains
