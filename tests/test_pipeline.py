@@ -173,3 +173,18 @@ def test_the_kernel_assembles_and_takes_pose_values_at_the_assembled_pose():
     tab = mbdk.model.build_tables(sc)
     assert abs(tab.freal[5, len(sc.forces) - 1] - mbdk.model.build_tables(sc, r.q[0]).freal[
         5, len(sc.forces) - 1]) > 1e-3
+
+
+@pytest.mark.parametrize("formulation", ["index3", "augmented_lagrangian"])
+def test_visits_count_newton_iterations_and_tangents(formulation):
+    """trapezoidal_index3 evaluates the forces once per Newton iteration (nfev, the consistent
+    start included) and their tangent once per Newton matrix (nlu): the spring's visits are
+    exactly their sum, gravity (no tangent) is visited nfev times, and the hinge once per
+    matrix on top of its constraint evaluations."""
+    sc = mbdk.scene("spring_bar")
+    r = mbdk.simulate(sc, "trapezoidal_index3", formulation=formulation, h=1e-3, t_end=0.2,
+                      outputs=())
+    assert r.stats.nlu >= 1 and r.stats.nfev > r.stats.steps
+    assert r.visits["spring"] == r.stats.nfev + r.stats.nlu
+    assert r.visits["gravity"] == r.stats.nfev
+    assert r.visits["revolute"] >= r.stats.nfev + r.stats.nlu

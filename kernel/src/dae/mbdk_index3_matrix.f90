@@ -14,7 +14,7 @@ module mbdk_index3_matrix
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
-  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter
+  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter, MBDK_JOINT_TYPES
   use mbdk_force_elements, only: mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_sparse_schur, only: mbdk_sparse_dtd_add
@@ -173,11 +173,12 @@ contains
     s = 0.25_dp * h * h
     a = 0.0_dp
     call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, s, 0.5_dp * h, &
-                             a, stat)
+                             a, model%work%visits(MBDK_JOINT_TYPES + 1:), stat)
     if (stat /= MBDK_SUCCESS) return
     if (model%m > 0) then
       lw = s * lam
-      call mbdk_joints_tangent(model%jint, model%jreal, model%row0, model%work%rot, q, lw, a)
+      call mbdk_joints_tangent(model%jint, model%jreal, model%row0, model%work%rot, q, lw, a, &
+                               model%work%visits(1:MBDK_JOINT_TYPES))
     end if
     do i = 1, model%nc
       a(i, i) = a(i, i) + model%mass(i)

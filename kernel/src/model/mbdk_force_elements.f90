@@ -150,11 +150,12 @@ contains
   !> Coordinate spring-damper: K(k, k) = k, C(k, k) = c.
   !> G lives on the six coordinates of the element's two bodies (O(36) per element, no
   !> allocation), scattered into a. K is symmetric without dampers (c = 0); C always is.
-  subroutine mbdk_forces_tangent(fint, freal, rot, q, v, t, ks, cs, a, stat)
+  subroutine mbdk_forces_tangent(fint, freal, rot, q, v, t, ks, cs, a, visits, stat)
     integer, intent(in), contiguous :: fint(:, :)
     real(dp), intent(in), contiguous :: freal(:, :), rot(:, :), q(:), v(:)
     real(dp), intent(in) :: t, ks, cs
     real(dp), intent(inout), contiguous :: a(:, :)
+    integer(i8), intent(inout), contiguous :: visits(:)
     integer, intent(out) :: stat
     integer :: e, b, k, i, j, col(6)
     real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2)
@@ -164,6 +165,9 @@ contains
 
     stat = MBDK_SUCCESS
     do e = 1, size(fint, 2)
+      ! gravity and torques have no tangent: only the elements with one are visited
+      if (fint(1, e) == MBDK_FORCE_GRAVITY .or. fint(1, e) == MBDK_FORCE_TORQUE) cycle
+      visits(fint(1, e)) = visits(fint(1, e)) + 1
       select case (fint(1, e))
       case (MBDK_FORCE_POINT)
         b = fint(2, e)

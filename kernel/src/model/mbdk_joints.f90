@@ -227,16 +227,18 @@ contains
   !>   prismatic row n2 . d (n2 turns with body 2, dn2/dth2 = -u2, du2/dth2 = n2), times lam:
   !>     (th1, th1) -n2.rho1;  (r1, th2) -u2;  (th1, th2) -u2.perp(rho1);  (r2, th2) +u2;
   !>     (th2, th2) -n2.d + 2 u2.perp(rho2) + n2.rho2   (symmetric)
-  subroutine mbdk_joints_tangent(jint, jreal, row0, rot, q, lam, kc)
+  subroutine mbdk_joints_tangent(jint, jreal, row0, rot, q, lam, kc, visits)
     integer, intent(in), contiguous :: jint(:, :), row0(:)
     real(dp), intent(in), contiguous :: jreal(:, :), rot(:, :), q(:), lam(:)
     real(dp), intent(inout), contiguous :: kc(:, :)
+    integer(i8), intent(inout), contiguous :: visits(:)
     integer :: j, r, b1, b2, i1, i2, c
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, u2(2), n2(2), dd(2)
     real(dp) :: l, x
 
     ! mbdk_body_point gets q in place of v: only the positions p and offsets rho are used
     do j = 1, size(jint, 2)
+      visits(jint(1, j)) = visits(jint(1, j)) + 1
       r = row0(j)
       b1 = jint(2, j)
       b2 = jint(3, j)
