@@ -188,3 +188,23 @@ def test_visits_count_newton_iterations_and_tangents(formulation):
     assert r.visits["spring"] == r.stats.nfev + r.stats.nlu
     assert r.visits["gravity"] == r.stats.nfev
     assert r.visits["revolute"] >= r.stats.nfev + r.stats.nlu
+
+
+def test_public_evaluate_gives_a_state_that_solves_the_equations_of_motion():
+    """mbdk.evaluate at a state off the initial one: the returned a and lambda satisfy
+    M a + D^T lambda = f and D a = gamma with the returned M (from the scene's masses), D, f and
+    gamma, checked here in numpy; bad states are named errors."""
+    sc = mbdk.scene("four_bar")
+    e0 = mbdk.evaluate(sc)
+    q = np.array(sc.q0(), float)
+    r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.3)
+    e = mbdk.evaluate(sc, r.q[-1], r.v[-1], t=0.3)
+    mass = np.repeat([[b.mass, b.mass, b.inertia] for b in sc.bodies], 1, axis=0).ravel()
+    assert np.abs(mass * e["a"] + e["D"].T @ e["lam"] - e["f"]).max() < 1e-10
+    assert np.abs(e["D"] @ e["a"] - e["gamma"]).max() < 1e-10
+    assert np.allclose(e["a"], r.a[-1], rtol=1e-12, atol=1e-12)
+    assert e0["phi"].size == 8 and np.abs(e0["phi"]).max() < 1e-12
+    with pytest.raises(mbdk.InvalidInputError, match="entries"):
+        mbdk.evaluate(sc, q[:3], r.v[-1])
+    with pytest.raises(mbdk.InvalidInputError, match="finite"):
+        mbdk.evaluate(sc, q * np.nan, r.v[-1])

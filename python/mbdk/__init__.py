@@ -13,11 +13,11 @@ from .methods import MethodInfo, methods
 from .ode import build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions
-from .result import ODEResult, Stats
+from .result import ODEResult, Result, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
 from .scene import Scene, SceneError, load_scene, scene, scenes
-from .simulate import RedundantConstraintsError, SceneResult, simulate
+from .simulate import RedundantConstraintsError, SceneResult, evaluate, simulate
 
 __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
@@ -26,5 +26,5 @@ __all__ = [
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
-    "ODEOptions", "Index3Options", "ModelOptions",
+    "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate",
 ]

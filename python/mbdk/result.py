@@ -32,11 +32,29 @@ class Stats:
         return cls(**unpack("mbdk_stats", words))
 
 
+class Result:
+    """What every solve returns (solve_ode: ODEResult, simulate: SceneResult): samples t and the
+    state y (one row per sample), stats, status, message, manifest; success is False only when
+    the caller asked for failures as results (raise_on_failure=False), and then the samples are
+    those written before the failure."""
+
+    @property
+    def success(self) -> bool:
+        return not self.status.failed
+
+    @property
+    def cpu_time(self) -> float:
+        """CPU seconds of the solving thread in the compiled time loop."""
+        return self.stats.cpu_time
+
+    @property
+    def wall_time(self) -> float:
+        return self.stats.wall_time
+
+
 @dataclass
-class ODEResult:
-    """t (nsamp,), y (nsamp, n): one row per sample. success is False only when the caller asked
-    for failures as results (raise_on_failure=False); then t and y hold the samples written
-    before the failure."""
+class ODEResult(Result):
+    """t (nsamp,), y (nsamp, n): one row per sample (see Result)."""
 
     t: np.ndarray
     y: np.ndarray
@@ -49,14 +67,6 @@ class ODEResult:
     params: dict = field(default_factory=dict)
     t0: float = 0.0
     y0: np.ndarray | None = None
-
-    @property
-    def success(self) -> bool:
-        return not self.status.failed
-
-    @property
-    def cpu_time(self) -> float:
-        return self.stats.cpu_time
 
     def exact(self) -> np.ndarray | None:
         """The exact solution at the sample times, or None where the problem has none."""

@@ -45,11 +45,12 @@ from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError,
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 from .methods import method as _method
 from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
-                    assembly_report, build_tables, dependent_rows, evaluate, given_mask,
-                    model_options, pose_error, rows_to_joints)
+                    assembly_report, build_tables, dependent_rows, given_mask, model_options,
+                    pose_error, rows_to_joints)
+from .model import evaluate as _evaluate
 from .ode import STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty
-from .result import Stats
+from .result import Result, Stats
 from .scene import Scene
 
 #: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
@@ -62,7 +63,9 @@ class RedundantConstraintsError(SingularMatrixError):
 
 
 @dataclass
-class SceneResult:
+class SceneResult(Result):
+    """A scene run (see Result): q, v (and y = [q, v]) per sample, and the outputs asked for."""
+
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
@@ -83,12 +86,9 @@ class SceneResult:
     iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
 
     @property
-    def success(self) -> bool:
-        return not self.status.failed
-
-    @property
-    def cpu_time(self) -> float:
-        return self.stats.cpu_time
+    def y(self) -> np.ndarray:
+        """The state [q, v] per sample, as an ODE result has it."""
+        return np.hstack([self.q, self.v])
 
     def reaction(self, joint: str) -> np.ndarray:
         """(nsamp, 3): Fx, Fy, moment of the named joint on its body1."""
@@ -407,7 +407,7 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
 
 def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
     """A singular solve at the initial state: name the dependent joints, if any."""
-    d0 = evaluate(tab, q0, v0, t0)["D"]
+    d0 = _evaluate(tab, q0, v0, t0)["D"]
     dep = dependent_rows(d0)
     if not dep:
         return
@@ -436,7 +436,7 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
         where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
         note = ""
         if r.status == Status.ERR_SINGULAR_MATRIX and nw:
-            dep = dependent_rows(evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
+            dep = dependent_rows(_evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
@@ -448,7 +448,7 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     note = ""
     if nw and tab.m:
         # the last sample is the state the failed step started from
-        u, sv, _ = np.linalg.svd(evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
+        u, sv, _ = np.linalg.svd(_evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
         ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
         if ratio < NEAR_SINGULAR:
             rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
@@ -457,3 +457,37 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                     "nearly dependent, a singular configuration of the mechanism")
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
             f"{note}. A smaller h, or a larger max_iter, may get past it")
+
+
+def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "reduced",
+             solver: str = "auto", **params) -> dict:
+    """A scene at one state, from the kernel: Phi, D, gamma, Phi_t, the generalised forces f,
+    the formulation's accelerations a and multipliers lam, and the linear solve it took. q, v
+    default to the scene's assembled initial state; values the scene takes from its initial pose
+    (rest lengths, relative angles) are taken there. params: alpha, beta, penalty,
+    projection_tol, small_dense as for simulate."""
+    from .model import assemble
+    if not isinstance(scene, Scene):
+        raise InvalidInputError(f"scene must be an mbdk Scene, got {type(scene).__name__}")
+    if formulation not in FORMULATIONS:
+        raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}")
+    if solver not in SOLVERS:
+        raise InvalidInputError(f"solver = {solver!r}; known: {', '.join(SOLVERS)}")
+    unknown = set(params) - {"alpha", "beta", "penalty", "projection_tol", "small_dense"}
+    if unknown:
+        raise InvalidInputError(f"{', '.join(sorted(unknown))}: not a parameter of evaluate")
+    q0, v0, _ = assemble(scene, build_tables(scene), t)
+    q = q0 if q is None else np.asarray(q, float)
+    v = v0 if v is None else np.asarray(v, float)
+    if q.shape != q0.shape or v.shape != v0.shape:
+        raise InvalidInputError(f"q and v need {q0.size} entries each (3 per body), got "
+                                f"{q.size} and {v.size}")
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        raise InvalidInputError("q and v must be finite")
+    out = _evaluate(build_tables(scene, q0), q, v, float(t), formulation,
+                    model_options(formulation, solver=solver, **params))
+    if out["status"].failed:
+        raise exception_for(out["status"])(f"evaluating scene {scene.name!r} ({formulation}): "
+                                           f"{status_message(out['status'])}",
+                                           status=out["status"])
+    return out
