@@ -17,7 +17,7 @@ module mbdk_capi
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
   use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
   use mbdk_elements, only: mbdk_element_kind, MBDK_ELEMENT_NAME_LEN
-  use mbdk_assembly, only: mbdk_tables_resolve
+  use mbdk_c_tables, only: mbdk_c_tables_read
   implicit none
   private
 
@@ -63,7 +63,7 @@ contains
     type(mbdk_model_work_t), target :: work
     type(mbdk_stats_t) :: st
     type(mbdk_model_options_t) :: mopt
-    integer :: stat, nw, nc, m, bj, bf
+    integer :: stat, nw, nc, m
     integer, allocatable :: ji(:, :), fi(:, :), it(:)
     real(dp), allocatable :: jr(:, :), fr(:, :), lam(:, :)
 
@@ -71,23 +71,10 @@ contains
     if (.not. (present(nwritten) .and. present(stats))) return
     nwritten = 0
     stats = st
-    if (.not. (present(mass) .and. present(inertia) .and. present(opt) .and. present(y0) .and. &
-               present(t_out) .and. present(y_out) .and. present(a_out) .and. &
-               present(iters_out))) return
-    if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nsamp < 1) return
-    if (nj > 0 .and. .not. (present(jint) .and. present(jreal))) return
-    if (nf > 0 .and. .not. (present(fint) .and. present(freal))) return
-    allocate (ji(4, nj), jr(12, nj), fi(4, nf), fr(12, nf))
-    if (nj > 0) then
-      ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
-      jr = reshape(jreal(1:12 * nj), [12, int(nj)])
-    end if
-    if (nf > 0) then
-      fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
-      fr = reshape(freal(1:12 * nf), [12, int(nf)])
-    end if
-    ! values the tables take from the pose (MBDK_FROM_POSE), at y0
-    call mbdk_tables_resolve(int(nb), ji, jr, fi, fr, y0(1:3 * nb), bj, bf, stat)
+    if (.not. (present(opt) .and. present(t_out) .and. present(y_out) .and. present(a_out) .and. &
+               present(iters_out)) .or. nsamp < 1) return
+    call mbdk_c_tables_read(nb, mass, inertia, nj, jint, jreal, nf, fint, freal, y0, ji, jr, fi, &
+                            fr, stat)
     if (stat /= MBDK_SUCCESS) then
       mbdk_c_index3_solve = int(stat, c_int)
       return

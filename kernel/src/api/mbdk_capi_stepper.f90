@@ -37,7 +37,7 @@ module mbdk_capi_stepper
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
   use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
     mbdk_index3_advance
-  use mbdk_assembly, only: mbdk_tables_resolve
+  use mbdk_c_tables, only: mbdk_c_tables_read
   implicit none
   private
 
@@ -157,34 +157,18 @@ contains
     mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_index3
 
-  !> b%model from the C tables (NULL tables allowed where their count is 0), their pose values
-  !> (MBDK_FROM_POSE) taken at y0.
+  !> b%model from the C tables, their pose values taken at y0 (mbdk_c_tables).
   subroutine build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
     type(stepper_box), intent(inout) :: b
     integer(c_int), intent(in) :: nb, nj, nf
-    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*)
-    real(c_double), intent(in) :: y0(*)
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
     integer(c_int), intent(in), optional :: jint(*), fint(*)
     type(mbdk_model_options_t), intent(in) :: mopt
     integer, intent(out) :: stat
     integer, allocatable :: ji(:, :), fi(:, :)
     real(dp), allocatable :: jr(:, :), fr(:, :)
-    integer :: bj, bf
-    stat = MBDK_ERR_INVALID_INPUT
-    if (.not. (present(mass) .and. present(inertia))) return
-    if (nb < 1 .or. nj < 0 .or. nf < 0) return
-    if (nj > 0 .and. .not. (present(jint) .and. present(jreal))) return
-    if (nf > 0 .and. .not. (present(fint) .and. present(freal))) return
-    allocate (ji(4, nj), jr(12, nj), fi(4, nf), fr(12, nf))
-    if (nj > 0) then
-      ji = reshape(int(jint(1:4 * nj)), [4, int(nj)])
-      jr = reshape(jreal(1:12 * nj), [12, int(nj)])
-    end if
-    if (nf > 0) then
-      fi = reshape(int(fint(1:4 * nf)), [4, int(nf)])
-      fr = reshape(freal(1:12 * nf), [12, int(nf)])
-    end if
-    call mbdk_tables_resolve(int(nb), ji, jr, fi, fr, y0(1:3 * nb), bj, bf, stat)
+    call mbdk_c_tables_read(nb, mass, inertia, nj, jint, jreal, nf, fint, freal, y0, ji, jr, fi, &
+                            fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
   end subroutine build_model
