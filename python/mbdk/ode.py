@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import platform
 import threading
+from dataclasses import replace
 from functools import lru_cache
 from numbers import Integral, Real
 
@@ -29,7 +30,7 @@ _CALLBACK_LOCK = threading.Lock()
 _IN_CALLBACK = threading.local()
 
 STARTUP = {"rk4": 0, "bdf": 1}
-MAX_STEPS = 2_000_000_000        # the kernel's limit (mbdk_fixed_step: MAX_STEPS)
+MAX_STEPS = int(_kernel.max_steps())   # the kernel's limit (mbdk_fixed_step: MBDK_MAX_STEPS)
 _INT_MAX = 2**31 - 1
 
 
@@ -205,7 +206,6 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
             if not failure:
                 failure.append(exc)
 
-    from dataclasses import replace
     opt = replace(opt, nq=int(nq))
     stats = empty("mbdk_stats")
     with _CALLBACK_LOCK:

@@ -121,6 +121,14 @@ subroutine sample_count(t0, t_end, h, every, nsteps, nsamp, status)
   nsteps = dble(ns)
 end subroutine sample_count
 
+subroutine max_steps(n)
+  ! The most steps one fixed-step solve takes (mbdk_fixed_step), for Python's messages.
+  use mbdk_fixed_step, only: MBDK_MAX_STEPS
+  implicit none
+  double precision, intent(out) :: n
+  n = dble(MBDK_MAX_STEPS)
+end subroutine max_steps
+
 subroutine step_history_length(method_id, k)
   ! Past states one step of the method reads (k of a k-step method, 1 otherwise, 0 unknown).
   use mbdk_step_matrix, only: mbdk_step_history_length

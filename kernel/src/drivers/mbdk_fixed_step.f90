@@ -37,7 +37,8 @@ module mbdk_fixed_step
   private
   public :: mbdk_step_plan, mbdk_fixed_step_solve
 
-  integer(i8), parameter :: MAX_STEPS = 2000000000_i8
+  !> the most steps one solve takes (a sample index must fit a default integer)
+  integer(i8), parameter, public :: MBDK_MAX_STEPS = 2000000000_i8
 
 contains
 
@@ -56,7 +57,7 @@ contains
     if (.not. (h > 0.0_dp .and. h <= huge(1.0_dp))) return
     if (.not. (t_end > t0) .or. every < 1) return
     ratio = (t_end - t0) / h
-    if (ratio < 1.0_dp - 1.0e-9_dp .or. ratio > real(MAX_STEPS, dp)) return
+    if (ratio < 1.0_dp - 1.0e-9_dp .or. ratio > real(MBDK_MAX_STEPS, dp)) return
     nsteps = nint(ratio, i8)
     if (abs(ratio - real(nsteps, dp)) > 1.0e-9_dp * max(1.0_dp, ratio)) then
       nsteps = ceiling(ratio, i8)
