@@ -120,14 +120,12 @@ module mbdk_trapezoidal_index3
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_MODEL_SINGULAR_TOL
-  use mbdk_joints, only: mbdk_joints_eval, mbdk_joints_scatter, mbdk_body_rotations, &
-    MBDK_JOINT_TYPES
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT
+  use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
+    mbdk_constrained_factor, mbdk_constrained_solve
+  use mbdk_joints, only: mbdk_joints_eval, mbdk_body_rotations, MBDK_JOINT_TYPES
   use mbdk_force_elements, only: mbdk_forces_eval
-  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
-  use mbdk_sparse_schur, only: mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_w_residual
-  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, MBDK_SMALL_DENSE_MAX
+  use mbdk_sparse_schur, only: mbdk_sparse_d_times, mbdk_sparse_w_residual
   use mbdk_index3_matrix, only: mbdk_index3_factors_t, mbdk_index3_factors_init, &
     mbdk_index3_factor, mbdk_index3_factors_solve, mbdk_index3_newton_matrix, &
     MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
@@ -181,7 +179,6 @@ module mbdk_trapezoidal_index3
     type(mbdk_index3_options_t) :: opt
     integer :: nc = 0, m = 0, nk = 0
     logical :: book = .true.
-    logical :: schur = .false.          !< projections through D M^-1 D^T in-house
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp
     logical :: have_lu = .false.
@@ -192,9 +189,10 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: q(:), v(:), a(:), lam(:), lam_old(:), a_prev(:), a_prev2(:)
     real(dp), allocatable :: qn(:), vn(:), an(:), ln(:), lst(:), lstn(:), lst_old(:)
     real(dp), allocatable :: qhat(:), qp(:), lp(:), lt(:), fq(:), phi(:), d(:, :), gam(:)
-    real(dp), allocatable :: phit(:), lw(:), krhs(:), rc(:), corr(:), mu(:), r(:)
-    real(dp), allocatable :: ks(:, :), kkt(:, :), zero_nc(:), zero_m(:), one_nc(:)
-    integer, allocatable :: kpiv(:)
+    real(dp), allocatable :: phit(:), lw(:), rc(:), corr(:), mu(:), r(:)
+    real(dp), allocatable :: zero_nc(:), zero_m(:), one_nc(:)
+    !> the projections of v and a (mbdk_constrained, weight M^-1)
+    type(mbdk_constrained_t) :: cs
   end type mbdk_index3_t
 
 contains
@@ -231,14 +229,14 @@ contains
     nk = nc
     if (s%book) nk = nc + m
     s%nk = nk
-    s%schur = model%m_positive .and. model%small_dense .and. m <= MBDK_SMALL_DENSE_MAX
+    call mbdk_constrained_init(s%cs, nc, m, model%m_positive, &
+                               model%solver == MBDK_SOLVER_KKT, model%small_dense)
     call mbdk_index3_factors_init(s%fa, model, nk)
     allocate (s%q(nc), s%v(nc), s%a(nc), s%lam(m), s%lam_old(m), s%a_prev(nc), s%a_prev2(nc), &
               s%qn(nc), s%vn(nc), s%an(nc), s%ln(m), s%lst(m), s%lstn(m), s%lst_old(m), &
               s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%d(m, nc), s%gam(m), &
-              s%phit(m), s%lw(m), s%krhs(nc + m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), &
-              s%ks(m, m), s%kkt(nc + m, nc + m), s%zero_nc(nc), s%zero_m(m), s%one_nc(nc), &
-              s%kpiv(nc + m))
+              s%phit(m), s%lw(m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), s%zero_nc(nc), &
+              s%zero_m(m), s%one_nc(nc))
     s%zero_nc = 0.0_dp
     s%zero_m = 0.0_dp
     s%one_nc = 1.0_dp
@@ -620,8 +618,8 @@ contains
       s%lstn = s%ln
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       call constraints_at(s, model)
-      if (.not. s%schur .and. m > 0) call mbdk_joints_scatter(model%col, model%work%dz, s%d)
-      call kkt_factor(s, model, ierr)
+      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
+                                   model%mass, ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
       ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
@@ -630,19 +628,25 @@ contains
       ! Then a+ and lambda+ from M a + D^T lambda = f, D a = gamma(q+, v+): the projection
       ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
       ! error (4/h^2) that a+ = (4/h^2)(q+ - q) - .. would carry.
-      call kkt_solve(s, model, s%fq, s%zero_m, s%an, s%ln)
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
+                                  s%zero_m, s%an, s%ln, ierr)
+      if (ierr /= MBDK_SUCCESS) return
       s%vn = s%v + (0.5_dp * h) * (s%a + s%an)
       ! vn onto D v + Phi_t = 0 (mass-orthogonal)
       call mbdk_sparse_d_times(model%sp, model%work%dz, s%vn, s%rc, .false.)
       s%rc = s%rc + s%phit
-      call kkt_solve(s, model, s%zero_nc, s%rc, s%corr, s%mu)
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
+                                  s%zero_nc, s%rc, s%corr, s%mu, ierr)
+      if (ierr /= MBDK_SUCCESS) return
       s%vn = s%vn - s%corr
       ! q+ is unchanged: work%rot still holds its sin/cos and D, Phi are the same; only gamma
       ! changes with v+
       if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, &
                                        s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
                                        model%work%visits(1:MBDK_JOINT_TYPES))
-      call kkt_solve(s, model, s%fq, s%gam, s%an, s%ln)
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
+                                  s%gam, s%an, s%ln, ierr)
+      if (ierr /= MBDK_SUCCESS) return
     end if
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
@@ -658,53 +662,6 @@ contains
                                        s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
                                        model%work%visits(1:MBDK_JOINT_TYPES))
   end subroutine constraints_at
-
-  !> Factorises [M D^T; D 0] for kkt_solve: through the Schur complement D M^-1 D^T, from
-  !> the compact rows of D in model%work%dz (at the same q as s%d), and the in-house LDL^T when
-  !> M is positive and m small (as the reduced formulation), else by LAPACK's LU of the whole
-  !> matrix. Dependent rows: MBDK_ERR_SINGULAR_MATRIX.
-  subroutine kkt_factor(s, model, ierr)
-    type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
-    integer, intent(out) :: ierr
-    integer :: k, nc
-    nc = s%nc
-    if (s%schur) then
-      call mbdk_sparse_schur_assemble(model%sp, model%work%dz, s%ks)
-      call mbdk_small_ldlt_factor(s%ks, s%m, model%blk, MBDK_MODEL_SINGULAR_TOL, ierr)
-      return
-    end if
-    s%kkt = 0.0_dp
-    do k = 1, nc
-      s%kkt(k, k) = model%mass(k)
-    end do
-    s%kkt(nc + 1:, 1:nc) = s%d
-    s%kkt(1:nc, nc + 1:) = transpose(s%d)
-    call mbdk_lu_factor(s%kkt, s%kpiv, ierr)
-  end subroutine kkt_factor
-
-  !> M x + D^T mu = b, D x = c with the factors of kkt_factor (D: s%d, or its compact rows in
-  !> model%work%dz, unchanged since kkt_factor).
-  subroutine kkt_solve(s, model, b, c, x, mu)
-    type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in), contiguous :: b(:), c(:)
-    real(dp), intent(out), contiguous :: x(:), mu(:)
-    integer :: ierr, nc
-    nc = s%nc
-    if (s%schur) then
-      call mbdk_sparse_d_times(model%sp, model%work%dz, b, mu, .true.)
-      mu = mu - c
-      call mbdk_small_ldlt_solve(s%ks, s%m, model%blk, mu)
-      call mbdk_sparse_w_residual(model%sp, model%work%dz, model%winv, mu, x, nc, b)
-      return
-    end if
-    s%krhs(1:nc) = b
-    s%krhs(nc + 1:) = c
-    call mbdk_lu_solve(s%kkt, s%kpiv, s%krhs, ierr)
-    x = s%krhs(1:nc)
-    mu = s%krhs(nc + 1:)
-  end subroutine kkt_solve
 
   !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
   !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).

@@ -54,12 +54,15 @@ module mbdk_model
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
     MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
-  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
-  use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, &
-    mbdk_sparse_schur_assemble, mbdk_sparse_d_times, mbdk_sparse_w_residual
+  use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
     mbdk_revolute_kinematics, mbdk_revolute_solve
+  use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
+    mbdk_constrained_solve_once, MBDK_CONSTRAINED_SINGULAR_TOL, MBDK_SOLVE_NONE, &
+    MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, MBDK_SOLVE_KKT, &
+    MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
@@ -69,10 +72,9 @@ module mbdk_model
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
   integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3, &
     MBDK_SOLVER_REVOLUTE = 4
-  !> the linear solve an evaluation takes (mbdk_model_linear_solve)
-  integer, parameter, public :: MBDK_SOLVE_NONE = 0, MBDK_SOLVE_REVOLUTE = 1, &
-    MBDK_SOLVE_SCHUR_SMALL = 2, MBDK_SOLVE_SCHUR_LAPACK = 3, MBDK_SOLVE_KKT = 4, &
-    MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
+  ! the linear solve an evaluation takes (mbdk_model_linear_solve): mbdk_constrained's codes
+  public :: MBDK_SOLVE_NONE, MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
+    MBDK_SOLVE_KKT, MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK
   integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
   !> outputs per sample: energy parts and residuals
   integer, parameter, public :: MBDK_ENERGY_PARTS = 6, MBDK_RESIDUALS = 3
@@ -81,7 +83,7 @@ module mbdk_model
   integer, parameter, public :: MBDK_OUT_ACCELERATIONS = 1, MBDK_OUT_MULTIPLIERS = 2, &
     MBDK_OUT_REACTIONS = 4, MBDK_OUT_ENERGY = 8, MBDK_OUT_RESIDUALS = 16, MBDK_OUT_ALL = 31
   !> relative pivot below which S = D M^-1 D^T (or the KKT matrix) counts as singular
-  real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = 1.0e-11_dp
+  real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = MBDK_CONSTRAINED_SINGULAR_TOL
   real(dp), parameter :: SINGULAR_TOL = MBDK_MODEL_SINGULAR_TOL
 
   !> Options of a model, by name with defaults. bind(C): the same struct is struct
@@ -109,8 +111,10 @@ module mbdk_model
     !> the copy of the state post_step projects (y is returned only when both projections
     !> succeed)
     real(dp), allocatable :: y_post(:)
-    real(dp), allocatable :: s(:, :), xc(:), pm(:, :), kkt(:, :), rhs(:)
-    integer, allocatable :: ipiv(:)
+    real(dp), allocatable :: xc(:), pm(:, :), zero_nc(:)
+    !> the constrained solves of the evaluations (weight M^-1) and of the projection
+    !> formulation's corrections (weight winv)
+    type(mbdk_constrained_t) :: cs, proj
     integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
   end type mbdk_model_work_t
 
@@ -247,24 +251,22 @@ contains
     model%row_blk = [(j, j = 1, nc + 1)]
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
-                                        work%rc, work%rot, work%dz, work%lam_rhs, work%s, &
-                                        work%xc, work%pm, work%kkt, work%rhs, work%ipiv, &
-                                        work%y_post, work%pp)
+                                        work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
+                                        work%pm, work%y_post, work%pp, work%zero_nc)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%s(m, m), work%xc(nc), work%y_post(2 * nc), &
-              work%pp(2, 2 * size(jint, 2)))
+              work%xc(nc), work%y_post(2 * nc), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc))
+    work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%pm(nc, nc))
     else
       allocate (work%pm(0, 0))
     end if
-    if (.not. model%m_positive .or. model%solver == MBDK_SOLVER_KKT) then
-      allocate (work%kkt(nc + m, nc + m), work%rhs(nc + m), work%ipiv(nc + m))
-    else
-      allocate (work%kkt(0, 0), work%rhs(0), work%ipiv(0))
-    end if
+    call mbdk_constrained_init(work%cs, nc, m, model%m_positive, &
+                               model%solver == MBDK_SOLVER_KKT, model%small_dense)
+    ! the projections' weight winv is positive (M^-1, or the identity): always a Schur path
+    call mbdk_constrained_init(work%proj, nc, m, .true., .false., model%small_dense)
     model%work => work
     model%has_jac = .false.
     call split_forces(model, stat)
@@ -409,7 +411,7 @@ contains
         return
       end if
       if (self%revolute) then   ! rc from mbdk_model_assemble
-        call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%s, SINGULAR_TOL, &
+        call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%cs%s, SINGULAR_TOL, &
                                  a, lam, stat)
         return
       end if
@@ -454,80 +456,16 @@ contains
     end associate
   end subroutine mbdk_model_accelerations
 
-  !> M a + D^T lam = fq, D a = rc (from w): Schur complement (M positive, not forced to KKT),
-  !> assembled sparse, or KKT LU.
+  !> M a + D^T lam = fq, D a = rc (from w): the model's constrained solve (mbdk_constrained:
+  !> Schur complement, assembled sparse, when M is positive and not forced to KKT; KKT LU).
   subroutine solve_constrained(self, w, a, lam, stat)
     class(mbdk_model_t), intent(in) :: self
     type(mbdk_model_work_t), intent(inout) :: w
     real(dp), intent(out), contiguous :: a(:), lam(:)
     integer, intent(out) :: stat
-    integer :: nc, m, i, j, k, nk
-    real(dp) :: umax, umin
-
-    nc = self%nc
-    m = self%m
-    if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
-      call mbdk_sparse_schur_assemble(self%sp, w%dz, w%s)
-      call mbdk_sparse_d_times(self%sp, w%dz, w%fq, lam, .true.)
-      lam = lam - w%rc
-      if (self%small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
-        call mbdk_small_ldlt_solve_once(w%s, m, self%blk, SINGULAR_TOL, lam, stat)
-        if (stat /= MBDK_SUCCESS) return
-      else
-        call mbdk_chol_factor(w%s, stat)
-        if (stat == MBDK_SUCCESS) call check_chol_pivots(w%s, stat)
-        if (stat /= MBDK_SUCCESS) return
-        call mbdk_chol_solve(w%s, lam, stat)
-        if (stat /= MBDK_SUCCESS) return
-      end if
-      call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, lam, a, nc, w%fq)
-      return
-    end if
-    call mbdk_joints_scatter(self%col, w%dz, w%d)
-    nk = nc + m
-    w%kkt = 0.0_dp
-    do i = 1, nc
-      w%kkt(i, i) = self%mass(i)
-    end do
-    do k = 1, nc
-      do j = 1, m
-        w%kkt(nc + j, k) = w%d(j, k)
-        w%kkt(k, nc + j) = w%d(j, k)
-      end do
-    end do
-    w%rhs(1:nc) = w%fq
-    w%rhs(nc + 1:nk) = w%rc
-    call mbdk_lu_factor(w%kkt, w%ipiv, stat)
-    if (stat /= MBDK_SUCCESS) return
-    umax = 0.0_dp
-    umin = huge(1.0_dp)
-    do i = 1, nk
-      umax = max(umax, abs(w%kkt(i, i)))
-      umin = min(umin, abs(w%kkt(i, i)))
-    end do
-    if (umin <= SINGULAR_TOL * umax * max(1.0_dp, maxval(self%mass))) then
-      stat = MBDK_ERR_SINGULAR_MATRIX
-      return
-    end if
-    call mbdk_lu_solve(w%kkt, w%ipiv, w%rhs, stat)
-    if (stat /= MBDK_SUCCESS) return
-    a = w%rhs(1:nc)
-    lam = w%rhs(nc + 1:nk)
+    call mbdk_constrained_solve_once(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                     self%winv, w%fq, w%rc, a, lam, stat)
   end subroutine solve_constrained
-
-  subroutine check_chol_pivots(l, stat)
-    real(dp), intent(in) :: l(:, :)
-    integer, intent(out) :: stat
-    integer :: i
-    real(dp) :: dmax, dmin
-    dmax = 0.0_dp
-    dmin = huge(1.0_dp)
-    do i = 1, size(l, 1)
-      dmax = max(dmax, l(i, i)**2)
-      dmin = min(dmin, l(i, i)**2)
-    end do
-    stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, dmin > SINGULAR_TOL * dmax)
-  end subroutine check_chol_pivots
 
   !> Projection after a step: q onto Phi(q, t) = 0 by Gauss-Newton with the weight W (M^-1, or
   !> the identity when a body has zero inertia), then v onto D v + Phi_t = 0; each correction
@@ -572,14 +510,14 @@ contains
 
   contains
 
-    !> xc = -W D^T S^-1 rc at the current compact rows
+    !> xc = -W D^T S^-1 rc at the current compact rows: the least change (W^-1 norm) that
+    !> moves D x by -rc (mbdk_constrained with b = 0, c = -rc)
     subroutine correct(st)
       integer, intent(out) :: st
       associate (w => self%work)
-        call mbdk_sparse_schur_assemble(self%sp, w%dz, w%s)
-        call mbdk_small_ldlt_solve_once(w%s, m, self%blk, SINGULAR_TOL, w%rc, st)
-        if (st /= MBDK_SUCCESS) return
-        call mbdk_sparse_w_residual(self%sp, w%dz, self%winv, w%rc, w%xc, nc)
+        w%rc = -w%rc
+        call mbdk_constrained_solve_once(w%proj, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                         self%winv, w%zero_nc, w%rc, w%xc, w%lam_rhs, st)
       end associate
     end subroutine correct
 

@@ -1,0 +1,191 @@
+!> The constrained linear systems of a scene, one object for all their users:
+!>
+!>   W^-1 x + D^T mu = b,   D x = c            (W diagonal: M^-1, or a projection's weight)
+!>
+!> the reduced, Baumgarte and projection formulations' accelerations (b = f, c = gamma or its
+!> stabilised form: x = a, mu = lambda), the projection formulation's corrections of q and v
+!> (b = 0, c = -residual), and trapezoidal_index3's projections of v and a. D comes in the
+!> compact rows of mbdk_joints (dz, with its pattern in mbdk_sparse_schur_t, whose row weights
+!> are W). Paths (MBDK_SOLVE_*, named in a run's manifest), chosen once at init:
+!>   SCHUR_SMALL   S = D W D^T from the nonzeros of D (mbdk_sparse_schur), the in-house block
+!>                 LDL^T with the joints as pivot blocks (up to MBDK_SMALL_DENSE_MAX rows:
+!>                 LAPACK's call overhead dominates such systems); solve_once eliminates the
+!>                 right-hand side with the matrix, storing no L (what an evaluation that solves
+!>                 once per matrix wants)
+!>   SCHUR_LAPACK  the same S by LAPACK's dpotrf/dpotrs (more rows, or small_dense off)
+!>   KKT           [W^-1 D^T; D 0] by LAPACK's LU, for a W^-1 = M with zero entries (a body
+!>                 without inertia) or when asked for (solver kkt)
+!> Dependent rows of D make S or the KKT matrix singular: a pivot at or below
+!> MBDK_CONSTRAINED_SINGULAR_TOL of the largest gives MBDK_ERR_SINGULAR_MATRIX. (The closed-form
+!> blocks of all-revolute scenes, mbdk_revolute_schur, are the model's own faster path for the
+!> accelerations.)
+module mbdk_constrained
+  use mbdk_kinds, only: dp
+  use mbdk_status
+  use mbdk_joints, only: mbdk_joints_scatter
+  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, &
+    mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
+  use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_assemble, &
+    mbdk_sparse_d_times, mbdk_sparse_w_residual
+  implicit none
+  private
+  public :: mbdk_constrained_init, mbdk_constrained_factor, mbdk_constrained_solve, &
+    mbdk_constrained_solve_once
+
+  !> the linear solve a model's evaluation takes (mbdk_model_linear_solve); the penalty codes
+  !> belong to the penalty formulation's own matrix
+  integer, parameter, public :: MBDK_SOLVE_NONE = 0, MBDK_SOLVE_REVOLUTE = 1, &
+    MBDK_SOLVE_SCHUR_SMALL = 2, MBDK_SOLVE_SCHUR_LAPACK = 3, MBDK_SOLVE_KKT = 4, &
+    MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
+  !> relative pivot below which S = D W D^T (or the KKT matrix) counts as singular
+  real(dp), parameter, public :: MBDK_CONSTRAINED_SINGULAR_TOL = 1.0e-11_dp
+
+  type, public :: mbdk_constrained_t
+    integer :: path = MBDK_SOLVE_NONE
+    integer :: nc = 0, m = 0
+    real(dp), allocatable :: s(:, :)                 !< S, then its factors
+    real(dp), allocatable :: kkt(:, :), rhs(:), d(:, :)
+    integer, allocatable :: ipiv(:)
+  end type mbdk_constrained_t
+
+contains
+
+  !> The object for nc coordinates and m rows: Schur paths when W is a positive weight
+  !> (w_positive) and kkt is not asked for, in-house up to MBDK_SMALL_DENSE_MAX rows when
+  !> small_dense; the KKT path otherwise.
+  subroutine mbdk_constrained_init(cs, nc, m, w_positive, kkt, small_dense)
+    type(mbdk_constrained_t), intent(out) :: cs
+    integer, intent(in) :: nc, m
+    logical, intent(in) :: w_positive, kkt, small_dense
+    cs%nc = nc
+    cs%m = m
+    if (m == 0) then
+      cs%path = MBDK_SOLVE_NONE
+    else if (w_positive .and. .not. kkt) then
+      cs%path = merge(MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
+                      small_dense .and. m <= MBDK_SMALL_DENSE_MAX)
+    else
+      cs%path = MBDK_SOLVE_KKT
+    end if
+    if (cs%path == MBDK_SOLVE_KKT) then
+      allocate (cs%kkt(nc + m, nc + m), cs%rhs(nc + m), cs%ipiv(nc + m), cs%d(m, nc))
+      allocate (cs%s(0, 0))
+    else
+      allocate (cs%s(m, m))
+      allocate (cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0))
+    end if
+  end subroutine mbdk_constrained_init
+
+  !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
+  !> diagonal W^-1 for the KKT path).
+  subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in), contiguous :: dz(:, :), wm(:)
+    integer, intent(in), contiguous :: col(:, :), blk(:)
+    integer, intent(out) :: stat
+    integer :: i, j, k, nc, m, nk
+    real(dp) :: umax, umin
+    nc = cs%nc
+    m = cs%m
+    stat = MBDK_SUCCESS
+    select case (cs%path)
+    case (MBDK_SOLVE_SCHUR_SMALL)
+      call mbdk_sparse_schur_assemble(sp, dz, cs%s)
+      call mbdk_small_ldlt_factor(cs%s, m, blk, MBDK_CONSTRAINED_SINGULAR_TOL, stat)
+    case (MBDK_SOLVE_SCHUR_LAPACK)
+      call mbdk_sparse_schur_assemble(sp, dz, cs%s)
+      call mbdk_chol_factor(cs%s, stat)
+      if (stat /= MBDK_SUCCESS) return
+      umax = 0.0_dp
+      umin = huge(1.0_dp)
+      do i = 1, m
+        umax = max(umax, cs%s(i, i)**2)
+        umin = min(umin, cs%s(i, i)**2)
+      end do
+      if (.not. (umin > MBDK_CONSTRAINED_SINGULAR_TOL * umax)) stat = MBDK_ERR_SINGULAR_MATRIX
+    case (MBDK_SOLVE_KKT)
+      call mbdk_joints_scatter(col, dz, cs%d)
+      nk = nc + m
+      cs%kkt = 0.0_dp
+      do i = 1, nc
+        cs%kkt(i, i) = wm(i)
+      end do
+      do k = 1, nc
+        do j = 1, m
+          cs%kkt(nc + j, k) = cs%d(j, k)
+          cs%kkt(k, nc + j) = cs%d(j, k)
+        end do
+      end do
+      call mbdk_lu_factor(cs%kkt, cs%ipiv, stat)
+      if (stat /= MBDK_SUCCESS) return
+      umax = 0.0_dp
+      umin = huge(1.0_dp)
+      do i = 1, nk
+        umax = max(umax, abs(cs%kkt(i, i)))
+        umin = min(umin, abs(cs%kkt(i, i)))
+      end do
+      if (umin <= MBDK_CONSTRAINED_SINGULAR_TOL * umax * max(1.0_dp, maxval(wm))) &
+        stat = MBDK_ERR_SINGULAR_MATRIX
+    end select
+  end subroutine mbdk_constrained_factor
+
+  !> x, mu from the factors of mbdk_constrained_factor (the same dz): W^-1 x + D^T mu = b,
+  !> D x = c, with w = W.
+  subroutine mbdk_constrained_solve(cs, sp, dz, blk, w, b, c, x, mu, stat)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in), contiguous :: dz(:, :), w(:), b(:), c(:)
+    integer, intent(in), contiguous :: blk(:)
+    real(dp), intent(out), contiguous :: x(:), mu(:)
+    integer, intent(out) :: stat
+    integer :: nc
+    nc = cs%nc
+    stat = MBDK_SUCCESS
+    select case (cs%path)
+    case (MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK)
+      call mbdk_sparse_d_times(sp, dz, b, mu, .true.)
+      mu = mu - c
+      if (cs%path == MBDK_SOLVE_SCHUR_SMALL) then
+        call mbdk_small_ldlt_solve(cs%s, cs%m, blk, mu)
+      else
+        call mbdk_chol_solve(cs%s, mu, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      call mbdk_sparse_w_residual(sp, dz, w, mu, x, nc, b)
+    case (MBDK_SOLVE_KKT)
+      cs%rhs(1:nc) = b
+      cs%rhs(nc + 1:) = c
+      call mbdk_lu_solve(cs%kkt, cs%ipiv, cs%rhs, stat)
+      x = cs%rhs(1:nc)
+      mu = cs%rhs(nc + 1:)
+    case default
+      x = w * b
+    end select
+  end subroutine mbdk_constrained_solve
+
+  !> Factor and solve for one right-hand side: on the small Schur path in one pass (the
+  !> right-hand side eliminated with S, no L stored), otherwise mbdk_constrained_factor then
+  !> mbdk_constrained_solve.
+  subroutine mbdk_constrained_solve_once(cs, sp, dz, col, blk, wm, w, b, c, x, mu, stat)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in), contiguous :: dz(:, :), wm(:), w(:), b(:), c(:)
+    integer, intent(in), contiguous :: col(:, :), blk(:)
+    real(dp), intent(out), contiguous :: x(:), mu(:)
+    integer, intent(out) :: stat
+    if (cs%path == MBDK_SOLVE_SCHUR_SMALL) then
+      call mbdk_sparse_schur_assemble(sp, dz, cs%s)
+      call mbdk_sparse_d_times(sp, dz, b, mu, .true.)
+      mu = mu - c
+      call mbdk_small_ldlt_solve_once(cs%s, cs%m, blk, MBDK_CONSTRAINED_SINGULAR_TOL, mu, stat)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_sparse_w_residual(sp, dz, w, mu, x, cs%nc, b)
+      return
+    end if
+    call mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat)
+    if (stat == MBDK_SUCCESS) call mbdk_constrained_solve(cs, sp, dz, blk, w, b, c, x, mu, stat)
+  end subroutine mbdk_constrained_solve_once
+
+end module mbdk_constrained
