@@ -208,3 +208,38 @@ def test_public_evaluate_gives_a_state_that_solves_the_equations_of_motion():
         mbdk.evaluate(sc, q[:3], r.v[-1])
     with pytest.raises(mbdk.InvalidInputError, match="finite"):
         mbdk.evaluate(sc, q * np.nan, r.v[-1])
+
+
+def test_bodies_and_coordinates_outside_q_are_refused_not_written():
+    """Element references the kernel would turn into writes outside q: a torque on a body with
+    an empty name (read as the ground once), the same tables handed to the kernel directly
+    (torque on body 0, a driver of coordinate 0), and masses changed after loading."""
+    from mbdk.scene import scene_from_dict
+    d = {"body": [{"name": "bar", "mass": 1.0, "inertia": 0.1}],
+         "force": [{"type": "torque", "body": "", "torque": 1.0}]}
+    with pytest.raises(mbdk.SceneError, match="field 'body' = '' is empty"):
+        scene_from_dict(d)
+    sc = mbdk.scene("physical_pendulum")
+    tab = mbdk.model.build_tables(sc)
+    y = np.concatenate([sc.q0(), sc.v0()])
+    fint, freal = np.zeros((4, 1), np.int32, order="F"), np.zeros((12, 1), order="F")
+    fint[:, 0] = [mbdk.model.FORCE_CODES["torque"], 0, 0, 0]
+    *_, status = mbdk._kernel.model_eval(tab.mass, tab.inertia, tab.nj, tab.jint, tab.jreal, 1,
+                                         fint, freal, mbdk.ModelOptions().pack(), tab.m, 0.0, y)
+    assert status == mbdk.Status.ERR_INVALID_INPUT
+    jint = np.asfortranarray(np.hstack([tab.jint[:, :tab.nj], [[4], [1], [0], [0]]]), np.int32)
+    jreal = np.asfortranarray(np.hstack([tab.jreal[:, :tab.nj], np.zeros((12, 1))]))
+    *_, status = mbdk._kernel.model_eval(tab.mass, tab.inertia, tab.nj + 1, jint, jreal, tab.nf,
+                                         tab.fint, tab.freal, mbdk.ModelOptions().pack(),
+                                         tab.m + 1, 0.0, y)
+    assert status == mbdk.Status.ERR_INVALID_INPUT
+    sc.bodies[0].mass = -1.0
+    with pytest.raises(mbdk.InvalidInputError, match="body 'bar': field 'mass' = -1.0"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01)
+
+
+def test_a_callback_of_the_wrong_length_or_nan_is_a_named_failure():
+    with pytest.raises(mbdk.CallbackError, match=r"shape \(1,\) for a state of 2 entries"):
+        mbdk.solve_ode(lambda t, y: [y[1]], "rk4", h=0.1, t_end=1.0, y0=[1.0, 0.0])
+    with pytest.raises(mbdk.CallbackError, match="non-finite"):
+        mbdk.solve_ode(lambda t, y: [y[1], float("nan")], "rk4", h=0.1, t_end=1.0, y0=[1.0, 0.0])

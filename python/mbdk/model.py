@@ -108,7 +108,7 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
     for k, f in enumerate(sc.forces):
         code = FORCE_CODES[f.type]
         two_point = f.type in ("spring", "damper", "spring_damper")
-        b1 = sc.body_index(f.body1) if f.body1 else 0
+        b1 = sc.body_index(f.body1) if f.type != "gravity" else 0
         b2 = sc.body_index(f.body2) if two_point else 0
         fint[:, k] = [code, b1, b2, COORDS[f.coordinate] if f.type.startswith("coordinate")
                       else 0]

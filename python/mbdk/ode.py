@@ -200,7 +200,15 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
 
     def cb(t, y, dydt, flag):
         try:
-            dydt[:] = fun(t, y)
+            out = np.asarray(fun(t, y), dtype=float)
+            # numpy would broadcast one value over the state, or cut a longer one: refuse both
+            if out.shape != dydt.shape:
+                raise ValueError(f"the right-hand side returned an array of shape {out.shape} "
+                                 f"for a state of {dydt.size} entries at t = {t:.6g}")
+            if not np.all(np.isfinite(out)):
+                raise ValueError(f"the right-hand side returned non-finite values at "
+                                 f"t = {t:.6g}: {out.tolist()}")
+            dydt[:] = out
         except BaseException as exc:  # reported as a status; re-raised below with its cause
             flag[0] = 1
             if not failure:

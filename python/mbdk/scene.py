@@ -208,6 +208,8 @@ class _Reader:
         v = self.get(fld, default, required)
         if v is not None and not isinstance(v, str):
             raise self.err(fld, f"= {v!r} must be a name (a string)")
+        if v is not None and not v.strip():
+            raise self.err(fld, f"= {v!r} is empty; give a name")
         return v
 
     def coordinate(self, fld, default):

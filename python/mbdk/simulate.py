@@ -128,6 +128,19 @@ def check_run(h, t_end, t0, every) -> None:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
 
 
+def _check_bodies(scene: Scene) -> None:
+    """Masses and inertias as the kernel needs them, checked again here because a Scene's fields
+    can be changed after it was read."""
+    for b in scene.bodies:
+        for fld, val, ok in (("mass", b.mass, lambda x: x > 0), ("inertia", b.inertia,
+                                                               lambda x: x >= 0)):
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or \
+                    not math.isfinite(val) or not ok(val):
+                raise InvalidInputError(f"{scene.source}: body {b.name!r}: field {fld!r} = "
+                                        f"{val!r} must be a finite number "
+                                        f"{'> 0' if fld == 'mass' else '>= 0'}")
+
+
 def _want(outputs) -> int:
     if isinstance(outputs, str):
         outputs = (outputs,)
@@ -212,6 +225,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                           projection_tol, startup, newton_rtol, newton_atol)
         mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
                              projection_tol, solver, small_dense)
+    _check_bodies(scene)
     if solver == "revolute_schur":
         other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
         if other:

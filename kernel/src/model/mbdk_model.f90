@@ -53,7 +53,8 @@ module mbdk_model
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
-    MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
+    MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_POINT, &
+    MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
@@ -192,6 +193,8 @@ contains
           jint(3, j) > model%nb) return
       if (jint(2, j) == 0) return
       if (jint(4, j) < 0 .or. jint(4, j) > 3) return
+      ! a driver drives one coordinate of its body: x, y or theta
+      if (jint(1, j) == MBDK_JOINT_DRIVER .and. jint(4, j) == 0) return
       model%row0(j) = rows + 1
       rows = rows + mbdk_joint_rows(jint(1, j))
     end do
@@ -202,6 +205,11 @@ contains
       ! a spring has no damping, a damper no stiffness (their own kinds: mbdk_elements)
       if (fint(1, j) == MBDK_FORCE_SPRING .and. freal(7, j) /= 0.0_dp) return
       if (fint(1, j) == MBDK_FORCE_DAMPER .and. freal(5, j) /= 0.0_dp) return
+      ! a point force, torque or coordinate force acts on a body (1-based), a coordinate force
+      ! on one of its coordinates: body or coordinate 0 would index outside q
+      if ((fint(1, j) == MBDK_FORCE_POINT .or. fint(1, j) == MBDK_FORCE_TORQUE .or. &
+           fint(1, j) == MBDK_FORCE_COORDINATE) .and. fint(2, j) < 1) return
+      if (fint(1, j) == MBDK_FORCE_COORDINATE .and. fint(4, j) < 1) return
       if (fint(2, j) < 0 .or. fint(2, j) > model%nb .or. fint(3, j) < 0 .or. &
           fint(3, j) > model%nb .or. fint(4, j) < 0 .or. fint(4, j) > 3) return
     end do
