@@ -1,8 +1,12 @@
-"""Scene -> the kernel's element tables (kernel/src/model), evaluation at one state, assembly of
-initial conditions, and the diagnosis of dependent (redundant) constraints.
+"""Scene -> the kernel's element tables (kernel/src/model), evaluation at one state, the
+kernel's assembly of initial conditions, and the diagnosis of dependent (redundant)
+constraints.
 
 The table layouts are documented in kernel/src/model/mbdk_joints.f90 and
-mbdk_force_elements.f90; this module is their only writer.
+mbdk_force_elements.f90; this module is their only writer. Element codes, joint rows and visit
+counter names come from the kernel's registry (mbdk_elements); values that depend on the initial
+pose (rest lengths, relative angles) and the assembly are computed in the kernel
+(mbdk_assembly).
 """
 from __future__ import annotations
 
@@ -287,7 +291,3 @@ def assemble(sc: Scene, tab: Tables, t0: float = 0.0):
                                                  f"{Status(int(status)).name}",
                                                  status=Status(int(status)))
     return q, v, assembly_report(sc, q_in, v_in, q, v, iters)
-
-
-def raise_for(status: Status, msg: str):
-    raise exception_for(status)(msg, status=status)
