@@ -490,7 +490,7 @@ contains
   !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
   !> Newton as in the module header; both formulations share this loop.
   subroutine attempt(s, model, ierr)
-    type(mbdk_index3_t), intent(inout), target :: s
+    type(mbdk_index3_t), intent(inout) :: s
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: ierr
     real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol
