@@ -243,3 +243,10 @@ def test_a_callback_of_the_wrong_length_or_nan_is_a_named_failure():
         mbdk.solve_ode(lambda t, y: [y[1]], "rk4", h=0.1, t_end=1.0, y0=[1.0, 0.0])
     with pytest.raises(mbdk.CallbackError, match="non-finite"):
         mbdk.solve_ode(lambda t, y: [y[1], float("nan")], "rk4", h=0.1, t_end=1.0, y0=[1.0, 0.0])
+
+
+def test_stability_analysis_names_the_index3_method_as_not_applicable():
+    for f in (lambda: mbdk.stability_region("trapezoidal_index3"),
+              lambda: mbdk.stability.amplification_factor("trapezoidal_index3", [-1.0])):
+        with pytest.raises(mbdk.NotApplicableError, match="no step on y' = A y"):
+            f()

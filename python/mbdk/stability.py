@@ -31,13 +31,24 @@ import numpy as np
 
 from . import _kernel
 from .errors import InvalidInputError, NotApplicableError, Status, exception_for
-from .methods import method as _method
+from .methods import method as _any_method
 
 STABLE_TOL = 1e-9
 #: Newton tolerances for the implicit steps; the problems are linear with the exact Jacobian,
 #: so one iteration solves them to rounding and the second only confirms it.
 NEWTON_RTOL, NEWTON_ATOL = 1e-12, 1e-14
 _CHUNK = 20000
+
+
+def _method(method: str):
+    """The method's registry entry; a method with no step on y' = A y (trapezoidal_index3
+    integrates a scene's DAE) has no stability region here: a named error."""
+    info = _any_method(method)
+    if info.solves != "ode":
+        raise NotApplicableError(f"{method} integrates a scene's index-3 DAE and has no step on "
+                                 "y' = A y; its stability in the constrained directions is "
+                                 "studied on scenes (studies/index3.py)")
+    return info
 
 
 def history_length(method: str) -> int:
