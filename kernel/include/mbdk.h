@@ -195,7 +195,7 @@ int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next gri
 int mbdk_stepper_advance(mbdk_stepper *stepper, double t);    /* up to t, landing on it */
 int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n);
 int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
-int mbdk_stepper_multipliers(const mbdk_stepper *stepper, double *lam, int m);   /* scenes */
+int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */
 int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
 int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
