@@ -11,9 +11,8 @@ while the main thread waits on it; a KeyboardInterrupt during the wait sets the 
 returns within a step, and the caller raises SolveInterrupted (a KeyboardInterrupt) carrying
 the partial result. Short solves (under LONG_WORK state-steps) run in the calling thread: they
 end within milliseconds. The worker is one thread, started at the first long solve and kept:
-a fresh thread per solve cost about 0.6 ms (its first allocations open a new malloc arena),
-a kept one about 10 us. Only the main thread hands it work, and waits while it runs, so it
-serves one solve at a time.
+a fresh thread per solve would open a new malloc arena with its first allocations, each time.
+Only the main thread hands it work, and waits while it runs, so it serves one solve at a time.
 """
 from __future__ import annotations
 

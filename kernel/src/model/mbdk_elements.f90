@@ -23,8 +23,9 @@ module mbdk_elements
     MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
     MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_TYPES = 7
   integer, parameter, public :: MBDK_ELEMENT_KINDS = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
-  !> constraint rows by joint type: a named constant so that the joints' evaluation, in another
-  !> module, reads it inline (a call per joint cost about 3 % of the index-3 step)
+  !> constraint rows by joint type: a named constant, so that the joints' evaluation (another
+  !> module, called for every joint at every evaluation) reads it inline instead of calling
+  !> mbdk_joint_rows
   integer, parameter, public :: MBDK_JOINT_ROW_COUNT(MBDK_JOINT_TYPES) = [2, 2, 3, 1]
   integer, parameter, public :: MBDK_ELEMENT_NAME_LEN = 32
 
