@@ -95,3 +95,25 @@ def test_callback_exception_becomes_callback_error_with_cause():
 def test_callback_returning_wrong_size_is_reported():
     with pytest.raises(mbdk.CallbackError):
         mbdk.solve_ode(lambda t, y: [1.0, 2.0, 3.0], "heun", h=0.1, t_end=1.0, y0=[1.0, 1.0])
+
+
+@pytest.mark.parametrize("kw", [dict(h=1e-3, t0=1e4, t_end=1e4 + 1.0),
+                                dict(h=1e-5, t_end=70.0, every=1_000_000)])
+def test_multistep_runs_far_from_t0_keep_their_equal_steps(kw):
+    """A k-step method's steps end at t0 + i h, computed in floating point: far from zero the
+    difference of two such times is off from h by an ulp of t (more than 1e-9 h once t/h passes
+    about 4.5e6). The run must take its steps of h and finish, as bdf1 does. Reference: the
+    damped oscillator integrated by bdf2 from t = 0 over the same span (the problem is
+    autonomous), which has no large t."""
+    r = solve(method="bdf2", y0=[1.0, 0.0], **kw)
+    assert r.success and r.stats.steps == round((kw["t_end"] - kw.get("t0", 0.0)) / kw["h"])
+    if "t0" in kw:
+        ref = solve(method="bdf2", y0=[1.0, 0.0], h=kw["h"], t_end=kw["t_end"] - kw["t0"])
+        assert np.allclose(r.y[:, -1], ref.y[:, -1], rtol=0, atol=1e-12)
+
+
+def test_a_multistep_interval_that_is_not_whole_steps_is_refused_by_name():
+    """(t_end - t0)/h = 1e6 + 1e-4: not a whole number of steps beyond rounding, so the last
+    step of bdf2 would not be h."""
+    with pytest.raises(mbdk.InvalidInputError, match="bdf2 needs equal steps"):
+        solve(method="bdf2", h=1e-3, t_end=1000.0000001, every=100_000)

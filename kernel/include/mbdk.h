@@ -26,10 +26,13 @@ enum mbdk_status {
     MBDK_ERR_NOT_APPLICABLE = -4,
     MBDK_ERR_OUTPUT_SIZE = -5,
     MBDK_ERR_INCONSISTENT_INITIAL = -6,
+    MBDK_ERR_NO_MEMORY = -7,
     MBDK_ERR_STEP_TOO_SMALL = -10,
     MBDK_ERR_NEWTON_DIVERGED = -20,
     MBDK_ERR_SINGULAR_MATRIX = -21,
     MBDK_ERR_NONFINITE = -30,
+    MBDK_ERR_CONSTRAINT_DRIFT = -31,
+    MBDK_ERR_ENERGY_DRIFT = -32,
     MBDK_ERR_CALLBACK_FAILED = -40,
     MBDK_ERR_BACKEND = -50,
     MBDK_ERR_INTERRUPTED = -60
@@ -46,7 +49,8 @@ typedef struct mbdk_options {
     int method;          /* from mbdk_method_id("rk4") etc. */
     int every;           /* keep every k-th step as a sample (the last one always) */
     int newton_max_iter;
-    int fd_jacobian;     /* callbacks have no Jacobian: finite differences are always used */
+    int fd_jacobian;     /* non-zero: finite differences even where a Jacobian is given (a C
+                            callback's jac, a compiled problem's analytic one) */
     int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
     int startup;         /* k-step methods: MBDK_STARTUP_RK4 (the book) or MBDK_STARTUP_BDF */
 } mbdk_options;
@@ -176,7 +180,10 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
  * (kernel/src/api/mbdk_capi_stepper.f90 is its manual). Steps land on t0 + k opt.h, so a stepper
  * and mbdk_solve_ode give the same bits. A scene stepper integrates model_opt's formulation with
  * an ODE method; an index-3 stepper runs trapezoidal_index3. After a failure the last good state
- * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE. */
+ * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE; the multipliers are those of
+ * the last step attempted. The stepper copies the options, tables and y0, except the options'
+ * interrupt flag: it keeps that address, which must stay valid until the stepper is destroyed.
+ * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop). */
 typedef struct mbdk_stepper mbdk_stepper;
 
 int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,

@@ -133,6 +133,10 @@ int main(void)
         mbdk_stepper_destroy(s);
         mbdk_stepper_destroy(sc);
         expect("a refused create leaves a NULL handle", s3 == NULL, 1);
+        /* counts far beyond the arrays: refused before any size is computed from them (12 nj
+         * would overflow an int), not read out of bounds */
+        expect("stepper_create_scene, nj huge", mbdk_stepper_create_scene(1, mass, inertia, 2000000000, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_scene, nf huge", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 2000000000, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
     }
     printf("%d checks, %d failed\n", checks, bad);
     return bad != 0;

@@ -5,8 +5,9 @@
     >>> r.y[-1], r.stats.steps, r.cpu_time
 """
 from . import exact  # noqa: F401
-from .errors import (BackendError, CallbackError, InvalidInputError, MbdkError,
-                     NewtonDivergedError, NonFiniteSolutionError, NotApplicableError,
+from .errors import (BackendError, CallbackError, ConstraintDriftError, EnergyDriftError,
+                     InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
+                     NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
@@ -26,5 +27,6 @@ __all__ = [
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
-    "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate",
+    "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
+    "ConstraintDriftError", "EnergyDriftError",
 ]

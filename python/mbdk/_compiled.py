@@ -13,9 +13,13 @@ the partial result. Short solves (under LONG_WORK state-steps) run in the callin
 end within milliseconds. The worker is one thread, started at the first long solve and kept:
 a fresh thread per solve would open a new malloc arena with its first allocations, each time.
 Only the main thread hands it work, and waits while it runs, so it serves one solve at a time.
+A forked child (multiprocessing's default on Linux) has no copy of the thread: it starts its
+own. A second Ctrl-C while the kernel winds down gives up the wait: the worker finishes the
+solve unseen (its arrays stay referenced) and the next long solve gets a fresh worker.
 """
 from __future__ import annotations
 
+import os
 import queue
 import threading
 
@@ -53,6 +57,14 @@ class _Worker:
 _worker = None
 
 
+def _forget_worker():
+    global _worker
+    _worker = None
+
+
+os.register_at_fork(after_in_child=_forget_worker)
+
+
 def call(fn, args: tuple, flag: np.ndarray, work: float):
     """fn(*args) (a threadsafe kernel entry that polls flag). Returns (fn's results, whether a
     KeyboardInterrupt was turned into the flag)."""
@@ -71,6 +83,9 @@ def call(fn, args: tuple, flag: np.ndarray, work: float):
             if done.wait(0.1):
                 break
         except KeyboardInterrupt:
+            if interrupted:     # the second Ctrl-C: stop waiting
+                _worker = None
+                raise
             flag[0] = 1
             interrupted = True
     if "exc" in box:

@@ -20,10 +20,13 @@ class Status(IntEnum):
     ERR_NOT_APPLICABLE = -4
     ERR_OUTPUT_SIZE = -5
     ERR_INCONSISTENT_INITIAL = -6
+    ERR_NO_MEMORY = -7
     ERR_STEP_TOO_SMALL = -10
     ERR_NEWTON_DIVERGED = -20
     ERR_SINGULAR_MATRIX = -21
     ERR_NONFINITE = -30
+    ERR_CONSTRAINT_DRIFT = -31
+    ERR_ENERGY_DRIFT = -32
     ERR_CALLBACK_FAILED = -40
     ERR_BACKEND = -50
     ERR_INTERRUPTED = -60
@@ -91,6 +94,26 @@ class NonFiniteSolutionError(MbdkError, FloatingPointError):
     status = Status.ERR_NONFINITE
 
 
+class NoMemoryError(MbdkError, MemoryError):
+    """The kernel could not allocate what the run needs (samples, model buffers)."""
+
+    status = Status.ERR_NO_MEMORY
+
+
+class ConstraintDriftError(MbdkError, ArithmeticError):
+    """The state left the constraint manifold (position or velocity residual) beyond the
+    run's tolerance: the result would satisfy the equations of another mechanism."""
+
+    status = Status.ERR_CONSTRAINT_DRIFT
+
+
+class EnergyDriftError(MbdkError, ArithmeticError):
+    """The energy balance (kinetic + potential - work of dissipative forces and drivers) moved
+    beyond the run's tolerance: the method added or removed energy the model does not."""
+
+    status = Status.ERR_ENERGY_DRIFT
+
+
 class CallbackError(MbdkError):
     status = Status.ERR_CALLBACK_FAILED
 
@@ -118,10 +141,13 @@ _BY_STATUS = {
     Status.ERR_NOT_APPLICABLE: NotApplicableError,
     Status.ERR_OUTPUT_SIZE: InvalidInputError,
     Status.ERR_INCONSISTENT_INITIAL: InvalidInputError,
+    Status.ERR_NO_MEMORY: NoMemoryError,
     Status.ERR_STEP_TOO_SMALL: StepTooSmallError,
     Status.ERR_NEWTON_DIVERGED: NewtonDivergedError,
     Status.ERR_SINGULAR_MATRIX: SingularMatrixError,
     Status.ERR_NONFINITE: NonFiniteSolutionError,
+    Status.ERR_CONSTRAINT_DRIFT: ConstraintDriftError,
+    Status.ERR_ENERGY_DRIFT: EnergyDriftError,
     Status.ERR_CALLBACK_FAILED: CallbackError,
     Status.ERR_BACKEND: BackendError,
     Status.ERR_INTERRUPTED: SolveInterrupted,

@@ -48,7 +48,8 @@ MAX_CUTS = 5          # fixed step, augmented form: a failed step is retried in 
 
 
 def factorisation(formulation: str, small_dense: bool) -> str:
-    """How the kernel factorises the Newton matrix (mbdk_trapezoidal_index3.f90, factor_matrix)."""
+    """How the kernel factorises the Newton matrix (kernel/src/dae/mbdk_index3_matrix.f90,
+    mbdk_index3_factor)."""
     if not small_dense:
         return "LU, LAPACK"
     lu = "LU (its explicit inverse from the third solve on)"

@@ -6,7 +6,7 @@
 module mbdk_capi
   use, intrinsic :: iso_c_binding, only: c_int, c_int64_t, c_double, c_char, c_ptr, c_funptr, &
     c_null_char, c_associated
-  use mbdk_kinds, only: dp
+  use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
@@ -88,7 +88,18 @@ contains
     nc = model%nc
     m = model%m
     if (m > 0 .and. .not. present(lam_out)) return
-    allocate (lam(max(m, 1), nsamp), it(nsamp))
+    ! the caller's buffers hold nsamp samples of 2 nc, nc and m values: their sizes must be
+    ! indexable
+    if (int(2 * nc, i8) * int(nsamp, i8) > huge(0) .or. &
+        int(max(m, 1), i8) * int(nsamp, i8) > huge(0)) then
+      mbdk_c_index3_solve = int(MBDK_ERR_OUTPUT_SIZE, c_int)
+      return
+    end if
+    allocate (lam(max(m, 1), nsamp), it(nsamp), stat=nw)
+    if (nw /= 0) then
+      mbdk_c_index3_solve = int(MBDK_ERR_NO_MEMORY, c_int)
+      return
+    end if
     call solve(y_out(1:2 * nc * nsamp), a_out(1:nc * nsamp))
     if (m > 0) lam_out(1:m * nw) = reshape(lam(1:m, 1:nw), [m * nw])
     iters_out(1:nw) = int(it(1:nw), c_int)
@@ -157,6 +168,10 @@ contains
     if (.not. (present(y0) .and. present(opt) .and. present(t_out) .and. present(y_out))) return
     if (n < 1 .or. nsamp < 1 .or. .not. c_associated(f)) then
       mbdk_c_solve_ode = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    if (int(n, i8) * int(nsamp, i8) > huge(0)) then
+      mbdk_c_solve_ode = MBDK_ERR_OUTPUT_SIZE
       return
     end if
     if (opt%nq < 0 .or. (opt%nq > 0 .and. 2 * opt%nq /= n)) then

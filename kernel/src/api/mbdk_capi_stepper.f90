@@ -20,7 +20,10 @@
 !> After a failed step the stepper keeps the last good state (t, y) readable and refuses further
 !> steps with MBDK_ERR_NOT_APPLICABLE. Every pointer is checked: NULL gives
 !> MBDK_ERR_INVALID_INPUT. The handle owns all its memory; nothing points into the caller's
-!> arrays after create returns (user_data excepted).
+!> arrays after create returns, except user_data and the options' interrupt flag, whose address
+!> it polls at every advance (mbdk.h: the flag must outlive the stepper). The multipliers read
+!> after a failed step are those of the step attempted; the statistics count work and leave the
+!> clock fields 0 (the caller's loop is not the kernel's to time).
 module mbdk_capi_stepper
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_loc, c_f_pointer, &
     c_associated, c_null_ptr, c_intptr_t
@@ -30,6 +33,7 @@ module mbdk_capi_stepper
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted
   use mbdk_stepper, only: mbdk_stepper_t, mbdk_stepper_init, mbdk_stepper_step
+  use mbdk_fixed_step, only: mbdk_on_grid
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_accelerations
@@ -271,8 +275,7 @@ contains
     if (.not. abs(t) <= huge(1.0_dp)) return
     h = b%h
     ratio = (t - b%t0) / h
-    if (b%equal_steps .and. abs(ratio - anint(ratio)) > 1.0e-9_dp * max(1.0_dp, abs(ratio))) &
-      return
+    if (b%equal_steps .and. .not. mbdk_on_grid(ratio)) return
     stat = MBDK_SUCCESS
     if (failed(b)) stat = MBDK_ERR_NOT_APPLICABLE
     do while (stat == MBDK_SUCCESS .and. b%t_good < t)

@@ -399,6 +399,7 @@ subroutine tables_resolve(nb, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, q,
                           bad_force, status)
   ! The tables' pose defaults filled in at q (mbdk_assembly): rest lengths of two-point forces
   ! and relative angles of prismatic and fixed joints marked MBDK_FROM_POSE.
+  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_assembly, only: mbdk_tables_resolve
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nc
@@ -409,6 +410,10 @@ subroutine tables_resolve(nb, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, q,
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
 !f2py integer intent(hide), depend(q) :: nc = len(q)
+  bad_joint = 0
+  bad_force = 0
+  status = MBDK_ERR_INVALID_INPUT   ! counts beyond the arrays
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   call mbdk_tables_resolve(nb, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), freal(:, 1:nf), q, &
                            bad_joint, bad_force, status)
 end subroutine tables_resolve

@@ -20,15 +20,18 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_NOT_APPLICABLE = -4
   integer, parameter, public :: MBDK_ERR_OUTPUT_SIZE = -5
   integer, parameter, public :: MBDK_ERR_INCONSISTENT_INITIAL = -6
+  integer, parameter, public :: MBDK_ERR_NO_MEMORY = -7
   integer, parameter, public :: MBDK_ERR_STEP_TOO_SMALL = -10
   integer, parameter, public :: MBDK_ERR_NEWTON_DIVERGED = -20
   integer, parameter, public :: MBDK_ERR_SINGULAR_MATRIX = -21
   integer, parameter, public :: MBDK_ERR_NONFINITE = -30
+  integer, parameter, public :: MBDK_ERR_CONSTRAINT_DRIFT = -31
+  integer, parameter, public :: MBDK_ERR_ENERGY_DRIFT = -32
   integer, parameter, public :: MBDK_ERR_CALLBACK_FAILED = -40
   integer, parameter, public :: MBDK_ERR_BACKEND = -50
   integer, parameter, public :: MBDK_ERR_INTERRUPTED = -60
 
-  integer, parameter, public :: MBDK_STATUS_COUNT = 15
+  integer, parameter, public :: MBDK_STATUS_COUNT = 18
   integer, parameter, public :: MBDK_STATUS_NAME_LEN = 32
   integer, parameter, public :: MBDK_STATUS_MSG_LEN = 120
 
@@ -52,6 +55,8 @@ module mbdk_status
       'the output arrays are too small for the requested samples'), &
     status_entry(MBDK_ERR_INCONSISTENT_INITIAL, 'ERR_INCONSISTENT_INITIAL', &
       'the initial state cannot be made to satisfy the constraints (assembly failed)'), &
+    status_entry(MBDK_ERR_NO_MEMORY, 'ERR_NO_MEMORY', &
+      'the memory this run needs could not be allocated; fewer samples or a smaller model'), &
     status_entry(MBDK_ERR_STEP_TOO_SMALL, 'ERR_STEP_TOO_SMALL', 'the step size became too small'), &
     status_entry(MBDK_ERR_NEWTON_DIVERGED, 'ERR_NEWTON_DIVERGED', &
       'Newton-Raphson iteration did not converge; reduce the step h'), &
@@ -59,6 +64,10 @@ module mbdk_status
       'a singular linear system: a Newton matrix, or D M^-1 D^T where constraints are dependent'), &
     status_entry(MBDK_ERR_NONFINITE, 'ERR_NONFINITE', &
       'the solution overflowed to inf or NaN (the method is unstable at this step); reduce h'), &
+    status_entry(MBDK_ERR_CONSTRAINT_DRIFT, 'ERR_CONSTRAINT_DRIFT', &
+      'the state left the constraint manifold beyond the run''s tolerance'), &
+    status_entry(MBDK_ERR_ENERGY_DRIFT, 'ERR_ENERGY_DRIFT', &
+      'the energy balance was broken beyond the run''s tolerance'), &
     status_entry(MBDK_ERR_CALLBACK_FAILED, 'ERR_CALLBACK_FAILED', &
       'the user right-hand side returned a failure'), &
     status_entry(MBDK_ERR_BACKEND, 'ERR_BACKEND', 'a backend (SUNDIALS) reported an error'), &

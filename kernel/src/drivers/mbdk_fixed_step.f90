@@ -2,7 +2,7 @@
 !> one call of mbdk_stepper_step (mbdk_stepper holds the method's state between steps).
 !>
 !> Steps t_i = t0 + i h, i = 1..N (computed by multiplication, not accumulation). When
-!> (t_end - t0)/h is not a whole number (within 1e-9 relative), N = ceiling and the last step
+!> (t_end - t0)/h is not a whole number (mbdk_on_grid), N = ceiling and the last step
 !> is shortened to land on t_end; the solve then returns MBDK_NOTE_LAST_STEP_SHORTENED.
 !> Multistep methods with k > 1 (bdf2..bdf6) need equal steps and refuse such an interval
 !> (MBDK_ERR_INVALID_INPUT). Samples: the initial point, every `every`-th step and the last one.
@@ -35,12 +35,22 @@ module mbdk_fixed_step
   use mbdk_stepper, only: mbdk_stepper_t, mbdk_stepper_init, mbdk_stepper_step
   implicit none
   private
-  public :: mbdk_step_plan, mbdk_fixed_step_solve
+  public :: mbdk_step_plan, mbdk_fixed_step_solve, mbdk_on_grid
 
   !> the most steps one solve takes (a sample index must fit a default integer)
   integer(i8), parameter, public :: MBDK_MAX_STEPS = 2000000000_i8
 
 contains
+
+  !> Whether a step count (t - t0)/h computed in floating point is a whole number: within 1e-9,
+  !> or within the rounding of t - t0 and of the division where the count is large. Looser
+  !> would let a k-step method's last step differ from h by more than its rounding (1e-9 N h
+  !> at N steps); the stepper accepts a step of h within 1e-9 h plus the rounding of t.
+  elemental logical function mbdk_on_grid(ratio)
+    real(dp), intent(in) :: ratio
+    mbdk_on_grid = abs(ratio - anint(ratio)) <= max(1.0e-9_dp, 16.0_dp * epsilon(1.0_dp) * &
+                                                     abs(ratio))
+  end function mbdk_on_grid
 
   !> Number of steps and samples for an interval; checks h, the interval and every.
   pure subroutine mbdk_step_plan(t0, t_end, h, every, nsteps, nsamp, shortened, stat)
@@ -59,7 +69,7 @@ contains
     ratio = (t_end - t0) / h
     if (ratio < 1.0_dp - 1.0e-9_dp .or. ratio > real(MBDK_MAX_STEPS, dp)) return
     nsteps = nint(ratio, i8)
-    if (abs(ratio - real(nsteps, dp)) > 1.0e-9_dp * max(1.0_dp, ratio)) then
+    if (.not. mbdk_on_grid(ratio)) then
       nsteps = ceiling(ratio, i8)
       shortened = .true.
     end if

@@ -123,8 +123,13 @@ contains
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. (h > 0.0_dp .and. h <= huge(1.0_dp))) return
     i = s%st%steps + 1
-    if (s%family == MBDK_FAMILY_IMPLICIT_LMM) then
-      if (s%lmm%k > 1 .and. abs(h - s%opt%h) > 1.0e-9_dp * s%opt%h) return
+    if (s%family == MBDK_FAMILY_IMPLICIT_LMM .and. s%lmm%k > 1) then
+      ! a k-step method's coefficients hold for its own step only. t_next - t, the difference
+      ! of two rounded times, is off from it by up to an ulp of t: the step taken is opt%h
+      ! itself, and t_next is accepted as its end within that rounding
+      if (abs(h - s%opt%h) > 1.0e-9_dp * s%opt%h + &
+          64.0_dp * spacing(max(abs(s%t), abs(t_next)))) return
+      h = s%opt%h
     end if
     select case (s%family)
     case (MBDK_FAMILY_EXPLICIT_RK)
