@@ -3,8 +3,10 @@ mirrors its codes (checked in C by kernel/tests/c_element_table.c) and Python re
 the header's enums, the scene format's element types and the kernel's kinds agree, and the
 kernel enforces what a kind means."""
 import re
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 import mbdk
 from mbdk import _kernel, model as M
@@ -61,3 +63,57 @@ def test_a_spring_with_damping_is_refused_by_the_kernel():
     y = np.concatenate([sc.q0(), sc.v0()])
     *_, status = _kernel.model_eval(*tab.args(), mbdk.ModelOptions().pack(), tab.m, 0.0, y)
     assert status == mbdk.Status.ERR_INVALID_INPUT
+
+
+def test_body_kinds_are_the_kernels_and_the_headers(root):
+    """The body kinds: the kernel's table (mbdk_elements), mbdk.h's enum and the scene format
+    read the same names and codes; planar bodies carry (x, y, theta)."""
+    from mbdk.scene import BODY_KINDS
+    text = (root / "kernel" / "include" / "mbdk.h").read_text()
+    body = re.search(r"enum mbdk_body_kind \{(.*?)\};", text, re.S).group(1)
+    header = {m.group(1).lower(): int(m.group(2))
+              for m in re.finditer(r"MBDK_BODY_(\w+)\s*=\s*(\d+)", body)}
+    assert header == {name: code for name, (code, *_r) in BODY_KINDS.items()}
+    assert BODY_KINDS["planar"] == (1, 3, 3, True)
+    assert "spatial" in BODY_KINDS and not BODY_KINDS["spatial"][3]
+
+
+def test_a_declared_planar_kind_is_the_default_bit_for_bit(tmp_path):
+    src = Path(mbdk.scene("double_pendulum").source).read_text()
+    assert "kind" not in src
+    path = tmp_path / "dp.toml"
+    path.write_text(src.replace('[[body]]\n', '[[body]]\nkind = "planar"\n'))
+    a = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=0.5)
+    b = mbdk.simulate(mbdk.load_scene(path), "rk4", h=1e-3, t_end=0.5)
+    assert np.array_equal(a.q, b.q)
+
+
+@pytest.mark.parametrize("kind,words", [("spatial", ["cannot simulate it yet", "planar"]),
+                                        ("rigid3d", ["is not a body kind", "planar, spatial"])])
+def test_a_body_kind_the_kernel_cannot_simulate_is_refused_by_name(tmp_path, kind, words):
+    src = Path(mbdk.scene("double_pendulum").source).read_text()
+    path = tmp_path / "dp.toml"
+    path.write_text(src.replace('[[body]]\n', f'[[body]]\nkind = "{kind}"\n', 1))
+    with pytest.raises(mbdk.SceneError) as err:
+        mbdk.load_scene(path)
+    msg = str(err.value)
+    for w in [str(path), "body", "'kind'", repr(kind), *words]:
+        assert w in msg, (w, msg)
+    # the same kind set on a Scene object after loading: refused before the kernel runs
+    sc = mbdk.scene("double_pendulum")
+    sc.bodies[1].kind = kind
+    with pytest.raises(mbdk.InvalidInputError, match="'kind'"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1)
+
+
+def test_the_kernel_itself_refuses_body_kinds_it_cannot_simulate():
+    """Tables from another door (the f2py layer, a future C body table): spatial is named as not
+    applicable, an unknown code is invalid input."""
+    sc = mbdk.scene("double_pendulum")
+    tab = M.build_tables(sc)
+    y = np.concatenate([sc.q0(), sc.v0()])
+    for code, status in ((1, mbdk.Status.SUCCESS), (2, mbdk.Status.ERR_NOT_APPLICABLE),
+                         (0, mbdk.Status.ERR_INVALID_INPUT), (9, mbdk.Status.ERR_INVALID_INPUT)):
+        tab.kind = np.array([1, code], np.int32)
+        *_, st = _kernel.model_eval(*tab.args(), mbdk.ModelOptions().pack(), tab.m, 0.0, y)
+        assert st == status, (code, st)

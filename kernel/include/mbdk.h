@@ -153,6 +153,13 @@ enum { MBDK_FROM_POSE = 1 };
  * states. MBDK_ERR_INVALID_INPUT past the end. */
 int mbdk_element_kind(int i, int *cls, int *code, char *name, int namelen, int *rows, int *states);
 
+/* Body kinds (the same file): the coordinates and velocities a body carries. The scene entries
+ * of this header build planar bodies; spatial bodies are declared (available = 0) until their
+ * joints and forces exist (chapter 5), and bring a body table of their own then. */
+enum mbdk_body_kind { MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2 };
+int mbdk_body_kind(int i, int *code, char *name, int namelen, int *coords, int *velocities,
+                   int *available);
+
 /* Options of a scene model (kernel/src/model/mbdk_model.f90): the formulation of the ODE
  * methods, the linear solver and the formulations' parameters. mbdk_index3_solve uses the
  * defaults. */

@@ -40,6 +40,33 @@ int main(void)
         if (!found) { printf("kernel kind %s is not in mbdk.h\n", name); bad++; }
     }
     if (n != nh) { printf("kernel has %d kinds, mbdk.h %d\n", n, nh); bad++; }
+
+    /* body kinds: the enum against the kernel's body table, and planar bodies are available */
+    const struct entry bodies[] = {{0, "planar", MBDK_BODY_PLANAR}, {0, "spatial", MBDK_BODY_SPATIAL}};
+    const int nbk = sizeof bodies / sizeof bodies[0];
+    int nk = 0, coords, vels, avail;
+    for (int i = 1; mbdk_body_kind(i, &code, name, sizeof name, &coords, &vels, &avail) == MBDK_SUCCESS; i++) {
+        int found = 0;
+        nk++;
+        for (int k = 0; k < nbk; k++)
+            if (strcmp(bodies[k].name, name) == 0) {
+                found = 1;
+                if (bodies[k].code != code) {
+                    printf("body kind %s: kernel code %d, mbdk.h %d\n", name, code, bodies[k].code);
+                    bad++;
+                }
+            }
+        if (!found) { printf("kernel body kind %s is not in mbdk.h\n", name); bad++; }
+        if (code == MBDK_BODY_PLANAR && !(coords == 3 && vels == 3 && avail == 1)) {
+            printf("planar bodies: %d coordinates, %d velocities, available %d\n", coords, vels, avail);
+            bad++;
+        }
+    }
+    if (nk != nbk) { printf("kernel has %d body kinds, mbdk.h %d\n", nk, nbk); bad++; }
+    if (mbdk_body_kind(1, NULL, name, sizeof name, &coords, &vels, &avail) != MBDK_ERR_INVALID_INPUT) {
+        printf("mbdk_body_kind accepted a NULL pointer\n");
+        bad++;
+    }
     printf("%d kinds, %d mismatches\n", n, bad);
     return bad != 0;
 }

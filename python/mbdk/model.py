@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _kernel
-from .errors import Status, exception_for
+from .errors import NotApplicableError, Status, exception_for
 from .options import ModelOptions
-from .scene import COORDS, Scene, SceneError
+from .scene import BODY_KINDS, COORDS, Scene, SceneError, body_kind_problem
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
@@ -69,10 +69,11 @@ class Tables:
     m: int
     nc: int
     rows: list          # (joint name, first row (0-based), count)
+    kind: np.ndarray = None   # the bodies' kind codes (kernel/src/model/mbdk_elements.f90)
 
     def args(self):
-        return (self.mass, self.inertia, self.nj, self.jint, self.jreal, self.nf, self.fint,
-                self.freal)
+        return (self.mass, self.inertia, self.kind, self.nj, self.jint, self.jreal, self.nf,
+                self.fint, self.freal)
 
 
 #: the 4th integer of a two-point force or a prismatic/fixed joint: take the value (rest length,
@@ -88,6 +89,12 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
     nb = len(sc.bodies)
     mass = np.array([b.mass for b in sc.bodies], float)
     inertia = np.array([b.inertia for b in sc.bodies], float)
+    for b in sc.bodies:     # a Scene's fields can be changed after it was read
+        problem = body_kind_problem(b.kind)
+        if problem:
+            raise (NotApplicableError if b.kind in BODY_KINDS else SceneError)(
+                f"{sc.source}: body {b.name!r}: field 'kind' {problem}")
+    kind = np.array([BODY_KINDS[b.kind][0] for b in sc.bodies], np.int32)
     nj, nf = len(sc.joints), len(sc.forces)
     jint = np.zeros((4, max(nj, 1)), np.int32, order="F")
     jreal = np.zeros((12, max(nj, 1)), order="F")
@@ -138,7 +145,7 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
             freal[0, k] = f.stiffness
             freal[1, k] = f.damping
             freal[2, k] = f.rest
-    tab = Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows)
+    tab = Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows, kind)
     if resolve:
         resolve_tables(sc, tab, sc.q0() if q0 is None else q0)
     return tab

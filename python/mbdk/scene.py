@@ -8,6 +8,7 @@ A scene file (SI units; angles in radians unless a field ends in _deg)::
 
     [[body]]
     name = "bar"
+    kind = "planar"                           # the default; the kernel's body kinds
     mass = 1.0
     shape = { type = "bar", length = 1.0 }    # or: inertia = 0.0833 (centroidal, kg m^2)
     x = 0.25                                  # centroid and angle; vx, vy, omega: their rates
@@ -26,6 +27,10 @@ A scene file (SI units; angles in radians unless a field ends in _deg)::
     [[force]]
     type = "gravity"                          # only when declared
     g = [0.0, -9.81]
+
+Bodies: planar (x, y, angle). The kernel's body table (kernel/src/model/mbdk_elements.f90) also
+declares spatial bodies (position and Euler parameters, chapter 5 of the book); a scene that
+uses one is refused by name until their joints and forces exist.
 
 Joints: revolute (body1, point1, body2, point2); prismatic (the same, plus axis: a unit vector
 fixed in body2, global for the ground, and the relative angle kept at its initial value or
@@ -72,6 +77,7 @@ class Body:
     vy: float = 0.0
     omega: float = 0.0
     given: tuple = ()
+    kind: str = "planar"
 
 
 @dataclass
@@ -138,6 +144,32 @@ class Scene:
         return out
 
 
+def _body_kinds() -> dict:
+    """The kernel's body kinds: name -> (code, coordinates, velocities, available)."""
+    from . import _kernel
+    from .errors import _decode
+    out, i = {}, 1
+    while True:
+        code, name, coords, vels, available = _kernel.body_kind(i)
+        if code == 0:
+            return out
+        out[_decode(name)] = (int(code), int(coords), int(vels), bool(available))
+        i += 1
+
+
+BODY_KINDS = _body_kinds()
+
+
+def body_kind_problem(kind) -> str | None:
+    """Why a body of this kind cannot be simulated (the end of an error message), or None."""
+    if not isinstance(kind, str) or kind not in BODY_KINDS:
+        return f"= {kind!r} is not a body kind; known: {', '.join(BODY_KINDS)}"
+    _code, coords, vels, available = BODY_KINDS[kind]
+    if not available:
+        return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
+                "velocities) but cannot simulate it yet, its joints and forces are still to "
+                "come (chapter 5 of the book); use 'planar'")
+    return None
 JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
                "coordinate_spring", "coordinate_damper", "coordinate_spring_damper"}
@@ -249,6 +281,10 @@ class _Reader:
 
 def _body(r: _Reader) -> Body:
     name = r.name("name")
+    body_kind = r.name("kind", required=False, default="planar")
+    problem = body_kind_problem(body_kind)
+    if problem:
+        raise r.err("kind", problem)
     mass = r.num("mass", required=True, positive=True)
     if r.has("inertia") and r.has("shape"):
         raise r.err("inertia", "and 'shape' are both given; give one")
@@ -277,7 +313,7 @@ def _body(r: _Reader) -> Body:
     if not isinstance(given, list) or any(g not in ok for g in given):
         raise r.err("given", f"= {given!r} must list some of {', '.join(sorted(ok))}")
     b = Body(name, mass, inertia, r.num("x", 0.0), r.num("y", 0.0), r.angle("angle"),
-             r.num("vx", 0.0), r.num("vy", 0.0), r.num("omega", 0.0), tuple(given))
+             r.num("vx", 0.0), r.num("vy", 0.0), r.num("omega", 0.0), tuple(given), body_kind)
     r.done()
     return b
 

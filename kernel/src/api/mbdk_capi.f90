@@ -16,7 +16,7 @@ module mbdk_capi
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
   use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
-  use mbdk_elements, only: mbdk_element_kind, MBDK_ELEMENT_NAME_LEN
+  use mbdk_elements, only: mbdk_element_kind, mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_c_tables, only: mbdk_c_tables_read
   implicit none
   private
@@ -283,6 +283,29 @@ contains
     call to_c(nm, name, int(namelen))
     mbdk_c_element_kind = MBDK_SUCCESS
   end function mbdk_c_element_kind
+
+  !> Entry i (1-based) of the body kinds (mbdk_elements): code, name, coordinates, velocities,
+  !> available (0: declared, not yet simulated).
+  integer(c_int) function mbdk_c_body_kind(i, code, name, namelen, coords, velocities, &
+                                           available) bind(C, name='mbdk_body_kind')
+    integer(c_int), value :: i, namelen
+    integer(c_int), intent(out), optional :: code, coords, velocities, available
+    character(kind=c_char), intent(out), optional :: name(*)
+    character(len=MBDK_ELEMENT_NAME_LEN) :: nm
+    integer :: k, nq, nv
+    logical :: avail
+    mbdk_c_body_kind = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(code) .and. present(coords) .and. present(velocities) .and. &
+               present(available) .and. present(name)) .or. namelen < 1) return
+    call mbdk_body_kind(int(i), k, nm, nq, nv, avail)
+    code = int(k, c_int)
+    coords = int(nq, c_int)
+    velocities = int(nv, c_int)
+    available = merge(1_c_int, 0_c_int, avail)
+    if (k == 0) return
+    call to_c(nm, name, int(namelen))
+    mbdk_c_body_kind = MBDK_SUCCESS
+  end function mbdk_c_body_kind
 
   !> s (trimmed) into buf as a NUL-terminated string of at most buflen bytes
   subroutine to_c(s, buf, buflen)

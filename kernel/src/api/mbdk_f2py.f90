@@ -244,7 +244,7 @@ end subroutine build_info
 ! Scenes (kernel/src/model): the tables of mbdk_joints and mbdk_force_elements, built by
 ! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
 
-subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
+subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
                      method_id, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, given, assemble, &
                      t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
                      a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
@@ -279,6 +279,7 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, noptw, ni3w, n, want, nsamp
   integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1)
+  integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w)
   integer, intent(in), target :: interrupt(1)
@@ -344,7 +345,7 @@ subroutine scene_run(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fre
   call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
                         fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys, given(1:nc) /= 0, &
                         given(nc + 1:) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
-                        bad_joint, bad_force, status)
+                        bad_joint, bad_force, status, bkind)
   asm_velocity = merge(1, 0, vel)
   if (status /= MBDK_SUCCESS) return
   m = model%m
@@ -418,7 +419,7 @@ subroutine tables_resolve(nb, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, q,
                            bad_joint, bad_force, status)
 end subroutine tables_resolve
 
-subroutine model_assemble(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, &
+subroutine model_assemble(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, &
                           t0, q, v, given, m1, iterations, resid, velocity, status)
   ! Initial conditions from the scene's (q, v) that satisfy the constraints (mbdk_assembly):
   ! the coordinates whose given(:) is 0 move; q and v are updated in place.
@@ -429,6 +430,7 @@ subroutine model_assemble(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nc, m1
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), t0
+  integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1), given(2 * nc)
   double precision, intent(inout) :: q(nc), v(nc)
   integer, intent(out) :: iterations, velocity, status
@@ -448,7 +450,7 @@ subroutine model_assemble(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. nc /= 3 * nb) return
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), mopt, work, status)
+                       freal(:, 1:nf), mopt, work, status, bkind)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < max(model%m, 1)) return
@@ -467,6 +469,19 @@ subroutine element_kind(i, cls, code, name, rows, states)
   character(len=32), intent(out) :: name
   call mbdk_element_kind(i, cls, code, name, rows, states)
 end subroutine element_kind
+
+subroutine body_kind(i, code, name, coords, velocities, available)
+  ! Entry i of the body kinds (mbdk_elements); code = 0 past the end. available = 0: declared,
+  ! not yet simulated.
+  use mbdk_elements, only: mbdk_body_kind
+  implicit none
+  integer, intent(in) :: i
+  integer, intent(out) :: code, coords, velocities, available
+  character(len=32), intent(out) :: name
+  logical :: avail
+  call mbdk_body_kind(i, code, name, coords, velocities, avail)
+  available = merge(1, 0, avail)
+end subroutine body_kind
 
 subroutine struct_info(id, cname, nbytes, nfields)
   ! The kernel's bind(C) struct id (mbdk_structs): C name, size in bytes, field count (0: none).
@@ -496,7 +511,7 @@ subroutine struct_defaults(id, nw, buf)
   call mbdk_struct_defaults(id, buf)
 end subroutine struct_defaults
 
-subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+subroutine model_eval(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                       nmow, mobuf, m, nc, t, y, phi, d, gam, phit, fq, acc, lam, path, status)
   ! Phi, D, gamma, Phi_t, the generalised forces and the formulation's accelerations and
   ! multipliers at one state: for assembly, diagnosis and tests. path: the linear solve the
@@ -510,6 +525,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, m, nc
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
+  integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc)
   double precision, intent(out) :: phi(m), d(m, nc), gam(m), phit(m), fq(nc), acc(nc), lam(m)
@@ -530,7 +546,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   if (8 * nmow /= c_sizeof(mopt)) return
   mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), mopt, work, status)
+                       freal(:, 1:nf), mopt, work, status, bkind)
   if (status /= MBDK_SUCCESS) return
   path = mbdk_model_linear_solve(model)
   status = MBDK_ERR_INVALID_INPUT
@@ -542,7 +558,7 @@ subroutine model_eval(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, fr
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
 
-subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+subroutine model_profile(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                          nmow, mobuf, nc, t, y, nrep, seconds, status)
   ! Where an evaluation's time goes: seconds(1) = nrep evaluations of the assembly alone
   ! (rotations, forces, Phi, D in compact rows, gamma: mbdk_model_assemble), seconds(2) = nrep
@@ -556,6 +572,7 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, nrep
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
+  integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc)
   double precision, intent(out) :: seconds(2)
@@ -578,7 +595,7 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   if (8 * nmow /= c_sizeof(mopt)) return
   mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), mopt, work, status)
+                       freal(:, 1:nf), mopt, work, status, bkind)
   if (status /= MBDK_SUCCESS) return
   allocate (lam(model%m))
   c0 = mbdk_thread_cpu_seconds()
@@ -595,7 +612,7 @@ subroutine model_profile(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint,
   seconds(2) = c1 - c0
 end subroutine model_profile
 
-subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
+subroutine model_index3_matrix(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                                nmow, mobuf, nc, m, t, y, lam, h, scaling, jac, status)
   ! The Newton matrix of trapezoidal_index3 at (q, v, lambda): scaling 0 unscaled, 1 the
   ! book's (3.15)-(3.16), 2 the solver's (dynamic rows times h^2/4, unknown h^2/4 lambda).
@@ -606,6 +623,7 @@ subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1,
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, m, scaling
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
+  integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: t, y(2 * nc), lam(m), h
   double precision, intent(out) :: jac(nc + m, nc + m)
@@ -626,7 +644,7 @@ subroutine model_index3_matrix(nb, mass, inertia, nj, nj1, jint, jreal, nf, nf1,
   if (8 * nmow /= c_sizeof(mopt)) return
   mopt = transfer(mobuf, mopt)
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
-                       freal(:, 1:nf), mopt, work, status)
+                       freal(:, 1:nf), mopt, work, status, bkind)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%m /= m) return

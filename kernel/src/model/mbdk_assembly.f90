@@ -23,6 +23,7 @@ module mbdk_assembly
   use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
+  use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
     mbdk_model_work_t, mbdk_model_options_t
   implicit none
@@ -160,7 +161,7 @@ contains
   !> model built once there. bad_joint, bad_force: the element a pose value failed on.
   subroutine mbdk_model_start(model, work, mass, inertia, jint, jreal, fint, freal, opt, t0, y, &
                               given_q, given_v, assemble, asm_iters, asm_resid, velocity, &
-                              bad_joint, bad_force, stat)
+                              bad_joint, bad_force, stat, kinds)
     type(mbdk_model_t), intent(out) :: model
     type(mbdk_model_work_t), target, intent(inout) :: work
     real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), t0
@@ -171,14 +172,30 @@ contains
     integer, intent(out) :: asm_iters, bad_joint, bad_force, stat
     real(dp), intent(out) :: asm_resid(:)
     logical, intent(out) :: velocity
+    integer, intent(in), optional :: kinds(:)   !< the bodies' kinds (absent: all planar)
     real(dp), allocatable :: jr(:, :), fr(:, :)
-    integer :: nb, nc
+    integer :: nb, nc, b, code, coords, vels
+    character(len=MBDK_ELEMENT_NAME_LEN) :: kname
+    logical :: available
     nb = size(mass)
     nc = 3 * nb
     asm_iters = 0
     asm_resid = 0.0_dp
     velocity = .false.
     stat = MBDK_ERR_INVALID_INPUT
+    ! a kind the kernel cannot simulate yet is named as such before the sizes (which assume
+    ! planar bodies) are checked
+    if (present(kinds)) then
+      if (size(kinds) /= nb) return
+      do b = 1, nb
+        call mbdk_body_kind(kinds(b), code, kname, coords, vels, available)
+        if (code == 0) return
+        if (.not. available) then
+          stat = MBDK_ERR_NOT_APPLICABLE
+          return
+        end if
+      end do
+    end if
     if (size(y) /= 2 * nc .or. size(given_q) /= nc .or. size(given_v) /= nc) return
     if (assemble) then
       block
@@ -204,7 +221,7 @@ contains
       fr = freal
       call mbdk_tables_resolve(nb, jint, jr, fint, fr, y(1:nc), bad_joint, bad_force, stat)
       if (stat /= MBDK_SUCCESS) return
-      call mbdk_model_init(mdl, mass, inertia, jint, jr, fint, fr, opt, wrk, stat)
+      call mbdk_model_init(mdl, mass, inertia, jint, jr, fint, fr, opt, wrk, stat, kinds)
     end subroutine build
 
   end subroutine mbdk_model_start

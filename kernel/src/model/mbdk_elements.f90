@@ -7,11 +7,17 @@
 !> scene format against it). The position of a kind in this table is its visit counter
 !> (mbdk_model_work_t%visits): the model counts every pass over an element of that kind.
 !>
+!> Bodies have kinds too, in a table of their own: the coordinates and velocities a body of the
+!> kind carries. Planar bodies (x, y, theta) are chapters 2-4 of the book. Spatial bodies
+!> (position and Euler parameters, chapter 5) are declared so that scenes, tables and embedders
+!> can name them; until their joints, forces and mass matrix exist mbdk_model_init refuses them
+!> with MBDK_ERR_NOT_APPLICABLE (available = .false.).
+!>
 !> Adding a kind: ARCHITECTURE.md at the top of the repository lists the files it touches.
 module mbdk_elements
   implicit none
   private
-  public :: mbdk_element_kind, mbdk_element_visit, mbdk_joint_rows
+  public :: mbdk_element_kind, mbdk_element_visit, mbdk_joint_rows, mbdk_body_kind
 
   integer, parameter, public :: MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3
 
@@ -28,6 +34,21 @@ module mbdk_elements
   !> mbdk_joint_rows
   integer, parameter, public :: MBDK_JOINT_ROW_COUNT(MBDK_JOINT_TYPES) = [2, 2, 3, 1]
   integer, parameter, public :: MBDK_ELEMENT_NAME_LEN = 32
+
+  integer, parameter, public :: MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2, MBDK_BODY_KINDS = 2
+  !> coordinates of a planar body, which the joints and forces index as 3 b - 2 .. 3 b
+  integer, parameter, public :: MBDK_PLANAR_COORDS = 3
+
+  type :: body_entry
+    integer :: code
+    character(len=MBDK_ELEMENT_NAME_LEN) :: name
+    integer :: coords, velocities
+    logical :: available
+  end type body_entry
+
+  type(body_entry), parameter :: bodies(MBDK_BODY_KINDS) = [ &
+    body_entry(MBDK_BODY_PLANAR, 'planar', MBDK_PLANAR_COORDS, MBDK_PLANAR_COORDS, .true.), &
+    body_entry(MBDK_BODY_SPATIAL, 'spatial', 7, 6, .false.) ]
 
   type :: kind_entry
     integer :: cls, code
@@ -67,6 +88,21 @@ contains
     rows = table(i)%rows
     states = table(i)%states
   end subroutine mbdk_element_kind
+
+  !> Entry i (1-based) of the body kinds; code = 0 past the end.
+  pure subroutine mbdk_body_kind(i, code, name, coords, velocities, available)
+    integer, intent(in) :: i
+    integer, intent(out) :: code, coords, velocities
+    character(len=*), intent(out) :: name
+    logical, intent(out) :: available
+    code = 0; coords = 0; velocities = 0; name = ''; available = .false.
+    if (i < 1 .or. i > MBDK_BODY_KINDS) return
+    code = bodies(i)%code
+    name = bodies(i)%name
+    coords = bodies(i)%coords
+    velocities = bodies(i)%velocities
+    available = bodies(i)%available
+  end subroutine mbdk_body_kind
 
   !> The visit counter of a kind: its position in the table (joints first, then forces).
   pure integer function mbdk_element_visit(cls, code)

@@ -55,6 +55,8 @@ module mbdk_model
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
     MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_POINT, &
     MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE
+  use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
+    MBDK_ELEMENT_NAME_LEN
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
@@ -121,6 +123,8 @@ module mbdk_model
 
   type, extends(mbdk_problem_t), public :: mbdk_model_t
     integer :: nb = 0, nc = 0, m = 0
+    !> each body's kind (mbdk_elements) and the index of its first coordinate in q
+    integer, allocatable :: body_kind(:), qoff(:)
     real(dp), allocatable :: mass(:), winv(:)     !< diagonal of M (nc) and of the projection weight
     logical :: m_positive = .false.
     integer, allocatable :: jint(:, :), row0(:), fint(:, :)
@@ -154,16 +158,22 @@ module mbdk_model
 contains
 
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
-  !> opt: formulation, solver and their parameters. work must outlive the model.
-  !> MBDK_ERR_INVALID_INPUT for inconsistent tables; the Python layer names the element.
-  subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, opt, work, stat)
+  !> kinds: each body's kind (mbdk_elements; absent: all planar). opt: formulation, solver and
+  !> their parameters. work must outlive the model.
+  !> MBDK_ERR_INVALID_INPUT for inconsistent tables, MBDK_ERR_NOT_APPLICABLE for a body kind the
+  !> kernel declares but cannot simulate yet; the Python layer names the element.
+  subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, opt, work, stat, &
+                             kinds)
     type(mbdk_model_t), intent(out) :: model
     real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :)
     integer, intent(in) :: jint(:, :), fint(:, :)
     type(mbdk_model_options_t), intent(in) :: opt
     type(mbdk_model_work_t), target, intent(inout) :: work
     integer, intent(out) :: stat
-    integer :: b, j, rows, nc, m, formulation
+    integer, intent(in), optional :: kinds(:)
+    integer :: b, j, rows, nc, m, formulation, code, coords, vels
+    character(len=MBDK_ELEMENT_NAME_LEN) :: kname
+    logical :: available
 
     stat = MBDK_ERR_INVALID_INPUT
     formulation = opt%formulation
@@ -171,13 +181,31 @@ contains
     if (model%nb < 1 .or. size(inertia) /= model%nb) return
     if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
     if (formulation < MBDK_FORM_REDUCED .or. formulation > MBDK_FORM_PROJECTION) return
-    model%nc = 3 * model%nb
+    allocate (model%body_kind(model%nb), model%qoff(model%nb))
+    model%body_kind = MBDK_BODY_PLANAR
+    if (present(kinds)) then
+      if (size(kinds) /= model%nb) return
+      if (any(kinds < 1 .or. kinds > MBDK_BODY_KINDS)) return
+      model%body_kind = kinds
+    end if
+    model%nc = 0
+    do b = 1, model%nb
+      call mbdk_body_kind(model%body_kind(b), code, kname, coords, vels, available)
+      ! the joints and forces index a body's coordinates as a planar body's (3 b - 2 .. 3 b):
+      ! a kind becomes available together with its coordinates there (qoff)
+      if (.not. available .or. coords /= MBDK_PLANAR_COORDS) then
+        stat = MBDK_ERR_NOT_APPLICABLE
+        return
+      end if
+      model%qoff(b) = model%nc + 1
+      model%nc = model%nc + coords
+    end do
     model%n = 2 * model%nc
     model%nq = model%nc
     allocate (model%mass(model%nc), model%winv(model%nc))
     do b = 1, model%nb
-      model%mass(3 * b - 2:3 * b - 1) = mass(b)
-      model%mass(3 * b) = inertia(b)
+      model%mass(model%qoff(b):model%qoff(b) + 1) = mass(b)
+      model%mass(model%qoff(b) + 2) = inertia(b)
     end do
     model%m_positive = all(model%mass > 0.0_dp)
     if (model%m_positive) then
