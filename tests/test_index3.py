@@ -255,9 +255,9 @@ def test_singular_four_bar_passes_its_collinear_configurations(form):
     isolated instants: they must stay on the parallelogram branch (coupler horizontal: its
     angle is 0 exactly in the true motion, by the parallelogram's geometry) with Phi = 0 at
     every step and energy kept. The reduced ODE (rk4, h = 1e-3), whose KKT matrix is singular
-    there, leaves the constraints and the branch; whether it then also overflows before 3 s
-    depends on roundoff (the Schur and KKT solves differ there), so its samples up to the end
-    or to the overflow are what is checked."""
+    there, leaves the constraints and the branch: with the watch off its samples show it; with
+    the watch on (the default) it stops with ConstraintDriftError at the crossing instead of
+    returning the other branch, and every sample it returns is still on the parallelogram."""
     sc = _parallelogram()
     r = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=1e-3, t_end=3.0)
     crank = np.degrees(r.q[:, 2])
@@ -265,8 +265,14 @@ def test_singular_four_bar_passes_its_collinear_configurations(form):
     assert np.abs(r.q[:, 5]).max() < 1e-9                         # coupler angle
     assert r.residuals[:, 0].max() < 1e-10
     assert np.abs(r.energy - r.energy[0]).max() < 2e-3            # of a 0 J start, 47 J swing
-    red = mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0, raise_on_failure=False)
+    red = mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0, raise_on_failure=False, watch=False)
     assert red.residuals[:, 0].max() > 1e-3 and np.abs(red.q[:, 5]).max() > 0.1
+    with pytest.raises(mbdk.ConstraintDriftError) as err:
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0)
+    kept = err.value.result
+    crossing = red.t[np.argmax(np.abs(red.q[:, 5]) > 1e-3)]    # where the free run left
+    assert 0 < kept.t[-1] <= crossing + 0.1 and np.abs(kept.q[:, 5]).max() < 1e-2
+    assert "t = " in str(err.value) and "joint" in str(err.value)
 
 
 def test_fixed_step_cuts_a_failing_step_and_stays_on_the_grid():
@@ -331,7 +337,8 @@ def _stiff_spring_pendulum():
 @pytest.mark.parametrize("form", FORMS)
 def test_stiff_spring_is_stable_where_rk4_blows_up(form):
     sc = _stiff_spring_pendulum()
-    with pytest.raises(mbdk.NonFiniteSolutionError):
+    # the blow-up is named where it starts (the energy watch) or where it overflows
+    with pytest.raises((mbdk.EnergyDriftError, mbdk.NonFiniteSolutionError)):
         mbdk.simulate(sc, "rk4", h=5e-3, t_end=5.0)
     r = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=5e-3, t_end=5.0)
     # conservative: the energy (0 J at the start, about 20 J exchanged) is kept within 0.5 J
@@ -359,8 +366,12 @@ def test_energy_bounded_over_long_runs_at_large_h():
     assert e.max() < 0.01 * abs(r.energy[0])
     assert e[n // 2:].max() < 2.0 * e[: n // 2].max()
     assert r.residuals[:, 0].max() < 1e-11 and r.residuals[:, 1].max() < 1e-12
-    heun = mbdk.simulate(sc, "heun", formulation="projection", h=0.05, t_end=200.0, every=20)
+    heun = mbdk.simulate(sc, "heun", formulation="projection", h=0.05, t_end=200.0, every=20,
+                         watch=False)
     assert np.abs(heun.energy - heun.energy[0]).max() > abs(heun.energy[0])
+    # watched (the default), the same run stops where its energy error passes 10 % of the scale
+    with pytest.raises(mbdk.EnergyDriftError):
+        mbdk.simulate(sc, "heun", formulation="projection", h=0.05, t_end=200.0, every=20)
 
 
 def test_step_size_control_meets_its_tolerance_and_counts_its_work():

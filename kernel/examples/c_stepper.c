@@ -133,7 +133,8 @@ static void hanging_bar(void)
     double y[6], lam[2], t;
     int n, m;
     mbdk_options opt;
-    mbdk_model_options mopt = {0, 0, 1e7, 10, 1, 1e-12, MBDK_FORM_REDUCED, MBDK_SOLVER_AUTO, 1, 20};
+    mbdk_model_options mopt;
+    mbdk_model_default_options(&mopt);   /* the reduced formulation */
     mbdk_stepper *s = NULL;
     mbdk_default_options(&opt);
     opt.method = mbdk_method_id("rk4");

@@ -81,6 +81,7 @@ int main(void)
     }
     mbdk_default_options(NULL);
     mbdk_index3_default_options(NULL);
+    mbdk_model_default_options(NULL);
     expect("method_id(NULL)", mbdk_method_id(NULL), 0);
     expect("sample_count, nsamp NULL", mbdk_sample_count(0, 1, 0.1, 1, NULL), MBDK_ERR_INVALID_INPUT);
     expect("sample_count", mbdk_sample_count(0, 1, 0.1, 1, &nsamp), MBDK_SUCCESS);
@@ -100,7 +101,8 @@ int main(void)
     expect("struct_field, type NULL", mbdk_struct_field(1, 1, buf, sizeof buf, &n1, NULL), MBDK_ERR_INVALID_INPUT);
     {
         mbdk_options opt;
-        mbdk_model_options mopt = {0, 0, 1e7, 10, 1, 1e-12, MBDK_FORM_REDUCED, MBDK_SOLVER_AUTO, 1, 20};
+        mbdk_model_options mopt;
+        mbdk_model_default_options(&mopt);   /* the reduced formulation */
         mbdk_stepper *s = NULL, *sc = NULL, *s3 = NULL;
         mbdk_stats st;
         double y0[1] = {1.0}, t, y[6], lam[2];

@@ -19,6 +19,7 @@ from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
 from .scene import Scene, SceneError, load_scene, scene, scenes
 from .simulate import RedundantConstraintsError, SceneResult, evaluate, simulate
+from .watch import Watch
 
 __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
@@ -28,5 +29,5 @@ __all__ = [
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
-    "ConstraintDriftError", "EnergyDriftError",
+    "ConstraintDriftError", "EnergyDriftError", "Watch",
 ]

@@ -30,11 +30,14 @@ Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing 
   (kinetic + potential, its parts, and the work of dampers, constraints and loads accumulated by
   the trapezoidal rule over the samples: exact only as every -> 1), "residuals" (max |Phi|,
   max |Phi'|, max |D a - gamma|). An output not asked for is None in the result.
+
+What a run must keep (watch=, mbdk.watch): the constraint residuals and the energy balance are
+checked while it runs; leaving them ends the run with ConstraintDriftError or EnergyDriftError.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from numbers import Integral
 
 import numpy as np
@@ -43,6 +46,7 @@ from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, status_message)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
+from .watch import as_watch, drift_message, drift_report
 from .methods import method as _method
 from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
@@ -84,6 +88,8 @@ class SceneResult(Result):
     joints: list = field(default_factory=list)
     bodies: list = field(default_factory=list)
     iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
+    #: a run the watch stopped: what left its tolerance, where and when (mbdk.watch.drift_report)
+    drift: dict | None = None
 
     @property
     def y(self) -> np.ndarray:
@@ -169,7 +175,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
              adaptive: bool | None = None, err_rtol: float | None = None,
              err_atol: float | None = None, dt_out: float | None = None,
              h_min: float | None = None, h_max: float | None = None,
-             raise_on_failure: bool = True, **unknown) -> SceneResult:
+             watch=True, raise_on_failure: bool = True, **unknown) -> SceneResult:
     """Integrate a scene. See the module docstring for methods, formulations and outputs.
 
     formulation: default "reduced" for the ODE methods, "augmented_lagrangian" for
@@ -181,7 +187,11 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     alpha_p (~1e-9 at 1e7): a tighter test would never pass. trapezoidal_index3: 1e-10/1e-12.
 
     adaptive, err_rtol, err_atol, dt_out, h_min, h_max, max_iter: trapezoidal_index3 only
-    (step-size control and Newton's iteration limit; mbdk.index3 says what they do)."""
+    (step-size control and Newton's iteration limit; mbdk.index3 says what they do).
+
+    watch: what the run must keep (mbdk.watch): True for the kernel's tolerances, False to turn
+    the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
+    ConstraintDriftError or EnergyDriftError at the check where it happened."""
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
@@ -214,6 +224,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     if startup not in STARTUP:
         raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
     want = _want(outputs)
+    watch_ = as_watch(watch)
     check_run(h, t_end, t0, every)
     every = int(every)
     if index3:
@@ -225,6 +236,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                           projection_tol, startup, newton_rtol, newton_atol)
         mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
                              projection_tol, solver, small_dense)
+    mopt = replace(mopt, **watch_.options())
     _check_bodies(scene)
     if solver == "revolute_schur":
         other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
@@ -254,8 +266,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     args = (*tab.args(), mopt.pack(), info_m.id, plan_["ode"].pack(), plan_["index3"].pack(),
             flag, y0, given_mask(scene), int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
-    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, status), \
-        interrupted = _compiled.call(_kernel.scene_run, args, flag, plan_["steps"] * y0.size)
+    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
+     status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
+                                           plan_["steps"] * y0.size)
     status = Status(int(status))
     nw = int(nw)
     if bad_joint or bad_force:
@@ -271,7 +284,8 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                 "formulation": formulation, "h": h, "t0": t0, "t_end": t_end, "every": every,
                 "outputs": [o for o in OUTPUTS if want & OUTPUTS[o]],
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
-                "small_dense": small_dense, **plan_["manifest"]}
+                "small_dense": small_dense,
+                "watch": {k: v for k, v in asdict(watch_).items()}, **plan_["manifest"]}
     if index3:
         manifest["steps"] = stats.steps
     result = SceneResult(
@@ -308,11 +322,29 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
         _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
                           result)
+    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+        result.drift = drift_report(watch_report, tab.rows)
+        result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
+                          f"{drift_message(watch_report, tab.rows)}. "
+                          + _DRIFT_ADVICE[status])
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:
         raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
                                                      plan_, result), status=status,
                                     result=result)
     return result
+
+
+_DRIFT_ADVICE = {
+    Status.ERR_CONSTRAINT_DRIFT: "The state left the constraints: a smaller h, a stabilised "
+    "formulation (baumgarte, projection) or trapezoidal_index3 keeps them; near a singular "
+    "configuration the mechanism may have changed branch. watch=mbdk.Watch(...) sets other "
+    "tolerances, watch=False accepts the drift.",
+    Status.ERR_ENERGY_DRIFT: "The method added or removed energy the model does not: a smaller "
+    "h, or a method whose stability region covers h times the system's eigenvalues (implicit "
+    "for stiff elements). watch=mbdk.Watch(energy=...) sets another tolerance, watch=False "
+    "accepts it."}
 
 
 def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, projection_tol,

@@ -29,6 +29,12 @@ contains
     if (present(opt)) opt = d
   end subroutine mbdk_c_index3_default_options
 
+  subroutine mbdk_c_model_default_options(opt) bind(C, name='mbdk_model_default_options')
+    type(mbdk_model_options_t), intent(out), optional :: opt
+    type(mbdk_model_options_t) :: d
+    if (present(opt)) opt = d
+  end subroutine mbdk_c_model_default_options
+
   integer(c_int) function mbdk_c_index3_sample_count(opt, t0, t_end, nsamp) &
       bind(C, name='mbdk_index3_sample_count')
     type(mbdk_index3_options_t), intent(in), optional :: opt

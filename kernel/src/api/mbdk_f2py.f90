@@ -249,7 +249,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
                      t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
                      a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
                      nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
-                     bad_force, status)
+                     bad_force, watch_report, status)
   ! The one entry that runs a scene. The tables' pose defaults are filled in at y0 and the model
   ! built (mbdk_assembly, mbdk_model); with assemble /= 0 the initial state is assembled (the
   ! coordinates whose given(:) is 0 move; asm_iters corrections; on failure,
@@ -262,7 +262,9 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   ! have one column; trapezoidal_index3 writes a_out, lam_out and iters_out whatever want says
   ! (they are its own). Samples whose outputs cannot be computed (the state a failed run stopped
   ! at) get NaN there. visits: the model's visit counters over the whole call (steps and
-  ! outputs); linear_solve: the path the model's solves take (MBDK_SOLVE_*).
+  ! outputs); linear_solve: the path the model's solves take (MBDK_SOLVE_*). watch_report: a
+  ! drift failure's report (mbdk_watch): quantity, row, value, tolerance, time, last good time,
+  ! the value itself and its scale.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_options, only: mbdk_options_t
@@ -291,7 +293,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   integer, intent(inout) :: iters_out(ni)
   integer, intent(out) :: nwritten, linear_solve, status, asm_iters, asm_velocity, bad_joint
   integer, intent(out) :: bad_force
-  double precision, intent(out) :: asm_resid(m1)
+  double precision, intent(out) :: asm_resid(m1), watch_report(8)
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
@@ -326,6 +328,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
 
   nwritten = 0
   linear_solve = -1
+  watch_report = 0.0d0
   asm_iters = 0
   asm_resid = 0.0d0
   asm_velocity = 0
@@ -393,6 +396,10 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   end if
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
+  associate (w => work%watch)
+    watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
+                    w%scale]
+  end associate
 
 end subroutine scene_run
 

@@ -17,11 +17,16 @@ module mbdk_problem
     integer :: nq = 0            !< > 0: y = [q; v], q' = v, n = 2*nq
     logical :: has_jac = .false. !< .true. when jac gives the analytic dF/dy
     logical :: has_post_step = .false. !< .true.: the driver calls post_step after every step
+    !> .true.: the driver calls watch_start at t0 and watch after every accepted step (a scene
+    !> watching its constraints and energy, mbdk_watch)
+    logical :: has_watch = .false.
   contains
 
     procedure(rhs_iface), deferred :: rhs
     procedure :: jac => no_jac
     procedure :: post_step => no_post_step
+    procedure :: watch_start => no_watch_start
+    procedure :: watch => no_watch
   end type mbdk_problem_t
 
   abstract interface
@@ -55,5 +60,22 @@ contains
     integer, intent(out) :: stat
     stat = MBDK_SUCCESS
   end subroutine no_post_step
+
+  !> Default: nothing watched.
+  subroutine no_watch_start(self, t, y, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+  end subroutine no_watch_start
+
+  !> Default: nothing watched. force: the step is a sample (or the last one): check it.
+  subroutine no_watch(self, t, y, force, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+  end subroutine no_watch
 
 end module mbdk_problem

@@ -120,7 +120,8 @@ module mbdk_trapezoidal_index3
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, &
+    mbdk_model_watch_start, mbdk_model_watch
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
     mbdk_constrained_factor, mbdk_constrained_solve
   use mbdk_joints, only: mbdk_joints_eval, mbdk_body_rotations, MBDK_JOINT_TYPES
@@ -253,6 +254,7 @@ contains
     s%a_prev = s%a
     s%a_prev2 = s%a
     s%st%nfev = 1
+    call mbdk_model_watch_start(model, s%t, s%q, s%v, stat, velocity=.not. s%book)
   end subroutine mbdk_index3_init
 
   !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
@@ -286,19 +288,27 @@ contains
     s%tn = tn
     s%h = tn - s%t
     call attempt(s, model, stat)
-    if (stat == MBDK_SUCCESS) call commit(s)
+    if (stat == MBDK_SUCCESS) then
+      call commit(s)
+      call mbdk_model_watch(model, s%t, s%q, s%v, .false., stat)
+    end if
   end subroutine mbdk_index3_step
 
   !> Fixed step: from s%t to t_s in one step of h = t_s - t or, when Newton fails (diverged,
   !> singular matrix, non-finite iterate) in the augmented form, in substeps: each failure
   !> quarters the substep (stats%newton_failures), each success doubles it back up to the
   !> full step. Below h / 4^MBDK_INDEX3_MAX_CUTS the failure is returned.
-  subroutine mbdk_index3_advance(s, model, t_s, ierr)
+  subroutine mbdk_index3_advance(s, model, t_s, ierr, sample_at_end)
     type(mbdk_index3_t), intent(inout) :: s
     type(mbdk_model_t), intent(in) :: model
     real(dp), intent(in) :: t_s
     integer, intent(out) :: ierr
+    !> the state at t_s will be sampled: the watch checks it (mbdk_model_watch)
+    logical, intent(in), optional :: sample_at_end
     real(dp) :: h_full, h_sub
+    logical :: sample
+    sample = .false.
+    if (present(sample_at_end)) sample = sample_at_end
     h_full = t_s - s%t
     h_sub = h_full
     ierr = MBDK_SUCCESS
@@ -317,6 +327,8 @@ contains
       end if
       if (ierr /= MBDK_SUCCESS) return
       call commit(s)
+      call mbdk_model_watch(model, s%t, s%q, s%v, sample .and. s%t == t_s, ierr)
+      if (ierr /= MBDK_SUCCESS) return
       h_sub = min(2.0_dp * h_sub, h_full)
     end do
   end subroutine mbdk_index3_advance
@@ -343,7 +355,7 @@ contains
     integer, intent(out) :: stat
     integer(i8) :: nsteps, i
     integer :: nsamp, plan_stat
-    logical :: shortened
+    logical :: shortened, sample
     real(dp) :: t_s
     type(mbdk_timer_t) :: timer
     type(mbdk_index3_t) :: s
@@ -371,14 +383,17 @@ contains
           stat = MBDK_ERR_INTERRUPTED
           exit
         end if
-        call mbdk_index3_advance(s, model, t_s, stat)
+        sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
+        call mbdk_index3_advance(s, model, t_s, stat, sample)
         if (stat /= MBDK_SUCCESS) exit
-        if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) call write_sample()
+        if (sample) call write_sample()
       end do
       if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
     end if
-    ! on failure the last sample is the state the failed step started from (where it stopped)
-    if (mbdk_is_failure(stat) .and. nwritten < size(t_out)) then
+    ! on failure the last sample is the state the failed step started from (where it stopped);
+    ! a state the watch refused is not a sample (the last sample passed its checks)
+    if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. &
+        stat /= MBDK_ERR_CONSTRAINT_DRIFT .and. stat /= MBDK_ERR_ENERGY_DRIFT) then
       if (s%t > t_out(nwritten)) call write_sample()
     end if
     st = s%st
@@ -429,6 +444,8 @@ contains
             if (err <= 1.0_dp) then
               call commit(s)
               call mbdk_controller_accept(ctl, s%h, err)
+              call mbdk_model_watch(model, s%t, s%q, s%v, s%t >= t_s, ierr)
+              if (ierr /= MBDK_SUCCESS) return
               cycle
             end if
             s%st%rejected_steps = s%st%rejected_steps + 1

@@ -96,7 +96,7 @@ contains
     character(len=MBDK_METHOD_NAME_LEN) :: name
     integer :: family, order, n, nsamp, plan_stat
     integer(i8) :: nsteps, i
-    logical :: shortened, found
+    logical :: shortened, found, sample
     type(mbdk_stepper_t) :: s
     type(mbdk_lmm_t) :: lmm
     real(dp) :: t_next
@@ -139,9 +139,10 @@ contains
       end if
       t_next = t0 + real(i, dp) * opt%h
       if (i == nsteps) t_next = t_end
-      call mbdk_stepper_step(s, prob, t_next, stat)
+      sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
+      call mbdk_stepper_step(s, prob, t_next, stat, sample)
       if (stat /= MBDK_SUCCESS) exit
-      if (mod(i, int(opt%every, i8)) == 0 .or. i == nsteps) then
+      if (sample) then
         nwritten = nwritten + 1
         t_out(nwritten) = t_next
         y_out(:, nwritten) = s%y

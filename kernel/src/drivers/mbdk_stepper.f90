@@ -103,16 +103,21 @@ contains
       s%st%nfev = s%st%nfev + 1
       if (stat /= MBDK_SUCCESS) return
     end if
+    if (prob%has_watch) then
+      call prob%watch_start(t0, s%y, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     s%failed = .false.
   end subroutine mbdk_stepper_init
 
   !> One step from s%t to t_next > s%t (see the module header). On success s%t = t_next and
-  !> s%y the new state.
-  subroutine mbdk_stepper_step(s, prob, t_next, stat)
+  !> s%y the new state. sample: the state will be sampled, so a watching problem checks it.
+  subroutine mbdk_stepper_step(s, prob, t_next, stat, sample)
     type(mbdk_stepper_t), intent(inout) :: s
     class(mbdk_problem_t), intent(in) :: prob
     real(dp), intent(in) :: t_next
     integer, intent(out) :: stat
+    logical, intent(in), optional :: sample
     real(dp) :: h
     integer(i8) :: i
     logical :: ok
@@ -174,6 +179,13 @@ contains
       end if
     end if
     if (stat == MBDK_SUCCESS .and. .not. all(abs(s%y) <= huge(1.0_dp))) stat = MBDK_ERR_NONFINITE
+    if (stat == MBDK_SUCCESS .and. prob%has_watch) then
+      if (present(sample)) then
+        call prob%watch(t_next, s%y, sample, stat)
+      else
+        call prob%watch(t_next, s%y, .false., stat)
+      end if
+    end if
     if (stat /= MBDK_SUCCESS) then
       s%failed = .true.
       return

@@ -51,13 +51,16 @@ module mbdk_model
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
+    MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, &
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
     MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_POINT, &
-    MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE
+    MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
     MBDK_ELEMENT_NAME_LEN
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
+    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
@@ -69,7 +72,8 @@ module mbdk_model
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
-  public :: mbdk_model_assemble, mbdk_model_linear_solve
+  public :: mbdk_model_assemble, mbdk_model_linear_solve, mbdk_model_watch_start, &
+    mbdk_model_watch
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -99,10 +103,16 @@ module mbdk_model
     real(c_double) :: penalty_omega = 10.0_c_double
     real(c_double) :: penalty_mu = 1.0_c_double
     real(c_double) :: projection_tol = 1.0e-12_c_double !< max |Phi| after the projection of q
+    !> what a run must keep (mbdk_watch): |Phi| per length scale, the velocity residual per
+    !> size of its terms, the energy balance per energy scale; <= 0 turns a test off
+    real(c_double) :: watch_position = 1.0e-2_c_double
+    real(c_double) :: watch_velocity = 1.0e-2_c_double
+    real(c_double) :: watch_energy = 1.0e-1_c_double
     integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< MBDK_FORM_*
     integer(c_int) :: solver = MBDK_SOLVER_AUTO         !< MBDK_SOLVER_*
     integer(c_int) :: small_dense = 1                   !< 0: LAPACK for every factorisation
     integer(c_int) :: projection_max_iter = 20          !< Gauss-Newton iterations of the projection of q
+    integer(c_int) :: watch_every = 16                  !< steps between checks (and every sample)
   end type mbdk_model_options_t
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
@@ -119,6 +129,10 @@ module mbdk_model
     !> formulation's corrections (weight winv)
     type(mbdk_constrained_t) :: cs, proj
     integer(i8) :: visits(MBDK_VISIT_COUNT) = 0
+    !> the watch's state and its buffers: the velocity residual, its terms' size, a and lambda
+    !> (for the drivers' power)
+    type(mbdk_watch_t) :: watch
+    real(dp), allocatable :: wres(:), wterm(:), wa(:), wlam(:)
   end type mbdk_model_work_t
 
   type, extends(mbdk_problem_t), public :: mbdk_model_t
@@ -140,6 +154,9 @@ module mbdk_model
     real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp   !< Jalon-Bayo
     real(dp) :: proj_tol = 1.0e-12_dp
     integer :: proj_max_iter = 20
+    real(dp) :: watch_tol(3) = 0.0_dp   !< position, velocity, energy (mbdk_watch)
+    integer :: watch_every = 16
+    logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
     type(mbdk_model_work_t), pointer :: work => null()
     !> every joint revolute and S solved in-house: the closed-form Schur complement
     logical :: revolute = .false.
@@ -153,6 +170,8 @@ module mbdk_model
   contains
     procedure :: rhs => model_rhs
     procedure :: post_step => model_post_step
+    procedure :: watch_start => model_watch_start
+    procedure :: watch => model_watch
   end type mbdk_model_t
 
 contains
@@ -261,6 +280,11 @@ contains
     model%pen_mu = opt%penalty_mu
     model%proj_tol = opt%projection_tol
     model%proj_max_iter = opt%projection_max_iter
+    model%watch_tol = [opt%watch_position, opt%watch_velocity, opt%watch_energy]
+    model%watch_every = opt%watch_every
+    if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 1) return
+    model%has_watch = any(model%watch_tol > 0.0_dp)
+    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER)
     model%solver = opt%solver
     model%small_dense = opt%small_dense /= 0
     if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_REVOLUTE) return
@@ -288,10 +312,12 @@ contains
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
-                                        work%pm, work%y_post, work%pp, work%zero_nc)
+                                        work%pm, work%y_post, work%pp, work%zero_nc, &
+                                        work%wres, work%wterm, work%wa, work%wlam)
     allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%xc(nc), work%y_post(2 * nc), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc))
+              work%xc(nc), work%y_post(2 * nc), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc), &
+              work%wres(m), work%wterm(m), work%wa(nc), work%wlam(m))
     work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
     if (formulation == MBDK_FORM_PENALTY) then
@@ -628,5 +654,170 @@ contains
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
     end do
   end subroutine mbdk_model_outputs
+
+  subroutine model_watch_start(self, t, y, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    integer, intent(out) :: stat
+    call mbdk_model_watch_start(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), stat)
+  end subroutine model_watch_start
+
+  subroutine model_watch(self, t, y, force, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat)
+  end subroutine model_watch
+
+  !> Starts the watch (mbdk_watch) at the initial state: the length scale L, which rows are
+  !> angles, whether the energy balance has power terms, the energies at t0. velocity = .false.:
+  !> the integrator does not promise the velocity constraints (the book's index-3 scheme, whose
+  !> velocities are the trapezoidal rule's on q), so they are not tested.
+  subroutine mbdk_model_watch_start(self, t, q, v, stat, velocity)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    integer, intent(out) :: stat
+    logical, intent(in), optional :: velocity
+    logical :: angular(self%m), power
+    real(dp) :: length, kin, vg, vs, p, gscale, rmean(2), tol_v
+    integer :: j, e, r, typ, b, nb
+    stat = MBDK_SUCCESS
+    if (.not. self%has_watch) return
+    nb = self%nb
+    length = 0.0_dp
+    power = .false.
+    do j = 1, size(self%jint, 2)
+      typ = self%jint(1, j)
+      r = self%row0(j)
+      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER) &
+        length = max(length, norm2(self%jreal(1:2, j)))
+      if (self%jint(3, j) > 0 .and. typ /= MBDK_JOINT_DRIVER) &
+        length = max(length, norm2(self%jreal(3:4, j)))
+      select case (typ)
+      case (MBDK_JOINT_REVOLUTE)
+        angular(r:r + 1) = .false.
+      case (MBDK_JOINT_PRISMATIC)
+        angular(r) = .true.
+        angular(r + 1) = .false.
+      case (MBDK_JOINT_FIXED)
+        angular(r:r + 1) = .false.
+        angular(r + 2) = .true.
+      case default   ! a driver: of x, y or theta
+        angular(r) = self%jint(4, j) == 3
+        power = .true.
+      end select
+    end do
+    gscale = 0.0_dp
+    do e = 1, size(self%fint, 2)
+      select case (self%fint(1, e))
+      case (MBDK_FORCE_GRAVITY)
+        gscale = gscale + norm2(self%freal(1:2, e))
+      case (MBDK_FORCE_POINT, MBDK_FORCE_TORQUE)
+        power = .true.
+        if (self%fint(1, e) == MBDK_FORCE_POINT) length = max(length, norm2(self%freal(1:2, e)))
+      case (MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_SPRING_DAMPER)
+        if (self%fint(2, e) > 0) length = max(length, norm2(self%freal(1:2, e)))
+        if (self%fint(3, e) > 0) length = max(length, norm2(self%freal(3:4, e)))
+        if (self%freal(7, e) /= 0.0_dp) power = .true.
+      case (MBDK_FORCE_COORDINATE)
+        if (self%freal(2, e) /= 0.0_dp) power = .true.
+      end select
+    end do
+    ! the spread of the bodies: twice the largest distance from their mean position
+    rmean = [sum(q(self%qoff(:))), sum(q(self%qoff(:) + 1))] / nb
+    do b = 1, nb
+      length = max(length, 2.0_dp * norm2(q(self%qoff(b):self%qoff(b) + 1) - rmean))
+    end do
+    if (.not. (length > 0.0_dp)) length = max(norm2(rmean), 1.0_dp)
+    gscale = gscale * sum(self%mass(self%qoff(:))) * length
+    call watch_quantities(self, t, q, v, power, .false., kin, vg, vs, p, stat)
+    if (stat /= MBDK_SUCCESS) return
+    tol_v = self%watch_tol(2)
+    if (present(velocity)) then
+      if (.not. velocity) tol_v = 0.0_dp
+    end if
+    call mbdk_watch_start(self%work%watch, self%watch_tol(1), tol_v, self%watch_tol(3), &
+                          self%watch_every, power, length, angular, t, kin, vg, vs, p, gscale, &
+                          sum(self%mass(self%qoff(:))))
+  end subroutine mbdk_model_watch_start
+
+  !> The watch after an accepted step at (t, q, v): when a check is due (every watch_every
+  !> steps, force, or every step with power terms), the constraint residuals and the energy
+  !> balance against their tolerances. MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT with
+  !> the report in work%watch.
+  subroutine mbdk_model_watch(self, t, q, v, force, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    real(dp) :: kin, vg, vs, p
+    integer :: due
+    stat = MBDK_SUCCESS
+    if (.not. self%has_watch) return
+    due = mbdk_watch_due(self%work%watch, force)
+    if (due == MBDK_WATCH_NOTHING) return
+    call watch_quantities(self, t, q, v, self%work%watch%power, due == MBDK_WATCH_POWER_ONLY, &
+                          kin, vg, vs, p, stat)
+    if (stat /= MBDK_SUCCESS) return
+    associate (w => self%work)
+      if (due == MBDK_WATCH_POWER_ONLY) then
+        call mbdk_watch_power(w%watch, t, p)
+      else
+        call mbdk_watch_test(w%watch, t, w%phi, w%wres, w%wterm, kin, vg, vs, p, stat)
+      end if
+    end associate
+  end subroutine mbdk_model_watch
+
+  !> What the watch tests at (t, q, v): work%phi, work%wres = D v + Phi_t and work%wterm (the
+  !> size of its terms), the kinetic, gravity and spring energy and, with power, the power of
+  !> loads and drivers less the dampers' (power_only: that alone). The passes are not counted in
+  !> the visit counters: they are the watch's, not the integration's.
+  subroutine watch_quantities(self, t, q, v, power, power_only, kin, vg, vs, p, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, q(:), v(:)
+    logical, intent(in) :: power, power_only
+    real(dp), intent(out) :: kin, vg, vs, p
+    integer, intent(out) :: stat
+    integer(i8) :: unused(MBDK_JOINT_TYPES)
+    real(dp) :: pd, pl, pc
+    integer :: r, k, c
+    stat = MBDK_SUCCESS
+    pc = 0.0_dp
+    associate (w => self%work)
+      ! the drivers' power -lambda . D v needs the multipliers: one constrained solve, only
+      ! where a driver or load makes the balance have power terms
+      if (power .and. self%has_drivers) then
+        call mbdk_model_accelerations(self, t, q, v, w%wa, w%wlam, stat)
+        if (stat /= MBDK_SUCCESS) return
+      else
+        w%wlam = 0.0_dp
+      end if
+      call mbdk_body_rotations(q, w%rot)
+      if (self%m > 0 .and. (.not. power_only .or. self%has_drivers)) then
+        call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, w%dz, &
+                              w%gam, w%phit, unused)
+        call mbdk_sparse_d_times(self%sp, w%dz, v, w%wres, .false.)
+        pc = -dot_product(w%wlam, w%wres)
+      end if
+      if (self%m > 0 .and. .not. power_only) then
+        w%wterm = abs(w%phit)
+        do r = 1, self%m
+          do k = 1, MBDK_JOINT_SLOTS
+            c = self%col(k, r)
+            if (c > 0) w%wterm(r) = w%wterm(r) + abs(w%dz(k, r) * v(c))
+          end do
+        end do
+        w%wres = w%wres + w%phit
+      end if
+      kin = 0.0_dp
+      do c = 1, self%nc
+        kin = kin + self%mass(c) * v(c)**2
+      end do
+      kin = 0.5_dp * kin
+      call mbdk_forces_energy(self%fint, self%freal, self%mass, w%rot, q, v, t, vg, vs, pd, pl)
+      p = pl - pd + pc
+    end associate
+  end subroutine watch_quantities
 
 end module mbdk_model
