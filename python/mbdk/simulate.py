@@ -462,8 +462,9 @@ def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
     names = rows_to_joints(tab, dep)
     rank = np.linalg.matrix_rank(d0, tol=1e-9 * max(1.0, np.abs(d0).max()))
     if index3:
-        what = ("the index-3 Newton matrix is singular. Remove the redundant joint, or use an "
-                "ODE method with formulation = 'penalty'")
+        what = ("the book scheme's Newton matrix [M + .., D^T; D, 0] is singular. Use "
+                "formulation = 'augmented_lagrangian', which runs redundant joints, remove the "
+                "redundant joint, or use an ODE method with formulation = 'penalty'")
     else:
         what = (f"so the {formulation} formulation has no unique multipliers. Remove the "
                 "redundant joint or use formulation = 'penalty', which handles it")

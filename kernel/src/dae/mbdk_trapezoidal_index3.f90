@@ -27,7 +27,10 @@
 !>                q + h v + s (a + a_x), a_x = a + (h/h-)(a - a-) (the rule itself with a+
 !>                extrapolated: O(h^4)) and lam* extrapolated likewise. Then the mass-orthogonal
 !>                projections of v+ onto D v + Phi_t = 0 and of a+ onto D a = gamma (one
-!>                factorisation of [M D^T; D 0], through D M^-1 D^T when M > 0), computed so that
+!>                factorisation of [M D^T; D 0], through D M^-1 D^T when M > 0; where D has
+!>                lost a rank, redundant joints or a singular configuration, the regular
+!>                augmented Lagrangian path of mbdk_constrained, and likewise for the
+!>                consistent a and lambda at t0), computed so that
 !>                the Newton error of q+ is not amplified: P removes every M^-1 D^T term, so
 !>                  v+ = P (v + (h/2)(a + a~)),  a~ any solution of M a~ = f - D^T (..),
 !>                equals P (2/h (q+ - q) - v) once Newton has converged, without its 2/h times
@@ -244,8 +247,25 @@ contains
     s%q = y0(1:nc)
     s%v = y0(nc + 1:)
     s%t = t0
-    ! consistent a and lambda at t0: the reduced formulation's solve
+    ! consistent a and lambda at t0: the reduced formulation's solve; where D has lost a rank
+    ! (redundant joints, or a start at a singular configuration) the augmented form takes the
+    ! regular path of its projections instead (lambda is then one of many)
     call mbdk_model_accelerations(model, s%t, s%q, s%v, s%a, s%lam, stat)
+    if (stat == MBDK_ERR_SINGULAR_MATRIX .and. .not. s%book) then
+      s%qn = s%q
+      s%vn = s%v
+      s%tn = s%t
+      call constraints_at(s, model)
+      s%fq = 0.0_dp
+      call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%q, s%v, s%t, &
+                            s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), stat)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
+                                   model%mass, stat, regular=.true.)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
+                                  s%gam, s%a, s%lam, stat)
+    end if
     if (stat /= MBDK_SUCCESS) return
     s%lam_old = s%lam
     s%lst = s%lam
@@ -635,8 +655,10 @@ contains
       s%lstn = s%ln
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       call constraints_at(s, model)
+      ! at a rank loss of D (a singular crossing, redundant joints) the projections take the
+      ! regular augmented Lagrangian path of mbdk_constrained instead of failing
       call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
-                                   model%mass, ierr)
+                                   model%mass, ierr, regular=.true.)
       if (ierr /= MBDK_SUCCESS) return
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
       ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of

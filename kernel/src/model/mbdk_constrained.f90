@@ -19,6 +19,20 @@
 !> MBDK_CONSTRAINED_SINGULAR_TOL of the largest gives MBDK_ERR_SINGULAR_MATRIX. (The closed-form
 !> blocks of all-revolute scenes, mbdk_revolute_schur, are the model's own faster path for the
 !> accelerations.)
+!>
+!> A caller that must pass through such a configuration (trapezoidal_index3's projections at a
+!> singular crossing of a mechanism, or redundant joints) asks mbdk_constrained_factor for the
+!> regular path instead of the error: the augmented Lagrangian iteration of Bayo and Ledesma
+!> (1996) on the mass-orthogonal projection,
+!>   (W^-1 + beta D^T D) x_k+1 = b - D^T mu_k + beta D^T c,   mu_k+1 = mu_k + beta (D x_k+1 - c),
+!> whose matrix stays positive definite whatever D's rank (W^-1 > 0). It converges to the
+!> solution where one exists (c in the range of D) and otherwise to the x that meets the
+!> constraints in the least-squares sense, in the norm of W^-1: the part of c that no x can
+!> meet is left, not amplified by the inverse of a vanishing singular value. beta = 1e3
+!> max(W^-1) / max |D_i|^2 contracts a regular direction about a thousandfold per iteration;
+!> directions near the rank loss converge slower and stop when the residual no longer falls
+!> (at most MBDK_CONSTRAINED_AL_ITER iterations). The dense matrix is factorised by LAPACK's
+!> dpotrf: this path serves the few steps near a crossing, not every evaluation.
 module mbdk_constrained
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -40,6 +54,9 @@ module mbdk_constrained
     MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
   !> relative pivot below which S = D W D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_CONSTRAINED_SINGULAR_TOL = 1.0e-11_dp
+  !> the regular path: penalty factor per max(W^-1) / max |D_i|^2, and the iteration limit
+  real(dp), parameter :: AL_KAPPA = 1.0e3_dp
+  integer, parameter, public :: MBDK_CONSTRAINED_AL_ITER = 30
 
   type, public :: mbdk_constrained_t
     integer :: path = MBDK_SOLVE_NONE
@@ -47,6 +64,12 @@ module mbdk_constrained
     real(dp), allocatable :: s(:, :)                 !< S, then its factors
     real(dp), allocatable :: kkt(:, :), rhs(:), d(:, :)
     integer, allocatable :: ipiv(:)
+    !> the regular path, when the last factorisation took it: W^-1 + beta D^T D (its Cholesky
+    !> factor), the dense D, beta, and the iterations of the last solve
+    logical :: regular = .false.
+    real(dp), allocatable :: al(:, :), ald(:, :), alx(:), alr(:)
+    real(dp) :: beta = 0.0_dp
+    integer :: al_iters = 0
   end type mbdk_constrained_t
 
 contains
@@ -78,8 +101,87 @@ contains
   end subroutine mbdk_constrained_init
 
   !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
-  !> diagonal W^-1 for the KKT path).
-  subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat)
+  !> diagonal W^-1). regular: where the system is singular, take the regular path (see the
+  !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX.
+  subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, regular)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in), contiguous :: dz(:, :), wm(:)
+    integer, intent(in), contiguous :: col(:, :), blk(:)
+    integer, intent(out) :: stat
+    logical, intent(in), optional :: regular
+    call factor_exact(cs, sp, dz, col, blk, wm, stat)
+    cs%regular = .false.
+    if (stat /= MBDK_ERR_SINGULAR_MATRIX .or. .not. present(regular)) return
+    if (regular) call factor_regular(cs, dz, col, wm, stat)
+  end subroutine mbdk_constrained_factor
+
+  !> The regular path's matrix W^-1 + beta D^T D, factorised.
+  subroutine factor_regular(cs, dz, col, wm, stat)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    real(dp), intent(in), contiguous :: dz(:, :), wm(:)
+    integer, intent(in), contiguous :: col(:, :)
+    integer, intent(out) :: stat
+    integer :: i, nc, m, astat
+    real(dp) :: dmax
+    nc = cs%nc
+    m = cs%m
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (.not. all(wm > 0.0_dp)) return   ! a body without inertia: no positive definite matrix
+    if (.not. allocated(cs%al)) then
+      allocate (cs%al(nc, nc), cs%ald(m, nc), cs%alx(nc), cs%alr(m), stat=astat)
+      if (astat /= 0) then
+        stat = MBDK_ERR_NO_MEMORY
+        return
+      end if
+    end if
+    call mbdk_joints_scatter(col, dz, cs%ald)
+    dmax = 0.0_dp
+    do i = 1, m
+      dmax = max(dmax, sum(cs%ald(i, :)**2))
+    end do
+    if (.not. (dmax > 0.0_dp)) dmax = 1.0_dp
+    cs%beta = AL_KAPPA * maxval(wm) / dmax
+    cs%al = cs%beta * matmul(transpose(cs%ald), cs%ald)
+    do i = 1, nc
+      cs%al(i, i) = cs%al(i, i) + wm(i)
+    end do
+    call mbdk_chol_factor(cs%al, stat)
+    if (stat /= MBDK_SUCCESS) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      return
+    end if
+    cs%regular = .true.
+  end subroutine factor_regular
+
+  !> The regular path's solve: the augmented Lagrangian iteration from mu = 0, until D x - c
+  !> no longer falls by half or is at roundoff.
+  subroutine solve_regular(cs, b, c, x, mu, stat)
+    type(mbdk_constrained_t), intent(inout) :: cs
+    real(dp), intent(in), contiguous :: b(:), c(:)
+    real(dp), intent(out), contiguous :: x(:), mu(:)
+    integer, intent(out) :: stat
+    integer :: k
+    real(dp) :: r, r_old, floor
+    mu = 0.0_dp
+    r_old = huge(1.0_dp)
+    floor = 64.0_dp * epsilon(1.0_dp) * max(maxval(abs(c)), tiny(1.0_dp))
+    cs%al_iters = 0
+    do k = 1, MBDK_CONSTRAINED_AL_ITER
+      cs%alx = b - matmul(transpose(cs%ald), mu - cs%beta * c)
+      call mbdk_chol_solve(cs%al, cs%alx, stat)
+      if (stat /= MBDK_SUCCESS) return
+      cs%al_iters = k
+      cs%alr = matmul(cs%ald, cs%alx) - c
+      x = cs%alx
+      r = maxval(abs(cs%alr))
+      mu = mu + cs%beta * cs%alr
+      if (r <= floor * max(1.0_dp, maxval(abs(cs%ald)) * maxval(abs(x))) .or. r > 0.5_dp * r_old) exit
+      r_old = r
+    end do
+  end subroutine solve_regular
+
+  subroutine factor_exact(cs, sp, dz, col, blk, wm, stat)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
     real(dp), intent(in), contiguous :: dz(:, :), wm(:)
@@ -129,10 +231,10 @@ contains
       if (umin <= MBDK_CONSTRAINED_SINGULAR_TOL * umax * max(1.0_dp, maxval(wm))) &
         stat = MBDK_ERR_SINGULAR_MATRIX
     end select
-  end subroutine mbdk_constrained_factor
+  end subroutine factor_exact
 
   !> x, mu from the factors of mbdk_constrained_factor (the same dz): W^-1 x + D^T mu = b,
-  !> D x = c, with w = W.
+  !> D x = c, with w = W (on the regular path, as its iteration converges: see the header).
   subroutine mbdk_constrained_solve(cs, sp, dz, blk, w, b, c, x, mu, stat)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
@@ -143,6 +245,10 @@ contains
     integer :: nc
     nc = cs%nc
     stat = MBDK_SUCCESS
+    if (cs%regular) then
+      call solve_regular(cs, b, c, x, mu, stat)
+      return
+    end if
     select case (cs%path)
     case (MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK)
       call mbdk_sparse_d_times(sp, dz, b, mu, .true.)
