@@ -495,3 +495,51 @@ def test_index3_study(tmp_path):
     fixed = next(r for r in cost if r["measure"].startswith("1e-6") and "fixed" in r["measure"])
     assert "NOT" not in fixed["measure"] and float(fixed["error"]) <= 1e-6
     assert float(fixed["cpu_s"]) > 0 and int(fixed["steps"]) > 0
+
+
+def _a02(n):
+    """IFToMM A02: n four-bar loops in a row, every bar 1 m and 1 kg; n + 1 cranks hinged to the
+    ground at x = 0..n, initially vertical, couplers horizontal at y = 1; the cranks turn at
+    -1 rad/s (their tips at 1 m/s along x); gravity -9.81 y. At t = 0.714 s the cranks pass the
+    horizontal, where every loop is flat and D loses n ranks at once."""
+    bodies, joints = [], []
+    for i in range(n + 1):
+        bodies.append({"name": f"crank{i}", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
+                       "x": float(i), "y": 0.5, "angle_deg": 90.0, "vx": 0.5, "omega": -1.0,
+                       "given": ["angle", "omega"] if i == 0 else []})
+        joints.append({"name": f"G{i}", "type": "revolute", "body1": f"crank{i}",
+                       "point1": [-0.5, 0.0], "body2": "ground", "point2": [float(i), 0.0]})
+    for i in range(n):
+        bodies.append({"name": f"coupler{i}", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
+                       "x": i + 0.5, "y": 1.0, "angle_deg": 0.0, "vx": 1.0})
+        joints.append({"name": f"L{i}", "type": "revolute", "body1": f"coupler{i}",
+                       "point1": [-0.5, 0.0], "body2": f"crank{i}", "point2": [0.5, 0.0]})
+        joints.append({"name": f"R{i}", "type": "revolute", "body1": f"coupler{i}",
+                       "point1": [0.5, 0.0], "body2": f"crank{i + 1}", "point2": [0.5, 0.0]})
+    return scene_from_dict({"scene": {"name": f"a02_n{n}"}, "body": bodies, "joint": joints,
+                            "force": [{"type": "gravity", "g": [0.0, -9.81]}]})
+
+
+def test_a02_single_loop_passes_every_crossing_fixed_and_adaptive():
+    """N = 1 (a square parallelogram): 20 s, about 10 turns, both flat poses each turn, with the
+    default options. Reference: energy conservation (no dampers) and the geometry (Phi = 0)."""
+    sc = _a02(1)
+    for kw in (dict(), dict(adaptive=True, err_rtol=1e-6, err_atol=1e-6, dt_out=0.01)):
+        r = mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=20.0, every=10, **kw)
+        assert np.degrees(r.q[:, 2]).min() < -3000.0           # turned through ~10 revolutions
+        assert r.residuals[:, 0].max() < 1e-10
+        assert np.ptp(r.energy) < 1e-3 * abs(r.energy[0])
+
+
+def test_adaptive_retries_have_a_budget():
+    """N = 2 is not passed yet at its first flat pose (t = 0.714 s: D loses two ranks; Newton
+    converges only linearly there). Adaptive, each failure quarters the step and the controller
+    grows it back: without a budget the run circled the pose for a million retries (128 s).
+    Now the retries end it within the budget, with the pose and the joints named."""
+    with pytest.raises(mbdk.NewtonDivergedError, match=r"retry budget.*singular configuration") \
+            as err:
+        mbdk.simulate(_a02(2), "trapezoidal_index3", h=1e-3, t_end=20.0, adaptive=True,
+                      err_rtol=1e-6, err_atol=1e-6, dt_out=0.01)
+    r = err.value.result
+    assert 0.70 < r.t[-1] < 0.72
+    assert 20 <= r.stats.newton_failures < 60

@@ -43,8 +43,9 @@ SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 # a failed step's report calls D near-singular where its smallest singular value is below this
 # fraction of its largest (the collinear four-bar fails within about 1e-3 of its rank loss)
 NEAR_SINGULAR = 1e-2
-MAX_CUTS = 5          # fixed step, augmented form: a failed step is retried in substeps down
-                      # to h / 4^5 (kernel's MBDK_INDEX3_MAX_CUTS)
+# fixed step, augmented form: a failed step is retried in substeps down to h / 4^MAX_CUTS; a run
+# gives up when its retries exhaust RETRY_BUDGET (the kernel's constants)
+MAX_CUTS, RETRY_BUDGET = (int(x) for x in _kernel.index3_constants())
 
 
 def factorisation(formulation: str, small_dense: bool) -> str:

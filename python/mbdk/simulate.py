@@ -45,7 +45,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, status_message)
-from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
+from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, RETRY_BUDGET, factorisation
 from .watch import as_watch, drift_message, drift_report
 from .methods import method as _method
 from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
@@ -494,6 +494,10 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
             Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
         where += f", also in substeps down to h/{4 ** MAX_CUTS}"
+    if (plan_["adaptive"] and r.status == Status.ERR_NEWTON_DIVERGED
+            and r.stats.newton_failures >= RETRY_BUDGET):
+        where += (f"; {r.stats.newton_failures} Newton failures in {r.stats.steps} steps "
+                  "exhausted the retry budget (more than one attempt in ten failing)")
     note = ""
     if nw and tab.m:
         # the last sample is the state the failed step started from

@@ -1,4 +1,5 @@
-"""What a scene run must keep, watched in the kernel while it runs (kernel/src/model/mbdk_watch.f90).
+"""What a scene run must keep, watched in the kernel while it runs
+(kernel/src/model/mbdk_watch.f90).
 
 Every run checks, every few steps and at every sample, that the state stays on the constraint
 manifold and that the energy balance holds:

@@ -658,6 +658,16 @@ subroutine model_index3_matrix(nb, mass, inertia, bkind, nj, nj1, jint, jreal, n
   call mbdk_index3_newton_matrix(model, t, y(1:nc), y(nc + 1:), lam, h, scaling, jac, status)
 end subroutine model_index3_matrix
 
+subroutine index3_constants(max_cuts, retry_budget)
+  ! The index-3 solver's retry limits, for the messages Python writes: substeps down to
+  ! h / 4^max_cuts (fixed step), and the retry budget (failures before a run gives up).
+  use mbdk_trapezoidal_index3, only: MBDK_INDEX3_MAX_CUTS, MBDK_INDEX3_RETRY_BUDGET
+  implicit none
+  integer, intent(out) :: max_cuts, retry_budget
+  max_cuts = MBDK_INDEX3_MAX_CUTS
+  retry_budget = nint(MBDK_INDEX3_RETRY_BUDGET)
+end subroutine index3_constants
+
 subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
   use, intrinsic :: iso_c_binding, only: c_sizeof

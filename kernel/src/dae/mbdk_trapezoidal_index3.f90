@@ -97,8 +97,9 @@
 !> h = h min(5, max(0.2, 0.9 err^(-1/3))), held while that would grow it by less than 20 %
 !> (the matrix stays valid; a change of 5 % or less keeps the old matrix too). A rejected step is
 !> retried with that h (stats%rejected_steps); a Newton failure retries at h/4
-!> (stats%newton_failures); below h_min (default 1e-12 of the interval) the solve ends with
-!> MBDK_ERR_STEP_TOO_SMALL. Samples every opt%dt_out, landed on exactly (a step within 1.1 h of
+!> (stats%newton_failures), within a retry budget (RETRY_BUDGET below: sustained failures end
+!> the run with MBDK_ERR_NEWTON_DIVERGED); below h_min (default 1e-12 of the interval) the
+!> solve ends with MBDK_ERR_STEP_TOO_SMALL. Samples every opt%dt_out, landed on exactly (a step within 1.1 h of
 !> a sample is stretched to it, within 2 h halved). The book's scheme is refused
 !> (MBDK_ERR_NOT_APPLICABLE): its velocity error in the constraint directions grows without
 !> bound, and any error test on v would shrink h forever.
@@ -156,6 +157,14 @@ module mbdk_trapezoidal_index3
   integer, parameter :: COOL_START = 8, COOL_MAX = 1024
   !> adaptive: a step within this fraction of the last matrix's h keeps the matrix
   real(dp), parameter :: KEEP_MATRIX = 0.05_dp
+  !> adaptive: Newton failures, each retried with a quarter of the step, draw on a budget of
+  !> RETRY_BUDGET failures that every accepted step refills by RETRY_REFILL. A run that fails
+  !> in more than one attempt in ten for long, the controller circling a configuration it
+  !> cannot pass (a million retries at a singular crossing were seen), ends with
+  !> MBDK_ERR_NEWTON_DIVERGED instead of spending its time there; an isolated hard step still
+  !> has its 20 retries. (Fixed step needs none: a grid step's substeps end at h / 4^5.)
+  real(dp), parameter, public :: MBDK_INDEX3_RETRY_BUDGET = 20.0_dp
+  real(dp), parameter :: RETRY_BUDGET = MBDK_INDEX3_RETRY_BUDGET, RETRY_REFILL = 0.1_dp
 
   type, bind(C), public :: mbdk_index3_options_t
     real(c_double) :: h = 1.0e-3_c_double              !< fixed step, or the first step (adaptive)
@@ -188,6 +197,7 @@ module mbdk_trapezoidal_index3
     logical :: have_lu = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
+    real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
     type(mbdk_stats_t) :: st
     type(mbdk_index3_factors_t) :: fa
     real(dp), allocatable :: q(:), v(:), a(:), lam(:), lam_old(:), a_prev(:), a_prev2(:)
@@ -294,7 +304,16 @@ contains
     s%t = s%tn
     s%st%steps = s%st%steps + 1
     if (s%cool > 0) s%cool = s%cool - 1
+    s%retries = min(s%retries + RETRY_REFILL, RETRY_BUDGET)
   end subroutine commit
+
+  !> A Newton failure to be retried: counted, and drawn from the budget (.false.: exhausted).
+  logical function retry_allowed(s)
+    type(mbdk_index3_t), intent(inout) :: s
+    s%st%newton_failures = s%st%newton_failures + 1
+    s%retries = s%retries - 1.0_dp
+    retry_allowed = s%retries >= 0.0_dp
+  end function retry_allowed
 
   !> One step from s%t to tn, accepted on success; on failure the state stays at s%t.
   !> No retries (mbdk_index3_advance retries in substeps).
@@ -454,7 +473,10 @@ contains
           if (s%have_lu .and. abs(s%h - s%h_lu) <= KEEP_MATRIX * s%h_lu) s%h_lu = s%h
           call attempt(s, model, ierr)
           if (newton_failed(ierr)) then
-            s%st%newton_failures = s%st%newton_failures + 1
+            if (.not. retry_allowed(s)) then
+              ierr = MBDK_ERR_NEWTON_DIVERGED
+              return
+            end if
             s%have_lu = .false.
             call mbdk_controller_newton_failure(ctl, s%h)
           else if (ierr /= MBDK_SUCCESS) then

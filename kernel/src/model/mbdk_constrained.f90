@@ -176,7 +176,8 @@ contains
       x = cs%alx
       r = maxval(abs(cs%alr))
       mu = mu + cs%beta * cs%alr
-      if (r <= floor * max(1.0_dp, maxval(abs(cs%ald)) * maxval(abs(x))) .or. r > 0.5_dp * r_old) exit
+      if (r <= floor * max(1.0_dp, maxval(abs(cs%ald)) * maxval(abs(x))) .or. &
+          r > 0.5_dp * r_old) exit
       r_old = r
     end do
   end subroutine solve_regular
