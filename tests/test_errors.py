@@ -117,3 +117,11 @@ def test_a_multistep_interval_that_is_not_whole_steps_is_refused_by_name():
     step of bdf2 would not be h."""
     with pytest.raises(mbdk.InvalidInputError, match="bdf2 needs equal steps"):
         solve(method="bdf2", h=1e-3, t_end=1000.0000001, every=100_000)
+
+
+def test_a_whole_number_of_steps_far_from_zero_is_recognised():
+    """t0 = 1000.3, t_end = 1001.3, h = 1e-5: (t_end - t0)/h is 1e5 up to the rounding of
+    t_end - t0 (an ulp of 1000, 1e-8 steps), which is not a reason to refuse bdf2 or to add a
+    sliver of a last step."""
+    r = solve(method="bdf2", y0=[1.0, 0.0], h=1e-5, t0=1000.3, t_end=1001.3, every=10_000)
+    assert r.success and r.status == mbdk.Status.SUCCESS and r.stats.steps == 100_000

@@ -151,3 +151,25 @@ def test_watch_off_and_other_tolerances_are_recorded_and_checked():
                        ("yes", "watch = 'yes'")):
         with pytest.raises(mbdk.InvalidInputError, match=words):
             mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, watch=bad)
+
+
+def test_a_driven_redundant_mechanism_runs_watched_with_the_regular_multipliers():
+    """The redundant parallelogram with its crank driven at 1 rad/s (and a free body falling
+    beside it, so that the 13 rows do not outnumber the coordinates): D has lost a rank, so the
+    watch's multipliers for the driver's power come from the regular path (the reduced solve is
+    singular there). The run passes, its energy balance holds to 1e-4 of the scale, and the
+    watch's own solves leave the visit counters as an unwatched run has them."""
+    from mbdk.scene import Body, Joint
+    sc = mbdk.scene("parallelogram_redundant")
+    sc.bodies.append(Body("free", 1.0, 0.1, x=5.0, y=0.0))
+    crank = sc.joints[0].body1
+    body = next(b for b in sc.bodies if b.name == crank)
+    body.omega = 1.0
+    sc.joints.append(Joint("drive", "driver", crank, coordinate="angle",
+                           function=(body.angle, 1.0, 0.0, 0.0, 0.0)))
+    kw = dict(h=1e-3, t_end=2.0, every=10)
+    r = mbdk.simulate(sc, "trapezoidal_index3", watch=mbdk.Watch(energy=1e-4), **kw)
+    free = mbdk.simulate(sc, "trapezoidal_index3", watch=False, **kw)
+    assert r.success and np.ptp(r.energy) > 1.0
+    assert np.abs(_balance(r)).max() < 1e-3 * np.ptp(r.energy)
+    assert r.visits == free.visits and np.array_equal(r.q, free.q)

@@ -171,15 +171,16 @@ typedef struct mbdk_model_options {
     double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
     double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */
     double projection_tol;        /* max |Phi| after the projection of q */
-    /* what a run must keep (kernel/src/model/mbdk_watch.f90): |Phi| per length scale, the
-     * velocity residual per size of its terms, the energy balance per energy scale; a run that
-     * leaves them ends with MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT; <= 0: off */
-    double watch_position, watch_velocity, watch_energy;
     int formulation;              /* enum mbdk_formulation */
     int solver;                   /* enum mbdk_solver */
     int small_dense;              /* 0: LAPACK for every factorisation */
     int projection_max_iter;
-    int watch_every;              /* steps between checks (every step with dampers, loads, drivers) */
+    /* what a run must keep (kernel/src/model/mbdk_watch.f90): |Phi| per length scale, the
+     * velocity residual per size of its terms, the energy balance per energy scale; a run that
+     * leaves them ends with MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT; <= 0: off.
+     * Start from mbdk_model_default_options (a zeroed struct turns the tests off). */
+    double watch_position, watch_velocity, watch_energy;
+    int watch_every;              /* steps between checks; 0: the default (16) */
 } mbdk_model_options;
 
 /* The defaults of every field; start from them and set what differs. */

@@ -33,11 +33,10 @@ static const struct field model[] = {
     F(mbdk_model_options, baumgarte_alpha), F(mbdk_model_options, baumgarte_beta),
     F(mbdk_model_options, penalty_alpha), F(mbdk_model_options, penalty_omega),
     F(mbdk_model_options, penalty_mu), F(mbdk_model_options, projection_tol),
-    F(mbdk_model_options, watch_position), F(mbdk_model_options, watch_velocity),
-    F(mbdk_model_options, watch_energy),
     F(mbdk_model_options, formulation), F(mbdk_model_options, solver),
     F(mbdk_model_options, small_dense), F(mbdk_model_options, projection_max_iter),
-    F(mbdk_model_options, watch_every)};
+    F(mbdk_model_options, watch_position), F(mbdk_model_options, watch_velocity),
+    F(mbdk_model_options, watch_energy), F(mbdk_model_options, watch_every)};
 
 struct table { const char *name; size_t size; const struct field *f; int n; };
 

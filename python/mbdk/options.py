@@ -134,13 +134,13 @@ class ModelOptions(_Struct):
     penalty_omega: float = 10.0
     penalty_mu: float = 1.0
     projection_tol: float = 1e-12
-    watch_position: float = 1e-2   # what a run must keep (kernel/src/model/mbdk_watch.f90)
-    watch_velocity: float = 1e-2
-    watch_energy: float = 0.1
     formulation: int = 1      # 1 reduced, 2 baumgarte, 3 penalty, 4 projection
     solver: int = 1           # 1 auto, 2 schur, 3 kkt, 4 revolute_schur
     small_dense: int = 1
     projection_max_iter: int = 20
+    watch_position: float = 1e-2   # what a run must keep (kernel/src/model/mbdk_watch.f90)
+    watch_velocity: float = 1e-2
+    watch_energy: float = 0.1
     watch_every: int = 16
 
 

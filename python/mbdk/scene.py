@@ -296,15 +296,21 @@ def _body(r: _Reader) -> Body:
         sr = _Reader(r.source, f"{r.label} shape", 0, shape)
         sr.get("type")
         kind = shape["type"]
-        if kind == "bar":
-            inertia = mass * sr.num("length", required=True, positive=True) ** 2 / 12
-        elif kind == "disc":
-            inertia = mass * sr.num("radius", required=True, positive=True) ** 2 / 2
-        elif kind == "rectangle":
-            inertia = mass * (sr.num("width", required=True, positive=True) ** 2
-                              + sr.num("height", required=True, positive=True) ** 2) / 12
-        else:
-            inertia = 0.0
+        try:
+            if kind == "bar":
+                inertia = mass * sr.num("length", required=True, positive=True) ** 2 / 12
+            elif kind == "disc":
+                inertia = mass * sr.num("radius", required=True, positive=True) ** 2 / 2
+            elif kind == "rectangle":
+                inertia = mass * (sr.num("width", required=True, positive=True) ** 2
+                                  + sr.num("height", required=True, positive=True) ** 2) / 12
+            else:
+                inertia = 0.0
+        except OverflowError:
+            inertia = math.inf
+        if not math.isfinite(inertia):
+            raise r.err("shape", f"= {shape!r} gives an inertia beyond the largest number; "
+                                 "give the body's size in metres")
         sr.done()
     else:
         inertia = r.num("inertia", required=True, nonneg=True)
@@ -411,6 +417,85 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     return sc
 
 
+_FN_KEYS = ("offset", "rate", "amplitude", "omega", "phase")
+
+
+def _fn(v):
+    """A time function as the file writes it (a table), or the value as it is (the reader
+    names what is wrong with it)."""
+    if isinstance(v, (tuple, list)) and len(v) == 5:
+        return dict(zip(_FN_KEYS, v))
+    return v
+
+
+def _seq(v):
+    return list(v) if isinstance(v, tuple) else v
+
+
+def scene_to_dict(sc: Scene) -> dict:
+    """The scene as the parsed TOML structure the reader takes (the inverse of
+    scene_from_dict): each element with exactly the fields its type has. Values are passed as
+    they are, so that reading the result checks a Scene changed in Python with the reader's own
+    rules and messages."""
+    bodies = [{"name": b.name, "kind": b.kind, "mass": b.mass, "inertia": b.inertia, "x": b.x,
+               "y": b.y, "angle": b.angle, "vx": b.vx, "vy": b.vy, "omega": b.omega,
+               "given": _seq(b.given)} for b in sc.bodies]
+    joints = []
+    for j in sc.joints:
+        d = {"name": j.name, "type": j.type, "body1": j.body1}
+        if isinstance(j.type, str) and j.type == "driver":
+            d.update(coordinate=j.coordinate, function=_fn(j.function))
+        else:
+            d.update(body2=j.body2, point1=_seq(j.point1), point2=_seq(j.point2))
+            if isinstance(j.type, str) and j.type == "prismatic":
+                d["axis"] = _seq(j.axis)
+            if isinstance(j.type, str) and j.type in ("prismatic", "fixed") and \
+                    j.angle0 is not None:
+                d["angle0"] = j.angle0
+        joints.append(d)
+    forces = []
+    for f in sc.forces:
+        t = f.type if isinstance(f.type, str) else None
+        d = {"name": f.name, "type": f.type}
+        if t == "gravity":
+            d["g"] = _seq(f.g)
+        elif t == "point_force":
+            d.update(body=f.body1, point=_seq(f.point1), force=_seq(f.force),
+                     function=_fn(f.function))
+        elif t == "torque":
+            d.update(body=f.body1, torque=f.torque, function=_fn(f.function))
+        elif t in ("spring", "damper", "spring_damper"):
+            d.update(body1=f.body1, point1=_seq(f.point1), body2=f.body2,
+                     point2=_seq(f.point2))
+            if t != "damper":
+                d["stiffness"] = f.stiffness
+                if f.rest_length is not None:
+                    d["rest_length"] = f.rest_length
+            if t != "spring":
+                d["damping"] = f.damping
+        elif t is not None and t.startswith("coordinate_"):
+            d.update(body=f.body1, coordinate=f.coordinate)
+            if t != "coordinate_damper":
+                d.update(stiffness=f.stiffness, rest=f.rest)
+            if t != "coordinate_spring":
+                d["damping"] = f.damping
+        forces.append(d)
+    return {"scene": {"name": sc.name, "description": sc.description}, "body": bodies,
+            "joint": joints, "force": forces}
+
+
+def checked(sc: Scene) -> Scene:
+    """The scene re-read through the reader's checks: a Scene whose fields were changed in
+    Python after it was read (or built by hand) gets the errors a file would, naming the
+    element and field, instead of failing somewhere inside the pipeline."""
+    if not isinstance(sc, Scene):
+        raise SceneError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
+    if not isinstance(sc.bodies, list) or not isinstance(sc.joints, list) or \
+            not isinstance(sc.forces, list):
+        raise SceneError(f"{sc.source}: bodies, joints and forces must be lists")
+    return scene_from_dict(scene_to_dict(sc), sc.source)
+
+
 def check_scene(sc: Scene) -> None:
     """References, duplicates and counts; raises SceneError naming the element and field."""
     src = sc.source
@@ -458,13 +543,22 @@ def load_scene(path) -> Scene:
     """Reads a scene file (TOML)."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise SceneError(f"{path}: cannot read the scene file ({exc.strerror})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{path}: line {line}: byte {raw[exc.start]:#04x} at offset {exc.start} "
+                         "is not UTF-8 text; TOML scene files are UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"{path}: arrays or tables nested too deep to read; a scene file "
+                         "needs at most a few levels") from None
     return scene_from_dict(data, str(path))
 
 

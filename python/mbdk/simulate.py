@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from numbers import Integral
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -55,7 +55,7 @@ from .model import evaluate as _evaluate
 from .ode import STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty
 from .result import Result, Stats
-from .scene import Scene
+from .scene import Scene, checked
 
 #: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
 OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
@@ -132,19 +132,6 @@ def check_run(h, t_end, t0, every) -> None:
         raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
     if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
-
-
-def _check_bodies(scene: Scene) -> None:
-    """Masses and inertias as the kernel needs them, checked again here because a Scene's fields
-    can be changed after it was read."""
-    for b in scene.bodies:
-        for fld, val, ok in (("mass", b.mass, lambda x: x > 0), ("inertia", b.inertia,
-                                                               lambda x: x >= 0)):
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or \
-                    not math.isfinite(val) or not ok(val):
-                raise InvalidInputError(f"{scene.source}: body {b.name!r}: field {fld!r} = "
-                                        f"{val!r} must be a finite number "
-                                        f"{'> 0' if fld == 'mass' else '>= 0'}")
 
 
 def _want(outputs) -> int:
@@ -237,7 +224,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
         mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
                              projection_tol, solver, small_dense)
     mopt = replace(mopt, **watch_.options())
-    _check_bodies(scene)
+    # re-read through the scene reader's checks: fields changed in Python after loading get
+    # the errors a file would (element, field, value)
+    scene = checked(scene)
     if solver == "revolute_schur":
         other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
         if other:
@@ -347,20 +336,29 @@ _DRIFT_ADVICE = {
     "accepts it."}
 
 
+def _real(name: str, value) -> float:
+    """A number argument as float: a real number (not a bool, a string or None), finite."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise InvalidInputError(f"{name} = {value!r} must be a finite number")
+    return float(value)
+
+
 def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, projection_tol,
               startup, newton_rtol, newton_atol) -> dict:
-    alpha = 1.0 / h if alpha is None else float(alpha)
-    beta = math.sqrt(2.0) / h if beta is None else float(beta)
+    alpha = 1.0 / h if alpha is None else _real("alpha", alpha)
+    beta = math.sqrt(2.0) / h if beta is None else _real("beta", beta)
     if formulation == "baumgarte" and not (alpha >= 0 and beta >= 0 and math.isfinite(alpha)
                                            and math.isfinite(beta)):
         raise InvalidInputError(f"alpha = {alpha}, beta = {beta}: Baumgarte parameters must be "
                                 "finite and >= 0")
-    if len(penalty) != 3 or not all(isinstance(p, (int, float)) and math.isfinite(p) and p > 0
-                                    for p in penalty):
+    if isinstance(penalty, str) or not hasattr(penalty, "__len__") or len(penalty) != 3 or \
+            not all(isinstance(p, (int, float)) and not isinstance(p, bool) and math.isfinite(p)
+                    and p > 0 for p in penalty):
         raise InvalidInputError(f"penalty = {penalty!r} must be (alpha_p, omega_p, mu_p), all > 0")
-    if not (projection_tol > 0):
+    if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
-    if info_m.steps > 1 and abs((t_end - t0) / h - round((t_end - t0) / h)) > 1e-9 * (t_end - t0) / h:
+    nsteps, nsamp, shortened = plan(t0, t_end, h, every)
+    if info_m.steps > 1 and shortened:   # the kernel's whole-number test (mbdk_on_grid)
         n_lo = math.floor((t_end - t0) / h)
         raise InvalidInputError(f"{info_m.name} needs equal steps; use h = "
                                 f"{(t_end - t0) / max(n_lo, 1):.12g}")
@@ -368,9 +366,10 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
         newton_rtol = 1e-7 if formulation == "penalty" else ODEOptions.newton_rtol
     if newton_atol is None:
         newton_atol = 1e-9 if formulation == "penalty" else ODEOptions.newton_atol
+    newton_rtol = _real("newton_rtol", newton_rtol)
+    newton_atol = _real("newton_atol", newton_atol)
     if not (newton_rtol > 0 and newton_atol > 0):
         raise InvalidInputError(f"newton_rtol = {newton_rtol}, newton_atol = {newton_atol} must be > 0")
-    nsteps, nsamp, _ = plan(t0, t_end, h, every)
     ode = ODEOptions(h=h, newton_rtol=newton_rtol, newton_atol=newton_atol, every=every,
                      startup=STARTUP[startup])
     manifest = {"steps": nsteps, "startup": startup,
@@ -389,15 +388,16 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
 def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_atol,
                  given3, small_dense) -> dict:
     d = Index3Options()
-    rtol = d.newton_rtol if newton_rtol is None else float(newton_rtol)
-    atol = d.newton_atol if newton_atol is None else float(newton_atol)
+    rtol = d.newton_rtol if newton_rtol is None else _real("newton_rtol", newton_rtol)
+    atol = d.newton_atol if newton_atol is None else _real("newton_atol", newton_atol)
     if not (rtol >= 0 and atol > 0):
         raise InvalidInputError(f"newton_rtol = {rtol}, newton_atol = {atol}: need rtol >= 0 "
                                 "and atol > 0")
     max_iter = given3.get("max_iter", d.newton_max_iter)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, Integral) or max_iter < 1:
-        raise InvalidInputError(f"max_iter = {max_iter!r} must be a whole number >= 1")
-    alpha = d.alpha if alpha is None else float(alpha)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, Integral) or \
+            not 1 <= max_iter <= 10**6:
+        raise InvalidInputError(f"max_iter = {max_iter!r} must be a whole number from 1 to 1e6")
+    alpha = d.alpha if alpha is None else _real("alpha", alpha)
     if formulation == "augmented_lagrangian" and not (alpha >= 0 and math.isfinite(alpha)):
         raise InvalidInputError(f"alpha = {alpha}: the augmented Lagrangian's penalty factor "
                                 "must be finite and > 0, or 0 for the default (1e3 max(M) "
@@ -529,6 +529,7 @@ def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "r
     unknown = set(params) - {"alpha", "beta", "penalty", "projection_tol", "small_dense"}
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not a parameter of evaluate")
+    scene = checked(scene)
     q0, v0, _ = assemble(scene, build_tables(scene), t)
     q = q0 if q is None else np.asarray(q, float)
     v = v0 if v is None else np.asarray(v, float)

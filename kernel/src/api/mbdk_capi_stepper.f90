@@ -267,15 +267,14 @@ contains
     type(c_ptr), value :: handle
     real(c_double), value :: t
     type(stepper_box), pointer :: b
-    real(dp) :: h, t_next, ratio
+    real(dp) :: h, t_next
     integer :: stat
     mbdk_c_stepper_advance = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. associated(b)) return
     if (.not. abs(t) <= huge(1.0_dp)) return
     h = b%h
-    ratio = (t - b%t0) / h
-    if (b%equal_steps .and. .not. mbdk_on_grid(ratio)) return
+    if (b%equal_steps .and. .not. mbdk_on_grid(b%t0, t, h)) return
     stat = MBDK_SUCCESS
     if (failed(b)) stat = MBDK_ERR_NOT_APPLICABLE
     do while (stat == MBDK_SUCCESS .and. b%t_good < t)

@@ -149,14 +149,14 @@ contains
       call add('penalty_omega', transfer(c_loc(mo%penalty_omega), base), MBDK_FIELD_DOUBLE)
       call add('penalty_mu', transfer(c_loc(mo%penalty_mu), base), MBDK_FIELD_DOUBLE)
       call add('projection_tol', transfer(c_loc(mo%projection_tol), base), MBDK_FIELD_DOUBLE)
-      call add('watch_position', transfer(c_loc(mo%watch_position), base), MBDK_FIELD_DOUBLE)
-      call add('watch_velocity', transfer(c_loc(mo%watch_velocity), base), MBDK_FIELD_DOUBLE)
-      call add('watch_energy', transfer(c_loc(mo%watch_energy), base), MBDK_FIELD_DOUBLE)
       call add('formulation', transfer(c_loc(mo%formulation), base), MBDK_FIELD_INT)
       call add('solver', transfer(c_loc(mo%solver), base), MBDK_FIELD_INT)
       call add('small_dense', transfer(c_loc(mo%small_dense), base), MBDK_FIELD_INT)
       call add('projection_max_iter', transfer(c_loc(mo%projection_max_iter), base), &
                MBDK_FIELD_INT)
+      call add('watch_position', transfer(c_loc(mo%watch_position), base), MBDK_FIELD_DOUBLE)
+      call add('watch_velocity', transfer(c_loc(mo%watch_velocity), base), MBDK_FIELD_DOUBLE)
+      call add('watch_energy', transfer(c_loc(mo%watch_energy), base), MBDK_FIELD_DOUBLE)
       call add('watch_every', transfer(c_loc(mo%watch_every), base), MBDK_FIELD_INT)
     end select
 

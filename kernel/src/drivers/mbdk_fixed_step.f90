@@ -42,14 +42,18 @@ module mbdk_fixed_step
 
 contains
 
-  !> Whether a step count (t - t0)/h computed in floating point is a whole number: within 1e-9,
-  !> or within the rounding of t - t0 and of the division where the count is large. Looser
-  !> would let a k-step method's last step differ from h by more than its rounding (1e-9 N h
-  !> at N steps); the stepper accepts a step of h within 1e-9 h plus the rounding of t.
-  elemental logical function mbdk_on_grid(ratio)
-    real(dp), intent(in) :: ratio
+  !> Whether (t1 - t0)/h, computed in floating point, is a whole number of steps: within 1e-9,
+  !> or within the rounding of the division where the count is large, plus the rounding of
+  !> t1 - t0 itself (an ulp of t0 and of t1, per h: large far from t = 0). Looser would let a
+  !> k-step method's last step differ from h by more than its rounding (1e-9 N h at N steps);
+  !> the stepper accepts a step of h within 1e-9 h plus the rounding of t.
+  elemental logical function mbdk_on_grid(t0, t1, h)
+    real(dp), intent(in) :: t0, t1, h
+    real(dp) :: ratio
+    ratio = (t1 - t0) / h
     mbdk_on_grid = abs(ratio - anint(ratio)) <= max(1.0e-9_dp, 16.0_dp * epsilon(1.0_dp) * &
-                                                     abs(ratio))
+                                                     abs(ratio)) + &
+      4.0_dp * (spacing(t0) + spacing(t1)) / h
   end function mbdk_on_grid
 
   !> Number of steps and samples for an interval; checks h, the interval and every.
@@ -69,7 +73,7 @@ contains
     ratio = (t_end - t0) / h
     if (ratio < 1.0_dp - 1.0e-9_dp .or. ratio > real(MBDK_MAX_STEPS, dp)) return
     nsteps = nint(ratio, i8)
-    if (.not. mbdk_on_grid(ratio)) then
+    if (.not. mbdk_on_grid(t0, t_end, h)) then
       nsteps = ceiling(ratio, i8)
       shortened = .true.
     end if

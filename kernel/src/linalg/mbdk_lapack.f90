@@ -3,7 +3,8 @@
 !> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
 module mbdk_lapack
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT, &
+    MBDK_ERR_NONFINITE
   implicit none
   private
   public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
@@ -72,6 +73,12 @@ contains
     stat = MBDK_SUCCESS
     if (m == 0 .or. n == 0) then
       b(1:n) = 0.0_dp
+      return
+    end if
+    ! dgelsd scales by the norms of A and b: a NaN there is an illegal argument to DLASCL, which
+    ! LAPACK's error handler reports by printing (and may stop the process)
+    if (.not. (all(abs(a) <= huge(1.0_dp)) .and. all(abs(b(1:m)) <= huge(1.0_dp)))) then
+      stat = MBDK_ERR_NONFINITE
       return
     end if
     allocate (sv(min(m, n)))

@@ -155,30 +155,34 @@ contains
   end subroutine factor_regular
 
   !> The regular path's solve: the augmented Lagrangian iteration from mu = 0, until D x - c
-  !> no longer falls by half or is at roundoff.
+  !> is at roundoff or no longer falls by half; x and mu are those of the smallest residual
+  !> (an iterate after the stall, and the multiplier update it brings, are not taken).
   subroutine solve_regular(cs, b, c, x, mu, stat)
     type(mbdk_constrained_t), intent(inout) :: cs
     real(dp), intent(in), contiguous :: b(:), c(:)
     real(dp), intent(out), contiguous :: x(:), mu(:)
     integer, intent(out) :: stat
     integer :: k
-    real(dp) :: r, r_old, floor
+    real(dp) :: r, r_best, mu_k(size(mu))
+    mu_k = 0.0_dp
     mu = 0.0_dp
-    r_old = huge(1.0_dp)
-    floor = 64.0_dp * epsilon(1.0_dp) * max(maxval(abs(c)), tiny(1.0_dp))
+    x = 0.0_dp
+    r_best = huge(1.0_dp)
     cs%al_iters = 0
     do k = 1, MBDK_CONSTRAINED_AL_ITER
-      cs%alx = b - matmul(transpose(cs%ald), mu - cs%beta * c)
+      cs%alx = b - matmul(transpose(cs%ald), mu_k - cs%beta * c)
       call mbdk_chol_solve(cs%al, cs%alx, stat)
       if (stat /= MBDK_SUCCESS) return
       cs%al_iters = k
       cs%alr = matmul(cs%ald, cs%alx) - c
-      x = cs%alx
       r = maxval(abs(cs%alr))
-      mu = mu + cs%beta * cs%alr
-      if (r <= floor * max(1.0_dp, maxval(abs(cs%ald)) * maxval(abs(x))) .or. &
-          r > 0.5_dp * r_old) exit
-      r_old = r
+      if (.not. (r < r_best)) exit
+      mu_k = mu_k + cs%beta * cs%alr
+      x = cs%alx
+      mu = mu_k
+      if (r <= 64.0_dp * epsilon(1.0_dp) * (maxval(abs(c)) + maxval(abs(cs%ald)) * &
+                                           maxval(abs(x))) .or. r > 0.5_dp * r_best) exit
+      r_best = r
     end do
   end subroutine solve_regular
 

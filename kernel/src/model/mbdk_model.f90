@@ -60,13 +60,13 @@ module mbdk_model
     MBDK_ELEMENT_NAME_LEN
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
-    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY
+    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
     mbdk_revolute_kinematics, mbdk_revolute_solve
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
-    mbdk_constrained_solve_once, MBDK_CONSTRAINED_SINGULAR_TOL, MBDK_SOLVE_NONE, &
+    mbdk_constrained_solve_once, mbdk_constrained_factor, mbdk_constrained_solve, MBDK_CONSTRAINED_SINGULAR_TOL, MBDK_SOLVE_NONE, &
     MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, MBDK_SOLVE_KKT, &
     MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK
   implicit none
@@ -103,16 +103,17 @@ module mbdk_model
     real(c_double) :: penalty_omega = 10.0_c_double
     real(c_double) :: penalty_mu = 1.0_c_double
     real(c_double) :: projection_tol = 1.0e-12_c_double !< max |Phi| after the projection of q
-    !> what a run must keep (mbdk_watch): |Phi| per length scale, the velocity residual per
-    !> size of its terms, the energy balance per energy scale; <= 0 turns a test off
-    real(c_double) :: watch_position = 1.0e-2_c_double
-    real(c_double) :: watch_velocity = 1.0e-2_c_double
-    real(c_double) :: watch_energy = 1.0e-1_c_double
     integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< MBDK_FORM_*
     integer(c_int) :: solver = MBDK_SOLVER_AUTO         !< MBDK_SOLVER_*
     integer(c_int) :: small_dense = 1                   !< 0: LAPACK for every factorisation
     integer(c_int) :: projection_max_iter = 20          !< Gauss-Newton iterations of the projection of q
-    integer(c_int) :: watch_every = 16                  !< steps between checks (and every sample)
+    !> what a run must keep (mbdk_watch): |Phi| per length scale, the velocity residual per
+    !> size of its terms, the energy balance per energy scale; <= 0 turns a test off. Last in
+    !> the struct, so that initialisers written for the fields before them still fill those.
+    real(c_double) :: watch_position = 1.0e-2_c_double
+    real(c_double) :: watch_velocity = 1.0e-2_c_double
+    real(c_double) :: watch_energy = 1.0e-1_c_double
+    integer(c_int) :: watch_every = MBDK_WATCH_EVERY    !< steps between checks; 0: the default
   end type mbdk_model_options_t
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
@@ -155,7 +156,7 @@ module mbdk_model
     real(dp) :: proj_tol = 1.0e-12_dp
     integer :: proj_max_iter = 20
     real(dp) :: watch_tol(3) = 0.0_dp   !< position, velocity, energy (mbdk_watch)
-    integer :: watch_every = 16
+    integer :: watch_every = MBDK_WATCH_EVERY
     logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
     type(mbdk_model_work_t), pointer :: work => null()
     !> every joint revolute and S solved in-house: the closed-form Schur complement
@@ -282,7 +283,8 @@ contains
     model%proj_max_iter = opt%projection_max_iter
     model%watch_tol = [opt%watch_position, opt%watch_velocity, opt%watch_energy]
     model%watch_every = opt%watch_every
-    if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 1) return
+    if (opt%watch_every == 0) model%watch_every = MBDK_WATCH_EVERY
+    if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
     model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER)
     model%solver = opt%solver
@@ -731,6 +733,7 @@ contains
     end do
     if (.not. (length > 0.0_dp)) length = max(norm2(rmean), 1.0_dp)
     gscale = gscale * sum(self%mass(self%qoff(:))) * length
+    power = power .and. self%watch_tol(3) > 0.0_dp   ! the work is for the energy test only
     call watch_quantities(self, t, q, v, power, .false., kin, vg, vs, p, stat)
     if (stat /= MBDK_SUCCESS) return
     tol_v = self%watch_tol(2)
@@ -779,16 +782,27 @@ contains
     logical, intent(in) :: power, power_only
     real(dp), intent(out) :: kin, vg, vs, p
     integer, intent(out) :: stat
-    integer(i8) :: unused(MBDK_JOINT_TYPES)
+    integer(i8) :: unused(MBDK_JOINT_TYPES), visits(MBDK_VISIT_COUNT)
     real(dp) :: pd, pl, pc
     integer :: r, k, c
     stat = MBDK_SUCCESS
     pc = 0.0_dp
     associate (w => self%work)
       ! the drivers' power -lambda . D v needs the multipliers: one constrained solve, only
-      ! where a driver or load makes the balance have power terms
+      ! where a driver makes the balance have power terms. Where D has lost a rank (redundant
+      ! joints, a singular pose) the regular path of mbdk_constrained gives them. The solve's
+      ! visits are the watch's: the counters are put back.
       if (power .and. self%has_drivers) then
+        visits = w%visits
         call mbdk_model_accelerations(self, t, q, v, w%wa, w%wlam, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. .not. self%revolute) then
+          call mbdk_constrained_factor(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                       stat, regular=.true.)
+          if (stat == MBDK_SUCCESS) &
+            call mbdk_constrained_solve(w%cs, self%sp, w%dz, self%blk, self%winv, w%fq, w%gam, &
+                                        w%wa, w%wlam, stat)
+        end if
+        w%visits = visits
         if (stat /= MBDK_SUCCESS) return
       else
         w%wlam = 0.0_dp

@@ -44,6 +44,9 @@ module mbdk_watch
   !> what a step owes the watch (mbdk_watch_due)
   integer, parameter, public :: MBDK_WATCH_NOTHING = 0, MBDK_WATCH_POWER_ONLY = 1, &
     MBDK_WATCH_CHECK = 2
+  !> steps between checks by default: a check costs about a third of an rk4 step of a small
+  !> scene, so every 16 steps adds a few per cent
+  integer, parameter, public :: MBDK_WATCH_EVERY = 16
   !> the report of a failed check, as scene_run returns it (MBDK_WATCH_REPORT words)
   integer, parameter, public :: MBDK_WATCH_REPORT = 8
 
