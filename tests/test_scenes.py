@@ -617,3 +617,37 @@ def test_reduced_rk4_matches_the_hand_written_c_yardstick(tmp_path):
         _, y = scene_drift.yardstick_run(exe, tab, y0, n, h)
         assert np.abs(y - y0).max() > 0.1
         np.testing.assert_allclose(y, np.concatenate([r.q[-1], r.v[-1]]), rtol=0, atol=1e-11)
+
+
+def _four_bar_scaled(length=1.0, mass=1.0):
+    sc = mbdk.scene("four_bar")
+    for b in sc.bodies:
+        b.x, b.y = b.x * length, b.y * length
+        b.mass *= mass
+        b.inertia *= mass * length ** 2
+    for j in sc.joints:
+        j.point1 = tuple(c * length for c in j.point1)
+        j.point2 = tuple(c * length for c in j.point2)
+    return sc
+
+
+def test_the_rank_test_is_free_of_units():
+    """The singular-configuration diagnosis and the redundancy test read D scaled by M^-1/2 (and
+    angle rows by a radius of gyration): the four-bar in millimetres, or with its masses in
+    tonnes, has the singular values of the one in metres and kilograms, where the raw D's
+    smallest / largest ratio moves by orders of magnitude (a millimetre mechanism looked close
+    to losing a rank everywhere, and every failure blamed all its joints)."""
+    from mbdk import model as M
+    ratios, raw = [], []
+    for length, mass in ((1.0, 1.0), (1e-3, 1.0), (1.0, 1e3)):
+        sc = _four_bar_scaled(length, mass)
+        tab = M.build_tables(sc)
+        d = M.evaluate(tab, sc.q0(), sc.v0())["D"]
+        sv = np.linalg.svd(M.scaled_jacobian(tab, d), compute_uv=False)
+        ratios.append(sv[-1] / sv[0])
+        sv_raw = np.linalg.svd(d, compute_uv=False)
+        raw.append(sv_raw[-1] / sv_raw[0])
+    assert ratios[1] == pytest.approx(ratios[0], rel=1e-9)
+    assert ratios[2] == pytest.approx(ratios[0], rel=1e-9)
+    assert ratios[0] > 1e-2                          # a regular pose is not called near-singular
+    assert raw[1] < 1e-2 * raw[0]                    # the unscaled ratio is not free of units

@@ -48,6 +48,8 @@ ELEMENT_KINDS = _element_kinds()
 JOINT_CLASS, FORCE_CLASS = 1, 2
 JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
 JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS_BY_CODE = {code: rows for cls, code, _n, rows, _s in ELEMENT_KINDS
+                      if cls == JOINT_CLASS}
 _FORCE_KIND = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
 #: scene force types -> kernel codes; the coordinate spring and damper are one kernel kind
 FORCE_CODES = {**_FORCE_KIND, "coordinate_spring": _FORCE_KIND["coordinate_spring_damper"],
@@ -216,8 +218,43 @@ def profile(tab: Tables, q, v, t=0.0, formulation="reduced",
             "solve_ns": 1e9 * (sec[1] - sec[0]) / nrep}
 
 
+def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
+    """D made free of units, for rank tests: columns times M^-1/2 (so that S = D M^-1 D^T is its
+    Gram matrix; a rotation column's entries, lengths, become ratios to the body's radius of
+    gyration) and the rows that are angles (a prismatic joint's first, a fixed joint's third, a
+    driver of an angle) times the radius of gyration of their first body. A mechanism measured
+    in millimetres, or with masses in tonnes, then has the singular values of one in metres and
+    kilograms. A body without inertia is given the gyration radius of its largest joint
+    point."""
+    nb = len(tab.mass)
+    reach = np.zeros(nb)
+    for k in range(tab.nj):
+        for b, pts in ((tab.jint[1, k], tab.jreal[0:2, k]), (tab.jint[2, k], tab.jreal[2:4, k])):
+            if b > 0 and tab.jint[0, k] != JOINT_CODES["driver"]:
+                reach[b - 1] = max(reach[b - 1], float(np.hypot(*pts)))
+    gyr = np.sqrt(np.where(tab.inertia > 0, tab.inertia / tab.mass, 0.0))
+    gyr = np.where(gyr > 0, gyr, np.where(reach > 0, reach, 1.0))
+    col = np.empty(3 * nb)
+    col[0::3] = col[1::3] = 1.0 / np.sqrt(tab.mass)
+    col[2::3] = 1.0 / (np.sqrt(tab.mass) * gyr)
+    row = np.ones(tab.m)
+    r = 0
+    for k in range(tab.nj):
+        code, b1 = tab.jint[0, k], tab.jint[1, k]
+        g = gyr[b1 - 1] if b1 > 0 else 1.0
+        if code == JOINT_CODES["prismatic"]:
+            row[r] = g
+        elif code == JOINT_CODES["fixed"]:
+            row[r + 2] = g
+        elif code == JOINT_CODES["driver"] and tab.jint[3, k] == 3:
+            row[r] = g
+        r += JOINT_ROWS_BY_CODE[code]
+    return row[:, None] * d * col[None, :]
+
+
 def dependent_rows(d: np.ndarray, tol: float = 1e-9):
-    """Rows of D that are linear combinations of the others: the left null space of D."""
+    """Rows of D that are linear combinations of the others: the left null space of D (give it
+    scaled_jacobian's D, free of units)."""
     if d.shape[0] == 0:
         return []
     u, s, _ = np.linalg.svd(d)

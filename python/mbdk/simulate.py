@@ -50,7 +50,7 @@ from .watch import as_watch, drift_message, drift_report
 from .methods import method as _method
 from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
-                    pose_error, rows_to_joints)
+                    pose_error, rows_to_joints, scaled_jacobian)
 from .model import evaluate as _evaluate
 from .ode import STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty
@@ -455,12 +455,13 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
 
 def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
     """A singular solve at the initial state: name the dependent joints, if any."""
-    d0 = _evaluate(tab, q0, v0, t0)["D"]
+    d0 = scaled_jacobian(tab, _evaluate(tab, q0, v0, t0)["D"])
     dep = dependent_rows(d0)
     if not dep:
         return
     names = rows_to_joints(tab, dep)
-    rank = np.linalg.matrix_rank(d0, tol=1e-9 * max(1.0, np.abs(d0).max()))
+    sv = np.linalg.svd(d0, compute_uv=False)
+    rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300)))
     if index3:
         what = ("the book scheme's Newton matrix [M + .., D^T; D, 0] is singular. Use "
                 "formulation = 'augmented_lagrangian', which runs redundant joints, remove the "
@@ -485,7 +486,9 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
         where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
         note = ""
         if r.status == Status.ERR_SINGULAR_MATRIX and nw:
-            dep = dependent_rows(_evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
+            tab_r = resolved(scene, r)
+            dep = dependent_rows(scaled_jacobian(
+                tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
@@ -501,7 +504,9 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     note = ""
     if nw and tab.m:
         # the last sample is the state the failed step started from
-        u, sv, _ = np.linalg.svd(_evaluate(resolved(scene, r), r.q[-1], r.v[-1], r.t[-1])["D"])
+        tab_r = resolved(scene, r)
+        u, sv, _ = np.linalg.svd(scaled_jacobian(
+            tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
         ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
         if ratio < NEAR_SINGULAR:
             rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
