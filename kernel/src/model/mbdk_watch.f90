@@ -148,20 +148,12 @@ contains
     type(mbdk_watch_t), intent(inout) :: w
     real(dp), intent(in) :: t, phi(:), vres(:), vterm(:), kinetic, v_gravity, v_springs, power
     integer, intent(out) :: stat
-    integer :: i, worst
-    real(dp) :: r, rmax, e_err
+    integer :: worst
+    real(dp) :: rmax, e_err
     stat = MBDK_SUCCESS
     w%since = 0
     if (w%tol_position > 0.0_dp .and. size(phi) > 0) then
-      worst = 0
-      rmax = 0.0_dp
-      do i = 1, size(phi)
-        r = abs(phi(i)) / w%row_scale(i)
-        if (.not. (r <= rmax)) then   ! NaN counts as the worst
-          rmax = r
-          worst = i
-        end if
-      end do
+      call worst_ratio(phi, w%row_scale, rmax, worst)
       if (.not. (rmax <= w%tol_position)) then
         call fail(MBDK_WATCH_POSITION, worst, rmax, w%tol_position, w%row_scale(max(worst, 1)), &
                   MBDK_ERR_CONSTRAINT_DRIFT)
@@ -171,15 +163,7 @@ contains
     if (w%tol_velocity > 0.0_dp .and. size(vres) > 0) then
       w%vel_scale = max(w%vel_scale, vterm, w%row_scale / w%length * &
                         sqrt(2.0_dp * w%e_scale / w%mass))
-      worst = 0
-      rmax = 0.0_dp
-      do i = 1, size(vres)
-        r = abs(vres(i)) / w%vel_scale(i)
-        if (.not. (r <= rmax)) then
-          rmax = r
-          worst = i
-        end if
-      end do
+      call worst_ratio(vres, w%vel_scale, rmax, worst)
       if (.not. (rmax <= w%tol_velocity)) then
         call fail(MBDK_WATCH_VELOCITY, worst, rmax, w%tol_velocity, w%vel_scale(max(worst, 1)), &
                   MBDK_ERR_CONSTRAINT_DRIFT)
@@ -199,6 +183,24 @@ contains
     w%t_good = t
 
   contains
+
+    !> The largest |x_i| / scale_i and its row (NaN counts as the worst).
+    pure subroutine worst_ratio(x, scale, rmax, worst)
+      real(dp), intent(in) :: x(:), scale(:)
+      real(dp), intent(out) :: rmax
+      integer, intent(out) :: worst
+      integer :: i
+      real(dp) :: r
+      worst = 0
+      rmax = 0.0_dp
+      do i = 1, size(x)
+        r = abs(x(i)) / scale(i)
+        if (.not. (r <= rmax)) then
+          rmax = r
+          worst = i
+        end if
+      end do
+    end subroutine worst_ratio
 
     subroutine fail(what, row, value, tol, scale, code)
       integer, intent(in) :: what, row, code
