@@ -53,3 +53,19 @@ def test_nothing_is_printed(tmp_path, capfd):
     assert status == mbdk.Status.ERR_NONFINITE
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+def test_a_scene_is_re_read_only_when_it_changed():
+    """simulate() re-reads a Scene through the file reader's checks when any of its fields
+    changed since it was read (a field its type does not use included: the tables are built
+    from the objects), and takes it as it is otherwise (the check then costs microseconds)."""
+    import mbdk
+    from mbdk.scene import checked
+    sc = mbdk.scene("double_pendulum")
+    assert checked(sc) is sc
+    sc.joints[0].axis = (0.0, 1.0)          # unused by a revolute joint, still compared
+    again = checked(sc)
+    assert again is not sc and again.joints[0].axis == (1.0, 0.0)
+    sc.bodies[0].mass = -1.0
+    with pytest.raises(mbdk.SceneError, match="body 'bar1': field 'mass' = -1.0"):
+        checked(sc)

@@ -414,6 +414,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     forces = [_force(_Reader(source, "force", i, t)) for i, t in enumerate(items("force"))]
     sc = Scene(name, bodies, joints, forces, desc, source)
     check_scene(sc)
+    sc._read_as = _snapshot(sc)   # what checked() compares against
     return sc
 
 
@@ -425,11 +426,12 @@ def _fn(v):
     names what is wrong with it)."""
     if isinstance(v, (tuple, list)) and len(v) == 5:
         return dict(zip(_FN_KEYS, v))
-    return v
+    return dict(v) if isinstance(v, dict) else v
 
 
 def _seq(v):
-    return list(v) if isinstance(v, tuple) else v
+    """A copy, so that a snapshot does not change with the scene's own lists."""
+    return list(v) if isinstance(v, (tuple, list)) else v
 
 
 def scene_to_dict(sc: Scene) -> dict:
@@ -487,13 +489,26 @@ def scene_to_dict(sc: Scene) -> dict:
 def checked(sc: Scene) -> Scene:
     """The scene re-read through the reader's checks: a Scene whose fields were changed in
     Python after it was read (or built by hand) gets the errors a file would, naming the
-    element and field, instead of failing somewhere inside the pipeline."""
+    element and field, instead of failing somewhere inside the pipeline. A scene unchanged since
+    the reader made it (its snapshot, compared in a few microseconds) is returned as it is."""
     if not isinstance(sc, Scene):
         raise SceneError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
     if not isinstance(sc.bodies, list) or not isinstance(sc.joints, list) or \
             not isinstance(sc.forces, list):
         raise SceneError(f"{sc.source}: bodies, joints and forces must be lists")
+    if getattr(sc, "_read_as", None) == _snapshot(sc):
+        return sc
     return scene_from_dict(scene_to_dict(sc), sc.source)
+
+
+def _snapshot(sc: Scene):
+    """Every field of every element: what checked() compares (fields a type does not use
+    included, since the tables are built from the objects). The reader stores only immutable
+    values (numbers, strings, tuples), so its snapshot cannot change behind its back; a list a
+    user puts in a field never equals the tuple it replaced."""
+    return (sc.name, sc.description, sc.source,
+            tuple((type(o), tuple(vars(o).values())) for o in (*sc.bodies, *sc.joints,
+                                                               *sc.forces)))
 
 
 def check_scene(sc: Scene) -> None:
