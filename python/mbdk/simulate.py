@@ -171,7 +171,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
 
     newton_rtol/atol: the ODE methods' Newton (implicit ones) default to 1e-10/1e-12, but
     1e-7/1e-9 for the penalty formulation, whose accelerations carry roundoff amplified by
-    alpha_p (~1e-9 at 1e7): a tighter test would never pass. trapezoidal_index3: 1e-10/1e-12.
+    alpha_p (~1e-9 at 1e7): a tighter test would never pass. trapezoidal_index3: 1e-10/1e-12,
+    adaptive: a hundredth of err_rtol/err_atol where that is tighter (Newton then does not cap
+    the accuracy asked for).
 
     adaptive, err_rtol, err_atol, dt_out, h_min, h_max, max_iter: trapezoidal_index3 only
     (step-size control and Newton's iteration limit; mbdk.index3 says what they do).
@@ -336,6 +338,11 @@ _DRIFT_ADVICE = {
     "accepts it."}
 
 
+#: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
+#: (at most the fixed-step defaults), not below NEWTON_FLOOR
+NEWTON_SHARE, NEWTON_FLOOR = 0.01, 1e-15
+
+
 def _real(name: str, value) -> float:
     """A number argument as float: a real number (not a bool, a string or None), finite."""
     if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
@@ -426,6 +433,14 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
                                         f"{'>= 0' if low is not None else '> 0'}")
         if h_max and h_min > h_max:
             raise InvalidInputError(f"h_min = {h_min} exceeds h_max = {h_max}")
+    if adaptive:
+        # Newton's tolerances follow the error test's (a hundredth of it, SUNDIALS' practice
+        # of a tenth with a margin), so that a tight err_rtol is not capped by the default
+        # Newton tolerance; never below the roundoff of the iterates
+        if newton_rtol is None:
+            rtol = max(min(rtol, NEWTON_SHARE * err_rtol), NEWTON_FLOOR)
+        if newton_atol is None:
+            atol = max(min(atol, NEWTON_SHARE * err_atol), NEWTON_FLOOR)
     opt = Index3Options(h=h, newton_rtol=rtol, newton_atol=atol, alpha=alpha,
                         err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
                         h_max=h_max, formulation=INDEX3_FORMULATIONS[formulation],
