@@ -152,6 +152,41 @@ static void hanging_bar(void)
     mbdk_stepper_destroy(s);
 }
 
+/* The same bar released horizontally, explicit Euler at h = 0.01: the reduced formulation
+ * drifts off its hinge, and the watch (on by default) stops the stepper at the check where it
+ * left the tolerance; the report says which quantity, when, and the last good time. */
+static void drifting_bar_is_stopped_by_the_watch(void)
+{
+    const double mass[1] = {1.0}, inertia[1] = {1.0 / 12.0};
+    const int jint[4] = {1, 1, 0, 0};
+    const double jreal[12] = {0.5, 0.0, 0.0, 0.0, 1, 0};
+    const int fint[4] = {1, 0, 0, 0};
+    const double freal[12] = {0.0, -9.81};
+    const double y0[6] = {-0.5, 0.0, 0.0, 0, 0, 0};       /* bar along +x from the hinge */
+    double report[8], t, y[6];
+    mbdk_options opt;
+    mbdk_model_options mopt;
+    mbdk_stepper *s = NULL;
+    int status;
+    mbdk_model_default_options(&mopt);
+    mbdk_default_options(&opt);
+    opt.method = mbdk_method_id("explicit_euler");
+    opt.h = 1e-2;
+    check(mbdk_stepper_create_scene(1, mass, inertia, 1, jint, jreal, 1, fint, freal, &mopt, &opt,
+                                    0.0, y0, &s) == MBDK_SUCCESS, "create a drifting stepper");
+    status = mbdk_stepper_advance(s, 20.0);
+    check(status == MBDK_ERR_CONSTRAINT_DRIFT || status == MBDK_ERR_ENERGY_DRIFT,
+          "explicit Euler's drift stops the run with a drift status");
+    check(mbdk_stepper_watch_report(s, report) == MBDK_SUCCESS && report[0] >= 1
+          && report[0] <= 3 && report[4] > report[5] && report[2] > report[3],
+          "the report: quantity, value above tolerance, failed after the last good check");
+    mbdk_stepper_state(s, &t, y, 6);
+    check(t == report[5] || t < report[4], "the state readable is the last good one");
+    printf("      stopped: quantity %g at t = %g (last good %g), %g of its scale\n", report[0],
+           report[4], report[5], report[2]);
+    mbdk_stepper_destroy(s);
+}
+
 static void index3_matches_the_solve(int formulation)
 {
     static const double mass[2] = {1.0, 2.0};
@@ -227,6 +262,7 @@ int main(void)
     oscillator_matches_solve_ode();
     stiff_with_jacobian();
     hanging_bar();
+    drifting_bar_is_stopped_by_the_watch();
     index3_matches_the_solve(MBDK_INDEX3_BOOK);
     index3_matches_the_solve(MBDK_INDEX3_AUGMENTED);
     failures();

@@ -220,6 +220,11 @@ int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n)
 int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
 int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */
 int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
+/* After MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT (scene and index-3 steppers): what the
+ * watch found, report[8] = quantity (1 position, 2 velocity, 3 energy), row (1-based; 0 for
+ * energy), value per its scale, tolerance, time, time of the last check passed, the value
+ * itself, its scale. ODE steppers: MBDK_ERR_NOT_APPLICABLE. */
+int mbdk_stepper_watch_report(const mbdk_stepper *stepper, double report[8]);
 int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
 /* Copies the message of a status into buf (NUL-terminated). */

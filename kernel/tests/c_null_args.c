@@ -128,6 +128,8 @@ int main(void)
         expect("stepper_size, n NULL", mbdk_stepper_size(s, NULL, &m), MBDK_ERR_INVALID_INPUT);
         expect("stepper_size, m NULL", mbdk_stepper_size(s, &n, NULL), MBDK_ERR_INVALID_INPUT);
         expect("stepper_stats, NULL", mbdk_stepper_stats(s, NULL), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_watch_report, NULL", mbdk_stepper_watch_report(sc, NULL), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_watch_report, handle NULL", mbdk_stepper_watch_report(NULL, lam), MBDK_ERR_INVALID_INPUT);
         expect("stepper_multipliers, lam NULL", mbdk_stepper_multipliers(sc, NULL, 2), MBDK_ERR_INVALID_INPUT);
         expect("stepper_multipliers", mbdk_stepper_multipliers(sc, lam, 2), MBDK_SUCCESS);
         expect("stepper_advance, handle NULL", mbdk_stepper_advance(NULL, 1.0), MBDK_ERR_INVALID_INPUT);

@@ -385,6 +385,28 @@ contains
     mbdk_c_stepper_stats = MBDK_SUCCESS
   end function mbdk_c_stepper_stats
 
+  !> The report of the watch's check that stopped a scene or index-3 stepper with
+  !> MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT (kernel/src/model/mbdk_watch.f90):
+  !> report(1:8) = quantity (1 position, 2 velocity, 3 energy; 0 while nothing failed), row
+  !> (1-based; 0 for energy), value per its scale, tolerance, time, time of the last check
+  !> passed, the value itself, its scale. An ODE stepper has no watch: MBDK_ERR_NOT_APPLICABLE.
+  integer(c_int) function mbdk_c_stepper_watch_report(handle, report) &
+      bind(C, name='mbdk_stepper_watch_report')
+    type(c_ptr), value :: handle
+    real(c_double), intent(out), optional :: report(8)
+    type(stepper_box), pointer :: b
+    mbdk_c_stepper_watch_report = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. (associated(b) .and. present(report))) return
+    mbdk_c_stepper_watch_report = MBDK_ERR_NOT_APPLICABLE
+    if (b%kind == KIND_ODE) return
+    associate (w => b%work%watch)
+      report = [real(w%what, dp), real(w%row, dp), w%value, w%tol, w%t_bad, w%t_good, &
+                w%absolute, w%scale]
+    end associate
+    mbdk_c_stepper_watch_report = MBDK_SUCCESS
+  end function mbdk_c_stepper_watch_report
+
   !> Frees the stepper; a NULL handle is nothing to free (MBDK_SUCCESS).
   integer(c_int) function mbdk_c_stepper_destroy(handle) bind(C, name='mbdk_stepper_destroy')
     type(c_ptr), value :: handle
