@@ -564,3 +564,24 @@ def test_newton_follows_the_requested_error_tolerance():
     err_follow = np.abs(follow.q - ref.q).max()
     err_fixed = np.abs(fixed.q - ref.q).max()
     assert err_follow < 0.7 * err_fixed
+
+
+def test_multipliers_converge_at_second_order_in_the_projected_form_only():
+    """The released bar against rk4 at h = 1e-5 (the README's figures): the projected form's
+    multipliers come from the equations of motion at the projected state and fall fourfold per
+    halving of h; the book scheme's come with its a+, whose period-2 oscillation is amplified
+    by 4/h^2, and grow as h shrinks, while its q stays second order."""
+    sc = mbdk.scene("physical_pendulum")
+    ref = mbdk.simulate(sc, "rk4", h=1e-5, t_end=1.0, every=1000)
+    errs = {f: [] for f in FORMS}
+    for form in FORMS:
+        for h in (1e-3, 5e-4, 2.5e-4):
+            r = mbdk.simulate(sc, "trapezoidal_index3", formulation=form, h=h, t_end=1.0,
+                              every=round(1e-2 / h))
+            errs[form].append((np.abs(r.multipliers - ref.multipliers).max(),
+                               np.abs(r.q - ref.q).max()))
+    al, book = errs["augmented_lagrangian"], errs["index3"]
+    for coarse, fine in zip(al, al[1:]):
+        assert coarse[0] / fine[0] > 3.5 and coarse[1] / fine[1] > 3.5
+    assert book[0][0] < book[1][0] < book[2][0]                  # lambda: grows as h shrinks
+    assert book[0][1] / book[2][1] > 12.0                        # q: still second order
