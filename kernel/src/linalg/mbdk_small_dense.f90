@@ -6,9 +6,12 @@
 !>
 !> LDL^T: factor and solve (a matrix serving several solves), or both in one pass
 !> (mbdk_small_ldlt_solve_once, one solve: no L is stored or read back).
-!> A pivot below tol * (largest diagonal entry of A) counts as singular: for a Schur
-!> complement that means dependent (redundant) constraint rows, reported as
-!> MBDK_ERR_SINGULAR_MATRIX. LU: partial pivoting as dgetf2; a zero or non-finite pivot is
+!> A pivot below tol * (the largest original diagonal entry of its own pivot block) counts as
+!> singular: for a Schur complement D W D^T, the part of a row not in the span of the rows
+!> before it (the squared sine of its angle to them, in W's metric) below tol, that is dependent
+!> (redundant) constraint rows, reported as MBDK_ERR_SINGULAR_MATRIX. Relative to its own block,
+!> not to the largest diagonal of A: a joint on a body 1e12 times lighter than another has a
+!> diagonal 1e12 times larger without being any closer to dependent. LU: partial pivoting as dgetf2; a zero or non-finite pivot is
 !> MBDK_ERR_SINGULAR_MATRIX (as dgetrf's info > 0).
 module mbdk_small_dense
   use mbdk_kinds, only: dp
@@ -154,16 +157,28 @@ contains
     logical, intent(in) :: keep_l
     integer, intent(out) :: stat
     integer :: i, k, kb, r0, nb
-    real(dp) :: dmax, t, l1, l2, l3
+    ! the original diagonal, for the pivot test; a fixed size (an automatic array costs a
+    ! malloc per call, which is measurable at these sizes). Larger systems, which the callers
+    ! do not hand this module, are tested against the largest diagonal entry instead.
+    real(dp) :: t, l1, l2, l3, d0(MBDK_SMALL_DENSE_MAX), dmax
     stat = MBDK_SUCCESS
     dmax = 0.0_dp
     do i = 1, n
       dmax = max(dmax, a(i, i))
+      if (i <= MBDK_SMALL_DENSE_MAX) d0(i) = a(i, i)
     end do
-    t = tol * dmax
     do kb = 1, size(blk) - 1
       r0 = blk(kb)
       nb = blk(kb + 1) - r0
+      if (nb < 1 .or. r0 + nb - 1 > n) then
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
+      if (n <= MBDK_SMALL_DENSE_MAX) then
+        t = tol * maxval(d0(r0:r0 + nb - 1))
+      else
+        t = tol * dmax
+      end if
       select case (nb)
       case (1)
         call invert1(a, n, r0, t, stat)

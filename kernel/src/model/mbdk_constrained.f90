@@ -203,15 +203,20 @@ contains
       call mbdk_small_ldlt_factor(cs%s, m, blk, MBDK_CONSTRAINED_SINGULAR_TOL, stat)
     case (MBDK_SOLVE_SCHUR_LAPACK)
       call mbdk_sparse_schur_assemble(sp, dz, cs%s)
-      call mbdk_chol_factor(cs%s, stat)
-      if (stat /= MBDK_SUCCESS) return
-      umax = 0.0_dp
-      umin = huge(1.0_dp)
-      do i = 1, m
-        umax = max(umax, cs%s(i, i)**2)
-        umin = min(umin, cs%s(i, i)**2)
-      end do
-      if (.not. (umin > MBDK_CONSTRAINED_SINGULAR_TOL * umax)) stat = MBDK_ERR_SINGULAR_MATRIX
+      ! each pivot L_ii^2 against its row's own diagonal S_ii (as the in-house LDL^T): the part
+      ! of row i independent of the rows before it, whatever the rows' mass scales
+      block
+        real(dp) :: d0(m)
+        do i = 1, m
+          d0(i) = cs%s(i, i)
+        end do
+        call mbdk_chol_factor(cs%s, stat)
+        if (stat /= MBDK_SUCCESS) return
+        do i = 1, m
+          if (.not. (cs%s(i, i)**2 > MBDK_CONSTRAINED_SINGULAR_TOL * d0(i))) &
+            stat = MBDK_ERR_SINGULAR_MATRIX
+        end do
+      end block
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)
       nk = nc + m

@@ -233,7 +233,8 @@ contains
 
   !> Solves S x = b, b becoming x, by the block LDL^T of mbdk_small_ldlt_solve_once with 2 x 2
   !> pivot blocks, written out for that block size: the same arithmetic, the same singular test
-  !> (a pivot of a block's scalar LDL^T at or below tol * the largest diagonal entry of S). The
+  !> (a pivot of a block's scalar LDL^T at or below tol * the block's own largest diagonal entry
+  !> of S, so that a light body beside a heavy one is not taken for a dependent row). The
   !> lower block triangle of S is stored block by block, row by row: block (i, c), c <= i, is
   !> sb(1:4, i (i - 1) / 2 + c) = its entries 11, 21, 12, 22 (the diagonal blocks' 12 unread);
   !> b(1:2, i) is the right-hand side of joint i. sb is overwritten.
@@ -243,18 +244,27 @@ contains
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
     integer :: i, k, c, kk, ik, ic, ck
-    real(dp) :: t, det, y, i11, i21, i22, l11, l12, l21, l22, x1, x2
+    ! the blocks' original diagonals, for the pivot test, in a fixed-size array (an automatic
+    ! one costs a malloc per solve); beyond it (a revolute_schur solver forced on a long chain)
+    ! the test takes the largest diagonal entry of S
+    integer, parameter :: NKEEP = 32
+    real(dp) :: t, det, y, i11, i21, i22, l11, l12, l21, l22, x1, x2, d0(NKEEP), dmax
     stat = MBDK_ERR_SINGULAR_MATRIX
-    t = 0.0_dp
     kk = 0
+    dmax = 0.0_dp
     do k = 1, nj
       kk = kk + k
-      t = max(t, sb(1, kk), sb(4, kk))
+      dmax = max(dmax, sb(1, kk), sb(4, kk))
+      if (k <= NKEEP) d0(k) = max(sb(1, kk), sb(4, kk))
     end do
-    t = tol * t
     kk = 0
     do k = 1, nj
       kk = kk + k                       ! block (k, k)
+      if (nj <= NKEEP) then
+        t = tol * d0(k)
+      else
+        t = tol * dmax
+      end if
       if (.not. (sb(1, kk) > t)) return
       det = sb(1, kk) * sb(4, kk) - sb(2, kk)**2
       if (.not. (det > t * sb(1, kk))) return
