@@ -69,3 +69,19 @@ def test_a_scene_is_re_read_only_when_it_changed():
     sc.bodies[0].mass = -1.0
     with pytest.raises(mbdk.SceneError, match="body 'bar1': field 'mass' = -1.0"):
         checked(sc)
+
+
+def test_a_changed_scene_is_caught_however_it_changed():
+    """A numpy array in a field, and an element moved from one list to another (the
+    concatenation of the lists unchanged), both make simulate re-read the scene, which names
+    the problem, instead of passing an unchecked scene on."""
+    import numpy as np
+    import mbdk
+    sc = mbdk.scene("double_pendulum")
+    sc.joints[0].point1 = np.array([0.5, 0.0])
+    with pytest.raises(mbdk.SceneError, match="joint 'O': field 'point1'"):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01)   # compared, not a numpy ValueError
+    sc = mbdk.scene("spring_damper_bar")
+    sc.forces.insert(0, sc.joints.pop())
+    with pytest.raises(mbdk.SceneError):
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01)

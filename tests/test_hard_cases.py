@@ -67,8 +67,9 @@ def test_extreme_masses_give_a_sound_result_or_a_named_error(mass, method):
     sc.bodies[1].inertia *= mass
     try:
         r = mbdk.simulate(sc, method, h=1e-3, t_end=1.0, every=10)
-    except mbdk.MbdkError:
-        assert mass > 1.0, "the light bar was refused"
+    except (mbdk.SingularMatrixError, mbdk.ConstraintDriftError, mbdk.EnergyDriftError,
+            mbdk.NewtonDivergedError) as err:
+        assert mass > 1.0, f"the light bar was refused: {err}"
         return
     assert np.all(np.isfinite(r.q)) and np.all(np.isfinite(r.energy))
     assert r.residuals[:, 0].max() < 1e-2 * 2.0
@@ -82,8 +83,8 @@ def test_a_1e9_spring_excited_by_the_motion_is_named_when_a_method_loses_it(meth
     """spring_bar with k = 1e9 N/m at its rest length, the bar set turning at 3 rad/s: the
     motion loads the spring, whose mode (about 3e4 rad/s) h = 1e-3 cannot follow. An L-stable
     method damps it away with the bar's energy, rk4 blows up, Newton may fail: whatever the
-    method does, a run that returns success kept its energy within the watch's tolerance and
-    its constraints; otherwise the error is named."""
+    method does, a run that returns success kept its energy and its constraints (checked here
+    against the run's own outputs, not the watch's verdict); otherwise the error is named."""
     sc = mbdk.scene("spring_bar")
     sc.forces[0].stiffness = 1e9
     sc.forces[0].rest_length = None
@@ -95,3 +96,4 @@ def test_a_1e9_spring_excited_by_the_motion_is_named_when_a_method_loses_it(meth
             mbdk.NonFiniteSolutionError, mbdk.StepTooSmallError):
         return
     assert np.ptp(r.energy) <= 0.1 * (np.abs(r.energy).max() + 1e-300)
+    assert r.residuals[:, 0].max() < 1e-3 and np.all(np.isfinite(r.q))

@@ -162,7 +162,7 @@ static void drifting_bar_is_stopped_by_the_watch(void)
     const double jreal[12] = {0.5, 0.0, 0.0, 0.0, 1, 0};
     const int fint[4] = {1, 0, 0, 0};
     const double freal[12] = {0.0, -9.81};
-    const double y0[6] = {-0.5, 0.0, 0.0, 0, 0, 0};       /* bar along +x from the hinge */
+    const double y0[6] = {-0.5, 0.0, 0.0, 0, 0, 0};       /* bar along -x from the hinge */
     double report[8], t, y[6];
     mbdk_options opt;
     mbdk_model_options mopt;

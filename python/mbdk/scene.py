@@ -496,8 +496,13 @@ def checked(sc: Scene) -> Scene:
     if not isinstance(sc.bodies, list) or not isinstance(sc.joints, list) or \
             not isinstance(sc.forces, list):
         raise SceneError(f"{sc.source}: bodies, joints and forces must be lists")
-    if getattr(sc, "_read_as", None) == _snapshot(sc):
-        return sc
+    read_as = getattr(sc, "_read_as", None)
+    if read_as is not None:
+        try:
+            if read_as == _snapshot(sc):
+                return sc
+        except (TypeError, ValueError):   # an array or an odd object in a field: changed
+            pass
     return scene_from_dict(scene_to_dict(sc), sc.source)
 
 
@@ -507,8 +512,8 @@ def _snapshot(sc: Scene):
     values (numbers, strings, tuples), so its snapshot cannot change behind its back; a list a
     user puts in a field never equals the tuple it replaced."""
     return (sc.name, sc.description, sc.source,
-            tuple((type(o), tuple(vars(o).values())) for o in (*sc.bodies, *sc.joints,
-                                                               *sc.forces)))
+            *(tuple((type(o), tuple(vars(o).values())) for o in items)
+              for items in (sc.bodies, sc.joints, sc.forces)))
 
 
 def check_scene(sc: Scene) -> None:

@@ -340,7 +340,7 @@ _DRIFT_ADVICE = {
 
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
 #: (at most the fixed-step defaults), not below NEWTON_FLOOR
-NEWTON_SHARE, NEWTON_FLOOR = 0.01, 1e-15
+NEWTON_SHARE, NEWTON_FLOOR = 0.01, 64 * 2.0 ** -52
 
 
 def _real(name: str, value) -> float:
@@ -437,7 +437,7 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
         # Newton's tolerances follow the error test's (a hundredth of it, SUNDIALS' practice
         # of a tenth with a margin), so that a tight err_rtol is not capped by the default
         # Newton tolerance; never below the roundoff of the iterates
-        if newton_rtol is None:
+        if newton_rtol is None and err_rtol > 0:   # err_rtol = 0: absolute control only
             rtol = max(min(rtol, NEWTON_SHARE * err_rtol), NEWTON_FLOOR)
         if newton_atol is None:
             atol = max(min(atol, NEWTON_SHARE * err_atol), NEWTON_FLOOR)

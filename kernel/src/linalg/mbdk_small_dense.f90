@@ -6,12 +6,13 @@
 !>
 !> LDL^T: factor and solve (a matrix serving several solves), or both in one pass
 !> (mbdk_small_ldlt_solve_once, one solve: no L is stored or read back).
-!> A pivot below tol * (the largest original diagonal entry of its own pivot block) counts as
-!> singular: for a Schur complement D W D^T, the part of a row not in the span of the rows
-!> before it (the squared sine of its angle to them, in W's metric) below tol, that is dependent
-!> (redundant) constraint rows, reported as MBDK_ERR_SINGULAR_MATRIX. Relative to its own block,
-!> not to the largest diagonal of A: a joint on a body 1e12 times lighter than another has a
-!> diagonal 1e12 times larger without being any closer to dependent. LU: partial pivoting as dgetf2; a zero or non-finite pivot is
+!> A pivot below tol * (its own row's original diagonal entry) counts as singular: for a Schur
+!> complement D W D^T, the part of a row not in the span of the rows before it (the squared sine
+!> of its angle to them, in W's metric) below tol, that is dependent (redundant) constraint
+!> rows, reported as MBDK_ERR_SINGULAR_MATRIX. Relative to its own row, not to the largest
+!> diagonal of A: a joint on a body 1e12 times lighter than another has a diagonal 1e12 times
+!> larger without being any closer to dependent, and a fixed joint's angle row (radians) is not
+!> measured against its position rows (metres). LU: partial pivoting as dgetf2; a zero or non-finite pivot is
 !> MBDK_ERR_SINGULAR_MATRIX (as dgetrf's info > 0).
 module mbdk_small_dense
   use mbdk_kinds, only: dp
@@ -34,7 +35,7 @@ contains
   !> L; each pivot block's lower triangle holds its symmetric inverse (closed form: adjugate
   !> over determinant). Only the lower triangle of A is read.
   !> Singular: a pivot of the scalar LDL^T within a block (the ratio of consecutive leading
-  !> minors of the block) at or below tol * (largest diagonal entry of A), or NaN, is
+  !> minors of the block) at or below tol * (its row's original diagonal entry), or NaN, is
   !> MBDK_ERR_SINGULAR_MATRIX; for a Schur complement that means dependent (redundant)
   !> constraint rows. A block of more than 3 rows is refused as MBDK_ERR_SINGULAR_MATRIX.
   pure subroutine mbdk_small_ldlt_factor(a, n, blk, tol, stat)
@@ -160,7 +161,7 @@ contains
     ! the original diagonal, for the pivot test; a fixed size (an automatic array costs a
     ! malloc per call, which is measurable at these sizes). Larger systems, which the callers
     ! do not hand this module, are tested against the largest diagonal entry instead.
-    real(dp) :: t, l1, l2, l3, d0(MBDK_SMALL_DENSE_MAX), dmax
+    real(dp) :: t(3), l1, l2, l3, d0(MBDK_SMALL_DENSE_MAX), dmax
     stat = MBDK_SUCCESS
     dmax = 0.0_dp
     do i = 1, n
@@ -174,10 +175,14 @@ contains
         stat = MBDK_ERR_SINGULAR_MATRIX
         return
       end if
+      if (nb > 3) then
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
       if (n <= MBDK_SMALL_DENSE_MAX) then
-        t = tol * maxval(d0(r0:r0 + nb - 1))
+        t(1:nb) = tol * max(d0(r0:r0 + nb - 1), 0.0_dp)
       else
-        t = tol * dmax
+        t(1:nb) = tol * dmax
       end if
       select case (nb)
       case (1)
@@ -244,10 +249,10 @@ contains
   pure subroutine invert1(a, n, r0, t, stat)
     integer, intent(in) :: n, r0
     real(dp), intent(inout) :: a(n, n)
-    real(dp), intent(in) :: t
+    real(dp), intent(in) :: t(3)
     integer, intent(out) :: stat
     stat = MBDK_ERR_SINGULAR_MATRIX
-    if (.not. (a(r0, r0) > t)) return
+    if (.not. (a(r0, r0) > t(1))) return
     a(r0, r0) = 1.0_dp / a(r0, r0)
     stat = MBDK_SUCCESS
   end subroutine invert1
@@ -255,13 +260,13 @@ contains
   pure subroutine invert2(a, n, r0, t, stat)
     integer, intent(in) :: n, r0
     real(dp), intent(inout) :: a(n, n)
-    real(dp), intent(in) :: t
+    real(dp), intent(in) :: t(3)
     integer, intent(out) :: stat
     real(dp) :: det, y, c11
     stat = MBDK_ERR_SINGULAR_MATRIX
-    if (.not. (a(r0, r0) > t)) return
+    if (.not. (a(r0, r0) > t(1))) return
     det = a(r0, r0) * a(r0 + 1, r0 + 1) - a(r0 + 1, r0)**2
-    if (.not. (det > t * a(r0, r0))) return
+    if (.not. (det > t(2) * a(r0, r0))) return
     y = 1.0_dp / det
     c11 = a(r0 + 1, r0 + 1) * y
     a(r0 + 1, r0 + 1) = a(r0, r0) * y
@@ -273,21 +278,21 @@ contains
   pure subroutine invert3(a, n, r0, t, stat)
     integer, intent(in) :: n, r0
     real(dp), intent(inout) :: a(n, n)
-    real(dp), intent(in) :: t
+    real(dp), intent(in) :: t(3)
     integer, intent(out) :: stat
     real(dp) :: c11, c21, c31, c22, c32, c33, det, y
     stat = MBDK_ERR_SINGULAR_MATRIX
     associate (b => a(r0:r0 + 2, r0:r0 + 2))
-      if (.not. (b(1, 1) > t)) return
+      if (.not. (b(1, 1) > t(1))) return
       c33 = b(1, 1) * b(2, 2) - b(2, 1)**2
-      if (.not. (c33 > t * b(1, 1))) return
+      if (.not. (c33 > t(2) * b(1, 1))) return
       c11 = b(2, 2) * b(3, 3) - b(3, 2)**2
       c21 = b(3, 2) * b(3, 1) - b(2, 1) * b(3, 3)
       c31 = b(2, 1) * b(3, 2) - b(2, 2) * b(3, 1)
       c22 = b(1, 1) * b(3, 3) - b(3, 1)**2
       c32 = b(2, 1) * b(3, 1) - b(1, 1) * b(3, 2)
       det = b(1, 1) * c11 + b(2, 1) * c21 + b(3, 1) * c31
-      if (.not. (det > t * c33)) return
+      if (.not. (det > t(3) * c33)) return
       y = 1.0_dp / det
       b(1, 1) = c11 * y
       b(2, 1) = c21 * y

@@ -233,7 +233,7 @@ contains
 
   !> Solves S x = b, b becoming x, by the block LDL^T of mbdk_small_ldlt_solve_once with 2 x 2
   !> pivot blocks, written out for that block size: the same arithmetic, the same singular test
-  !> (a pivot of a block's scalar LDL^T at or below tol * the block's own largest diagonal entry
+  !> (a pivot of a block's scalar LDL^T at or below tol * its own row's original diagonal entry
   !> of S, so that a light body beside a heavy one is not taken for a dependent row). The
   !> lower block triangle of S is stored block by block, row by row: block (i, c), c <= i, is
   !> sb(1:4, i (i - 1) / 2 + c) = its entries 11, 21, 12, 22 (the diagonal blocks' 12 unread);
@@ -248,26 +248,28 @@ contains
     ! one costs a malloc per solve); beyond it (a revolute_schur solver forced on a long chain)
     ! the test takes the largest diagonal entry of S
     integer, parameter :: NKEEP = 32
-    real(dp) :: t, det, y, i11, i21, i22, l11, l12, l21, l22, x1, x2, d0(NKEEP), dmax
+    real(dp) :: t1, t2, det, y, i11, i21, i22, l11, l12, l21, l22, x1, x2, d0(2, NKEEP), dmax
     stat = MBDK_ERR_SINGULAR_MATRIX
     kk = 0
     dmax = 0.0_dp
     do k = 1, nj
       kk = kk + k
       dmax = max(dmax, sb(1, kk), sb(4, kk))
-      if (k <= NKEEP) d0(k) = max(sb(1, kk), sb(4, kk))
+      if (k <= NKEEP) d0(:, k) = [sb(1, kk), sb(4, kk)]
     end do
     kk = 0
     do k = 1, nj
       kk = kk + k                       ! block (k, k)
       if (nj <= NKEEP) then
-        t = tol * d0(k)
+        t1 = tol * max(d0(1, k), 0.0_dp)
+        t2 = tol * max(d0(2, k), 0.0_dp)
       else
-        t = tol * dmax
+        t1 = tol * dmax
+        t2 = t1
       end if
-      if (.not. (sb(1, kk) > t)) return
+      if (.not. (sb(1, kk) > t1)) return
       det = sb(1, kk) * sb(4, kk) - sb(2, kk)**2
-      if (.not. (det > t * sb(1, kk))) return
+      if (.not. (det > t2 * sb(1, kk))) return
       y = 1.0_dp / det
       i11 = sb(4, kk) * y
       i21 = -sb(2, kk) * y

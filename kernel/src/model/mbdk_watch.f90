@@ -111,6 +111,8 @@ contains
     w%value = 0.0_dp
     w%tol = 0.0_dp
     w%t_bad = t0
+    w%absolute = 0.0_dp
+    w%scale = 0.0_dp
   end subroutine mbdk_watch_start
 
   !> Counts a step; what it owes the watch (MBDK_WATCH_*): a check (every `every` steps, or
