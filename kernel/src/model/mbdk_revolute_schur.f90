@@ -250,19 +250,27 @@ contains
     integer, parameter :: NKEEP = 32
     real(dp) :: t1, t2, det, y, i11, i21, i22, l11, l12, l21, l22, x1, x2, d0(2, NKEEP), dmax
     stat = MBDK_ERR_SINGULAR_MATRIX
-    kk = 0
-    dmax = 0.0_dp
-    do k = 1, nj
-      kk = kk + k
-      dmax = max(dmax, sb(1, kk), sb(4, kk))
-      if (k <= NKEEP) d0(:, k) = [sb(1, kk), sb(4, kk)]
-    end do
+    if (nj <= NKEEP) then
+      kk = 0
+      do k = 1, nj
+        kk = kk + k
+        d0(1, k) = tol * max(sb(1, kk), 0.0_dp)
+        d0(2, k) = tol * max(sb(4, kk), 0.0_dp)
+      end do
+    else
+      kk = 0
+      dmax = 0.0_dp
+      do k = 1, nj
+        kk = kk + k
+        dmax = max(dmax, sb(1, kk), sb(4, kk))
+      end do
+    end if
     kk = 0
     do k = 1, nj
       kk = kk + k                       ! block (k, k)
       if (nj <= NKEEP) then
-        t1 = tol * max(d0(1, k), 0.0_dp)
-        t2 = tol * max(d0(2, k), 0.0_dp)
+        t1 = d0(1, k)
+        t2 = d0(2, k)
       else
         t1 = tol * dmax
         t2 = t1
