@@ -329,7 +329,7 @@ contains
     call attempt(s, model, stat)
     if (stat == MBDK_SUCCESS) then
       call commit(s)
-      call mbdk_model_watch(model, s%t, s%q, s%v, .false., stat)
+      call watch_step(s, model, .false., stat)
     end if
   end subroutine mbdk_index3_step
 
@@ -366,11 +366,26 @@ contains
       end if
       if (ierr /= MBDK_SUCCESS) return
       call commit(s)
-      call mbdk_model_watch(model, s%t, s%q, s%v, sample .and. s%t == t_s, ierr)
+      call watch_step(s, model, sample .and. s%t == t_s, ierr)
       if (ierr /= MBDK_SUCCESS) return
       h_sub = min(2.0_dp * h_sub, h_full)
     end do
   end subroutine mbdk_index3_advance
+
+  !> The model's watch after an accepted step: with the projected form's multipliers (exact at
+  !> the state) for the drivers' power; the book scheme's are not accurate enough (they grow as
+  !> h shrinks), so the watch solves for them.
+  subroutine watch_step(s, model, force, stat)
+    type(mbdk_index3_t), intent(in) :: s
+    type(mbdk_model_t), intent(in) :: model
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    if (s%book) then
+      call mbdk_model_watch(model, s%t, s%q, s%v, force, stat, solve_lam=.true.)
+    else
+      call mbdk_model_watch(model, s%t, s%q, s%v, force, stat, lam=s%lam)
+    end if
+  end subroutine watch_step
 
   logical function newton_failed(ierr)
     integer, intent(in) :: ierr
@@ -486,7 +501,7 @@ contains
             if (err <= 1.0_dp) then
               call commit(s)
               call mbdk_controller_accept(ctl, s%h, err)
-              call mbdk_model_watch(model, s%t, s%q, s%v, s%t >= t_s, ierr)
+              call watch_step(s, model, s%t >= t_s, ierr)
               if (ierr /= MBDK_SUCCESS) return
               cycle
             end if

@@ -749,19 +749,31 @@ contains
   !> steps, force, or every step with power terms), the constraint residuals and the energy
   !> balance against their tolerances. MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT with
   !> the report in work%watch.
-  subroutine mbdk_model_watch(self, t, q, v, force, stat)
+  !> The drivers' power needs the multipliers at (t, q, v). lam: the integrator's own, exact
+  !> at the state (trapezoidal_index3's projected form). Otherwise a step that only owes its
+  !> power takes those of the model's last evaluation (an ODE method's last stage, within
+  !> O(h^2) of the state: the order of the trapezoidal rule that integrates the power) instead
+  !> of a constrained solve per step, unless solve_lam (an integrator that does not evaluate
+  !> the model's accelerations, or whose multipliers are not accurate: the book's scheme);
+  !> checks always solve.
+  subroutine mbdk_model_watch(self, t, q, v, force, stat, lam, solve_lam)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     logical, intent(in) :: force
     integer, intent(out) :: stat
+    real(dp), intent(in), optional :: lam(:)
+    logical, intent(in), optional :: solve_lam
     real(dp) :: kin, vg, vs, p
     integer :: due
+    logical :: reuse
     stat = MBDK_SUCCESS
     if (.not. self%has_watch) return
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
+    reuse = due == MBDK_WATCH_POWER_ONLY
+    if (present(solve_lam)) reuse = reuse .and. .not. solve_lam
     call watch_quantities(self, t, q, v, self%work%watch%power, due == MBDK_WATCH_POWER_ONLY, &
-                          kin, vg, vs, p, stat)
+                          kin, vg, vs, p, stat, lam, reuse)
     if (stat /= MBDK_SUCCESS) return
     associate (w => self%work)
       if (due == MBDK_WATCH_POWER_ONLY) then
@@ -776,10 +788,13 @@ contains
   !> size of its terms), the kinetic, gravity and spring energy and, with power, the power of
   !> loads and drivers less the dampers' (power_only: that alone). The passes are not counted in
   !> the visit counters: they are the watch's, not the integration's.
-  subroutine watch_quantities(self, t, q, v, power, power_only, kin, vg, vs, p, stat)
+  subroutine watch_quantities(self, t, q, v, power, power_only, kin, vg, vs, p, stat, lam, &
+                              reuse_lam)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     logical, intent(in) :: power, power_only
+    real(dp), intent(in), optional :: lam(:)
+    logical, intent(in), optional :: reuse_lam
     real(dp), intent(out) :: kin, vg, vs, p
     integer, intent(out) :: stat
     integer(i8) :: unused(MBDK_JOINT_TYPES), visits(MBDK_VISIT_COUNT)
@@ -792,17 +807,17 @@ contains
       ! where a driver makes the balance have power terms. Where D has lost a rank (redundant
       ! joints, a singular pose) the regular path of mbdk_constrained gives them. The solve's
       ! visits are the watch's: the counters are put back.
-      if (power .and. self%has_drivers) then
-        visits = w%visits
-        call mbdk_model_accelerations(self, t, q, v, w%wa, w%wlam, stat)
-        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. .not. self%revolute) then
-          call mbdk_constrained_factor(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
-                                       stat, regular=.true.)
-          if (stat == MBDK_SUCCESS) &
-            call mbdk_constrained_solve(w%cs, self%sp, w%dz, self%blk, self%winv, w%fq, w%gam, &
-                                        w%wa, w%wlam, stat)
+      if (power .and. self%has_drivers .and. present(lam)) then
+        w%wlam = lam
+      else if (power .and. self%has_drivers .and. present(reuse_lam)) then
+        if (reuse_lam) then
+          w%wlam = w%lam_rhs
+        else
+          call exact_lam()
         end if
-        w%visits = visits
+        if (stat /= MBDK_SUCCESS) return
+      else if (power .and. self%has_drivers) then
+        call exact_lam()
         if (stat /= MBDK_SUCCESS) return
       else
         w%wlam = 0.0_dp
@@ -832,6 +847,25 @@ contains
       call mbdk_forces_energy(self%fint, self%freal, self%mass, w%rot, q, v, t, vg, vs, pd, pl)
       p = pl - pd + pc
     end associate
+
+  contains
+
+    !> The multipliers at (t, q, v) by the model's solve; where D has lost a rank, by the
+    !> regular path. The solve's visits are the watch's: the counters are put back.
+    subroutine exact_lam()
+      associate (w => self%work)
+        visits = w%visits
+        call mbdk_model_accelerations(self, t, q, v, w%wa, w%wlam, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. .not. self%revolute) then
+          call mbdk_constrained_factor(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                       stat, regular=.true.)
+          if (stat == MBDK_SUCCESS) &
+            call mbdk_constrained_solve(w%cs, self%sp, w%dz, self%blk, self%winv, w%fq, w%gam, &
+                                        w%wa, w%wlam, stat)
+        end if
+        w%visits = visits
+      end associate
+    end subroutine exact_lam
   end subroutine watch_quantities
 
 end module mbdk_model
