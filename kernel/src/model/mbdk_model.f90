@@ -158,6 +158,8 @@ module mbdk_model
     real(dp) :: watch_tol(3) = 0.0_dp   !< position, velocity, energy (mbdk_watch)
     integer :: watch_every = MBDK_WATCH_EVERY
     logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
+    !> a power term needs the bodies' rotations (a point force, a two-point damper)
+    logical :: power_rot = .false.
     type(mbdk_model_work_t), pointer :: work => null()
     !> every joint revolute and S solved in-house: the closed-form Schur complement
     logical :: revolute = .false.
@@ -287,6 +289,11 @@ contains
     if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
     model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER)
+    do j = 1, size(fint, 2)
+      if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
+          fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp)) &
+        model%power_rot = .true.
+    end do
     model%solver = opt%solver
     model%small_dense = opt%small_dense /= 0
     if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_REVOLUTE) return
@@ -822,7 +829,10 @@ contains
       else
         w%wlam = 0.0_dp
       end if
-      call mbdk_body_rotations(q, w%rot)
+      ! a step that owes only its power skips the rotations where no power term needs them (a
+      ! coordinate damper, a torque): the spring potentials it then computes are not used
+      if (.not. power_only .or. self%has_drivers .or. self%power_rot) &
+        call mbdk_body_rotations(q, w%rot)
       if (self%m > 0 .and. (.not. power_only .or. self%has_drivers)) then
         call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, w%dz, &
                               w%gam, w%phit, unused)
