@@ -160,7 +160,7 @@ module mbdk_trapezoidal_index3
   !> adaptive: Newton failures, each retried with a quarter of the step, draw on a budget of
   !> RETRY_BUDGET failures that every accepted step refills by RETRY_REFILL. A run that fails
   !> in more than one attempt in ten for long, the controller circling a configuration it
-  !> cannot pass (a million retries at a singular crossing were seen), ends with
+  !> cannot pass (at a singular crossing it can otherwise retry without end), ends with
   !> MBDK_ERR_NEWTON_DIVERGED instead of spending its time there; an isolated hard step still
   !> has its 20 retries. (Fixed step needs none: a grid step's substeps end at h / 4^5.)
   real(dp), parameter, public :: MBDK_INDEX3_RETRY_BUDGET = 20.0_dp

@@ -12,8 +12,9 @@
 !> rows, reported as MBDK_ERR_SINGULAR_MATRIX. Relative to its own row, not to the largest
 !> diagonal of A: a joint on a body 1e12 times lighter than another has a diagonal 1e12 times
 !> larger without being any closer to dependent, and a fixed joint's angle row (radians) is not
-!> measured against its position rows (metres). LU: partial pivoting as dgetf2; a zero or non-finite pivot is
-!> MBDK_ERR_SINGULAR_MATRIX (as dgetrf's info > 0).
+!> measured against its position rows (metres).
+!> LU: partial pivoting as dgetf2; a zero or non-finite pivot is MBDK_ERR_SINGULAR_MATRIX (as
+!> dgetrf's info > 0).
 module mbdk_small_dense
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
