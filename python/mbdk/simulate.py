@@ -187,6 +187,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")
+    # re-read through the scene reader's checks, before anything reads its fields: fields
+    # changed in Python after loading get the errors a file would (element, field, value)
+    scene = checked(scene)
     info_m = _method(method)
     index3 = info_m.family == "dae_index3"
     if formulation is None:
@@ -226,9 +229,6 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
         mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
                              projection_tol, solver, small_dense)
     mopt = replace(mopt, **watch_.options())
-    # re-read through the scene reader's checks: fields changed in Python after loading get
-    # the errors a file would (element, field, value)
-    scene = checked(scene)
     if solver == "revolute_schur":
         other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
         if other:
@@ -276,7 +276,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                 "outputs": [o for o in OUTPUTS if want & OUTPUTS[o]],
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
                 "small_dense": small_dense,
-                "watch": {k: v for k, v in asdict(watch_).items()}, **plan_["manifest"]}
+                "watch": asdict(watch_), **plan_["manifest"]}
     if index3:
         manifest["steps"] = stats.steps
     result = SceneResult(
@@ -315,9 +315,13 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                           result)
     if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(watch_report, tab.rows)
+        advice = _DRIFT_ADVICE[status]
+        if index3:   # it is the index-3 form already: the stabilised ODE forms are no remedy
+            advice = advice.replace(" or trapezoidal_index3", "").replace(
+                "a stabilised formulation (baumgarte, projection)",
+                "formulation = 'augmented_lagrangian' (which projects v and a)")
         result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
-                          f"{drift_message(watch_report, tab.rows)}. "
-                          + _DRIFT_ADVICE[status])
+                          f"{drift_message(watch_report, tab.rows)}. " + advice)
         if raise_on_failure:
             raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:
@@ -340,7 +344,7 @@ _DRIFT_ADVICE = {
 
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
 #: (at most the fixed-step defaults), not below NEWTON_FLOOR
-NEWTON_SHARE, NEWTON_FLOOR = 0.01, 64 * 2.0 ** -52
+NEWTON_SHARE, NEWTON_FLOOR = 0.01, 64 * float(np.finfo(float).eps)
 
 
 def _real(name: str, value) -> float:
