@@ -97,3 +97,46 @@ def test_a_1e9_spring_excited_by_the_motion_is_named_when_a_method_loses_it(meth
         return
     assert np.ptp(r.energy) <= 0.1 * (np.abs(r.energy).max() + 1e-300)
     assert r.residuals[:, 0].max() < 1e-3 and np.all(np.isfinite(r.q))
+
+
+def _driven_rocker():
+    """The four-bar with its rocker driven at +1 rad/s instead of a free crank: the loop cannot
+    follow past the rocker's limit, where crank and coupler fold onto each other and the rocker
+    tip is the coupler-minus-crank length, 1.2 m, from the crank's pivot: |(2, 0) + 1.2 (cos b,
+    sin b)| = 1.2, cos b = -5/6 (the rocker tip's direction b is its body angle). The driver
+    asks for a pose past that dead point at t = arccos(-5/6) - b0."""
+    from mbdk.scene import Joint
+    sc = mbdk.scene("four_bar")
+    rocker = next(b for b in sc.bodies if b.name == "rocker")
+    rocker.omega = 1.0
+    sc.joints.append(Joint("drive", "driver", "rocker", coordinate="angle",
+                           function=(rocker.angle, 1.0, 0.0, 0.0, 0.0)))
+    for b in sc.bodies:
+        b.given = ()
+    return sc, np.arccos(-5.0 / 6.0) - rocker.angle
+
+
+@pytest.mark.parametrize("method,kw", [
+    ("trapezoidal_index3", dict(formulation="augmented_lagrangian")),
+    ("trapezoidal_index3", dict(formulation="augmented_lagrangian", adaptive=True,
+                                err_rtol=1e-6, err_atol=1e-6, dt_out=0.01)),
+    ("trapezoidal_index3", dict(formulation="index3")),
+    ("rk4", dict(formulation="reduced")),
+    ("rk4", dict(formulation="projection")),
+    ("rk4", dict(formulation="penalty"))], ids=["al", "al-adaptive", "book", "reduced",
+                                                "projection", "penalty"])
+def test_a_driver_pushing_a_loop_past_its_dead_point_stops_there_by_name(method, kw):
+    """No method can pass a pose that does not exist: every formulation stops with a named
+    error within 2 ms of the dead point (reference: the geometry, in _driven_rocker), says
+    it is a singular configuration and names the joints that lose the rank, and the samples it
+    returns keep the constraints. The index-3 form's stiffened, frozen Newton iteration (which
+    passes A02's crossings) must not accept a step past it either."""
+    sc, t_lock = _driven_rocker()
+    with pytest.raises(mbdk.MbdkError, match=r"singular configuration") as err:
+        mbdk.simulate(sc, method, h=1e-3, t_end=2.0, **kw)
+    assert "joint(s) A, B, C, D, drive" in str(err.value)
+    r = err.value.result
+    # past the dead point by delta, the loop misses closure by about L delta^2 / 2: a state
+    # within 1e-5 s of it (1e-5 rad) is the dead point to within 1e-10 m
+    assert t_lock - 2e-3 < r.t[-1] <= t_lock + 1e-5
+    assert r.residuals[:, 0].max() < 1e-5

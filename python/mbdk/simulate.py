@@ -320,6 +320,14 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
             advice = advice.replace(" or trapezoidal_index3", "").replace(
                 "a stabilised formulation (baumgarte, projection)",
                 "formulation = 'augmented_lagrangian' (which projects v and a)")
+        note = _singular_note(scene, tab, result)
+        if note:   # the check failed next to a singular configuration: that is the cause
+            passes = ("" if index3 and formulation == "augmented_lagrangian" else
+                      "A formulation that keeps the constraints through it is "
+                      "trapezoidal_index3 (augmented_lagrangian); ")
+            advice = (f"It failed at a singular configuration: {note}. {passes}a driver or "
+                      "load that pushes the mechanism against a dead point has no solution "
+                      "there. watch=False accepts the run as it is.")
         result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
                           f"{drift_message(watch_report, tab.rows)}. " + advice)
         if raise_on_failure:
@@ -499,6 +507,24 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
+def _singular_note(scene, tab: Tables, r) -> str:
+    """Where D is close to losing a rank at the last sample (the state the failed step started
+    from): the smallest / largest singular value of the scaled Jacobian and the joints of the
+    rows the vanishing direction involves, in words; empty elsewhere."""
+    if not (len(r.t) and tab.m):
+        return ""
+    tab_r = resolved(scene, r)
+    u, sv, _ = np.linalg.svd(scaled_jacobian(
+        tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
+    ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
+    if ratio >= NEAR_SINGULAR:
+        return ""
+    rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
+    return (f"D is close to losing a rank (smallest / largest singular value {ratio:.1e}): "
+            f"joint(s) {', '.join(rows_to_joints(tab, rows))} are nearly dependent, a singular "
+            "configuration of the mechanism")
+
+
 def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) -> str:
     nw = len(r.t)
     if not index3:
@@ -511,6 +537,16 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
+        if not note:
+            note = _singular_note(scene, tab, r)
+            if note:   # a smaller h meets the singular configuration as well
+                refuse = (" The reduced formulation refuses a near rank loss (its accelerations "
+                          "amplify the drift of v there, and a step across it can land on "
+                          "another assembly branch)." if formulation == "reduced" else "")
+                note = (f"; there {note}.{refuse} A smaller h meets it too: baumgarte, "
+                        "projection and trapezoidal_index3 (augmented_lagrangian) pass singular "
+                        "crossings; a driver or load that pushes the mechanism against a dead "
+                        "point has no solution there")
         return f"{method}/{formulation} on scene {scene.name!r}: {r.message} ({where}){note}"
     where = f"in the step after t = {r.t[-1]:.6g}" if nw else "before the first step"
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
@@ -520,18 +556,8 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
             and r.stats.newton_failures >= RETRY_BUDGET):
         where += (f"; {r.stats.newton_failures} Newton failures in {r.stats.steps} steps "
                   "exhausted the retry budget (more than one attempt in ten failing)")
-    note = ""
-    if nw and tab.m:
-        # the last sample is the state the failed step started from
-        tab_r = resolved(scene, r)
-        u, sv, _ = np.linalg.svd(scaled_jacobian(
-            tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
-        ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
-        if ratio < NEAR_SINGULAR:
-            rows = [i for i in range(tab.m) if abs(u[i, -1]) > 0.1]
-            note = (f"; there D is close to losing a rank (smallest / largest singular value "
-                    f"{ratio:.1e}): joint(s) {', '.join(rows_to_joints(tab, rows))} are "
-                    "nearly dependent, a singular configuration of the mechanism")
+    note = _singular_note(scene, tab, r)
+    note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
             f"{note}. A smaller h, or a larger max_iter, may get past it")
 

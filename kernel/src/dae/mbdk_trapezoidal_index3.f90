@@ -77,10 +77,35 @@
 !> matrices, twice as many after each such failure until a step is served by an old matrix again
 !> (with alpha D^T D a thousand times M, a matrix from the last step fails once h |omega| is above
 !> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
-!> norm (atol + rtol |q|) and max |Phi| <= atol there (not below 64 eps max|q|); that last update
-!> is applied. At least two evaluations per step, so both tests are made on evaluated residuals,
+!> norm (atol + rtol |q|) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
+!> multipliers were frozen at a rank loss: below). That last update is applied. At least two evaluations per step, so both tests are made on evaluated residuals,
 !> never on predicted ones. After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED
 !> (a singular matrix: SINGULAR_MATRIX).
+!>
+!> Singular configurations (augmented form). Where D is close to losing a rank (a four-bar
+!> chain's flat pose, a dead point) a multiplier update reduces Phi along the vanishing direction
+!> by only 1/(1 + alpha s sigma^2 / m) instead of a thousandfold: Newton converges linearly or
+!> not at all, and the trapezoidal step's own multiplier there grows like 1/sigma. Two measures
+!> pass such steps:
+!>   - the iteration watches its progress, max(update / tolerance, |Phi| / atol). When an update
+!>     computed with a matrix built at its iterate leaves more than STALL_RATE of it, the step
+!>     multiplies alpha by BOOST (the multiplier update that follows still takes the old alpha,
+!>     which produced this Phi: with the new one it overshoots BOOST-fold and Phi stays); at a
+!>     second stall, with |Phi| within FROZEN_PHI times its tolerance, lam* is frozen: Newton
+!>     then solves the penalty problem, which stays regular, quadratically. A frozen step
+!>     converges with |Phi| up to FROZEN_PHI times atol (the part of Phi no multiplier reaches:
+!>     measured up to 1e-10 on IFToMM A02 chains of 1-40 loops), and also when its update no
+!>     longer shrinks within NOISE tolerances (the roundoff floor of the stiffer matrix: 1-3
+!>     tolerances on the 40-loop chain). On a regular mechanism a stall is rare (slow
+!>     contraction of a fresh matrix) and the boost alone ends it.
+!>   - the projections take the regular augmented Lagrangian path of mbdk_constrained already
+!>     below a relative pivot of NEAR_PIVOT (1e-6) of D M^-1 D^T, not only where it is singular:
+!>     exact projections amplify the part of gamma (and of D v) that the vanishing direction
+!>     cannot meet by up to 1/sigma^2, and the jump in a and v (an energy jump of 46 J on the
+!>     2-loop A02 chain) ruined the next steps.
+!> With both, the A02 chains of 1, 2, 4, 10 and 40 loops run 20 s (about 20 flat poses) with
+!> the default options, fixed and adaptive, to the single loop's accuracy (studies/index3.py);
+!> where no pose exists (a driver pushing a loop past its dead point) Newton still fails there.
 !>
 !> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). In the augmented
 !> form a step whose Newton iteration fails (diverges, meets a singular matrix or a non-finite
@@ -152,6 +177,16 @@ module mbdk_trapezoidal_index3
   integer, parameter, public :: MBDK_INDEX3_MAX_CUTS = 5
   !> Newton: a matrix is rebuilt when the contraction rate exceeds this
   real(dp), parameter :: REBUILD_RATE = 0.5_dp
+  !> augmented form, near a rank loss of D (see "Singular configurations" in the header): an
+  !> iteration whose progress, computed with a matrix built at the iterate before, falls by less
+  !> than STALL_RATE has stalled; the first stall multiplies alpha by BOOST, the second freezes
+  !> lam*; a frozen step converges with max |Phi| up to FROZEN_PHI times its tolerance, and on
+  !> an update that no longer shrinks within NOISE tolerances (the roundoff of the stiffer
+  !> matrix)
+  real(dp), parameter :: STALL_RATE = 0.25_dp, BOOST = 1.0e3_dp, NOISE = 1.0e2_dp, &
+    FROZEN_PHI = 1.0e3_dp
+  !> the projections take the regular path below this relative pivot of D M^-1 D^T
+  real(dp), parameter :: NEAR_PIVOT = 1.0e-6_dp
   !> after a failed reuse, this many steps start with fresh matrices (doubled after each further
   !> failure, up to COOL_MAX)
   integer, parameter :: COOL_START = 8, COOL_MAX = 1024
@@ -567,9 +602,9 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: ierr
-    real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol
-    logical :: fresh, restarted, book, reused
-    integer :: k, kk, nc, m
+    real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old
+    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted
+    integer :: k, kk, nc, m, stalls
 
     nc = s%nc
     m = s%m
@@ -599,6 +634,11 @@ contains
     s%iters = 0
     k = 0
     s%phi = 0.0_dp
+    frozen = .false.
+    boosted = .false.
+    stalls = 0
+    upd_fresh = .false.
+    prog_old = huge(1.0_dp)
     do
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       ! (leaves work%rot and work%dz at qn, for the forces and the matrix)
@@ -609,8 +649,29 @@ contains
       if (ierr /= MBDK_SUCCESS) return
       s%st%nfev = s%st%nfev + 1
       s%lt = s%ln
+      phin = 0.0_dp
+      if (m > 0) phin = maxval(abs(s%phi))
+      ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
+      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+      ! a stall (measured below, after the solve) stiffens the penalty, then freezes lam*. The
+      ! multiplier update takes the alpha that produced this Phi: with the new one it would
+      ! overshoot BOOST-fold and leave Phi where it was.
+      alpha_upd = s%alpha
+      if (stalls > 0 .and. .not. frozen) then
+        stalls = 0
+        if (.not. boosted) then
+          boosted = .true.
+          s%alpha = s%alpha * BOOST
+          s%have_lu = .false.
+          upd_fresh = .false.
+        else
+          ! freeze only what a frozen step may accept: a larger Phi stalls for another reason
+          ! (a stiff force's nonlinearity) and the multipliers go on
+          frozen = phin <= FROZEN_PHI * phi_tol
+        end if
+      end if
       if (.not. book) then
-        if (k > 0) s%ln = s%ln + s%alpha * s%phi
+        if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
         s%lt = s%ln + s%alpha * s%phi
       end if
       ! corr = f - D^T lt over the nonzeros of D
@@ -641,12 +702,18 @@ contains
       k = k + 1
       s%st%newton_iterations = s%st%newton_iterations + 1
       dnorm = maxval(abs(s%r(1:nc)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
-      ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
-      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
-      ! converged: the update from this iterate is below tolerance, and so is Phi here. The
-      ! update is applied (the Newton error left in q is then its square, or the rate times
+      ! progress: the distance from convergence, in tolerances of the update and of Phi. A
+      ! stall counts only after an update from a matrix built at its iterate (an old matrix
+      ! contracts slowly for reasons of its own).
+      prog = max(dnorm, phin / phi_tol)
+      if (.not. book .and. upd_fresh .and. prog > STALL_RATE * prog_old .and. prog > 1.0_dp) &
+        stalls = stalls + 1
+      prog_old = prog
+      ! converged: the update from this iterate is below tolerance, and so is Phi here (frozen:
+      ! below its square root; or the update is at the roundoff floor of the stiffer matrix).
+      ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
-      if (k > 1 .and. dnorm <= 1.0_dp .and. (m == 0 .or. maxval(abs(s%phi)) <= phi_tol)) then
+      if (converged()) then
         s%qn = s%qn + s%r(1:nc)
         if (book) s%ln = s%ln + s%r(nc + 1:) / sh
         exit
@@ -672,7 +739,11 @@ contains
           s%qn = s%qp
           s%ln = s%lp
           k = 0
+          frozen = .false.
+          prog_old = huge(1.0_dp)
+          stalls = 0
         end if
+        upd_fresh = .false.
         cycle
       end if
       s%qn = s%qn + s%r(1:nc)
@@ -680,11 +751,14 @@ contains
       ! rebuild the matrix when two more iterations at this rate would not reach the
       ! tolerance (an iteration costs about as much as a factorisation)
       if (rate > REBUILD_RATE .or. dnorm * rate * rate > 1.0_dp) s%have_lu = .false.
+      upd_fresh = fresh
       fresh = .false.
       dnorm_old = dnorm
     end do
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
+    ! the next step's alpha is its own
+    if (boosted) s%have_lu = .false.
     if (book) then
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a
@@ -695,7 +769,7 @@ contains
       ! at a rank loss of D (a singular crossing, redundant joints) the projections take the
       ! regular augmented Lagrangian path of mbdk_constrained instead of failing
       call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
-                                   model%mass, ierr, regular=.true.)
+                                   model%mass, ierr, regular=.true., near=NEAR_PIVOT)
       if (ierr /= MBDK_SUCCESS) return
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
       ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
@@ -726,6 +800,19 @@ contains
     end if
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
+
+  contains
+
+    logical function converged()
+      converged = .false.
+      if (k < 2) return
+      if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
+        converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
+      else if (m == 0 .or. phin <= phi_tol) then
+        converged = dnorm <= 1.0_dp
+      end if
+    end function converged
+
   end subroutine attempt
 
   !> Rotations and constraints at (tn, qn, vn): model%work%rot, phi, D's compact rows

@@ -32,7 +32,10 @@
 !> max(W^-1) / max |D_i|^2 contracts a regular direction about a thousandfold per iteration;
 !> directions near the rank loss converge slower and stop when the residual no longer falls
 !> (at most MBDK_CONSTRAINED_AL_ITER iterations). The dense matrix is factorised by LAPACK's
-!> dpotrf: this path serves the few steps near a crossing, not every evaluation.
+!> dpotrf: this path serves the few steps near a crossing, not every evaluation. A caller may
+!> take it before D is singular (mbdk_constrained_factor's near: a relative pivot below which
+!> the exact solve counts as singular): trapezoidal_index3's projections do, because the exact
+!> solve amplifies what the vanishing direction cannot meet.
 module mbdk_constrained
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -102,15 +105,20 @@ contains
 
   !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
   !> diagonal W^-1). regular: where the system is singular, take the regular path (see the
-  !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX.
-  subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, regular)
+  !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX. near: the relative pivot
+  !> below which it counts as singular (default and floor MBDK_CONSTRAINED_SINGULAR_TOL).
+  subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, regular, near)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
     real(dp), intent(in), contiguous :: dz(:, :), wm(:)
     integer, intent(in), contiguous :: col(:, :), blk(:)
     integer, intent(out) :: stat
     logical, intent(in), optional :: regular
-    call factor_exact(cs, sp, dz, col, blk, wm, stat)
+    real(dp), intent(in), optional :: near
+    real(dp) :: tol
+    tol = MBDK_CONSTRAINED_SINGULAR_TOL
+    if (present(near)) tol = max(tol, near)
+    call factor_exact(cs, sp, dz, col, blk, wm, tol, stat)
     cs%regular = .false.
     if (stat /= MBDK_ERR_SINGULAR_MATRIX .or. .not. present(regular)) return
     if (regular) call factor_regular(cs, dz, col, wm, stat)
@@ -186,10 +194,11 @@ contains
     end do
   end subroutine solve_regular
 
-  subroutine factor_exact(cs, sp, dz, col, blk, wm, stat)
+  subroutine factor_exact(cs, sp, dz, col, blk, wm, tol, stat)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
     real(dp), intent(in), contiguous :: dz(:, :), wm(:)
+    real(dp), intent(in) :: tol
     integer, intent(in), contiguous :: col(:, :), blk(:)
     integer, intent(out) :: stat
     integer :: i, j, k, nc, m, nk
@@ -200,7 +209,7 @@ contains
     select case (cs%path)
     case (MBDK_SOLVE_SCHUR_SMALL)
       call mbdk_sparse_schur_assemble(sp, dz, cs%s)
-      call mbdk_small_ldlt_factor(cs%s, m, blk, MBDK_CONSTRAINED_SINGULAR_TOL, stat)
+      call mbdk_small_ldlt_factor(cs%s, m, blk, tol, stat)
     case (MBDK_SOLVE_SCHUR_LAPACK)
       call mbdk_sparse_schur_assemble(sp, dz, cs%s)
       ! each pivot L_ii^2 against its row's own diagonal S_ii (as the in-house LDL^T): the part
@@ -213,7 +222,7 @@ contains
         call mbdk_chol_factor(cs%s, stat)
         if (stat /= MBDK_SUCCESS) return
         do i = 1, m
-          if (.not. (cs%s(i, i)**2 > MBDK_CONSTRAINED_SINGULAR_TOL * d0(i))) &
+          if (.not. (cs%s(i, i)**2 > tol * d0(i))) &
             stat = MBDK_ERR_SINGULAR_MATRIX
         end do
       end block
@@ -238,7 +247,7 @@ contains
         umax = max(umax, abs(cs%kkt(i, i)))
         umin = min(umin, abs(cs%kkt(i, i)))
       end do
-      if (umin <= MBDK_CONSTRAINED_SINGULAR_TOL * umax * max(1.0_dp, maxval(wm))) &
+      if (umin <= tol * umax * max(1.0_dp, maxval(wm))) &
         stat = MBDK_ERR_SINGULAR_MATRIX
     end select
   end subroutine factor_exact
@@ -284,23 +293,27 @@ contains
   !> Factor and solve for one right-hand side: on the small Schur path in one pass (the
   !> right-hand side eliminated with S, no L stored), otherwise mbdk_constrained_factor then
   !> mbdk_constrained_solve.
-  subroutine mbdk_constrained_solve_once(cs, sp, dz, col, blk, wm, w, b, c, x, mu, stat)
+  subroutine mbdk_constrained_solve_once(cs, sp, dz, col, blk, wm, w, b, c, x, mu, stat, near)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
     real(dp), intent(in), contiguous :: dz(:, :), wm(:), w(:), b(:), c(:)
     integer, intent(in), contiguous :: col(:, :), blk(:)
     real(dp), intent(out), contiguous :: x(:), mu(:)
     integer, intent(out) :: stat
+    real(dp), intent(in), optional :: near   !< as for mbdk_constrained_factor
+    real(dp) :: tol
+    tol = MBDK_CONSTRAINED_SINGULAR_TOL
+    if (present(near)) tol = max(tol, near)
     if (cs%path == MBDK_SOLVE_SCHUR_SMALL) then
       call mbdk_sparse_schur_assemble(sp, dz, cs%s)
       call mbdk_sparse_d_times(sp, dz, b, mu, .true.)
       mu = mu - c
-      call mbdk_small_ldlt_solve_once(cs%s, cs%m, blk, MBDK_CONSTRAINED_SINGULAR_TOL, mu, stat)
+      call mbdk_small_ldlt_solve_once(cs%s, cs%m, blk, tol, mu, stat)
       if (stat /= MBDK_SUCCESS) return
       call mbdk_sparse_w_residual(sp, dz, w, mu, x, cs%nc, b)
       return
     end if
-    call mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat)
+    call mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, near=tol)
     if (stat == MBDK_SUCCESS) call mbdk_constrained_solve(cs, sp, dz, blk, w, b, c, x, mu, stat)
   end subroutine mbdk_constrained_solve_once
 

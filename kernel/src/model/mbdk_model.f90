@@ -92,6 +92,15 @@ module mbdk_model
   !> relative pivot below which S = D M^-1 D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_MODEL_SINGULAR_TOL = MBDK_CONSTRAINED_SINGULAR_TOL
   real(dp), parameter :: SINGULAR_TOL = MBDK_MODEL_SINGULAR_TOL
+  !> The reduced formulation's right-hand side refuses a relative pivot of D M^-1 D^T below
+  !> this (MBDK_ERR_SINGULAR_MATRIX), a near rank loss and not only a singular D: there its
+  !> accelerations amplify the drift of v in the vanishing direction up to 1/pivot-fold, and
+  !> a fixed step that passes a singular crossing left the mechanism on another assembly
+  !> branch with SUCCESS (IFToMM A02, one loop: the crank angle 6 rad off after 5 s, |Phi| 6 mm,
+  !> the energy 8 % off, within the watch's defaults). The stabilised formulations (Baumgarte,
+  !> projection) and penalty keep the constraints through such a step: they pass it, or the
+  !> watch stops them by name.
+  real(dp), parameter, public :: MBDK_MODEL_NEAR_PIVOT = 1.0e-6_dp
 
   !> Options of a model, by name with defaults. bind(C): the same struct is struct
   !> mbdk_model_options in mbdk.h and mbdk.options.ModelOptions in Python (tests/test_structs.py
@@ -450,26 +459,36 @@ contains
     integer :: nc, i
     nc = self%nc
     ! y and f contiguous (mbdk_problem): the accelerations are written into f in place
-    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
-                                  self%work%lam_rhs, stat)
+    ! the reduced formulation refuses a near rank loss of D (see MBDK_MODEL_NEAR_PIVOT)
+    if (self%formulation == MBDK_FORM_REDUCED) then
+      call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                    self%work%lam_rhs, stat, MBDK_MODEL_NEAR_PIVOT)
+    else
+      call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                    self%work%lam_rhs, stat)
+    end if
     do i = 1, nc
       f(i) = y(nc + i)
     end do
   end subroutine model_rhs
 
   !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
-  !> self%work%lam_rhs; no argument may alias the other work buffers.
-  subroutine mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+  !> self%work%lam_rhs; no argument may alias the other work buffers. near: the relative pivot
+  !> of D M^-1 D^T below which the solve counts as singular (default and floor SINGULAR_TOL).
+  subroutine mbdk_model_accelerations(self, t, q, v, a, lam, stat, near)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(in), contiguous :: q(:), v(:)
     real(dp), intent(out), contiguous :: a(:), lam(:)
     integer, intent(out) :: stat
+    real(dp), intent(in), optional :: near
     integer :: nc, m, i, k, r
-    real(dp) :: w2, tmu, x
+    real(dp) :: w2, tmu, x, tol
 
     nc = self%nc
     m = self%m
+    tol = SINGULAR_TOL
+    if (present(near)) tol = max(tol, near)
     call mbdk_model_assemble(self, t, q, v, stat)
     if (stat /= MBDK_SUCCESS) return
     associate (w => self%work)
@@ -482,7 +501,7 @@ contains
         return
       end if
       if (self%revolute) then   ! rc from mbdk_model_assemble
-        call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%cs%s, SINGULAR_TOL, &
+        call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%cs%s, tol, &
                                  a, lam, stat)
         return
       end if
@@ -523,19 +542,20 @@ contains
         end do
         return
       end select
-      call solve_constrained(self, w, a, lam, stat)
+      call solve_constrained(self, w, a, lam, stat, tol)
     end associate
   end subroutine mbdk_model_accelerations
 
   !> M a + D^T lam = fq, D a = rc (from w): the model's constrained solve (mbdk_constrained:
   !> Schur complement, assembled sparse, when M is positive and not forced to KKT; KKT LU).
-  subroutine solve_constrained(self, w, a, lam, stat)
+  subroutine solve_constrained(self, w, a, lam, stat, tol)
     class(mbdk_model_t), intent(in) :: self
     type(mbdk_model_work_t), intent(inout) :: w
     real(dp), intent(out), contiguous :: a(:), lam(:)
     integer, intent(out) :: stat
+    real(dp), intent(in) :: tol
     call mbdk_constrained_solve_once(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
-                                     self%winv, w%fq, w%rc, a, lam, stat)
+                                     self%winv, w%fq, w%rc, a, lam, stat, tol)
   end subroutine solve_constrained
 
   !> Projection after a step: q onto Phi(q, t) = 0 by Gauss-Newton with the weight W (M^-1, or

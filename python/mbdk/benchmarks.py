@@ -1,0 +1,82 @@
+"""Public benchmark mechanisms built by parameter, with their exact solutions.
+
+IFToMM A02 (the library of computational benchmark problems for multibody dynamics, problem
+A02 "four-bar mechanism" and its chain of N loops): N four-bar loops in a row, every bar 1 m and
+1 kg (a uniform bar: inertia 1/12 kg m^2 about its centre). N + 1 cranks are hinged to the
+ground at x = 0, 1, .., N, start vertical (angle 90 deg) and turn at -1 rad/s; N couplers join
+the tips of neighbouring cranks, start horizontal at y = 1 and move at 1 m/s along x; gravity is
+-9.81 m/s^2 along y. Every loop is a square parallelogram: each time the cranks pass the
+horizontal (t = 0.714 s first) the whole chain is flat and D loses N ranks at once (a singular
+configuration, where the parallelogram may turn into the crossed branch).
+
+The chain moves as one crank: every crank has the angle theta, every coupler translates with the
+crank tips. Lagrange's equation for theta, with the kinetic energy (1/2) J theta'^2 (a crank
+about its hinge m L^2 / 3, a coupler m L^2) and the potential c g sin(theta) (a crank's centre
+at L/2 sin(theta), a coupler's at L sin(theta)):
+
+    J theta'' = -c g cos(theta),   J = m L^2 ((N + 1)/3 + N),   c = m L ((N + 1)/2 + N).
+
+With psi = theta + pi/2 this is the pendulum psi'' = -w^2 sin(psi), w^2 = c g / J, started at
+the top (psi = pi) with psi' = -1: a rotation (energy above the separatrix, k^2 =
+sin^2(psi0/2) + (psi0'/(2 w))^2 > 1). With m = 1/k^2, phi = psi/2 obeys phi' = -w k sqrt(1 - m
+sin^2 phi), so F(phi | m) = F(phi0 | m) - w k t and
+
+    theta(t) = 2 am(u | m) - pi/2,   theta'(t) = -2 w k dn(u | m),   u = K(m) - w k t
+
+(phi0 = pi/2, F(pi/2 | m) = K(m); am, dn, K from scipy.special, accurate to roundoff).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .scene import scene_from_dict
+
+G = 9.81
+
+
+def a02_chain(n: int):
+    """The IFToMM A02 chain of n four-bar loops as a scene: bodies crank0..crank{n} and
+    coupler0..coupler{n-1}, revolute joints G{i} (crank i to the ground), L{i} and R{i} (coupler
+    i to cranks i and i + 1). Crank 0 keeps its angle and angular velocity when the initial
+    state is assembled."""
+    if isinstance(n, bool) or not (isinstance(n, int) and n >= 1):
+        raise InvalidInputError(f"a02_chain: n = {n!r}; the chain needs a whole number of "
+                                "loops, 1 or more")
+    bodies, joints = [], []
+    for i in range(n + 1):
+        bodies.append({"name": f"crank{i}", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
+                       "x": float(i), "y": 0.5, "angle_deg": 90.0, "vx": 0.5, "omega": -1.0,
+                       "given": ["angle", "omega"] if i == 0 else []})
+        joints.append({"name": f"G{i}", "type": "revolute", "body1": f"crank{i}",
+                       "point1": [-0.5, 0.0], "body2": "ground", "point2": [float(i), 0.0]})
+    for i in range(n):
+        bodies.append({"name": f"coupler{i}", "mass": 1.0,
+                       "shape": {"type": "bar", "length": 1.0},
+                       "x": i + 0.5, "y": 1.0, "angle_deg": 0.0, "vx": 1.0})
+        joints.append({"name": f"L{i}", "type": "revolute", "body1": f"coupler{i}",
+                       "point1": [-0.5, 0.0], "body2": f"crank{i}", "point2": [0.5, 0.0]})
+        joints.append({"name": f"R{i}", "type": "revolute", "body1": f"coupler{i}",
+                       "point1": [0.5, 0.0], "body2": f"crank{i + 1}", "point2": [0.5, 0.0]})
+    return scene_from_dict({
+        "scene": {"name": f"a02_n{n}",
+                  "description": f"IFToMM A02: a chain of {n} four-bar loop(s), 1 m and 1 kg bars"},
+        "body": bodies, "joint": joints,
+        "force": [{"type": "gravity", "g": [0.0, -G]}]})
+
+
+def a02_crank(n: int, t) -> tuple[np.ndarray, np.ndarray]:
+    """The exact crank angle theta(t) (rad, unwrapped) and angular velocity theta'(t) of the A02
+    chain of n loops (the module's derivation)."""
+    from scipy.special import ellipj, ellipk
+
+    t = np.asarray(t, dtype=float)
+    big_j = (n + 1) / 3.0 + n
+    c = (n + 1) / 2.0 + n
+    w = np.sqrt(c * G / big_j)
+    k2 = 1.0 + (1.0 / (2.0 * w)) ** 2          # sin^2(pi/2) + (psi0' / 2w)^2, psi0' = -1
+    k = np.sqrt(k2)
+    m = 1.0 / k2
+    u = ellipk(m) - w * k * t
+    _sn, _cn, dn, am = ellipj(u, m)
+    return 2.0 * am - 0.5 * np.pi, -2.0 * w * k * dn
