@@ -338,11 +338,9 @@ def crossings(out: Path, quick: bool):
                         "exact solution of the chain's one-degree-of-freedom reduction "
                         "(mbdk.benchmarks). energy_error_rel: peak-to-peak energy over its start "
                         "(no dampers, no loads: it is conserved). A status other than SUCCESS is "
-                        "the named error the run ended with, at reached_t. The projected form's "
-                        "errors are the single loop's (no loss at the crossings); before its "
-                        "stalled Newton iterations were stiffened and frozen and its projections "
-                        "took the regular path near the rank loss, N >= 2 stopped at the first "
-                        "flat pose (t = 0.714 s), and N = 40 there after 143 s of CPU.")
+                        "the named error the run ended with, at reached_t (the reduced "
+                        "formulation refuses a near rank loss: its accelerations amplify the "
+                        "drift of v there, and a step across it can land on the other branch).")
     return table, plotting.save(fig, out, "index3_crossings")
 
 

@@ -1,13 +1,14 @@
 """Public benchmark mechanisms built by parameter, with their exact solutions.
 
-IFToMM A02 (the library of computational benchmark problems for multibody dynamics, problem
-A02 "four-bar mechanism" and its chain of N loops): N four-bar loops in a row, every bar 1 m and
+IFToMM A02 (the IFToMM library of computational benchmark problems for multibody systems,
+lim.ii.udc.es/mbsbenchmark, problem A02 "N four-bar mechanism"): N loops in a row, every bar 1 m and
 1 kg (a uniform bar: inertia 1/12 kg m^2 about its centre). N + 1 cranks are hinged to the
 ground at x = 0, 1, .., N, start vertical (angle 90 deg) and turn at -1 rad/s; N couplers join
 the tips of neighbouring cranks, start horizontal at y = 1 and move at 1 m/s along x; gravity is
 -9.81 m/s^2 along y. Every loop is a square parallelogram: each time the cranks pass the
-horizontal (t = 0.714 s first) the whole chain is flat and D loses N ranks at once (a singular
-configuration, where the parallelogram may turn into the crossed branch).
+horizontal (first at t = 0.71 s, a little later the longer the chain) the whole chain is flat
+and D loses N ranks at once (a singular configuration, where the parallelogram may turn into the
+crossed branch).
 
 The chain moves as one crank: every crank has the angle theta, every coupler translates with the
 crank tips. Lagrange's equation for theta, with the kinetic energy (1/2) J theta'^2 (a crank

@@ -543,10 +543,11 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                 refuse = (" The reduced formulation refuses a near rank loss (its accelerations "
                           "amplify the drift of v there, and a step across it can land on "
                           "another assembly branch)." if formulation == "reduced" else "")
-                note = (f"; there {note}.{refuse} A smaller h meets it too: baumgarte, "
-                        "projection and trapezoidal_index3 (augmented_lagrangian) pass singular "
-                        "crossings; a driver or load that pushes the mechanism against a dead "
-                        "point has no solution there")
+                note = (f"; there {note}.{refuse} A smaller h meets it too: "
+                        "trapezoidal_index3 (augmented_lagrangian) passes singular crossings "
+                        "(baumgarte and projection where no stage lands on the rank loss); a "
+                        "driver or load that pushes the mechanism against a dead point has no "
+                        "solution there")
         return f"{method}/{formulation} on scene {scene.name!r}: {r.message} ({where}){note}"
     where = f"in the step after t = {r.t[-1]:.6g}" if nw else "before the first step"
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (

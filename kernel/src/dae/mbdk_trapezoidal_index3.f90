@@ -85,27 +85,27 @@
 !> Singular configurations (augmented form). Where D is close to losing a rank (a four-bar
 !> chain's flat pose, a dead point) a multiplier update reduces Phi along the vanishing direction
 !> by only 1/(1 + alpha s sigma^2 / m) instead of a thousandfold: Newton converges linearly or
-!> not at all, and the trapezoidal step's own multiplier there grows like 1/sigma. Two measures
-!> pass such steps:
+!> not at all, and the trapezoidal step's own multiplier there grows like 1/sigma. Three
+!> measures pass such steps:
 !>   - the iteration watches its progress, max(update / tolerance, |Phi| / atol). When an update
 !>     computed with a matrix built at its iterate leaves more than STALL_RATE of it, the step
 !>     multiplies alpha by BOOST (the multiplier update that follows still takes the old alpha,
 !>     which produced this Phi: with the new one it overshoots BOOST-fold and Phi stays); at a
 !>     second stall, with |Phi| within FROZEN_PHI times its tolerance, lam* is frozen: Newton
 !>     then solves the penalty problem, which stays regular, quadratically. A frozen step
-!>     converges with |Phi| up to FROZEN_PHI times atol (the part of Phi no multiplier reaches:
-!>     measured up to 1e-10 on IFToMM A02 chains of 1-40 loops), and also when its update no
-!>     longer shrinks within NOISE tolerances (the roundoff floor of the stiffer matrix: 1-3
-!>     tolerances on the 40-loop chain). On a regular mechanism a stall is rare (slow
-!>     contraction of a fresh matrix) and the boost alone ends it.
+!>     converges with |Phi| up to FROZEN_PHI times atol (the part of Phi no multiplier reaches),
+!>     and also when its update no longer shrinks within NOISE tolerances (the roundoff floor of
+!>     the stiffer matrix). A stall also happens on regular mechanisms now and then (a fresh
+!>     matrix contracting slowly); there the boost alone ends it.
 !>   - the projections take the regular augmented Lagrangian path of mbdk_constrained already
-!>     below a relative pivot of NEAR_PIVOT (1e-6) of D M^-1 D^T, not only where it is singular:
-!>     exact projections amplify the part of gamma (and of D v) that the vanishing direction
-!>     cannot meet by up to 1/sigma^2, and the jump in a and v (an energy jump of 46 J on the
-!>     2-loop A02 chain) ruined the next steps.
-!> With both, the A02 chains of 1, 2, 4, 10 and 40 loops run 20 s (about 20 flat poses) with
-!> the default options, fixed and adaptive, to the single loop's accuracy (studies/index3.py);
-!> where no pose exists (a driver pushing a loop past its dead point) Newton still fails there.
+!>     below a relative pivot of NEAR_PIVOT of D M^-1 D^T, not only where it is singular: exact
+!>     projections amplify the part of gamma (and of D v) that the vanishing direction cannot
+!>     meet by up to 1/sigma^2, and the jump in a and v spoils the steps after it.
+!>   - after such a projection the next step's lam* starts from the projection's multipliers,
+!>     not from its own: with D rank-deficient lam* is not unique, and its updates accumulate
+!>     the part of Phi that D cannot remove from step to step without bound.
+!> Where no pose exists (a driver pushing a loop past its dead point) Newton still fails there.
+!> studies/index3.py (table index3_crossings) measures the IFToMM A02 chains of 1 to 40 loops.
 !>
 !> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). In the augmented
 !> form a step whose Newton iteration fails (diverges, meets a singular matrix or a non-finite
@@ -229,6 +229,8 @@ module mbdk_trapezoidal_index3
     logical :: book = .true.
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp
+    !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
+    logical :: lu_boosted = .false.
     logical :: have_lu = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
@@ -602,7 +604,7 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: ierr
-    real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old
+    real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old, alpha0
     logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted
     integer :: k, kk, nc, m, stalls
 
@@ -611,8 +613,9 @@ contains
     h = s%h
     book = s%book
     sh = 0.25_dp * h * h
-    s%alpha = s%opt%alpha
-    if (s%alpha == 0.0_dp) s%alpha = MBDK_INDEX3_KAPPA * maxval(model%mass) / sh
+    alpha0 = s%opt%alpha
+    if (alpha0 == 0.0_dp) alpha0 = MBDK_INDEX3_KAPPA * maxval(model%mass) / sh
+    s%alpha = alpha0
     s%qhat = s%q + h * s%v + sh * s%a
     if (book .or. s%h_prev <= 0.0_dp) then
       s%qp = s%q + h * s%v + 0.5_dp * h * h * s%a
@@ -621,10 +624,15 @@ contains
       ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
       s%qp = s%qhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
       s%lp = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
+      ! where the last projection found D (nearly) rank-deficient, lam* is not unique: its
+      ! updates add the part of Phi that D cannot remove, which carried from step to step
+      ! grows without bound. There the projection's multipliers (bounded) start it.
+      if (s%cs%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
     end if
     if (book) s%lp = s%lam
     if (book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
-    if (s%have_lu .and. (abs(h - s%h_lu) > 1.0e-12_dp * h .or. s%cool > 0)) s%have_lu = .false.
+    if (s%have_lu .and. (abs(h - s%h_lu) > 1.0e-12_dp * h .or. s%cool > 0 .or. &
+                         s%lu_boosted)) s%have_lu = .false.
     reused = s%have_lu
     s%qn = s%qp
     s%ln = s%lp
@@ -668,6 +676,8 @@ contains
           ! freeze only what a frozen step may accept: a larger Phi stalls for another reason
           ! (a stiff force's nonlinearity) and the multipliers go on
           frozen = phin <= FROZEN_PHI * phi_tol
+          ! the noise test of a frozen step compares frozen updates only
+          if (frozen) dnorm_old = huge(1.0_dp)
         end if
       end if
       if (.not. book) then
@@ -688,6 +698,7 @@ contains
         if (ierr /= MBDK_SUCCESS) return
         s%have_lu = .true.
         s%h_lu = h
+        s%lu_boosted = boosted
         fresh = .true.
         reused = .false.
       end if
@@ -710,7 +721,8 @@ contains
         stalls = stalls + 1
       prog_old = prog
       ! converged: the update from this iterate is below tolerance, and so is Phi here (frozen:
-      ! below its square root; or the update is at the roundoff floor of the stiffer matrix).
+      ! up to FROZEN_PHI times its tolerance; or the update is at the roundoff floor of the
+      ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
       if (converged()) then
@@ -740,6 +752,8 @@ contains
           s%ln = s%lp
           k = 0
           frozen = .false.
+          boosted = .false.
+          s%alpha = alpha0
           prog_old = huge(1.0_dp)
           stalls = 0
         end if
@@ -757,8 +771,6 @@ contains
     end do
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
-    ! the next step's alpha is its own
-    if (boosted) s%have_lu = .false.
     if (book) then
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a

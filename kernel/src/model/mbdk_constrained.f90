@@ -105,8 +105,9 @@ contains
 
   !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
   !> diagonal W^-1). regular: where the system is singular, take the regular path (see the
-  !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX. near: the relative pivot
-  !> below which it counts as singular (default and floor MBDK_CONSTRAINED_SINGULAR_TOL).
+  !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX. near: the relative pivot of
+  !> S below which it counts as singular (default and floor MBDK_CONSTRAINED_SINGULAR_TOL; the
+  !> Schur paths only, the KKT path keeps its own test).
   subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, regular, near)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
@@ -247,7 +248,9 @@ contains
         umax = max(umax, abs(cs%kkt(i, i)))
         umin = min(umin, abs(cs%kkt(i, i)))
       end do
-      if (umin <= tol * umax * max(1.0_dp, maxval(wm))) &
+      ! (the pivots of the KKT LU are not those of D M^-1 D^T: near applies to the Schur
+      ! paths only)
+      if (umin <= MBDK_CONSTRAINED_SINGULAR_TOL * umax * max(1.0_dp, maxval(wm))) &
         stat = MBDK_ERR_SINGULAR_MATRIX
     end select
   end subroutine factor_exact
