@@ -513,9 +513,13 @@ def _singular_note(scene, tab: Tables, r) -> str:
     rows the vanishing direction involves, in words; empty elsewhere."""
     if not (len(r.t) and tab.m):
         return ""
+    if not (np.all(np.isfinite(r.q[-1])) and np.all(np.isfinite(r.v[-1]))):
+        return ""   # a blown-up run (watch off): no configuration to speak of
     tab_r = resolved(scene, r)
-    u, sv, _ = np.linalg.svd(scaled_jacobian(
-        tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
+    d = scaled_jacobian(tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"])
+    if not np.all(np.isfinite(d)):
+        return ""
+    u, sv, _ = np.linalg.svd(d)
     ratio = sv[-1] / sv[0] if sv.size == tab.m and sv[0] > 0 else 1.0
     if ratio >= NEAR_SINGULAR:
         return ""
