@@ -650,4 +650,13 @@ def test_the_rank_test_is_free_of_units():
     assert ratios[1] == pytest.approx(ratios[0], rel=1e-9)
     assert ratios[2] == pytest.approx(ratios[0], rel=1e-9)
     assert ratios[0] > 1e-2                          # a regular pose is not called near-singular
+    # one body 1e6 times lighter than the others: D M^-1 D^T is ill-conditioned, the geometry
+    # is not (the scaled singular values are those of the uniform four-bar)
+    sc = _four_bar_scaled(1.0, 1.0)
+    sc.bodies[1].mass *= 1e-6
+    sc.bodies[1].inertia *= 1e-6
+    tab = M.build_tables(sc)
+    sv = np.linalg.svd(M.scaled_jacobian(tab, M.evaluate(tab, sc.q0(), sc.v0())["D"]),
+                       compute_uv=False)
+    assert sv[-1] / sv[0] == pytest.approx(ratios[0], rel=1e-9)
     assert raw[1] < 1e-2 * raw[0]                    # the unscaled ratio is not free of units

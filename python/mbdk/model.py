@@ -219,12 +219,13 @@ def profile(tab: Tables, q, v, t=0.0, formulation="reduced",
 
 
 def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
-    """D made free of units, for rank tests: columns times M^-1/2 (so that S = D M^-1 D^T is its
-    Gram matrix; a rotation column's entries, lengths, become ratios to the body's radius of
-    gyration) and the rows that are angles (a prismatic joint's first, a fixed joint's third, a
-    driver of an angle) times the radius of gyration of their first body. A mechanism measured
-    in millimetres, or with masses in tonnes, then has the singular values of one in metres and
-    kilograms. A body without inertia is given the gyration radius of its largest joint
+    """D made free of units, for rank tests of the geometry: each rotation column divided by
+    its body's radius of gyration (its entries, lengths, become ratios), and the rows that are
+    angles (a prismatic joint's first, a fixed joint's third, a driver of an angle) times the
+    radius of gyration of their first body. A mechanism measured in millimetres then has the
+    singular values of one in metres; masses enter only through the radii of gyration, so a
+    light body beside heavy ones (an ill-conditioned D M^-1 D^T, at a regular pose) is not taken
+    for a rank loss. A body without inertia is given the gyration radius of its largest joint
     point."""
     nb = len(tab.mass)
     reach = np.zeros(nb)
@@ -235,8 +236,8 @@ def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
     gyr = np.sqrt(np.where(tab.inertia > 0, tab.inertia / tab.mass, 0.0))
     gyr = np.where(gyr > 0, gyr, np.where(reach > 0, reach, 1.0))
     col = np.empty(3 * nb)
-    col[0::3] = col[1::3] = 1.0 / np.sqrt(tab.mass)
-    col[2::3] = 1.0 / (np.sqrt(tab.mass) * gyr)
+    col[0::3] = col[1::3] = 1.0
+    col[2::3] = 1.0 / gyr
     row = np.ones(tab.m)
     r = 0
     for k in range(tab.nj):

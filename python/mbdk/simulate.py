@@ -339,6 +339,9 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     return result
 
 
+# the reduced formulation refuses a relative pivot of D M^-1 D^T below this (the kernel's)
+REDUCED_NEAR_PIVOT = float(_kernel.model_constants())
+
 _DRIFT_ADVICE = {
     Status.ERR_CONSTRAINT_DRIFT: "The state left the constraints: a smaller h, a stabilised "
     "formulation (baumgarte, projection) or trapezoidal_index3 keeps them; near a singular "
@@ -541,6 +544,13 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
             if dep:
                 note = (f": joint(s) {', '.join(rows_to_joints(tab, dep))} became dependent "
                         "(a singular configuration)")
+        if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation == "reduced" \
+                and nw and not _singular_note(scene, tab, r):
+            note = ("; the pose is regular, but D M^-1 D^T is ill-conditioned there (bodies of "
+                    "very different masses or inertias): the reduced formulation refuses a "
+                    f"relative pivot below {REDUCED_NEAR_PIVOT:g}, where its accelerations "
+                    "amplify the drift of v. "
+                    "baumgarte, projection or trapezoidal_index3 run it")
         if not note:
             note = _singular_note(scene, tab, r)
             if note:   # a smaller h meets the singular configuration as well

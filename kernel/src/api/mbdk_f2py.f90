@@ -668,6 +668,15 @@ subroutine index3_constants(max_cuts, retry_budget)
   retry_budget = nint(MBDK_INDEX3_RETRY_BUDGET)
 end subroutine index3_constants
 
+subroutine model_constants(near_pivot)
+  ! The relative pivot of D M^-1 D^T below which the reduced formulation refuses a pose, for
+  ! the messages Python writes.
+  use mbdk_model, only: MBDK_MODEL_NEAR_PIVOT
+  implicit none
+  double precision, intent(out) :: near_pivot
+  near_pivot = MBDK_MODEL_NEAR_PIVOT
+end subroutine model_constants
+
 subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
   use, intrinsic :: iso_c_binding, only: c_sizeof

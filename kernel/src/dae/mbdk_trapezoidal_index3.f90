@@ -231,6 +231,9 @@ module mbdk_trapezoidal_index3
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp
     !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
     logical :: lu_boosted = .false.
+    !> the projection of the accepted state (regular) and of the attempted one (regular_n) took
+    !> the regular path: D is (nearly) rank-deficient there
+    logical :: regular = .false., regular_n = .false.
     logical :: have_lu = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
@@ -314,6 +317,7 @@ contains
                                   s%gam, s%a, s%lam, stat)
     end if
     if (stat /= MBDK_SUCCESS) return
+    s%regular = s%cs%regular
     s%lam_old = s%lam
     s%lst = s%lam
     s%lstn = s%lam
@@ -338,6 +342,7 @@ contains
     s%a = s%an
     s%lam = s%ln
     s%lst = s%lstn
+    s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
     if (s%cool > 0) s%cool = s%cool - 1
@@ -624,10 +629,10 @@ contains
       ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
       s%qp = s%qhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
       s%lp = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
-      ! where the last projection found D (nearly) rank-deficient, lam* is not unique: its
-      ! updates add the part of Phi that D cannot remove, which carried from step to step
-      ! grows without bound. There the projection's multipliers (bounded) start it.
-      if (s%cs%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
+      ! where the accepted state's projection found D (nearly) rank-deficient, lam* is (nearly)
+      ! not unique: its updates add the part of Phi that D cannot remove, which carried from
+      ! step to step grows without bound. There the projection's multipliers (bounded) start it.
+      if (s%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
     end if
     if (book) s%lp = s%lam
     if (book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
@@ -783,6 +788,7 @@ contains
       call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
                                    model%mass, ierr, regular=.true., near=NEAR_PIVOT)
       if (ierr /= MBDK_SUCCESS) return
+      s%regular_n = s%cs%regular
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
       ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
       ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),

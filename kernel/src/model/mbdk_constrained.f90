@@ -107,7 +107,7 @@ contains
   !> diagonal W^-1). regular: where the system is singular, take the regular path (see the
   !> module header) instead of returning MBDK_ERR_SINGULAR_MATRIX. near: the relative pivot of
   !> S below which it counts as singular (default and floor MBDK_CONSTRAINED_SINGULAR_TOL; the
-  !> Schur paths only, the KKT path keeps its own test).
+  !> KKT path tests it on S formed densely, where every body has inertia).
   subroutine mbdk_constrained_factor(cs, sp, dz, col, blk, wm, stat, regular, near)
     type(mbdk_constrained_t), intent(inout) :: cs
     type(mbdk_sparse_schur_t), intent(in) :: sp
@@ -248,12 +248,44 @@ contains
         umax = max(umax, abs(cs%kkt(i, i)))
         umin = min(umin, abs(cs%kkt(i, i)))
       end do
-      ! (the pivots of the KKT LU are not those of D M^-1 D^T: near applies to the Schur
-      ! paths only)
       if (umin <= MBDK_CONSTRAINED_SINGULAR_TOL * umax * max(1.0_dp, maxval(wm))) &
         stat = MBDK_ERR_SINGULAR_MATRIX
+      ! the LU's pivots are not those of D M^-1 D^T: a caller's near test (a wider window than
+      ! the singular one) is made on S itself, formed densely, where every body has inertia
+      if (stat == MBDK_SUCCESS .and. tol > MBDK_CONSTRAINED_SINGULAR_TOL .and. &
+          all(wm > 0.0_dp)) call near_test_dense(cs%d, wm, tol, stat)
     end select
   end subroutine factor_exact
+
+  !> The near test of the Schur paths on the dense D and W^-1 = wm: each Cholesky pivot of
+  !> S = D W D^T, squared, against tol times its row's own diagonal; MBDK_ERR_SINGULAR_MATRIX
+  !> below it.
+  subroutine near_test_dense(d, wm, tol, stat)
+    real(dp), intent(in) :: d(:, :), wm(:), tol
+    integer, intent(out) :: stat
+    real(dp), allocatable :: s(:, :), d0(:)
+    integer :: i, j, astat
+    ! allocated, not automatic: S of a large scene does not belong on a thread's stack
+    allocate (s(size(d, 1), size(d, 1)), d0(size(d, 1)), stat=astat)
+    if (astat /= 0) then
+      stat = MBDK_ERR_NO_MEMORY
+      return
+    end if
+    do j = 1, size(d, 1)
+      do i = j, size(d, 1)
+        s(i, j) = sum(d(i, :) * d(j, :) / wm)
+      end do
+      d0(j) = s(j, j)
+    end do
+    call mbdk_chol_factor(s, stat)
+    if (stat /= MBDK_SUCCESS) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      return
+    end if
+    do i = 1, size(d, 1)
+      if (.not. (s(i, i)**2 > tol * d0(i))) stat = MBDK_ERR_SINGULAR_MATRIX
+    end do
+  end subroutine near_test_dense
 
   !> x, mu from the factors of mbdk_constrained_factor (the same dz): W^-1 x + D^T mu = b,
   !> D x = c, with w = W (on the regular path, as its iteration converges: see the header).
