@@ -78,9 +78,10 @@
 !> (with alpha D^T D a thousand times M, a matrix from the last step fails once h |omega| is above
 !> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
 !> norm (atol + rtol |q|) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
-!> multipliers were frozen at a rank loss: below). That last update is applied. At least two evaluations per step, so both tests are made on evaluated residuals,
-!> never on predicted ones. After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED
-!> (a singular matrix: SINGULAR_MATRIX).
+!> multipliers were frozen at a rank loss: below). That last update is applied. At least two
+!> evaluations per step, so both tests are made on evaluated residuals, never on predicted ones.
+!> After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix:
+!> SINGULAR_MATRIX).
 !>
 !> Singular configurations (augmented form). Where D is close to losing a rank (a four-bar
 !> chain's flat pose, a dead point) a multiplier update reduces Phi along the vanishing direction
