@@ -1,9 +1,9 @@
 !> What a scene run must keep, watched while it runs: the position and velocity constraints and
 !> the energy balance. A run that leaves them stops with MBDK_ERR_CONSTRAINT_DRIFT or
 !> MBDK_ERR_ENERGY_DRIFT at the check where it happened, instead of returning success with the
-!> answer of another mechanism (a reduced formulation drifting off the manifold at a singular
-!> crossing, an explicit method gaining energy, the book's index-3 scheme blowing up with its
-!> positions still on the constraints).
+!> answer of another mechanism (an unstabilised formulation drifting off the manifold, an
+!> explicit method gaining energy, the book's index-3 scheme blowing up with its positions still
+!> on the constraints, a driver's work diverging at a dead point).
 !>
 !> The model (mbdk_model_watch) evaluates the quantities at an accepted state; this module keeps
 !> the bookkeeping and the tests, so that it depends on no model:
