@@ -32,7 +32,7 @@ from mbdk import stability as S  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 
-METHODS = list(mbdk.methods("ode"))
+METHODS = list(mbdk.methods("ode", step="fixed"))
 COLORS = {m: c for m, c in zip(METHODS, [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
     "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939"])}

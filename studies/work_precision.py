@@ -46,7 +46,7 @@ def sweep(problem: str, quick: bool):
         ref = mbdk.solve_ode(problem, "rk4", h=t_end / nref, t_end=t_end, params=params,
                              every=nref // samples).y
     rows = []
-    for name, m in mbdk.methods("ode").items():
+    for name, m in mbdk.methods("ode", step="fixed").items():
         if m.family == "euler_cromer" and not info.second_order:
             continue
         if name == "bdf1":      # the same formula as implicit_euler
@@ -79,7 +79,7 @@ def figure(problem: str, rows, out: Path):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     styles = {"explicit_rk": "-", "euler_cromer": "-.", "implicit_lmm": "--"}
-    infos = mbdk.methods("ode")
+    infos = mbdk.methods("ode", step="fixed")
     for i, name in enumerate(infos):       # a fixed colour per method across all figures
         pts = [r for r in rows if r["method"] == name and r["max_error"] is not None]
         if not pts:

@@ -16,7 +16,7 @@ def test_issue_example():
 
 
 @pytest.mark.parametrize("problem", sorted(mbdk.problems()))
-@pytest.mark.parametrize("method", sorted(mbdk.methods("ode")))
+@pytest.mark.parametrize("method", sorted(mbdk.methods("ode", step="fixed")))
 def test_every_method_and_problem_by_name(problem, method):
     info = mbdk.problems()[problem]
     if method == "euler_cromer" and not info.second_order:

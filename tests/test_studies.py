@@ -223,3 +223,56 @@ def test_pipeline_cost_study(tmp_path, root):
     outs = {r["outputs"]: r for r in rows(tmp_path / "outputs_cost.csv")}
     assert {"none", "all (default)", "energy"} <= set(outs)
     assert all(r["bitwise_equal"] == "True" for r in rows(tmp_path / "threads.csv"))
+
+
+def test_error_control_study(tmp_path, root):
+    """The error-control study's numbers against independent computations: SciPy's DOP853 for
+    the double pendulum (3.64) at t = 10 s and the closed forms of the tolerance table."""
+    from scipy.integrate import solve_ivp
+    sys.path.insert(0, str(root / "studies"))
+    import error_control
+    from test_problems import book_3_64
+    summary = error_control.run(tmp_path, quick=True)
+    assert len(summary["figures"]) == 3
+    ref = solve_ivp(lambda t, y: book_3_64(y, m1=1.0, m2=2.0, l1=1.0, l2=2.0, g=9.81), (0, 10),
+                    [-1.308, -1.57, 0, 0], method="DOP853", rtol=1e-13, atol=1e-13).y[:2, -1]
+    # every run that reached 1e-6 did so against SciPy's solution too
+    bvc = rows(tmp_path / "error_control_bdf_vs_cvode.csv")
+    assert {"bdf (kernel)", "cvode_bdf (kernel)"} <= {r["run"] for r in bvc}
+    for r in bvc:
+        tol = num(r["rtol"])
+        assert num(r["error"]) <= 1e-6 and num(r["cpu_s"]) > 0, r["run"]
+        if "(kernel)" in r["run"]:
+            m = r["run"].split(" ")[0]
+            y = mbdk.solve_ode("double_pendulum", m, t_end=10.0, rtol=tol, atol=tol * 1e-2)
+            assert np.max(np.abs(y.y[-1, :2] - ref)) <= 1.5e-6, m
+    # the cheapest run per target, run again, reaches the target against SciPy's solution
+    checked = 0
+    for c in rows(tmp_path / "error_control_cheapest.csv"):
+        if c["case"] != "double_pendulum" or c["method"] == "none reached it":
+            continue
+        key, value = c["setting"].split(" = ")
+        kw = {"rtol": float(value), "atol": float(value) * 1e-2} if key == "rtol" else \
+            {"h": float(value), "every": round(10.0 / float(value)), "startup": "bdf"}
+        y = mbdk.solve_ode("double_pendulum", c["method"], t_end=10.0, **kw).y[-1, :2]
+        assert np.max(np.abs(y - ref)) <= 1.05 * num(c["target"]), c
+        checked += 1
+    assert checked >= 2
+    # the tolerance table's errors are the closed form's (riccati: y = 1/u)
+    tab = [r for r in rows(tmp_path / "error_control_by_tolerance.csv")
+           if r["problem"] == "riccati" and r["method"] == "dopri54"]
+    assert len(tab) == 3
+    for r in tab:
+        tol = num(r["rtol"])
+        s = mbdk.solve_ode("riccati", "dopri54", t_end=5.0, rtol=tol, atol=tol * 1e-2,
+                           dt_out=5.0 / 40)
+        u = -s.t / 2 + 0.25 - 0.45 * np.exp(-2 * s.t)
+        assert num(r["max_error"]) == pytest.approx(np.max(np.abs(s.y[:, 0] - 1 / u)),
+                                                    rel=1e-9)
+        assert num(r["max_error"]) < 10 * tol
+    # the book's comparison: Euler-Cromer at the book's step leaves 1e-6 of the reference
+    # before bdf at rtol 1e-9 does
+    g = {r["run"]: r for r in rows(tmp_path / "error_control_gstiff.csv")}
+    ec = num(g["euler_cromer h = 1e-4 (the book)"]["leaves_1e-6_at_s"])
+    tight = num(g["bdf rtol = 1e-9"]["leaves_1e-6_at_s"])
+    assert ec is not None and (tight is None or ec < tight)

@@ -4,7 +4,9 @@
 !> by the nominal order when h is halved (from h = 0.025: at h = 0.1 the rk4 error on this
 !> problem is still pre-asymptotic, ratio 9.8 instead of 16). Then the same problem stepped one
 !> step at a time through mbdk_stepper (what mbdk_fixed_step_solve loops over): bdf3's state
-!> after 80 steps must equal the whole-interval solve's bit for bit. Exit code 0 = pass.
+!> after 80 steps must equal the whole-interval solve's bit for bit. Last, the error-controlled
+!> methods through mbdk_solve_ode (the entry of every method): dopri54, bdf and cvode_bdf at
+!> rtol = 1e-9 must end within 1e-7 of the exact y(2). Exit code 0 = pass.
 module forced_decay
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS
@@ -33,6 +35,7 @@ program fortran_embedding
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_sample_plan
   use mbdk_stepper, only: mbdk_stepper_t, mbdk_stepper_init, mbdk_stepper_step
   use forced_decay, only: forced_decay_t
   implicit none
@@ -41,6 +44,9 @@ program fortran_embedding
   call check('trapezoidal', 2)
   call check('rk4', 4)
   call stepped('bdf3')
+  call by_tolerance('dopri54')
+  call by_tolerance('bdf')
+  call by_tolerance('cvode_bdf')
   if (fails == 0) then
     print '(a)', 'PASS'
   else
@@ -85,6 +91,29 @@ contains
       ', equal to the solve: ', s%y(1) == y(1, 2)
     if (stat /= MBDK_SUCCESS .or. s%y(1) /= y(1, 2) .or. s%st%steps /= 80) fails = fails + 1
   end subroutine stepped
+
+  subroutine by_tolerance(method)
+    character(len=*), intent(in) :: method
+    type(forced_decay_t) :: prob
+    type(mbdk_options_t) :: opt
+    type(mbdk_stats_t) :: st
+    real(dp), allocatable :: t(:), y(:, :)
+    real(dp) :: err
+    integer :: nsamp, nw, stat
+    prob%n = 1
+    opt%method = mbdk_method_id(method)
+    opt%rtol = 1.0e-9_dp
+    opt%atol = 1.0e-11_dp
+    opt%dt_out = 0.5_dp
+    call mbdk_sample_plan(opt, 0.0_dp, 2.0_dp, nsamp, stat)
+    allocate (t(nsamp), y(1, nsamp))
+    call mbdk_solve_ode(prob, opt, 0.0_dp, 2.0_dp, [1.0_dp], t, y, nw, st, stat)
+    err = abs(y(1, nw) - (1.5_dp * exp(-2.0_dp) + 0.5_dp * (sin(2.0_dp) - cos(2.0_dp))))
+    print '(a12, a, i0, a, i0, a, i0, a, es10.3)', method, ': status ', stat, ', samples ', nw, &
+      ', steps ', st%steps, ', error at t = 2: ', err
+    if (stat /= MBDK_SUCCESS .or. nw /= 5 .or. err > 1.0e-7_dp .or. t(5) /= 2.0_dp) &
+      fails = fails + 1
+  end subroutine by_tolerance
 
   real(dp) function final_error(method, h) result(err)
     character(len=*), intent(in) :: method

@@ -28,6 +28,8 @@ enum mbdk_status {
     MBDK_ERR_INCONSISTENT_INITIAL = -6,
     MBDK_ERR_NO_MEMORY = -7,
     MBDK_ERR_STEP_TOO_SMALL = -10,
+    MBDK_ERR_TOO_MANY_STEPS = -11,
+    MBDK_ERR_TOO_MUCH_ACCURACY = -12,
     MBDK_ERR_NEWTON_DIVERGED = -20,
     MBDK_ERR_SINGULAR_MATRIX = -21,
     MBDK_ERR_NONFINITE = -30,
@@ -38,14 +40,20 @@ enum mbdk_status {
     MBDK_ERR_INTERRUPTED = -60
 };
 
-/* Options of a fixed-step solve (kernel/src/core/mbdk_options.f90); fill with
- * mbdk_default_options, then set method and h. */
+/* Options of a solve (kernel/src/core/mbdk_options.f90); fill with mbdk_default_options, then
+ * set method and h (fixed step) or rtol, atol and dt_out (error-controlled methods). */
 typedef struct mbdk_options {
-    double h;            /* step size */
+    double h;            /* step size; error-controlled methods: the first step, 0 = automatic */
     double newton_rtol;  /* implicit methods: Newton stops when WRMS(update) < 1 */
     double newton_atol;
+    double rtol, atol;   /* error control: WRMS(local error / (atol + rtol |y|)) <= 1;
+                            rtol >= 0, atol > 0 */
+    double dt_out;       /* error control: a sample every dt_out (dense output); 0: t0, t_end */
+    double h_min, h_max; /* error control; 0 = none (h_min: a step must still move t by about
+                            10 ulps; h_max: the interval) */
     volatile int *interrupt;  /* NULL, or a flag another thread (or a signal handler) sets
                                  non-zero to stop the solve: MBDK_ERR_INTERRUPTED */
+    int64_t max_steps;   /* error control: the most steps (0 = 10^8): MBDK_ERR_TOO_MANY_STEPS */
     int method;          /* from mbdk_method_id("rk4") etc. */
     int every;           /* keep every k-th step as a sample (the last one always) */
     int newton_max_iter;
@@ -53,6 +61,7 @@ typedef struct mbdk_options {
                             callback's jac, a compiled problem's analytic one) */
     int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
     int startup;         /* k-step methods: MBDK_STARTUP_RK4 (the book) or MBDK_STARTUP_BDF */
+    int max_order;       /* bdf, cvode_bdf (5), cvode_adams (12): the highest order; 0 = theirs */
 } mbdk_options;
 
 /* Start-up of bdf2..bdf6: RK4 steps (the book, (4.80)) or BDF steps of rising order. */
@@ -69,6 +78,9 @@ typedef struct mbdk_stats {
     int64_t startup_steps;      /* steps of a multistep method's start-up */
     int64_t rejected_steps;     /* step-size control: rejected by the error test */
     int64_t newton_failures;    /* steps retried because Newton failed */
+    int64_t order1_steps, order2_steps, order3_steps, order4_steps, order5_steps;
+                                /* bdf, cvode_*: accepted steps at each order (cvode_adams
+                                   counts orders above 5 in order5_steps) */
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
 } mbdk_stats;
@@ -83,13 +95,20 @@ typedef int (*mbdk_jac_fn)(int n, double t, const double *y, double *dfdy, void 
 
 void mbdk_default_options(mbdk_options *opt);
 
-/* Id of a method name ("explicit_euler", "heun", "rk4", "euler_cromer", "implicit_euler",
- * "trapezoidal", "bdf1" ... "bdf6"); 0 when unknown. */
+/* Id of a method name; 0 when unknown. Fixed step (opt.h): "explicit_euler", "heun", "rk4",
+ * "euler_cromer", "implicit_euler", "trapezoidal", "bdf1" ... "bdf6". Error-controlled
+ * (opt.rtol, opt.atol, opt.dt_out): "dopri54", "bs32", "bdf" (variable step and order 1-5),
+ * "cvode_bdf", "cvode_adams" (SUNDIALS CVODE). */
 int mbdk_method_id(const char *name);
 
 /* Number of samples a solve writes; returns a status (MBDK_ERR_INVALID_INPUT for a bad h,
  * interval or every; MBDK_NOTE_LAST_STEP_SHORTENED when the interval is not whole steps). */
 int mbdk_sample_count(double t0, double t_end, double h, int every, int *nsamp);
+
+/* Number of samples mbdk_solve_ode writes with these options, for any method: fixed step
+ * (h, every, as mbdk_sample_count) or error-controlled (dopri54, bs32, bdf, cvode_bdf,
+ * cvode_adams: t0, every dt_out, t_end). Returns a status. */
+int mbdk_solve_sample_count(double t0, double t_end, const mbdk_options *opt, int *nsamp);
 
 /* Integrates y' = f(t, y) from (t0, y0) to t_end; jac (may be NULL) is f's Jacobian for the
  * implicit methods. t_out[nsamp], y_out[nsamp][n] (row per sample) are written; *nwritten tells
@@ -195,7 +214,9 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
 /* A stepper: a solve advanced by the caller, one step or up to a time at a time
  * (kernel/src/api/mbdk_capi_stepper.f90 is its manual). Steps land on t0 + k opt.h, so a stepper
  * and mbdk_solve_ode give the same bits. A scene stepper integrates model_opt's formulation with
- * an ODE method; an index-3 stepper runs trapezoidal_index3. After a failure the last good state
+ * a fixed-step ODE method (an error-controlled one is MBDK_ERR_NOT_APPLICABLE: it chooses its
+ * own steps over a whole interval, mbdk_solve_ode); an index-3 stepper runs trapezoidal_index3.
+ * After a failure the last good state
  * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE; the multipliers are those of
  * the last step attempted. The stepper copies the options, tables and y0, except the options'
  * interrupt flag: it keeps that address, which must stay valid until the stepper is destroyed.

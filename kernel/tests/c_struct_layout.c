@@ -14,13 +14,17 @@ struct field { const char *name; size_t offset, size; };
 static const struct field stats[] = {
     F(mbdk_stats, steps), F(mbdk_stats, nfev), F(mbdk_stats, njev), F(mbdk_stats, nlu),
     F(mbdk_stats, newton_iterations), F(mbdk_stats, startup_steps),
-    F(mbdk_stats, rejected_steps), F(mbdk_stats, newton_failures), F(mbdk_stats, cpu_time),
+    F(mbdk_stats, rejected_steps), F(mbdk_stats, newton_failures), F(mbdk_stats, order1_steps),
+    F(mbdk_stats, order2_steps), F(mbdk_stats, order3_steps), F(mbdk_stats, order4_steps),
+    F(mbdk_stats, order5_steps), F(mbdk_stats, cpu_time),
     F(mbdk_stats, wall_time)};
 static const struct field options[] = {
     F(mbdk_options, h), F(mbdk_options, newton_rtol), F(mbdk_options, newton_atol),
-    F(mbdk_options, interrupt), F(mbdk_options, method), F(mbdk_options, every),
+    F(mbdk_options, rtol), F(mbdk_options, atol), F(mbdk_options, dt_out),
+    F(mbdk_options, h_min), F(mbdk_options, h_max), F(mbdk_options, interrupt),
+    F(mbdk_options, max_steps), F(mbdk_options, method), F(mbdk_options, every),
     F(mbdk_options, newton_max_iter), F(mbdk_options, fd_jacobian), F(mbdk_options, nq),
-    F(mbdk_options, startup)};
+    F(mbdk_options, startup), F(mbdk_options, max_order)};
 static const struct field index3[] = {
     F(mbdk_index3_options, h), F(mbdk_index3_options, newton_rtol),
     F(mbdk_index3_options, newton_atol), F(mbdk_index3_options, alpha),

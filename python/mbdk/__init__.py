@@ -9,6 +9,7 @@ from .errors import (BackendError, CallbackError, ConstraintDriftError, EnergyDr
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
                      NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
+                     TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
 from .ode import build_info, evaluate_rhs, solve_ode
@@ -25,6 +26,7 @@ __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
+    "TooManyStepsError", "TooMuchAccuracyError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",

@@ -22,6 +22,8 @@ class Status(IntEnum):
     ERR_INCONSISTENT_INITIAL = -6
     ERR_NO_MEMORY = -7
     ERR_STEP_TOO_SMALL = -10
+    ERR_TOO_MANY_STEPS = -11
+    ERR_TOO_MUCH_ACCURACY = -12
     ERR_NEWTON_DIVERGED = -20
     ERR_SINGULAR_MATRIX = -21
     ERR_NONFINITE = -30
@@ -78,6 +80,18 @@ class NotApplicableError(InvalidInputError):
 
 class StepTooSmallError(MbdkError):
     status = Status.ERR_STEP_TOO_SMALL
+
+
+class TooManyStepsError(MbdkError):
+    """Error control took max_steps steps before t_end."""
+
+    status = Status.ERR_TOO_MANY_STEPS
+
+
+class TooMuchAccuracyError(MbdkError, ArithmeticError):
+    """The tolerances ask for more than double precision gives."""
+
+    status = Status.ERR_TOO_MUCH_ACCURACY
 
 
 class NewtonDivergedError(MbdkError, ArithmeticError):
@@ -143,6 +157,8 @@ _BY_STATUS = {
     Status.ERR_INCONSISTENT_INITIAL: InvalidInputError,
     Status.ERR_NO_MEMORY: NoMemoryError,
     Status.ERR_STEP_TOO_SMALL: StepTooSmallError,
+    Status.ERR_TOO_MANY_STEPS: TooManyStepsError,
+    Status.ERR_TOO_MUCH_ACCURACY: TooMuchAccuracyError,
     Status.ERR_NEWTON_DIVERGED: NewtonDivergedError,
     Status.ERR_SINGULAR_MATRIX: SingularMatrixError,
     Status.ERR_NONFINITE: NonFiniteSolutionError,

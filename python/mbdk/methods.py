@@ -13,7 +13,8 @@ from .errors import UnknownMethodError, _decode
 class MethodInfo:
     name: str
     id: int
-    family: str          # explicit_rk | euler_cromer | implicit_lmm | dae_index3
+    family: str          # explicit_rk | euler_cromer | implicit_lmm | dae_index3 |
+                         # embedded_rk | variable_bdf | cvode
     order: int
     implicit: bool
     steps: int           # previous values used (1 for one-step methods)
@@ -22,12 +23,19 @@ class MethodInfo:
 
     @property
     def solves(self) -> str:
-        """'ode': any y' = F(t, y), scenes through a formulation; 'dae': scenes only (their
-        index-3 DAE, formulations index3 and augmented_lagrangian)."""
-        return "dae" if self.family == "dae_index3" else "ode"
+        """'ode': any y' = F(t, y), scenes through a formulation; 'dae': scenes only, their DAE
+        itself (trapezoidal_index3: formulations index3 and augmented_lagrangian; ida: index1
+        and ggl)."""
+        return "dae" if self.family in ("dae_index3", "ida") else "ode"
+
+    @property
+    def adaptive(self) -> bool:
+        """True: the step is chosen by error control (rtol, atol); False: a fixed step h."""
+        return self.family in ("embedded_rk", "variable_bdf", "cvode", "ida")
 
 
-_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3"}
+_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3",
+             5: "embedded_rk", 6: "variable_bdf", 7: "cvode", 8: "ida"}
 
 _ABOUT = {
     "explicit_euler": ("conditionally stable: |1 + h*lambda| <= 1", "Fekete (2023) (4.6)"),
@@ -47,6 +55,21 @@ _ABOUT = {
                            "constrained directions, the augmented Lagrangian with projections "
                            "(ALI3-P) is not", "Fekete (2023) (3.11)-(3.16); Bayo and Ledesma "
                            "(1996)"),
+    "dopri54": ("conditionally stable (real-axis limit h*|lambda| < 3.31); error-controlled, "
+                "dense output of order 4", "Dormand and Prince (1980); Shampine (1986); "
+                "Hairer, Norsett and Wanner I, II.4-II.6"),
+    "bs32": ("conditionally stable (real-axis limit h*|lambda| < 2.51); error-controlled, "
+             "Hermite dense output", "Bogacki and Shampine (1989)"),
+    "bdf": ("orders 1-2 A-stable, 3-5 A(alpha)-stable; variable step and order 1-5, "
+            "error-controlled", "Gear (1971); Byrne and Hindmarsh (1975); Shampine and "
+            "Reichelt (1997); MSC Adams' GSTIFF (the book, 4.4.2)"),
+    "cvode_bdf": ("as bdf (SUNDIALS CVODE, BDF orders 1-5, Newton with a dense LU)",
+                  "Hindmarsh et al. (2005), SUNDIALS"),
+    "cvode_adams": ("conditionally stable (Adams-Moulton orders 1-12, fixed-point iteration): "
+                    "for non-stiff problems", "Hindmarsh et al. (2005), SUNDIALS"),
+    "ida": ("BDF orders 1-5 on the scene's DAE (SUNDIALS IDA): index 1, or stabilised index 2 "
+            "(GGL); error test on q and v", "Hindmarsh et al. (2005); Gear, Gupta and "
+            "Leimkuhler (1985)"),
 }
 
 
@@ -59,9 +82,11 @@ def _load() -> dict[str, MethodInfo]:
             break
         name = _decode(name)
         fam = _FAMILIES[int(family)]
-        steps = int(name[3:]) if name.startswith("bdf") else 1
+        steps = int(name[3:]) if name[:3] == "bdf" and name[3:].isdigit() else 1
         stability, ref = _ABOUT[name]
-        out[name] = MethodInfo(name, i, fam, int(order), fam in ("implicit_lmm", "dae_index3"),
+        out[name] = MethodInfo(name, i, fam, int(order),
+                               fam in ("implicit_lmm", "dae_index3", "variable_bdf", "cvode",
+                                       "ida"),
                                steps, stability, ref)
         i += 1
     return out
@@ -70,12 +95,17 @@ def _load() -> dict[str, MethodInfo]:
 _REGISTRY = _load()
 
 
-def methods(solves: str | None = None) -> dict[str, MethodInfo]:
+def methods(solves: str | None = None, step: str | None = None) -> dict[str, MethodInfo]:
     """Every method, by name, with its properties; solves='ode' (what solve_ode and the scene
-    formulations take) or 'dae' (trapezoidal_index3: scenes only) selects one kind."""
+    formulations take) or 'dae' (trapezoidal_index3: scenes only) selects one kind, and
+    step='fixed' (a step h) or 'adaptive' (error control by rtol and atol) another."""
     if solves not in (None, "ode", "dae"):
         raise ValueError(f"solves = {solves!r} must be None, 'ode' or 'dae'")
-    return {k: m for k, m in _REGISTRY.items() if solves is None or m.solves == solves}
+    if step not in (None, "fixed", "adaptive"):
+        raise ValueError(f"step = {step!r} must be None, 'fixed' or 'adaptive'")
+    return {k: m for k, m in _REGISTRY.items()
+            if (solves is None or m.solves == solves)
+            and (step is None or m.adaptive == (step == "adaptive"))}
 
 
 def method(name: str) -> MethodInfo:

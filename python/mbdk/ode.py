@@ -69,21 +69,33 @@ def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, b
     return int(nsteps), int(nsamp), status == Status.NOTE_LAST_STEP_SHORTENED
 
 
-def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, y0=None,
-              params: dict | None = None, every: int = 1, nq: int = 0,
-              fd_jacobian: bool = False, startup: str = "rk4",
+def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0: float = 0.0,
+              y0=None, params: dict | None = None, every: int = 1, nq: int = 0,
+              fd_jacobian: bool = False, startup: str = "rk4", rtol: float | None = None,
+              atol=None, dt_out: float = 0.0, h_min: float = 0.0, h_max: float = 0.0,
+              max_steps: int = 0, max_order: int = 0,
               raise_on_failure: bool = True) -> ODEResult:
-    """Integrate a compiled textbook problem (by name) or a Python f(t, y) with a fixed step.
+    """Integrate a compiled textbook problem (by name) or a Python f(t, y), the time loop in the
+    kernel: with a fixed step h, or with error control (mbdk.methods(step="adaptive")).
 
     problem: a name from mbdk.problems(), or a callable f(t, y) -> dy/dt (slow path; y0 needed,
              nq > 0 declares y = [q; v] for euler_cromer).
-    method:  a name from mbdk.methods().
-    h:       step; t_end: end time; every: keep every k-th step (and the last) as a sample.
-    params:  overrides of the problem's parameters, by name.
-    startup: how bdf2..bdf6 get their first values: "rk4" (RK4 steps, the book's (4.80),
+    method:  a name from mbdk.methods("ode").
+    Fixed step (rk4, bdf4, ...):
+      h:     step; every: keep every k-th step (and the last) as a sample.
+      startup: how bdf2..bdf6 get their first values: "rk4" (RK4 steps, the book's (4.80),
              Richardson-extrapolated so that bdf6 keeps order 6) or "bdf" (BDF steps of rising
              order 1..k-1: stable on stiff problems, where RK4 steps blow up, but the order-1
              first step limits the global order to 2).
+    Error-controlled (dopri54, bs32, bdf, cvode_bdf, cvode_adams):
+      rtol, atol: each step's local error estimate e is kept at
+             sqrt(mean((e_i / (atol_i + rtol |y_i|))^2)) <= 1 (defaults 1e-6 and 1e-8; atol a
+             number or one value per state).
+      dt_out: a sample every dt_out from the dense output (0: t0 and t_end only).
+      h:     the first step (default: chosen by the method); h_min, h_max: bounds (0: none);
+      max_steps: the most steps, rejected ones included (0: 10^8); max_order: bdf and
+             cvode_bdf 1-5, cvode_adams 1-12 (0: the highest).
+    params:  overrides of the problem's parameters, by name.
     raise_on_failure: a failure inside the kernel raises its named exception (default); with
              False the partial result is returned with its status.
     """
@@ -91,32 +103,55 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
         raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
     info_m = _method(method)
     if info_m.solves != "ode":
-        raise NotApplicableError(f"{method} integrates a scene's index-3 DAE, not an ODE: use "
+        kind = "index-3 DAE" if info_m.family == "dae_index3" else "DAE"
+        raise NotApplicableError(f"{method} integrates a scene's {kind}, not an ODE: use "
                                  f"mbdk.simulate(scene, {method!r}, ...); for ODEs one of "
                                  f"{', '.join(methods('ode'))}")
     t0 = _real("t0", t0)
     t_end = _real("t_end", t_end)
-    h = _real("h", h)
-    if not h > 0:
-        raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
     if not t_end > t0:
         raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    if h > (t_end - t0) * (1 + 1e-12):
-        raise InvalidInputError(f"h = {h} is larger than the interval t_end - t0 = {t_end - t0}; "
-                                "give a step no larger than the interval")
     if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
-    nsteps, nsamp, shortened = plan(t0, t_end, h, int(every))
-    opt = ODEOptions(h=h, method=info_m.id, every=int(every), startup=STARTUP[startup],
-                     fd_jacobian=int(bool(fd_jacobian)))
-    if shortened and info_m.steps > 1:
-        n_lo = math.floor((t_end - t0) / h)
-        raise InvalidInputError(
-            f"{method} needs equal steps, but (t_end - t0)/h = {(t_end - t0) / h:.6g} is not a whole "
-            f"number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or h = {(t_end - t0) / (n_lo + 1):.12g}")
+    if info_m.adaptive:
+        opt, nsteps, nsamp, control = _adaptive_options(
+            info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_max, max_steps, max_order,
+            fd_jacobian)
+    else:
+        for name, value, default in (("rtol", rtol, None), ("atol", atol, None),
+                                     ("dt_out", dt_out, 0.0), ("h_min", h_min, 0.0),
+                                     ("h_max", h_max, 0.0), ("max_steps", max_steps, 0),
+                                     ("max_order", max_order, 0)):
+            unset = value is None or (default is not None and np.ndim(value) == 0
+                                      and not isinstance(value, (str, bytes))
+                                      and value == default)
+            if not unset:
+                raise InvalidInputError(
+                    f"{name} = {value!r}: {method} takes a fixed step h and no {name}; for error "
+                    f"control use one of {', '.join(methods('ode', step='adaptive'))}")
+        if h is None:
+            raise InvalidInputError(f"{method} takes a fixed step: give h (or use an "
+                                    "error-controlled method with rtol and atol)")
+        h = _real("h", h)
+        if not h > 0:
+            raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
+        if h > (t_end - t0) * (1 + 1e-12):
+            raise InvalidInputError(f"h = {h} is larger than the interval t_end - t0 = "
+                                    f"{t_end - t0}; give a step no larger than the interval")
+        nsteps, nsamp, shortened = plan(t0, t_end, h, int(every))
+        opt = ODEOptions(h=h, method=info_m.id, every=int(every), startup=STARTUP[startup],
+                         fd_jacobian=int(bool(fd_jacobian)))
+        control = {"h": h, "every": int(every), "steps": nsteps, "startup": startup}
+        if shortened and info_m.steps > 1:
+            n_lo = math.floor((t_end - t0) / h)
+            raise InvalidInputError(
+                f"{method} needs equal steps, but (t_end - t0)/h = {(t_end - t0) / h:.6g} is not "
+                f"a whole number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or "
+                f"h = {(t_end - t0) / (n_lo + 1):.12g}")
 
     if callable(problem):
-        return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure)
+        return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure,
+                               atol, control)
 
     info_p = _problem(problem)
     if y0 is None:
@@ -127,21 +162,111 @@ def solve_ode(problem, method: str, *, h: float, t_end: float, t0: float = 0.0, 
     if info_m.family == "euler_cromer" and not info_p.second_order:
         raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
                                  f"{problem!r} is first order. Use explicit_euler, heun or rk4")
+    atol_v = _atol_vector(atol, len(y0), opt.rtol) if info_m.adaptive else np.zeros(0)
     merged, pvec = resolve_params(info_p, params, len(y0))
     stats, flag = empty("mbdk_stats"), _compiled.new_flag()
     (t, y, nw, status), interrupted = _compiled.call(
-        _kernel.solve_problem, (info_p.id, y0, t0, t_end, pvec, opt.pack(), flag, nsamp, stats),
+        _kernel.solve_problem,
+        (info_p.id, y0, t0, t_end, pvec, opt.pack(), flag, atol_v, nsamp, stats),
         flag, nsteps * len(y0))
-    manifest = {**build_info(), "problem": problem, "method": method, "h": h, "t0": t0,
-                "t_end": t_end, "every": int(every), "steps": nsteps,
+    manifest = {**build_info(), "problem": problem, "method": method, "t0": t0,
+                "t_end": t_end, **control,
                 "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
                            for k, v in merged.items()},
-                "y0": y0.tolist(), "startup": startup,
+                "y0": y0.tolist(),
                 "jacobian": "finite differences" if fd_jacobian else "analytic where available",
                 "newton": {"rtol": opt.newton_rtol, "atol": opt.newton_atol,
                            "max_iter": opt.newton_max_iter}}
     return _finish(t, y, stats, nw, status, manifest, problem, method, merged, t0, y0,
                    raise_on_failure, None, interrupted)
+
+
+def _nonneg(name: str, value, default: float = 0.0) -> float:
+    v = _real(name, default if value is None else value)
+    if v < 0:
+        raise InvalidInputError(f"{name} = {v} is negative; give a value >= 0")
+    return v
+
+
+def _count(name: str, value, upper: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, Integral) or not 0 <= value <= upper:
+        raise InvalidInputError(f"{name} = {value!r} must be a whole number from 0 to {upper}")
+    return int(value)
+
+
+#: the highest order each error-controlled multistep method can select
+MAX_ORDER = {"bdf": 5, "cvode_bdf": 5, "cvode_adams": 12, "ida": 5}
+RTOL_FLOOR = 100 * np.finfo(float).eps   # the kernel's MBDK_RTOL_FLOOR (mbdk_adaptive)
+
+
+def _adaptive_options(info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_max,
+                      max_steps, max_order, fd_jacobian):
+    """ODEOptions, a step estimate, the sample count and the manifest's entries of an
+    error-controlled solve; every value is checked here with a message that names it."""
+    method = info_m.name
+    if every != 1:
+        raise InvalidInputError(f"every = {every}: {method} chooses its own steps; give "
+                                "dt_out (the spacing of the samples) instead")
+    if isinstance(atol, (str, bytes)):
+        raise InvalidInputError(f"atol = {atol!r} is neither a number nor a vector of numbers")
+    rtol = _nonneg("rtol", rtol, 1e-6)
+    if rtol >= 1:
+        raise InvalidInputError(f"rtol = {rtol} must be below 1 (1e-6 keeps about 6 digits)")
+    if 0 < rtol < RTOL_FLOOR:
+        raise InvalidInputError(f"rtol = {rtol:g} asks for more digits than double precision "
+                                f"holds; give rtol >= {RTOL_FLOOR:.1e} (or 0 with atol > 0)")
+    scalar_atol = atol is None or np.ndim(atol) == 0
+    atol_s = _real("atol", 1e-8 if atol is None else atol) if scalar_atol else 1e-8
+    if not atol_s > 0:
+        raise InvalidInputError(f"atol = {atol_s} must be > 0 (a state passing through 0 would "
+                                "get an infinite weight; 1e-8 is the default)")
+    span = t_end - t0
+    h0 = 0.0 if h is None else _nonneg("h", h)
+    dt_out = _nonneg("dt_out", dt_out)
+    h_min = _nonneg("h_min", h_min)
+    h_max = _nonneg("h_max", h_max)
+    if h_max and h_min > h_max:
+        raise InvalidInputError(f"h_min = {h_min} is larger than h_max = {h_max}")
+    max_steps = _count("max_steps", max_steps, 2**62)
+    top = MAX_ORDER.get(method, 0)
+    if max_order and not top:
+        raise InvalidInputError(f"max_order = {max_order}: {method} has one order "
+                                f"({info_m.order}); max_order applies to {', '.join(MAX_ORDER)}")
+    max_order = _count("max_order", max_order, top)
+    nsamp, status = _kernel.adaptive_sample_count(t0, t_end, dt_out)
+    if status < 0 or nsamp < 2:
+        raise InvalidInputError(f"dt_out = {dt_out} over t_end - t0 = {span} gives no valid "
+                                "sample plan")
+    if nsamp > 10**8:
+        raise InvalidInputError(f"dt_out = {dt_out} asks for {nsamp} samples; give a larger "
+                                "dt_out")
+    opt = ODEOptions(h=h0, method=info_m.id, rtol=rtol, atol=atol_s, dt_out=dt_out, h_min=h_min,
+                     h_max=h_max, max_steps=max_steps, max_order=max_order,
+                     fd_jacobian=int(bool(fd_jacobian)))
+    control = {"rtol": rtol, "atol": atol_s if scalar_atol else np.asarray(atol).tolist(),
+               "dt_out": dt_out, "h0": h0 or "automatic", "h_min": h_min, "h_max": h_max,
+               "max_steps": max_steps or "10^8", "max_order": max_order or top or info_m.order}
+    # an error-controlled solve's length is unknown: it runs where Ctrl-C can reach it
+    return opt, math.inf, int(nsamp), control
+
+
+def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
+    """Empty (the scalar atol of the options) or one absolute tolerance per state."""
+    if atol is None or np.ndim(atol) == 0:
+        return np.zeros(0)
+    try:
+        a = np.array(atol, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"atol = {atol!r} is neither a number nor a vector of numbers") \
+            from None
+    if a.ndim != 1 or a.size != n:
+        raise InvalidInputError(f"atol has shape {a.shape}; give one number or {n} (one per "
+                                "state)")
+    bad = np.flatnonzero(~(np.isfinite(a) & (a > 0)))
+    if bad.size:
+        raise InvalidInputError(f"atol[{bad[0]}] = {a[bad[0]]} must be finite and > 0 (a state "
+                                "passing through 0 would get an infinite weight)")
+    return a
 
 
 def _state(name: str, value, n: int | None) -> np.ndarray:
@@ -182,7 +307,8 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
     return result
 
 
-def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure):
+def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure, atol,
+                    control):
     if getattr(_IN_CALLBACK, "active", False):
         raise NotApplicableError(
             "solve_ode with a Python right-hand side was called from inside a Python right-hand "
@@ -196,6 +322,7 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
         raise InvalidInputError(f"nq = {nq!r} must be 0 or half the state size {n}")
     if info_m.family == "euler_cromer" and nq == 0:
         raise NotApplicableError("euler_cromer needs y = [q, q']: pass nq = len(y0) // 2")
+    atol_v = _atol_vector(atol, n, opt.rtol) if info_m.adaptive else np.zeros(0)
     failure = []
 
     def cb(t, y, dydt, flag):
@@ -205,7 +332,9 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
             if out.shape != dydt.shape:
                 raise ValueError(f"the right-hand side returned an array of shape {out.shape} "
                                  f"for a state of {dydt.size} entries at t = {t:.6g}")
-            if not np.all(np.isfinite(out)):
+            # an error-controlled method rejects a step whose F is not finite and retries a
+            # smaller one (its step was too large for the model); a fixed step cannot
+            if not info_m.adaptive and not np.all(np.isfinite(out)):
                 raise ValueError(f"the right-hand side returned non-finite values at "
                                  f"t = {t:.6g}: {out.tolist()}")
             dydt[:] = out
@@ -219,12 +348,12 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
-            t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), nsamp,
-                                                      stats)
+            t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), atol_v,
+                                                      nsamp, stats)
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,
-                "h": opt.h, "t0": t0, "t_end": t_end, "every": opt.every, "y0": y0.tolist()}
+                "t0": t0, "t_end": t_end, **control, "y0": y0.tolist()}
     note = f"{type(failure[0]).__name__}: {failure[0]}" if failure else None
     try:
         return _finish(t, y, stats, nw, status, manifest, fun, info_m.name, {}, t0, y0,

@@ -89,18 +89,25 @@ class _Struct:
 
 @dataclass(frozen=True)
 class ODEOptions(_Struct):
-    """struct mbdk_options: a fixed-step ODE solve (kernel/src/core/mbdk_options.f90)."""
+    """struct mbdk_options: an ODE solve (kernel/src/core/mbdk_options.f90)."""
 
     _cname = "mbdk_options"
     h: float = 0.0
     newton_rtol: float = 1e-10
     newton_atol: float = 1e-12
+    rtol: float = 1e-6        # error-controlled methods
+    atol: float = 1e-8
+    dt_out: float = 0.0
+    h_min: float = 0.0
+    h_max: float = 0.0
+    max_steps: int = 0        # 0 = 10^8
     method: int = 0
     every: int = 1
     newton_max_iter: int = 10
     fd_jacobian: int = 0
     nq: int = 0
     startup: int = 0          # 0 rk4 (the book), 1 bdf
+    max_order: int = 0        # bdf, cvode_*: 0 = the method's highest
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,9 @@ from pathlib import Path
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
-STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "benchmark_rk4",
-           "stability", "scene_drift", "scene_checks", "index3", "pipeline_cost", "fuzz"]
+STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
+           "benchmark_rk4", "stability", "scene_drift", "scene_checks", "index3", "pipeline_cost",
+           "fuzz"]
 
 
 def find_studies(explicit: Path | None = None) -> Path:

@@ -22,6 +22,11 @@ class Stats:
     startup_steps: int = 0
     rejected_steps: int = 0        # step-size control: steps rejected by the error test
     newton_failures: int = 0       # steps retried because Newton failed
+    order1_steps: int = 0          # bdf, cvode_*: accepted steps at order 1..5
+    order2_steps: int = 0
+    order3_steps: int = 0
+    order4_steps: int = 0
+    order5_steps: int = 0          # (cvode_adams: order 5 and above)
     cpu_time: float = 0.0
     wall_time: float = 0.0
 

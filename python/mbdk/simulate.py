@@ -46,6 +46,12 @@ from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, status_message)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, RETRY_BUDGET, factorisation
+
+#: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
+IDA_FORMULATIONS = {"index1": 1, "ggl": 2}
+IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not kept)",
+             "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = v - D^T mu, "
+                    "M v' + D^T lam = f, Phi = 0, D v + Phi_t = 0"}
 from .watch import as_watch, drift_message, drift_report
 from .methods import method as _method
 from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
@@ -152,7 +158,7 @@ def _want(outputs) -> int:
 _INDEX3_ONLY = ("adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", "max_iter")
 
 
-def simulate(scene: Scene, method: str, *, h: float, t_end: float,
+def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              formulation: str | None = None, t0: float = 0.0, every: int = 1,
              outputs=tuple(OUTPUTS), alpha: float | None = None, beta: float | None = None,
              penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float = 1e-12,
@@ -162,6 +168,8 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
              adaptive: bool | None = None, err_rtol: float | None = None,
              err_atol: float | None = None, dt_out: float | None = None,
              h_min: float | None = None, h_max: float | None = None,
+             rtol: float | None = None, atol: float | None = None,
+             max_steps: int | None = None, max_order: int | None = None,
              watch=True, raise_on_failure: bool = True, **unknown) -> SceneResult:
     """Integrate a scene. See the module docstring for methods, formulations and outputs.
 
@@ -178,6 +186,13 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     adaptive, err_rtol, err_atol, dt_out, h_min, h_max, max_iter: trapezoidal_index3 only
     (step-size control and Newton's iteration limit; mbdk.index3 says what they do).
 
+    The error-controlled ODE methods (dopri54, bs32, bdf, cvode_bdf, cvode_adams) run every
+    formulation but cvode_* the projection one: rtol, atol (a number), dt_out, h (the first
+    step, optional), h_min, h_max, max_steps and max_order as in mbdk.solve_ode. Baumgarte's
+    alpha and beta must then be given (their default, 1/h and sqrt(2)/h, needs a fixed step).
+    ida integrates the scene's DAE itself (formulation "index1", the default, or "ggl") with
+    the same options.
+
     watch: what the run must keep (mbdk.watch): True for the kernel's tolerances, False to turn
     the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
     ConstraintDriftError or EnergyDriftError at the check where it happened."""
@@ -192,22 +207,36 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
     scene = checked(scene)
     info_m = _method(method)
     index3 = info_m.family == "dae_index3"
+    ida = info_m.family == "ida"
+    own = INDEX3_FORMULATIONS if index3 else IDA_FORMULATIONS if ida else FORMULATIONS
     if formulation is None:
-        formulation = "augmented_lagrangian" if index3 else "reduced"
-    if index3 != (formulation in INDEX3_FORMULATIONS):
-        if formulation not in FORMULATIONS and formulation not in INDEX3_FORMULATIONS:
+        formulation = next(iter(own)) if ida else ("augmented_lagrangian" if index3
+                                                   else "reduced")
+    if formulation not in own:
+        owners = [("the ODE methods run", FORMULATIONS),
+                  ("trapezoidal_index3 runs", INDEX3_FORMULATIONS), ("ida runs", IDA_FORMULATIONS)]
+        owner = next((o for o, forms in owners if formulation in forms), None)
+        if owner is None:
             raise InvalidInputError(f"formulation = {formulation!r}; known: "
-                                    f"{', '.join(FORMULATIONS)}, and "
-                                    f"{', '.join(INDEX3_FORMULATIONS)} with trapezoidal_index3")
+                                    f"{', '.join(FORMULATIONS)} (the ODE methods), "
+                                    f"{', '.join(INDEX3_FORMULATIONS)} (trapezoidal_index3), "
+                                    f"{', '.join(IDA_FORMULATIONS)} (ida)")
         raise InvalidInputError(
-            f"method {method!r} with formulation {formulation!r}: trapezoidal_index3 runs "
-            f"the formulations {', '.join(INDEX3_FORMULATIONS)} and only those; the ODE "
-            f"methods run {', '.join(FORMULATIONS)}")
-    if formulation not in FORMULATIONS and formulation not in INDEX3_FORMULATIONS:
-        raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}")
+            f"method {method!r} with formulation {formulation!r}: {owner} {formulation!r}; "
+            f"{method} runs the formulations {', '.join(own)} and only those")
     given3 = {k: v for k, v in dict(adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol,
                                      dt_out=dt_out, h_min=h_min, h_max=h_max,
                                      max_iter=max_iter).items() if v is not None}
+    given_tol = {k: v for k, v in dict(rtol=rtol, atol=atol, max_steps=max_steps,
+                                       max_order=max_order).items() if v is not None}
+    if given_tol and not info_m.adaptive:
+        raise InvalidInputError(f"{', '.join(sorted(given_tol))}: options of the "
+                                "error-controlled methods (dopri54, bs32, bdf, cvode_bdf, "
+                                f"cvode_adams); {method} takes a fixed step h"
+                                + (" (trapezoidal_index3's own error control: adaptive=True, "
+                                   "err_rtol, err_atol)" if index3 else ""))
+    if info_m.adaptive:
+        given3 = {k: v for k, v in given3.items() if k not in ("dt_out", "h_min", "h_max")}
     if given3 and not index3:
         raise InvalidInputError(f"{', '.join(sorted(given3))}: options of trapezoidal_index3 "
                                 f"only ({', '.join(_INDEX3_ONLY)})")
@@ -217,9 +246,51 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
         raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
     want = _want(outputs)
     watch_ = as_watch(watch)
-    check_run(h, t_end, t0, every)
+    if info_m.adaptive:
+        if atol is not None and np.ndim(atol) != 0:
+            raise NotApplicableError("atol: a scene run takes one absolute tolerance (a "
+                                     "number); per-state tolerances are solve_ode's")
+        if every != 1:
+            raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
+                                    "dt_out (the spacing of the samples) instead")
+        if h == 0:
+            h = None    # 0: the method chooses its first step, as in solve_ode
+        check_run(1.0 if h is None else h, t_end, t0, every)
+    else:
+        if h is None:
+            raise InvalidInputError(f"{method} takes a fixed step: give h (or use an "
+                                    "error-controlled method with rtol and atol)")
+        check_run(h, t_end, t0, every)
     every = int(every)
-    if index3:
+    if ida:
+        # the DAE itself: the model only evaluates (forces, Phi, D, gamma) and gives the
+        # consistent initial multipliers by its reduced solve
+        plan_ = _ode_plan(info_m, "reduced", h if h else 1.0, t_end, t0, 1, None, None, penalty,
+                          projection_tol, startup, newton_rtol, newton_atol,
+                          adaptive=dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0,
+                                        h_min=h_min or 0.0, h_max=h_max or 0.0,
+                                        max_steps=max_steps or 0, max_order=max_order or 0))
+        plan_["index3"] = Index3Options(formulation=IDA_FORMULATIONS[formulation])
+        plan_["manifest"]["form"] = IDA_FORMS[formulation]
+        mopt = model_options("reduced", 0.0, 0.0, penalty, projection_tol, solver, small_dense)
+    elif info_m.adaptive:
+        if formulation == "projection" and info_m.family == "cvode":
+            raise NotApplicableError(
+                f"{method} with formulation 'projection': CVODE keeps its own history of the "
+                "state, which a projection after each step would contradict. Use bdf or "
+                "dopri54 for projection, or cvode_* with reduced or baumgarte")
+        if formulation == "baumgarte" and (alpha is None or beta is None):
+            raise InvalidInputError(f"{method} with formulation 'baumgarte': give alpha and "
+                                    "beta (Baumgarte's defaults 1/h and sqrt(2)/h need a fixed "
+                                    "step; an error-controlled method has none)")
+        plan_ = _ode_plan(info_m, formulation, h if h else 1.0, t_end, t0, 1, alpha, beta,
+                          penalty, projection_tol, startup, newton_rtol, newton_atol,
+                          adaptive=dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0,
+                                        h_min=h_min or 0.0, h_max=h_max or 0.0,
+                                        max_steps=max_steps or 0, max_order=max_order or 0))
+        mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
+                             projection_tol, solver, small_dense)
+    elif index3:
         plan_ = _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_atol,
                              given3, small_dense)
         mopt = model_options(solver=solver, small_dense=small_dense)
@@ -277,7 +348,7 @@ def simulate(scene: Scene, method: str, *, h: float, t_end: float,
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
                 "small_dense": small_dense,
                 "watch": asdict(watch_), **plan_["manifest"]}
-    if index3:
+    if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
     result = SceneResult(
         t=t, q=y[:nc].T, v=y[nc:].T,
@@ -366,7 +437,7 @@ def _real(name: str, value) -> float:
 
 
 def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, projection_tol,
-              startup, newton_rtol, newton_atol) -> dict:
+              startup, newton_rtol, newton_atol, adaptive: dict | None = None) -> dict:
     alpha = 1.0 / h if alpha is None else _real("alpha", alpha)
     beta = math.sqrt(2.0) / h if beta is None else _real("beta", beta)
     if formulation == "baumgarte" and not (alpha >= 0 and beta >= 0 and math.isfinite(alpha)
@@ -379,7 +450,15 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
         raise InvalidInputError(f"penalty = {penalty!r} must be (alpha_p, omega_p, mu_p), all > 0")
     if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
-    nsteps, nsamp, shortened = plan(t0, t_end, h, every)
+    if adaptive is not None:
+        from .ode import _adaptive_options
+        ode, nsteps, nsamp, control = _adaptive_options(
+            info_m, adaptive["h"], t0, t_end, 1, adaptive["rtol"], adaptive["atol"],
+            adaptive["dt_out"], adaptive["h_min"], adaptive["h_max"], adaptive["max_steps"],
+            adaptive["max_order"], False)
+        shortened = False
+    else:
+        nsteps, nsamp, shortened = plan(t0, t_end, h, every)
     if info_m.steps > 1 and shortened:   # the kernel's whole-number test (mbdk_on_grid)
         n_lo = math.floor((t_end - t0) / h)
         raise InvalidInputError(f"{info_m.name} needs equal steps; use h = "
@@ -392,11 +471,15 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
     newton_atol = _real("newton_atol", newton_atol)
     if not (newton_rtol > 0 and newton_atol > 0):
         raise InvalidInputError(f"newton_rtol = {newton_rtol}, newton_atol = {newton_atol} must be > 0")
-    ode = ODEOptions(h=h, newton_rtol=newton_rtol, newton_atol=newton_atol, every=every,
-                     startup=STARTUP[startup])
-    manifest = {"steps": nsteps, "startup": startup,
-                "newton": {"rtol": newton_rtol, "atol": newton_atol,
-                           "max_iter": ode.newton_max_iter}}
+    if adaptive is not None:
+        ode = replace(ode, newton_rtol=newton_rtol, newton_atol=newton_atol)
+        manifest = {**control, "newton": {"rtol": newton_rtol, "atol": newton_atol}}
+    else:
+        ode = ODEOptions(h=h, newton_rtol=newton_rtol, newton_atol=newton_atol, every=every,
+                         startup=STARTUP[startup])
+        manifest = {"steps": nsteps, "startup": startup,
+                    "newton": {"rtol": newton_rtol, "atol": newton_atol,
+                               "max_iter": ode.newton_max_iter}}
     if formulation == "baumgarte":
         manifest.update(alpha=alpha, beta=beta)
     if formulation == "penalty":

@@ -11,7 +11,8 @@ module mbdk_capi
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_id
-  use mbdk_fixed_step, only: mbdk_step_plan, mbdk_fixed_step_solve
+  use mbdk_fixed_step, only: mbdk_step_plan
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_sample_plan
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
@@ -150,6 +151,21 @@ contains
     mbdk_c_sample_count = int(stat, c_int)
   end function mbdk_c_sample_count
 
+  !> Samples a solve with opt writes over [t0, t_end], whatever its method: fixed step (h,
+  !> every) or error-controlled (dt_out).
+  integer(c_int) function mbdk_c_solve_sample_count(t0, t_end, opt, nsamp) &
+      bind(C, name='mbdk_solve_sample_count')
+    real(c_double), value :: t0, t_end
+    type(mbdk_options_t), intent(in), optional :: opt
+    integer(c_int), intent(out), optional :: nsamp
+    integer :: ns, stat
+    mbdk_c_solve_sample_count = MBDK_ERR_INVALID_INPUT
+    if (.not. (present(nsamp) .and. present(opt))) return
+    call mbdk_sample_plan(opt, t0, t_end, ns, stat)
+    nsamp = int(ns, c_int)
+    mbdk_c_solve_sample_count = int(stat, c_int)
+  end function mbdk_c_solve_sample_count
+
   !> jac: NULL, or the analytic Jacobian of f (column-major), used by the implicit methods
   integer(c_int) function mbdk_c_solve_ode(f, jac, user_data, n, t0, t_end, y0, opt, nsamp, &
       t_out, y_out, nwritten, stats) bind(C, name='mbdk_solve_ode')
@@ -194,7 +210,7 @@ contains
 
     subroutine solve(yflat)
       real(c_double), intent(inout), target :: yflat(n, nsamp)
-      call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0(1:n), t_out(1:nsamp), yflat, nw, st, stat)
+      call mbdk_solve_ode(prob, opt, t0, t_end, y0(1:n), t_out(1:nsamp), yflat, nw, st, stat)
     end subroutine solve
 
   end function mbdk_c_solve_ode

@@ -13,16 +13,17 @@
 ! (the options' interrupt field points at it). The callback solve keeps the GIL: it calls Python.
 
 subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf, interrupt, &
-                         nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
+                         natol, atol, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
+  ! atol: empty, or one absolute tolerance per state for an error-controlled method
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_textbook, only: mbdk_textbook_t, mbdk_textbook_init
-  use mbdk_fixed_step, only: mbdk_fixed_step_solve
+  use mbdk_solve, only: mbdk_solve_ode
   implicit none
-  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw
-  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw)
+  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol
+  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol)
   integer, intent(in), target :: interrupt(1)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
@@ -31,6 +32,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(params) :: np = len(params)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(atol) :: natol = len(atol)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   type(mbdk_textbook_t) :: prob
   type(mbdk_options_t) :: opt
@@ -45,7 +47,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
   call mbdk_textbook_init(prob, problem_id, n, params, status)
   if (status /= MBDK_SUCCESS) return
-  call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_problem
 
@@ -67,8 +69,8 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
   call prob%rhs(t, y, f, status)
 end subroutine eval_problem
 
-subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, nsamp, t_out, y_out, nstatw, &
-                          statbuf, nwritten, status)
+subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, natol, atol, nsamp, t_out, &
+                          y_out, nstatw, statbuf, nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
   ! (f2py hides n); flag(1) = 1 reports a failure. Not threadsafe: it calls Python.
   use, intrinsic :: iso_c_binding, only: c_sizeof
@@ -76,16 +78,17 @@ subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, nsamp, t_out, y_
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_callback_problem, only: mbdk_proc_problem_t, mbdk_proc_problem_init
-  use mbdk_fixed_step, only: mbdk_fixed_step_solve
+  use mbdk_solve, only: mbdk_solve_ode
   implicit none
   external fun
-  integer, intent(in) :: n, noptw, nsamp, nstatw
-  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw)
+  integer, intent(in) :: n, noptw, nsamp, nstatw, natol
+  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(atol) :: natol = len(atol)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   ! The callback's signature for f2py: its first argument is named n so that the bounds of
   ! cb_y and cb_dydt refer to the callback's own argument.
@@ -103,7 +106,7 @@ subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, nsamp, t_out, y_
   if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
   opt = transfer(optbuf, opt)
   call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
-  call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_callback
 
@@ -120,6 +123,15 @@ subroutine sample_count(t0, t_end, h, every, nsteps, nsamp, status)
   call mbdk_step_plan(t0, t_end, h, every, ns, nsamp, shortened, status)
   nsteps = dble(ns)
 end subroutine sample_count
+
+subroutine adaptive_sample_count(t0, t_end, dt_out, nsamp, status)
+  ! Samples of an error-controlled solve: t0, every dt_out, t_end (mbdk_adaptive).
+  use mbdk_adaptive, only: mbdk_adaptive_plan
+  implicit none
+  double precision, intent(in) :: t0, t_end, dt_out
+  integer, intent(out) :: nsamp, status
+  call mbdk_adaptive_plan(t0, t_end, dt_out, nsamp, status)
+end subroutine adaptive_sample_count
 
 subroutine max_steps(n)
   ! The most steps one fixed-step solve takes (mbdk_fixed_step), for Python's messages.
@@ -269,11 +281,12 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_METHOD_NAME_LEN
+  use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_FAMILY_IDA, &
+    MBDK_METHOD_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
-  use mbdk_fixed_step, only: mbdk_fixed_step_solve
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_scene_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
   use mbdk_assembly, only: mbdk_model_start
@@ -367,11 +380,22 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
                            lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
+  else if (family == MBDK_FAMILY_IDA) then
+    ! ida integrates the DAE itself; its form (1 index1, 2 ggl) travels in the DAE options'
+    ! formulation field, its tolerances in the ODE options
+    opt = transfer(optbuf, opt)
+    opt%method = method_id
+    opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    i3 = transfer(i3buf, i3)
+    status = MBDK_ERR_INVALID_INPUT
+    if (i3%formulation /= 1 .and. i3%formulation /= 2) return
+    call mbdk_solve_scene_dae(model, opt, i3%formulation == 2, t0, t_end, ys, t_out, y_out, &
+                              lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    call mbdk_fixed_step_solve(model, opt, t0, t_end, ys, t_out, y_out, nwritten, st, status)
+    call mbdk_solve_ode(model, opt, t0, t_end, ys, t_out, y_out, nwritten, st, status)
   end if
 
   if (want /= 0 .and. nwritten > 0) then

@@ -20,7 +20,7 @@ module mbdk_structs
   !> field types: C int, int64_t, double, a pointer
   integer, parameter, public :: MBDK_FIELD_INT = 1, MBDK_FIELD_INT64 = 2, MBDK_FIELD_DOUBLE = 3, &
     MBDK_FIELD_POINTER = 4
-  integer, parameter :: MAX_FIELDS = 16
+  integer, parameter :: MAX_FIELDS = 24
 
   type :: field_t
     character(len=MBDK_STRUCT_NAME_LEN) :: name = ''
@@ -105,6 +105,11 @@ contains
       call add('startup_steps', transfer(c_loc(st%startup_steps), base), MBDK_FIELD_INT64)
       call add('rejected_steps', transfer(c_loc(st%rejected_steps), base), MBDK_FIELD_INT64)
       call add('newton_failures', transfer(c_loc(st%newton_failures), base), MBDK_FIELD_INT64)
+      call add('order1_steps', transfer(c_loc(st%order1_steps), base), MBDK_FIELD_INT64)
+      call add('order2_steps', transfer(c_loc(st%order2_steps), base), MBDK_FIELD_INT64)
+      call add('order3_steps', transfer(c_loc(st%order3_steps), base), MBDK_FIELD_INT64)
+      call add('order4_steps', transfer(c_loc(st%order4_steps), base), MBDK_FIELD_INT64)
+      call add('order5_steps', transfer(c_loc(st%order5_steps), base), MBDK_FIELD_INT64)
       call add('cpu_time', transfer(c_loc(st%cpu_time), base), MBDK_FIELD_DOUBLE)
       call add('wall_time', transfer(c_loc(st%wall_time), base), MBDK_FIELD_DOUBLE)
     case (MBDK_STRUCT_OPTIONS)
@@ -114,13 +119,20 @@ contains
       call add('h', transfer(c_loc(op%h), base), MBDK_FIELD_DOUBLE)
       call add('newton_rtol', transfer(c_loc(op%newton_rtol), base), MBDK_FIELD_DOUBLE)
       call add('newton_atol', transfer(c_loc(op%newton_atol), base), MBDK_FIELD_DOUBLE)
+      call add('rtol', transfer(c_loc(op%rtol), base), MBDK_FIELD_DOUBLE)
+      call add('atol', transfer(c_loc(op%atol), base), MBDK_FIELD_DOUBLE)
+      call add('dt_out', transfer(c_loc(op%dt_out), base), MBDK_FIELD_DOUBLE)
+      call add('h_min', transfer(c_loc(op%h_min), base), MBDK_FIELD_DOUBLE)
+      call add('h_max', transfer(c_loc(op%h_max), base), MBDK_FIELD_DOUBLE)
       call add('interrupt', transfer(c_loc(op%interrupt), base), MBDK_FIELD_POINTER)
+      call add('max_steps', transfer(c_loc(op%max_steps), base), MBDK_FIELD_INT64)
       call add('method', transfer(c_loc(op%method), base), MBDK_FIELD_INT)
       call add('every', transfer(c_loc(op%every), base), MBDK_FIELD_INT)
       call add('newton_max_iter', transfer(c_loc(op%newton_max_iter), base), MBDK_FIELD_INT)
       call add('fd_jacobian', transfer(c_loc(op%fd_jacobian), base), MBDK_FIELD_INT)
       call add('nq', transfer(c_loc(op%nq), base), MBDK_FIELD_INT)
       call add('startup', transfer(c_loc(op%startup), base), MBDK_FIELD_INT)
+      call add('max_order', transfer(c_loc(op%max_order), base), MBDK_FIELD_INT)
     case (MBDK_STRUCT_INDEX3_OPTIONS)
       cname = 'mbdk_index3_options'
       nbytes = int(c_sizeof(i3))

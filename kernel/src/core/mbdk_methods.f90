@@ -10,6 +10,14 @@ module mbdk_methods
   integer, parameter, public :: MBDK_FAMILY_IMPLICIT_LMM = 3
   !> integrates a scene's index-3 DAE itself (mbdk_trapezoidal_index3), not an ODE y' = F(t, y)
   integer, parameter, public :: MBDK_FAMILY_DAE_INDEX3 = 4
+  !> error-controlled (rtol, atol; mbdk_adaptive): embedded Runge-Kutta pairs with dense output
+  integer, parameter, public :: MBDK_FAMILY_EMBEDDED_RK = 5
+  !> error-controlled: Gear's BDF of variable step and order 1-5 (mbdk_variable_bdf)
+  integer, parameter, public :: MBDK_FAMILY_VARIABLE_BDF = 6
+  !> error-controlled: SUNDIALS CVODE through its Fortran 2003 interface (mbdk_cvode)
+  integer, parameter, public :: MBDK_FAMILY_CVODE = 7
+  !> error-controlled, scenes only: SUNDIALS IDA on the scene's DAE (mbdk_ida), index 1 or GGL
+  integer, parameter, public :: MBDK_FAMILY_IDA = 8
 
   integer, parameter, public :: MBDK_EXPLICIT_EULER = 1
   integer, parameter, public :: MBDK_HEUN = 2
@@ -20,17 +28,26 @@ module mbdk_methods
   integer, parameter, public :: MBDK_BDF1 = 7   ! bdfk has id MBDK_BDF1 + k - 1
   integer, parameter, public :: MBDK_BDF6 = 12
   integer, parameter, public :: MBDK_TRAPEZOIDAL_INDEX3 = 13
-  integer, parameter, public :: MBDK_METHOD_COUNT = 13
+  integer, parameter, public :: MBDK_DOPRI54 = 14
+  integer, parameter, public :: MBDK_BS32 = 15
+  integer, parameter, public :: MBDK_BDF_VARIABLE = 16
+  integer, parameter, public :: MBDK_CVODE_BDF = 17
+  integer, parameter, public :: MBDK_CVODE_ADAMS = 18
+  integer, parameter, public :: MBDK_IDA = 19
+  integer, parameter, public :: MBDK_METHOD_COUNT = 19
   integer, parameter, public :: MBDK_METHOD_NAME_LEN = 24
 
   character(len=MBDK_METHOD_NAME_LEN), parameter :: names(MBDK_METHOD_COUNT) = [character( &
     len=MBDK_METHOD_NAME_LEN) :: 'explicit_euler', 'heun', 'rk4', 'euler_cromer', &
     'implicit_euler', 'trapezoidal', 'bdf1', 'bdf2', 'bdf3', 'bdf4', 'bdf5', 'bdf6', &
-    'trapezoidal_index3']
-  integer, parameter :: families(MBDK_METHOD_COUNT) = [1, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3, 3, 4]
-  integer, parameter :: orders(MBDK_METHOD_COUNT) = [1, 2, 4, 1, 1, 2, 1, 2, 3, 4, 5, 6, 2]
+    'trapezoidal_index3', 'dopri54', 'bs32', 'bdf', 'cvode_bdf', 'cvode_adams', 'ida']
+  integer, parameter :: families(MBDK_METHOD_COUNT) = [1, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3, 3, 4, &
+                                                        5, 5, 6, 7, 7, 8]
+  !> the nominal order; for bdf and cvode_* the highest order they select
+  integer, parameter :: orders(MBDK_METHOD_COUNT) = [1, 2, 4, 1, 1, 2, 1, 2, 3, 4, 5, 6, 2, &
+                                                      5, 3, 5, 5, 12, 5]
 
-  public :: mbdk_method_id, mbdk_method_info
+  public :: mbdk_method_id, mbdk_method_info, mbdk_method_adaptive
 
 contains
 
@@ -58,5 +75,13 @@ contains
     end if
     name = names(id); family = families(id); order = orders(id)
   end subroutine mbdk_method_info
+
+  !> Whether method id controls its step by rtol/atol (families 5-8) rather than taking h.
+  pure logical function mbdk_method_adaptive(id)
+    integer, intent(in) :: id
+    mbdk_method_adaptive = .false.
+    if (id < 1 .or. id > MBDK_METHOD_COUNT) return
+    mbdk_method_adaptive = families(id) >= MBDK_FAMILY_EMBEDDED_RK
+  end function mbdk_method_adaptive
 
 end module mbdk_methods

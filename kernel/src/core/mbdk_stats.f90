@@ -16,6 +16,9 @@ module mbdk_stats
     integer(c_int64_t) :: startup_steps = 0     !< steps of the start-up method of a multistep method
     integer(c_int64_t) :: rejected_steps = 0    !< step-size control: steps rejected by the error test
     integer(c_int64_t) :: newton_failures = 0   !< steps retried because Newton failed
+    !> error-controlled multistep methods (bdf, cvode_*): accepted steps taken at order k
+    integer(c_int64_t) :: order1_steps = 0, order2_steps = 0, order3_steps = 0, &
+                          order4_steps = 0, order5_steps = 0
     real(c_double) :: cpu_time = 0.0_c_double   !< CPU seconds of the solving thread in the time loop
     real(c_double) :: wall_time = 0.0_c_double  !< wall-clock seconds of the time loop
   end type mbdk_stats_t

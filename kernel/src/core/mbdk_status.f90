@@ -22,6 +22,8 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_INCONSISTENT_INITIAL = -6
   integer, parameter, public :: MBDK_ERR_NO_MEMORY = -7
   integer, parameter, public :: MBDK_ERR_STEP_TOO_SMALL = -10
+  integer, parameter, public :: MBDK_ERR_TOO_MANY_STEPS = -11
+  integer, parameter, public :: MBDK_ERR_TOO_MUCH_ACCURACY = -12
   integer, parameter, public :: MBDK_ERR_NEWTON_DIVERGED = -20
   integer, parameter, public :: MBDK_ERR_SINGULAR_MATRIX = -21
   integer, parameter, public :: MBDK_ERR_NONFINITE = -30
@@ -31,7 +33,7 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_BACKEND = -50
   integer, parameter, public :: MBDK_ERR_INTERRUPTED = -60
 
-  integer, parameter, public :: MBDK_STATUS_COUNT = 18
+  integer, parameter, public :: MBDK_STATUS_COUNT = 20
   integer, parameter, public :: MBDK_STATUS_NAME_LEN = 32
   integer, parameter, public :: MBDK_STATUS_MSG_LEN = 120
 
@@ -58,6 +60,10 @@ module mbdk_status
     status_entry(MBDK_ERR_NO_MEMORY, 'ERR_NO_MEMORY', &
       'the memory this run needs could not be allocated; fewer samples or a smaller model'), &
     status_entry(MBDK_ERR_STEP_TOO_SMALL, 'ERR_STEP_TOO_SMALL', 'the step size became too small'), &
+    status_entry(MBDK_ERR_TOO_MANY_STEPS, 'ERR_TOO_MANY_STEPS', &
+      'error control took max_steps steps before t_end; loosen rtol/atol or raise max_steps'), &
+    status_entry(MBDK_ERR_TOO_MUCH_ACCURACY, 'ERR_TOO_MUCH_ACCURACY', &
+      'the tolerances ask for more accuracy than double precision gives; loosen rtol/atol'), &
     status_entry(MBDK_ERR_NEWTON_DIVERGED, 'ERR_NEWTON_DIVERGED', &
       'Newton-Raphson iteration did not converge; reduce the step h'), &
     status_entry(MBDK_ERR_SINGULAR_MATRIX, 'ERR_SINGULAR_MATRIX', &

@@ -24,7 +24,8 @@ module mbdk_stepper
   use mbdk_options, only: mbdk_options_t, MBDK_STARTUP_RK4, MBDK_STARTUP_BDF
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_EXPLICIT_RK, MBDK_FAMILY_EULER_CROMER, &
-    MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, MBDK_RK4, MBDK_BDF1, MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, MBDK_RK4, MBDK_BDF1, MBDK_METHOD_NAME_LEN, &
+    mbdk_method_adaptive
   use mbdk_butcher, only: mbdk_butcher_t, mbdk_butcher_table, MBDK_MAX_STAGES
   use mbdk_explicit_rk, only: mbdk_explicit_rk_step
   use mbdk_euler_cromer, only: mbdk_euler_cromer_step
@@ -52,7 +53,8 @@ module mbdk_stepper
 contains
 
   !> A stepper for prob with opt%method at (t0, y0). MBDK_ERR_UNKNOWN_METHOD, MBDK_ERR_NOT_APPLICABLE
-  !> (trapezoidal_index3, which steps scenes itself; euler_cromer on a first-order problem),
+  !> (trapezoidal_index3, which steps scenes itself; an error-controlled method, which runs whole
+  !> intervals through mbdk_solve; euler_cromer on a first-order problem),
   !> MBDK_ERR_INVALID_INPUT (sizes, a non-finite y0, h, Newton options, startup), or a failure of
   !> the first evaluation of F that a multistep method needs.
   subroutine mbdk_stepper_init(s, prob, opt, t0, y0, stat)
@@ -72,6 +74,8 @@ contains
     if (s%family == 0) return
     stat = MBDK_ERR_NOT_APPLICABLE   ! an index-3 DAE method integrates scenes, not ODEs
     if (s%family == MBDK_FAMILY_DAE_INDEX3) return
+    ! an error-controlled method chooses its own steps: it runs whole intervals (mbdk_solve)
+    if (mbdk_method_adaptive(opt%method)) return
     stat = MBDK_ERR_INVALID_INPUT
     if (n < 1 .or. size(y0) /= n) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return

@@ -1,0 +1,181 @@
+!> One entry for every ODE solve: a fixed-step method goes to mbdk_fixed_step (step opt%h,
+!> every-th step sampled), an error-controlled one (mbdk_method_adaptive: dopri54, bs32, bdf,
+!> cvode_bdf, cvode_adams) to its own driver with the samples of mbdk_adaptive (rtol, atol,
+!> dt_out). The C API, the f2py layer and the scene runner call this, so a new method is one
+!> case here and one registry line.
+!>
+!> For an error-controlled method this routine checks the options and atol, writes the sample
+!> times into t_out and the first sample, starts a watching problem's watch at t0, and times the
+!> solve (the thread's CPU time and the wall time in st); the method writes samples 2, 3, ...
+!> mbdk_solve_scene_dae does the same for ida, which integrates a scene's DAE itself (a method
+!> of the scene model, not of y' = F(t, y): mbdk_solve_ode refuses it, MBDK_ERR_NOT_APPLICABLE).
+module mbdk_solve
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status
+  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
+  use mbdk_methods, only: mbdk_method_info, mbdk_method_adaptive, MBDK_FAMILY_EMBEDDED_RK, &
+    MBDK_FAMILY_VARIABLE_BDF, MBDK_FAMILY_CVODE, MBDK_FAMILY_IDA, MBDK_CVODE_ADAMS, &
+    MBDK_METHOD_NAME_LEN
+  use mbdk_fixed_step, only: mbdk_fixed_step_solve, mbdk_step_plan
+  use mbdk_adaptive, only: mbdk_adaptive_plan, mbdk_adaptive_times, mbdk_adaptive_check
+  use mbdk_embedded_rk, only: mbdk_embedded_rk_solve
+  use mbdk_variable_bdf, only: mbdk_variable_bdf_solve
+  use mbdk_cvode, only: mbdk_cvode_solve
+  use mbdk_model, only: mbdk_model_t
+  use mbdk_ida, only: mbdk_ida_solve
+  implicit none
+  private
+  public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae
+
+contains
+
+  !> Samples a solve with opt over [t0, t_end] writes (fixed step: mbdk_step_plan with opt%h and
+  !> opt%every; error-controlled: mbdk_adaptive_plan with opt%dt_out). stat: as those.
+  subroutine mbdk_sample_plan(opt, t0, t_end, nsamp, stat)
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end
+    integer, intent(out) :: nsamp, stat
+    integer(i8) :: nsteps
+    logical :: shortened
+    if (mbdk_method_adaptive(opt%method)) then
+      call mbdk_adaptive_plan(t0, t_end, opt%dt_out, nsamp, stat)
+    else
+      call mbdk_step_plan(t0, t_end, opt%h, opt%every, nsteps, nsamp, shortened, stat)
+    end if
+  end subroutine mbdk_sample_plan
+
+  !> Integrates prob from (t0, y0) to t_end with opt%method. t_out(nsamp), y_out(n, nsamp)
+  !> receive the samples (nsamp from mbdk_sample_plan); nwritten: how many were written (fewer
+  !> only on failure). atol (optional, error-controlled methods): one absolute tolerance per
+  !> state instead of opt%atol.
+  subroutine mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, stat, atol)
+    class(mbdk_problem_t), intent(in) :: prob
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end
+    real(dp), intent(in) :: y0(:)
+    real(dp), intent(out) :: t_out(:)
+    real(dp), intent(out) :: y_out(:, :)
+    integer, intent(out) :: nwritten
+    type(mbdk_stats_t), intent(out) :: st
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: atol(:)
+
+    character(len=MBDK_METHOD_NAME_LEN) :: name
+    integer :: family, order, nsamp
+    real(dp), allocatable :: atol_v(:)
+    type(mbdk_timer_t) :: timer
+
+    if (.not. mbdk_method_adaptive(opt%method)) then
+      stat = MBDK_ERR_INVALID_INPUT
+      nwritten = 0
+      if (present(atol)) then
+        if (size(atol) > 0) return   ! a tolerance means nothing to a fixed step
+      end if
+      call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, stat)
+      return
+    end if
+
+    call mbdk_method_info(opt%method, name, family, order)
+    nwritten = 0
+    stat = MBDK_ERR_NOT_APPLICABLE   ! ida integrates a scene's DAE: mbdk_solve_scene_dae
+    if (family == MBDK_FAMILY_IDA) return
+    stat = MBDK_ERR_INVALID_INPUT    ! a one-order method has no max_order to cap
+    if (opt%max_order > max_order_of(family, order)) return
+    if (present(atol)) then
+      atol_v = atol
+    else
+      allocate (atol_v(0))
+    end if
+    call prologue(prob, opt, t0, t_end, y0, atol_v, t_out, y_out, nwritten, nsamp, timer, stat)
+    if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
+    select case (family)
+    case (MBDK_FAMILY_EMBEDDED_RK)
+      call mbdk_embedded_rk_solve(prob, opt, t0, y0, atol_v, t_out(1:nsamp), y_out, nwritten, &
+                                  st, stat)
+    case (MBDK_FAMILY_VARIABLE_BDF)
+      call mbdk_variable_bdf_solve(prob, opt, t0, y0, atol_v, t_out(1:nsamp), y_out, nwritten, &
+                                   st, stat)
+    case (MBDK_FAMILY_CVODE)
+      call mbdk_cvode_solve(prob, opt, opt%method == MBDK_CVODE_ADAMS, t0, y0, atol_v, &
+                            t_out(1:nsamp), y_out, nwritten, st, stat)
+    case default
+      stat = MBDK_ERR_UNKNOWN_METHOD
+    end select
+    call mbdk_timer_stop(timer, st)
+  end subroutine mbdk_solve_ode
+
+  !> ida on a scene model: y0 = [q0; v0] consistent (assembled), samples [q; v] in y_out and
+  !> the multipliers in lam_out (m rows; columns as far as it has them). ggl: the stabilised
+  !> index-2 form, else index 1 (mbdk_ida's header).
+  subroutine mbdk_solve_scene_dae(model, opt, ggl, t0, t_end, y0, t_out, y_out, lam_out, &
+                                  nwritten, st, stat)
+    type(mbdk_model_t), intent(in), target :: model
+    type(mbdk_options_t), intent(in) :: opt
+    logical, intent(in) :: ggl
+    real(dp), intent(in) :: t0, t_end, y0(:)
+    real(dp), intent(out) :: t_out(:), y_out(:, :)
+    real(dp), intent(inout) :: lam_out(:, :)
+    integer, intent(out) :: nwritten
+    type(mbdk_stats_t), intent(out) :: st
+    integer, intent(out) :: stat
+    character(len=MBDK_METHOD_NAME_LEN) :: name
+    integer :: family, order, nsamp
+    real(dp) :: no_atol(0)
+    type(mbdk_timer_t) :: timer
+    nwritten = 0
+    call mbdk_method_info(opt%method, name, family, order)
+    stat = MBDK_ERR_NOT_APPLICABLE
+    if (family /= MBDK_FAMILY_IDA) return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (opt%max_order > max_order_of(family, order)) return
+    call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
+    if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
+    call mbdk_ida_solve(model, opt, ggl, t0, y0, t_out(1:nsamp), y_out, lam_out, nwritten, st, &
+                        stat)
+    call mbdk_timer_stop(timer, st)
+  end subroutine mbdk_solve_scene_dae
+
+  !> The largest max_order a method takes: its top order for the variable-order ones (bdf,
+  !> cvode_*, ida), 0 for the explicit pairs (their order is fixed).
+  pure integer function max_order_of(family, order) result(top)
+    integer, intent(in) :: family, order
+    top = 0
+    if (family == MBDK_FAMILY_VARIABLE_BDF .or. family == MBDK_FAMILY_CVODE .or. &
+        family == MBDK_FAMILY_IDA) top = order
+  end function max_order_of
+
+  !> What every error-controlled solve does before its first step (the module header); on
+  !> success nwritten = 1 and the timer runs.
+  subroutine prologue(prob, opt, t0, t_end, y0, atol, t_out, y_out, nwritten, nsamp, timer, stat)
+    class(mbdk_problem_t), intent(in) :: prob
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end, y0(:), atol(:)
+    real(dp), intent(out) :: t_out(:), y_out(:, :)
+    integer, intent(out) :: nwritten, nsamp, stat
+    type(mbdk_timer_t), intent(out) :: timer
+    integer :: n
+    nwritten = 0
+    nsamp = 0
+    n = prob%n
+    stat = MBDK_ERR_INVALID_INPUT
+    if (n < 1 .or. size(y0) /= n) return
+    if (.not. all(abs(y0) <= huge(1.0_dp))) return
+    stat = mbdk_adaptive_check(opt, n, atol)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_adaptive_plan(t0, t_end, opt%dt_out, nsamp, stat)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_OUTPUT_SIZE
+    if (size(t_out) < nsamp .or. size(y_out, 1) /= n .or. size(y_out, 2) < nsamp) return
+    call mbdk_timer_start(timer)
+    call mbdk_adaptive_times(t0, t_end, opt%dt_out, t_out(1:nsamp))
+    stat = MBDK_SUCCESS
+    if (prob%has_watch) call prob%watch_start(t0, y0, stat)
+    if (stat /= MBDK_SUCCESS) return
+    nwritten = 1
+    y_out(:, 1) = y0
+  end subroutine prologue
+
+end module mbdk_solve

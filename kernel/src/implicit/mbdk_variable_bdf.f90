@@ -1,0 +1,359 @@
+!> bdf: Gear's backward differentiation formulas with variable step and variable order 1-5 and
+!> error control, in the quasi-constant step-size form (Byrne and Hindmarsh 1975; Shampine and
+!> Reichelt, The MATLAB ODE suite, 1997, with their NDF coefficients kappa set to 0: the
+!> classical BDF of Gear and of MSC Adams' GSTIFF).
+!>
+!> History. The method keeps the backward differences of the solution on an equally spaced grid
+!> of the current step h: D_0 = y_n, D_j = nabla^j y_n (j = 1 .. q+2), in the columns of d.
+!> When h changes by a factor r, the differences are re-interpolated onto the new grid
+!> (D <- (R(r) U)^T D, the matrices of Shampine and Reichelt's paper): the interpolating
+!> polynomial is unchanged, so the formula keeps its fixed-step coefficients. This is the same
+!> strategy as a Nordsieck array rescaled on a step change (CVODE, LSODE), in differences.
+!>
+!> A step of order q from t_n to t_n + h:
+!>   predictor   y_p = sum_{j=0..q} D_j
+!>   corrector   the BDF formula in the form  y = y_p + d,  (h / a_q) F(t_{n+1}, y) - psi - d = 0,
+!>               a_q = gamma_q = sum_{j=1..q} 1/j,  psi = sum_{j=1..q} gamma_j D_j / a_q,
+!>               solved by simplified Newton with M = I - (h / a_q) J (LAPACK LU)
+!>   error       e = d / (q + 1): the local error constant of BDF-q times nabla^(q+1) y_{n+1}
+!> The step is accepted when WRMS(e) <= 1 (weights 1/(atol + rtol |y_{n+1}|), mbdk_adaptive),
+!> else h shrinks by max(0.2, safety WRMS(e)^(-1/(q+1))). After q + 1 steps of one h, the
+!> orders q - 1, q and q + 1 are compared by their error estimates (nabla^q, nabla^(q+1) and
+!> nabla^(q+2) of the same history) and the one that allows the largest step is taken, h grown
+!> by at most 10. safety = 0.9 (2 m + 1)/(2 m + iterations), m = NEWTON_MAX_ITER: a step that
+!> needed many Newton iterations is followed by a smaller one.
+!>
+!> Newton. At most NEWTON_MAX_ITER = 4 iterations; convergence is judged by the contraction rate
+!> rho of successive updates, remembered across steps as CVODE does (crate = max(0.3 crate, rho),
+!> 1 after each factorisation): converged when |dy| min(1, crate) < tol, so a step whose first
+!> update is already small costs one evaluation of F; abandoned when rho >= 1 or the rate cannot
+!> reach tol in the iterations left. tol = 0.1 (q + 1): a tenth of the correction the error
+!> test accepts (CVODE's choice; the norm is the error test's).
+!> The Jacobian is reused across steps and orders: it is evaluated again only when an iteration
+!> with an old one fails (analytic from the problem's jac, or forward differences, mbdk_newton's
+!> mbdk_jacobian; opt%fd_jacobian forces differences). M is factorised again when h/a_q has
+!> moved more than 30 % from the value it was built with (CVODE's rule: a change of order or
+!> step that keeps c within that band keeps the matrix), and after a Newton failure. A Newton
+!> failure with a fresh Jacobian halves h (stats: newton_failures).
+!>
+!> Start: order 1 (implicit Euler) with the first step of mbdk_adaptive_initial_step, D_1 = h F.
+!> Dense output: the interpolating polynomial of the history, degree q:
+!>   y(t) = D_0 + sum_{j=1..q} D_j prod_{m=0..j-1} (t - (t_n - m h)) / ((m + 1) h).
+!> opt%max_order (1..5; 0 = 5) caps the order. Statistics: steps at each order
+!> (order1_steps .. order5_steps), rejected steps, Newton failures and iterations, nfev, njev, nlu.
+!> A projection (has_post_step) after a step enters the history as part of the correction d.
+module mbdk_variable_bdf
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status
+  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
+  use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
+  use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
+    mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor
+  implicit none
+  private
+  public :: mbdk_variable_bdf_solve
+
+  integer, parameter, public :: MBDK_BDF_MAX_ORDER = 5
+  integer, parameter :: NEWTON_MAX_ITER = 4
+  real(dp), parameter :: FAC_MIN = 0.2_dp, FAC_MAX = 10.0_dp
+  !> M = I - c J is factorised again when c moved by more than this fraction
+  real(dp), parameter :: C_CHANGE = 0.3_dp
+  !> the remembered contraction rate decays by this factor per iteration (CVODE's CRDOWN)
+  real(dp), parameter :: CRATE_DOWN = 0.3_dp
+  !> Newton stops when its remaining error is this fraction of what the error test accepts
+  !> (CVODE's nlscoef)
+  real(dp), parameter :: NEWTON_SHARE = 0.1_dp
+
+contains
+
+  !> See the module header; called by mbdk_solve_ode, which has checked the options, written
+  !> sample 1 (nwritten = 1) and the sample times t_out.
+  subroutine mbdk_variable_bdf_solve(prob, opt, t0, y0, atol, t_out, y_out, nwritten, st, stat)
+    class(mbdk_problem_t), intent(in) :: prob
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, y0(:), atol(:), t_out(:)
+    real(dp), intent(inout) :: y_out(:, :)
+    integer, intent(inout) :: nwritten
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+
+    integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
+    integer(i8) :: tries, limit
+    logical :: have_lu, jac_current, converged, projected, sample
+    real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
+    real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
+    real(dp), allocatable :: d(:, :), yp(:), psi(:), ynew(:), corr(:), w(:), f(:), dy(:)
+    type(mbdk_newton_work_t) :: nw
+
+    n = size(y0)
+    ns = size(t_out)
+    t_end = t_out(ns)
+    qmax = MBDK_BDF_MAX_ORDER
+    stat = MBDK_ERR_INVALID_INPUT
+    if (opt%max_order > MBDK_BDF_MAX_ORDER) return
+    if (opt%max_order > 0) qmax = opt%max_order
+
+    gam(0) = 0.0_dp
+    do j = 1, MBDK_BDF_MAX_ORDER
+      gam(j) = gam(j - 1) + 1.0_dp / real(j, dp)
+    end do
+    do j = 0, MBDK_BDF_MAX_ORDER + 1
+      errc(j) = 1.0_dp / real(j + 1, dp)
+    end do
+
+    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n))
+    call mbdk_newton_work_init(nw, n)
+    t = t0
+    d = 0.0_dp
+    d(:, 0) = y0
+    call prob%rhs(t, y0, f, stat)
+    st%nfev = st%nfev + 1
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_adaptive_initial_step(prob, opt, atol, 1, t0, t_end - t0, y0, f, h, st%nfev, stat)
+    if (stat /= MBDK_SUCCESS) return
+    hmax = t_end - t0
+    if (opt%h_max > 0.0_dp) hmax = min(hmax, opt%h_max)
+    h = min(h, hmax)
+    d(:, 1) = h * f
+    q = 1
+    n_equal = 0
+    have_lu = .false.
+    c_lu = 0.0_dp
+    crate = 1.0_dp
+    call mbdk_jacobian(prob, opt, t, y0, nw, st, stat)
+    if (stat /= MBDK_SUCCESS) return
+    jac_current = .true.
+    limit = mbdk_adaptive_step_limit(opt)
+    tries = 0
+    k = nwritten + 1
+
+    do while (t < t_end)
+      if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
+        stat = MBDK_ERR_INTERRUPTED
+        return
+      end if
+      ! the step: within h_max, landing on t_end without leaving a sliver
+      if (h > hmax) call rescale(hmax / h)
+      t_new = t + h
+      if (t_new >= t_end - 1.0e-3_dp * h) then
+        t_new = t_end
+        if (t_new - t /= h) call rescale((t_new - t) / h)
+      end if
+
+      step: do
+        if (tries >= limit) then
+          stat = MBDK_ERR_TOO_MANY_STEPS
+          return
+        end if
+        tries = tries + 1
+        if (h < mbdk_adaptive_h_floor(opt, t, landing=t + h >= t_end)) then
+          stat = MBDK_ERR_STEP_TOO_SMALL
+          return
+        end if
+        t_new = t + h
+        if (abs(t_new - t_end) <= 4.0_dp * spacing(t_end)) t_new = t_end
+        yp = sum(d(:, 0:q), dim=2)
+        psi = 0.0_dp
+        do j = 1, q
+          psi = psi + gam(j) * d(:, j)
+        end do
+        psi = psi / gam(q)
+        c = h / gam(q)
+        tol = NEWTON_SHARE / errc(q)
+        call mbdk_adaptive_weights(opt, atol, yp, w)
+        do
+          if (.not. have_lu .or. abs(c - c_lu) > C_CHANGE * c_lu) then
+            call factor_matrix(stat)
+            if (stat /= MBDK_SUCCESS) return
+          end if
+          call corrector(stat)
+          if (stat /= MBDK_SUCCESS) return
+          if (converged .or. jac_current) exit
+          call mbdk_jacobian(prob, opt, t_new, yp, nw, st, stat)
+          if (stat /= MBDK_SUCCESS) return
+          jac_current = .true.
+          have_lu = .false.
+        end do
+        if (.not. converged) then
+          st%newton_failures = st%newton_failures + 1
+          call rescale(0.5_dp)
+          have_lu = .false.
+          cycle step
+        end if
+        safety = 0.9_dp * real(2 * NEWTON_MAX_ITER + 1, dp) / real(2 * NEWTON_MAX_ITER + iters, dp)
+        call mbdk_adaptive_weights(opt, atol, ynew, w)
+        err = mbdk_adaptive_wrms(errc(q) * corr, w)
+        if (err > 1.0_dp) then
+          st%rejected_steps = st%rejected_steps + 1
+          call rescale(max(FAC_MIN, safety * err**(-1.0_dp / real(q + 1, dp))))
+          cycle step
+        end if
+        exit step
+      end do step
+
+      ! accepted. A projection moves y_{n+1}; the history takes the move as part of d.
+      sample = .false.
+      if (k <= ns) sample = t_out(k) <= t_new
+      call mbdk_adaptive_after_step(prob, t_new, ynew, sample, projected, stat)
+      if (stat /= MBDK_SUCCESS) return
+      if (projected) corr = corr + (ynew - (yp + corr))
+      st%steps = st%steps + 1
+      select case (q)
+      case (1); st%order1_steps = st%order1_steps + 1
+      case (2); st%order2_steps = st%order2_steps + 1
+      case (3); st%order3_steps = st%order3_steps + 1
+      case (4); st%order4_steps = st%order4_steps + 1
+      case default; st%order5_steps = st%order5_steps + 1
+      end select
+      jac_current = .false.
+      ! the differences of the new point: nabla^(q+1) y_{n+1} = d, and downwards
+      d(:, q + 2) = corr - d(:, q + 1)
+      d(:, q + 1) = corr
+      do i = q, 0, -1
+        d(:, i) = d(:, i) + d(:, i + 1)
+      end do
+      t = t_new
+      n_equal = n_equal + 1
+
+      if (n_equal >= q + 1 .and. t < t_end) then
+        ! orders q - 1, q, q + 1 from the same history
+        norms = huge(1.0_dp)
+        if (q > 1) norms(1) = mbdk_adaptive_wrms(errc(q - 1) * d(:, q), w)
+        norms(2) = err
+        if (q < qmax) norms(3) = mbdk_adaptive_wrms(errc(q + 1) * d(:, q + 2), w)
+        do i = 1, 3
+          if (norms(i) >= huge(1.0_dp)) then
+            facs(i) = 0.0_dp
+          else
+            facs(i) = max(norms(i), 1.0e-10_dp)**(-1.0_dp / real(q + i - 1, dp))
+          end if
+        end do
+        best = maxloc(facs, dim=1)
+        q = q + best - 2
+        factor = min(FAC_MAX, safety * facs(best))
+        call rescale(factor)
+      end if
+
+      ! samples in (t_old, t]: the history's polynomial (t itself: the state)
+      do while (k <= ns)
+        if (t_out(k) > t) exit
+        if (t_out(k) >= t) then
+          y_out(:, k) = d(:, 0)
+        else
+          call interpolate(t_out(k), y_out(:, k))
+        end if
+        nwritten = k
+        k = k + 1
+      end do
+    end do
+    stat = MBDK_SUCCESS
+
+  contains
+
+    !> M = I - c J, factorised.
+    subroutine factor_matrix(s)
+      integer, intent(out) :: s
+      integer :: ii
+      nw%lu = -c * nw%jac
+      do ii = 1, n
+        nw%lu(ii, ii) = nw%lu(ii, ii) + 1.0_dp
+      end do
+      call mbdk_lu_factor(nw%lu, nw%ipiv, s)
+      st%nlu = st%nlu + 1
+      have_lu = s == MBDK_SUCCESS
+      c_lu = c
+      crate = 1.0_dp
+    end subroutine factor_matrix
+
+    !> Simplified Newton on c F(t_new, yp + corr) - psi - corr = 0 (module header).
+    subroutine corrector(s)
+      integer, intent(out) :: s
+      integer :: it
+      real(dp) :: dnorm, dnorm_old, rate
+      converged = .false.
+      corr = 0.0_dp
+      ynew = yp
+      dnorm_old = -1.0_dp
+      iters = 0
+      s = MBDK_SUCCESS
+      do it = 1, NEWTON_MAX_ITER
+        call prob%rhs(t_new, ynew, f, s)
+        st%nfev = st%nfev + 1
+        if (s /= MBDK_SUCCESS) return
+        if (.not. all(abs(f) <= huge(1.0_dp))) exit
+        dy = c * f - psi - corr
+        call mbdk_lu_solve(nw%lu, nw%ipiv, dy, s)
+        if (s /= MBDK_SUCCESS) return
+        iters = it
+        st%newton_iterations = st%newton_iterations + 1
+        dnorm = mbdk_adaptive_wrms(dy, w)
+        if (.not. (dnorm <= huge(1.0_dp))) exit
+        if (dnorm_old > 0.0_dp) then
+          rate = dnorm / dnorm_old
+          if (rate >= 1.0_dp) exit
+          if (rate**(NEWTON_MAX_ITER - it + 1) / (1.0_dp - rate) * dnorm > tol) exit
+          crate = max(CRATE_DOWN * crate, rate)
+        end if
+        ynew = ynew + dy
+        corr = corr + dy
+        if (dnorm * min(1.0_dp, crate) < tol) then
+          converged = .true.
+          exit
+        end if
+        dnorm_old = dnorm
+      end do
+    end subroutine corrector
+
+    !> h <- r h: the differences re-interpolated onto the new grid, D <- (R(r) U)^T D.
+    subroutine rescale(r)
+      real(dp), intent(in) :: r
+      real(dp) :: rr(0:MBDK_BDF_MAX_ORDER, 0:MBDK_BDF_MAX_ORDER)
+      real(dp) :: uu(0:MBDK_BDF_MAX_ORDER, 0:MBDK_BDF_MAX_ORDER)
+      real(dp) :: ru(0:MBDK_BDF_MAX_ORDER, 0:MBDK_BDF_MAX_ORDER)
+      real(dp), allocatable :: dn(:, :)
+      call r_matrix(q, r, rr)
+      call r_matrix(q, 1.0_dp, uu)
+      ru(0:q, 0:q) = matmul(rr(0:q, 0:q), uu(0:q, 0:q))
+      dn = matmul(d(:, 0:q), ru(0:q, 0:q))
+      d(:, 0:q) = dn
+      h = h * r
+      n_equal = 0
+    end subroutine rescale
+
+    !> The history's polynomial at time tt (t_old <= tt < t).
+    subroutine interpolate(tt, yy)
+      real(dp), intent(in) :: tt
+      real(dp), intent(out) :: yy(:)
+      real(dp) :: p
+      integer :: jj
+      yy = d(:, 0)
+      p = 1.0_dp
+      do jj = 1, q
+        p = p * (tt - (t - real(jj - 1, dp) * h)) / (real(jj, dp) * h)
+        yy = yy + p * d(:, jj)
+      end do
+    end subroutine interpolate
+
+  end subroutine mbdk_variable_bdf_solve
+
+  !> Shampine and Reichelt's R(r) of order q: R(i, j) = prod_{m=1..i} (m - 1 - r j)/m, i, j >= 1,
+  !> R(0, j) = 1, R(i, 0) = 0 (i >= 1).
+  pure subroutine r_matrix(q, r, rr)
+    integer, intent(in) :: q
+    real(dp), intent(in) :: r
+    real(dp), intent(out) :: rr(0:, 0:)
+    integer :: i, j
+    rr = 0.0_dp
+    rr(0, 0:q) = 1.0_dp
+    do j = 1, q
+      do i = 1, q
+        rr(i, j) = rr(i - 1, j) * (real(i - 1, dp) - r * real(j, dp)) / real(i, dp)
+      end do
+    end do
+  end subroutine r_matrix
+
+end module mbdk_variable_bdf
