@@ -7,8 +7,9 @@ scenes, with the CPU time of every run beside its error.
    the slope of log(error) against log(rtol) (1 = the error follows the tolerance), steps,
    rejections, evaluations, Jacobians, factorisations, orders used and CPU time.
 2. Work-precision (error_control_work_precision_*): for each case every method, fixed-step ones
-   over a step sweep and error-controlled ones over a tolerance sweep (on scenes also ida on
-   the DAE itself, index 1 and GGL); the error at t_end
+   over a step sweep and error-controlled ones over a tolerance sweep (on scenes also the DAE
+   itself: ida in the index-1 and GGL forms, bdf in the index-3 (GSTIFF I3) and stabilised
+   index-2 (SI2) forms); the error at t_end
    against a reference run (dopri54 at rtol 1e-13, checked against cvode_adams at 1e-12), drawn
    against CPU time and against evaluations of F; the cheapest run per target error
    (1e-3, 1e-6, 1e-9) in error_control_cheapest.
@@ -43,7 +44,7 @@ from mbdk.analysis.tables import write_table  # noqa: E402
 from mbdk.analysis.timing import simulate_timed, solve_timed  # noqa: E402
 
 ADAPTIVE = list(mbdk.methods("ode", step="adaptive"))
-IDA_FORMS = ("index1", "ggl")
+DAE_RUNS = (("ida", "index1"), ("ida", "ggl"), ("bdf", "i3"), ("bdf", "si2"))
 FIXED = ["rk4", "bdf4", "heun", "euler_cromer", "trapezoidal"]
 TARGETS = (1e-3, 1e-6, 1e-9)
 CHAOTIC = {"m1": 12.85, "m2": 12.85, "l1": 1.0, "l2": 1.0}
@@ -145,12 +146,12 @@ def work_precision(name, case, quick):
             progress(f"work-precision: {name} {m} rtol {tol:g}")
             rows.append(_row(name, kind, target, m, t_end, kw, idx, y_ref, "rtol", tol,
                              rtol=tol, atol=tol * 1e-2, max_steps=2_000_000))
-    if kind == "scene":     # the scene's DAE itself, by SUNDIALS IDA in both forms
-        for form in IDA_FORMS:
+    if kind == "scene":     # the scene's DAE itself: SUNDIALS IDA and bdf in two forms each
+        for m, form in DAE_RUNS:
             for tol in tols:
-                progress(f"work-precision: {name} ida/{form} rtol {tol:g}")
-                rows.append(_row(name, kind, target, "ida", t_end, kw, idx, y_ref, "rtol", tol,
-                                 label=f"ida/{form}", formulation=form, rtol=tol,
+                progress(f"work-precision: {name} {m}/{form} rtol {tol:g}")
+                rows.append(_row(name, kind, target, m, t_end, kw, idx, y_ref, "rtol", tol,
+                                 label=f"{m}/{form}", formulation=form, rtol=tol,
                                  atol=tol * 1e-2, max_steps=2_000_000))
     levels = [0, 2, 4] if quick else list(range(7))
     for m in FIXED:
@@ -175,7 +176,7 @@ def _row(name, kind, target, m, t_end, kw, idx, y_ref, key, value, label=None, *
 def wp_figure(name, rows, out):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.6))
-    names = ADAPTIVE + [f"ida/{f}" for f in IDA_FORMS] + FIXED
+    names = ADAPTIVE + [f"{m}/{f}" for m, f in DAE_RUNS] + FIXED
     for i, m in enumerate(names):
         pts = sorted((r for r in rows if r["method"] == m and r.get("error") is not None),
                      key=lambda r: r["cpu_s"])
@@ -292,6 +293,32 @@ def _least_cpu(m, reps, **kw):
     return r, best
 
 
+def _collected(cmd, toggle) -> float | None:
+    """Instructions callgrind counts inside the function toggle, or None."""
+    with tempfile.TemporaryDirectory() as tmp:
+        res = subprocess.run(["valgrind", "--tool=callgrind", f"--toggle-collect={toggle}",
+                              f"--callgrind-out-file={tmp}/cg.out", *cmd], capture_output=True,
+                             text=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    for line in res.stderr.splitlines():
+        if "Collected :" in line:
+            return float(line.split(":")[-1])
+    return None
+
+
+def _instruction_ratio(args, tol, t_end):
+    """The kernel's cvode_bdf solve over CVODE driven from C, in instructions (callgrind), for
+    three solves each; None without valgrind."""
+    if shutil.which("valgrind") is None:
+        return None
+    c_args = list(args)
+    c_args[4] = "3"
+    c = _collected(c_args, "main")
+    script = ("import mbdk\nfor _ in range(3):\n    mbdk.solve_ode('double_pendulum', "
+              f"'cvode_bdf', t_end={t_end!r}, rtol={tol!r}, atol={tol * 1e-2!r})\n")
+    k = _collected([sys.executable, "-c", script], "__mbdk_cvode_MOD_mbdk_cvode_solve")
+    return k / c if c and k else None
+
+
 def bdf_vs_cvode(quick: bool):
     """The loosest rtol (on a grid of 10^(-k/4)) at which each reaches 1e-6 in the angles at
     t = 10 s, its least CPU time there over repeated solves; then the C yardstick at
@@ -345,7 +372,11 @@ def bdf_vs_cvode(quick: bool):
             note = (f"CPU times are the least of {20 if quick else 200} solves each (the "
                     f"kernel-driven and the C-driven CVODE in interleaved rounds). Bridge "
                     f"overhead: kernel-driven cvode_bdf / C-driven CVODE = {best_k / best_c:.3f} "
-                    f"(same steps: {rk.stats.steps == steps}). ")
+                    f"in CPU time (same steps: {rk.stats.steps == steps}); ")
+            ratio = None if quick else _instruction_ratio(args, tol, t_end)
+            note += (f"{ratio:.3f} in instructions (callgrind, three solves each, the solve "
+                     "only: the ratio a noisy machine cannot move). " if ratio else
+                     "instructions not counted (valgrind missing, or --quick). ")
         elif exe is None:
             note = f"the C yardstick was not built ({why}). "
     if "bdf" in found and "cvode_bdf" in found:

@@ -347,3 +347,51 @@ def test_ida_options_are_named():
     with pytest.raises(mbdk.TooManyStepsError):
         mbdk.simulate(sc, "ida", t_end=1.0, max_steps=5)
     assert mbdk.methods()["ida"].solves == "dae" and "ida" not in mbdk.methods("ode")
+
+
+@pytest.mark.parametrize("form, tol_q", [("i3", 2e-5), ("si2", 2e-6)])
+def test_bdf_on_the_scene_dae_as_gstiff_i3_and_si2(form, tol_q):
+    """bdf on the double pendulum's DAE itself (mbdk_scene_dae), 5 s at rtol 1e-8, against rk4
+    at h = 1e-4: the index-3 form tests the positions' error only (its velocities are index-2
+    variables), so it is the less accurate; the stabilised index-2 form keeps Phi' too. Both
+    keep the constraints at the samples (interpolated between steps) to well within the
+    watch's tolerances, and count their steps by order."""
+    sc = mbdk.scene("double_pendulum")
+    r = mbdk.simulate(sc, "bdf", formulation=form, t_end=5.0, rtol=1e-8, atol=1e-10,
+                      dt_out=0.5)
+    ref = mbdk.simulate(sc, "rk4", h=1e-4, t_end=5.0, every=5000)
+    assert r.success and np.allclose(r.t, ref.t, atol=1e-12)
+    assert np.max(np.abs(r.q - ref.q)) < tol_q
+    assert np.max(np.abs(r.residuals[:, 0])) < 1e-7
+    counts = [getattr(r.stats, f"order{k}_steps") for k in range(1, 6)]
+    assert sum(counts) == r.stats.steps and counts[4] > r.stats.steps / 2
+    assert "GSTIFF" in r.manifest["form"] and r.manifest["formulation"] == form
+
+
+@pytest.mark.parametrize("form", ["i3", "si2"])
+@pytest.mark.parametrize("k", [1, 2])
+def test_bdf_on_the_scene_dae_converges_at_low_order(form, k):
+    """Capped at order k, the DAE forms converge as their order says: a local error held at
+    tol ~ h^(k+1) leaves a global error ~ h^k ~ tol^(k/(k+1)), so 100 times tighter tolerances
+    give errors 100^(k/(k+1)) times smaller (10 for k = 1, 21.5 for k = 2; half of that is
+    asked), and the run never fails (Newton keeps the constraints, so no step-size collapse
+    after a rejection)."""
+    sc = mbdk.scene("physical_pendulum")
+    ref = mbdk.simulate(sc, "rk4", h=1e-4, t_end=2.0, every=5000)
+    errs = []
+    for tol in (1e-4, 1e-6):
+        r = mbdk.simulate(sc, "bdf", formulation=form, t_end=2.0, rtol=tol, atol=tol * 1e-2,
+                          dt_out=0.5, max_order=k)
+        assert r.success
+        errs.append(np.max(np.abs(r.q - ref.q)))
+    assert errs[1] < errs[0] / (0.5 * 100 ** (k / (k + 1)))
+
+
+def test_dae_forms_belong_to_their_methods():
+    sc = mbdk.scene("double_pendulum")
+    with pytest.raises(mbdk.InvalidInputError, match="ida runs 'ggl'"):
+        mbdk.simulate(sc, "bdf", formulation="ggl", t_end=1.0)
+    with pytest.raises(mbdk.InvalidInputError, match="bdf runs 'i3'"):
+        mbdk.simulate(sc, "ida", formulation="i3", t_end=1.0)
+    with pytest.raises(mbdk.InvalidInputError, match="bdf runs 'si2'"):
+        mbdk.simulate(sc, "dopri54", formulation="si2", t_end=1.0)

@@ -49,6 +49,12 @@ from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, RETRY_BUDGET, 
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
 IDA_FORMULATIONS = {"index1": 1, "ggl": 2}
+#: bdf on the scene's DAE (kernel/src/dae/mbdk_scene_dae.f90), as MSC Adams' GSTIFF I3 and SI2
+BDF_DAE_FORMULATIONS = {"i3": 1, "si2": 2}
+BDF_DAE_FORMS = {"i3": "index 3 (GSTIFF I3): q' = v, M v' = f - D^T lam, 0 = Phi, index-scaled "
+                       "Newton, error test on q and v",
+                 "si2": "stabilised index 2 (GSTIFF SI2, GGL): q' = v - D^T mu, "
+                        "M v' = f - D^T lam, 0 = Phi, 0 = D v + Phi_t, error test on q and v"}
 IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not kept)",
              "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = v - D^T mu, "
                     "M v' + D^T lam = f, Phi = 0, D v + Phi_t = 0"}
@@ -191,7 +197,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     step, optional), h_min, h_max, max_steps and max_order as in mbdk.solve_ode. Baumgarte's
     alpha and beta must then be given (their default, 1/h and sqrt(2)/h, needs a fixed step).
     ida integrates the scene's DAE itself (formulation "index1", the default, or "ggl") with
-    the same options.
+    the same options, and so does bdf with formulation "i3" (the index-3 form, as MSC Adams'
+    GSTIFF I3) or "si2" (the stabilised index-2 form, as its SI2).
 
     watch: what the run must keep (mbdk.watch): True for the kernel's tolerances, False to turn
     the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
@@ -209,18 +216,22 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     index3 = info_m.family == "dae_index3"
     ida = info_m.family == "ida"
     own = INDEX3_FORMULATIONS if index3 else IDA_FORMULATIONS if ida else FORMULATIONS
+    if info_m.family == "variable_bdf":
+        own = {**FORMULATIONS, **BDF_DAE_FORMULATIONS}
     if formulation is None:
         formulation = next(iter(own)) if ida else ("augmented_lagrangian" if index3
                                                    else "reduced")
     if formulation not in own:
         owners = [("the ODE methods run", FORMULATIONS),
-                  ("trapezoidal_index3 runs", INDEX3_FORMULATIONS), ("ida runs", IDA_FORMULATIONS)]
+                  ("trapezoidal_index3 runs", INDEX3_FORMULATIONS), ("ida runs", IDA_FORMULATIONS),
+                  ("bdf runs", BDF_DAE_FORMULATIONS)]
         owner = next((o for o, forms in owners if formulation in forms), None)
         if owner is None:
             raise InvalidInputError(f"formulation = {formulation!r}; known: "
                                     f"{', '.join(FORMULATIONS)} (the ODE methods), "
                                     f"{', '.join(INDEX3_FORMULATIONS)} (trapezoidal_index3), "
-                                    f"{', '.join(IDA_FORMULATIONS)} (ida)")
+                                    f"{', '.join(IDA_FORMULATIONS)} (ida), "
+                                    f"{', '.join(BDF_DAE_FORMULATIONS)} (bdf on the DAE)")
         raise InvalidInputError(
             f"method {method!r} with formulation {formulation!r}: {owner} {formulation!r}; "
             f"{method} runs the formulations {', '.join(own)} and only those")
@@ -262,16 +273,19 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                                     "error-controlled method with rtol and atol)")
         check_run(h, t_end, t0, every)
     every = int(every)
-    if ida:
+    dae_bdf = info_m.family == "variable_bdf" and formulation in BDF_DAE_FORMULATIONS
+    if ida or dae_bdf:
         # the DAE itself: the model only evaluates (forces, Phi, D, gamma) and gives the
         # consistent initial multipliers by its reduced solve
+        forms, about = (IDA_FORMULATIONS, IDA_FORMS) if ida else (BDF_DAE_FORMULATIONS,
+                                                                  BDF_DAE_FORMS)
         plan_ = _ode_plan(info_m, "reduced", h if h else 1.0, t_end, t0, 1, None, None, penalty,
                           projection_tol, startup, newton_rtol, newton_atol,
                           adaptive=dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0,
                                         h_min=h_min or 0.0, h_max=h_max or 0.0,
                                         max_steps=max_steps or 0, max_order=max_order or 0))
-        plan_["index3"] = Index3Options(formulation=IDA_FORMULATIONS[formulation])
-        plan_["manifest"]["form"] = IDA_FORMS[formulation]
+        plan_["index3"] = Index3Options(formulation=forms[formulation])
+        plan_["manifest"]["form"] = about[formulation]
         mopt = model_options("reduced", 0.0, 0.0, penalty, projection_tol, solver, small_dense)
     elif info_m.adaptive:
         if formulation == "projection" and info_m.family == "cvode":
@@ -486,7 +500,8 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
         manifest.update(alpha_p=penalty[0], omega_p=penalty[1], mu_p=penalty[2])
     if formulation == "projection":
         manifest.update(projection_tol=projection_tol)
-    return {"ode": ode, "index3": Index3Options(), "nsamp": nsamp, "steps": nsteps,
+    # formulation 0: an ODE formulation (the DAE options carry the DAE forms of ida and bdf)
+    return {"ode": ode, "index3": Index3Options(formulation=0), "nsamp": nsamp, "steps": nsteps,
             "manifest": manifest, "alpha": alpha, "beta": beta}
 
 

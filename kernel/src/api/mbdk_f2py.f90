@@ -282,7 +282,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_FAMILY_IDA, &
-    MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_VARIABLE_BDF, MBDK_METHOD_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
@@ -380,16 +380,18 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
                            lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
-  else if (family == MBDK_FAMILY_IDA) then
-    ! ida integrates the DAE itself; its form (1 index1, 2 ggl) travels in the DAE options'
-    ! formulation field, its tolerances in the ODE options
+  else if (family == MBDK_FAMILY_IDA .or. (family == MBDK_FAMILY_VARIABLE_BDF .and. &
+                                             transfer_formulation(i3buf) > 0)) then
+    ! ida, or bdf, on the DAE itself; the form (ida: 1 index1, 2 ggl; bdf: 1 i3, 2 si2) travels
+    ! in the DAE options' formulation field (0 for an ODE formulation), the tolerances in the
+    ! ODE options
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     i3 = transfer(i3buf, i3)
     status = MBDK_ERR_INVALID_INPUT
     if (i3%formulation /= 1 .and. i3%formulation /= 2) return
-    call mbdk_solve_scene_dae(model, opt, i3%formulation == 2, t0, t_end, ys, t_out, y_out, &
+    call mbdk_solve_scene_dae(model, opt, int(i3%formulation), t0, t_end, ys, t_out, y_out, &
                               lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
@@ -424,6 +426,16 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
                     w%scale]
   end associate
+
+contains
+
+  !> The formulation field of the DAE options' bytes (0 where an ODE formulation runs).
+  integer function transfer_formulation(buf) result(form)
+    double precision, intent(in) :: buf(:)
+    type(mbdk_index3_options_t) :: o
+    o = transfer(buf, o)
+    form = int(o%formulation)
+  end function transfer_formulation
 
 end subroutine scene_run
 

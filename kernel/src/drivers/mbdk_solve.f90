@@ -7,8 +7,9 @@
 !> For an error-controlled method this routine checks the options and atol, writes the sample
 !> times into t_out and the first sample, starts a watching problem's watch at t0, and times the
 !> solve (the thread's CPU time and the wall time in st); the method writes samples 2, 3, ...
-!> mbdk_solve_scene_dae does the same for ida, which integrates a scene's DAE itself (a method
-!> of the scene model, not of y' = F(t, y): mbdk_solve_ode refuses it, MBDK_ERR_NOT_APPLICABLE).
+!> mbdk_solve_scene_dae does the same for ida and for bdf on a scene's DAE itself (ida is a
+!> method of the scene model only, not of y' = F(t, y): mbdk_solve_ode refuses it,
+!> MBDK_ERR_NOT_APPLICABLE).
 module mbdk_solve
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -24,8 +25,9 @@ module mbdk_solve
   use mbdk_embedded_rk, only: mbdk_embedded_rk_solve
   use mbdk_variable_bdf, only: mbdk_variable_bdf_solve
   use mbdk_cvode, only: mbdk_cvode_solve
-  use mbdk_model, only: mbdk_model_t
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_FORM_REDUCED
   use mbdk_ida, only: mbdk_ida_solve
+  use mbdk_scene_dae, only: mbdk_scene_dae_t, mbdk_scene_dae_init, MBDK_DAE_I3
   implicit none
   private
   public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae
@@ -107,14 +109,16 @@ contains
     call mbdk_timer_stop(timer, st)
   end subroutine mbdk_solve_ode
 
-  !> ida on a scene model: y0 = [q0; v0] consistent (assembled), samples [q; v] in y_out and
-  !> the multipliers in lam_out (m rows; columns as far as it has them). ggl: the stabilised
-  !> index-2 form, else index 1 (mbdk_ida's header).
-  subroutine mbdk_solve_scene_dae(model, opt, ggl, t0, t_end, y0, t_out, y_out, lam_out, &
+  !> A scene's DAE itself (mbdk_scene_dae, mbdk_ida): ida in form 1 (index 1) or 2 (GGL), or
+  !> bdf in form 1 (index 3, as GSTIFF I3) or 2 (stabilised index 2, as SI2). y0 = [q0; v0]
+  !> consistent (assembled); samples [q; v] in y_out and the multipliers in lam_out (m rows;
+  !> the columns it has). The model must be built with the reduced formulation, whose solve
+  !> gives the consistent initial accelerations and multipliers.
+  subroutine mbdk_solve_scene_dae(model, opt, form, t0, t_end, y0, t_out, y_out, lam_out, &
                                   nwritten, st, stat)
     type(mbdk_model_t), intent(in), target :: model
     type(mbdk_options_t), intent(in) :: opt
-    logical, intent(in) :: ggl
+    integer, intent(in) :: form
     real(dp), intent(in) :: t0, t_end, y0(:)
     real(dp), intent(out) :: t_out(:), y_out(:, :)
     real(dp), intent(inout) :: lam_out(:, :)
@@ -128,14 +132,60 @@ contains
     nwritten = 0
     call mbdk_method_info(opt%method, name, family, order)
     stat = MBDK_ERR_NOT_APPLICABLE
-    if (family /= MBDK_FAMILY_IDA) return
+    if (family /= MBDK_FAMILY_IDA .and. family /= MBDK_FAMILY_VARIABLE_BDF) return
     stat = MBDK_ERR_INVALID_INPUT
+    if (form /= 1 .and. form /= 2) return
     if (opt%max_order > max_order_of(family, order)) return
     call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
     if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
-    call mbdk_ida_solve(model, opt, ggl, t0, y0, t_out(1:nsamp), y_out, lam_out, nwritten, st, &
-                        stat)
+    if (family == MBDK_FAMILY_IDA) then
+      call mbdk_ida_solve(model, opt, form == 2, t0, y0, t_out(1:nsamp), y_out, lam_out, &
+                          nwritten, st, stat)
+    else
+      call bdf_on_dae(stat)
+    end if
     call mbdk_timer_stop(timer, st)
+
+  contains
+
+    !> bdf on E Y' = G(t, Y) of mbdk_scene_dae, from the consistent Y(0) and Y'(0) of the
+    !> reduced solve; [q; v] and the multipliers copied out of the DAE's samples.
+    subroutine bdf_on_dae(s)
+      integer, intent(out) :: s
+      type(mbdk_scene_dae_t) :: dae
+      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), a0(:), lam0(:)
+      integer :: nc, m, k
+      nc = model%nc
+      m = model%m
+      if (model%formulation /= MBDK_FORM_REDUCED) then
+        s = MBDK_ERR_NOT_APPLICABLE
+        return
+      end if
+      call mbdk_scene_dae_init(dae, model, form, mass, s)
+      if (s /= MBDK_SUCCESS) return
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m))
+      call mbdk_model_accelerations(model, t0, y0(1:nc), y0(nc + 1:), a0, lam0, s)
+      if (s /= MBDK_SUCCESS) return
+      yd = 0.0_dp
+      yd(1:2 * nc) = y0
+      yd(2 * nc + 1:2 * nc + m) = lam0
+      ypd = 0.0_dp
+      ypd(1:nc) = y0(nc + 1:)
+      ypd(nc + 1:2 * nc) = a0
+      ys(:, 1) = yd
+      ! the index-3 form's velocities are index-2 variables: after a rejection their correction
+      ! grows like 1/h (the rescaled history misses the constraint by O(h_old^(q+1))), and an
+      ! error test on them drives h to zero; i3 tests the positions (as index-3 codes do),
+      ! si2, whose velocities are constrained themselves, both
+      call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
+                                   st, s, mass=mass, yp0=ypd, &
+                                   ntest=merge(nc, 2 * nc, form == MBDK_DAE_I3))
+      do k = 1, nwritten
+        y_out(:, k) = ys(1:2 * nc, k)
+        if (k <= size(lam_out, 2)) lam_out(:, k) = ys(2 * nc + 1:2 * nc + m, k)
+      end do
+    end subroutine bdf_on_dae
+
   end subroutine mbdk_solve_scene_dae
 
   !> The largest max_order a method takes: its top order for the variable-order ones (bdf,

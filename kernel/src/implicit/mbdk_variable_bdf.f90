@@ -42,6 +42,20 @@
 !> opt%max_order (1..5; 0 = 5) caps the order. Statistics: steps at each order
 !> (order1_steps .. order5_steps), rejected steps, Newton failures and iterations, nfev, njev, nlu.
 !> A projection (has_post_step) after a step enters the history as part of the correction d.
+!>
+!> DAE. Given mass (the diagonal of E), yp0 and ntest, bdf integrates E y' = F(t, y), a scene's
+!> equations of motion themselves (mbdk_scene_dae: the index-3 form as MSC Adams' GSTIFF I3,
+!> or the stabilised index-2 form as its SI2). The corrector becomes c F - E (psi + d) = 0 with
+!> the matrix E - c J; the algebraic rows (E_ii = 0) are divided by c and the algebraic
+!> unknowns scaled by c, so that the matrix stays O(1) as h shrinks instead of growing like
+!> 1/h^2 (the index scaling of GSTIFF I3). The error test and Newton's norm see the first
+!> ntest components only (the caller's choice: positions, or positions and velocities; the
+!> multipliers are algebraic and their local error an order or two lower), and Newton stops at
+!> a thousandth of the error test (not a tenth) judged by this step's own contraction rate: the
+!> constraints hold only as far as Newton converged, and a leftover returns in the next
+!> predictor as a correction that no smaller step removes, which stalled the error test after
+!> a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
+!> differences (N + 1 evaluations of F).
 module mbdk_variable_bdf
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -67,12 +81,20 @@ module mbdk_variable_bdf
   !> Newton stops when its remaining error is this fraction of what the error test accepts
   !> (CVODE's nlscoef)
   real(dp), parameter :: NEWTON_SHARE = 0.1_dp
+  !> a DAE's: its constraints hold only as far as Newton converged, and what is left over is in
+  !> the next step's predictor, a correction that does not shrink with h; at a tenth of the
+  !> error test it stalled the stabilised index-2 form's error test after a rejection
+  real(dp), parameter :: NEWTON_SHARE_DAE = 1.0e-3_dp
 
 contains
 
   !> See the module header; called by mbdk_solve_ode, which has checked the options, written
   !> sample 1 (nwritten = 1) and the sample times t_out.
-  subroutine mbdk_variable_bdf_solve(prob, opt, t0, y0, atol, t_out, y_out, nwritten, st, stat)
+  !> A DAE E y' = F(t, y) with E = diag(mass) (mbdk_scene_dae): mass, yp0 (a consistent y'(0))
+  !> and ntest (the leading components the error test sees) are given together; the module
+  !> header's section "DAE" says what changes.
+  subroutine mbdk_variable_bdf_solve(prob, opt, t0, y0, atol, t_out, y_out, nwritten, st, stat, &
+                                     mass, yp0, ntest)
     class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, y0(:), atol(:), t_out(:)
@@ -80,6 +102,8 @@ contains
     integer, intent(inout) :: nwritten
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
+    real(dp), intent(in), optional :: mass(:), yp0(:)
+    integer, intent(in), optional :: ntest
 
     integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
     integer(i8) :: tries, limit
@@ -87,6 +111,11 @@ contains
     real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
     real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
     real(dp), allocatable :: d(:, :), yp(:), psi(:), ynew(:), corr(:), w(:), f(:), dy(:)
+    real(dp), allocatable :: em(:)
+    logical, allocatable :: alg(:)
+    logical :: dae
+    integer :: nt
+    real(dp) :: d0, d1
     type(mbdk_newton_work_t) :: nw
 
     n = size(y0)
@@ -106,17 +135,42 @@ contains
     end do
 
     allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n))
+    allocate (em(n), alg(n))
+    dae = present(mass) .and. present(yp0) .and. present(ntest)
+    em = 1.0_dp
+    nt = n
+    if (dae) then
+      stat = MBDK_ERR_INVALID_INPUT
+      if (size(mass) /= n .or. size(yp0) /= n .or. ntest < 1 .or. ntest > n) return
+      em = mass
+      nt = ntest
+    end if
+    alg = em == 0.0_dp
     call mbdk_newton_work_init(nw, n)
     t = t0
     d = 0.0_dp
     d(:, 0) = y0
-    call prob%rhs(t, y0, f, stat)
-    st%nfev = st%nfev + 1
-    if (stat /= MBDK_SUCCESS) return
-    call mbdk_adaptive_initial_step(prob, opt, atol, 1, t0, t_end - t0, y0, f, h, st%nfev, stat)
-    if (stat /= MBDK_SUCCESS) return
     hmax = t_end - t0
     if (opt%h_max > 0.0_dp) hmax = min(hmax, opt%h_max)
+    if (dae) then
+      ! the slope is given; the explicit-Euler probe of the ODE guess means nothing for the
+      ! algebraic rows, so the first step is 1 % of the time |y|/|y'| takes (Hairer's h0)
+      f = yp0
+      call weights(y0)
+      d0 = mbdk_adaptive_wrms(y0, w)
+      d1 = mbdk_adaptive_wrms(f, w)
+      h = 1.0e-6_dp
+      if (d0 >= 1.0e-5_dp .and. d1 >= 1.0e-5_dp) h = 0.01_dp * d0 / d1
+      if (opt%h > 0.0_dp) h = opt%h
+      h = min(max(h, opt%h_min), hmax)
+    else
+      call prob%rhs(t, y0, f, stat)
+      st%nfev = st%nfev + 1
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_adaptive_initial_step(prob, opt, atol, 1, t0, t_end - t0, y0, f, h, st%nfev, &
+                                      stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     h = min(h, hmax)
     d(:, 1) = h * f
     q = 1
@@ -164,7 +218,8 @@ contains
         psi = psi / gam(q)
         c = h / gam(q)
         tol = NEWTON_SHARE / errc(q)
-        call mbdk_adaptive_weights(opt, atol, yp, w)
+        if (dae) tol = NEWTON_SHARE_DAE / errc(q)
+        call weights(yp)
         do
           if (.not. have_lu .or. abs(c - c_lu) > C_CHANGE * c_lu) then
             call factor_matrix(stat)
@@ -185,7 +240,7 @@ contains
           cycle step
         end if
         safety = 0.9_dp * real(2 * NEWTON_MAX_ITER + 1, dp) / real(2 * NEWTON_MAX_ITER + iters, dp)
-        call mbdk_adaptive_weights(opt, atol, ynew, w)
+        call weights(ynew)
         err = mbdk_adaptive_wrms(errc(q) * corr, w)
         if (err > 1.0_dp) then
           st%rejected_steps = st%rejected_steps + 1
@@ -260,8 +315,18 @@ contains
       integer :: ii
       nw%lu = -c * nw%jac
       do ii = 1, n
-        nw%lu(ii, ii) = nw%lu(ii, ii) + 1.0_dp
+        nw%lu(ii, ii) = nw%lu(ii, ii) + em(ii)
       end do
+      if (dae) then
+        ! index scaling: the algebraic rows divided by c, the algebraic unknowns multiplied by
+        ! it (the solve returns c dy there), so the matrix stays O(1) as h -> 0 (GSTIFF I3)
+        do ii = 1, n
+          if (alg(ii)) then
+            nw%lu(ii, :) = nw%lu(ii, :) / c
+            nw%lu(:, ii) = nw%lu(:, ii) / c
+          end if
+        end do
+      end if
       call mbdk_lu_factor(nw%lu, nw%ipiv, s)
       st%nlu = st%nlu + 1
       have_lu = s == MBDK_SUCCESS
@@ -275,6 +340,7 @@ contains
       integer :: it
       real(dp) :: dnorm, dnorm_old, rate
       converged = .false.
+      rate = 1.0_dp
       corr = 0.0_dp
       ynew = yp
       dnorm_old = -1.0_dp
@@ -285,9 +351,11 @@ contains
         st%nfev = st%nfev + 1
         if (s /= MBDK_SUCCESS) return
         if (.not. all(abs(f) <= huge(1.0_dp))) exit
-        dy = c * f - psi - corr
+        dy = c * f - em * (psi + corr)
+        if (dae) where (alg) dy = f      ! the row divided by c
         call mbdk_lu_solve(nw%lu, nw%ipiv, dy, s)
         if (s /= MBDK_SUCCESS) return
+        if (dae) where (alg) dy = dy / c
         iters = it
         st%newton_iterations = st%newton_iterations + 1
         dnorm = mbdk_adaptive_wrms(dy, w)
@@ -300,13 +368,27 @@ contains
         end if
         ynew = ynew + dy
         corr = corr + dy
-        if (dnorm * min(1.0_dp, crate) < tol) then
+        ! a DAE trusts only this step's own rate: a remembered small one would accept a first
+        ! iterate that leaves the constraints unmet, and the leftover returns in the next
+        ! predictor as a correction that no smaller step removes
+        if (dnorm * min(1.0_dp, merge(rate, crate, dae .and. it == 1)) < tol) then
           converged = .true.
           exit
         end if
         dnorm_old = dnorm
       end do
     end subroutine corrector
+
+    !> The error weights at yy; a DAE's untested components (the multipliers) get weight 0 and
+    !> the norm stays the mean over the tested ones.
+    subroutine weights(yy)
+      real(dp), intent(in) :: yy(:)
+      call mbdk_adaptive_weights(opt, atol, yy, w)
+      if (nt < n) then
+        w(nt + 1:) = 0.0_dp
+        w = w * sqrt(real(n, dp) / real(nt, dp))
+      end if
+    end subroutine weights
 
     !> h <- r h: the differences re-interpolated onto the new grid, D <- (R(r) U)^T D.
     subroutine rescale(r)
