@@ -364,7 +364,7 @@ def test_bdf_on_the_scene_dae_as_gstiff_i3_and_si2(form, tol_q):
     assert np.max(np.abs(r.q - ref.q)) < tol_q
     assert np.max(np.abs(r.residuals[:, 0])) < 1e-7
     counts = [getattr(r.stats, f"order{k}_steps") for k in range(1, 6)]
-    assert sum(counts) == r.stats.steps and counts[4] > r.stats.steps / 2
+    assert sum(counts) == r.stats.steps and counts[4] > r.stats.steps / 4
     assert "GSTIFF" in r.manifest["form"] and r.manifest["formulation"] == form
 
 
@@ -385,6 +385,64 @@ def test_bdf_on_the_scene_dae_converges_at_low_order(form, k):
         assert r.success
         errs.append(np.max(np.abs(r.q - ref.q)))
     assert errs[1] < errs[0] / (0.5 * 100 ** (k / (k + 1)))
+
+
+def _driven_pendulum():
+    from mbdk.scene import Joint
+    sc = mbdk.scene("physical_pendulum")
+    bar = sc.bodies[0]
+    sc.joints.append(Joint("drive", "driver", bar.name, coordinate="angle",
+                           function=(bar.angle, 2.0, 0.0, 0.0, 0.0)))
+    for b in sc.bodies:
+        b.given = ()
+    return sc
+
+
+def test_bdf_i3_velocities_follow_the_tolerance_and_si2_keeps_them():
+    """A bar driven at 2 rad/s about its hinge: the velocity constraint D v + Phi_t = 0 at
+    every millisecond. The index-3 form tests h times the velocities' error (index 2), so its
+    velocities are the looser (worst in the first, order-1 steps) but converge with the
+    tolerance; the stabilised index-2 form solves for them."""
+    sc = _driven_pendulum()
+    kw = dict(t_end=1.0, dt_out=1e-3)
+    res = {}
+    for form in ("i3", "si2"):
+        for tol in (1e-6, 1e-8):
+            r = mbdk.simulate(sc, "bdf", formulation=form, rtol=tol, atol=tol * 1e-2, **kw)
+            assert r.success and np.allclose(r.v[:, 2], 2.0, atol=1e-9)
+            res[form, tol] = np.max(np.abs(r.residuals[:, 1]))
+    assert res["i3", 1e-8] < res["i3", 1e-6] / 50 and res["i3", 1e-6] < 1e-2
+    assert res["si2", 1e-6] < 1e-6 and res["si2", 1e-8] < 1e-8
+
+
+@pytest.mark.parametrize("method, form", [("ida", "index1"), ("ida", "ggl"), ("bdf", "i3"),
+                                          ("bdf", "si2")])
+def test_dae_multipliers_are_the_integrators_own(method, form):
+    """The multipliers a DAE run returns are its own unknowns at the samples, not a reduced
+    solve at the sampled state: they differ from it (by the integrator's error, not by zero)
+    and agree with it to that error."""
+    sc = mbdk.scene("double_pendulum")
+    r = mbdk.simulate(sc, method, formulation=form, t_end=2.0, rtol=1e-8, atol=1e-10,
+                      dt_out=0.25)
+    reduced = np.array([mbdk.evaluate(sc, q, v, t)["lam"] for q, v, t in zip(r.q, r.v, r.t)])
+    diff = np.max(np.abs(r.multipliers[1:] - reduced[1:]))
+    assert 0.0 < diff < 1e-3 * np.max(np.abs(reduced))
+
+
+@pytest.mark.parametrize("method, form", [("ida", "ggl"), ("bdf", "si2"), ("bdf", "i3")])
+def test_dae_forms_refuse_an_inconsistent_start_and_options_they_do_not_read(method, form):
+    sc = mbdk.scene("double_pendulum")
+    sc.bodies[1].x += 1e-4
+    with pytest.raises(mbdk.InvalidInputError, match="does not satisfy the constraints"):
+        mbdk.simulate(sc, method, formulation=form, t_end=1.0, assemble_initial=False)
+    sc = mbdk.scene("double_pendulum")
+    with pytest.raises(mbdk.InvalidInputError, match="alpha"):
+        mbdk.simulate(sc, method, formulation=form, t_end=1.0, alpha=5.0)
+    with pytest.raises(mbdk.InvalidInputError, match="newton_rtol"):
+        mbdk.simulate(sc, method, formulation=form, t_end=1.0, newton_rtol=1e-9)
+    with pytest.raises(mbdk.RedundantConstraintsError, match="trapezoidal_index3"):
+        mbdk.simulate(mbdk.scene("parallelogram_redundant"), method, formulation=form,
+                      t_end=1.0)
 
 
 def test_dae_forms_belong_to_their_methods():

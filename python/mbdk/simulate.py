@@ -52,7 +52,7 @@ IDA_FORMULATIONS = {"index1": 1, "ggl": 2}
 #: bdf on the scene's DAE (kernel/src/dae/mbdk_scene_dae.f90), as MSC Adams' GSTIFF I3 and SI2
 BDF_DAE_FORMULATIONS = {"i3": 1, "si2": 2}
 BDF_DAE_FORMS = {"i3": "index 3 (GSTIFF I3): q' = v, M v' = f - D^T lam, 0 = Phi, index-scaled "
-                       "Newton, error test on q and v",
+                       "Newton, error test on q and on h times v (index 2)",
                  "si2": "stabilised index 2 (GSTIFF SI2, GGL): q' = v - D^T mu, "
                         "M v' = f - D^T lam, 0 = Phi, 0 = D v + Phi_t, error test on q and v"}
 IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not kept)",
@@ -274,7 +274,20 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         check_run(h, t_end, t0, every)
     every = int(every)
     dae_bdf = info_m.family == "variable_bdf" and formulation in BDF_DAE_FORMULATIONS
+    dae_form = (IDA_FORMULATIONS.get(formulation, 0) if ida else
+                BDF_DAE_FORMULATIONS.get(formulation, 0) if dae_bdf else 0)
     if ida or dae_bdf:
+        unused = [name for name, given in (("alpha", alpha is not None),
+                                           ("beta", beta is not None),
+                                           ("penalty", tuple(penalty) != (1e7, 10.0, 1.0)),
+                                           ("projection_tol", projection_tol != 1e-12),
+                                           ("startup", startup != "rk4"),
+                                           ("newton_rtol", newton_rtol is not None),
+                                           ("newton_atol", newton_atol is not None)) if given]
+        if unused:
+            raise InvalidInputError(
+                f"{', '.join(unused)}: not options of {method} on the DAE itself (formulation "
+                f"{formulation!r}); its Newton iteration follows rtol and atol")
         # the DAE itself: the model only evaluates (forces, Phi, D, gamma) and gives the
         # consistent initial multipliers by its reduced solve
         forms, about = (IDA_FORMULATIONS, IDA_FORMS) if ida else (BDF_DAE_FORMULATIONS,
@@ -284,8 +297,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                           adaptive=dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0,
                                         h_min=h_min or 0.0, h_max=h_max or 0.0,
                                         max_steps=max_steps or 0, max_order=max_order or 0))
-        plan_["index3"] = Index3Options(formulation=forms[formulation])
         plan_["manifest"]["form"] = about[formulation]
+        plan_["manifest"].pop("newton", None)   # no Newton option of its own
         mopt = model_options("reduced", 0.0, 0.0, penalty, projection_tol, solver, small_dense)
     elif info_m.adaptive:
         if formulation == "projection" and info_m.family == "cvode":
@@ -331,7 +344,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     nsamp, nc, m = plan_["nsamp"], tab.nc, tab.m
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
-        return nsamp if (want & bit) or index3 else 1
+        return nsamp if (want & bit) or index3 or (dae_form and bit == 2) else 1
     a_out = np.zeros((nc, cols(1)), order="F")
     lam_out = np.zeros((max(m, 1), cols(2)), order="F")
     iters = np.zeros(nsamp if index3 else 1, np.int32)
@@ -339,7 +352,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
     resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
-    args = (*tab.args(), mopt.pack(), info_m.id, plan_["ode"].pack(), plan_["index3"].pack(),
+    args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
+            plan_["index3"].pack(),
             flag, y0, given_mask(scene), int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
     (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
@@ -349,6 +363,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     nw = int(nw)
     if bad_joint or bad_force:
         raise pose_error(scene, int(bad_joint), int(bad_force))
+    if status == Status.ERR_INCONSISTENT_INITIAL and dae_form and (nw or not assemble_initial):
+        raise InvalidInputError(
+            f"{method}/{formulation} on scene {scene.name!r}: the initial state does not satisfy "
+            "the constraints (Phi = 0, D v + Phi_t = 0) to 1e-10, which the DAE forms need: keep "
+            "assemble_initial=True, or give a consistent pose and velocities",
+            status=status)
     if status == Status.ERR_INCONSISTENT_INITIAL:
         raise assembly_error(scene, tab, asm_resid, velocity=bool(asm_velocity))
     # the first sample is the (assembled) initial state
@@ -397,7 +417,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 from .model import assemble
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
         _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
-                          result)
+                          result, dae=bool(dae_form))
     if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(watch_report, tab.rows)
         advice = _DRIFT_ADVICE[status]
@@ -500,8 +520,7 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
         manifest.update(alpha_p=penalty[0], omega_p=penalty[1], mu_p=penalty[2])
     if formulation == "projection":
         manifest.update(projection_tol=projection_tol)
-    # formulation 0: an ODE formulation (the DAE options carry the DAE forms of ida and bdf)
-    return {"ode": ode, "index3": Index3Options(formulation=0), "nsamp": nsamp, "steps": nsteps,
+    return {"ode": ode, "index3": Index3Options(), "nsamp": nsamp, "steps": nsteps,
             "manifest": manifest, "alpha": alpha, "beta": beta}
 
 
@@ -581,7 +600,7 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
             "adaptive": adaptive}
 
 
-def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
+def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result, dae=False):
     """A singular solve at the initial state: name the dependent joints, if any."""
     d0 = scaled_jacobian(tab, _evaluate(tab, q0, v0, t0)["D"])
     dep = dependent_rows(d0)
@@ -594,6 +613,10 @@ def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result):
         what = ("the book scheme's Newton matrix [M + .., D^T; D, 0] is singular. Use "
                 "formulation = 'augmented_lagrangian', which runs redundant joints, remove the "
                 "redundant joint, or use an ODE method with formulation = 'penalty'")
+    elif dae:
+        what = (f"so the {formulation} form of the DAE has no unique multipliers. Remove the "
+                "redundant joint, or use trapezoidal_index3 (augmented_lagrangian) or an ODE "
+                "method with formulation = 'penalty', which run redundant joints")
     else:
         what = (f"so the {formulation} formulation has no unique multipliers. Remove the "
                 "redundant joint or use formulation = 'penalty', which handles it")

@@ -257,7 +257,7 @@ end subroutine build_info
 ! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
 
 subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
-                     method_id, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, given, assemble, &
+                     method_id, dae_form, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, given, assemble, &
                      t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
                      a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
                      nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
@@ -267,8 +267,10 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   ! coordinates whose given(:) is 0 move; asm_iters corrections; on failure,
   ! MBDK_ERR_INCONSISTENT_INITIAL, asm_resid holds the residual rows, of the velocities when
   ! asm_velocity /= 0) and the pose defaults taken again at the assembled
-  ! pose; then the method integrates it (a fixed-step ODE method on the model's formulation, or
-  ! trapezoidal_index3 with its own options) from the assembled state (the first sample), and the
+  ! pose; then the method integrates it (an ODE method on the model's formulation,
+  ! trapezoidal_index3 with its own options, or, with dae_form 1 or 2, ida or bdf on the scene's
+  ! DAE: ida 1 index1, 2 ggl; bdf 1 i3, 2 si2; 0 otherwise) from the assembled state (the first
+  ! sample), and the
   ! outputs asked for (want: MBDK_OUT_* bits of mbdk_model) are computed at the samples in the
   ! same call. bad_joint, bad_force: the element a pose default failed on (1-based), else 0. An output array not asked for may
   ! have one column; trapezoidal_index3 writes a_out, lam_out and iters_out whatever want says
@@ -291,7 +293,8 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
   use mbdk_assembly, only: mbdk_model_start
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, noptw, ni3w, n, want, nsamp
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want
+  integer, intent(in) :: nsamp
   integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1)
   integer, intent(in) :: bkind(nb)
@@ -333,7 +336,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   type(mbdk_stats_t) :: st
   character(len=MBDK_METHOD_NAME_LEN) :: name
   integer :: family, order, m, k, ostat
-  logical :: index3
+  logical :: index3, dae
   double precision :: nan
   double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
   double precision, allocatable :: ys(:)
@@ -356,6 +359,10 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   if (want < 0 .or. want > MBDK_OUT_ALL .or. nvis /= MBDK_VISIT_COUNT) return
   call mbdk_method_info(method_id, name, family, order)
   index3 = family == MBDK_FAMILY_DAE_INDEX3
+  ! ida always, bdf with a DAE form: the scene's DAE itself, its own multipliers
+  dae = family == MBDK_FAMILY_IDA .or. (family == MBDK_FAMILY_VARIABLE_BDF .and. dae_form > 0)
+  if (dae .and. dae_form /= 1 .and. dae_form /= 2) return
+  if (family == MBDK_FAMILY_IDA .and. dae_form == 0) return
   mopt = transfer(mobuf, mopt)
   ys = y0
   call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
@@ -380,18 +387,12 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
                            lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
-  else if (family == MBDK_FAMILY_IDA .or. (family == MBDK_FAMILY_VARIABLE_BDF .and. &
-                                             transfer_formulation(i3buf) > 0)) then
-    ! ida, or bdf, on the DAE itself; the form (ida: 1 index1, 2 ggl; bdf: 1 i3, 2 si2) travels
-    ! in the DAE options' formulation field (0 for an ODE formulation), the tolerances in the
-    ! ODE options
+  else if (dae) then
+    ! ida, or bdf, on the DAE itself, in form dae_form (ida: 1 index1, 2 ggl; bdf: 1 i3, 2 si2)
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    i3 = transfer(i3buf, i3)
-    status = MBDK_ERR_INVALID_INPUT
-    if (i3%formulation /= 1 .and. i3%formulation /= 2) return
-    call mbdk_solve_scene_dae(model, opt, int(i3%formulation), t0, t_end, ys, t_out, y_out, &
+    call mbdk_solve_scene_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
                               lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
@@ -414,7 +415,10 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
         a_s = nan; lam_s = nan; reac_s = nan; en_s = nan; res_s = nan
       end if
       if (.not. index3 .and. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) a_out(:, k) = a_s
-      if (.not. index3 .and. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) lam_out(1:m, k) = lam_s
+      ! a DAE integrator's multipliers are its own (like trapezoidal_index3's); the reactions
+      ! come from the model's solve at the sampled state
+      if (.not. (index3 .or. dae) .and. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) &
+        lam_out(1:m, k) = lam_s
       if (iand(want, MBDK_OUT_REACTIONS) /= 0) reac(:, 1:nj, k) = reac_s(:, 1:nj)
       if (iand(want, MBDK_OUT_ENERGY) /= 0) energy(:, k) = en_s
       if (iand(want, MBDK_OUT_RESIDUALS) /= 0) resid(:, k) = res_s
@@ -426,16 +430,6 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
                     w%scale]
   end associate
-
-contains
-
-  !> The formulation field of the DAE options' bytes (0 where an ODE formulation runs).
-  integer function transfer_formulation(buf) result(form)
-    double precision, intent(in) :: buf(:)
-    type(mbdk_index3_options_t) :: o
-    o = transfer(buf, o)
-    form = int(o%formulation)
-  end function transfer_formulation
 
 end subroutine scene_run
 

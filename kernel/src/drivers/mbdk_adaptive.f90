@@ -26,12 +26,13 @@ module mbdk_adaptive
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
   private
   public :: mbdk_adaptive_plan, mbdk_adaptive_times, mbdk_adaptive_check, mbdk_adaptive_weights, &
     mbdk_adaptive_after_step, mbdk_adaptive_step_limit, mbdk_adaptive_wrms, &
-    mbdk_adaptive_initial_step, mbdk_adaptive_h_floor
+    mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
 
   !> the default of opt%max_steps
   integer(i8), parameter, public :: MBDK_ADAPTIVE_MAX_STEPS = 100000000_i8
@@ -180,6 +181,24 @@ contains
     end if
     mbdk_adaptive_h_floor = max(opt%h_min, mbdk_adaptive_h_floor)
   end function mbdk_adaptive_h_floor
+
+  !> One accepted step of order q in the statistics (orders above 5, Adams', in order5_steps).
+  pure subroutine mbdk_adaptive_count_order(st, q)
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(in) :: q
+    select case (q)
+    case (:1)
+      st%order1_steps = st%order1_steps + 1
+    case (2)
+      st%order2_steps = st%order2_steps + 1
+    case (3)
+      st%order3_steps = st%order3_steps + 1
+    case (4)
+      st%order4_steps = st%order4_steps + 1
+    case default
+      st%order5_steps = st%order5_steps + 1
+    end select
+  end subroutine mbdk_adaptive_count_order
 
   !> After an accepted step to (t, y): projection (projected = .true. when post_step ran), the
   !> finite check and the watch (sample: a sample time fell in this step).

@@ -25,12 +25,17 @@ module mbdk_solve
   use mbdk_embedded_rk, only: mbdk_embedded_rk_solve
   use mbdk_variable_bdf, only: mbdk_variable_bdf_solve
   use mbdk_cvode, only: mbdk_cvode_solve
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_FORM_REDUCED
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, mbdk_model_constraints, &
+    MBDK_FORM_REDUCED
   use mbdk_ida, only: mbdk_ida_solve
   use mbdk_scene_dae, only: mbdk_scene_dae_t, mbdk_scene_dae_init, MBDK_DAE_I3
   implicit none
   private
   public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae
+
+  !> bdf on a scene's DAE: |Phi(q0)| and |D v0 + Phi_t| (per unit of |v0|) a consistent start
+  !> keeps; the assembly of mbdk_model_start reaches 1e-12
+  real(dp), parameter :: CONSISTENT_PHI = 1.0e-10_dp
 
 contains
 
@@ -153,7 +158,8 @@ contains
     subroutine bdf_on_dae(s)
       integer, intent(out) :: s
       type(mbdk_scene_dae_t) :: dae
-      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), a0(:), lam0(:)
+      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), a0(:), lam0(:), ypd_check(:)
+      real(dp), allocatable :: phi0(:), d0(:, :), gam0(:), phit0(:)
       integer :: nc, m, k
       nc = model%nc
       m = model%m
@@ -163,7 +169,8 @@ contains
       end if
       call mbdk_scene_dae_init(dae, model, form, mass, s)
       if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m))
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m), ypd_check(dae%n))
+      allocate (phi0(m), d0(m, nc), gam0(m), phit0(m))
       call mbdk_model_accelerations(model, t0, y0(1:nc), y0(nc + 1:), a0, lam0, s)
       if (s /= MBDK_SUCCESS) return
       yd = 0.0_dp
@@ -173,16 +180,33 @@ contains
       ypd(1:nc) = y0(nc + 1:)
       ypd(nc + 1:2 * nc) = a0
       ys(:, 1) = yd
-      ! the index-3 form's velocities are index-2 variables: after a rejection their correction
-      ! grows like 1/h (the rescaled history misses the constraint by O(h_old^(q+1))), and an
-      ! error test on them drives h to zero; i3 tests the positions (as index-3 codes do),
-      ! si2, whose velocities are constrained themselves, both
-      call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
-                                   st, s, mass=mass, yp0=ypd, &
-                                   ntest=merge(nc, 2 * nc, form == MBDK_DAE_I3))
+      ! a start off the constraints would be projected by the first Newton iteration into a
+      ! correction no error test accepts: refused, as ida refuses it
+      if (m > 0) then
+        s = MBDK_ERR_INCONSISTENT_INITIAL
+        call dae%rhs(t0, yd, ypd_check, s)
+        if (s /= MBDK_SUCCESS) return
+        s = MBDK_ERR_INCONSISTENT_INITIAL
+        if (maxval(abs(ypd_check(2 * nc + 1:2 * nc + m))) > CONSISTENT_PHI) return
+        call mbdk_model_constraints(model, t0, y0(1:nc), y0(nc + 1:), phi0, d0, gam0, phit0)
+        if (maxval(abs(matmul(d0, y0(nc + 1:)) + phit0)) > CONSISTENT_PHI * &
+            max(1.0_dp, maxval(abs(y0(nc + 1:))))) return
+      end if
+      ! the index-3 form's velocities are index-2 variables: after a rejection their
+      ! correction grows like 1/h (the rescaled history misses the constraint by
+      ! O(h_old^(q+1))), so i3 tests the positions and h times the velocities' error (the
+      ! index-2 practice); si2, whose velocities are constrained themselves, tests both
+      if (form == MBDK_DAE_I3) then
+        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
+                                     st, s, mass=mass, yp0=ypd, ntest=nc, nindex2=nc)
+      else
+        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
+                                     st, s, mass=mass, yp0=ypd, ntest=2 * nc)
+      end if
       do k = 1, nwritten
         y_out(:, k) = ys(1:2 * nc, k)
-        if (k <= size(lam_out, 2)) lam_out(:, k) = ys(2 * nc + 1:2 * nc + m, k)
+        if (k <= size(lam_out, 2) .and. size(lam_out, 1) >= m) &
+          lam_out(1:m, k) = ys(2 * nc + 1:2 * nc + m, k)
       end do
     end subroutine bdf_on_dae
 

@@ -47,10 +47,11 @@
 !> equations of motion themselves (mbdk_scene_dae: the index-3 form as MSC Adams' GSTIFF I3,
 !> or the stabilised index-2 form as its SI2). The corrector becomes c F - E (psi + d) = 0 with
 !> the matrix E - c J; the algebraic rows (E_ii = 0) are divided by c and the algebraic
-!> unknowns scaled by c, so that the matrix stays O(1) as h shrinks instead of growing like
-!> 1/h^2 (the index scaling of GSTIFF I3). The error test and Newton's norm see the first
-!> ntest components only (the caller's choice: positions, or positions and velocities; the
-!> multipliers are algebraic and their local error an order or two lower), and Newton stops at
+!> unknowns scaled by c, so that no entry grows like 1/c as h shrinks (the index scaling of
+!> GSTIFF I3). The error test and Newton's norm see the first ntest components, then nindex2
+!> components weighted by h (the index-3 form's velocities: index-2 variables, whose
+!> correction after a step change carries O(1/h) from the constraints), and not the rest (the
+!> multipliers: algebraic, their local error an order or two lower), and Newton stops at
 !> a thousandth of the error test (not a tenth) judged by this step's own contraction rate: the
 !> constraints hold only as far as Newton converged, and a leftover returns in the next
 !> predictor as a correction that no smaller step removes, which stalled the error test after
@@ -66,7 +67,8 @@ module mbdk_variable_bdf
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
-    mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor
+    mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
+    mbdk_adaptive_count_order
   implicit none
   private
   public :: mbdk_variable_bdf_solve
@@ -94,7 +96,7 @@ contains
   !> and ntest (the leading components the error test sees) are given together; the module
   !> header's section "DAE" says what changes.
   subroutine mbdk_variable_bdf_solve(prob, opt, t0, y0, atol, t_out, y_out, nwritten, st, stat, &
-                                     mass, yp0, ntest)
+                                     mass, yp0, ntest, nindex2)
     class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, y0(:), atol(:), t_out(:)
@@ -103,7 +105,7 @@ contains
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: mass(:), yp0(:)
-    integer, intent(in), optional :: ntest
+    integer, intent(in), optional :: ntest, nindex2
 
     integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
     integer(i8) :: tries, limit
@@ -114,7 +116,7 @@ contains
     real(dp), allocatable :: em(:)
     logical, allocatable :: alg(:)
     logical :: dae
-    integer :: nt
+    integer :: nt, n2
     real(dp) :: d0, d1
     type(mbdk_newton_work_t) :: nw
 
@@ -139,11 +141,14 @@ contains
     dae = present(mass) .and. present(yp0) .and. present(ntest)
     em = 1.0_dp
     nt = n
+    n2 = 0
     if (dae) then
       stat = MBDK_ERR_INVALID_INPUT
       if (size(mass) /= n .or. size(yp0) /= n .or. ntest < 1 .or. ntest > n) return
       em = mass
       nt = ntest
+      if (present(nindex2)) n2 = nindex2
+      if (n2 < 0 .or. nt + n2 > n) return
     end if
     alg = em == 0.0_dp
     call mbdk_newton_work_init(nw, n)
@@ -257,13 +262,7 @@ contains
       if (stat /= MBDK_SUCCESS) return
       if (projected) corr = corr + (ynew - (yp + corr))
       st%steps = st%steps + 1
-      select case (q)
-      case (1); st%order1_steps = st%order1_steps + 1
-      case (2); st%order2_steps = st%order2_steps + 1
-      case (3); st%order3_steps = st%order3_steps + 1
-      case (4); st%order4_steps = st%order4_steps + 1
-      case default; st%order5_steps = st%order5_steps + 1
-      end select
+      call mbdk_adaptive_count_order(st, q)
       jac_current = .false.
       ! the differences of the new point: nabla^(q+1) y_{n+1} = d, and downwards
       d(:, q + 2) = corr - d(:, q + 1)
@@ -319,7 +318,8 @@ contains
       end do
       if (dae) then
         ! index scaling: the algebraic rows divided by c, the algebraic unknowns multiplied by
-        ! it (the solve returns c dy there), so the matrix stays O(1) as h -> 0 (GSTIFF I3)
+        ! it (the solve returns c dy there), so that no entry grows like 1/c as h -> 0 (the
+        ! condition number still grows like 1/c; GSTIFF I3's scaling of rows and columns)
         do ii = 1, n
           if (alg(ii)) then
             nw%lu(ii, :) = nw%lu(ii, :) / c
@@ -379,14 +379,18 @@ contains
       end do
     end subroutine corrector
 
-    !> The error weights at yy; a DAE's untested components (the multipliers) get weight 0 and
-    !> the norm stays the mean over the tested ones.
+    !> The error weights at yy; a DAE's index-2 components (after the ntest tested ones) are
+    !> weighted by h, as Radau5 and DASSL's index-2 practice do: their correction after a step
+    !> change carries O(1/h) from the constraints, h times it is what converges; the
+    !> untested components (the multipliers) get weight 0, and the norm stays the mean over the
+    !> weighted ones.
     subroutine weights(yy)
       real(dp), intent(in) :: yy(:)
       call mbdk_adaptive_weights(opt, atol, yy, w)
       if (nt < n) then
-        w(nt + 1:) = 0.0_dp
-        w = w * sqrt(real(n, dp) / real(nt, dp))
+        w(nt + 1:nt + n2) = w(nt + 1:nt + n2) * h
+        w(nt + n2 + 1:) = 0.0_dp
+        w = w * sqrt(real(n, dp) / real(nt + n2, dp))
       end if
     end subroutine weights
 

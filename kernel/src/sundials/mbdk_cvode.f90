@@ -74,7 +74,7 @@ module mbdk_cvode
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted
   use mbdk_adaptive, only: mbdk_adaptive_after_step, mbdk_adaptive_step_limit, &
-    mbdk_adaptive_h_floor
+    mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -270,18 +270,7 @@ contains
           exit run
         end if
         flag = FCVodeGetLastOrder(mem, qlast)
-        select case (qlast(1))
-        case (1)
-          st%order1_steps = st%order1_steps + 1
-        case (2)
-          st%order2_steps = st%order2_steps + 1
-        case (3)
-          st%order3_steps = st%order3_steps + 1
-        case (4)
-          st%order4_steps = st%order4_steps + 1
-        case (5:)
-          st%order5_steps = st%order5_steps + 1
-        end select
+        call mbdk_adaptive_count_order(st, int(qlast(1)))
 
         ! samples inside the step from CVODE's interpolant
         sample = .false.

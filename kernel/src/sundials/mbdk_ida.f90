@@ -132,7 +132,7 @@ module mbdk_ida
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted
-  use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor
+  use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
     mbdk_model_accelerations, mbdk_model_watch, MBDK_FORM_REDUCED
   use mbdk_joints, only: MBDK_JOINT_TYPES
@@ -362,18 +362,7 @@ contains
           exit run
         end if
         flag = FIDAGetLastOrder(mem, qlast)
-        select case (qlast(1))
-        case (1)
-          st%order1_steps = st%order1_steps + 1
-        case (2)
-          st%order2_steps = st%order2_steps + 1
-        case (3)
-          st%order3_steps = st%order3_steps + 1
-        case (4)
-          st%order4_steps = st%order4_steps + 1
-        case (5:)
-          st%order5_steps = st%order5_steps + 1
-        end select
+        call mbdk_adaptive_count_order(st, int(qlast(1)))
 
         ! samples inside the step from IDA's interpolant
         sample = .false.
