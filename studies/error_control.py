@@ -7,9 +7,10 @@ scenes, with the CPU time of every run beside its error.
    the slope of log(error) against log(rtol) (1 = the error follows the tolerance), steps,
    rejections, evaluations, Jacobians, factorisations, orders used and CPU time.
 2. Work-precision (error_control_work_precision_*): for each case every method, fixed-step ones
-   over a step sweep and error-controlled ones over a tolerance sweep (on scenes also the DAE
-   itself: ida in the index-1 and GGL forms, bdf in the index-3 (GSTIFF I3) and stabilised
-   index-2 (SI2) forms); the error at t_end
+   over a step sweep and error-controlled ones over a tolerance sweep (on scenes also the
+   Baumgarte, penalty and projection formulations by dopri54 and bdf, and the DAE itself: ida
+   in the index-1 and GGL forms, bdf in the index-3 (GSTIFF I3) and stabilised index-2 (SI2)
+   forms); the error at t_end
    against a reference run (dopri54 at rtol 1e-13, checked against cvode_adams at 1e-12), drawn
    against CPU time and against evaluations of F; the cheapest run per target error
    (1e-3, 1e-6, 1e-9) in error_control_cheapest.
@@ -45,6 +46,10 @@ from mbdk.analysis.timing import simulate_timed, solve_timed  # noqa: E402
 
 ADAPTIVE = list(mbdk.methods("ode", step="adaptive"))
 DAE_RUNS = (("ida", "index1"), ("ida", "ggl"), ("bdf", "i3"), ("bdf", "si2"))
+#: scenes: the stabilised ODE formulations, by an explicit pair and by bdf (Baumgarte with
+#: alpha = beta = 20 1/s, the penalty formulation with its defaults)
+ODE_FORMS = tuple((m, f) for m in ("dopri54", "bdf") for f in ("baumgarte", "penalty",
+                                                                 "projection"))
 FIXED = ["rk4", "bdf4", "heun", "euler_cromer", "trapezoidal"]
 TARGETS = (1e-3, 1e-6, 1e-9)
 CHAOTIC = {"m1": 12.85, "m2": 12.85, "l1": 1.0, "l2": 1.0}
@@ -146,13 +151,14 @@ def work_precision(name, case, quick):
             progress(f"work-precision: {name} {m} rtol {tol:g}")
             rows.append(_row(name, kind, target, m, t_end, kw, idx, y_ref, "rtol", tol,
                              rtol=tol, atol=tol * 1e-2, max_steps=2_000_000))
-    if kind == "scene":     # the scene's DAE itself: SUNDIALS IDA and bdf in two forms each
-        for m, form in DAE_RUNS:
+    if kind == "scene":     # the other formulations of the ODE, and the DAE itself
+        for m, form in ODE_FORMS + DAE_RUNS:
+            extra = {"alpha": 20.0, "beta": 20.0} if form == "baumgarte" else {}
             for tol in tols:
                 progress(f"work-precision: {name} {m}/{form} rtol {tol:g}")
                 rows.append(_row(name, kind, target, m, t_end, kw, idx, y_ref, "rtol", tol,
                                  label=f"{m}/{form}", formulation=form, rtol=tol,
-                                 atol=tol * 1e-2, max_steps=2_000_000))
+                                 atol=tol * 1e-2, max_steps=2_000_000, **extra))
     levels = [0, 2, 4] if quick else list(range(7))
     for m in FIXED:
         for k in levels:
@@ -176,7 +182,7 @@ def _row(name, kind, target, m, t_end, kw, idx, y_ref, key, value, label=None, *
 def wp_figure(name, rows, out):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.6))
-    names = ADAPTIVE + [f"{m}/{f}" for m, f in DAE_RUNS] + FIXED
+    names = ADAPTIVE + [f"{m}/{f}" for m, f in ODE_FORMS + DAE_RUNS] + FIXED
     for i, m in enumerate(names):
         pts = sorted((r for r in rows if r["method"] == m and r.get("error") is not None),
                      key=lambda r: r["cpu_s"])

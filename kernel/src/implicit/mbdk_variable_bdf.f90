@@ -54,8 +54,8 @@
 !> multipliers: algebraic, their local error an order or two lower), and Newton stops at
 !> a thousandth of the error test (not a tenth) judged by this step's own contraction rate: the
 !> constraints hold only as far as Newton converged, and a leftover returns in the next
-!> predictor as a correction that no smaller step removes, which stalled the error test after
-!> a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
+!> predictor as a correction that no smaller step removes, so that the error test would reject
+!> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
 !> differences (N + 1 evaluations of F).
 module mbdk_variable_bdf
   use mbdk_kinds, only: dp, i8
@@ -84,8 +84,7 @@ module mbdk_variable_bdf
   !> (CVODE's nlscoef)
   real(dp), parameter :: NEWTON_SHARE = 0.1_dp
   !> a DAE's: its constraints hold only as far as Newton converged, and what is left over is in
-  !> the next step's predictor, a correction that does not shrink with h; at a tenth of the
-  !> error test it stalled the stabilised index-2 form's error test after a rejection
+  !> the next step's predictor, a correction that does not shrink with h (the module header)
   real(dp), parameter :: NEWTON_SHARE_DAE = 1.0e-3_dp
 
 contains

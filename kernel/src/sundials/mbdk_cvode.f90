@@ -102,8 +102,8 @@ module mbdk_cvode
   integer, parameter :: BDF_MAX_ORDER = 5, ADAMS_MAX_ORDER = 12
 
   ! SUNDIALS' own accessor, called directly: the Fortran interface's FN_VGetArrayPointer asks
-  ! for the length through a second wrapper on every call (about 10 % of the bridge's cost on a
-  ! four-state problem); the callbacks know n.
+  ! for the length through a second wrapper on every call, a cost that matters next to a small
+  ! model's F; the callbacks know n.
   interface
     type(c_ptr) function n_vgetarraypointer(v) bind(C, name='N_VGetArrayPointer')
       import :: c_ptr
