@@ -453,3 +453,43 @@ def test_dae_forms_belong_to_their_methods():
         mbdk.simulate(sc, "ida", formulation="i3", t_end=1.0)
     with pytest.raises(mbdk.InvalidInputError, match="bdf runs 'si2'"):
         mbdk.simulate(sc, "dopri54", formulation="si2", t_end=1.0)
+
+
+@pytest.mark.parametrize("method", ["bdf", "cvode_bdf", "implicit_euler"])
+def test_python_jacobian_is_used_and_its_size_checked(method):
+    """A Python right-hand side with its Jacobian: the implicit methods call jac instead of
+    differencing F (each Jacobian by differences costs n + 1 evaluations of F here, or n in
+    CVODE), give the same solution, and count every call; a Jacobian of the wrong size is a
+    named error before the first step, one that raises later a CallbackError."""
+    a_mat = np.array([[-1.0e3, 1.0], [0.0, -2.0]])
+    calls = []
+
+    def f(t, y):
+        return a_mat @ y
+
+    def jac(t, y):
+        calls.append(t)
+        return a_mat
+
+    kw = dict(h=1e-2) if method == "implicit_euler" else dict(rtol=1e-8, atol=1e-10)
+    fd = mbdk.solve_ode(f, method, y0=[1.0, 1.0], t_end=1.0, **kw)
+    an = mbdk.solve_ode(f, method, y0=[1.0, 1.0], t_end=1.0, jac=jac, **kw)
+    assert np.allclose(an.y, fd.y, rtol=1e-8, atol=1e-12)
+    assert an.stats.njev == len(calls) - 1     # one call more: the shape check at t0
+    per_jac = 2 if method == "cvode_bdf" else 3
+    assert an.stats.nfev == fd.stats.nfev - per_jac * fd.stats.njev or method == "cvode_bdf"
+    assert an.stats.nfev < fd.stats.nfev and an.manifest["jacobian"] == "python jac"
+    with pytest.raises(mbdk.InvalidInputError, match=r"shape \(3, 3\).*2 x 2"):
+        mbdk.solve_ode(f, method, y0=[1.0, 1.0], t_end=1.0, jac=lambda t, y: np.eye(3), **kw)
+
+    seen = []
+
+    def late(t, y):       # passes the shape check, fails in the kernel's first call
+        seen.append(t)
+        if len(seen) > 1:
+            raise RuntimeError("no Jacobian here")
+        return a_mat
+    with pytest.raises(mbdk.CallbackError, match="no Jacobian here"):
+        mbdk.solve_ode(f, method, y0=[1.0, 1.0], t_end=1.0, jac=late, **kw)
+    with pytest.raises(mbdk.InvalidInputError, match="compiled problem"):
+        mbdk.solve_ode("decay", method, t_end=1.0, jac=jac, **kw)

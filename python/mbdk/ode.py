@@ -73,7 +73,7 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
               y0=None, params: dict | None = None, every: int = 1, nq: int = 0,
               fd_jacobian: bool = False, startup: str = "rk4", rtol: float | None = None,
               atol=None, dt_out: float = 0.0, h_min: float = 0.0, h_max: float = 0.0,
-              max_steps: int = 0, max_order: int = 0,
+              max_steps: int = 0, max_order: int = 0, jac=None,
               raise_on_failure: bool = True) -> ODEResult:
     """Integrate a compiled textbook problem (by name) or a Python f(t, y), the time loop in the
     kernel: with a fixed step h, or with error control (mbdk.methods(step="adaptive")).
@@ -96,6 +96,9 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
       max_steps: the most steps, rejected ones included (0: 10^8); max_order: bdf and
              cvode_bdf 1-5, cvode_adams 1-12 (0: the highest).
     params:  overrides of the problem's parameters, by name.
+    jac:     with a Python f, its Jacobian jac(t, y) -> n x n array dF_i/dy_j, used by the
+             implicit methods' Newton iterations instead of finite differences (compiled
+             problems carry their own where they have one).
     raise_on_failure: a failure inside the kernel raises its named exception (default); with
              False the partial result is returned with its status.
     """
@@ -149,9 +152,16 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
                 f"a whole number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or "
                 f"h = {(t_end - t0) / (n_lo + 1):.12g}")
 
+    if jac is not None and not callable(jac):
+        raise InvalidInputError(f"jac = {jac!r} must be a function jac(t, y) returning the "
+                                "n x n Jacobian")
     if callable(problem):
         return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure,
-                               atol, control)
+                               atol, control, jac)
+    if jac is not None:
+        raise InvalidInputError(f"jac: {problem!r} is a compiled problem, with its own Jacobian "
+                                "where it has one (fd_jacobian=True replaces it by differences); "
+                                "jac goes with a Python right-hand side")
 
     info_p = _problem(problem)
     if y0 is None:
@@ -308,7 +318,7 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
 
 
 def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure, atol,
-                    control):
+                    control, jac=None):
     if getattr(_IN_CALLBACK, "active", False):
         raise NotApplicableError(
             "solve_ode with a Python right-hand side was called from inside a Python right-hand "
@@ -323,6 +333,15 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
     if info_m.family == "euler_cromer" and nq == 0:
         raise NotApplicableError("euler_cromer needs y = [q, q']: pass nq = len(y0) // 2")
     atol_v = _atol_vector(atol, n, opt.rtol) if info_m.adaptive else np.zeros(0)
+    if jac is not None:
+        # its shape is checked once here, by name, before the kernel relies on it
+        try:
+            j0 = np.asarray(jac(t0, y0.copy()), dtype=float)
+        except Exception as exc:
+            raise CallbackError(f"jac(t0, y0) raised {type(exc).__name__}: {exc}") from exc
+        if j0.shape != (n, n):
+            raise InvalidInputError(f"jac(t0, y0) returned an array of shape {j0.shape}; the "
+                                    f"Jacobian of {n} states is {n} x {n}")
     failure = []
 
     def cb(t, y, dydt, flag):
@@ -343,17 +362,34 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
             if not failure:
                 failure.append(exc)
 
+    def cb_jac(t, y, dfdy, flag):
+        try:
+            out = np.asarray(jac(t, y), dtype=float)
+            if out.shape != dfdy.shape:
+                raise ValueError(f"jac returned an array of shape {out.shape} at t = {t:.6g}; "
+                                 f"the Jacobian of {n} states is {n} x {n}")
+            dfdy[:, :] = out
+        except BaseException as exc:
+            flag[0] = 1
+            if not failure:
+                failure.append(exc)
+
     opt = replace(opt, nq=int(nq))
     stats = empty("mbdk_stats")
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
-            t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), atol_v,
-                                                      nsamp, stats)
+            if jac is None:
+                t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), atol_v,
+                                                          nsamp, stats)
+            else:
+                t, y, nw, status = _kernel.solve_callback_jac(cb, cb_jac, y0, t0, t_end,
+                                                              opt.pack(), atol_v, nsamp, stats)
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,
-                "t0": t0, "t_end": t_end, **control, "y0": y0.tolist()}
+                "t0": t0, "t_end": t_end, **control, "y0": y0.tolist(),
+                "jacobian": "python jac" if jac is not None else "finite differences"}
     note = f"{type(failure[0]).__name__}: {failure[0]}" if failure else None
     try:
         return _finish(t, y, stats, nw, status, manifest, fun, info_m.name, {}, t0, y0,

@@ -8,6 +8,7 @@
 !>   mbdk_proc_problem_t  a Fortran procedure  subroutine f(n, t, y, dydt, flag); flag(1) /= 0
 !>                        signals failure. This is how a Python function reaches the kernel through
 !>                        f2py: the slow, documented "Python callback" path (~1 us per call).
+!>                        Optionally its Jacobian  subroutine jac(n, t, y, dfdy, flag), dfdy(n, n).
 !>
 !> A failure reported by the callback becomes MBDK_ERR_CALLBACK_FAILED.
 module mbdk_callback_problem
@@ -46,8 +47,16 @@ module mbdk_callback_problem
       real(dp), intent(inout) :: dydt(n)
       integer, intent(inout) :: flag(1)
     end subroutine mbdk_proc_rhs
+    subroutine mbdk_proc_jac(n, t, y, dfdy, flag)
+      import :: dp
+      integer, intent(in) :: n
+      real(dp), intent(in) :: t
+      real(dp), intent(in) :: y(n)
+      real(dp), intent(inout) :: dfdy(n, n)
+      integer, intent(inout) :: flag(1)
+    end subroutine mbdk_proc_jac
   end interface
-  public :: mbdk_c_rhs, mbdk_c_jac, mbdk_proc_rhs
+  public :: mbdk_c_rhs, mbdk_c_jac, mbdk_proc_rhs, mbdk_proc_jac
 
   type, extends(mbdk_problem_t), public :: mbdk_c_problem_t
     procedure(mbdk_c_rhs), nopass, pointer :: f => null()
@@ -60,8 +69,10 @@ module mbdk_callback_problem
 
   type, extends(mbdk_problem_t), public :: mbdk_proc_problem_t
     procedure(mbdk_proc_rhs), nopass, pointer :: f => null()
+    procedure(mbdk_proc_jac), nopass, pointer :: jf => null()
   contains
     procedure :: rhs => proc_problem_rhs
+    procedure :: jac => proc_problem_jac
   end type mbdk_proc_problem_t
 
   public :: mbdk_c_problem_init, mbdk_proc_problem_init
@@ -87,11 +98,17 @@ contains
     prob%nq = nq
   end subroutine mbdk_c_problem_init
 
-  subroutine mbdk_proc_problem_init(prob, f, n, nq)
+  !> jac (optional): its Jacobian, which the implicit methods' Newton then uses
+  subroutine mbdk_proc_problem_init(prob, f, n, nq, jac)
     type(mbdk_proc_problem_t), intent(out) :: prob
     procedure(mbdk_proc_rhs) :: f
     integer, intent(in) :: n, nq
+    procedure(mbdk_proc_jac), optional :: jac
     prob%f => f
+    if (present(jac)) then
+      prob%jf => jac
+      prob%has_jac = .true.
+    end if
     prob%n = n
     prob%nq = nq
   end subroutine mbdk_proc_problem_init
@@ -128,5 +145,17 @@ contains
     call self%f(self%n, t, y, f, flag)
     stat = merge(MBDK_ERR_CALLBACK_FAILED, MBDK_SUCCESS, flag(1) /= 0)
   end subroutine proc_problem_rhs
+
+  subroutine proc_problem_jac(self, t, y, jac, stat)
+    class(mbdk_proc_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: jac(:, :)
+    integer, intent(out) :: stat
+    integer :: flag(1)
+    flag = 0
+    jac = 0.0_dp
+    call self%jf(self%n, t, y, jac, flag)
+    stat = merge(MBDK_ERR_CALLBACK_FAILED, MBDK_SUCCESS, flag(1) /= 0)
+  end subroutine proc_problem_jac
 
 end module mbdk_callback_problem
