@@ -379,12 +379,8 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
-            if jac is None:
-                t, y, nw, status = _kernel.solve_callback(cb, y0, t0, t_end, opt.pack(), atol_v,
-                                                          nsamp, stats)
-            else:
-                t, y, nw, status = _kernel.solve_callback_jac(cb, cb_jac, y0, t0, t_end,
-                                                              opt.pack(), atol_v, nsamp, stats)
+            t, y, nw, status = _kernel.solve_callback(cb, cb_jac, int(jac is not None), y0, t0,
+                                                      t_end, opt.pack(), atol_v, nsamp, stats)
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,

@@ -69,52 +69,12 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
   call prob%rhs(t, y, f, status)
 end subroutine eval_problem
 
-subroutine solve_callback(fun, n, y0, t0, t_end, noptw, optbuf, natol, atol, nsamp, t_out, &
-                          y_out, nstatw, statbuf, nwritten, status)
+subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, natol, atol, &
+                          nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
-  ! (f2py hides n); flag(1) = 1 reports a failure. Not threadsafe: it calls Python.
-  use, intrinsic :: iso_c_binding, only: c_sizeof
-  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
-  use mbdk_options, only: mbdk_options_t
-  use mbdk_stats, only: mbdk_stats_t
-  use mbdk_callback_problem, only: mbdk_proc_problem_t, mbdk_proc_problem_init
-  use mbdk_solve, only: mbdk_solve_ode
-  implicit none
-  external fun
-  integer, intent(in) :: n, noptw, nsamp, nstatw, natol
-  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol)
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
-  double precision, intent(inout) :: statbuf(nstatw)
-  integer, intent(out) :: nwritten, status
-!f2py integer intent(hide), depend(y0) :: n = len(y0)
-!f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
-!f2py integer intent(hide), depend(atol) :: natol = len(atol)
-!f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
-  ! The callback's signature for f2py: its first argument is named n so that the bounds of
-  ! cb_y and cb_dydt refer to the callback's own argument.
-  integer :: cb_flag(1)
-  double precision :: cb_t, cb_y(n), cb_dydt(n)
-!f2py call fun(n, cb_t, cb_y, cb_dydt, cb_flag)
-  type(mbdk_proc_problem_t) :: prob
-  type(mbdk_options_t) :: opt
-  type(mbdk_stats_t) :: st
-
-  nwritten = 0
-  t_out = 0.0d0
-  y_out = 0.0d0
-  status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
-  opt = transfer(optbuf, opt)
-  call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
-  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
-  statbuf = transfer(st, statbuf, nstatw)
-end subroutine solve_callback
-
-subroutine solve_callback_jac(fun, jfun, n, y0, t0, t_end, noptw, optbuf, natol, atol, nsamp, &
-                              t_out, y_out, nstatw, statbuf, nwritten, status)
-  ! solve_callback with the Jacobian too: jfun(t, y, dfdy, flag) fills dfdy (n x n) in place.
-  ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
-  ! (f2py hides n); flag(1) = 1 reports a failure. Not threadsafe: it calls Python.
+  ! (f2py hides n); flag(1) = 1 reports a failure. With use_jac /= 0, jfun(t, y, dfdy, flag)
+  ! fills its Jacobian dfdy (n x n) in place for the implicit methods' Newton (else jfun is
+  ! never called: finite differences). Not threadsafe: it calls Python.
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
@@ -123,7 +83,7 @@ subroutine solve_callback_jac(fun, jfun, n, y0, t0, t_end, noptw, optbuf, natol,
   use mbdk_solve, only: mbdk_solve_ode
   implicit none
   external fun, jfun
-  integer, intent(in) :: n, noptw, nsamp, nstatw, natol
+  integer, intent(in) :: n, noptw, nsamp, nstatw, natol, use_jac
   double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
@@ -149,10 +109,14 @@ subroutine solve_callback_jac(fun, jfun, n, y0, t0, t_end, noptw, optbuf, natol,
   status = MBDK_ERR_INVALID_INPUT
   if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
   opt = transfer(optbuf, opt)
-  call mbdk_proc_problem_init(prob, fun, n, int(opt%nq), jfun)
+  if (use_jac /= 0) then
+    call mbdk_proc_problem_init(prob, fun, n, int(opt%nq), jfun)
+  else
+    call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
+  end if
   call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
   statbuf = transfer(st, statbuf, nstatw)
-end subroutine solve_callback_jac
+end subroutine solve_callback
 
 subroutine sample_count(t0, t_end, h, every, nsteps, nsamp, status)
   use mbdk_kinds, only: i8
