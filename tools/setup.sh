@@ -12,7 +12,7 @@ say() { printf '[setup] %s\n' "$*"; }
 PY="${PYTHON:-python3}"
 
 # 1. system packages (Debian)
-pkgs=(gfortran gcc pkg-config liblapack-dev libopenblas-dev libsundials-dev libsundials-fortran-dev)
+pkgs=(gfortran gcc pkg-config liblapack-dev libopenblas-dev libsundials-dev libsundials-fortran-dev libsuitesparse-dev)
 if ! "$PY" -c 'import venv, ensurepip' 2>/dev/null; then pkgs+=(python3-venv); fi
 if ! "$PY" -c 'import sysconfig, os, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then
   pkgs+=(python3-dev)

@@ -185,7 +185,7 @@ int mbdk_body_kind(int i, int *code, char *name, int namelen, int *coords, int *
 enum mbdk_formulation { MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, MBDK_FORM_PENALTY = 3,
                         MBDK_FORM_PROJECTION = 4 };
 enum mbdk_solver { MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3,
-                   MBDK_SOLVER_REVOLUTE = 4 };
+                   MBDK_SOLVER_REVOLUTE = 4, MBDK_SOLVER_SPARSE = 5 };
 typedef struct mbdk_model_options {
     double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
     double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */

@@ -21,8 +21,12 @@ from .scene import BODY_KINDS, COORDS, Scene, SceneError, body_kind_problem
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
-#: constraint rows), else schur when M is positive, else kkt (kernel/src/model/mbdk_model.f90)
-SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4}
+#: constraint rows), else schur when M is positive (sparse above 40 constraint rows), else kkt
+#: (kernel/src/model/mbdk_model.f90); "schur" is the dense Schur complement at any size,
+#: "sparse" the sparse one at any size
+SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
+#: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
+SPARSE_MIN_ROWS = 40
 #: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (evaluate()["solve"])
 LINEAR_SOLVES = {0: "none (no constraints)",
                  1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
@@ -30,7 +34,8 @@ LINEAR_SOLVES = {0: "none (no constraints)",
                  3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
                  4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
                  5: "penalty: M + ap D^T D, in-house LDL^T",
-                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs"}
+                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs",
+                 7: "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"}
 def _element_kinds() -> list[tuple[int, int, str, int, int]]:
     """The kernel's element registry (kernel/src/model/mbdk_elements.f90): (class, code, name,
     rows, states) per kind, in the order of the visit counters."""

@@ -18,10 +18,13 @@ Methods and formulations (mbdk.methods() lists the methods):
 
 Linear solves (solver=; the manifest's linear_solve says which one ran):
   auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
-                  schur when every body has mass and inertia, else kkt
+                  schur when every body has mass and inertia (sparse above 40 rows), else kkt
   revolute_schur  S = D M^-1 D^T in closed 2 x 2 blocks from the joint points, block LDL^T
-  schur           S from the nonzeros of D (any joint type), in-house block LDL^T up to 12 rows
-                  (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
+  schur           S from the nonzeros of D (any joint type), dense: in-house block LDL^T up to
+                  12 rows (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
+  sparse          the same S kept sparse and factorised by SuiteSparse's AMD + LDL, O(N) for a
+                  chain or tree; trapezoidal_index3's augmented Newton matrix likewise (its
+                  symmetric part), and the assembly of the initial state
   kkt             [M D^T; D 0] by LAPACK's LU
 
 Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing per sample):
@@ -333,7 +336,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             raise InvalidInputError(f"{scene.source}: solver = 'revolute_schur' needs every joint "
                                     f"to be revolute; not revolute: {', '.join(other)}. Use "
                                     "solver = 'schur' or 'auto'")
-    if solver in ("schur", "revolute_schur") and any(b.inertia == 0 for b in scene.bodies):
+    if solver in ("schur", "revolute_schur", "sparse") and any(b.inertia == 0 for b in scene.bodies):
         raise InvalidInputError(f"solver = {solver!r} needs every body to have inertia; "
                                 f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
                                 "use solver = 'kkt' or 'auto'")

@@ -9,17 +9,33 @@
 !> mbdk_index3_factors_t factorises it: up to MBDK_SMALL_DENSE_MAX rows in-house (the augmented
 !> matrix, when symmetric to roundoff and positive definite, by the block LDL^T with the bodies
 !> as 3 x 3 pivot blocks, else by the LU with partial pivoting; an LU that has served two solves
-!> forms its explicit inverse for the next ones), otherwise by LAPACK's dgetrf/dgetrs.
+!> forms its explicit inverse for the next ones), otherwise by LAPACK's dgetrf/dgetrs; the
+!> augmented matrix of a large scene (more than MBDK_SPARSE_MIN_ROWS constraint rows, or solver
+!> sparse) sparse: assembled element by element into the body-block pattern of
+!> mbdk_body_pattern (each element's tangent formed on its two bodies alone, by the same
+!> routines as the dense matrix) and factorised by AMD + LDL (mbdk_sparse_ldlt), O(N) for a
+!> chain. That path factorises the symmetric part (A + A^T)/2: equal to A but for the
+!> unsymmetric damping terms of dampers, which then make Newton's matrix an approximation of the
+!> Jacobian (as its reuse across iterations and steps already does), costing iterations, not
+!> accuracy: the residual is exact and Newton's test unchanged.
 module mbdk_index3_matrix
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
-  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter, MBDK_JOINT_TYPES
+  use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter, mbdk_joint_rows, &
+    MBDK_JOINT_TYPES
   use mbdk_force_elements, only: mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_sparse_schur, only: mbdk_sparse_dtd_add
   use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
     mbdk_small_lu_solve, mbdk_small_lu_inverse, mbdk_small_inverse_apply, MBDK_SMALL_DENSE_MAX
+  use mbdk_model, only: mbdk_model_sparse
+  use mbdk_constrained, only: MBDK_SPARSE_MIN_ROWS
+  use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
+    mbdk_body_pattern_pos, mbdk_body_pattern_scatter
+  use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
+  use mbdk_kinds, only: i8
   implicit none
   private
   public :: mbdk_index3_newton_matrix, mbdk_index3_factors_init, mbdk_index3_factor, &
@@ -43,19 +59,39 @@ module mbdk_index3_matrix
     integer :: nuse = 0                !< solves served by the current factors
     integer, allocatable :: ipiv(:), body_blk(:)
     real(dp), allocatable :: lu(:, :), ainv(:, :), inv_work(:, :), rinv(:)
+    !> the sparse path: the pattern, the factors, and the position of each product of
+    !> alpha D^T D (row by row, pairs of the row's nonzeros)
+    logical :: sparse = .false.
+    type(mbdk_body_pattern_t) :: bp
+    type(mbdk_sparse_ldlt_t) :: ldl
+    integer, allocatable :: dtd_pos(:)
   end type mbdk_index3_factors_t
 
 contains
 
-  !> Factors for a Newton matrix of order nk of a model with nc coordinates.
-  subroutine mbdk_index3_factors_init(fa, model, nk)
+  !> Factors for a Newton matrix of order nk of a model with nc coordinates (nk = nc: the
+  !> augmented matrix, sparse on a large scene). MBDK_ERR_INVALID_INPUT when AMD refuses the
+  !> pattern.
+  subroutine mbdk_index3_factors_init(fa, model, nk, stat)
     type(mbdk_index3_factors_t), intent(out) :: fa
     type(mbdk_model_t), intent(in) :: model
     integer, intent(in) :: nk
-    integer :: k, nc
+    integer, intent(out) :: stat
+    integer :: k, nc, choice
     nc = model%nc
     fa%nk = nk
     fa%small = model%small_dense .and. nk <= MBDK_SMALL_DENSE_MAX
+    choice = mbdk_model_sparse(model)
+    fa%sparse = nk == nc .and. mod(nc, 3) == 0 .and. (choice == 1 .or. &
+                (choice == -1 .and. model%m > MBDK_SPARSE_MIN_ROWS))
+    stat = MBDK_SUCCESS
+    if (fa%sparse) then
+      fa%small = .false.
+      call sparse_init(fa, model, stat)
+      allocate (fa%lu(0, 0), fa%ipiv(0), fa%ainv(0, 0), fa%inv_work(0, 0), fa%rinv(0))
+      allocate (fa%body_blk(0))
+      return
+    end if
     allocate (fa%lu(nk, nk), fa%ipiv(nk), fa%ainv(nk, nk), fa%inv_work(nk, nk), fa%rinv(nk))
     ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
     if (mod(nc, 3) == 0) then
@@ -80,6 +116,11 @@ contains
     fa%ldlt = .false.
     fa%have_inv = .false.
     fa%nuse = 0
+    if (fa%sparse) then
+      call sparse_matrix(fa, model, t, q, v, lam, h, alpha, stat)
+      if (stat == MBDK_SUCCESS) call mbdk_sparse_ldlt_factor(fa%ldl, LDLT_TOL, stat)
+      return
+    end if
     if (book) then
       if (model%m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
       call book_matrix(model, t, q, v, lam, h, d, lw, fa%lu, stat)
@@ -118,7 +159,9 @@ contains
       fa%have_inv = .true.
     end if
     fa%nuse = fa%nuse + 1
-    if (fa%have_inv) then
+    if (fa%sparse) then
+      call mbdk_sparse_ldlt_solve(fa%ldl, r)
+    else if (fa%have_inv) then
       call mbdk_small_inverse_apply(fa%ainv, fa%nk, r, fa%rinv)
     else if (fa%ldlt) then
       call mbdk_small_ldlt_solve(fa%lu, fa%nk, fa%body_blk, r)
@@ -219,6 +262,126 @@ contains
     if (stat /= MBDK_SUCCESS .or. model%m == 0) return
     call mbdk_sparse_dtd_add(model%sp, model%work%dz, 0.25_dp * h * h * alpha, a)
   end subroutine al_matrix
+
+  !> The sparse path's pattern (bodies coupled by a joint or a force element) and its ordering.
+  subroutine sparse_init(fa, model, stat)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: stat
+    integer :: nj, nf, r, i, j, n
+    integer, allocatable :: pairs(:, :)
+    nj = size(model%jint, 2)
+    nf = size(model%fint, 2)
+    allocate (pairs(2, nj + nf))
+    pairs(:, 1:nj) = model%jint(2:3, :)
+    pairs(:, nj + 1:) = model%fint(2:3, :)
+    call mbdk_body_pattern_init(fa%bp, model%nb, pairs)
+    associate (sp => model%sp)
+      n = 0
+      do r = 1, sp%m
+        n = n + (sp%rptr(r + 1) - sp%rptr(r))**2
+      end do
+      allocate (fa%dtd_pos(n))
+      n = 0
+      do r = 1, sp%m
+        do j = sp%rptr(r), sp%rptr(r + 1) - 1
+          do i = sp%rptr(r), sp%rptr(r + 1) - 1
+            n = n + 1
+            fa%dtd_pos(n) = mbdk_body_pattern_pos(fa%bp, sp%rcol(i), sp%rcol(j))
+          end do
+        end do
+      end do
+    end associate
+    call mbdk_sparse_ldlt_analyze(fa%ldl, model%nc, fa%bp%ap, fa%bp%ai, stat)
+  end subroutine sparse_init
+
+  !> The augmented matrix into fa%ldl%ax, element by element (see the module header), then
+  !> its symmetric part. model%work%rot and model%work%dz at q.
+  subroutine sparse_matrix(fa, model, t, q, v, lam, h, alpha, stat)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    integer, intent(out) :: stat
+    real(dp) :: s, ke(6, 6), ql(6), vl(6), rl(2, 2), ll(3), x
+    integer :: e, b1, b2, k, r, i, j, n, jl(4, 1), row0(1), p, pt
+    s = 0.25_dp * h * h
+    stat = MBDK_SUCCESS
+    associate (ax => fa%ldl%ax, w => model%work)
+      ax = 0.0_dp
+      do e = 1, size(model%fint, 2)
+        call local(model%fint(2, e), model%fint(3, e))
+        jl(:, 1) = [model%fint(1, e), merge(1, 0, b1 > 0), merge(merge(1, 2, b2 == b1), 0, &
+                    b2 > 0), model%fint(4, e)]
+        ke = 0.0_dp
+        call mbdk_forces_tangent(jl, model%freal(:, e:e), rl, ql, vl, t, s, 0.5_dp * h, ke, &
+                                 w%visits(MBDK_JOINT_TYPES + 1:), stat)
+        if (stat /= MBDK_SUCCESS) return
+        call mbdk_body_pattern_scatter(fa%bp, b1, merge(0, b2, b2 == b1), ke, ax)
+      end do
+      row0 = 1
+      do e = 1, size(model%jint, 2)
+        call local(model%jint(2, e), model%jint(3, e))
+        jl(:, 1) = [model%jint(1, e), 1, merge(merge(1, 2, b2 == b1), 0, b2 > 0), &
+                    model%jint(4, e)]
+        r = model%row0(e)
+        k = mbdk_joint_rows(model%jint(1, e))
+        ll = 0.0_dp
+        ll(1:k) = s * lam(r:r + k - 1)
+        ke = 0.0_dp
+        call mbdk_joints_tangent(jl, model%jreal(:, e:e), row0, rl, ql, ll, ke, &
+                                 w%visits(1:MBDK_JOINT_TYPES))
+        call mbdk_body_pattern_scatter(fa%bp, b1, merge(0, b2, b2 == b1), ke, ax)
+      end do
+      ! alpha s D^T D, in the order of sparse_init's positions
+      n = 0
+      do r = 1, model%sp%m
+        do j = model%sp%rptr(r), model%sp%rptr(r + 1) - 1
+          x = s * alpha * w%dz(mod(model%sp%rz(j) - 1, 6) + 1, (model%sp%rz(j) - 1) / 6 + 1)
+          do i = model%sp%rptr(r), model%sp%rptr(r + 1) - 1
+            n = n + 1
+            ax(fa%dtd_pos(n)) = ax(fa%dtd_pos(n)) + x * &
+              w%dz(mod(model%sp%rz(i) - 1, 6) + 1, (model%sp%rz(i) - 1) / 6 + 1)
+          end do
+        end do
+      end do
+      do i = 1, model%nc
+        p = mbdk_body_pattern_pos(fa%bp, i, i)
+        ax(p) = ax(p) + model%mass(i)
+      end do
+      ! the symmetric part (see the module header)
+      do p = 1, size(ax)
+        pt = fa%bp%tpos(p)
+        if (pt <= p) cycle
+        x = 0.5_dp * (ax(p) + ax(pt))
+        ax(p) = x
+        ax(pt) = x
+      end do
+    end associate
+
+  contains
+
+    !> the coordinates, velocities and rotations of bodies c1, c2 as bodies 1, 2 (b1, b2 set)
+    subroutine local(c1, c2)
+      integer, intent(in) :: c1, c2
+      b1 = c1
+      b2 = c2
+      ql = 0.0_dp
+      vl = 0.0_dp
+      rl = 0.0_dp
+      if (b1 > 0) then
+        ql(1:3) = q(3 * b1 - 2:3 * b1)
+        vl(1:3) = v(3 * b1 - 2:3 * b1)
+        rl(:, 1) = model%work%rot(:, b1)
+      end if
+      if (b2 > 0 .and. b2 /= b1) then
+        ql(4:6) = q(3 * b2 - 2:3 * b2)
+        vl(4:6) = v(3 * b2 - 2:3 * b2)
+        rl(:, 2) = model%work%rot(:, b2)
+      end if
+    end subroutine local
+
+  end subroutine sparse_matrix
 
   !> True when a(n, n) is symmetric to roundoff: |a(i,j) - a(j,i)| <= 1e-13 max_k |a(k,k)|.
   !> (Dampers make the tangent stiffness unsymmetric; springs, joints and D^T D do not, but

@@ -150,7 +150,7 @@ module mbdk_trapezoidal_index3
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, &
+  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, mbdk_model_sparse, &
     mbdk_model_watch_start, mbdk_model_watch
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
     mbdk_constrained_factor, mbdk_constrained_solve
@@ -285,13 +285,23 @@ contains
     if (s%book) nk = nc + m
     s%nk = nk
     call mbdk_constrained_init(s%cs, nc, m, model%m_positive, &
-                               model%solver == MBDK_SOLVER_KKT, model%small_dense)
-    call mbdk_index3_factors_init(s%fa, model, nk)
+                               model%solver == MBDK_SOLVER_KKT, model%small_dense, model%sp, &
+                               mbdk_model_sparse(model), stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_index3_factors_init(s%fa, model, nk, stat)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     allocate (s%q(nc), s%v(nc), s%a(nc), s%lam(m), s%lam_old(m), s%a_prev(nc), s%a_prev2(nc), &
               s%qn(nc), s%vn(nc), s%an(nc), s%ln(m), s%lst(m), s%lstn(m), s%lst_old(m), &
-              s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%d(m, nc), s%gam(m), &
+              s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%gam(m), &
               s%phit(m), s%lw(m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), s%zero_nc(nc), &
               s%zero_m(m), s%one_nc(nc))
+    ! the dense D serves the book scheme's matrix only
+    if (s%book) then
+      allocate (s%d(m, nc))
+    else
+      allocate (s%d(0, 0))
+    end if
     s%zero_nc = 0.0_dp
     s%zero_m = 0.0_dp
     s%one_nc = 1.0_dp

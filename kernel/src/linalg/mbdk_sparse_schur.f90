@@ -16,6 +16,7 @@ module mbdk_sparse_schur
   implicit none
   private
   public :: mbdk_sparse_schur_init, mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
+    mbdk_sparse_schur_csc, mbdk_sparse_schur_assemble_csc, &
     mbdk_sparse_w_residual, mbdk_sparse_dtd_add
 
   integer, parameter :: SLOTS = 6
@@ -27,9 +28,9 @@ module mbdk_sparse_schur
     real(dp), allocatable :: rw(:)
     !> the same nonzeros by column c: cptr(c) .. cptr(c+1)-1; flat index into dz, row
     integer, allocatable :: cptr(:), cz(:), crow(:)
-    !> entries of S: flat index epos(e) into s(m, m), terms eptr(e) .. eptr(e+1)-1, each the
-    !> product dz(ta) * dz(tb) * tw
-    integer, allocatable :: eptr(:), epos(:), ta(:), tb(:)
+    !> entries S(ei(e), ej(e)), ei >= ej, column by column with rows ascending: terms
+    !> eptr(e) .. eptr(e+1)-1, each the product dz(ta) * dz(tb) * tw
+    integer, allocatable :: eptr(:), ei(:), ej(:), ta(:), tb(:)
     real(dp), allocatable :: tw(:)
   end type mbdk_sparse_schur_t
 
@@ -41,7 +42,8 @@ contains
     integer, intent(in) :: col(:, :)
     logical, intent(in) :: nz(:, :)
     real(dp), intent(in) :: w(:)
-    integer :: m, r, k, i, j, a, b, ne, nt, pass, c
+    integer :: m, r, k, i, j, a, b, ne, nt, pass, c, nc, nl
+    integer, allocatable :: next(:), mark(:), first(:)
     m = size(col, 2)
     sp%m = m
     sp%nnz = count(nz)
@@ -58,28 +60,57 @@ contains
       end do
     end do
     sp%rptr(m + 1) = a + 1
-    allocate (sp%cptr(size(w) + 1), sp%cz(sp%nnz), sp%crow(sp%nnz))
-    b = 0
-    do c = 1, size(w)
-      sp%cptr(c) = b + 1
-      do r = 1, m
-        do a = sp%rptr(r), sp%rptr(r + 1) - 1
-          if (sp%rcol(a) /= c) cycle
-          b = b + 1
-          sp%cz(b) = sp%rz(a)
-          sp%crow(b) = r
-        end do
+    ! the nonzeros by column: a counting sort of the row lists (rows ascending in a column)
+    nc = size(w)
+    allocate (sp%cptr(nc + 1), sp%cz(sp%nnz), sp%crow(sp%nnz), next(nc + 1))
+    sp%cptr = 0
+    do a = 1, sp%nnz
+      sp%cptr(sp%rcol(a) + 1) = sp%cptr(sp%rcol(a) + 1) + 1
+    end do
+    sp%cptr(1) = 1
+    do c = 1, nc
+      sp%cptr(c + 1) = sp%cptr(c + 1) + sp%cptr(c)
+    end do
+    next = sp%cptr
+    do r = 1, m
+      do a = sp%rptr(r), sp%rptr(r + 1) - 1
+        c = sp%rcol(a)
+        sp%cz(next(c)) = sp%rz(a)
+        sp%crow(next(c)) = r
+        next(c) = next(c) + 1
       end do
     end do
-    sp%cptr(size(w) + 1) = b + 1
-    ! two passes: count, then fill
+    ! the entries S(i, j), i >= j, column j by column j: the rows i that share a column of D
+    ! with row j, each once (mark(i) = j), with the terms of every shared column. Two passes:
+    ! count, then fill. The cost is the sum over the columns of D of their nonzeros squared,
+    ! O(nnz) for a mechanism (a column of D has as many nonzeros as joints on its body).
+    allocate (mark(m), first(m))
     do pass = 1, 2
+      mark = 0
       ne = 0
       nt = 0
       do j = 1, m
-        do i = j, m
-          if (pass == 2) sp%eptr(ne + 1) = nt + 1
-          k = nt
+        ! the rows i >= j sharing a column with row j, in order of first meeting
+        nl = 0
+        do b = sp%rptr(j), sp%rptr(j + 1) - 1
+          c = sp%rcol(b)
+          do k = sp%cptr(c), sp%cptr(c + 1) - 1
+            i = sp%crow(k)
+            if (i < j .or. mark(i) == j) cycle
+            mark(i) = j
+            nl = nl + 1
+            first(nl) = i
+          end do
+        end do
+        call sort_ints(first(1:nl))
+        do k = 1, nl
+          i = first(k)
+          ne = ne + 1
+          if (pass == 2) then
+            sp%eptr(ne) = nt + 1
+            sp%ei(ne) = i
+            sp%ej(ne) = j
+          end if
           do a = sp%rptr(i), sp%rptr(i + 1) - 1
             do b = sp%rptr(j), sp%rptr(j + 1) - 1
               if (sp%rcol(a) /= sp%rcol(b)) cycle
@@ -91,15 +122,11 @@ contains
               end if
             end do
           end do
-          if (nt > k) then
-            ne = ne + 1
-            if (pass == 2) sp%epos(ne) = (j - 1) * m + i
-          end if
         end do
       end do
       if (pass == 1) then
         sp%nent = ne
-        allocate (sp%eptr(ne + 1), sp%epos(ne), sp%ta(nt), sp%tb(nt), sp%tw(nt))
+        allocate (sp%eptr(ne + 1), sp%ei(ne), sp%ej(ne), sp%ta(nt), sp%tb(nt), sp%tw(nt))
       end if
     end do
     sp%eptr(ne + 1) = nt + 1
@@ -118,9 +145,80 @@ contains
       do t = sp%eptr(e), sp%eptr(e + 1) - 1
         x = x + dz(sp%ta(t)) * dz(sp%tb(t)) * sp%tw(t)
       end do
-      s(sp%epos(e)) = x
+      s(sp%ei(e) + (sp%ej(e) - 1) * sp%m) = x
     end do
   end subroutine mbdk_sparse_schur_assemble
+
+  !> The pattern of S, both triangles, as CSC (ap(m+1), ai) for mbdk_sparse_ldlt, and where
+  !> each entry e goes in its values: lo(e) for S(ei, ej), up(e) for S(ej, ei) (the same slot on
+  !> the diagonal).
+  subroutine mbdk_sparse_schur_csc(sp, ap, ai, lo, up)
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    integer, allocatable, intent(out) :: ap(:), ai(:), lo(:), up(:)
+    integer :: e, i, j, k
+    integer, allocatable :: next(:)
+    allocate (ap(sp%m + 1), lo(sp%nent), up(sp%nent), next(sp%m + 1))
+    ap = 0
+    do e = 1, sp%nent
+      ap(sp%ej(e) + 1) = ap(sp%ej(e) + 1) + 1
+      if (sp%ei(e) /= sp%ej(e)) ap(sp%ei(e) + 1) = ap(sp%ei(e) + 1) + 1
+    end do
+    ap(1) = 1
+    do k = 1, sp%m
+      ap(k + 1) = ap(k + 1) + ap(k)
+    end do
+    allocate (ai(ap(sp%m + 1) - 1))
+    next = ap
+    do e = 1, sp%nent
+      i = sp%ei(e)
+      j = sp%ej(e)
+      ai(next(j)) = i
+      lo(e) = next(j)
+      next(j) = next(j) + 1
+      if (i /= j) then
+        ai(next(i)) = j
+        up(e) = next(i)
+        next(i) = next(i) + 1
+      else
+        up(e) = lo(e)
+      end if
+    end do
+  end subroutine mbdk_sparse_schur_csc
+
+  !> The values of S = D W D^T into ax, in the layout of mbdk_sparse_schur_csc.
+  pure subroutine mbdk_sparse_schur_assemble_csc(sp, dz, lo, up, ax)
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in) :: dz(*)
+    integer, intent(in) :: lo(:), up(:)
+    real(dp), intent(inout) :: ax(:)
+    integer :: e, t
+    real(dp) :: x
+    do e = 1, sp%nent
+      x = 0.0_dp
+      do t = sp%eptr(e), sp%eptr(e + 1) - 1
+        x = x + dz(sp%ta(t)) * dz(sp%tb(t)) * sp%tw(t)
+      end do
+      ax(lo(e)) = x
+      ax(up(e)) = x
+    end do
+  end subroutine mbdk_sparse_schur_assemble_csc
+
+  !> Sorts a short list of integers ascending (insertion sort: the lists are a row's
+  !> neighbours, a handful).
+  pure subroutine sort_ints(x)
+    integer, intent(inout) :: x(:)
+    integer :: i, k, v
+    do i = 2, size(x)
+      v = x(i)
+      k = i - 1
+      do while (k >= 1)
+        if (x(k) <= v) exit
+        x(k + 1) = x(k)
+        k = k - 1
+      end do
+      x(k + 1) = v
+    end do
+  end subroutine sort_ints
 
   !> y = D x, or y = D W x when weighted.
   pure subroutine mbdk_sparse_d_times(sp, dz, x, y, weighted)

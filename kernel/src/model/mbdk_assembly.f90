@@ -13,7 +13,12 @@
 !> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
 !> solution of D_free dq = -Phi (LAPACK dgelsd, so redundant constraints are no obstacle), until
 !> max |Phi| <= tol; then the velocities not given, v_free = least-squares solution of
-!> D_free v_free = -Phi_t - D_given v_given. Either residual above 1e-9 at the end:
+!> D_free v_free = -Phi_t - D_given v_given. A model on the sparse path (more than
+!> MBDK_SPARSE_MIN_ROWS rows) takes the same least change through the sparse Schur complement of
+!> the free columns, D_f D_f^T (mbdk_constrained), in O(nnz); where the free columns are
+!> dependent (redundant joints) it falls back to the dense least squares while D has at most
+!> 10^7 entries, and stops with MBDK_ERR_SINGULAR_MATRIX beyond. Either residual above 1e-9 at
+!> the end:
 !> MBDK_ERR_INCONSISTENT_INITIAL, with the residual rows returned so that the caller can name the
 !> joints.
 module mbdk_assembly
@@ -26,6 +31,10 @@ module mbdk_assembly
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
     mbdk_model_work_t, mbdk_model_options_t
+  use mbdk_joints, only: mbdk_joints_pattern, MBDK_JOINT_SLOTS
+  use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
+  use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
+    mbdk_constrained_solve_once, MBDK_SOLVE_SCHUR_SPARSE
   implicit none
   private
   public :: mbdk_tables_resolve, mbdk_assembly_run, mbdk_model_start
@@ -34,6 +43,13 @@ module mbdk_assembly
   integer, parameter, public :: MBDK_FROM_POSE = 1
   !> residuals an assembled state must meet
   real(dp), parameter :: ASSEMBLED_TOL = 1.0e-9_dp
+
+  !> the sparse least change of the assembly: the free columns' weight and its Schur path
+  type :: minnorm_t
+    real(dp), allocatable :: w(:), zero(:), ones(:), mu(:)
+    type(mbdk_sparse_schur_t) :: sp
+    type(mbdk_constrained_t) :: cs
+  end type minnorm_t
 
 contains
 
@@ -103,11 +119,12 @@ contains
     integer, intent(out) :: iterations, stat
     real(dp), intent(out) :: resid(:)
     logical, intent(out) :: velocity
-    real(dp) :: phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
-    real(dp), allocatable :: a(:, :), b(:)
+    real(dp), allocatable :: phi(:), d(:, :), gam(:), phit(:), dx(:), a(:, :), b(:)
     integer, allocatable :: free(:)
     integer :: nc, m, it, rank, k
     real(dp) :: rcond
+    logical :: sparse
+    type(minnorm_t) :: mq, mv
 
     nc = model%nc
     m = model%m
@@ -116,18 +133,39 @@ contains
     velocity = .false.
     stat = MBDK_SUCCESS
     if (m == 0) return
+    ! a large model (its projections sparse) assembles through the sparse Schur complement of
+    ! the free columns; a small one, and a large one whose free columns are dependent, by the
+    ! dense least squares (which passes redundant joints) where its matrix is affordable
+    sparse = model%work%proj%path == MBDK_SOLVE_SCHUR_SPARSE
+    allocate (phi(m), gam(m), phit(m), dx(nc))
+    if (.not. sparse) allocate (d(m, nc))
     free = pack([(k, k = 1, nc)], .not. given_q)
     rcond = epsilon(1.0_dp) * max(m, size(free))
     do it = 0, max_iter
-      call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+      if (sparse) then
+        call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
+      else
+        call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+      end if
       if (maxval(abs(phi)) <= tol .or. it == max_iter .or. size(free) == 0) exit
-      a = d(:, free)
-      allocate (b(max(m, size(free))))
-      b(1:m) = -phi
-      call mbdk_least_squares(a, b, rcond, rank, stat)
-      if (stat /= MBDK_SUCCESS) return
-      q(free) = q(free) + b(1:size(free))
-      deallocate (b)
+      if (sparse) then
+        call minnorm(mq, given_q, -phi, dx, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. dense_affordable()) then
+          sparse = .false.
+          allocate (d(m, nc))
+          cycle
+        end if
+        if (stat /= MBDK_SUCCESS) return
+        q = q + dx
+      else
+        a = d(:, free)
+        allocate (b(max(m, size(free))))
+        b(1:m) = -phi
+        call mbdk_least_squares(a, b, rcond, rank, stat)
+        if (stat /= MBDK_SUCCESS) return
+        q(free) = q(free) + b(1:size(free))
+        deallocate (b)
+      end if
       iterations = it + 1
     end do
     resid = phi
@@ -137,15 +175,31 @@ contains
     end if
     free = pack([(k, k = 1, nc)], .not. given_v)
     if (size(free) > 0) then
-      a = d(:, free)
-      allocate (b(max(m, size(free))))
-      b(1:m) = -phit - matmul(d, v)
-      call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(free)), rank, stat)
-      if (stat /= MBDK_SUCCESS) return
-      v(free) = v(free) + b(1:size(free))
+      if (sparse) then
+        call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
+        call minnorm(mv, given_v, -phit - resid, dx, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. dense_affordable()) then
+          sparse = .false.
+          allocate (d(m, nc))
+          call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+        else if (stat /= MBDK_SUCCESS) then
+          return
+        else
+          v = v + dx
+        end if
+      end if
+      if (.not. sparse) then
+        a = d(:, free)
+        allocate (b(max(m, size(free))))
+        b(1:m) = -phit - matmul(d, v)
+        call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(free)), rank, stat)
+        if (stat /= MBDK_SUCCESS) return
+        v(free) = v(free) + b(1:size(free))
+      end if
     end if
-    call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-    resid = matmul(d, v) + phit
+    call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
+    call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
+    resid = resid + phit
     velocity = .true.
     if (.not. (maxval(abs(resid)) <= ASSEMBLED_TOL)) then
       stat = MBDK_ERR_INCONSISTENT_INITIAL
@@ -153,6 +207,42 @@ contains
     end if
     resid = 0.0_dp
     velocity = .false.
+
+  contains
+
+    !> the dense D of the model and its least squares fit in memory (at most 10^7 entries)
+    logical function dense_affordable()
+      dense_affordable = real(m, dp) * real(nc, dp) <= 1.0e7_dp
+    end function dense_affordable
+
+    !> dx = the least change (Euclidean, in the columns not given) with D dx = c at the compact
+    !> rows model%work%dz: -W D^T (D W D^T)^-1 (-c) with W the mask of free columns, through
+    !> the sparse Schur path (built on first use, for this mask). MBDK_ERR_SINGULAR_MATRIX when
+    !> the free columns of D are dependent.
+    subroutine minnorm(mn, given, c, dx, st)
+      type(minnorm_t), intent(inout) :: mn
+      logical, intent(in) :: given(:)
+      real(dp), intent(in) :: c(:)
+      real(dp), intent(out) :: dx(:)
+      integer, intent(out) :: st
+      if (.not. allocated(mn%w)) then
+        allocate (mn%w(nc), mn%zero(nc), mn%ones(nc), mn%mu(m))
+        mn%w = merge(0.0_dp, 1.0_dp, given)
+        mn%zero = 0.0_dp
+        mn%ones = 1.0_dp
+        block
+          logical :: nz(MBDK_JOINT_SLOTS, m)
+          integer :: col(MBDK_JOINT_SLOTS, m)
+          call mbdk_joints_pattern(model%jint, model%jreal, model%row0, col, nz)
+          call mbdk_sparse_schur_init(mn%sp, col, nz, mn%w)
+        end block
+        call mbdk_constrained_init(mn%cs, nc, m, .true., .false., .false., mn%sp, 1, st)
+        if (st /= MBDK_SUCCESS) return
+      end if
+      call mbdk_constrained_solve_once(mn%cs, mn%sp, model%work%dz, model%col, model%blk, &
+                                       mn%ones, mn%w, mn%zero, c, dx, mn%mu, st)
+    end subroutine minnorm
+
   end subroutine mbdk_assembly_run
 
   !> A run's model at its initial state y = [q; v] (updated in place): with assemble, y is

@@ -13,6 +13,11 @@
 !>                 right-hand side with the matrix, storing no L (what an evaluation that solves
 !>                 once per matrix wants)
 !>   SCHUR_LAPACK  the same S by LAPACK's dpotrf/dpotrs (more rows, or small_dense off)
+!>   SCHUR_SPARSE  the same S kept sparse (mbdk_sparse_schur_csc: both triangles, CSC) and
+!>                 factorised by SuiteSparse's AMD + LDL (mbdk_sparse_ldlt): O(nnz) for the
+!>                 block tridiagonal S of a chain and the block tree of a tree, little fill for
+!>                 loops; the path of more than MBDK_SPARSE_MIN_ROWS rows (or asked for). No
+!>                 matrix of the size of the system is formed on it.
 !>   KKT           [W^-1 D^T; D 0] by LAPACK's LU, for a W^-1 = M with zero entries (a body
 !>                 without inertia) or when asked for (solver kkt)
 !> Dependent rows of D make S or the KKT matrix singular: a pivot at or below
@@ -44,22 +49,30 @@ module mbdk_constrained
   use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, &
     mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_assemble, &
-    mbdk_sparse_d_times, mbdk_sparse_w_residual
+    mbdk_sparse_d_times, mbdk_sparse_w_residual, mbdk_sparse_schur_csc, &
+    mbdk_sparse_schur_assemble_csc
+  use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
   implicit none
   private
   public :: mbdk_constrained_init, mbdk_constrained_factor, mbdk_constrained_solve, &
-    mbdk_constrained_solve_once
+    mbdk_constrained_solve_once, mbdk_constrained_path
 
   !> the linear solve a model's evaluation takes (mbdk_model_linear_solve); the penalty codes
   !> belong to the penalty formulation's own matrix
   integer, parameter, public :: MBDK_SOLVE_NONE = 0, MBDK_SOLVE_REVOLUTE = 1, &
     MBDK_SOLVE_SCHUR_SMALL = 2, MBDK_SOLVE_SCHUR_LAPACK = 3, MBDK_SOLVE_KKT = 4, &
-    MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6
+    MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6, MBDK_SOLVE_SCHUR_SPARSE = 7
+  !> Above this many rows the Schur complement is solved sparse (solver auto). Below, the dense
+  !> LAPACK factorisation of S is the faster (studies/benchmark_size.py measures the crossing).
+  integer, parameter, public :: MBDK_SPARSE_MIN_ROWS = 40
   !> relative pivot below which S = D W D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_CONSTRAINED_SINGULAR_TOL = 1.0e-11_dp
   !> the regular path: penalty factor per max(W^-1) / max |D_i|^2, and the iteration limit
   real(dp), parameter :: AL_KAPPA = 1.0e3_dp
   integer, parameter, public :: MBDK_CONSTRAINED_AL_ITER = 30
+  !> the largest nc whose dense regular-path matrix a sparse-path scene forms (72 MB)
+  integer, parameter :: REGULAR_DENSE_MAX = 3000
 
   type, public :: mbdk_constrained_t
     integer :: path = MBDK_SOLVE_NONE
@@ -73,34 +86,66 @@ module mbdk_constrained
     real(dp), allocatable :: al(:, :), ald(:, :), alx(:), alr(:)
     real(dp) :: beta = 0.0_dp
     integer :: al_iters = 0
+    !> the sparse path: S's factors, and where each entry of S goes in their values
+    type(mbdk_sparse_ldlt_t) :: ldl
+    integer, allocatable :: slo(:), sup(:)
   end type mbdk_constrained_t
 
 contains
 
-  !> The object for nc coordinates and m rows: Schur paths when W is a positive weight
-  !> (w_positive) and kkt is not asked for, in-house up to MBDK_SMALL_DENSE_MAX rows when
-  !> small_dense; the KKT path otherwise.
-  subroutine mbdk_constrained_init(cs, nc, m, w_positive, kkt, small_dense)
-    type(mbdk_constrained_t), intent(out) :: cs
-    integer, intent(in) :: nc, m
+  !> The path for nc coordinates and m rows: a Schur path when W is a positive weight
+  !> (w_positive) and kkt is not asked for (in-house up to MBDK_SMALL_DENSE_MAX rows when
+  !> small_dense, sparse above MBDK_SPARSE_MIN_ROWS or when sparse is asked for, LAPACK
+  !> between), the KKT path otherwise. sparse: 1 always, 0 never, -1 by size.
+  pure integer function mbdk_constrained_path(m, w_positive, kkt, small_dense, sparse) &
+      result(path)
+    integer, intent(in) :: m, sparse
     logical, intent(in) :: w_positive, kkt, small_dense
+    if (m == 0) then
+      path = MBDK_SOLVE_NONE
+    else if (w_positive .and. .not. kkt) then
+      if (sparse == 1 .or. (sparse == -1 .and. m > MBDK_SPARSE_MIN_ROWS)) then
+        path = MBDK_SOLVE_SCHUR_SPARSE
+      else if (small_dense .and. m <= MBDK_SMALL_DENSE_MAX) then
+        path = MBDK_SOLVE_SCHUR_SMALL
+      else
+        path = MBDK_SOLVE_SCHUR_LAPACK
+      end if
+    else
+      path = MBDK_SOLVE_KKT
+    end if
+  end function mbdk_constrained_path
+
+  !> The object for nc coordinates and m rows on the path of mbdk_constrained_path; sp is the
+  !> pattern of D (the sparse path's S is analysed from it here, once).
+  !> MBDK_ERR_INVALID_INPUT when AMD refuses the pattern, MBDK_ERR_NO_MEMORY when a dense path
+  !> cannot have its matrix.
+  subroutine mbdk_constrained_init(cs, nc, m, w_positive, kkt, small_dense, sp, sparse, stat)
+    type(mbdk_constrained_t), intent(out) :: cs
+    integer, intent(in) :: nc, m, sparse
+    logical, intent(in) :: w_positive, kkt, small_dense
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    integer, intent(out) :: stat
+    integer :: astat
+    integer, allocatable :: ap(:), ai(:)
     cs%nc = nc
     cs%m = m
-    if (m == 0) then
-      cs%path = MBDK_SOLVE_NONE
-    else if (w_positive .and. .not. kkt) then
-      cs%path = merge(MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
-                      small_dense .and. m <= MBDK_SMALL_DENSE_MAX)
-    else
-      cs%path = MBDK_SOLVE_KKT
-    end if
-    if (cs%path == MBDK_SOLVE_KKT) then
-      allocate (cs%kkt(nc + m, nc + m), cs%rhs(nc + m), cs%ipiv(nc + m), cs%d(m, nc))
+    cs%path = mbdk_constrained_path(m, w_positive, kkt, small_dense, sparse)
+    stat = MBDK_SUCCESS
+    select case (cs%path)
+    case (MBDK_SOLVE_KKT)
+      allocate (cs%kkt(nc + m, nc + m), cs%rhs(nc + m), cs%ipiv(nc + m), cs%d(m, nc), &
+                stat=astat)
       allocate (cs%s(0, 0))
-    else
-      allocate (cs%s(m, m))
+    case (MBDK_SOLVE_SCHUR_SPARSE)
+      allocate (cs%s(0, 0), cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0), stat=astat)
+      call mbdk_sparse_schur_csc(sp, ap, ai, cs%slo, cs%sup)
+      call mbdk_sparse_ldlt_analyze(cs%ldl, m, ap, ai, stat)
+    case default
+      allocate (cs%s(m, m), stat=astat)
       allocate (cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0))
-    end if
+    end select
+    if (astat /= 0) stat = MBDK_ERR_NO_MEMORY
   end subroutine mbdk_constrained_init
 
   !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
@@ -137,6 +182,8 @@ contains
     m = cs%m
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (.not. all(wm > 0.0_dp)) return   ! a body without inertia: no positive definite matrix
+    ! the regular path's matrix is dense: a large scene on the sparse path has none
+    if (cs%path == MBDK_SOLVE_SCHUR_SPARSE .and. nc > REGULAR_DENSE_MAX) return
     if (.not. allocated(cs%al)) then
       allocate (cs%al(nc, nc), cs%ald(m, nc), cs%alx(nc), cs%alr(m), stat=astat)
       if (astat /= 0) then
@@ -227,6 +274,9 @@ contains
             stat = MBDK_ERR_SINGULAR_MATRIX
         end do
       end block
+    case (MBDK_SOLVE_SCHUR_SPARSE)
+      call mbdk_sparse_schur_assemble_csc(sp, dz, cs%slo, cs%sup, cs%ldl%ax)
+      call mbdk_sparse_ldlt_factor(cs%ldl, tol, stat)
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)
       nk = nc + m
@@ -304,11 +354,13 @@ contains
       return
     end if
     select case (cs%path)
-    case (MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK)
+    case (MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, MBDK_SOLVE_SCHUR_SPARSE)
       call mbdk_sparse_d_times(sp, dz, b, mu, .true.)
       mu = mu - c
       if (cs%path == MBDK_SOLVE_SCHUR_SMALL) then
         call mbdk_small_ldlt_solve(cs%s, cs%m, blk, mu)
+      else if (cs%path == MBDK_SOLVE_SCHUR_SPARSE) then
+        call mbdk_sparse_ldlt_solve(cs%ldl, mu)
       else
         call mbdk_chol_solve(cs%s, mu, stat)
         if (stat /= MBDK_SUCCESS) return

@@ -66,22 +66,23 @@ module mbdk_model
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
     mbdk_revolute_kinematics, mbdk_revolute_solve
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
-    mbdk_constrained_solve_once, mbdk_constrained_factor, mbdk_constrained_solve, MBDK_CONSTRAINED_SINGULAR_TOL, MBDK_SOLVE_NONE, &
+    mbdk_constrained_solve_once, mbdk_constrained_factor, mbdk_constrained_solve, &
+    mbdk_constrained_path, MBDK_CONSTRAINED_SINGULAR_TOL, MBDK_SOLVE_NONE, &
     MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, MBDK_SOLVE_KKT, &
-    MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK
+    MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK, MBDK_SOLVE_SCHUR_SPARSE
   implicit none
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
   public :: mbdk_model_assemble, mbdk_model_linear_solve, mbdk_model_watch_start, &
-    mbdk_model_watch
+    mbdk_model_watch, mbdk_model_sparse
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
   integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3, &
-    MBDK_SOLVER_REVOLUTE = 4
+    MBDK_SOLVER_REVOLUTE = 4, MBDK_SOLVER_SPARSE = 5
   ! the linear solve an evaluation takes (mbdk_model_linear_solve): mbdk_constrained's codes
   public :: MBDK_SOLVE_NONE, MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
-    MBDK_SOLVE_KKT, MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK
+    MBDK_SOLVE_KKT, MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK, MBDK_SOLVE_SCHUR_SPARSE
   integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
   !> outputs per sample: energy parts and residuals
   integer, parameter, public :: MBDK_ENERGY_PARTS = 6, MBDK_RESIDUALS = 3
@@ -306,9 +307,9 @@ contains
     end do
     model%solver = opt%solver
     model%small_dense = opt%small_dense /= 0
-    if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_REVOLUTE) return
-    if ((model%solver == MBDK_SOLVER_SCHUR .or. model%solver == MBDK_SOLVER_REVOLUTE) .and. &
-        .not. model%m_positive) return
+    if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_SPARSE) return
+    if ((model%solver == MBDK_SOLVER_SCHUR .or. model%solver == MBDK_SOLVER_REVOLUTE .or. &
+         model%solver == MBDK_SOLVER_SPARSE) .and. .not. model%m_positive) return
     if (formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
     if (formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
     model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
@@ -333,7 +334,15 @@ contains
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
                                         work%pm, work%y_post, work%pp, work%zero_nc, &
                                         work%wres, work%wterm, work%wa, work%wlam)
-    allocate (work%fq(nc), work%phi(m), work%d(m, nc), work%gam(m), work%phit(m), work%rc(m), &
+    ! the dense D only where a solve takes it (the penalty formulation, the KKT path): a large
+    ! scene has none
+    if (formulation == MBDK_FORM_PENALTY .or. (m > 0 .and. mbdk_model_linear_solve(model) == &
+                                               MBDK_SOLVE_KKT)) then
+      allocate (work%d(m, nc))
+    else
+      allocate (work%d(0, 0))
+    end if
+    allocate (work%fq(nc), work%phi(m), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
               work%xc(nc), work%y_post(2 * nc), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc), &
               work%wres(m), work%wterm(m), work%wa(nc), work%wlam(m))
@@ -345,9 +354,14 @@ contains
       allocate (work%pm(0, 0))
     end if
     call mbdk_constrained_init(work%cs, nc, m, model%m_positive, &
-                               model%solver == MBDK_SOLVER_KKT, model%small_dense)
-    ! the projections' weight winv is positive (M^-1, or the identity): always a Schur path
-    call mbdk_constrained_init(work%proj, nc, m, .true., .false., model%small_dense)
+                               model%solver == MBDK_SOLVER_KKT, model%small_dense, model%sp, &
+                               sparse_choice(model%solver), stat)
+    if (stat /= MBDK_SUCCESS) return
+    ! the projections' weight winv is positive (M^-1, or the identity): always a Schur path;
+    ! the same pattern, and its weights are the model's when M is (else the identity's)
+    call mbdk_constrained_init(work%proj, nc, m, .true., .false., model%small_dense, model%sp, &
+                               sparse_choice(model%solver), stat)
+    if (stat /= MBDK_SUCCESS) return
     model%work => work
     model%has_jac = .false.
     call split_forces(model, stat)
@@ -378,6 +392,22 @@ contains
                           model%mass, rot, y0, y0, 0.0_dp, model%fconst, unused, stat)
   end subroutine split_forces
 
+  !> The sparse argument of mbdk_constrained_path for a solver option: sparse always (solver
+  !> sparse), by size (auto), never (schur, kkt, revolute).
+  pure integer function sparse_choice(solver)
+    integer, intent(in) :: solver
+    sparse_choice = 0
+    if (solver == MBDK_SOLVER_SPARSE) sparse_choice = 1
+    if (solver == MBDK_SOLVER_AUTO) sparse_choice = -1
+  end function sparse_choice
+
+  !> Whether the model's large solves go sparse: 1 always, 0 never, -1 by size (above
+  !> MBDK_SPARSE_MIN_ROWS constraint rows), from its solver option.
+  pure integer function mbdk_model_sparse(self)
+    class(mbdk_model_t), intent(in) :: self
+    mbdk_model_sparse = sparse_choice(self%solver)
+  end function mbdk_model_sparse
+
   !> Which linear solve mbdk_model_accelerations takes (MBDK_SOLVE_*), as solve_constrained
   !> and the penalty branch decide it: for the manifest of a run.
   pure integer function mbdk_model_linear_solve(self) result(path)
@@ -389,26 +419,25 @@ contains
                    self%small_dense .and. self%nc <= MBDK_SMALL_DENSE_MAX)
     else if (self%revolute) then
       path = MBDK_SOLVE_REVOLUTE
-    else if (self%m_positive .and. self%solver /= MBDK_SOLVER_KKT) then
-      path = merge(MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
-                   self%small_dense .and. self%m <= MBDK_SMALL_DENSE_MAX)
     else
-      path = MBDK_SOLVE_KKT
+      path = mbdk_constrained_path(self%m, self%m_positive, self%solver == MBDK_SOLVER_KKT, &
+                                   self%small_dense, sparse_choice(self%solver))
     end if
   end function mbdk_model_linear_solve
 
-  !> Phi, the dense D (m x nc), gamma, Phi_t at (q, v, t). Leaves work%rot and work%dz at q
-  !> (work%rot also when there are no constraints).
+  !> Phi, the dense D (m x nc, when d is present), gamma, Phi_t at (q, v, t). Leaves work%rot
+  !> and work%dz (D in compact rows) at q (work%rot also when there are no constraints).
   subroutine mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(in), contiguous :: q(:), v(:)
-    real(dp), intent(out), contiguous :: phi(:), d(:, :), gam(:), phit(:)
+    real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+    real(dp), intent(out), contiguous, optional :: d(:, :)
     call mbdk_body_rotations(q, self%work%rot)
     if (self%m == 0) return
     call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, q, v, t, phi, &
                           self%work%dz, gam, phit, self%work%visits(1:MBDK_JOINT_TYPES))
-    call mbdk_joints_scatter(self%col, self%work%dz, d)
+    if (present(d)) call mbdk_joints_scatter(self%col, self%work%dz, d)
   end subroutine mbdk_model_constraints
 
   !> One evaluation's assembly at (t, q, v) into the work buffers: rot (one sin/cos pair per
@@ -576,8 +605,8 @@ contains
     associate (w => self%work, yc => self%work%y_post)
       yc = y
       do it = 0, self%proj_max_iter
-        call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, w%d, w%gam, &
-                                    w%phit)
+        call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, gam=w%gam, &
+                                    phit=w%phit)
         if (it > 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
         if (it == self%proj_max_iter) then
           stat = MBDK_ERR_NEWTON_DIVERGED
@@ -589,8 +618,8 @@ contains
         yc(1:nc) = yc(1:nc) + w%xc
         if (it == 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
       end do
-      call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, w%d, w%gam, &
-                                  w%phit)
+      call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, gam=w%gam, &
+                                  phit=w%phit)
       w%xc = yc(nc + 1:2 * nc)
       call mbdk_sparse_d_times(self%sp, w%dz, w%xc, w%rc, .false.)
       w%rc = w%rc + w%phit
@@ -632,38 +661,44 @@ contains
     real(dp), intent(inout) :: a(:), lam(:), reac(:, :), energy(MBDK_ENERGY_PARTS), &
       resid(MBDK_RESIDUALS)
     integer, intent(out) :: stat
-    integer :: nc, m, j, r, k, b1, c
-    real(dp) :: phi(self%m), d(self%m, self%nc), gam(self%m), phit(self%m), q(self%nc), v(self%nc)
+    integer :: nc, m, j, r, k, b1, c, i
+    real(dp), allocatable :: phi(:), gam(:), phit(:), dx(:)
     real(dp) :: p(2), rho(2), pv(2), w, qf(3)
     logical :: need_a, need_d
 
     nc = self%nc
     m = self%m
-    q = y(1:nc)
-    v = y(nc + 1:2 * nc)
     stat = MBDK_SUCCESS
+    associate (q => y(1:nc), v => y(nc + 1:2 * nc))
     need_a = iand(want, MBDK_OUT_ACCELERATIONS + MBDK_OUT_MULTIPLIERS + MBDK_OUT_REACTIONS) /= 0 &
       .or. (m > 0 .and. iand(want, MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS) /= 0)
     if (need_a .and. .not. given) then
       call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
       if (stat /= MBDK_SUCCESS) return
     end if
+    ! D stays in its compact rows (work%dz): products with it cost O(nnz), whatever the size
     need_d = m > 0 .and. iand(want, MBDK_OUT_REACTIONS + MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS) /= 0
-    if (need_d) call mbdk_model_constraints(self, t, q, v, phi, d, gam, phit)
+    allocate (phi(m), gam(m), phit(m), dx(m))
+    if (need_d) call mbdk_model_constraints(self, t, q, v, phi, gam=gam, phit=phit)
     if (iand(want, MBDK_OUT_ENERGY) /= 0) then
       energy(1) = 0.5_dp * sum(self%mass * v**2)
       call mbdk_body_rotations(q, self%work%rot)
       call mbdk_forces_energy(self%fint, self%freal, self%mass, self%work%rot, q, v, t, &
                               energy(2), energy(3), energy(4), energy(6))
       energy(5) = 0.0_dp
-      if (m > 0) energy(5) = -dot_product(lam, matmul(d, v))
+      if (m > 0) then
+        call mbdk_sparse_d_times(self%sp, self%work%dz, v, dx, .false.)
+        energy(5) = -dot_product(lam, dx)
+      end if
     end if
     if (iand(want, MBDK_OUT_RESIDUALS) /= 0) then
       resid = 0.0_dp
       if (m > 0) then
         resid(1) = maxval(abs(phi))
-        resid(2) = maxval(abs(matmul(d, v) + phit))
-        resid(3) = maxval(abs(matmul(d, a) - gam))
+        call mbdk_sparse_d_times(self%sp, self%work%dz, v, dx, .false.)
+        resid(2) = maxval(abs(dx + phit))
+        call mbdk_sparse_d_times(self%sp, self%work%dz, a, dx, .false.)
+        resid(3) = maxval(abs(dx - gam))
       end if
     end if
     if (iand(want, MBDK_OUT_REACTIONS) == 0) return
@@ -674,8 +709,14 @@ contains
       r = self%row0(j)
       k = mbdk_joint_rows(self%jint(1, j))
       b1 = self%jint(2, j)
+      ! -D_body1^T lam: slots 1..3 of a compact row are body1's (x, y, theta), 4..6 body2's,
+      ! which add up when both ends are the same body (as D's columns do)
       do c = 1, 3
-        qf(c) = -dot_product(d(r:r + k - 1, 3 * b1 - 3 + c), lam(r:r + k - 1))
+        qf(c) = 0.0_dp
+        do i = r, r + k - 1
+          qf(c) = qf(c) - self%work%dz(c, i) * lam(i)
+          if (self%jint(3, j) == b1) qf(c) = qf(c) - self%work%dz(c + 3, i) * lam(i)
+        end do
       end do
       rho = 0.0_dp
       if (self%jint(1, j) /= MBDK_JOINT_DRIVER) &
@@ -683,6 +724,7 @@ contains
       reac(1:2, j) = qf(1:2)
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
     end do
+    end associate
   end subroutine mbdk_model_outputs
 
   subroutine model_watch_start(self, t, y, stat)

@@ -1,0 +1,170 @@
+!> A sparse symmetric matrix factorised as P A P^T = L D L^T, by SuiteSparse's AMD (the
+!> fill-reducing ordering P) and LDL (Davis 2005, "Algorithm 849: a concise sparse Cholesky
+!> factorization package"), both from Debian's libsuitesparse-dev.
+!>
+!> Why these two and not CHOLMOD or KLU: every array they use is the caller's, so the factors
+!> live in Fortran allocatables owned by the object that holds them, freed with it, and an
+!> evaluation allocates nothing. LDL is the up-looking, non-supernodal Cholesky: for the
+!> matrices of a mechanism (a few nonzeros per row, the fill of a chain or tree zero under AMD,
+!> a closed loop a little) its cost is O(nnz(L)) and its constant is small; a supernodal
+!> factorisation pays off on denser matrices than these.
+!>
+!> Use: mbdk_sparse_ldlt_analyze once per pattern (the full pattern, both triangles, as CSC:
+!> LDL reads the upper triangle of P A P^T, which is in either triangle of A), then for each
+!> set of values mbdk_sparse_ldlt_factor and any number of mbdk_sparse_ldlt_solve.
+!> Pivoting is the symmetric ordering only, as for the in-house block LDL^T: the matrices given
+!> to it are positive definite (D W D^T, M + s (K + alpha D^T D) near the solution) or refused.
+!> A pivot |d_k| at or below tol times its row's own diagonal |A_kk| (the part of row k
+!> independent of the rows eliminated before it, whatever the rows' scales: the test of the
+!> in-house LDL^T and of the LAPACK path), or a non-finite one, is MBDK_ERR_SINGULAR_MATRIX (for
+!> S = D W D^T: dependent constraint rows); `definite` tells whether every pivot is positive.
+module mbdk_sparse_ldlt
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_null_ptr
+  use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
+  implicit none
+  private
+  public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
+
+  !> n, the pattern (0-based CSC, both triangles) and its values, the ordering and the factors
+  type, public :: mbdk_sparse_ldlt_t
+    integer :: n = 0
+    integer(c_int), allocatable :: ap(:), ai(:)
+    real(c_double), allocatable :: ax(:)
+    integer(c_int), allocatable :: p(:), pinv(:), lp(:), parent(:), lnz(:), flag(:), &
+      pattern(:), li(:)
+    !> position in ax of each diagonal entry (0: structurally zero)
+    integer, allocatable :: dpos(:)
+    real(c_double), allocatable :: lx(:), d(:), y(:)
+    logical :: definite = .false.
+  end type mbdk_sparse_ldlt_t
+
+  interface
+    integer(c_int) function amd_order(n, ap, ai, p, control, info) bind(C, name="amd_order")
+      import :: c_int, c_ptr
+      integer(c_int), value :: n
+      integer(c_int), intent(in) :: ap(*), ai(*)
+      integer(c_int), intent(out) :: p(*)
+      type(c_ptr), value :: control, info
+    end function amd_order
+    subroutine ldl_symbolic(n, ap, ai, lp, parent, lnz, flag, p, pinv) bind(C, name="ldl_symbolic")
+      import :: c_int
+      integer(c_int), value :: n
+      integer(c_int), intent(in) :: ap(*), ai(*), p(*)
+      integer(c_int), intent(out) :: lp(*), parent(*), lnz(*), flag(*), pinv(*)
+    end subroutine ldl_symbolic
+    integer(c_int) function ldl_numeric(n, ap, ai, ax, lp, parent, lnz, li, lx, d, y, pattern, &
+                                        flag, p, pinv) bind(C, name="ldl_numeric")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      integer(c_int), intent(in) :: ap(*), ai(*), lp(*), parent(*), p(*), pinv(*)
+      real(c_double), intent(in) :: ax(*)
+      integer(c_int), intent(inout) :: lnz(*), li(*), pattern(*), flag(*)
+      real(c_double), intent(inout) :: lx(*), d(*), y(*)
+    end function ldl_numeric
+    subroutine ldl_lsolve(n, x, lp, li, lx) bind(C, name="ldl_lsolve")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), intent(inout) :: x(*)
+      integer(c_int), intent(in) :: lp(*), li(*)
+      real(c_double), intent(in) :: lx(*)
+    end subroutine ldl_lsolve
+    subroutine ldl_ltsolve(n, x, lp, li, lx) bind(C, name="ldl_ltsolve")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), intent(inout) :: x(*)
+      integer(c_int), intent(in) :: lp(*), li(*)
+      real(c_double), intent(in) :: lx(*)
+    end subroutine ldl_ltsolve
+    subroutine ldl_dsolve(n, x, d) bind(C, name="ldl_dsolve")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), intent(inout) :: x(*)
+      real(c_double), intent(in) :: d(*)
+    end subroutine ldl_dsolve
+    subroutine ldl_perm(n, x, b, p) bind(C, name="ldl_perm")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), intent(out) :: x(*)
+      real(c_double), intent(in) :: b(*)
+      integer(c_int), intent(in) :: p(*)
+    end subroutine ldl_perm
+    subroutine ldl_permt(n, x, b, p) bind(C, name="ldl_permt")
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), intent(out) :: x(*)
+      real(c_double), intent(in) :: b(*)
+      integer(c_int), intent(in) :: p(*)
+    end subroutine ldl_permt
+  end interface
+
+contains
+
+  !> The ordering and the pattern of L for the n x n matrix of pattern ap(n+1), ai(nnz) (1-based
+  !> CSC, both triangles, each column's rows in any order, no duplicates). The values go into
+  !> f%ax in the same order. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses.
+  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat)
+    type(mbdk_sparse_ldlt_t), intent(out) :: f
+    integer, intent(in) :: n, ap(:), ai(:)
+    integer, intent(out) :: stat
+    integer :: nnz, j, k
+    stat = MBDK_ERR_INVALID_INPUT
+    if (n < 1 .or. size(ap) /= n + 1) return
+    nnz = ap(n + 1) - 1
+    if (size(ai) < nnz) return
+    f%n = n
+    f%ap = ap - 1
+    f%ai = ai(1:nnz) - 1
+    allocate (f%ax(nnz), f%p(n), f%pinv(n), f%lp(n + 1), f%parent(n), f%lnz(n), f%flag(n), &
+              f%pattern(n), f%d(n), f%y(n), f%dpos(n))
+    f%dpos = 0
+    do j = 1, n
+      do k = ap(j), ap(j + 1) - 1
+        if (ai(k) == j) f%dpos(j) = k
+      end do
+    end do
+    ! AMD_OK 0, AMD_OK_BUT_JUMBLED 1 (unsorted rows in a column: allowed)
+    if (amd_order(n, f%ap, f%ai, f%p, c_null_ptr, c_null_ptr) < 0) return
+    call ldl_symbolic(n, f%ap, f%ai, f%lp, f%parent, f%lnz, f%flag, f%p, f%pinv)
+    allocate (f%li(max(1, f%lp(n + 1))), f%lx(max(1, f%lp(n + 1))))
+    f%ax = 0.0_dp
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_sparse_ldlt_analyze
+
+  !> L D L^T of the values in f%ax. A pivot |d_k| <= tol |A_kk|, or non-finite:
+  !> MBDK_ERR_SINGULAR_MATRIX. f%definite: every pivot positive.
+  subroutine mbdk_sparse_ldlt_factor(f, tol, stat)
+    type(mbdk_sparse_ldlt_t), intent(inout) :: f
+    real(dp), intent(in) :: tol
+    integer, intent(out) :: stat
+    integer :: k, c
+    real(dp) :: dmax, akk
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    f%definite = .false.
+    k = ldl_numeric(f%n, f%ap, f%ai, f%ax, f%lp, f%parent, f%lnz, f%li, f%lx, f%d, f%y, &
+                    f%pattern, f%flag, f%p, f%pinv)
+    if (k /= f%n) return
+    dmax = maxval(abs(f%d))
+    if (.not. (dmax <= huge(1.0_dp))) return
+    do k = 1, f%n
+      c = f%p(k) + 1
+      akk = 0.0_dp
+      if (f%dpos(c) > 0) akk = abs(f%ax(f%dpos(c)))
+      if (.not. (abs(f%d(k)) > tol * akk)) return
+    end do
+    f%definite = all(f%d > 0.0_dp)
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_sparse_ldlt_factor
+
+  !> b <- A^-1 b with the factors of mbdk_sparse_ldlt_factor.
+  subroutine mbdk_sparse_ldlt_solve(f, b)
+    type(mbdk_sparse_ldlt_t), intent(inout) :: f
+    real(dp), intent(inout), contiguous :: b(:)
+    call ldl_perm(f%n, f%y, b, f%p)
+    call ldl_lsolve(f%n, f%y, f%lp, f%li, f%lx)
+    call ldl_dsolve(f%n, f%y, f%d)
+    call ldl_ltsolve(f%n, f%y, f%lp, f%li, f%lx)
+    call ldl_permt(f%n, b, f%y, f%p)
+  end subroutine mbdk_sparse_ldlt_solve
+
+end module mbdk_sparse_ldlt

@@ -1,0 +1,169 @@
+!> The sparsity of a matrix over the bodies' coordinates (nc x nc, 3 x 3 blocks): block (a, b)
+!> is there when a = b or an element couples bodies a and b (a joint, a two-point force). The
+!> tangent matrices of a scene (M + s (K + alpha D^T D) + (h/2) C of trapezoidal_index3) have
+!> this pattern: D^T D couples the bodies of each joint, K and C those of each element.
+!>
+!> The pattern is CSC with both triangles (what mbdk_sparse_ldlt takes): scalar column
+!> j = 3 (b - 1) + c holds, for each neighbour a of body b in ascending order, the rows
+!> 3 (a - 1) + 1..3. mbdk_body_pattern_pos finds (i, j) by a binary search among the
+!> neighbours of j's body; mbdk_body_pattern_scatter adds an element's dense 6 x 6 matrix over
+!> the coordinates of its two bodies. Building it costs O(bodies + elements).
+module mbdk_body_pattern
+  use mbdk_kinds, only: dp
+  implicit none
+  private
+  public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter
+
+  type, public :: mbdk_body_pattern_t
+    integer :: nb = 0, nc = 0, nnz = 0
+    !> neighbours of body b (itself included): nbr(bptr(b) .. bptr(b+1)-1), ascending
+    integer, allocatable :: bptr(:), nbr(:)
+    !> CSC of the scalar matrix (1-based), and the position of the transpose of each entry
+    integer, allocatable :: ap(:), ai(:), tpos(:)
+  end type mbdk_body_pattern_t
+
+contains
+
+  !> The pattern of nb bodies coupled by the pairs pairs(2, k) (0: the ground, no coupling).
+  subroutine mbdk_body_pattern_init(bp, nb, pairs)
+    type(mbdk_body_pattern_t), intent(out) :: bp
+    integer, intent(in) :: nb, pairs(:, :)
+    integer :: k, a, b, n, j, c, i, p
+    integer, allocatable :: cnt(:), fill(:)
+    bp%nb = nb
+    bp%nc = 3 * nb
+    ! adjacency, both directions, then sorted and made unique per body
+    allocate (cnt(nb + 1))
+    cnt = 1     ! the body itself
+    do k = 1, size(pairs, 2)
+      a = pairs(1, k)
+      b = pairs(2, k)
+      if (a < 1 .or. b < 1 .or. a == b) cycle
+      cnt(a) = cnt(a) + 1
+      cnt(b) = cnt(b) + 1
+    end do
+    allocate (bp%bptr(nb + 1))
+    bp%bptr(1) = 1
+    do b = 1, nb
+      bp%bptr(b + 1) = bp%bptr(b) + cnt(b)
+    end do
+    allocate (bp%nbr(bp%bptr(nb + 1) - 1), fill(nb))
+    fill = bp%bptr(1:nb)
+    do b = 1, nb
+      bp%nbr(fill(b)) = b
+      fill(b) = fill(b) + 1
+    end do
+    do k = 1, size(pairs, 2)
+      a = pairs(1, k)
+      b = pairs(2, k)
+      if (a < 1 .or. b < 1 .or. a == b) cycle
+      bp%nbr(fill(a)) = b
+      fill(a) = fill(a) + 1
+      bp%nbr(fill(b)) = a
+      fill(b) = fill(b) + 1
+    end do
+    ! sort and drop duplicates in place (two elements on the same pair of bodies)
+    n = 0
+    do b = 1, nb
+      call sort_ints(bp%nbr(bp%bptr(b):bp%bptr(b + 1) - 1))
+      a = n
+      do k = bp%bptr(b), bp%bptr(b + 1) - 1
+        if (n > a) then
+          if (bp%nbr(n) == bp%nbr(k)) cycle
+        end if
+        n = n + 1
+        bp%nbr(n) = bp%nbr(k)
+      end do
+      bp%bptr(b) = a + 1
+      cnt(b) = n - a
+    end do
+    bp%bptr(nb + 1) = n + 1
+    bp%nbr = bp%nbr(1:n)
+    ! the scalar CSC: 3 columns per body, 3 rows per neighbour
+    bp%nnz = 9 * n
+    allocate (bp%ap(bp%nc + 1), bp%ai(bp%nnz), bp%tpos(bp%nnz))
+    p = 1
+    do b = 1, nb
+      do c = 1, 3
+        j = 3 * (b - 1) + c
+        bp%ap(j) = p
+        do k = bp%bptr(b), bp%bptr(b + 1) - 1
+          do i = 1, 3
+            bp%ai(p) = 3 * (bp%nbr(k) - 1) + i
+            p = p + 1
+          end do
+        end do
+      end do
+    end do
+    bp%ap(bp%nc + 1) = p
+    do j = 1, bp%nc
+      do p = bp%ap(j), bp%ap(j + 1) - 1
+        bp%tpos(p) = mbdk_body_pattern_pos(bp, j, bp%ai(p))
+      end do
+    end do
+  end subroutine mbdk_body_pattern_init
+
+  !> The position of entry (i, j) in the values (0 when the pattern has no such entry).
+  pure integer function mbdk_body_pattern_pos(bp, i, j) result(p)
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, intent(in) :: i, j
+    integer :: a, b, lo, hi, mid
+    a = (i - 1) / 3 + 1
+    b = (j - 1) / 3 + 1
+    lo = bp%bptr(b)
+    hi = bp%bptr(b + 1) - 1
+    p = 0
+    do while (lo <= hi)
+      mid = (lo + hi) / 2
+      if (bp%nbr(mid) == a) then
+        p = bp%ap(j) + 3 * (mid - bp%bptr(b)) + (i - 3 * (a - 1)) - 1
+        return
+      else if (bp%nbr(mid) < a) then
+        lo = mid + 1
+      else
+        hi = mid - 1
+      end if
+    end do
+  end function mbdk_body_pattern_pos
+
+  !> ax += the element matrix ke(6, 6) over (x, y, theta) of body b1, then of body b2 (either
+  !> 0: the ground, its rows and columns dropped; b1 = b2: both halves on that body).
+  pure subroutine mbdk_body_pattern_scatter(bp, b1, b2, ke, ax)
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, intent(in) :: b1, b2
+    real(dp), intent(in) :: ke(6, 6)
+    real(dp), intent(inout) :: ax(:)
+    integer :: bi, bj, ei, ej, i, j, p, bb(2)
+    bb = [b1, b2]
+    do ej = 1, 2
+      bj = bb(ej)
+      if (bj < 1) cycle
+      do ei = 1, 2
+        bi = bb(ei)
+        if (bi < 1) cycle
+        do j = 1, 3
+          p = mbdk_body_pattern_pos(bp, 3 * (bi - 1) + 1, 3 * (bj - 1) + j)
+          do i = 1, 3
+            ax(p + i - 1) = ax(p + i - 1) + ke(3 * (ei - 1) + i, 3 * (ej - 1) + j)
+          end do
+        end do
+      end do
+    end do
+  end subroutine mbdk_body_pattern_scatter
+
+  pure subroutine sort_ints(x)
+    integer, intent(inout) :: x(:)
+    integer :: i, k, v
+    do i = 2, size(x)
+      v = x(i)
+      k = i - 1
+      do while (k >= 1)
+        if (x(k) <= v) exit
+        x(k + 1) = x(k)
+        k = k - 1
+      end do
+      x(k + 1) = v
+    end do
+  end subroutine sort_ints
+
+end module mbdk_body_pattern
