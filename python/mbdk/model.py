@@ -258,10 +258,15 @@ def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
     return row[:, None] * d * col[None, :]
 
 
+#: the largest D (entries) whose singular values an error message computes to name joints: the
+#: SVD costs O(m nc^2), minutes beyond this; a larger scene's message names no joints
+DENSE_NAMING_MAX = 4_000_000
+
+
 def dependent_rows(d: np.ndarray, tol: float = 1e-9):
     """Rows of D that are linear combinations of the others: the left null space of D (give it
-    scaled_jacobian's D, free of units)."""
-    if d.shape[0] == 0:
+    scaled_jacobian's D, free of units). Empty for a D of more than DENSE_NAMING_MAX entries."""
+    if d.shape[0] == 0 or d.size > DENSE_NAMING_MAX:
         return []
     u, s, _ = np.linalg.svd(d)
     smax = s[0] if s.size else 0.0

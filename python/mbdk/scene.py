@@ -126,10 +126,20 @@ class Scene:
         """1-based index of a body; 0 for the ground."""
         if name == GROUND:
             return 0
-        for i, b in enumerate(self.bodies, 1):
-            if b.name == name:
-                return i
-        raise SceneError(f"{self.source}: no body named {name!r}")
+        # a name -> index table, rebuilt when the bodies changed under it (a scene of 10^4
+        # bodies looks up two names per joint: a linear search made that quadratic)
+        idx = self.__dict__.get("_body_index")
+        i = idx.get(name) if idx is not None else None
+        if i is None or i > len(self.bodies) or self.bodies[i - 1].name != name \
+                or len(idx) > len(self.bodies):
+            idx = {}
+            for k, b in enumerate(self.bodies, 1):
+                idx.setdefault(b.name, k)
+            self.__dict__["_body_index"] = idx
+            i = idx.get(name)
+        if i is None:
+            raise SceneError(f"{self.source}: no body named {name!r}")
+        return i
 
     def q0(self):
         out = []

@@ -63,7 +63,7 @@ IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not
                     "M v' + D^T lam = f, Phi = 0, D v + Phi_t = 0"}
 from .watch import as_watch, drift_message, drift_report
 from .methods import method as _method
-from .model import (FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
+from .model import (DENSE_NAMING_MAX, FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
                     pose_error, rows_to_joints, scaled_jacobian)
 from .model import evaluate as _evaluate
@@ -604,7 +604,10 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
 
 
 def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result, dae=False):
-    """A singular solve at the initial state: name the dependent joints, if any."""
+    """A singular solve at the initial state: name the dependent joints, if any (not on a scene
+    too large for the dense SVD that finds them)."""
+    if _too_large_to_name(tab):
+        return
     d0 = scaled_jacobian(tab, _evaluate(tab, q0, v0, t0)["D"])
     dep = dependent_rows(d0)
     if not dep:
@@ -629,6 +632,12 @@ def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result, dae=F
         status=Status.ERR_SINGULAR_MATRIX, result=result)
 
 
+def _too_large_to_name(tab: Tables) -> bool:
+    """Whether the dense D of the scene is beyond what an error message may form and decompose
+    (mbdk.model.DENSE_NAMING_MAX entries)."""
+    return tab.m * 3 * len(tab.mass) > DENSE_NAMING_MAX
+
+
 def resolved(scene: Scene, r: SceneResult) -> Tables:
     """The tables of a run as the kernel used them: pose values taken at its first sample."""
     return build_tables(scene, r.q[0])
@@ -638,7 +647,7 @@ def _singular_note(scene, tab: Tables, r) -> str:
     """Where D is close to losing a rank at the last sample (the state the failed step started
     from): the smallest / largest singular value of the scaled Jacobian and the joints of the
     rows the vanishing direction involves, in words; empty elsewhere."""
-    if not (len(r.t) and tab.m):
+    if not (len(r.t) and tab.m) or _too_large_to_name(tab):
         return ""
     if not (np.all(np.isfinite(r.q[-1])) and np.all(np.isfinite(r.v[-1]))):
         return ""   # a blown-up run (watch off): no configuration to speak of
@@ -661,7 +670,7 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     if not index3:
         where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
         note = ""
-        if r.status == Status.ERR_SINGULAR_MATRIX and nw:
+        if r.status == Status.ERR_SINGULAR_MATRIX and nw and not _too_large_to_name(tab):
             tab_r = resolved(scene, r)
             dep = dependent_rows(scaled_jacobian(
                 tab_r, _evaluate(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))

@@ -276,7 +276,18 @@ contains
       end block
     case (MBDK_SOLVE_SCHUR_SPARSE)
       call mbdk_sparse_schur_assemble_csc(sp, dz, cs%slo, cs%sup, cs%ldl%ax)
-      call mbdk_sparse_ldlt_factor(cs%ldl, tol, stat)
+      ! A caller's near test (a window wider than the singular one) is narrowed by
+      ! MBDK_SPARSE_MIN_ROWS / m here: a pivot's ratio to its row's diagonal depends on the
+      ! elimination order, and in the order AMD picks, a long regular chain's smallest ratio
+      ! is about 2 / m (a tail of k rows eliminated before a joint leaves it 2 / k), which a
+      ! fixed window would call near singular beyond a few thousand bodies. A rank loss still
+      ! drives its pivot to zero, like the square of the distance to it, whatever the order.
+      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL) then
+        call mbdk_sparse_ldlt_factor(cs%ldl, max(MBDK_CONSTRAINED_SINGULAR_TOL, &
+                                     tol * real(MBDK_SPARSE_MIN_ROWS, dp) / real(m, dp)), stat)
+      else
+        call mbdk_sparse_ldlt_factor(cs%ldl, tol, stat)
+      end if
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)
       nk = nc + m
