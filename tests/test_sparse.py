@@ -1,4 +1,4 @@
-"""The large-scene path (solver="sparse", and solver="auto" above 40 constraint rows): the
+"""The large-scene path (solver="sparse", and solver="auto" above 12 constraint rows): the
 Schur complement S = D M^-1 D^T, trapezoidal_index3's augmented Newton matrix and the initial
 assembly factorised by SuiteSparse's AMD + LDL (kernel/src/linalg/mbdk_sparse_ldlt.f90).
 
@@ -12,24 +12,15 @@ import pytest
 
 import mbdk
 from mbdk.simulate import RedundantConstraintsError
+from mbdk.benchmarks import bar_chain
 from mbdk.scene import scene_from_dict
 
 SPARSE = "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"
 
 
 def chain(n, angle_deg=0.0):
-    """n uniform bars (1 m, 1 kg) on revolute joints, the first hinged to the ground at the
-    origin, all at angle_deg, under gravity: 2 n constraint rows."""
-    bodies, joints = [], []
-    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
-    for i in range(n):
-        bodies.append({"name": f"b{i}", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
-                       "x": (i + 0.5) * c, "y": (i + 0.5) * s, "angle_deg": angle_deg})
-        joints.append({"name": f"J{i}", "type": "revolute", "body1": f"b{i}",
-                       "point1": [-0.5, 0.0], "body2": f"b{i - 1}" if i else "ground",
-                       "point2": [0.5, 0.0] if i else [0.0, 0.0]})
-    return scene_from_dict({"scene": {"name": f"chain{n}"}, "body": bodies, "joint": joints,
-                            "force": [{"type": "gravity", "g": [0.0, -9.81]}]})
+    """n bars on revolute joints hinged to the ground (mbdk.benchmarks.bar_chain): 2 n rows."""
+    return bar_chain(n, angle_deg)
 
 
 def mixed(n):
@@ -111,11 +102,14 @@ def test_sparse_path_agrees_with_dense_with_every_element_kind(method, formulati
     assert dense.energy_parts["dissipated_dampers"][-1] > 1e-3
 
 
-def test_auto_goes_sparse_above_40_rows_only():
-    small = mbdk.simulate(chain(20), "rk4", h=1e-3, t_end=1e-3)     # 40 rows
-    large = mbdk.simulate(chain(21), "rk4", h=1e-3, t_end=1e-3)     # 42 rows
-    assert small.manifest["linear_solve"] != SPARSE
+def test_auto_goes_sparse_above_12_rows_only():
+    small = mbdk.simulate(chain(6), "rk4", h=1e-3, t_end=1e-3)      # 12 rows
+    large = mbdk.simulate(chain(7), "rk4", h=1e-3, t_end=1e-3)      # 14 rows
+    assert small.manifest["linear_solve"].startswith("revolute_schur")
     assert large.manifest["linear_solve"] == SPARSE
+    # solver="schur" keeps the dense Schur complement at any size
+    dense = mbdk.simulate(chain(7), "rk4", h=1e-3, t_end=1e-3, solver="schur")
+    assert "LAPACK" in dense.manifest["linear_solve"]
 
 
 def test_sparse_assembly_moves_the_same_least_change_as_the_dense_least_squares():

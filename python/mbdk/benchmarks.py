@@ -36,6 +36,29 @@ from .scene import scene_from_dict
 G = 9.81
 
 
+def bar_chain(n: int, angle_deg: float = 0.0):
+    """An open chain of n uniform bars (1 m, 1 kg: inertia 1/12 kg m^2 about the centre) on
+    revolute joints under gravity (-9.81 m/s^2 along y): bar b0's left end is hinged to the
+    ground at the origin, bar b{i}'s left end to the right end of b{i-1}; all at angle_deg,
+    at rest. 2 n constraint rows: the scaling benchmark of the sparse path."""
+    if isinstance(n, bool) or not (isinstance(n, int) and n >= 1):
+        raise InvalidInputError(f"bar_chain: n = {n!r}; the chain needs a whole number of "
+                                "bars, 1 or more")
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    bodies, joints = [], []
+    for i in range(n):
+        bodies.append({"name": f"b{i}", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
+                       "x": (i + 0.5) * c, "y": (i + 0.5) * s, "angle_deg": angle_deg})
+        joints.append({"name": f"J{i}", "type": "revolute", "body1": f"b{i}",
+                       "point1": [-0.5, 0.0], "body2": f"b{i - 1}" if i else "ground",
+                       "point2": [0.5, 0.0] if i else [0.0, 0.0]})
+    return scene_from_dict({
+        "scene": {"name": f"bar_chain_n{n}",
+                  "description": f"an open chain of {n} uniform bars (1 m, 1 kg) on revolute "
+                                 "joints, hinged to the ground at the origin"},
+        "body": bodies, "joint": joints, "force": [{"type": "gravity", "g": [0.0, -G]}]})
+
+
 def a02_chain(n: int):
     """The IFToMM A02 chain of n four-bar loops as a scene: bodies crank0..crank{n} and
     coupler0..coupler{n-1}, revolute joints G{i} (crank i to the ground), L{i} and R{i} (coupler

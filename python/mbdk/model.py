@@ -21,12 +21,12 @@ from .scene import BODY_KINDS, COORDS, Scene, SceneError, body_kind_problem
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
-#: constraint rows), else schur when M is positive (sparse above 40 constraint rows), else kkt
+#: constraint rows), else schur when M is positive (sparse above 12 constraint rows), else kkt
 #: (kernel/src/model/mbdk_model.f90); "schur" is the dense Schur complement at any size,
 #: "sparse" the sparse one at any size
 SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
 #: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
-SPARSE_MIN_ROWS = 40
+SPARSE_MIN_ROWS = 12
 #: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (evaluate()["solve"])
 LINEAR_SOLVES = {0: "none (no constraints)",
                  1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",

@@ -18,10 +18,11 @@ Methods and formulations (mbdk.methods() lists the methods):
 
 Linear solves (solver=; the manifest's linear_solve says which one ran):
   auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
-                  schur when every body has mass and inertia (sparse above 40 rows), else kkt
+                  schur when every body has mass and inertia (in-house dense up to 12 rows,
+                  sparse above), else kkt
   revolute_schur  S = D M^-1 D^T in closed 2 x 2 blocks from the joint points, block LDL^T
-  schur           S from the nonzeros of D (any joint type), dense: in-house block LDL^T up to
-                  12 rows (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
+  schur           S from the nonzeros of D (any joint type), dense at any size: in-house block
+                  LDL^T up to 12 rows (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
   sparse          the same S kept sparse and factorised by SuiteSparse's AMD + LDL, O(N) for a
                   chain or tree; trapezoidal_index3's augmented Newton matrix likewise (its
                   symmetric part), and the assembly of the initial state

@@ -63,9 +63,10 @@ module mbdk_constrained
   integer, parameter, public :: MBDK_SOLVE_NONE = 0, MBDK_SOLVE_REVOLUTE = 1, &
     MBDK_SOLVE_SCHUR_SMALL = 2, MBDK_SOLVE_SCHUR_LAPACK = 3, MBDK_SOLVE_KKT = 4, &
     MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6, MBDK_SOLVE_SCHUR_SPARSE = 7
-  !> Above this many rows the Schur complement is solved sparse (solver auto). Below, the dense
-  !> LAPACK factorisation of S is the faster (studies/benchmark_size.py measures the crossing).
-  integer, parameter, public :: MBDK_SPARSE_MIN_ROWS = 40
+  !> Above this many rows the Schur complement is solved sparse (solver auto); up to it, by the
+  !> in-house dense LDL^T. AMD + LDL beats LAPACK's dense Cholesky from the first size LAPACK
+  !> would take (a chain of 7 bars, 14 rows: 8.3 against 15 us per rk4 step, benchmarks/run.py).
+  integer, parameter, public :: MBDK_SPARSE_MIN_ROWS = MBDK_SMALL_DENSE_MAX
   !> relative pivot below which S = D W D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_CONSTRAINED_SINGULAR_TOL = 1.0e-11_dp
   !> the regular path: penalty factor per max(W^-1) / max |D_i|^2, and the iteration limit

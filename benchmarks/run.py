@@ -1,0 +1,254 @@
+"""Benchmark harness (a measurement, not a test: nothing here fails on time): mbdk's cost per
+step against the size of the mechanism and against its peers, in one run on one machine.
+
+What it measures, each as the solving thread's CPU time per step (the best of three runs) and
+the wall time beside it:
+  - open chains of N bars (mbdk.benchmarks.bar_chain, N = 2 .. 1024): mbdk's rk4 on the
+    reduced formulation and trapezoidal_index3 (augmented Lagrangian), each on the path
+    solver="auto" takes (dense up to 12 constraint rows, sparse AMD + LDL above), and the dense
+    Schur path up to N = 256 for the crossing; Exudyn's generalized-alpha index-3 solver with
+    its dense and its sparse (Eigen) linear solver on the same chain, when exudyn is installed
+    (`pip install exudyn`; benchmarks/exudyn_chain.py);
+  - the growth exponent p of cost ~ N^p, a least-squares fit over N = 8 .. 1024;
+  - closed loops (the IFToMM A02 chain of n four-bar loops, mbdk.benchmarks.a02_chain) per step;
+  - the minimal-coordinate double pendulum's rk4 step in the kernel against a plain scalar C
+    loop doing the same arithmetic, compiled and timed in this run (studies/benchmark_rk4.py's
+    yardstick), and SciPy's solve_ivp RK45 on it.
+
+Writes benchmarks/out/ (or --out): size.csv/.md, peers.csv/.md, size.png and manifest.json
+(machine, versions, settings). `python benchmarks/run.py [--quick]`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "studies"))
+
+import mbdk  # noqa: E402
+from mbdk.benchmarks import a02_chain, bar_chain  # noqa: E402
+
+H = 1e-4
+
+
+def progress(msg: str) -> None:
+    print(f"  .. {msg}", file=sys.stderr, flush=True)
+
+
+def mbdk_step(scene, method: str, formulation: str, steps: int, solver: str = "auto",
+              repeats: int = 3) -> dict:
+    """Per-step thread CPU and wall time of a fixed-step run of `steps` steps (best of
+    `repeats`), with no outputs sampled but the last state."""
+    best = None
+    for _ in range(repeats):
+        r = mbdk.simulate(scene, method, formulation=formulation, h=H, t_end=steps * H,
+                          every=steps, outputs=(), solver=solver)
+        cur = (r.cpu_time / steps, r.wall_time / steps)
+        best = cur if best is None or cur[0] < best[0] else best
+    return {"cpu": best[0], "wall": best[1], "path": r.manifest.get("linear_solve", "")}
+
+
+def growth(ns, ts, n_min=8) -> float | None:
+    pts = [(n, t) for n, t in zip(ns, ts) if n >= n_min and t]
+    if len(pts) < 3:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def machine() -> dict:
+    cpu = platform.processor()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+            "platform": platform.platform(), "numpy": np.__version__}
+
+
+def run(out: Path, quick: bool) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    ns = [2, 8, 32, 128, 512] if quick else [2, 4, 8, 16, 32, 64, 128, 256, 512, 1024]
+    try:
+        import exudyn_chain
+        exu_version = exudyn_chain.available()
+    except ImportError:
+        exu_version = None
+    rows = []
+    for n in ns:
+        sc = bar_chain(n)
+        steps = max(20, min(2000, 40000 // n))
+        row = {"N": n, "rows": 2 * n}
+        for key, method, form in (("rk4", "rk4", "reduced"),
+                                  ("index3", "trapezoidal_index3", "augmented_lagrangian")):
+            progress(f"chain N = {n}: mbdk {key}")
+            m = mbdk_step(sc, method, form, steps)
+            row[f"mbdk {key} us"] = 1e6 * m["cpu"]
+            row[f"mbdk {key} wall us"] = 1e6 * m["wall"]
+            row[f"{key} path"] = m["path"].split(":")[0]
+            if n <= 256:
+                d = mbdk_step(sc, method, form, max(10, steps // 4), solver="schur", repeats=1)
+                row[f"mbdk {key} dense us"] = 1e6 * d["cpu"]
+        if exu_version:
+            for solver in ("sparse", "dense"):
+                if solver == "dense" and n > 256:
+                    continue
+                progress(f"chain N = {n}: Exudyn {solver}")
+                e = exudyn_chain.chain_step_time(n, solver=solver, h=H,
+                                                 steps=max(20, min(400, 8000 // n)))
+                row[f"Exudyn {solver} us"] = 1e6 * e["per_step_cpu"]
+        rows.append(row)
+    agree = None
+    if exu_version:
+        # the same model in both: the free end of a 4-bar chain at t = 0.2 s (2000 steps)
+        e = exudyn_chain.chain_step_time(4, solver="sparse", h=H, steps=2000)
+        r = mbdk.simulate(bar_chain(4), "trapezoidal_index3", h=H, t_end=2000 * H, every=2000,
+                          outputs=())
+        x, y, th = r.q[-1][9:12]
+        tip = np.array([x + 0.5 * np.cos(th), y + 0.5 * np.sin(th)])
+        agree = float(np.max(np.abs(tip - np.asarray(e["tip"]))))
+    cols = ["N", "rows", "mbdk rk4 us", "mbdk rk4 wall us", "rk4 path", "mbdk rk4 dense us",
+            "mbdk index3 us", "mbdk index3 wall us", "index3 path", "mbdk index3 dense us"]
+    if exu_version:
+        cols += ["Exudyn sparse us", "Exudyn dense us"]
+    exps = {c: growth([r["N"] for r in rows], [r.get(c) for r in rows])
+            for c in ("mbdk rk4 us", "mbdk index3 us", "Exudyn sparse us")}
+    write(rows, cols, out / "size", "Cost per step against the number of bars N (open chain, "
+          f"h = {H:g}; thread CPU in us)",
+          "growth exponents p (cost ~ N^p, N = 8..{}): ".format(ns[-1]) + ", ".join(
+              f"{k.replace(' us', '')} {v:.2f}" for k, v in exps.items() if v is not None)
+          + ("" if agree is None else f". mbdk and Exudyn agree on the free end of a 4-bar "
+             f"chain at t = 0.2 s (h = {H:g}) to {agree:.1e} m"))
+
+    # closed loops: the A02 chain of n four-bar loops, before its first singular crossing
+    loops = []
+    for n in ([1, 4, 16, 64] if quick else [1, 4, 16, 64, 256]):
+        sc = a02_chain(n)
+        progress(f"A02 loops n = {n}")
+        row = {"loops": n, "rows": 2 * (2 * n + 1) + 2 * n}
+        for key, method, form in (("rk4", "rk4", "reduced"),
+                                  ("index3", "trapezoidal_index3", "augmented_lagrangian")):
+            m = mbdk_step(sc, method, form, 50)
+            row[f"mbdk {key} us"] = 1e6 * m["cpu"]
+            row[f"{key} path"] = m["path"].split(":")[0]
+        loops.append(row)
+    write(loops, ["loops", "rows", "mbdk rk4 us", "rk4 path", "mbdk index3 us", "index3 path"],
+          out / "loops", "Closed loops: IFToMM A02, cost per step (thread CPU, us)", "")
+
+    # the minimal rk4 loop against a plain C loop and SciPy, double pendulum P1
+    import benchmark_rk4 as b4
+    peers = []
+    n_fast = 200_000 if quick else 1_000_000
+    c_step = None
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = b4.build_c(Path(tmp))
+        if exe is not None:
+            c_step = min(b4.run_c(exe, n_fast, 1e-5)[0] for _ in range(5)) / n_fast
+    k_step = b4.best_of(b4.kernel, n_fast, 1e-5)[0] / n_fast
+    peers.append({"what": "rk4 step, double pendulum, minimal coordinates",
+                  "mbdk us": 1e6 * k_step, "peer": "plain scalar C loop (cc -O3)",
+                  "peer us": 1e6 * c_step if c_step else None,
+                  "ratio": k_step / c_step if c_step else None})
+    try:
+        from scipy.integrate import solve_ivp
+        y0 = np.array(b4.Y0)
+        t0 = time.thread_time()
+        sol = solve_ivp(lambda t, y: b4.f_numpy(y), (0.0, 1.0), y0, method="RK45",
+                        rtol=1e-8, atol=1e-10)
+        dt = time.thread_time() - t0
+        peers.append({"what": "adaptive RK45 step, double pendulum (rtol 1e-8)",
+                      "mbdk us": None, "peer": "SciPy solve_ivp RK45 (Python right-hand side)",
+                      "peer us": 1e6 * dt / max(1, sol.t.size - 1), "ratio": None})
+        r = mbdk.solve_ode("double_pendulum", "dopri54", t_end=1.0, y0=y0, params=b4.P,
+                           rtol=1e-8, atol=1e-10)
+        peers[-1]["mbdk us"] = 1e6 * r.cpu_time / max(1, r.stats.steps)
+        peers[-1]["ratio"] = peers[-1]["mbdk us"] / peers[-1]["peer us"]
+    except Exception as exc:   # a missing SciPy leaves the row out, named
+        progress(f"SciPy row left out: {exc}")
+    for r in rows:
+        if r["N"] == 64 and "Exudyn sparse us" in r:
+            peers.append({"what": "index-3 step, chain of 64 bars", "mbdk us": r["mbdk index3 us"],
+                          "peer": f"Exudyn {exu_version} generalized-alpha, sparse",
+                          "peer us": r["Exudyn sparse us"],
+                          "ratio": r["mbdk index3 us"] / r["Exudyn sparse us"]})
+    write(peers, ["what", "mbdk us", "peer", "peer us", "ratio"], out / "peers",
+          "mbdk against its peers (thread CPU per step, us; ratio = mbdk / peer)", "")
+    plot(rows, out / "size.png")
+    from mbdk.ode import build_info
+    manifest = {"machine": machine(), "mbdk": build_info(), "exudyn": exu_version,
+                "h": H, "growth_exponents": exps, "date": time.strftime("%Y-%m-%d"),
+                "tip_agreement_m": agree,
+                "timing": "thread CPU (CLOCK_THREAD_CPUTIME_ID) of the solve, best of 3"}
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    return manifest
+
+
+def write(rows, cols, stem: Path, title: str, notes: str) -> None:
+    def fmt(v):
+        if v is None:
+            return ""
+        if isinstance(v, float):
+            return f"{v:.3g}"
+        return str(v)
+    with open(stem.with_suffix(".csv"), "w") as fh:
+        fh.write(",".join(cols) + "\n")
+        for r in rows:
+            fh.write(",".join(fmt(r.get(c)) for c in cols) + "\n")
+    md = [f"### {title}", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md += ["| " + " | ".join(fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    if notes:
+        md += ["", notes]
+    stem.with_suffix(".md").write_text("\n".join(md) + "\n")
+    print("\n".join(md) + "\n")
+
+
+def plot(rows, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    ns = [r["N"] for r in rows]
+    for col, style in (("mbdk rk4 us", "o-"), ("mbdk index3 us", "s-"),
+                       ("mbdk rk4 dense us", "o:"), ("mbdk index3 dense us", "s:"),
+                       ("Exudyn sparse us", "^-"), ("Exudyn dense us", "^:")):
+        pts = [(n, r[col]) for n, r in zip(ns, rows) if r.get(col)]
+        if pts:
+            ax.loglog(*zip(*pts), style, label=col.replace(" us", ""))
+    ax.loglog(ns, [ns[0] and rows[0]["mbdk rk4 us"] * n / ns[0] for n in ns], "k--", lw=0.8,
+              label="~ N")
+    ax.set_xlabel("bars N")
+    ax.set_ylabel("thread CPU per step [us]")
+    ax.set_title("Open chain: cost per step against size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer sizes and shorter runs")
+    ap.add_argument("--out", type=Path, default=HERE / "out")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    run(args.out, args.quick)
+    print(f"benchmarks: written to {args.out} ({time.perf_counter() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
