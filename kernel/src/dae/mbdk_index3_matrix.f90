@@ -92,7 +92,12 @@ contains
       allocate (fa%body_blk(0))
       return
     end if
-    allocate (fa%lu(nk, nk), fa%ipiv(nk), fa%ainv(nk, nk), fa%inv_work(nk, nk), fa%rinv(nk))
+    allocate (fa%lu(nk, nk), fa%ipiv(nk), fa%ainv(nk, nk), fa%inv_work(nk, nk), fa%rinv(nk), &
+              stat=k)
+    if (k /= 0) then
+      stat = MBDK_ERR_NO_MEMORY
+      return
+    end if
     ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
     if (mod(nc, 3) == 0) then
       fa%body_blk = [(3 * k - 2, k = 1, nc / 3 + 1)]

@@ -262,7 +262,7 @@ contains
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, y0(:)
     integer, intent(out) :: stat
-    integer :: nc, m, nk
+    integer :: nc, m, nk, astat
 
     stat = MBDK_ERR_INVALID_INPUT
     nc = model%nc
@@ -298,7 +298,11 @@ contains
               s%zero_m(m), s%one_nc(nc))
     ! the dense D serves the book scheme's matrix only
     if (s%book) then
-      allocate (s%d(m, nc))
+      allocate (s%d(m, nc), stat=astat)
+      if (astat /= 0) then
+        stat = MBDK_ERR_NO_MEMORY
+        return
+      end if
     else
       allocate (s%d(0, 0))
     end if

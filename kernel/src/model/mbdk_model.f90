@@ -204,7 +204,7 @@ contains
     type(mbdk_model_work_t), target, intent(inout) :: work
     integer, intent(out) :: stat
     integer, intent(in), optional :: kinds(:)
-    integer :: b, j, rows, nc, m, formulation, code, coords, vels
+    integer :: b, j, rows, nc, m, formulation, code, coords, vels, astat
     character(len=MBDK_ELEMENT_NAME_LEN) :: kname
     logical :: available
 
@@ -338,7 +338,11 @@ contains
     ! scene has none
     if (formulation == MBDK_FORM_PENALTY .or. (m > 0 .and. mbdk_model_linear_solve(model) == &
                                                MBDK_SOLVE_KKT)) then
-      allocate (work%d(m, nc))
+      allocate (work%d(m, nc), stat=astat)
+      if (astat /= 0) then
+        stat = MBDK_ERR_NO_MEMORY
+        return
+      end if
     else
       allocate (work%d(0, 0))
     end if
@@ -349,7 +353,12 @@ contains
     work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
     if (formulation == MBDK_FORM_PENALTY) then
-      allocate (work%pm(nc, nc))
+      ! the penalty matrix M + ap D^T D is dense: a scene too large for it is refused by status
+      allocate (work%pm(nc, nc), stat=astat)
+      if (astat /= 0) then
+        stat = MBDK_ERR_NO_MEMORY
+        return
+      end if
     else
       allocate (work%pm(0, 0))
     end if
