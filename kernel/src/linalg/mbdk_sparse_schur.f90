@@ -16,7 +16,7 @@ module mbdk_sparse_schur
   implicit none
   private
   public :: mbdk_sparse_schur_init, mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_schur_csc, mbdk_sparse_schur_assemble_csc, &
+    mbdk_sparse_schur_csc, mbdk_sparse_schur_assemble_csc, mbdk_sort_ints, &
     mbdk_sparse_w_residual, mbdk_sparse_dtd_add
 
   integer, parameter :: SLOTS = 6
@@ -102,7 +102,7 @@ contains
             first(nl) = i
           end do
         end do
-        call sort_ints(first(1:nl))
+        call mbdk_sort_ints(first(1:nl))
         do k = 1, nl
           i = first(k)
           ne = ne + 1
@@ -203,9 +203,9 @@ contains
     end do
   end subroutine mbdk_sparse_schur_assemble_csc
 
-  !> Sorts a short list of integers ascending (insertion sort: the lists are a row's
-  !> neighbours, a handful).
-  pure subroutine sort_ints(x)
+  !> Sorts a short list of integers ascending (insertion sort: the lists are a row's or a
+  !> body's neighbours, a handful).
+  pure subroutine mbdk_sort_ints(x)
     integer, intent(inout) :: x(:)
     integer :: i, k, v
     do i = 2, size(x)
@@ -218,7 +218,7 @@ contains
       end do
       x(k + 1) = v
     end do
-  end subroutine sort_ints
+  end subroutine mbdk_sort_ints
 
   !> y = D x, or y = D W x when weighted.
   pure subroutine mbdk_sparse_d_times(sp, dz, x, y, weighted)

@@ -10,6 +10,7 @@
 !> the coordinates of its two bodies. Building it costs O(bodies + elements).
 module mbdk_body_pattern
   use mbdk_kinds, only: dp
+  use mbdk_sparse_schur, only: mbdk_sort_ints
   implicit none
   private
   public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter
@@ -65,7 +66,7 @@ contains
     ! sort and drop duplicates in place (two elements on the same pair of bodies)
     n = 0
     do b = 1, nb
-      call sort_ints(bp%nbr(bp%bptr(b):bp%bptr(b + 1) - 1))
+      call mbdk_sort_ints(bp%nbr(bp%bptr(b):bp%bptr(b + 1) - 1))
       a = n
       do k = bp%bptr(b), bp%bptr(b + 1) - 1
         if (n > a) then
@@ -150,20 +151,5 @@ contains
       end do
     end do
   end subroutine mbdk_body_pattern_scatter
-
-  pure subroutine sort_ints(x)
-    integer, intent(inout) :: x(:)
-    integer :: i, k, v
-    do i = 2, size(x)
-      v = x(i)
-      k = i - 1
-      do while (k >= 1)
-        if (x(k) <= v) exit
-        x(k + 1) = x(k)
-        k = k - 1
-      end do
-      x(k + 1) = v
-    end do
-  end subroutine sort_ints
 
 end module mbdk_body_pattern
