@@ -65,7 +65,7 @@ module mbdk_constrained
     MBDK_SOLVE_PENALTY_SMALL = 5, MBDK_SOLVE_PENALTY_LAPACK = 6, MBDK_SOLVE_SCHUR_SPARSE = 7
   !> Above this many rows the Schur complement is solved sparse (solver auto); up to it, by the
   !> in-house dense LDL^T. AMD + LDL beats LAPACK's dense Cholesky from the first size LAPACK
-  !> would take (a chain of 7 bars, 14 rows: 8.3 against 15 us per rk4 step, benchmarks/run.py).
+  !> would take (benchmarks/run.py measures both paths on chains).
   integer, parameter, public :: MBDK_SPARSE_MIN_ROWS = MBDK_SMALL_DENSE_MAX
   !> relative pivot below which S = D W D^T (or the KKT matrix) counts as singular
   real(dp), parameter, public :: MBDK_CONSTRAINED_SINGULAR_TOL = 1.0e-11_dp
