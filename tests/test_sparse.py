@@ -12,7 +12,7 @@ import pytest
 
 import mbdk
 from mbdk.simulate import RedundantConstraintsError
-from mbdk.benchmarks import bar_chain
+from mbdk.benchmarks import a02_chain, a02_crank, bar_chain
 from mbdk.scene import scene_from_dict
 
 SPARSE = "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"
@@ -155,3 +155,41 @@ def test_a_ten_thousand_body_chain_sets_up_and_steps():
     # (the constraints hold it only near the hinge), the first bar less
     tip_ay = r.a[0, 3 * (n - 1) + 1]
     assert -9.81 * 1.01 < tip_ay < -9.81 * 0.5
+
+
+@pytest.mark.parametrize("n,h", [(64, 5e-3), (256, 2.5e-3)])
+def test_large_a02_chains_stop_at_the_flat_pose_on_the_sparse_path(n, h):
+    """The reduced formulation's refusal of a near rank loss (tests/test_index3.py's one- and
+    two-loop case) holds on the sparse path too: A02 chains of 64 and 256 loops (386 and 1538
+    rows) stop with SingularMatrixError at the first flat pose (the exact crank angle a
+    multiple of pi there), every sample on the right branch, as the dense path does. (A window
+    narrowed by 12 / m alone let them stride over it unseen to t = 1.24 s.)"""
+    with pytest.raises(mbdk.SingularMatrixError) as err:
+        mbdk.simulate(a02_chain(n), "rk4", formulation="reduced", h=h, t_end=2.0,
+                      outputs=("residuals",))
+    r = err.value.result
+    assert r.manifest["linear_solve"] == SPARSE
+    theta, _ = a02_crank(n, r.t)
+    assert np.abs(r.q[:, 2] - theta).max() < 1e-5
+    assert abs(theta[-1] - np.pi * np.round(theta[-1] / np.pi)) < 0.1
+    assert r.t[-1] < 0.75      # the first crossing, about 0.72 s
+
+
+@pytest.mark.parametrize("formulation", ["reduced", "projection"])
+def test_a_perturbed_ten_thousand_body_chain_assembles_and_projects(formulation):
+    """Bodies moved 1 mm off their joints: the sparse assembly brings |Phi| to its roundoff
+    (16 eps |q|: about 4e-11 m ten kilometres out) in a few Gauss-Newton corrections, and the
+    projection formulation keeps it there (a fixed 1e-12 m is below what Phi can resolve at
+    |q| = 10^4 m)."""
+    n = 10_000
+    sc = bar_chain(n, -20.0)
+    rng = np.random.default_rng(1)
+    for b in sc.bodies:
+        b.x += 1e-3 * rng.standard_normal()
+        b.y += 1e-3 * rng.standard_normal()
+    r = mbdk.simulate(sc, "rk4", formulation=formulation, h=1e-4, t_end=3e-4, every=3,
+                      outputs=("residuals",))
+    floor = 16 * np.finfo(float).eps * np.abs(r.q).max()
+    assert 0 < r.assembly["iterations"] <= 6
+    assert r.residuals[0, 0] <= floor
+    assert np.max(r.residuals[:, 0]) < 1e-9

@@ -189,7 +189,7 @@ enum mbdk_solver { MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT 
 typedef struct mbdk_model_options {
     double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
     double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */
-    double projection_tol;        /* max |Phi| after the projection of q */
+    double projection_tol;        /* max |Phi| after the projection of q (at least its roundoff) */
     int formulation;              /* enum mbdk_formulation */
     int solver;                   /* enum mbdk_solver */
     int small_dense;              /* 0: LAPACK for every factorisation */

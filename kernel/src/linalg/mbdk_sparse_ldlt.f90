@@ -12,12 +12,14 @@
 !> Use: mbdk_sparse_ldlt_analyze once per pattern (the full pattern, both triangles, as CSC:
 !> LDL reads the upper triangle of P A P^T, which is in either triangle of A), then for each
 !> set of values mbdk_sparse_ldlt_factor and any number of mbdk_sparse_ldlt_solve.
-!> Pivoting is the symmetric ordering only, as for the in-house block LDL^T: the matrices given
-!> to it are positive definite (D W D^T, M + s (K + alpha D^T D) near the solution) or refused.
-!> A pivot |d_k| at or below tol times its row's own diagonal |A_kk| (the part of row k
-!> independent of the rows eliminated before it, whatever the rows' scales: the test of the
+!> Pivoting is the symmetric ordering only, as for the in-house block LDL^T. D W D^T is positive
+!> definite (or singular, refused); trapezoidal_index3's M + s (K + alpha D^T D) is near the
+!> solution, and an indefinite one is factorised as it is, which is stable as long as no pivot
+!> is small: a pivot |d_k| at or below tol times its row's own diagonal |A_kk| (the part of row
+!> k independent of the rows eliminated before it, whatever the rows' scales: the test of the
 !> in-house LDL^T and of the LAPACK path), or a non-finite one, is MBDK_ERR_SINGULAR_MATRIX (for
-!> S = D W D^T: dependent constraint rows); `definite` tells whether every pivot is positive.
+!> S = D W D^T: dependent constraint rows). The least ratio |d_k| / |A_kk| is returned for the
+!> callers' own, wider tests.
 module mbdk_sparse_ldlt
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_null_ptr
   use mbdk_kinds, only: dp
@@ -36,7 +38,6 @@ module mbdk_sparse_ldlt
     !> position in ax of each diagonal entry (0: structurally zero)
     integer, allocatable :: dpos(:)
     real(c_double), allocatable :: lx(:), d(:), y(:)
-    logical :: definite = .false.
   end type mbdk_sparse_ldlt_t
 
   interface
@@ -132,27 +133,30 @@ contains
   end subroutine mbdk_sparse_ldlt_analyze
 
   !> L D L^T of the values in f%ax. A pivot |d_k| <= tol |A_kk|, or non-finite:
-  !> MBDK_ERR_SINGULAR_MATRIX. f%definite: every pivot positive.
-  subroutine mbdk_sparse_ldlt_factor(f, tol, stat)
+  !> MBDK_ERR_SINGULAR_MATRIX. rmin: the least |d_k| / |A_kk| (on success).
+  subroutine mbdk_sparse_ldlt_factor(f, tol, stat, rmin)
     type(mbdk_sparse_ldlt_t), intent(inout) :: f
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
+    real(dp), intent(out), optional :: rmin
     integer :: k, c
-    real(dp) :: dmax, akk
+    real(dp) :: dmax, akk, r
     stat = MBDK_ERR_SINGULAR_MATRIX
-    f%definite = .false.
+    if (present(rmin)) rmin = 0.0_dp
     k = ldl_numeric(f%n, f%ap, f%ai, f%ax, f%lp, f%parent, f%lnz, f%li, f%lx, f%d, f%y, &
                     f%pattern, f%flag, f%p, f%pinv)
     if (k /= f%n) return
     dmax = maxval(abs(f%d))
     if (.not. (dmax <= huge(1.0_dp))) return
+    r = huge(1.0_dp)
     do k = 1, f%n
       c = f%p(k) + 1
       akk = 0.0_dp
       if (f%dpos(c) > 0) akk = abs(f%ax(f%dpos(c)))
       if (.not. (abs(f%d(k)) > tol * akk)) return
+      if (akk > 0.0_dp) r = min(r, abs(f%d(k)) / akk)
     end do
-    f%definite = all(f%d > 0.0_dp)
+    if (present(rmin)) rmin = r
     stat = MBDK_SUCCESS
   end subroutine mbdk_sparse_ldlt_factor
 

@@ -12,7 +12,7 @@
 !> Assembly (mbdk_assembly_run). The coordinates the scene does not mark as given move as little
 !> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
 !> solution of D_free dq = -Phi (LAPACK dgelsd, so redundant constraints are no obstacle), until
-!> max |Phi| <= tol; then the velocities not given, v_free = least-squares solution of
+!> max |Phi| <= tol (or Phi's roundoff at q, mbdk_phi_floor, where that is larger); then the velocities not given, v_free = least-squares solution of
 !> D_free v_free = -Phi_t - D_given v_given. A model on the sparse path (more than
 !> MBDK_SPARSE_MIN_ROWS rows) takes the same least change through the sparse Schur complement of
 !> the free columns, D_f D_f^T (mbdk_constrained), in O(nnz); where the free columns are
@@ -30,7 +30,7 @@ module mbdk_assembly
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
-    mbdk_model_work_t, mbdk_model_options_t
+    mbdk_model_work_t, mbdk_model_options_t, mbdk_phi_floor
   use mbdk_joints, only: mbdk_joints_pattern, MBDK_JOINT_SLOTS
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
@@ -147,17 +147,22 @@ contains
       else
         call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
       end if
-      if (maxval(abs(phi)) <= tol .or. it == max_iter .or. size(free) == 0) exit
+      if (maxval(abs(phi)) <= mbdk_phi_floor(tol, q) .or. it == max_iter .or. size(free) == 0) &
+        exit
       if (sparse) then
         call minnorm(mq, given_q, -phi, dx, stat)
         if (stat == MBDK_ERR_SINGULAR_MATRIX .and. dense_affordable()) then
+          ! dependent free columns: this and the next corrections by the dense least squares
           sparse = .false.
           allocate (d(m, nc))
-          cycle
+          call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+        else if (stat /= MBDK_SUCCESS) then
+          return
+        else
+          q = q + dx
         end if
-        if (stat /= MBDK_SUCCESS) return
-        q = q + dx
-      else
+      end if
+      if (.not. sparse) then
         a = d(:, free)
         allocate (b(max(m, size(free))))
         b(1:m) = -phi

@@ -17,7 +17,9 @@
 !>                 factorised by SuiteSparse's AMD + LDL (mbdk_sparse_ldlt): O(nnz) for the
 !>                 block tridiagonal S of a chain and the block tree of a tree, little fill for
 !>                 loops; the path of more than MBDK_SPARSE_MIN_ROWS rows (or asked for). No
-!>                 matrix of the size of the system is formed on it.
+!>                 matrix of the size of the system is formed on it but the regular path's
+!>                 below (a few steps at a singular crossing, up to REGULAR_DENSE_MAX
+!>                 coordinates; a larger scene stops there by name).
 !>   KKT           [W^-1 D^T; D 0] by LAPACK's LU, for a W^-1 = M with zero entries (a body
 !>                 without inertia) or when asked for (solver kkt)
 !> Dependent rows of D make S or the KKT matrix singular: a pivot at or below
@@ -74,6 +76,9 @@ module mbdk_constrained
   integer, parameter, public :: MBDK_CONSTRAINED_AL_ITER = 30
   !> the largest nc whose dense regular-path matrix a sparse-path scene forms (72 MB)
   integer, parameter :: REGULAR_DENSE_MAX = 3000
+  !> the least pivot ratio of a regular mechanism's first factorisation at which the sparse
+  !> path keeps a caller's near window whole (see factor_exact)
+  real(dp), parameter :: NEAR_BASELINE = 0.5_dp
 
   type, public :: mbdk_constrained_t
     integer :: path = MBDK_SOLVE_NONE
@@ -90,6 +95,8 @@ module mbdk_constrained
     !> the sparse path: S's factors, and where each entry of S goes in their values
     type(mbdk_sparse_ldlt_t) :: ldl
     integer, allocatable :: slo(:), sup(:)
+    !> the near tests' scale, from the first factorisation (see factor_exact); < 0: not yet
+    real(dp) :: near_scale = -1.0_dp
   end type mbdk_constrained_t
 
 contains
@@ -251,7 +258,7 @@ contains
     integer, intent(in), contiguous :: col(:, :), blk(:)
     integer, intent(out) :: stat
     integer :: i, j, k, nc, m, nk
-    real(dp) :: umax, umin
+    real(dp) :: umax, umin, rmin
     nc = cs%nc
     m = cs%m
     stat = MBDK_SUCCESS
@@ -277,18 +284,22 @@ contains
       end block
     case (MBDK_SOLVE_SCHUR_SPARSE)
       call mbdk_sparse_schur_assemble_csc(sp, dz, cs%slo, cs%sup, cs%ldl%ax)
-      ! A caller's near test (a window wider than the singular one) is narrowed by
-      ! MBDK_SPARSE_MIN_ROWS / m here: a pivot's ratio to its row's diagonal depends on the
-      ! elimination order, and in the order AMD picks, a long regular chain's smallest ratio
-      ! is about 2 / m (a tail of k rows eliminated before a joint leaves it 2 / k), which a
-      ! fixed window would call near singular beyond a few thousand bodies. A rank loss still
-      ! drives its pivot to zero, like the square of the distance to it, whatever the order.
-      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL) then
-        call mbdk_sparse_ldlt_factor(cs%ldl, max(MBDK_CONSTRAINED_SINGULAR_TOL, &
-                                     tol * real(MBDK_SPARSE_MIN_ROWS, dp) / real(m, dp)), stat)
-      else
-        call mbdk_sparse_ldlt_factor(cs%ldl, tol, stat)
-      end if
+      call mbdk_sparse_ldlt_factor(cs%ldl, MBDK_CONSTRAINED_SINGULAR_TOL, stat, rmin)
+      if (stat /= MBDK_SUCCESS) return
+      ! A caller's near test (a window wider than the singular one) is taken relative to the
+      ! least pivot ratio of the object's first factorisation (its baseline, near_scale): a
+      ! pivot's ratio to its row's diagonal depends on the elimination order, and in the order
+      ! AMD picks, a long regular chain's least ratio is about 2 / m (a tail of k rows
+      ! eliminated before a joint leaves it 2 / k), which a fixed window would call near
+      ! singular beyond a few thousand bodies. A mechanism whose least ratio starts at
+      ! NEAR_BASELINE or above (the small ones, loops of any size) keeps the full window; a
+      ! rank loss drives its pivot to zero, like the square of the distance to it, from
+      ! whatever baseline. The window is never narrower than MBDK_SPARSE_MIN_ROWS / m of the
+      ! caller's, so a start close to singular is refused as on the dense path.
+      if (cs%near_scale < 0.0_dp) cs%near_scale = min(1.0_dp, max(real(MBDK_SPARSE_MIN_ROWS, dp) &
+        / real(m, dp), rmin / NEAR_BASELINE))
+      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL .and. .not. (rmin > tol * cs%near_scale)) &
+        stat = MBDK_ERR_SINGULAR_MATRIX
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)
       nk = nc + m

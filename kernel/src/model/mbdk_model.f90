@@ -20,11 +20,13 @@
 !>     S in closed form, 2 x 2 block by block, from the joint points' offsets, and its block
 !>     LDL^T written out for 2 x 2 pivots (mbdk_revolute_schur); the right-hand side of
 !>     D a = rc comes out of the same pass over the joints as gamma;
-!>   - otherwise (solver auto or schur) S assembled from the nonzeros of D (mbdk_sparse_schur)
-!>     and solved by an in-house root-free Cholesky (LDL^T) with the joints as pivot blocks,
-!>     eliminating the right-hand side along with the matrix in one pass
-!>     (mbdk_small_ldlt_solve_once: S serves one solve), up to MBDK_SMALL_DENSE_MAX rows
-!>     (LAPACK's call overhead dominates such tiny systems), or by LAPACK dpotrf/dpotrs;
+!>   - otherwise S assembled from the nonzeros of D (mbdk_sparse_schur): with solver auto up
+!>     to MBDK_SMALL_DENSE_MAX rows, or solver schur, dense, by an in-house root-free Cholesky
+!>     (LDL^T) with the joints as pivot blocks, eliminating the right-hand side along with the
+!>     matrix in one pass (mbdk_small_ldlt_solve_once: S serves one solve; LAPACK's call
+!>     overhead dominates such tiny systems), or by LAPACK dpotrf/dpotrs for more rows (solver
+!>     schur) or small_dense off; with solver auto above MBDK_SMALL_DENSE_MAX rows, or solver
+!>     sparse, kept sparse and factorised by AMD + LDL (mbdk_constrained's sparse path);
 !>   - otherwise (or solver kkt) the KKT matrix [M D^T; D 0] is factorised with LAPACK dgetrf.
 !> Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
@@ -33,9 +35,10 @@
 !>
 !> An evaluation (mbdk_model_assemble) computes the sin/cos of every body's angle once, the
 !> forces, and Phi, gamma, Phi_t and D in the compact rows of mbdk_joints (on the revolute
-!> path: Phi, gamma, the joint points' offsets and the right-hand side rc instead of D); the
-!> dense D (mbdk_model_constraints) is scattered from those rows for the penalty and KKT solves
-!> and for the index-3 integrators.
+!> path: Phi, gamma, the joint points' offsets and the right-hand side rc instead of D); a
+!> dense D is scattered from those rows only where a dense matrix is built from it (the
+!> penalty formulation's work%d, the KKT path's own copy, the index-3 book scheme, the DAE
+!> forms of ida and bdf): the other paths and the outputs work on the compact rows.
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
 !> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
@@ -74,7 +77,7 @@ module mbdk_model
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
   public :: mbdk_model_assemble, mbdk_model_linear_solve, mbdk_model_watch_start, &
-    mbdk_model_watch, mbdk_model_sparse
+    mbdk_model_watch, mbdk_model_sparse, mbdk_phi_floor
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -113,7 +116,8 @@ module mbdk_model
     real(c_double) :: penalty_alpha = 1.0e7_c_double    !< Jalon-Bayo (3.35)-(3.40)
     real(c_double) :: penalty_omega = 10.0_c_double
     real(c_double) :: penalty_mu = 1.0_c_double
-    real(c_double) :: projection_tol = 1.0e-12_c_double !< max |Phi| after the projection of q
+    !> max |Phi| after the projection of q (raised to Phi's roundoff at q: mbdk_phi_floor)
+    real(c_double) :: projection_tol = 1.0e-12_c_double
     integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< MBDK_FORM_*
     integer(c_int) :: solver = MBDK_SOLVER_AUTO         !< MBDK_SOLVER_*
     integer(c_int) :: small_dense = 1                   !< 0: LAPACK for every factorisation
@@ -334,10 +338,9 @@ contains
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
                                         work%pm, work%y_post, work%pp, work%zero_nc, &
                                         work%wres, work%wterm, work%wa, work%wlam)
-    ! the dense D only where a solve takes it (the penalty formulation, the KKT path): a large
-    ! scene has none
-    if (formulation == MBDK_FORM_PENALTY .or. (m > 0 .and. mbdk_model_linear_solve(model) == &
-                                               MBDK_SOLVE_KKT)) then
+    ! the dense D only where the penalty formulation builds its matrix from it (the KKT path
+    ! keeps its own copy): a large scene has none
+    if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%d(m, nc), stat=astat)
       if (astat /= 0) then
         stat = MBDK_ERR_NO_MEMORY
@@ -416,6 +419,14 @@ contains
     class(mbdk_model_t), intent(in) :: self
     mbdk_model_sparse = sparse_choice(self%solver)
   end function mbdk_model_sparse
+
+  !> A tolerance on |Phi| raised to the roundoff Phi carries at q: a joint's Phi is a difference
+  !> of positions of size |q|, exact only to a few ulps of them (16 eps max |q|), so a scene far
+  !> from the origin (a chain of 10^4 one-metre bars reaches 10^4 m) cannot meet 1e-12 m.
+  pure real(dp) function mbdk_phi_floor(tol, q) result(t)
+    real(dp), intent(in) :: tol, q(:)
+    t = max(tol, 16.0_dp * epsilon(1.0_dp) * maxval(abs(q)))
+  end function mbdk_phi_floor
 
   !> Which linear solve mbdk_model_accelerations takes (MBDK_SOLVE_*), as solve_constrained
   !> and the penalty branch decide it: for the manifest of a run.
@@ -616,7 +627,7 @@ contains
       do it = 0, self%proj_max_iter
         call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, gam=w%gam, &
                                     phit=w%phit)
-        if (it > 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
+        if (it > 0 .and. maxval(abs(w%phi)) <= mbdk_phi_floor(self%proj_tol, yc(1:nc))) exit
         if (it == self%proj_max_iter) then
           stat = MBDK_ERR_NEWTON_DIVERGED
           return
@@ -625,7 +636,7 @@ contains
         call correct(stat)
         if (stat /= MBDK_SUCCESS) return
         yc(1:nc) = yc(1:nc) + w%xc
-        if (it == 0 .and. maxval(abs(w%phi)) <= self%proj_tol) exit
+        if (it == 0 .and. maxval(abs(w%phi)) <= mbdk_phi_floor(self%proj_tol, yc(1:nc))) exit
       end do
       call mbdk_model_constraints(self, t, yc(1:nc), yc(nc + 1:2 * nc), w%phi, gam=w%gam, &
                                   phit=w%phit)
