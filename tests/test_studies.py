@@ -276,3 +276,20 @@ def test_error_control_study(tmp_path, root):
     ec = num(g["euler_cromer h = 1e-4 (the book)"]["leaves_1e-6_at_s"])
     tight = num(g["bdf rtol = 1e-9"]["leaves_1e-6_at_s"])
     assert ec is not None and (tight is None or ec < tight)
+
+
+def test_step_control_study(tmp_path, root):
+    """The quick run (four-bar, 1 s, to 1e-4): the best fixed step and the loosest tolerance
+    both reach the target against the extrapolated reference, and the bound on what a
+    distribution of steps can save lies in (0, 1] (Hoelder's inequality: a bound above 1, or a
+    controlled run that missed its target, is a defect of the study)."""
+    sys.path.insert(0, str(root / "studies"))
+    import step_control
+    summary = step_control.run(tmp_path, quick=True)
+    assert len(summary["figures"]) == 1 and summary["figures"][0].exists()
+    (row,) = rows(tmp_path / "step_control.csv")
+    assert num(row["fixed error"]) <= num(row["target"])
+    assert num(row["controlled error"]) <= num(row["target"])
+    assert 0.0 < num(row["bound N_opt/N_fixed"]) <= 1.0
+    assert num(row["steps ratio"]) == pytest.approx(
+        num(row["controlled steps"]) / num(row["fixed steps"]), rel=1e-3)
