@@ -12,7 +12,7 @@ flag of its own (mbdk._compiled).
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 from functools import lru_cache
 
 import numpy as np
@@ -84,7 +84,9 @@ class _Struct:
     _cname = ""
 
     def pack(self) -> np.ndarray:
-        return pack(self._cname, asdict(self))
+        # the fields are numbers: a shallow read (dataclasses.asdict deep-copies every value,
+        # which cost more than the rest of a short solve's packing)
+        return pack(self._cname, {f.name: getattr(self, f.name) for f in fields(self)})
 
 
 @dataclass(frozen=True)
