@@ -193,3 +193,4 @@ def test_a_perturbed_ten_thousand_body_chain_assembles_and_projects(formulation)
     assert 0 < r.assembly["iterations"] <= 6
     assert r.residuals[0, 0] <= floor
     assert np.max(r.residuals[:, 0]) < 1e-9
+

@@ -300,7 +300,7 @@ def _state(name: str, value, n: int | None) -> np.ndarray:
 def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
             raise_on_failure, failure_note, interrupted=False):
     status = Status(int(status))
-    result = ODEResult(t=np.array(t[:nw]), y=np.array(y[:, :nw].T), stats=Stats.from_words(stats),
+    result = ODEResult(t=t[:nw], y=y[:, :nw].T, stats=Stats.from_words(stats),
                        status=status, message=status_message(status), manifest=manifest,
                        problem=problem if isinstance(problem, str) else "",
                        method=method, params=params, t0=t0, y0=y0)
