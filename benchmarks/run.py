@@ -13,7 +13,8 @@ the wall time beside it:
   - closed loops (the IFToMM A02 chain of n four-bar loops, mbdk.benchmarks.a02_chain) per step;
   - the minimal-coordinate double pendulum's rk4 step in the kernel against a plain scalar C
     loop doing the same arithmetic, compiled and timed in this run (studies/benchmark_rk4.py's
-    yardstick), and SciPy's solve_ivp RK45 on it.
+    yardstick), SciPy's solve_ivp RK45 on it, and the kernel's bdf against SUNDIALS CVODE
+    driven from C with a C right-hand side (studies/cvode_yardstick.c), both to 1e-6.
 
 Writes benchmarks/out/ (or --out): size.csv/.md, peers.csv/.md, size.png and manifest.json
 (machine, versions, settings). `python benchmarks/run.py [--quick]`.
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import os
 import platform
 import sys
@@ -178,6 +180,7 @@ def run(out: Path, quick: bool) -> dict:
         peers[-1]["ratio"] = peers[-1]["mbdk us"] / peers[-1]["peer us"]
     except Exception as exc:   # a missing SciPy leaves the row out, named
         progress(f"SciPy row left out: {exc}")
+    peers.append(cvode_row(quick))
     for r in rows:
         if r["N"] == 64 and "Exudyn sparse us" in r:
             peers.append({"what": "index-3 step, chain of 64 bars", "mbdk us": r["mbdk index3 us"],
@@ -185,7 +188,8 @@ def run(out: Path, quick: bool) -> dict:
                           "peer us": r["Exudyn sparse us"],
                           "ratio": r["mbdk index3 us"] / r["Exudyn sparse us"]})
     write(peers, ["what", "mbdk us", "peer", "peer us", "ratio"], out / "peers",
-          "mbdk against its peers (thread CPU per step, us; ratio = mbdk / peer)", "")
+          "mbdk against its peers (CPU time in us, per step or per whole solve as the row "
+          "says; ratio = mbdk / peer)", "")
     plot(rows, out / "size.png")
     from mbdk.ode import build_info
     manifest = {"machine": machine(), "mbdk": build_info(), "exudyn": exu_version,
@@ -194,6 +198,51 @@ def run(out: Path, quick: bool) -> dict:
                 "timing": "thread CPU (CLOCK_THREAD_CPUTIME_ID) of the solve, best of 3"}
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
     return manifest
+
+
+def cvode_row(quick: bool) -> dict:
+    """The double pendulum P1 to 1e-6 in the angles at t = 10 s: the kernel's bdf against
+    SUNDIALS CVODE (BDF) driven from a plain C program with a C right-hand side
+    (studies/cvode_yardstick.c, built here), each at the loosest rtol on a grid of 10^(-k/4)
+    that reaches the target; CPU time of the whole solve, the least of repeated runs."""
+    import error_control as ec
+    ref = mbdk.solve_ode("double_pendulum", "dopri54", t_end=10.0, rtol=1e-13, atol=1e-15)
+    y_ref = ref.y[-1, :2]
+    reps = 5 if quick else 50
+
+    def loosest(solve):
+        for k in range(16, 45):
+            tol = 10.0 ** (-k / 4)
+            y = solve(tol)
+            if np.max(np.abs(y - y_ref)) <= 1e-6:
+                return tol
+        return None
+    tol_k = loosest(lambda tol: mbdk.solve_ode("double_pendulum", "bdf", t_end=10.0, rtol=tol,
+                                               atol=tol * 1e-2).y[-1, :2])
+    k_cpu = (ec._least_cpu("bdf", reps, t_end=10.0, rtol=tol_k, atol=tol_k * 1e-2)[1]
+             if tol_k else None)
+    row = {"what": "error-controlled BDF, double pendulum to 1e-6 at t = 10 s (whole solve)",
+           "mbdk us": 1e6 * k_cpu if k_cpu else None,
+           "peer": "SUNDIALS CVODE from C, C right-hand side", "peer us": None, "ratio": None}
+    p = mbdk.problems()["double_pendulum"]
+    with tempfile.TemporaryDirectory() as tmp:
+        exe, why = ec._yardstick(Path(tmp))
+        if exe is None:
+            progress(f"CVODE row left out: {why}")
+            return row
+
+        def c_run(tol, count):
+            args = [str(exe), repr(tol), repr(tol * 1e-2), "10.0", str(count),
+                    *(repr(float(p.params[k])) for k in ("m1", "m2", "l1", "l2", "g")),
+                    *(repr(float(v)) for v in p.y0)]
+            out = subprocess.run(args, check=True, capture_output=True, text=True).stdout.split()
+            return float(out[0]), np.array([float(v) for v in out[3:5]])
+        tol_c = loosest(lambda tol: c_run(tol, 1)[1])
+        if tol_c:
+            row["peer us"] = 1e6 * c_run(tol_c, reps)[0]     # the least of reps solves
+            if k_cpu:
+                row["ratio"] = row["mbdk us"] / row["peer us"]
+    return row
 
 
 def write(rows, cols, stem: Path, title: str, notes: str) -> None:
