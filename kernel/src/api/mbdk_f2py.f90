@@ -738,3 +738,91 @@ subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   call mbdk_index3_plan(opt, t0, t_end, ns, nsamp, shortened, status)
   nsteps = dble(ns)
 end subroutine index3_plan
+
+subroutine rotation_matrix(kind, x, seq, r, status)
+  ! The rotation matrix of a parametrisation (mbdk_rotations): kind 1 angles x(1:3) in the
+  ! sequence seq, 2 a quaternion x (scalar first), 3 an axis x(1:3) and angle x(4).
+  use mbdk_rotations, only: mbdk_angles_matrix, mbdk_quat_matrix, mbdk_rodrigues
+  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
+  implicit none
+  integer, intent(in) :: kind, seq(3)
+  double precision, intent(in) :: x(4)
+  double precision, intent(out) :: r(3, 3)
+  integer, intent(out) :: status
+  r = 0.0d0
+  select case (kind)
+  case (1)
+    call mbdk_angles_matrix(seq, x(1:3), r, status)
+  case (2)
+    call mbdk_quat_matrix(x, r, status)
+  case (3)
+    call mbdk_rodrigues(x(1:3), x(4), r, status)
+  case default
+    status = MBDK_ERR_INVALID_INPUT
+  end select
+end subroutine rotation_matrix
+
+subroutine rotation_from_matrix(r, q, axis, angle, status)
+  ! A rotation matrix's unit quaternion (scalar first, s >= 0) and its axis and angle.
+  use mbdk_rotations, only: mbdk_quat_from_matrix, mbdk_axis_angle_from_matrix
+  use mbdk_status, only: MBDK_SUCCESS
+  implicit none
+  double precision, intent(in) :: r(3, 3)
+  double precision, intent(out) :: q(4), axis(3), angle
+  integer, intent(out) :: status
+  call mbdk_quat_from_matrix(r, q, status)
+  if (status == MBDK_SUCCESS) call mbdk_axis_angle_from_matrix(r, axis, angle, status)
+end subroutine rotation_from_matrix
+
+subroutine angle_rate_maps(seq, a, gs, gb, det, status)
+  ! omega = gs a', Omega = gb a' for the angles a in the sequence seq (mbdk_rotations).
+  use mbdk_rotations, only: mbdk_angles_rate_maps
+  implicit none
+  integer, intent(in) :: seq(3)
+  double precision, intent(in) :: a(3)
+  double precision, intent(out) :: gs(3, 3), gb(3, 3), det
+  integer, intent(out) :: status
+  call mbdk_angles_rate_maps(seq, a, gs, gb, det, status)
+end subroutine angle_rate_maps
+
+subroutine angle_rates(seq, a, w, body, ad, status)
+  ! The angle rates of an angular velocity w (body = 1: body frame); gimbal lock:
+  ! ERR_SINGULAR_MATRIX.
+  use mbdk_rotations, only: mbdk_angles_rates
+  implicit none
+  integer, intent(in) :: seq(3), body
+  double precision, intent(in) :: a(3), w(3)
+  double precision, intent(out) :: ad(3)
+  integer, intent(out) :: status
+  call mbdk_angles_rates(seq, a, w, body /= 0, ad, status)
+end subroutine angle_rates
+
+subroutine quaternion_ops(p, q, w, body, pq, qd, wq, status)
+  ! The product p q, the rates qd of q under the angular velocity w, and back from qd the
+  ! angular velocity wq (body = 1: body frame), for a unit q.
+  use mbdk_rotations, only: mbdk_quat_mul, mbdk_quat_rates, mbdk_quat_omega, MBDK_UNIT_TOL
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  double precision, intent(in) :: p(4), q(4), w(3)
+  integer, intent(in) :: body
+  double precision, intent(out) :: pq(4), qd(4), wq(3)
+  integer, intent(out) :: status
+  pq = mbdk_quat_mul(p, q)
+  qd = 0.0d0
+  wq = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (.not. (abs(norm2(q) - 1.0d0) <= MBDK_UNIT_TOL)) return
+  qd = mbdk_quat_rates(q, w, body /= 0)
+  wq = mbdk_quat_omega(q, qd, body /= 0)
+  status = MBDK_SUCCESS
+end subroutine quaternion_ops
+
+subroutine quaternion_rotate(q, x, y, status)
+  ! R x by the sandwich product q (0, x) q* of a unit quaternion.
+  use mbdk_rotations, only: mbdk_quat_rotate
+  implicit none
+  double precision, intent(in) :: q(4), x(3)
+  double precision, intent(out) :: y(3)
+  integer, intent(out) :: status
+  call mbdk_quat_rotate(q, x, y, status)
+end subroutine quaternion_rotate
