@@ -126,6 +126,24 @@ def _four_bar_natural_energy(y, p):
     return kin + pot
 
 
+def _rigid_body_energy(y, p):
+    """Kinetic energy of the torque-free body: (J1 W1^2 + J2 W2^2 + J3 W3^2) / 2."""
+    y = np.atleast_2d(y)
+    return 0.5 * (p["J1"] * y[:, 4] ** 2 + p["J2"] * y[:, 5] ** 2 + p["J3"] * y[:, 6] ** 2)
+
+
+def rigid_body_momentum(y, p) -> np.ndarray:
+    """The space-frame angular momentum L = R(q) J Omega of free_rigid_body states (one row
+    per state; q normalised for R, so that a drift of |q| does not show up as one of L)."""
+    y = np.atleast_2d(y)
+    q = y[:, :4] / np.linalg.norm(y[:, :4], axis=1)[:, None]
+    s, v = q[:, 0], q[:, 1:]
+    jw = y[:, 4:] * np.array([p["J1"], p["J2"], p["J3"]])
+    # R x = x + 2 s (v x x) + 2 v x (v x x)
+    t = np.cross(v, jw)
+    return jw + 2.0 * s[:, None] * t + 2.0 * np.cross(v, t)
+
+
 _SPECS = {
     "linear_growth": dict(params={"a": 2.0}, y0=(1.0,), t_end=10.0, states=("y",),
                           equation="y' = a t", reference="Fekete (2023) (4.8)"),
@@ -179,6 +197,14 @@ _SPECS = {
                              reference="Fekete (2023) (1.30)-(1.31)",
                              positive=("a", "b", "c", "d", "m1", "m2", "m3"),
                              energy=_four_bar_natural_energy),
+    "free_rigid_body": dict(params={"J1": 1.0, "J2": 2.0, "J3": 3.0},
+                            y0=(1.0, 0.0, 0.0, 0.0, 0.01, 1.0, 0.01), t_end=30.0,
+                            states=("q0", "q1", "q2", "q3", "W1", "W2", "W3"),
+                            equation="J W' = (J W) x W, q' = q (0, W) / 2 (body frame W, "
+                                     "torque-free; default: a spin near the intermediate axis, "
+                                     "which flips)",
+                            reference="Fekete (2023) (5.1)-(5.3), (5.73)-(5.95)",
+                            positive=("J1", "J2", "J3"), energy=_rigid_body_energy),
 }
 
 
@@ -260,4 +286,11 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
     if info.name == "trolley_crane" and merged["coupling"] not in (-1.0, 1.0):
         raise InvalidInputError(f"params['coupling'] = {merged['coupling']} must be -1 (the book's "
                                 "(4.78)) or +1 (the consistent mechanism)")
+    if info.name == "free_rigid_body":
+        for a, b, c in (("J1", "J2", "J3"), ("J2", "J3", "J1"), ("J3", "J1", "J2")):
+            if merged[a] > merged[b] + merged[c]:
+                raise InvalidInputError(
+                    f"params[{a!r}] = {merged[a]} exceeds {b} + {c} = "
+                    f"{merged[b] + merged[c]}: no rigid body has these principal inertias "
+                    "(each is at most the sum of the other two)")
     return merged, np.array(vec, dtype=float)

@@ -20,6 +20,10 @@
 !>  12 four_bar_relative  6   a, b, c, d, m1, m2, m3, g,  four-bar in relative coordinates (1.29)
 !>                            alpha, beta                 (mbdk_four_bar_forms)
 !>  13 four_bar_natural   8   same as 12                  four-bar in natural coordinates (1.31)
+!>  14 free_rigid_body    7   J1 (1), J2 (2), J3 (3)      y = [q (unit quaternion, scalar first),
+!>                            principal inertias          Omega (body frame)]: Euler's equations
+!>                                                        J Omega' = (J Omega) x Omega, (5.1)-(5.3)
+!>                                                        with no torque, q' = q (0, Omega) / 2
 !>
 !> trolley_crane: trolley m1 on a spring s and damper k, a uniform bar (m2, l) hinged to it.
 !> coupling = -1 reproduces the book's (4.78) as printed; that equation is the reduction of
@@ -34,29 +38,35 @@
 !> which is algebraically identical to the book's closed form (3.64) (tests/test_problems.py
 !> evaluates (3.64) as printed and compares).
 !>
-!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10, 12 and 13.
+!> free_rigid_body: a torque-free body in its principal axes (mbdk_rotations' conventions).
+!> |q| = 1 is not enforced: its drift is what a study of the integrators measures.
+!>
+!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10 and 12-14.
 module mbdk_textbook
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_UNKNOWN_PROBLEM
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_four_bar_forms, only: mbdk_four_bar_relative_rhs, mbdk_four_bar_natural_rhs, &
     mbdk_four_bar_params_ok
+  use mbdk_rotations, only: mbdk_quat_rates
   implicit none
   private
 
-  integer, parameter, public :: MBDK_PROBLEM_COUNT = 13
+  integer, parameter, public :: MBDK_PROBLEM_COUNT = 14
   integer, parameter, public :: MBDK_PROBLEM_NAME_LEN = 24
   integer, parameter :: LINEAR_GROWTH = 1, DECAY = 2, RICCATI = 3, BEAM_LINEAR = 4, &
     BEAM_NONLINEAR = 5, DAMPED_OSCILLATOR = 6, PENDULUM = 7, PENDULUM_LINEAR = 8, &
     TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11, &
-    FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13
+    FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13, FREE_RIGID_BODY = 14
 
   character(len=MBDK_PROBLEM_NAME_LEN), parameter :: names(MBDK_PROBLEM_COUNT) = [character( &
     len=MBDK_PROBLEM_NAME_LEN) :: 'linear_growth', 'decay', 'riccati', 'beam_linear', &
     'beam_nonlinear', 'damped_oscillator', 'pendulum', 'pendulum_linear', 'trolley_crane', &
-    'double_pendulum', 'linear_system', 'four_bar_relative', 'four_bar_natural']
-  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8]
-  integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1, 10, 10]
+    'double_pendulum', 'linear_system', 'four_bar_relative', 'four_bar_natural', &
+    'free_rigid_body']
+  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8, 7]
+  integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1, 10, &
+                                                       10, 3]
 
   type, extends(mbdk_problem_t), public :: mbdk_textbook_t
     integer :: id = 0
@@ -123,14 +133,18 @@ contains
       if (any(p(1:4) <= 0.0_dp)) return
     case (FOUR_BAR_RELATIVE, FOUR_BAR_NATURAL)
       if (.not. mbdk_four_bar_params_ok(p)) return
+    case (FREE_RIGID_BODY)
+      ! principal inertias of a body: positive, and each at most the sum of the other two
+      if (any(.not. (p > 0.0_dp))) return
+      if (p(1) > p(2) + p(3) .or. p(2) > p(1) + p(3) .or. p(3) > p(1) + p(2)) return
     end select
     prob%id = id
     prob%n = n
     prob%p = p
     if (id == LINEAR_SYSTEM) prob%a = reshape(p, [n, n])
     prob%nq = 0
-    if ((id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) .or. id >= FOUR_BAR_RELATIVE) &
-      prob%nq = n / 2
+    if ((id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) .or. &
+        id == FOUR_BAR_RELATIVE .or. id == FOUR_BAR_NATURAL) prob%nq = n / 2
     prob%has_jac = .not. (id == TROLLEY_CRANE .or. id == DOUBLE_PENDULUM .or. &
                           id >= FOUR_BAR_RELATIVE)
     stat = MBDK_SUCCESS
@@ -203,6 +217,11 @@ contains
         call mbdk_four_bar_relative_rhs(p, y, f, stat)
       case (FOUR_BAR_NATURAL)
         call mbdk_four_bar_natural_rhs(p, y, f, stat)
+      case (FREE_RIGID_BODY)
+        f(1:4) = mbdk_quat_rates(y(1:4), y(5:7), .true.)
+        f(5) = (p(2) - p(3)) * y(6) * y(7) / p(1)
+        f(6) = (p(3) - p(1)) * y(7) * y(5) / p(2)
+        f(7) = (p(1) - p(2)) * y(5) * y(6) / p(3)
       end select
     end associate
   end subroutine textbook_rhs
