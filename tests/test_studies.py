@@ -314,3 +314,22 @@ def test_rigid_body_study(tmp_path, root):
         e0, e1 = num(r[0]["momentum_rel_error"]), num(r[-1]["momentum_rel_error"])
         assert e0 / e1 == pytest.approx(2.0 ** p, rel=0.35), m
         assert 0 < num(r[-1]["max_abs_norm_q_minus_1"]) < 1e-2
+
+
+def test_ch5_formulas_study(tmp_path, root):
+    """The book's chapter-5 rotation formulas against the kernel: the ones printed right agree
+    to roundoff, each misprint differs by order one and its correction agrees (so both the
+    kernel and the corrections are checked against the printed formulas that are right);
+    the 3-1-3 singularity is at theta = 0 and 180 deg, where the kernel's det G vanishes,
+    not at the 90 deg the text gives."""
+    sys.path.insert(0, str(root / "studies"))
+    import ch5_formulas
+    ch5_formulas.run(tmp_path)
+    data = {r["eq"]: r for r in rows(tmp_path / "ch5_formulas.csv")}
+    wrong = {"5.24", "5.44", "5.45", "5.54", "5.63", "5.78", "5.83", "5.86"}
+    assert {e for e, r in data.items() if r["verdict"] == "WRONG"} == wrong
+    for e in wrong:
+        assert num(data[e]["printed_vs_kernel"]) > 0.5, e
+        assert num(data[e]["corrected_vs_kernel"]) < 1e-9, e
+    for e in ("5.9", "5.29", "5.40", "5.49"):
+        assert data[e]["verdict"] == "correct" and num(data[e]["printed_vs_kernel"]) < 1e-12
