@@ -64,3 +64,45 @@ def test_bad_inertias_are_refused():
     with pytest.raises(mbdk.InvalidInputError):
         mbdk.solve_ode("free_rigid_body", "rk4", h=1e-3, t_end=1.0,
                        params={"J1": -1.0, "J2": 2.0, "J3": 2.0})
+
+
+def test_heavy_top_precesses_steadily_at_the_classical_rate():
+    """The Lagrange top started on a steady precession: with theta' = 0 the tilt stays constant
+    when m g l = phi' (J3 w3 - J1 phi' cos(theta)) (Goldstein, Classical Mechanics, 5.7; the
+    slow root), and the symmetry axis goes round the vertical at phi'. The start is built
+    with mbdk.rotations' 3-1-3 angles and their rate map G_b."""
+    from mbdk import rotations as rot
+    p = mbdk.problems()["heavy_top"].params
+    th, w3 = np.radians(40.0), 60.0
+    mgl = p["m"] * p["g"] * p["l"]
+    c = np.cos(th)
+    phid = (p["J3"] * w3 - np.sqrt((p["J3"] * w3) ** 2 - 4 * p["J1"] * c * mgl)) / (2 * p["J1"] * c)
+    rates = np.array([phid, 0.0, w3 - phid * c])        # (phi', theta', psi')
+    _, gb = rot.angle_rate_maps([0.0, th, 0.0], "313")
+    q0 = rot.to_quaternion(rot.from_angles([0.0, th, 0.0], "313"))
+    r = mbdk.solve_ode("heavy_top", "rk4", h=2e-4, t_end=2.0, every=50,
+                       y0=np.r_[q0, gb @ rates])
+    q = r.y[:, :4] / np.linalg.norm(r.y[:, :4], axis=1)[:, None]
+    # the symmetry axis in space, R e3 = (sin(phi) sin(theta), -cos(phi) sin(theta), cos(theta))
+    ax = np.stack([2 * (q[:, 1] * q[:, 3] + q[:, 0] * q[:, 2]),
+                   2 * (q[:, 2] * q[:, 3] - q[:, 0] * q[:, 1]),
+                   q[:, 0] ** 2 - q[:, 1] ** 2 - q[:, 2] ** 2 + q[:, 3] ** 2], axis=1)
+    assert np.abs(ax[:, 2] - c).max() < 1e-9
+    phi = np.unwrap(np.arctan2(ax[:, 0], -ax[:, 1]))
+    assert np.abs(phi - phid * r.t).max() < 1e-8
+
+
+def test_heavy_top_keeps_its_three_invariants():
+    """Released from rest in precession (it nutates): the energy, the vertical component of
+    the angular momentum about the fixed point (gravity's torque is horizontal) and the spin
+    J3 W3 about the symmetry axis (J1 = J2) stay constant."""
+    info = mbdk.problems()["heavy_top"]
+    r = mbdk.solve_ode("heavy_top", "rk4", h=1e-4, t_end=3.0, every=100)
+    e = info.energy(r.y, info.params)
+    lz = rigid_body_momentum(r.y, info.params)[:, 2]
+    assert np.abs(e - e[0]).max() < 1e-10 * abs(e[0])
+    assert np.abs(lz - lz[0]).max() < 1e-10 * abs(lz[0])
+    assert np.abs(r.y[:, 6] - r.y[0, 6]).max() < 1e-10 * abs(r.y[0, 6])
+    # and it does nutate: the tilt is not constant
+    z3 = r.y[:, 0] ** 2 - r.y[:, 1] ** 2 - r.y[:, 2] ** 2 + r.y[:, 3] ** 2
+    assert z3.max() - z3.min() > 1e-4

@@ -314,6 +314,14 @@ def test_rigid_body_study(tmp_path, root):
         e0, e1 = num(r[0]["momentum_rel_error"]), num(r[-1]["momentum_rel_error"])
         assert e0 / e1 == pytest.approx(2.0 ** p, rel=0.35), m
         assert 0 < num(r[-1]["max_abs_norm_q_minus_1"]) < 1e-2
+    # the heavy top: nutation, precession and amplitude approach the classical fast-top values
+    # (leading terms in 1 / w3) as the spin doubles
+    top = rows(tmp_path / "rigid_body_heavy_top.csv")
+    for key in ("nutation", "precession", "amplitude"):
+        meas = "amplitude_deg" if key == "amplitude" else f"{key}_rad_s"
+        ref = "amplitude_classical_deg" if key == "amplitude" else f"{key}_classical"
+        dev = [abs(num(r[meas]) / num(r[ref]) - 1) for r in top]
+        assert dev[-1] < 0.05 and dev[-1] < dev[0] / 2, key
 
 
 def test_ch5_formulas_study(tmp_path, root):

@@ -132,6 +132,14 @@ def _rigid_body_energy(y, p):
     return 0.5 * (p["J1"] * y[:, 4] ** 2 + p["J2"] * y[:, 5] ** 2 + p["J3"] * y[:, 6] ** 2)
 
 
+def _heavy_top_energy(y, p):
+    """Kinetic energy plus m g l times the height of the body's 3-axis (R33 of q / |q|)."""
+    y = np.atleast_2d(y)
+    q = y[:, :4] / np.linalg.norm(y[:, :4], axis=1)[:, None]
+    z3 = q[:, 0] ** 2 - q[:, 1] ** 2 - q[:, 2] ** 2 + q[:, 3] ** 2
+    return _rigid_body_energy(y, p) + p["m"] * p["g"] * p["l"] * z3
+
+
 def rigid_body_momentum(y, p) -> np.ndarray:
     """The space-frame angular momentum L = R(q) J Omega of free_rigid_body states (one row
     per state; q normalised for R, so that a drift of |q| does not show up as one of L)."""
@@ -205,6 +213,15 @@ _SPECS = {
                                      "which flips)",
                             reference="Fekete (2023) (5.1)-(5.3), (5.73)-(5.95)",
                             positive=("J1", "J2", "J3"), energy=_rigid_body_energy),
+    "heavy_top": dict(params={"J1": 0.015, "J2": 0.015, "J3": 0.01, "m": 1.0, "g": 9.81,
+                              "l": 0.1},
+                      y0=(0.9659258262890683, 0.25881904510252074, 0.0, 0.0, 0.0, 0.0, 100.0),
+                      t_end=10.0, states=("q0", "q1", "q2", "q3", "W1", "W2", "W3"),
+                      equation="J W' = (J W) x W + m g l (z2, -z1, 0), z = R(q)^T e_z, "
+                               "q' = q (0, W) / 2 (J about the fixed point; the centre at l on "
+                               "body axis 3; default: tilted 30 deg, spinning at 100 rad/s)",
+                      reference="Fekete (2023) (5.1)-(5.3); the Lagrange top",
+                      positive=("J1", "J2", "J3", "m"), energy=_heavy_top_energy),
 }
 
 
@@ -286,7 +303,7 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
     if info.name == "trolley_crane" and merged["coupling"] not in (-1.0, 1.0):
         raise InvalidInputError(f"params['coupling'] = {merged['coupling']} must be -1 (the book's "
                                 "(4.78)) or +1 (the consistent mechanism)")
-    if info.name == "free_rigid_body":
+    if info.name in ("free_rigid_body", "heavy_top"):
         for a, b, c in (("J1", "J2", "J3"), ("J2", "J3", "J1"), ("J3", "J1", "J2")):
             if merged[a] > merged[b] + merged[c]:
                 raise InvalidInputError(

@@ -24,6 +24,9 @@
 !>                            principal inertias          Omega (body frame)]: Euler's equations
 !>                                                        J Omega' = (J Omega) x Omega, (5.1)-(5.3)
 !>                                                        with no torque, q' = q (0, Omega) / 2
+!>  15 heavy_top          7   J1 (0.015), J2 (0.015),     the same with gravity's torque about the
+!>                            J3 (0.01), m (1), g (9.81), fixed point, the centre at l on body
+!>                            l (0.1)                     axis 3: M = s x R^T (0, 0, -m g)
 !>
 !> trolley_crane: trolley m1 on a spring s and damper k, a uniform bar (m2, l) hinged to it.
 !> coupling = -1 reproduces the book's (4.78) as printed; that equation is the reduction of
@@ -40,6 +43,8 @@
 !>
 !> free_rigid_body: a torque-free body in its principal axes (mbdk_rotations' conventions).
 !> |q| = 1 is not enforced: its drift is what a study of the integrators measures.
+!> heavy_top: J about the fixed point, in the body's principal axes; gravity's direction in the
+!> body frame is taken from q / |q|, so that a drift of |q| does not scale the torque.
 !>
 !> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10 and 12-14.
 module mbdk_textbook
@@ -52,21 +57,22 @@ module mbdk_textbook
   implicit none
   private
 
-  integer, parameter, public :: MBDK_PROBLEM_COUNT = 14
+  integer, parameter, public :: MBDK_PROBLEM_COUNT = 15
   integer, parameter, public :: MBDK_PROBLEM_NAME_LEN = 24
   integer, parameter :: LINEAR_GROWTH = 1, DECAY = 2, RICCATI = 3, BEAM_LINEAR = 4, &
     BEAM_NONLINEAR = 5, DAMPED_OSCILLATOR = 6, PENDULUM = 7, PENDULUM_LINEAR = 8, &
     TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11, &
-    FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13, FREE_RIGID_BODY = 14
+    FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13, FREE_RIGID_BODY = 14, &
+    HEAVY_TOP = 15
 
   character(len=MBDK_PROBLEM_NAME_LEN), parameter :: names(MBDK_PROBLEM_COUNT) = [character( &
     len=MBDK_PROBLEM_NAME_LEN) :: 'linear_growth', 'decay', 'riccati', 'beam_linear', &
     'beam_nonlinear', 'damped_oscillator', 'pendulum', 'pendulum_linear', 'trolley_crane', &
     'double_pendulum', 'linear_system', 'four_bar_relative', 'four_bar_natural', &
-    'free_rigid_body']
-  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8, 7]
+    'free_rigid_body', 'heavy_top']
+  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8, 7, 7]
   integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1, 10, &
-                                                       10, 3]
+                                                       10, 3, 6]
 
   type, extends(mbdk_problem_t), public :: mbdk_textbook_t
     integer :: id = 0
@@ -133,10 +139,13 @@ contains
       if (any(p(1:4) <= 0.0_dp)) return
     case (FOUR_BAR_RELATIVE, FOUR_BAR_NATURAL)
       if (.not. mbdk_four_bar_params_ok(p)) return
-    case (FREE_RIGID_BODY)
+    case (FREE_RIGID_BODY, HEAVY_TOP)
       ! principal inertias of a body: positive, and each at most the sum of the other two
-      if (any(.not. (p > 0.0_dp))) return
+      if (any(.not. (p(1:3) > 0.0_dp))) return
       if (p(1) > p(2) + p(3) .or. p(2) > p(1) + p(3) .or. p(3) > p(1) + p(2)) return
+      if (id == HEAVY_TOP) then
+        if (.not. (p(4) > 0.0_dp)) return
+      end if
     end select
     prob%id = id
     prob%n = n
@@ -217,11 +226,21 @@ contains
         call mbdk_four_bar_relative_rhs(p, y, f, stat)
       case (FOUR_BAR_NATURAL)
         call mbdk_four_bar_natural_rhs(p, y, f, stat)
-      case (FREE_RIGID_BODY)
+      case (FREE_RIGID_BODY, HEAVY_TOP)
         f(1:4) = mbdk_quat_rates(y(1:4), y(5:7), .true.)
         f(5) = (p(2) - p(3)) * y(6) * y(7) / p(1)
         f(6) = (p(3) - p(1)) * y(7) * y(5) / p(2)
         f(7) = (p(1) - p(2)) * y(5) * y(6) / p(3)
+        if (self%id == HEAVY_TOP) then
+          ! the vertical in body components, R^T e_z = the third row of R(q / |q|), and the
+          ! torque (0, 0, l) x (-m g R^T e_z) = m g l (z2, -z1, 0)
+          a = sum(y(1:4)**2)
+          sn = 2.0_dp * (y(2) * y(4) - y(1) * y(3)) / a
+          cs = 2.0_dp * (y(3) * y(4) + y(1) * y(2)) / a
+          w2 = p(4) * p(5) * p(6)
+          f(5) = f(5) + w2 * cs / p(1)
+          f(6) = f(6) - w2 * sn / p(2)
+        end if
       end select
     end associate
   end subroutine textbook_rhs
