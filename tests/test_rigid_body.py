@@ -106,3 +106,33 @@ def test_heavy_top_keeps_its_three_invariants():
     # and it does nutate: the tilt is not constant
     z3 = r.y[:, 0] ** 2 - r.y[:, 1] ** 2 - r.y[:, 2] ** 2 + r.y[:, 3] ** 2
     assert z3.max() - z3.min() > 1e-4
+
+
+@pytest.mark.parametrize("seq", [313.0, 123.0])
+def test_angle_parametrisations_follow_the_quaternion_motion(seq):
+    """rigid_body_angles (a' = G_b(a)^-1 Omega) and free_rigid_body (quaternions) from the
+    same orientation give the same rotation matrix after 5 s, away from the locks."""
+    from mbdk import rotations as rot
+    a0 = np.array([0.3, 0.5, -0.2])
+    w = [0.01, 1.0, 0.01]
+    s = str(int(seq))
+    r1 = mbdk.solve_ode("rigid_body_angles", "rk4", h=1e-3, t_end=5.0, y0=np.r_[a0, w],
+                        params={"sequence": seq}, every=5000)
+    q0 = rot.to_quaternion(rot.from_angles(a0, s))
+    r2 = mbdk.solve_ode("free_rigid_body", "rk4", h=1e-3, t_end=5.0, y0=np.r_[q0, w],
+                        every=5000)
+    ra = rot.from_angles(r1.y[-1, :3], s)
+    rq = rot.from_quaternion(r2.y[-1, :4] / np.linalg.norm(r2.y[-1, :4]))
+    assert np.abs(ra - rq).max() < 1e-11
+    assert np.abs(r1.y[-1, 3:] - r2.y[-1, 4:]).max() < 1e-12
+
+
+def test_euler_angles_at_their_lock_stop_by_name():
+    """Started at theta = 0, the 3-1-3 rates are undefined: the solve stops with
+    SingularMatrixError before its first step, not with a NaN state."""
+    with pytest.raises(mbdk.SingularMatrixError):
+        mbdk.solve_ode("rigid_body_angles", "rk4", h=1e-3, t_end=1.0,
+                       y0=[0.0, 0.0, 0.0, 0.1, 0.2, 1.0])
+    with pytest.raises(mbdk.InvalidInputError, match="313"):
+        mbdk.solve_ode("rigid_body_angles", "rk4", h=1e-3, t_end=1.0,
+                       params={"sequence": 321.0})

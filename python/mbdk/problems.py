@@ -140,6 +140,11 @@ def _heavy_top_energy(y, p):
     return _rigid_body_energy(y, p) + p["m"] * p["g"] * p["l"] * z3
 
 
+def _rigid_body_angles_energy(y, p):
+    y = np.atleast_2d(y)
+    return 0.5 * (p["J1"] * y[:, 3] ** 2 + p["J2"] * y[:, 4] ** 2 + p["J3"] * y[:, 5] ** 2)
+
+
 def rigid_body_momentum(y, p) -> np.ndarray:
     """The space-frame angular momentum L = R(q) J Omega of free_rigid_body states (one row
     per state; q normalised for R, so that a drift of |q| does not show up as one of L)."""
@@ -222,6 +227,14 @@ _SPECS = {
                                "body axis 3; default: tilted 30 deg, spinning at 100 rad/s)",
                       reference="Fekete (2023) (5.1)-(5.3); the Lagrange top",
                       positive=("J1", "J2", "J3", "m"), energy=_heavy_top_energy),
+    "rigid_body_angles": dict(params={"J1": 1.0, "J2": 2.0, "J3": 3.0, "sequence": 313.0},
+                              y0=(0.0, 0.5, 0.0, 0.01, 1.0, 0.01), t_end=30.0,
+                              states=("a1", "a2", "a3", "W1", "W2", "W3"),
+                              equation="free_rigid_body with the angles of sequence 313 (Euler) "
+                                       "or 123 (Cardan): a' = G_b(a)^-1 W (5.43); a gimbal "
+                                       "lock stops the run (SingularMatrixError)",
+                              reference="Fekete (2023) (5.40)-(5.45)",
+                              positive=("J1", "J2", "J3"), energy=_rigid_body_angles_energy),
 }
 
 
@@ -303,7 +316,10 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
     if info.name == "trolley_crane" and merged["coupling"] not in (-1.0, 1.0):
         raise InvalidInputError(f"params['coupling'] = {merged['coupling']} must be -1 (the book's "
                                 "(4.78)) or +1 (the consistent mechanism)")
-    if info.name in ("free_rigid_body", "heavy_top"):
+    if info.name == "rigid_body_angles" and merged["sequence"] not in (313.0, 123.0):
+        raise InvalidInputError(f"params['sequence'] = {merged['sequence']}: 313 (Euler angles) "
+                                "or 123 (Cardan angles)")
+    if info.name in ("free_rigid_body", "heavy_top", "rigid_body_angles"):
         for a, b, c in (("J1", "J2", "J3"), ("J2", "J3", "J1"), ("J3", "J1", "J2")):
             if merged[a] > merged[b] + merged[c]:
                 raise InvalidInputError(

@@ -27,6 +27,9 @@
 !>  15 heavy_top          7   J1 (0.015), J2 (0.015),     the same with gravity's torque about the
 !>                            J3 (0.01), m (1), g (9.81), fixed point, the centre at l on body
 !>                            l (0.1)                     axis 3: M = s x R^T (0, 0, -m g)
+!>  16 rigid_body_angles  6   J1, J2, J3, sequence (313)  free_rigid_body with angles: y = [a (3
+!>                                                        angles of the sequence 313 or 123),
+!>                                                        Omega], a' = G_b(a)^-1 Omega (5.43)
 !>
 !> trolley_crane: trolley m1 on a spring s and damper k, a uniform bar (m2, l) hinged to it.
 !> coupling = -1 reproduces the book's (4.78) as printed; that equation is the reduction of
@@ -43,6 +46,9 @@
 !>
 !> free_rigid_body: a torque-free body in its principal axes (mbdk_rotations' conventions).
 !> |q| = 1 is not enforced: its drift is what a study of the integrators measures.
+!> rigid_body_angles: at a gimbal lock of its sequence (3-1-3: theta = 0 or pi; 1-2-3: beta =
+!> +-pi/2) the right-hand side returns MBDK_ERR_SINGULAR_MATRIX (the run stops there, named),
+!> and near one the angle rates grow like 1 / sin(theta): what studies/rigid_body.py measures.
 !> heavy_top: J about the fixed point, in the body's principal axes; gravity's direction in the
 !> body frame is taken from q / |q|, so that a drift of |q| does not scale the torque.
 !>
@@ -53,26 +59,28 @@ module mbdk_textbook
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_four_bar_forms, only: mbdk_four_bar_relative_rhs, mbdk_four_bar_natural_rhs, &
     mbdk_four_bar_params_ok
-  use mbdk_rotations, only: mbdk_quat_rates
+  use mbdk_rotations, only: mbdk_quat_rates, mbdk_angles_rates, MBDK_SEQ_EULER313, &
+    MBDK_SEQ_CARDAN123
   implicit none
   private
 
-  integer, parameter, public :: MBDK_PROBLEM_COUNT = 15
+  integer, parameter, public :: MBDK_PROBLEM_COUNT = 16
   integer, parameter, public :: MBDK_PROBLEM_NAME_LEN = 24
   integer, parameter :: LINEAR_GROWTH = 1, DECAY = 2, RICCATI = 3, BEAM_LINEAR = 4, &
     BEAM_NONLINEAR = 5, DAMPED_OSCILLATOR = 6, PENDULUM = 7, PENDULUM_LINEAR = 8, &
     TROLLEY_CRANE = 9, DOUBLE_PENDULUM = 10, LINEAR_SYSTEM = 11, &
     FOUR_BAR_RELATIVE = 12, FOUR_BAR_NATURAL = 13, FREE_RIGID_BODY = 14, &
-    HEAVY_TOP = 15
+    HEAVY_TOP = 15, RIGID_BODY_ANGLES = 16
 
   character(len=MBDK_PROBLEM_NAME_LEN), parameter :: names(MBDK_PROBLEM_COUNT) = [character( &
     len=MBDK_PROBLEM_NAME_LEN) :: 'linear_growth', 'decay', 'riccati', 'beam_linear', &
     'beam_nonlinear', 'damped_oscillator', 'pendulum', 'pendulum_linear', 'trolley_crane', &
     'double_pendulum', 'linear_system', 'four_bar_relative', 'four_bar_natural', &
-    'free_rigid_body', 'heavy_top']
-  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8, 7, 7]
+    'free_rigid_body', 'heavy_top', 'rigid_body_angles']
+  integer, parameter :: dims(MBDK_PROBLEM_COUNT) = [1, 1, 1, 1, 1, 2, 2, 2, 4, 4, 0, 6, 8, 7, 7, &
+                                                    6]
   integer, parameter :: nparams(MBDK_PROBLEM_COUNT) = [1, 1, 2, 3, 3, 3, 2, 2, 7, 5, -1, 10, &
-                                                       10, 3, 6]
+                                                       10, 3, 6, 4]
 
   type, extends(mbdk_problem_t), public :: mbdk_textbook_t
     integer :: id = 0
@@ -139,12 +147,15 @@ contains
       if (any(p(1:4) <= 0.0_dp)) return
     case (FOUR_BAR_RELATIVE, FOUR_BAR_NATURAL)
       if (.not. mbdk_four_bar_params_ok(p)) return
-    case (FREE_RIGID_BODY, HEAVY_TOP)
+    case (FREE_RIGID_BODY, HEAVY_TOP, RIGID_BODY_ANGLES)
       ! principal inertias of a body: positive, and each at most the sum of the other two
       if (any(.not. (p(1:3) > 0.0_dp))) return
       if (p(1) > p(2) + p(3) .or. p(2) > p(1) + p(3) .or. p(3) > p(1) + p(2)) return
       if (id == HEAVY_TOP) then
         if (.not. (p(4) > 0.0_dp)) return
+      end if
+      if (id == RIGID_BODY_ANGLES) then
+        if (p(4) /= 313.0_dp .and. p(4) /= 123.0_dp) return
       end if
     end select
     prob%id = id
@@ -241,6 +252,15 @@ contains
           f(5) = f(5) + w2 * cs / p(1)
           f(6) = f(6) - w2 * sn / p(2)
         end if
+      case (RIGID_BODY_ANGLES)
+        if (p(4) == 313.0_dp) then
+          call mbdk_angles_rates(MBDK_SEQ_EULER313, y(1:3), y(4:6), .true., f(1:3), stat)
+        else
+          call mbdk_angles_rates(MBDK_SEQ_CARDAN123, y(1:3), y(4:6), .true., f(1:3), stat)
+        end if
+        f(4) = (p(2) - p(3)) * y(5) * y(6) / p(1)
+        f(5) = (p(3) - p(1)) * y(6) * y(4) / p(2)
+        f(6) = (p(1) - p(2)) * y(4) * y(5) / p(3)
       end select
     end associate
   end subroutine textbook_rhs
