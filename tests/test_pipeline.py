@@ -271,9 +271,10 @@ def test_stability_analysis_names_the_index3_method_as_not_applicable():
 
 def test_a_long_run_holds_its_results_once():
     """2 x 10^4 samples of a 64-bar chain with every output but reactions: the peak of Python's
-    allocations during simulate (tracemalloc, which numpy reports to) stays within 1.25 times
+    allocations during simulate (tracemalloc, which numpy reports to) stays within 1.1 times
     the result arrays it returns: the kernel writes them once and the result keeps them, with
-    no copy (the earlier copies peaked at twice)."""
+    no copy (measured 1.02; the earlier copies peaked at twice, and a copy of the multipliers
+    alone would add 0.18)."""
     import tracemalloc
     sc = bar_chain(64, -30.0)
     tracemalloc.start()
@@ -287,4 +288,4 @@ def test_a_long_run_holds_its_results_once():
                for x in {id(a.base if a.base is not None else a): a
                          for a in (r.t, r.q, r.v, r.a, r.multipliers, r.residuals)}.values())
     assert r.q.shape == (20_001, 192)
-    assert peak < 1.25 * held
+    assert peak < 1.1 * held

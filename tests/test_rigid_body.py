@@ -38,8 +38,9 @@ def test_intermediate_axis_flips_and_keeps_energy_and_angular_momentum():
 
 
 def test_the_wrong_frame_would_be_seen():
-    """Independent check of the test above: the same body integrated here in Python with the
-    space-frame kinematics q' = (0, Omega) q / 2 (wrong for a body-frame Omega) turns L."""
+    """The power of the test above (no kernel code runs here but the quaternion product): the
+    same body integrated in Python with the space-frame kinematics q' = (0, Omega) q / 2, wrong
+    for a body-frame Omega, turns L by far more than that test allows."""
     from mbdk.rotations import quaternion_product
     p = {"J1": 1.0, "J2": 2.0, "J3": 3.0}
     y = np.array([1.0, 0, 0, 0, 0.4, 1.0, 0.3])

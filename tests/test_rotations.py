@@ -68,7 +68,7 @@ def test_matrix_to_quaternion_and_axis_angle_round_trip_including_half_turns():
             assert min(np.abs(axis - e).max(), np.abs(axis + e).max()) < 1e-8
 
 
-@pytest.mark.parametrize("seq", ["313", "123", "321", "232"])
+@pytest.mark.parametrize("seq", rot.SEQUENCES)
 def test_angle_rate_maps_are_the_derivative_of_r(seq):
     """skew(omega) = R' R^T and skew(Omega) = R^T R', R' by central differences along
     a(t) = a0 + t a'."""

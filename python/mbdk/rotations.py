@@ -141,11 +141,8 @@ def quaternion_omega(q, qd, frame="space") -> np.ndarray:
     """The angular velocity of the quaternion rates qd: 2 vec(q' q*) (space) or 2 vec(q* q')
     (body)."""
     body = _frame(frame)
-    q = _unit(q)
-    qd = _vec("qd", qd, 4)
-    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-    pq = quaternion_product(conj, qd) if body else quaternion_product(qd, conj)
-    return 2.0 * pq[1:]
+    w, st = _kernel.quaternion_omega(_unit(q), _vec("qd", qd, 4), body)
+    return w
 
 
 def quaternion_rotate(q, x) -> np.ndarray:

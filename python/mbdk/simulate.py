@@ -379,7 +379,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     report = (assembly_report(scene, y0[:nc], y0[nc:], y[:nc, 0], y[nc:, 0], int(asm_iters))
               if assemble_initial and nw else {})
     # the results are views of the arrays the kernel wrote, not copies: a long run's peak
-    # memory is its result arrays once (tests/test_sparse.py measures it)
+    # memory is its result arrays once (tests/test_pipeline.py measures it)
     t, y = t[:nw], y[:, :nw]
     stats = Stats.from_words(stats)
     manifest = {**build_info(), "scene": scene.name, "source": scene.source, "method": method,

@@ -826,3 +826,19 @@ subroutine quaternion_rotate(q, x, y, status)
   integer, intent(out) :: status
   call mbdk_quat_rotate(q, x, y, status)
 end subroutine quaternion_rotate
+
+subroutine quaternion_omega(q, qd, body, w, status)
+  ! The angular velocity of the quaternion rates qd at a unit q (body = 1: body frame).
+  use mbdk_rotations, only: mbdk_quat_omega, MBDK_UNIT_TOL
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  implicit none
+  double precision, intent(in) :: q(4), qd(4)
+  integer, intent(in) :: body
+  double precision, intent(out) :: w(3)
+  integer, intent(out) :: status
+  w = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (.not. (abs(norm2(q) - 1.0d0) <= MBDK_UNIT_TOL)) return
+  w = mbdk_quat_omega(q, qd, body /= 0)
+  status = MBDK_SUCCESS
+end subroutine quaternion_omega

@@ -174,7 +174,7 @@ contains
       iterations = it + 1
     end do
     resid = phi
-    if (.not. (maxval(abs(phi)) <= ASSEMBLED_TOL)) then
+    if (.not. (maxval(abs(phi)) <= mbdk_phi_floor(ASSEMBLED_TOL, q))) then
       stat = MBDK_ERR_INCONSISTENT_INITIAL
       return
     end if
@@ -206,7 +206,7 @@ contains
     call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
     resid = resid + phit
     velocity = .true.
-    if (.not. (maxval(abs(resid)) <= ASSEMBLED_TOL)) then
+    if (.not. (maxval(abs(resid)) <= mbdk_phi_floor(ASSEMBLED_TOL, v))) then
       stat = MBDK_ERR_INCONSISTENT_INITIAL
       return
     end if

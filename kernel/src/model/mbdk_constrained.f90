@@ -95,8 +95,9 @@ module mbdk_constrained
     !> the sparse path: S's factors, and where each entry of S goes in their values
     type(mbdk_sparse_ldlt_t) :: ldl
     integer, allocatable :: slo(:), sup(:)
-    !> the near tests' scale, from the first factorisation (see factor_exact); < 0: not yet
-    real(dp) :: near_scale = -1.0_dp
+    !> the largest least pivot ratio of the factorisations so far: the near tests' baseline
+    !> (see factor_exact)
+    real(dp) :: rmin_max = 0.0_dp
   end type mbdk_constrained_t
 
 contains
@@ -287,18 +288,19 @@ contains
       call mbdk_sparse_ldlt_factor(cs%ldl, MBDK_CONSTRAINED_SINGULAR_TOL, stat, rmin)
       if (stat /= MBDK_SUCCESS) return
       ! A caller's near test (a window wider than the singular one) is taken relative to the
-      ! least pivot ratio of the object's first factorisation (its baseline, near_scale): a
+      ! largest least pivot ratio the object has met so far (its baseline, rmin_max): a
       ! pivot's ratio to its row's diagonal depends on the elimination order, and in the order
       ! AMD picks, a long regular chain's least ratio is about 2 / m (a tail of k rows
       ! eliminated before a joint leaves it 2 / k), which a fixed window would call near
-      ! singular beyond a few thousand bodies. A mechanism whose least ratio starts at
-      ! NEAR_BASELINE or above (the small ones, loops of any size) keeps the full window; a
-      ! rank loss drives its pivot to zero, like the square of the distance to it, from
-      ! whatever baseline. The window is never narrower than MBDK_SPARSE_MIN_ROWS / m of the
-      ! caller's, so a start close to singular is refused as on the dense path.
-      if (cs%near_scale < 0.0_dp) cs%near_scale = min(1.0_dp, max(real(MBDK_SPARSE_MIN_ROWS, dp) &
-        / real(m, dp), rmin / NEAR_BASELINE))
-      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL .and. .not. (rmin > tol * cs%near_scale)) &
+      ! singular beyond a few thousand bodies. A mechanism whose least ratio reaches
+      ! NEAR_BASELINE (the small ones, loops of any size, away from their singular poses)
+      ! keeps the full window; a rank loss drives its pivot to zero, like the square of the
+      ! distance to it, from whatever baseline. The window is never narrower than
+      ! MBDK_SPARSE_MIN_ROWS / m of the caller's: a run that starts near a singular pose has
+      ! that narrow window until it has moved away, and the full one from then on.
+      cs%rmin_max = max(cs%rmin_max, rmin)
+      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL .and. .not. (rmin > tol * min(1.0_dp, &
+          max(real(MBDK_SPARSE_MIN_ROWS, dp) / real(m, dp), cs%rmin_max / NEAR_BASELINE)))) &
         stat = MBDK_ERR_SINGULAR_MATRIX
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)

@@ -52,7 +52,7 @@
 !> heavy_top: J about the fixed point, in the body's principal axes; gravity's direction in the
 !> body frame is taken from q / |q|, so that a drift of |q| does not scale the torque.
 !>
-!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10 and 12-14.
+!> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10 and 12-16.
 module mbdk_textbook
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_UNKNOWN_PROBLEM
@@ -246,11 +246,11 @@ contains
           ! the vertical in body components, R^T e_z = the third row of R(q / |q|), and the
           ! torque (0, 0, l) x (-m g R^T e_z) = m g l (z2, -z1, 0)
           a = sum(y(1:4)**2)
-          sn = 2.0_dp * (y(2) * y(4) - y(1) * y(3)) / a
-          cs = 2.0_dp * (y(3) * y(4) + y(1) * y(2)) / a
+          m11 = 2.0_dp * (y(2) * y(4) - y(1) * y(3)) / a      ! z1
+          m12 = 2.0_dp * (y(3) * y(4) + y(1) * y(2)) / a      ! z2
           w2 = p(4) * p(5) * p(6)
-          f(5) = f(5) + w2 * cs / p(1)
-          f(6) = f(6) - w2 * sn / p(2)
+          f(5) = f(5) + w2 * m12 / p(1)
+          f(6) = f(6) - w2 * m11 / p(2)
         end if
       case (RIGID_BODY_ANGLES)
         if (p(4) == 313.0_dp) then

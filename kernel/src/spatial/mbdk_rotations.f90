@@ -22,9 +22,12 @@
 !> Quaternion rates: q' = (1/2) (0, omega) q = (1/2) q (0, Omega); back, omega = 2 vec(q' q*),
 !> Omega = 2 vec(q* q').
 !>
-!> Every routine is pure and allocates nothing. Bad input (an angle sequence that is not one of
-!> the twelve, a quaternion whose norm differs from 1 by more than MBDK_UNIT_TOL, an axis of
-!> zero length, a matrix that is not a rotation) is MBDK_ERR_INVALID_INPUT.
+!> Every routine is pure and allocates nothing. The ones that return a status refuse bad input
+!> with MBDK_ERR_INVALID_INPUT: an angle sequence that is not one of the twelve, a quaternion
+!> whose norm differs from 1 by more than MBDK_UNIT_TOL (the matrix and the sandwich product),
+!> an axis of zero length, a matrix that is not a rotation. The product and the rate maps of
+!> quaternions are algebra on any quaternion (an integrator's state drifts off |q| = 1; what
+!> that costs is for the caller to measure or correct).
 module mbdk_rotations
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
