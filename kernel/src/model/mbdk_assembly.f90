@@ -121,8 +121,7 @@ contains
     logical, intent(out) :: velocity
     real(dp), allocatable :: phi(:), d(:, :), gam(:), phit(:), dx(:), a(:, :), b(:)
     integer, allocatable :: free(:)
-    integer :: nc, m, it, rank, k
-    real(dp) :: rcond
+    integer :: nc, m, it, k
     logical :: sparse
     type(minnorm_t) :: mq, mv
 
@@ -140,7 +139,6 @@ contains
     allocate (phi(m), gam(m), phit(m), dx(nc))
     if (.not. sparse) allocate (d(m, nc))
     free = pack([(k, k = 1, nc)], .not. given_q)
-    rcond = epsilon(1.0_dp) * max(m, size(free))
     do it = 0, max_iter
       if (sparse) then
         call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
@@ -149,28 +147,9 @@ contains
       end if
       if (maxval(abs(phi)) <= mbdk_phi_floor(tol, q) .or. it == max_iter .or. size(free) == 0) &
         exit
-      if (sparse) then
-        call minnorm(mq, given_q, -phi, dx, stat)
-        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. dense_affordable()) then
-          ! dependent free columns: this and the next corrections by the dense least squares
-          sparse = .false.
-          allocate (d(m, nc))
-          call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-        else if (stat /= MBDK_SUCCESS) then
-          return
-        else
-          q = q + dx
-        end if
-      end if
-      if (.not. sparse) then
-        a = d(:, free)
-        allocate (b(max(m, size(free))))
-        b(1:m) = -phi
-        call mbdk_least_squares(a, b, rcond, rank, stat)
-        if (stat /= MBDK_SUCCESS) return
-        q(free) = q(free) + b(1:size(free))
-        deallocate (b)
-      end if
+      call least_change(mq, given_q, -phi, dx, stat)
+      if (stat /= MBDK_SUCCESS) return
+      q = q + dx
       iterations = it + 1
     end do
     resid = phi
@@ -178,29 +157,15 @@ contains
       stat = MBDK_ERR_INCONSISTENT_INITIAL
       return
     end if
-    free = pack([(k, k = 1, nc)], .not. given_v)
-    if (size(free) > 0) then
+    if (.not. all(given_v)) then
       if (sparse) then
         call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
-        call minnorm(mv, given_v, -phit - resid, dx, stat)
-        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. dense_affordable()) then
-          sparse = .false.
-          allocate (d(m, nc))
-          call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-        else if (stat /= MBDK_SUCCESS) then
-          return
-        else
-          v = v + dx
-        end if
+      else
+        resid = matmul(d, v)
       end if
-      if (.not. sparse) then
-        a = d(:, free)
-        allocate (b(max(m, size(free))))
-        b(1:m) = -phit - matmul(d, v)
-        call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(free)), rank, stat)
-        if (stat /= MBDK_SUCCESS) return
-        v(free) = v(free) + b(1:size(free))
-      end if
+      call least_change(mv, given_v, -phit - resid, dx, stat)
+      if (stat /= MBDK_SUCCESS) return
+      v = v + dx
     end if
     call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
     call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
@@ -214,6 +179,35 @@ contains
     velocity = .false.
 
   contains
+
+    !> dx = the least change of the coordinates not given with D dx = c at (q, v): through the
+    !> sparse Schur complement while the free columns allow it, else (and from then on) by the
+    !> dense least squares, which passes dependent columns, while D is affordable.
+    subroutine least_change(mn, given, c, dx, st)
+      type(minnorm_t), intent(inout) :: mn
+      logical, intent(in) :: given(:)
+      real(dp), intent(in) :: c(:)
+      real(dp), intent(out) :: dx(:)
+      integer, intent(out) :: st
+      integer :: rk
+      integer, allocatable :: fr(:)
+      if (sparse) then
+        call minnorm(mn, given, c, dx, st)
+        if (st /= MBDK_ERR_SINGULAR_MATRIX .or. .not. dense_affordable()) return
+        ! dependent free columns: this and the next corrections by the dense least squares
+        sparse = .false.
+        allocate (d(m, nc))
+        call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+      end if
+      fr = pack([(k, k = 1, nc)], .not. given)
+      a = d(:, fr)
+      allocate (b(max(m, size(fr))))
+      b(1:m) = c
+      call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(fr)), rk, st)
+      dx = 0.0_dp
+      if (st == MBDK_SUCCESS) dx(fr) = b(1:size(fr))
+      deallocate (b)
+    end subroutine least_change
 
     !> the dense D of the model and its least squares fit in memory (at most 10^7 entries)
     logical function dense_affordable()
