@@ -273,8 +273,8 @@ def test_a_long_run_holds_its_results_once():
     """2 x 10^4 samples of a 64-bar chain with every output but reactions: the peak of Python's
     allocations during simulate (tracemalloc, which numpy reports to) stays within 1.1 times
     the result arrays it returns: the kernel writes them once and the result keeps them, with
-    no copy (measured 1.02; the earlier copies peaked at twice, and a copy of the multipliers
-    alone would add 0.18)."""
+    no copy (the arrays themselves are all but a few percent of the peak; a copy of the
+    multipliers alone would add 0.18, one of q and v 0.6)."""
     import tracemalloc
     sc = bar_chain(64, -30.0)
     tracemalloc.start()

@@ -162,8 +162,8 @@ def test_large_a02_chains_stop_at_the_flat_pose_on_the_sparse_path(n, h):
     """The reduced formulation's refusal of a near rank loss (tests/test_index3.py's one- and
     two-loop case) holds on the sparse path too: A02 chains of 64 and 256 loops (386 and 1538
     rows) stop with SingularMatrixError at the first flat pose (the exact crank angle a
-    multiple of pi there), every sample on the right branch, as the dense path does. (A window
-    narrowed by 12 / m alone let them stride over it unseen to t = 1.24 s.)"""
+    multiple of pi there), every sample on the right branch, as the dense path does (a window
+    that narrows with m alone lets them stride over it unseen)."""
     with pytest.raises(mbdk.SingularMatrixError) as err:
         mbdk.simulate(a02_chain(n), "rk4", formulation="reduced", h=h, t_end=2.0,
                       outputs=("residuals",))
