@@ -6,6 +6,8 @@ as a status and are raised by :func:`raise_for_status`.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 from enum import IntEnum
 
 
@@ -177,13 +179,19 @@ def exception_for(status: Status) -> type:
 
 def status_message(status: int) -> str:
     """The kernel's own message for a status code."""
+    msg = _kernel_messages().get(int(status))
+    return msg if msg is not None else f"unknown status code {status}"
+
+
+@lru_cache(maxsize=1)
+def _kernel_messages() -> dict:
     from . import _kernel
 
+    table = {}
     for i in range(1, len(Status) + 1):
         code, _name, msg = _kernel.status_entry(i)
-        if code == status:
-            return _decode(msg)
-    return f"unknown status code {status}"
+        table[int(code)] = _decode(msg)
+    return table
 
 
 def _decode(b) -> str:

@@ -48,6 +48,8 @@ def build_info() -> dict:
 
 
 def _real(name: str, value) -> float:
+    if type(value) is float and math.isfinite(value):   # the common case, without ABC checks
+        return value
     if isinstance(value, bool) or not isinstance(value, Real):
         raise InvalidInputError(f"{name} = {value!r} is not a real number")
     v = float(value)
@@ -114,7 +116,8 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
     t_end = _real("t_end", t_end)
     if not t_end > t0:
         raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
+    if not (type(every) is int or (not isinstance(every, bool) and isinstance(every, Integral))) \
+            or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
     if info_m.adaptive:
         opt, nsteps, nsamp, control = _adaptive_options(
@@ -125,7 +128,9 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
                                      ("dt_out", dt_out, 0.0), ("h_min", h_min, 0.0),
                                      ("h_max", h_max, 0.0), ("max_steps", max_steps, 0),
                                      ("max_order", max_order, 0)):
-            unset = value is None or (default is not None and np.ndim(value) == 0
+            unset = value is None or (default is not None and type(value) in (int, float)
+                                      and value == default) or (
+                                      default is not None and np.ndim(value) == 0
                                       and not isinstance(value, (str, bytes))
                                       and value == default)
             if not unset:

@@ -49,33 +49,50 @@ def _default_words(cname: str) -> bytes:
     return np.asarray(_kernel.struct_defaults(STRUCT_IDS[cname], dt.itemsize // 8)).tobytes()
 
 
+@lru_cache(maxsize=None)
+def _defaults(cname: str) -> tuple:
+    """The kernel's default-initialised struct as Python numbers, in the layout's field order."""
+    return np.frombuffer(_default_words(cname), dtype=layout(cname))[0].item()
+
+
+@lru_cache(maxsize=None)
+def _position(cname: str) -> dict:
+    return {n: i for i, n in enumerate(layout(cname).names)}
+
+
 def kernel_defaults(cname: str) -> dict:
     """The kernel's default-initialised struct, field by field."""
-    rec = np.frombuffer(_default_words(cname), dtype=layout(cname))[0]
-    return {n: rec[n].item() for n in layout(cname).names}
+    return dict(zip(layout(cname).names, _defaults(cname)))
 
 
 def pack(cname: str, values: dict) -> np.ndarray:
     """The struct's bytes, as 8-byte words for the f2py layer: the kernel's defaults with the
-    given fields set by name (an unknown name is a KeyError)."""
-    dt = layout(cname)
-    rec = np.frombuffer(bytearray(_default_words(cname)), dtype=dt)
+    given fields set by name (an unknown name is a KeyError). The record is built from one
+    tuple: setting it field by field cost more than the rest of a short solve's Python."""
+    where = _position(cname)
+    fields_ = list(_defaults(cname))
     for k, v in values.items():
-        if k not in dt.names:
+        i = where.get(k)
+        if i is None:
             raise KeyError(f"{cname} has no field {k!r}")
-        rec[k] = v
-    return rec.view(np.float64).copy()
+        fields_[i] = v
+    return np.array([tuple(fields_)], dtype=layout(cname)).view(np.float64)
 
 
 def unpack(cname: str, words) -> dict:
     rec = np.frombuffer(np.ascontiguousarray(words, dtype=np.float64).tobytes(),
                         dtype=layout(cname))[0]
-    return {n: rec[n].item() for n in layout(cname).names}
+    return dict(zip(layout(cname).names, rec.item()))
 
 
 def empty(cname: str) -> np.ndarray:
     """Zeroed words for a struct the kernel writes (statistics)."""
     return np.zeros(layout(cname).itemsize // 8)
+
+
+@lru_cache(maxsize=None)
+def _field_names(cls) -> tuple:
+    return tuple(f.name for f in fields(cls))
 
 
 class _Struct:
@@ -86,7 +103,7 @@ class _Struct:
     def pack(self) -> np.ndarray:
         # the fields are numbers: a shallow read (dataclasses.asdict deep-copies every value,
         # which cost more than the rest of a short solve's packing)
-        return pack(self._cname, {f.name: getattr(self, f.name) for f in fields(self)})
+        return pack(self._cname, {n: getattr(self, n) for n in _field_names(type(self))})
 
 
 @dataclass(frozen=True)

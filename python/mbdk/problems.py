@@ -8,6 +8,8 @@ the first (studies/ch4_tables.py shows both), so that is the default here.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -304,7 +306,7 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
             v = float(value)
         except (TypeError, ValueError):
             raise InvalidInputError(f"params[{key!r}] = {value!r} is not a number") from None
-        if not np.isfinite(v):
+        if not math.isfinite(v):
             raise InvalidInputError(f"params[{key!r}] = {v} is not finite; give a finite number")
         if key in info.positive and not v > 0:
             raise InvalidInputError(f"params[{key!r}] = {v} must be > 0 for problem {info.name!r}")

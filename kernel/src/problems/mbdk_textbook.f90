@@ -86,6 +86,10 @@ module mbdk_textbook
     integer :: id = 0
     real(dp), allocatable :: p(:)
     real(dp), allocatable :: a(:, :)   !< linear_system: A, built once at init
+    !> products of parameters alone, formed once at init (double_pendulum: the constant
+    !> mass-matrix entries and the coefficients of the coupling and gravity terms), so that an
+    !> evaluation does only the arithmetic that depends on the state
+    real(dp) :: c(5) = 0.0_dp
   contains
     procedure :: rhs => textbook_rhs
     procedure :: jac => textbook_jac
@@ -162,6 +166,10 @@ contains
     prob%n = n
     prob%p = p
     if (id == LINEAR_SYSTEM) prob%a = reshape(p, [n, n])
+    if (id == DOUBLE_PENDULUM) prob%c = [(p(1) / 3.0_dp + p(2)) * p(3)**2, &
+                                         p(2) * p(4)**2 / 3.0_dp, 0.5_dp * p(2) * p(3) * p(4), &
+                                         (0.5_dp * p(1) + p(2)) * p(5) * p(3), &
+                                         0.5_dp * p(2) * p(5) * p(4)]
     prob%nq = 0
     if ((id >= DAMPED_OSCILLATOR .and. id <= DOUBLE_PENDULUM) .or. &
         id == FOUR_BAR_RELATIVE .or. id == FOUR_BAR_NATURAL) prob%nq = n / 2
@@ -217,20 +225,19 @@ contains
         f(3) = (m22 * r1 - m12 * r2) / det
         f(4) = (m11 * r2 - m12 * r1) / det
       case (DOUBLE_PENDULUM)
-        ! p = m1, m2, l1, l2, g
-        d = y(1) - y(2)
-        sd = sin(d); cd = cos(d)
-        m11 = (p(1) / 3.0_dp + p(2)) * p(3)**2
-        m12 = 0.5_dp * p(2) * p(3) * p(4) * cd
-        m22 = p(2) * p(4)**2 / 3.0_dp
-        r1 = -0.5_dp * p(2) * p(3) * p(4) * sd * y(4)**2 &
-             - (0.5_dp * p(1) + p(2)) * p(5) * p(3) * cos(y(1))
-        r2 = 0.5_dp * p(2) * p(3) * p(4) * sd * y(3)**2 - 0.5_dp * p(2) * p(5) * p(4) * cos(y(2))
-        det = m11 * m22 - m12 * m12
-        f(1) = y(3)
-        f(2) = y(4)
-        f(3) = (m22 * r1 - m12 * r2) / det
-        f(4) = (m11 * r2 - m12 * r1) / det
+        ! p = m1, m2, l1, l2, g; c = m11, m22, m2 l1 l2 / 2, (m1/2 + m2) g l1, m2 g l2 / 2
+        associate (c => self%c)
+          d = y(1) - y(2)
+          sd = sin(d); cd = cos(d)
+          m12 = c(3) * cd
+          r1 = -c(3) * sd * y(4)**2 - c(4) * cos(y(1))
+          r2 = c(3) * sd * y(3)**2 - c(5) * cos(y(2))
+          det = c(1) * c(2) - m12 * m12
+          f(1) = y(3)
+          f(2) = y(4)
+          f(3) = (c(2) * r1 - m12 * r2) / det
+          f(4) = (c(1) * r2 - m12 * r1) / det
+        end associate
       case (LINEAR_SYSTEM)
         f = matmul(self%a, y)
       case (FOUR_BAR_RELATIVE)
