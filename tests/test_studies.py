@@ -337,6 +337,36 @@ def test_rigid_body_study(tmp_path, root):
         2 * num(pick(e2, "quaternion", "dopri54")["steps"])
 
 
+def test_spatial_scenes_study(tmp_path, root):
+    """The quick run: on both scenes every method and formulation runs; rk4's error falls as
+    h^4 on the reduced and projection forms (the error against an independent reference: the
+    compiled heavy_top and the planar double pendulum); the projection formulation keeps |Phi|
+    at its tolerance; a projected quaternion keeps its norm at roundoff while no treatment lets
+    explicit Euler's grow; and the cost table holds both scenes, the planar one first."""
+    sys.path.insert(0, str(root / "studies"))
+    import spatial_scenes
+    summary = spatial_scenes.run(tmp_path, quick=True)
+    assert summary["figures"][0].exists()
+    data = rows(tmp_path / "spatial_formulations.csv")
+    assert all(r["status"] == "ok" for r in data)
+
+    def err(scene, form, control):
+        return num(next(r for r in data if r["scene"] == scene and r["method"] == "rk4"
+                        and r["formulation"] == form and r["control"] == control)["error"])
+    for scene in ("heavy_top", "spatial_double_pendulum"):
+        for form in ("reduced", "projection"):
+            ratio = err(scene, form, "h = 0.002") / err(scene, form, "h = 0.001")
+            assert 2 ** 3.3 < ratio < 2 ** 4.7, (scene, form, ratio)
+    assert all(num(r["max_abs_phi"]) < 1e-11 for r in data
+               if r["formulation"] == "projection" and r["method"] == "rk4")
+    norm = {(r["method"], r["quaternion_norm"]): num(r["max_norm_drift"])
+            for r in rows(tmp_path / "spatial_quaternion_norm.csv")}
+    assert norm[("explicit_euler", "none")] > 1e-3
+    assert all(v < 1e-15 for (m, n), v in norm.items() if n == "project")
+    cost = rows(tmp_path / "spatial_cost.csv")
+    assert cost[0]["scene"].startswith("planar") and num(cost[0]["ratio_to_planar"]) == 1.0
+
+
 def test_ch5_formulas_study(tmp_path, root):
     """The book's chapter-5 rotation formulas against the kernel: the ones printed right agree
     to roundoff, each misprint differs by order one and its correction agrees (so both the

@@ -21,6 +21,7 @@ from .stability import StabilityRegion, stability_region
 from .scene import Scene, SceneError, load_scene, scene, scenes
 from .simulate import RedundantConstraintsError, SceneResult, evaluate, simulate
 from .watch import Watch
+from .spatial import SpatialResult, SpatialScene
 
 __all__ = [
     "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
@@ -31,5 +32,5 @@ __all__ = [
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
-    "ConstraintDriftError", "EnergyDriftError", "Watch",
+    "ConstraintDriftError", "EnergyDriftError", "Watch", "SpatialScene", "SpatialResult",
 ]

@@ -28,9 +28,8 @@ A scene file (SI units; angles in radians unless a field ends in _deg)::
     type = "gravity"                          # only when declared
     g = [0.0, -9.81]
 
-Bodies: planar (x, y, angle). The kernel's body table (kernel/src/model/mbdk_elements.f90) also
-declares spatial bodies (position and Euler parameters, chapter 5 of the book); a scene that
-uses one is refused by name until their joints and forces exist.
+Bodies: planar (x, y, angle). A scene with a body of kind "spatial" is a spatial scene (chapter 5
+of the book): mbdk.spatial reads and runs it, and its docstring gives the format.
 
 Joints: revolute (body1, point1, body2, point2); prismatic (the same, plus axis: a unit vector
 fixed in body2, global for the ground, and the relative angle kept at its initial value or
@@ -175,10 +174,13 @@ def body_kind_problem(kind) -> str | None:
     if not isinstance(kind, str) or kind not in BODY_KINDS:
         return f"= {kind!r} is not a body kind; known: {', '.join(BODY_KINDS)}"
     _code, coords, vels, available = BODY_KINDS[kind]
+    if kind == "spatial":
+        return (f"= {kind!r} in a planar scene: spatial bodies ({coords} coordinates, {vels} "
+                "velocities) run in spatial scenes (mbdk.spatial), where every body is "
+                "spatial; make this body 'planar', or all of the scene's bodies 'spatial'")
     if not available:
         return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
-                "velocities) but cannot simulate it yet, its joints and forces are still to "
-                "come (chapter 5 of the book); use 'planar'")
+                "velocities) but the planar model cannot simulate it; use 'planar'")
     return None
 JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
@@ -401,6 +403,9 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     """Builds and checks a Scene from the parsed TOML structure."""
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene is a table")
+    from .spatial import is_spatial, spatial_scene_from_dict
+    if is_spatial(data):   # a body of kind "spatial": the whole scene is (mbdk.spatial)
+        return spatial_scene_from_dict(data, source)
     known = {"scene", "body", "joint", "force"}
     extra = [k for k in data if k not in known]
     if extra:
@@ -595,14 +600,21 @@ def load_scene(path) -> Scene:
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
 
-def scenes() -> list[str]:
-    """Names of the built-in scenes."""
-    return sorted(p.stem for p in SCENE_DIR.glob("*.toml"))
+def scenes(kind: str = "planar") -> list[str]:
+    """Names of the built-in scenes of a kind: "planar" (python/mbdk/scenes/*.toml), "spatial"
+    (python/mbdk/scenes/spatial/*.toml) or "all"."""
+    dirs = {"planar": [SCENE_DIR], "spatial": [SCENE_DIR / "spatial"],
+            "all": [SCENE_DIR, SCENE_DIR / "spatial"]}
+    if kind not in dirs:
+        raise InvalidInputError(f"kind = {kind!r}; known: {', '.join(dirs)}")
+    return sorted(p.stem for d in dirs[kind] for p in d.glob("*.toml"))
 
 
-def scene(name: str) -> Scene:
-    """A built-in scene by name (python/mbdk/scenes/NAME.toml)."""
-    p = SCENE_DIR / f"{name}.toml"
-    if not isinstance(name, str) or not p.is_file():
-        raise SceneError(f"no built-in scene {name!r}; built-in scenes: {', '.join(scenes())}")
-    return load_scene(p)
+def scene(name: str):
+    """A built-in scene by name (python/mbdk/scenes/NAME.toml, or scenes/spatial/NAME.toml: a
+    SpatialScene)."""
+    if isinstance(name, str):
+        for p in (SCENE_DIR / f"{name}.toml", SCENE_DIR / "spatial" / f"{name}.toml"):
+            if p.is_file():
+                return load_scene(p)
+    raise SceneError(f"no built-in scene {name!r}; built-in scenes: {', '.join(scenes('all'))}")

@@ -210,6 +210,19 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
+    from .spatial import SpatialScene, simulate_spatial
+    if isinstance(scene, SpatialScene):   # the spatial model (mbdk.spatial); planar-only options
+        return simulate_spatial(          # given a value are refused there by name
+            scene, method, h=h, t_end=t_end, formulation=formulation, t0=t0, every=every,
+            alpha=alpha, beta=beta, projection_tol=projection_tol,
+            assemble_initial=assemble_initial, startup=startup, rtol=rtol, atol=atol,
+            dt_out=dt_out, h_min=h_min, h_max=h_max, max_steps=max_steps, max_order=max_order,
+            watch=watch, raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
+            newton_atol=newton_atol, solver=None if solver == "auto" else solver,
+            small_dense=None if small_dense else small_dense,
+            penalty=None if tuple(penalty) == (1e7, 10.0, 1.0) else penalty,
+            adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol, max_iter=max_iter,
+            outputs=None if outputs == tuple(OUTPUTS) else outputs)
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")

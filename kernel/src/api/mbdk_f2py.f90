@@ -842,3 +842,159 @@ subroutine quaternion_omega(q, qd, body, w, status)
   w = mbdk_quat_omega(q, qd, body /= 0)
   status = MBDK_SUCCESS
 end subroutine quaternion_omega
+
+subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
+                       freal, nso, sopt, noptw, optbuf, interrupt, natol, atol, n, y0, assemble, &
+                       t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, nstatw, &
+                       statbuf, moved, watch_report, status)
+  ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
+  ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
+  ! watch_velocity, watch_energy, watch_every. The tables have nj1 = max(nj, 1) columns (nf1
+  ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
+  ! (moved: the largest change of a state). out(MBDK_SPATIAL_OUTPUTS, nsamp) and lam_out(m1,
+  ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
+  ! none). watch_report as scene_run's.
+  use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_options, only: mbdk_options_t
+  use mbdk_stats, only: mbdk_stats_t
+  use mbdk_solve, only: mbdk_solve_ode
+  use mbdk_spatial_model
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(12, nj1), freal(9, nf1)
+  integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
+  double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
+  integer, intent(in), target :: interrupt(1)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(7, nsamp), &
+    lam_out(m1, nsamp), moved, watch_report(8)
+  double precision, intent(inout) :: statbuf(nstatw)
+  integer, intent(out) :: nwritten, status
+!f2py threadsafe
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
+!f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
+!f2py integer intent(hide), depend(sopt) :: nso = len(sopt)
+!f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(atol) :: natol = len(atol)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+!f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
+  type(mbdk_spatial_model_t) :: model
+  type(mbdk_spatial_work_t), target :: work
+  type(mbdk_spatial_options_t) :: so
+  type(mbdk_options_t) :: opt
+  type(mbdk_stats_t) :: st
+  double precision :: y(n), nan
+  integer :: k, s
+
+  nwritten = 0
+  t_out = 0.0d0
+  y_out = 0.0d0
+  nan = ieee_value(0.0d0, ieee_quiet_nan)
+  out = nan
+  lam_out = nan
+  moved = 0.0d0
+  watch_report = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 11) return
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  opt = transfer(optbuf, opt)
+  opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+  so%formulation = nint(sopt(1))
+  so%rotation = nint(sopt(2))
+  so%norm = nint(sopt(3))
+  so%alpha = sopt(4)
+  so%beta = sopt(5)
+  so%norm_gain = sopt(6)
+  so%projection_tol = sopt(7)
+  so%watch_position = sopt(8)
+  so%watch_velocity = sopt(9)
+  so%watch_energy = sopt(10)
+  so%watch_every = nint(sopt(11))
+  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), y0, status)
+  if (status /= MBDK_SUCCESS) return
+  if (m1 < max(model%m, 1)) then
+    status = MBDK_ERR_INVALID_INPUT
+    return
+  end if
+  y = y0
+  if (assemble /= 0) then
+    call mbdk_spatial_assemble(model, y, moved, status)
+    if (status /= MBDK_SUCCESS) return
+  end if
+  call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
+  s = status
+  do k = 1, nwritten
+    call mbdk_spatial_outputs(model, y_out(:, k), out(:, k), status)
+    if (status /= MBDK_SUCCESS) then
+      out(:, k) = nan
+      cycle
+    end if
+    call spatial_lambda(y_out(:, k))
+  end do
+  status = s
+  statbuf = transfer(st, statbuf, nstatw)
+  associate (w => work%watch)
+    watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
+                    w%scale]
+  end associate
+
+contains
+
+  subroutine spatial_lambda(ys)
+    double precision, intent(in) :: ys(:)
+    integer :: stat_l
+    if (model%m == 0) return
+    call mbdk_spatial_multipliers(model, ys, lam_out(1:model%m, k), stat_l)
+    if (stat_l /= MBDK_SUCCESS) lam_out(:, k) = nan
+  end subroutine spatial_lambda
+
+end subroutine spatial_run
+
+subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
+                             fbody, freal, rotation, n, y0, y, m1, out, phi, c, gam, lam, &
+                             status)
+  ! At the state y of a spatial scene whose model is built at its initial state y0 (the
+  ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
+  ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma and the
+  ! reduced formulation's multipliers (rows 1..m; lam is 0 where the solve failed, and status
+  ! then says why).
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_spatial_model
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(12, nj1), freal(9, nf1)
+  integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
+  double precision, intent(in) :: rotation, y0(n), y(n)
+  double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), lam(m1)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
+!f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+  type(mbdk_spatial_model_t) :: model
+  type(mbdk_spatial_work_t), target :: work
+  type(mbdk_spatial_options_t) :: so
+  out = 0.0d0
+  phi = 0.0d0
+  c = 0.0d0
+  gam = 0.0d0
+  lam = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  so%rotation = nint(rotation)
+  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), y0, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (m1 < model%m) return
+  call mbdk_spatial_outputs(model, y, out, status)
+  if (status /= MBDK_SUCCESS) return
+  call mbdk_spatial_constraints(model, y, phi(1:model%m), c(1:model%m, :), gam(1:model%m), &
+                                status)
+  if (status /= MBDK_SUCCESS .or. model%m == 0) return
+  call mbdk_spatial_multipliers(model, y, lam(1:model%m), status)
+  if (status /= MBDK_SUCCESS) lam = 0.0d0
+end subroutine spatial_residuals

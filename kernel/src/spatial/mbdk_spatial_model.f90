@@ -1,0 +1,891 @@
+!> A spatial multibody scene (the book's chapter 5) as a problem y' = F(t, y) for every ODE
+!> integrator of the kernel. Planar scenes never come here (mbdk_model): they keep their own
+!> path and pay nothing for 3D.
+!>
+!> State, body by body: y = [q_1 .. q_nb, w_1 .. w_nb] with
+!>   q_b = (r, p)  r the centre of mass in the space frame, p the orientation: a quaternion
+!>                 (4, scalar first; rotation = quaternion) or three angles of the 3-1-3 Euler or
+!>                 1-2-3 Cardan sequence (rotation = euler313 | cardan123; mbdk_rotations);
+!>   w_b = (v, W)  v = r', W the angular velocity in the body frame.
+!> Velocities are not q' (the orientation's rates follow from W, (5.43) and (5.95)), so the mass
+!> matrix is constant and block diagonal, M = diag(m I, J) per body, J the inertia about the
+!> centre in the body frame, and the equations of motion are Newton-Euler's (5.1)-(5.3):
+!>
+!>   m v' = f + (C^T lambda)_v,   J W' + W x J W = n + (C^T lambda)_W,   C w' = gamma
+!>
+!> with f and n the applied force (space frame) and moment (body frame), C the constraint
+!> Jacobian in the velocities w (Phi' = C w: a rotation R -> R (I + skew(dtheta)) in the body
+!> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
+!> multipliers come from the Schur complement S = C M^-1 C^T (LAPACK dpotrf: a small spatial
+!> scene is dense); a singular S (redundant joints, a singular pose) stops the run with
+!> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
+!>   1 reduced      C w' = gamma
+!>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
+!>   4 projection   reduced, then after every step the positions are moved back onto Phi = 0
+!>                  (Gauss-Newton with the least mass-weighted change, dr and the body-frame
+!>                  rotation dtheta) and the velocities onto C w = 0.
+!> The unit norm of a quaternion (rotation = quaternion) is kept by the user's choice (norm):
+!>   1 project      p / |p| after every step (with the projection of the projection formulation)
+!>   2 stabilise    p' = p (0, W) / 2 + k (1 - |p|^2) p / 2: the constraint |p| = 1 stabilised in
+!>                  the kinematic equation (norm_gain k, 1/s), no step changes the state after it
+!>   3 none         nothing: |p| drifts as the integrator lets it (what a study measures);
+!> the rotation matrix is always taken from p / |p|, so a drift of |p| does not scale the body.
+!> An angle set at its gimbal lock (3-1-3: sin(theta) = 0; 1-2-3: cos(beta) = 0) has no angle
+!> rates: the evaluation returns MBDK_ERR_SINGULAR_MATRIX and the run stops there, by name.
+!>
+!> Joints (type, body i, body j; j = 0 is the ground, whose points and axes are global). Each is
+!> a set of the primitive constraints of Haug's spatial kinematics, written in body-fixed points
+!> s and unit vectors u:
+!>   spherical   3 rows  r_i + R_i s_i - r_j - R_j s_j = 0
+!>   revolute    5 rows  spherical, and the axis a_i normal to two vectors normal to a_j
+!>   universal   4 rows  spherical, and a_i . a_j = 0 (the cross's two axes)
+!>   cylindrical 4 rows  a_i parallel to a_j, and the joint points' offset normal to a_j's normals
+!>   prismatic   5 rows  cylindrical, and the rotation about the axis kept at its initial value
+!>   fixed       6 rows  spherical, and the relative orientation kept at its initial value
+!> A joint's reals (MBDK_SPATIAL_JOINT_REALS): s_i (3), s_j (3), a_i (3, body i frame), a_j (3,
+!> body j frame); axes are normalised here, one of zero length is MBDK_ERR_INVALID_INPUT.
+!> Forces (type, body i, body j; reals MBDK_SPATIAL_FORCE_REALS):
+!>   gravity        g (3)                            on every body
+!>   point_force    s (3, body frame), f (3, space)  a constant force at a body point
+!>   torque         n (3, space)                     a constant moment
+!>   spring_damper  s_i (3), s_j (3), k, c, l0       along the line of the two points
+!> Only the elements a scene declares are visited.
+!>
+!> The watch (mbdk_watch) checks Phi, C w and the energy balance as on planar scenes; rows of
+!> the direction constraints (a dot product of unit vectors) are measured in radians, the others
+!> in the mechanism's length scale. Outputs (mbdk_spatial_outputs): kinetic, gravity and spring
+!> energy, the power of dampers and loads, max |Phi|, max |C w|, max ||p| - 1|.
+module mbdk_spatial_model
+  use mbdk_kinds, only: dp
+  use mbdk_status
+  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
+    mbdk_quat_rates, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
+  use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
+    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
+  implicit none
+  private
+  public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
+    mbdk_spatial_multipliers, mbdk_spatial_constraints
+
+  integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
+    MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
+    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_JOINT_TYPES = 6
+  integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
+    [3, 5, 4, 4, 5, 6]
+  integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
+    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_FORCE_TYPES = 4
+  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 12, MBDK_SPATIAL_FORCE_REALS = 9
+  integer, parameter, public :: MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, &
+    MBDK_ROT_CARDAN123 = 3
+  integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
+    MBDK_NORM_NONE = 3
+  !> the formulations, with the codes of the planar model's (mbdk_model)
+  integer, parameter, public :: MBDK_SPATIAL_REDUCED = 1, MBDK_SPATIAL_BAUMGARTE = 2, &
+    MBDK_SPATIAL_PROJECTION = 4
+  !> outputs per sample (mbdk_spatial_outputs)
+  integer, parameter, public :: MBDK_SPATIAL_NOUT = 7
+  !> Gauss-Newton iterations of a position projection before it gives up (it converges
+  !> quadratically from a step's drift: two or three are the rule)
+  integer, parameter :: PROJECTION_MAX_ITER = 20
+  integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3
+
+  type, public :: mbdk_spatial_options_t
+    integer :: formulation = MBDK_SPATIAL_REDUCED
+    integer :: rotation = MBDK_ROT_QUATERNION
+    integer :: norm = MBDK_NORM_PROJECT
+    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
+    real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
+    real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
+    real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
+      watch_energy = 1.0e-1_dp
+    integer :: watch_every = MBDK_WATCH_EVERY
+  end type mbdk_spatial_options_t
+
+  !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
+  type :: prim_t
+    integer :: kind = 0, bi = 0, bj = 0, row = 0
+    real(dp) :: si(3) = 0.0_dp, sj(3) = 0.0_dp, ui(3) = 0.0_dp, uj(3) = 0.0_dp
+  end type prim_t
+
+  !> what the caller owns and the model points to (rhs receives the model read-only)
+  type, public :: mbdk_spatial_work_t
+    type(mbdk_watch_t) :: watch
+  end type mbdk_spatial_work_t
+
+  type, extends(mbdk_problem_t), public :: mbdk_spatial_model_t
+    type(mbdk_spatial_options_t) :: opt
+    integer :: nb = 0, m = 0, nqb = 7, nprim = 0, nf = 0
+    integer :: seq(3) = 0
+    real(dp), allocatable :: mass(:), inertia(:, :, :), inv_inertia(:, :, :)
+    type(prim_t), allocatable :: prim(:)
+    logical, allocatable :: row_angular(:)
+    integer, allocatable :: ftype(:), fbody(:, :)
+    real(dp), allocatable :: freal(:, :)
+    logical :: has_power = .false.
+    real(dp) :: length = 1.0_dp, gscale = 0.0_dp
+    type(mbdk_spatial_work_t), pointer :: work => null()
+  contains
+    procedure :: rhs => spatial_rhs
+    procedure :: post_step => spatial_post_step
+    procedure :: watch_start => spatial_watch_start
+    procedure :: watch => spatial_watch
+  end type mbdk_spatial_model_t
+
+  !> the kinematics of every body at one state (index 0: the ground)
+  type :: frames_t
+    real(dp), allocatable :: r(:, :), rot(:, :, :), v(:, :), om(:, :)
+  end type frames_t
+
+contains
+
+  !> Builds the model. mass(nb), inertia(3, 3, nb) (symmetric positive definite), joints:
+  !> jtype(nj), jbody(2, nj), jreal(MBDK_SPATIAL_JOINT_REALS, nj); forces: ftype(nf), fbody(2,
+  !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state (its orientations fix the
+  !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
+  !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first).
+  subroutine mbdk_spatial_init(model, work, opt, mass, inertia, jtype, jbody, jreal, ftype, &
+                               fbody, freal, y0, stat)
+    type(mbdk_spatial_model_t), intent(out) :: model
+    type(mbdk_spatial_work_t), intent(inout), target :: work
+    type(mbdk_spatial_options_t), intent(in) :: opt
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), y0(:)
+    integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
+    integer, intent(out) :: stat
+    integer :: nb, nj, b, j, row, info, k
+    real(dp) :: jb(3, 3), ai(3), aj(3), b1(3), b2(3), e(3, 3)
+    real(dp), parameter :: zero3(3) = 0.0_dp
+    type(frames_t) :: fr
+
+    stat = MBDK_ERR_INVALID_INPUT
+    nb = size(mass)
+    nj = size(jtype)
+    if (nb < 1 .or. any(shape(inertia) /= [3, 3, nb])) return
+    if (size(jbody, 1) /= 2 .or. size(jbody, 2) /= nj .or. size(jreal, 1) /= &
+        MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
+    if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
+        MBDK_SPATIAL_FORCE_REALS .or. size(freal, 2) /= size(ftype)) return
+    if (opt%formulation /= MBDK_SPATIAL_REDUCED .and. opt%formulation /= &
+        MBDK_SPATIAL_BAUMGARTE .and. opt%formulation /= MBDK_SPATIAL_PROJECTION) return
+    if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
+    if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
+    if (.not. (opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp &
+               .and. opt%projection_tol > 0.0_dp)) return
+    if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
+    model%opt = opt
+    model%nb = nb
+    model%nqb = merge(7, 6, opt%rotation == MBDK_ROT_QUATERNION)
+    if (opt%rotation == MBDK_ROT_EULER313) model%seq = MBDK_SEQ_EULER313
+    if (opt%rotation == MBDK_ROT_CARDAN123) model%seq = MBDK_SEQ_CARDAN123
+    model%n = nb * (model%nqb + 6)
+    if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
+    allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb))
+    do b = 1, nb
+      if (.not. (mass(b) > 0.0_dp)) return
+      jb = inertia(:, :, b)
+      if (any(abs(jb - transpose(jb)) > 1.0e-12_dp * maxval(abs(jb)))) return
+      model%mass(b) = mass(b)
+      model%inertia(:, :, b) = 0.5_dp * (jb + transpose(jb))
+      jb = model%inertia(:, :, b)
+      call mbdk_chol_factor(jb, info)
+      if (info /= MBDK_SUCCESS) return            ! not positive definite
+      do k = 1, 3
+        model%inv_inertia(:, k, b) = unit(k)
+        call mbdk_chol_solve(jb, model%inv_inertia(:, k, b), info)
+        if (info /= MBDK_SUCCESS) return
+      end do
+      if (opt%rotation == MBDK_ROT_QUATERNION) then
+        if (.not. (abs(norm2(y0(qi(model, b) + 3:qi(model, b) + 6)) - 1.0_dp) <= 1.0e-8_dp)) return
+      end if
+    end do
+    call frames(model, y0, fr, stat)
+    if (stat /= MBDK_SUCCESS) then
+      stat = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    stat = MBDK_ERR_INVALID_INPUT
+
+    ! joints as primitives
+    model%m = 0
+    model%nprim = 0
+    do j = 1, nj
+      if (jtype(j) < 1 .or. jtype(j) > MBDK_SPATIAL_JOINT_TYPES) return
+      if (jbody(1, j) < 1 .or. jbody(1, j) > nb .or. jbody(2, j) < 0 .or. jbody(2, j) > nb) return
+      if (jbody(1, j) == jbody(2, j)) return
+      model%m = model%m + MBDK_SPATIAL_JOINT_ROWS(jtype(j))
+    end do
+    allocate (model%prim(5 * nj), model%row_angular(model%m))   ! prismatic: 5 primitives
+    model%row_angular = .false.
+    row = 1
+    do j = 1, nj
+      associate (bi => jbody(1, j), bj => jbody(2, j), r => jreal(:, j))
+        ai = r(7:9)
+        aj = r(10:12)
+        if (any(jtype(j) == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, &
+                             MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC])) then
+          if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
+          ai = ai / norm2(ai)
+          aj = aj / norm2(aj)
+        end if
+        call normals(aj, b1, b2)
+        select case (jtype(j))
+        case (MBDK_SPATIAL_SPHERICAL)
+          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+        case (MBDK_SPATIAL_REVOLUTE)
+          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
+          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
+        case (MBDK_SPATIAL_UNIVERSAL)
+          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+          call add(PRIM_DOT1, r(1:3), r(4:6), ai, aj)
+        case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
+          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
+          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
+          call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b1)
+          call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b2)
+          ! the rotation about the axis: body i's image of b2 stays normal to b1
+          if (jtype(j) == MBDK_SPATIAL_PRISMATIC) &
+            call add(PRIM_DOT1, r(1:3), r(4:6), &
+                     matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
+        case (MBDK_SPATIAL_FIXED)
+          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+          ! body i's images of body j's axes e_k at the start: e1'.e2 = e2'.e3 = e3'.e1 = 0
+          ! lock the three relative rotations
+          e = matmul(transpose(fr%rot(:, :, bi)), fr%rot(:, :, bj))
+          do k = 1, 3
+            call add(PRIM_DOT1, r(1:3), r(4:6), e(:, k), unit(mod(k, 3) + 1))
+          end do
+        end select
+      end associate
+    end do
+
+    ! forces
+    model%nf = size(ftype)
+    allocate (model%ftype(model%nf), model%fbody(2, model%nf), &
+              model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf))
+    do k = 1, model%nf
+      if (ftype(k) < 1 .or. ftype(k) > MBDK_SPATIAL_FORCE_TYPES) return
+      select case (ftype(k))
+      case (MBDK_SPATIAL_POINT_FORCE, MBDK_SPATIAL_TORQUE)
+        if (fbody(1, k) < 1 .or. fbody(1, k) > nb) return
+      case (MBDK_SPATIAL_SPRING_DAMPER)
+        if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
+            fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
+        if (.not. (freal(9, k) >= 0.0_dp)) return
+      end select
+      if (ftype(k) /= MBDK_SPATIAL_GRAVITY) model%has_power = .true.
+    end do
+    model%ftype = ftype
+    model%fbody = fbody
+    model%freal = freal
+
+    ! the length scale of the watch: joint and spring points, and the bodies' spread
+    model%length = 0.0_dp
+    do k = 1, model%nprim
+      model%length = max(model%length, norm2(model%prim(k)%si), norm2(model%prim(k)%sj))
+    end do
+    do b = 1, nb
+      model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
+    end do
+    if (.not. (model%length > 0.0_dp)) model%length = 1.0_dp
+    model%gscale = 0.0_dp
+    do k = 1, model%nf
+      if (ftype(k) == MBDK_SPATIAL_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
+    end do
+    model%gscale = model%gscale * sum(model%mass) * model%length
+
+    model%nq = 0
+    model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
+      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
+    model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
+      opt%watch_energy > 0.0_dp
+    model%work => work
+    stat = MBDK_SUCCESS
+
+  contains
+
+    subroutine add(kind, si, sj, ui, uj)
+      integer, intent(in) :: kind
+      real(dp), intent(in) :: si(3), sj(3), ui(3), uj(3)
+      model%nprim = model%nprim + 1
+      model%prim(model%nprim) = prim_t(kind, jbody(1, j), jbody(2, j), row, si, sj, ui, uj)
+      if (kind == PRIM_DOT1) model%row_angular(row) = .true.
+      row = row + merge(3, 1, kind == PRIM_SPH)
+    end subroutine add
+
+  end subroutine mbdk_spatial_init
+
+  pure function unit(k) result(e)
+    integer, intent(in) :: k
+    real(dp) :: e(3)
+    e = 0.0_dp
+    e(k) = 1.0_dp
+  end function unit
+
+  !> Two unit vectors normal to the unit vector a and to each other.
+  pure subroutine normals(a, b1, b2)
+    real(dp), intent(in) :: a(3)
+    real(dp), intent(out) :: b1(3), b2(3)
+    integer :: k
+    if (.not. (norm2(a) > 0.0_dp)) then
+      b1 = unit(1)
+      b2 = unit(2)
+      return
+    end if
+    k = minloc(abs(a), 1)               ! the coordinate axis least aligned with a
+    b1 = cross(a, unit(k))
+    b1 = b1 / norm2(b1)
+    b2 = cross(a, b1)
+  end subroutine normals
+
+  pure function cross(x, y) result(z)
+    real(dp), intent(in) :: x(3), y(3)
+    real(dp) :: z(3)
+    z = [x(2) * y(3) - x(3) * y(2), x(3) * y(1) - x(1) * y(3), x(1) * y(2) - x(2) * y(1)]
+  end function cross
+
+  !> index in y of body b's first coordinate; of its first velocity
+  pure integer function qi(model, b)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    integer, intent(in) :: b
+    qi = (b - 1) * model%nqb + 1
+  end function qi
+
+  pure integer function wi(model, b)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    integer, intent(in) :: b
+    wi = model%nb * model%nqb + (b - 1) * 6 + 1
+  end function wi
+
+  !> The rotation matrix of body b's orientation coordinates (a quaternion taken as p / |p|).
+  pure subroutine orientation(model, p, rot, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: p(:)
+    real(dp), intent(out) :: rot(3, 3)
+    integer, intent(out) :: stat
+    real(dp) :: u(4)
+    integer :: i, j
+    if (model%opt%rotation == MBDK_ROT_QUATERNION) then
+      stat = MBDK_ERR_NONFINITE
+      rot = 0.0_dp
+      if (.not. (norm2(p(1:4)) > 0.0_dp)) return
+      u = p(1:4) / norm2(p(1:4))
+      do j = 1, 3
+        do i = 1, 3
+          rot(i, j) = 2.0_dp * u(i + 1) * u(j + 1)
+        end do
+        rot(j, j) = rot(j, j) + u(1)**2 - sum(u(2:4)**2)
+      end do
+      rot = rot + 2.0_dp * u(1) * mbdk_skew(u(2:4))
+      stat = MBDK_SUCCESS
+    else
+      call mbdk_angles_matrix(model%seq, p(1:3), rot, stat)
+    end if
+  end subroutine orientation
+
+  !> Positions, rotations and velocities of every body at y (column 0: the ground).
+  pure subroutine frames(model, y, fr, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: y(:)
+    type(frames_t), intent(out) :: fr
+    integer, intent(out) :: stat
+    integer :: b, k
+    allocate (fr%r(3, 0:model%nb), fr%rot(3, 3, 0:model%nb), fr%v(3, 0:model%nb), &
+              fr%om(3, 0:model%nb))
+    fr%r(:, 0) = 0.0_dp
+    fr%rot(:, :, 0) = reshape([1, 0, 0, 0, 1, 0, 0, 0, 1], [3, 3]) * 1.0_dp
+    fr%v(:, 0) = 0.0_dp
+    fr%om(:, 0) = 0.0_dp
+    stat = MBDK_SUCCESS
+    do b = 1, model%nb
+      k = qi(model, b)
+      fr%r(:, b) = y(k:k + 2)
+      call orientation(model, y(k + 3:k + model%nqb - 1), fr%rot(:, :, b), stat)
+      if (stat /= MBDK_SUCCESS) return
+      k = wi(model, b)
+      fr%v(:, b) = y(k:k + 2)
+      fr%om(:, b) = y(k + 3:k + 5)
+    end do
+  end subroutine frames
+
+  ! ---- the constraints ---------------------------------------------------------------------
+
+  !> Phi (m), C (m x 6 nb) and gamma = -(C' w) at the frames.
+  pure subroutine constraints(model, fr, phi, c, gam)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi(:), c(:, :), gam(:)
+    integer :: k, i, j, r
+    real(dp) :: pi(3), pj(3), di(3), dj(3), ddi(3), ddj(3), h(3), hd(3)
+    phi = 0.0_dp
+    c = 0.0_dp
+    gam = 0.0_dp
+    do k = 1, model%nprim
+      associate (pr => model%prim(k))
+        i = pr%bi
+        j = pr%bj
+        r = pr%row
+        select case (pr%kind)
+        case (PRIM_SPH)
+          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+          phi(r:r + 2) = pi - pj
+          call point_cols(c(r:r + 2, :), i, pr%si, 1.0_dp)
+          call point_cols(c(r:r + 2, :), j, pr%sj, -1.0_dp)
+          gam(r:r + 2) = -(pquad(i, pr%si) - pquad(j, pr%sj))
+        case (PRIM_DOT1)
+          di = matmul(fr%rot(:, :, i), pr%ui)
+          dj = matmul(fr%rot(:, :, j), pr%uj)
+          phi(r) = dot_product(di, dj)
+          call vec_cols(c(r, :), i, pr%ui, dj)
+          call vec_cols(c(r, :), j, pr%uj, di)
+          ddi = vvel(i, pr%ui)
+          ddj = vvel(j, pr%uj)
+          gam(r) = -(dot_product(dj, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
+                     2.0_dp * dot_product(ddi, ddj))
+        case (PRIM_DOT2)
+          ! d = R_j u_j on body j, h = P_i - P_j
+          dj = matmul(fr%rot(:, :, j), pr%uj)
+          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+          h = pi - pj
+          phi(r) = dot_product(dj, h)
+          call point_row(c(r, :), i, pr%si, dj)
+          call point_row(c(r, :), j, pr%sj, -dj)
+          call vec_cols(c(r, :), j, pr%uj, h)
+          hd = pvel(i, pr%si) - pvel(j, pr%sj)
+          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
+                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj)))
+        end select
+      end associate
+    end do
+
+  contains
+
+    ! rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
+    pure subroutine point_cols(cc, b, s, sgn)
+      real(dp), intent(inout) :: cc(:, :)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: s(3), sgn
+      integer :: o, d
+      if (b == 0) return
+      o = (b - 1) * 6
+      do d = 1, 3
+        cc(d, o + d) = cc(d, o + d) + sgn
+      end do
+      cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
+    end subroutine point_cols
+
+    ! the row x . (point velocity)
+    pure subroutine point_row(cr, b, s, x)
+      real(dp), intent(inout) :: cr(:)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: s(3), x(3)
+      integer :: o
+      if (b == 0) return
+      o = (b - 1) * 6
+      cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
+      ! -x^T R skew(s) W = W . (s x R^T x)
+      cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(s, matmul(transpose(fr%rot(:, :, b)), x))
+    end subroutine point_row
+
+    ! the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
+    pure subroutine vec_cols(cr, b, u, x)
+      real(dp), intent(inout) :: cr(:)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: u(3), x(3)
+      integer :: o
+      if (b == 0) return
+      o = (b - 1) * 6
+      cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(u, matmul(transpose(fr%rot(:, :, b)), x))
+    end subroutine vec_cols
+
+    pure function pvel(b, s) result(x)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: s(3)
+      real(dp) :: x(3)
+      x = fr%v(:, b) + matmul(fr%rot(:, :, b), cross(fr%om(:, b), s))
+    end function pvel
+
+    pure function pquad(b, s) result(x)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: s(3)
+      real(dp) :: x(3)
+      x = matmul(fr%rot(:, :, b), cross(fr%om(:, b), cross(fr%om(:, b), s)))
+    end function pquad
+
+    pure function vvel(b, u) result(x)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: u(3)
+      real(dp) :: x(3)
+      x = matmul(fr%rot(:, :, b), cross(fr%om(:, b), u))
+    end function vvel
+
+    pure function vquad(b, u) result(x)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: u(3)
+      real(dp) :: x(3)
+      x = pquad(b, u)
+    end function vquad
+
+  end subroutine constraints
+
+  !> M^-1 x for x in the velocity layout (6 per body).
+  pure subroutine apply_minv(model, x, y)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    integer :: b, o
+    do b = 1, model%nb
+      o = (b - 1) * 6
+      y(o + 1:o + 3) = x(o + 1:o + 3) / model%mass(b)
+      y(o + 4:o + 6) = matmul(model%inv_inertia(:, :, b), x(o + 4:o + 6))
+    end do
+  end subroutine apply_minv
+
+  !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T. MBDK_ERR_SINGULAR_MATRIX when the
+  !> rows of C are dependent (S not positive definite).
+  subroutine schur_solve(model, c, rhs, lam, mc, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :), rhs(:)
+    real(dp), intent(out) :: lam(:), mc(:, :)
+    integer, intent(out) :: stat
+    real(dp) :: s(size(c, 1), size(c, 1)), scale
+    integer :: k, info, m
+    m = size(c, 1)
+    do k = 1, m
+      call apply_minv(model, c(k, :), mc(:, k))
+    end do
+    s = matmul(c, mc)
+    ! a pivot below roundoff of the diagonal's size is a dependent row, not a tiny one
+    scale = maxval([(abs(s(k, k)), k = 1, m)])
+    lam = rhs
+    call mbdk_chol_factor(s, info)
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (info /= MBDK_SUCCESS) return
+    do k = 1, m
+      if (.not. (s(k, k)**2 > 1.0e-10_dp * scale)) return
+    end do
+    call mbdk_chol_solve(s, lam, stat)
+    if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
+  end subroutine schur_solve
+
+  ! ---- forces --------------------------------------------------------------------------------
+
+  !> Applied forces (space frame) and moments (body frame) on every body, with the energy parts:
+  !> gravity's potential vg, the springs' vs, and the power of dampers and loads.
+  pure subroutine forces(model, fr, fw, nb_, vg, vs, power)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: fw(:, :), nb_(:, :), vg, vs, power
+    integer :: k, b, i, j
+    real(dp) :: pi(3), pj(3), d(3), len, e(3), ldot, f, fv(3), vi(3), vj(3)
+    fw = 0.0_dp
+    nb_ = 0.0_dp
+    vg = 0.0_dp
+    vs = 0.0_dp
+    power = 0.0_dp
+    do k = 1, model%nf
+      associate (r => model%freal(:, k))
+        select case (model%ftype(k))
+        case (MBDK_SPATIAL_GRAVITY)
+          do b = 1, model%nb
+            fw(:, b) = fw(:, b) + model%mass(b) * r(1:3)
+            vg = vg - model%mass(b) * dot_product(r(1:3), fr%r(:, b))
+          end do
+        case (MBDK_SPATIAL_POINT_FORCE)
+          b = model%fbody(1, k)
+          fw(:, b) = fw(:, b) + r(4:6)
+          nb_(:, b) = nb_(:, b) + cross(r(1:3), matmul(transpose(fr%rot(:, :, b)), r(4:6)))
+          power = power + dot_product(r(4:6), fr%v(:, b) + &
+                                      matmul(fr%rot(:, :, b), cross(fr%om(:, b), r(1:3))))
+        case (MBDK_SPATIAL_TORQUE)
+          b = model%fbody(1, k)
+          nb_(:, b) = nb_(:, b) + matmul(transpose(fr%rot(:, :, b)), r(1:3))
+          power = power + dot_product(r(1:3), matmul(fr%rot(:, :, b), fr%om(:, b)))
+        case (MBDK_SPATIAL_SPRING_DAMPER)
+          i = model%fbody(1, k)
+          j = model%fbody(2, k)
+          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), r(1:3))
+          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), r(4:6))
+          vi = fr%v(:, i) + matmul(fr%rot(:, :, i), cross(fr%om(:, i), r(1:3)))
+          vj = fr%v(:, j) + matmul(fr%rot(:, :, j), cross(fr%om(:, j), r(4:6)))
+          d = pi - pj
+          len = norm2(d)
+          vs = vs + 0.5_dp * r(7) * (len - r(9))**2
+          if (.not. (len > 0.0_dp)) cycle       ! coincident points: no direction, no force
+          e = d / len
+          ldot = dot_product(e, vi - vj)
+          f = r(7) * (len - r(9)) + r(8) * ldot
+          power = power - r(8) * ldot**2
+          fv = -f * e                            ! on body i
+          fw(:, i) = fw(:, i) + fv
+          nb_(:, i) = nb_(:, i) + cross(r(1:3), matmul(transpose(fr%rot(:, :, i)), fv))
+          if (j > 0) then
+            fw(:, j) = fw(:, j) - fv
+            nb_(:, j) = nb_(:, j) - cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
+          end if
+        end select
+      end associate
+    end do
+  end subroutine forces
+
+  ! ---- the problem ---------------------------------------------------------------------------
+
+  subroutine spatial_rhs(self, t, y, f, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(out), contiguous :: f(:)
+    integer, intent(out) :: stat
+    call spatial_accelerations(self, y, f, stat)
+  end subroutine spatial_rhs
+
+  !> F(y) and, optionally, the multipliers lam (m).
+  subroutine spatial_accelerations(self, y, f, stat, lam)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(dp), intent(out), optional :: lam(:)
+    type(frames_t) :: fr
+    real(dp) :: fw(3, self%nb), nbd(3, self%nb), vg, vs, power, acc(6 * self%nb), &
+      gen(6 * self%nb), phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
+      mc(6 * self%nb, self%m), p(4), jw(3)
+    integer :: b, k, o
+    f = 0.0_dp
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(self, fr, fw, nbd, vg, vs, power)
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
+      gen(o + 1:o + 3) = fw(:, b)
+      gen(o + 4:o + 6) = nbd(:, b) - cross(fr%om(:, b), jw)
+    end do
+    call apply_minv(self, gen, acc)
+    if (self%m > 0) then
+      call constraints(self, fr, phi, c, gam)
+      if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
+        gam = gam - 2.0_dp * self%opt%alpha * matmul(c, y(wi(self, 1):)) - &
+              self%opt%beta**2 * phi
+      call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
+      if (stat /= MBDK_SUCCESS) return
+      acc = acc - matmul(mc, l)
+      if (present(lam)) lam = l
+    end if
+    ! the kinematic equations
+    do b = 1, self%nb
+      k = qi(self, b)
+      f(k:k + 2) = fr%v(:, b)
+      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+        p = y(k + 3:k + 6)
+        f(k + 3:k + 6) = mbdk_quat_rates(p, fr%om(:, b), .true.)
+        if (self%opt%norm == MBDK_NORM_STABILISE) f(k + 3:k + 6) = f(k + 3:k + 6) + &
+          0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
+      else
+        call mbdk_angles_rates(self%seq, y(k + 3:k + 5), fr%om(:, b), .true., f(k + 3:k + 5), &
+                               stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+    end do
+    f(wi(self, 1):) = acc
+    stat = MBDK_SUCCESS
+  end subroutine spatial_accelerations
+
+  !> Phi (m), C (m x 6 nb) and gamma (m) at the state y (tests check C and gamma against
+  !> differences of Phi along the motion).
+  subroutine mbdk_spatial_constraints(model, y, phi, c, gam, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: phi(:), c(:, :), gam(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    phi = 0.0_dp
+    c = 0.0_dp
+    gam = 0.0_dp
+    call frames(model, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call constraints(model, fr, phi, c, gam)
+  end subroutine mbdk_spatial_constraints
+
+  !> The multipliers lam (m) of the formulation's constrained solve at y.
+  subroutine mbdk_spatial_multipliers(model, y, lam, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: lam(:)
+    integer, intent(out) :: stat
+    real(dp) :: f(size(y))
+    call spatial_accelerations(model, y, f, stat, lam)
+  end subroutine mbdk_spatial_multipliers
+
+  !> After a step: quaternions back to unit norm (norm = project), and with the projection
+  !> formulation positions onto Phi = 0 and velocities onto C w = 0.
+  subroutine spatial_post_step(self, t, y, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: y(:)
+    integer, intent(out) :: stat
+    call spatial_project(self, y, self%opt%formulation == MBDK_SPATIAL_PROJECTION, stat)
+  end subroutine spatial_post_step
+
+  !> Normalises the quaternions, and with constrained: the least mass-weighted change of
+  !> positions (Gauss-Newton in dr and the body-frame rotation dtheta) that makes |Phi| <=
+  !> projection_tol, then of velocities that makes C w = 0. A projection that does not converge:
+  !> MBDK_ERR_NEWTON_DIVERGED; dependent rows: MBDK_ERR_SINGULAR_MATRIX.
+  subroutine spatial_project(self, y, constrained, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(inout) :: y(:)
+    logical, intent(in) :: constrained
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    real(dp) :: phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
+      mc(6 * self%nb, self%m), d(6 * self%nb), tol
+    integer :: it, b, k
+    stat = MBDK_SUCCESS
+    if (self%opt%rotation == MBDK_ROT_QUATERNION .and. self%opt%norm == MBDK_NORM_PROJECT) &
+      call normalise(self, y)
+    if (.not. constrained .or. self%m == 0) return
+    tol = max(self%opt%projection_tol, 16.0_dp * epsilon(1.0_dp) * self%length)
+    do it = 1, PROJECTION_MAX_ITER + 1
+      call frames(self, y, fr, stat)
+      if (stat /= MBDK_SUCCESS) return
+      call constraints(self, fr, phi, c, gam)
+      if (maxval(abs(phi)) <= tol) exit
+      stat = MBDK_ERR_NEWTON_DIVERGED
+      if (it > PROJECTION_MAX_ITER) return
+      call schur_solve(self, c, phi, l, mc, stat)
+      if (stat /= MBDK_SUCCESS) return
+      d = -matmul(mc, l)
+      do b = 1, self%nb
+        k = qi(self, b)
+        y(k:k + 2) = y(k:k + 2) + d((b - 1) * 6 + 1:(b - 1) * 6 + 3)
+        call rotate_by(self, y(k + 3:k + self%nqb - 1), d((b - 1) * 6 + 4:(b - 1) * 6 + 6), stat)
+        if (stat /= MBDK_SUCCESS) return
+      end do
+    end do
+    ! velocities: w - M^-1 C^T S^-1 C w
+    call schur_solve(self, c, matmul(c, y(wi(self, 1):)), l, mc, stat)
+    if (stat /= MBDK_SUCCESS) return
+    y(wi(self, 1):) = y(wi(self, 1):) - matmul(mc, l)
+  end subroutine spatial_project
+
+  subroutine normalise(self, y)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(inout) :: y(:)
+    integer :: b, k
+    real(dp) :: s
+    do b = 1, self%nb
+      k = qi(self, b) + 3
+      s = norm2(y(k:k + 3))
+      if (s > 0.0_dp) y(k:k + 3) = y(k:k + 3) / s
+    end do
+  end subroutine normalise
+
+  !> The orientation coordinates p turned by the small body-frame rotation dth: a quaternion
+  !> p (1, dth / 2), renormalised to its own norm; angles by G_b^-1 dth.
+  subroutine rotate_by(self, p, dth, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(inout) :: p(:)
+    real(dp), intent(in) :: dth(3)
+    integer, intent(out) :: stat
+    real(dp) :: s, da(3)
+    stat = MBDK_SUCCESS
+    if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+      s = norm2(p(1:4))
+      p(1:4) = mbdk_quat_mul(p(1:4), [1.0_dp, 0.5_dp * dth])
+      p(1:4) = p(1:4) * (s / norm2(p(1:4)))
+    else
+      call mbdk_angles_rates(self%seq, p(1:3), dth, .true., da, stat)
+      if (stat /= MBDK_SUCCESS) return
+      p(1:3) = p(1:3) + da
+    end if
+  end subroutine rotate_by
+
+  !> The initial state made consistent: the projection of positions and velocities (with the
+  !> quaternions normalised when norm = project). moved: the largest change of a coordinate.
+  subroutine mbdk_spatial_assemble(model, y, moved, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(inout) :: y(:)
+    real(dp), intent(out) :: moved
+    integer, intent(out) :: stat
+    real(dp) :: y0(size(y))
+    y0 = y
+    call spatial_project(model, y, .true., stat)
+    moved = maxval(abs(y - y0))
+  end subroutine mbdk_spatial_assemble
+
+  !> The energy parts and residuals at a state (MBDK_SPATIAL_NOUT values): kinetic, gravity and
+  !> spring energy, the power of dampers and loads, max |Phi|, max |C w|, max ||p| - 1|.
+  subroutine mbdk_spatial_outputs(model, y, out, stat, phi_out, vres_out, vterm_out)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: out(MBDK_SPATIAL_NOUT)
+    integer, intent(out) :: stat
+    real(dp), intent(out), optional :: phi_out(:), vres_out(:), vterm_out(:)
+    type(frames_t) :: fr
+    real(dp) :: fw(3, model%nb), nbd(3, model%nb), phi(model%m), c(model%m, 6 * model%nb), &
+      gam(model%m), w(6 * model%nb), kin, qn
+    integer :: b, k
+    out = 0.0_dp
+    call frames(model, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(model, fr, fw, nbd, out(2), out(3), out(4))
+    kin = 0.0_dp
+    qn = 0.0_dp
+    do b = 1, model%nb
+      kin = kin + 0.5_dp * model%mass(b) * dot_product(fr%v(:, b), fr%v(:, b)) + &
+        0.5_dp * dot_product(fr%om(:, b), matmul(model%inertia(:, :, b), fr%om(:, b)))
+      if (model%opt%rotation == MBDK_ROT_QUATERNION) then
+        k = qi(model, b) + 3
+        qn = max(qn, abs(norm2(y(k:k + 3)) - 1.0_dp))
+      end if
+    end do
+    out(1) = kin
+    out(7) = qn
+    if (model%m > 0) then
+      call constraints(model, fr, phi, c, gam)
+      w = y(wi(model, 1):)
+      out(5) = maxval(abs(phi))
+      out(6) = maxval(abs(matmul(c, w)))
+      if (present(phi_out)) phi_out = phi
+      if (present(vres_out)) vres_out = matmul(c, w)
+      if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w))
+    end if
+  end subroutine mbdk_spatial_outputs
+
+  subroutine spatial_watch_start(self, t, y, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    integer, intent(out) :: stat
+    real(dp) :: out(MBDK_SPATIAL_NOUT)
+    call mbdk_spatial_outputs(self, y, out, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
+                          self%opt%watch_energy, self%opt%watch_every, self%has_power, &
+                          self%length, self%row_angular, t, out(1), out(2), out(3), out(4), &
+                          self%gscale, sum(self%mass))
+  end subroutine spatial_watch_start
+
+  subroutine spatial_watch(self, t, y, force, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    real(dp) :: out(MBDK_SPATIAL_NOUT), phi(self%m), vres(self%m), vterm(self%m)
+    integer :: due
+    stat = MBDK_SUCCESS
+    due = mbdk_watch_due(self%work%watch, force)
+    if (due == MBDK_WATCH_NOTHING) return
+    call mbdk_spatial_outputs(self, y, out, stat, phi, vres, vterm)
+    if (stat /= MBDK_SUCCESS) return
+    if (due == MBDK_WATCH_POWER_ONLY) then
+      call mbdk_watch_power(self%work%watch, t, out(4))
+    else
+      call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
+                           out(4), stat)
+    end if
+  end subroutine spatial_watch
+
+end module mbdk_spatial_model

@@ -1,0 +1,814 @@
+"""Spatial scenes (chapter 5 of the book): rigid bodies in 3D with spherical, revolute,
+universal, cylindrical, prismatic and fixed joints, run by every ODE method of the kernel
+(kernel/src/spatial/mbdk_spatial_model.f90 says what the kernel integrates and how).
+
+A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)::
+
+    [scene]
+    name = "heavy_top"
+    rotation = "quaternion"        # the orientation coordinates: quaternion | euler313 | cardan123
+    quaternion_norm = "project"    # |p| = 1 kept by: project (after each step) | stabilise | none
+    norm_gain = 10.0               # stabilise: p' += norm_gain (1 - |p|^2) p / 2, 1/s
+
+    [[body]]
+    name = "top"
+    kind = "spatial"
+    mass = 1.0
+    inertia = [0.005, 0.005, 0.01] # principal, about the centre, in the body frame; or a 3 x 3
+                                   # matrix [[..], [..], [..]]; or shape = {type = box, size =
+                                   # [a, b, c]} | {type = cylinder, radius, length} (axis: body z)
+                                   # | {type = sphere, radius} | {type = bar, length} (body x)
+    position = [0.0, 0.0, 0.1]     # the centre of mass, space frame
+    quaternion = [1.0, 0.0, 0.0, 0.0]   # or euler313 = [phi, theta, psi] (or euler313_deg),
+                                        # or cardan123 = [...] (or cardan123_deg); default: none
+    velocity = [0.0, 0.0, 0.0]     # of the centre, space frame
+    omega_body = [0.0, 0.0, 200.0] # angular velocity in the body frame; or omega (space frame)
+
+    [[joint]]
+    type = "spherical"             # spherical | revolute | universal | cylindrical | prismatic
+    body1 = "top"                  #   | fixed
+    body2 = "ground"               # the default
+    at = [0.0, 0.0, 0.0]           # the joint's point in space at the start; or point1 (body1
+                                   # frame) and point2 (body2 frame; global for the ground)
+    axis = [0.0, 0.0, 1.0]         # revolute, cylindrical, prismatic: the axis in space at the
+                                   # start; universal: axis1 and axis2 (normal to each other)
+
+    [[force]]
+    type = "gravity"               # gravity (g) | point_force (body, point, force: a constant
+    g = [0.0, 0.0, -9.81]          # force in space at a body point) | torque (body, torque in
+                                   # space) | spring_damper, spring, damper (body1, point1,
+                                   # body2, point2 or at1/at2, stiffness, damping, rest_length:
+                                   # default the initial length)
+
+Formulations: reduced, baumgarte, projection (the penalty form and trapezoidal_index3 are the
+planar model's: refused by name). Every ODE method runs: fixed step and error-controlled
+(dopri54, bs32, bdf; cvode_* on reduced and baumgarte); euler_cromer does not (its layout is
+y = [q, q'], and a spatial body's velocities are not its coordinates' rates).
+
+Bad scenes raise SceneError naming the file, the element and the field.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _compiled, _kernel
+from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
+                     status_message)
+from .methods import method as _method
+from .options import empty
+from .result import Result, Stats
+from .rotations import from_angles, from_quaternion, to_quaternion
+from .scene import GROUND, SceneError, _Reader
+
+ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
+NORMS = {"project": 1, "stabilise": 2, "none": 3}
+FORMULATIONS = {"reduced": 1, "baumgarte": 2, "projection": 4}
+JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
+               "fixed": 6}
+JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5,
+              "fixed": 6}
+FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, "spring": 4,
+               "damper": 4}
+#: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
+UNIT_TOL = 1e-8
+#: how far a given initial state may be off its joints before the run refuses it (a larger
+#: offset is a scene error, not roundoff: the assembly would move the bodies visibly)
+ASSEMBLY_TOL = 1e-6
+
+
+@dataclass
+class SpatialBody:
+    name: str
+    mass: float
+    inertia: np.ndarray                 # 3 x 3, about the centre, body frame
+    position: np.ndarray                # (3,)
+    rotation: np.ndarray                # 3 x 3, body to space
+    velocity: np.ndarray                # (3,)
+    omega_body: np.ndarray              # (3,)
+
+
+@dataclass
+class SpatialJoint:
+    name: str
+    type: str
+    body1: str
+    body2: str
+    point1: np.ndarray                  # body1 frame
+    point2: np.ndarray                  # body2 frame (space for the ground)
+    axis1: np.ndarray                   # body1 frame
+    axis2: np.ndarray                   # body2 frame
+
+
+@dataclass
+class SpatialForce:
+    type: str
+    name: str
+    body1: str = ""
+    body2: str = GROUND
+    reals: tuple = ()                   # the kernel's MBDK_SPATIAL_FORCE_REALS
+
+
+@dataclass
+class SpatialScene:
+    name: str
+    bodies: list
+    joints: list = field(default_factory=list)
+    forces: list = field(default_factory=list)
+    rotation: str = "quaternion"
+    quaternion_norm: str = "project"
+    norm_gain: float = 10.0
+    description: str = ""
+    source: str = "<python>"
+
+    def body_index(self, name: str) -> int:
+        """1-based index of a body; 0 for the ground."""
+        if name == GROUND:
+            return 0
+        for k, b in enumerate(self.bodies, 1):
+            if b.name == name:
+                return k
+        raise SceneError(f"{self.source}: no body named {name!r}")
+
+    @property
+    def rows(self) -> int:
+        return sum(JOINT_ROWS[j.type] for j in self.joints)
+
+    def state0(self) -> np.ndarray:
+        """The initial state y0 = [q_1 .. q_nb, (v, Omega)_1 .. (v, Omega)_nb]."""
+        q, w = [], []
+        for b in self.bodies:
+            q += list(b.position) + list(orientation_coordinates(b.rotation, self.rotation))
+            w += list(b.velocity) + list(b.omega_body)
+        return np.array(q + w, dtype=float)
+
+
+def orientation_coordinates(r: np.ndarray, rotation: str) -> np.ndarray:
+    """The orientation coordinates of rotation matrix r: a quaternion (scalar first, q0 >= 0),
+    or the 3-1-3 / 1-2-3 angles of the sequence (R = R_i R_j R_k about moving axes)."""
+    if rotation == "quaternion":
+        return to_quaternion(r)
+    if rotation == "euler313":
+        # R33 = cos(theta), R13 = sin(theta) sin(phi), R23 = -sin(theta) cos(phi),
+        # R31 = sin(theta) sin(psi), R32 = sin(theta) cos(psi)
+        theta = math.acos(max(-1.0, min(1.0, r[2, 2])))
+        if math.hypot(r[0, 2], r[1, 2]) > 1e-12:
+            a = np.array([math.atan2(r[0, 2], -r[1, 2]), theta, math.atan2(r[2, 0], r[2, 1])])
+        else:   # the lock: only phi +- psi is defined; psi = 0, R = R3(phi) R1(theta)
+            a = np.array([math.atan2(r[1, 0], r[0, 0]), theta, 0.0])
+    else:
+        # 1-2-3: R13 = sin(beta), R23 = -sin(alpha) cos(beta), R33 = cos(alpha) cos(beta),
+        # R12 = -cos(beta) sin(gamma), R11 = cos(beta) cos(gamma)
+        beta = math.asin(max(-1.0, min(1.0, r[0, 2])))
+        if math.hypot(r[1, 2], r[2, 2]) > 1e-12:
+            a = np.array([math.atan2(-r[1, 2], r[2, 2]), beta, math.atan2(-r[0, 1], r[0, 0])])
+        else:   # the lock: gamma = 0, R = R1(alpha) R2(beta), whose first column is
+            sb = math.copysign(1.0, r[0, 2])   # (cos b, sin a sin b, -cos a sin b)
+            a = np.array([math.atan2(r[1, 0] * sb, -r[2, 0] * sb), beta, 0.0])
+    if not np.allclose(from_angles(a, rotation[-3:]), r, rtol=0, atol=1e-9):
+        raise SceneError(f"the orientation {r.tolist()} has no {rotation} angles to 1e-9 "
+                         "(it is not a rotation matrix)")
+    return a
+
+
+# ---- reading --------------------------------------------------------------------------------
+
+class _SpatialReader(_Reader):
+    def vec3(self, fld, default=None, required=False, n=3):
+        v = self.get(fld, default, required)
+        if v is None:
+            return None
+        if isinstance(v, np.ndarray):
+            v = v.tolist()
+        if not isinstance(v, (list, tuple)) or len(v) != n:
+            raise self.err(fld, f"= {v!r} must be a list of {n} numbers")
+        out = []
+        for c in v:
+            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
+                raise self.err(fld, f"= {v!r} must hold {n} finite numbers")
+            out.append(float(c))
+        return np.array(out)
+
+    def unit3(self, fld, required=False, default=None):
+        v = self.vec3(fld, default, required)
+        if v is None:
+            return None
+        if not np.linalg.norm(v) > 0:
+            raise self.err(fld, f"= {v.tolist()} has zero length; an axis needs a direction")
+        return v / np.linalg.norm(v)
+
+
+def _inertia(r: _SpatialReader, mass: float) -> np.ndarray:
+    if r.has("inertia") and r.has("shape"):
+        raise r.err("inertia", "and 'shape' are both given; give one")
+    if r.has("shape"):
+        shape = r.get("shape")
+        kinds = ("box", "cylinder", "sphere", "bar")
+        if not isinstance(shape, dict) or shape.get("type") not in kinds:
+            raise r.err("shape", f"= {shape!r} must be {{type = {' | '.join(kinds)}, ...}}")
+        sr = _SpatialReader(r.source, f"{r.label} shape", 0, shape)
+        sr.get("type")
+        kind = shape["type"]
+        if kind == "box":
+            a, b, c = sr.vec3("size", required=True)
+            if not min(a, b, c) > 0:
+                raise sr.err("size", f"= {[a, b, c]} must be three positive lengths")
+            j = mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+        elif kind == "cylinder":
+            rad = sr.num("radius", required=True, positive=True)
+            ln = sr.num("length", required=True, positive=True)
+            jt = mass * (3 * rad * rad + ln * ln) / 12
+            j = np.array([jt, jt, mass * rad * rad / 2])
+        elif kind == "sphere":
+            rad = sr.num("radius", required=True, positive=True)
+            j = np.full(3, 0.4 * mass * rad * rad)
+        else:
+            ln = sr.num("length", required=True, positive=True)
+            # a slender bar along body x: a small axial inertia keeps J positive definite
+            jt = mass * ln * ln / 12
+            j = np.array([1e-6 * jt, jt, jt])
+        sr.done()
+        if not np.all(np.isfinite(j)):
+            raise r.err("shape", f"= {shape!r} gives an inertia beyond the largest number")
+        return np.diag(j)
+    v = r.get("inertia", None, required=True)
+    if isinstance(v, (list, tuple)) and len(v) == 3 and all(isinstance(x, (list, tuple))
+                                                           for x in v):
+        try:
+            j = np.array(v, dtype=float)
+        except (TypeError, ValueError):
+            raise r.err("inertia", f"= {v!r} is not a 3 x 3 matrix of numbers") from None
+        if j.shape != (3, 3) or not np.all(np.isfinite(j)):
+            raise r.err("inertia", f"= {v!r} is not a 3 x 3 matrix of finite numbers")
+    else:
+        j = np.diag(r.vec3("inertia"))
+    scale = np.max(np.abs(j))
+    if not np.allclose(j, j.T, rtol=0, atol=1e-12 * max(scale, 1e-300)):
+        raise r.err("inertia", f"= {j.tolist()} is not symmetric; an inertia matrix is")
+    ev = np.linalg.eigvalsh(j)
+    if not ev[0] > 0:
+        raise r.err("inertia", f"= {j.tolist()} is not positive definite (eigenvalues "
+                               f"{ev.round(12).tolist()}); each principal inertia must be > 0")
+    if ev[2] > ev[0] + ev[1] + 1e-12 * ev[2]:
+        raise r.err("inertia", f"= {j.tolist()}: its principal inertias {ev.round(12).tolist()} "
+                               "break the triangle inequality (J3 <= J1 + J2), which every "
+                               "rigid body keeps")
+    return j
+
+
+def _orientation(r: _SpatialReader) -> np.ndarray:
+    given = [f for f in ("quaternion", "euler313", "cardan123")
+             if r.has(f) or r.has(f + "_deg")]
+    if len(given) > 1:
+        raise r.err(given[1], f"and {given[0]!r} are both given; give one orientation")
+    if not given:
+        return np.eye(3)
+    f = given[0]
+    if f == "quaternion":
+        q = r.vec3("quaternion", n=4)
+        if not abs(np.linalg.norm(q) - 1) <= UNIT_TOL:
+            raise r.err("quaternion", f"= {q.tolist()} has norm {np.linalg.norm(q):.12g}; a "
+                                      "rotation's quaternion has norm 1 (normalise it: mbdk "
+                                      "changes no given state silently)")
+        return from_quaternion(q)
+    if r.has(f + "_deg"):
+        if r.has(f):
+            raise r.err(f, f"and {f}_deg are both given; give one")
+        a = np.radians(r.vec3(f + "_deg"))
+    else:
+        a = r.vec3(f)
+    return from_angles(a, f[-3:])
+
+
+def _spatial_body(r: _SpatialReader) -> SpatialBody:
+    name = r.name("name")
+    kind = r.name("kind", required=False, default="planar")
+    if kind != "spatial":
+        raise r.err("kind", f"= {kind!r} in a spatial scene: every body of a scene with a "
+                            "spatial body is spatial (a planar body's motion is a spatial one "
+                            "held in its plane by joints)")
+    mass = r.num("mass", required=True, positive=True)
+    j = _inertia(r, mass)
+    rot = _orientation(r)
+    if r.has("omega") and r.has("omega_body"):
+        raise r.err("omega", "and 'omega_body' are both given; give one")
+    om = r.vec3("omega_body", np.zeros(3))
+    if r.has("omega"):
+        om = rot.T @ r.vec3("omega")
+    b = SpatialBody(name, mass, j, r.vec3("position", np.zeros(3)), rot,
+                    r.vec3("velocity", np.zeros(3)), om)
+    r.done()
+    return b
+
+
+def _frame(bodies: dict, name: str):
+    """(position, rotation) of a body by name at the start; the ground's is the identity."""
+    if name == GROUND:
+        return np.zeros(3), np.eye(3)
+    b = bodies[name]
+    return b.position, b.rotation
+
+
+def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
+    typ = r.name("type")
+    if typ not in JOINT_TYPES:
+        raise r.err("type", f"= {typ!r} is not a spatial joint type; known: "
+                            f"{', '.join(JOINT_TYPES)}")
+    name = r.name("name", required=False, default=f"joint{r.index + 1}")
+    b1 = r.name("body1")
+    b2 = r.name("body2", required=False, default=GROUND)
+    for fld, b in (("body1", b1), ("body2", b2)):
+        if b != GROUND and b not in bodies:
+            raise r.err(fld, f"= {b!r} is not a body of this scene; its bodies: "
+                             f"{', '.join(bodies)}")
+    if b1 == b2:
+        raise r.err("body2", f"= {b2!r} is body1 too; a joint connects two bodies")
+    if b1 == GROUND:
+        raise r.err("body1", "= 'ground': body1 must be a body (the ground may be body2)")
+    (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
+    if r.has("at"):
+        if r.has("point1") or r.has("point2"):
+            raise r.err("at", "and point1/point2 are both given; give one")
+        at = r.vec3("at")
+        p1, p2 = R1.T @ (at - r1), R2.T @ (at - r2)
+    else:
+        p1 = r.vec3("point1", np.zeros(3))
+        p2 = r.vec3("point2", np.zeros(3))
+    a1 = a2 = np.array([0.0, 0.0, 1.0])
+    if typ in ("revolute", "cylindrical", "prismatic"):
+        ax = r.unit3("axis", required=True)
+        a1, a2 = R1.T @ ax, R2.T @ ax
+    elif typ == "universal":
+        ax1, ax2 = r.unit3("axis1", required=True), r.unit3("axis2", required=True)
+        if abs(ax1 @ ax2) > 1e-9:
+            raise r.err("axis2", f"= {ax2.tolist()} is not normal to axis1 = {ax1.tolist()} "
+                                 f"(cosine {ax1 @ ax2:.3g}); a universal joint's two axes are")
+        a1, a2 = R1.T @ ax1, R2.T @ ax2
+    j = SpatialJoint(name, typ, b1, b2, p1, p2, a1, a2)
+    r.done()
+    return j
+
+
+def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
+    typ = r.name("type")
+    if typ not in FORCE_TYPES:
+        raise r.err("type", f"= {typ!r} is not a spatial force type; known: "
+                            f"{', '.join(FORCE_TYPES)}")
+    name = r.name("name", required=False, default=f"force{r.index + 1}")
+
+    def body(fld, ground_ok=False, default=None):
+        b = r.name(fld, required=default is None, default=default)
+        if b == GROUND and ground_ok:
+            return b
+        if b not in bodies:
+            raise r.err(fld, f"= {b!r} is not a body of this scene; its bodies: "
+                             f"{', '.join(bodies)}")
+        return b
+
+    if typ == "gravity":
+        return _done(r, SpatialForce(typ, name, reals=tuple(r.vec3("g", [0.0, 0.0, -9.81]))))
+    if typ == "point_force":
+        b = body("body")
+        return _done(r, SpatialForce(typ, name, b, reals=(
+            *r.vec3("point", np.zeros(3)), *r.vec3("force", required=True))))
+    if typ == "torque":
+        b = body("body")
+        return _done(r, SpatialForce(typ, name, b, reals=tuple(r.vec3("torque", required=True))))
+    b1, b2 = body("body1"), body("body2", ground_ok=True, default=GROUND)
+    if b1 == b2:
+        raise r.err("body2", f"= {b2!r} is body1 too; a spring joins two bodies")
+    (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
+    p1 = R1.T @ (r.vec3("at1") - r1) if r.has("at1") else r.vec3("point1", np.zeros(3))
+    p2 = R2.T @ (r.vec3("at2") - r2) if r.has("at2") else r.vec3("point2", np.zeros(3))
+    k = r.num("stiffness", 0.0, required=typ == "spring", nonneg=True) if typ != "damper" else 0.0
+    c = r.num("damping", 0.0, required=typ == "damper", nonneg=True) if typ != "spring" else 0.0
+    rest = r.num("rest_length", None, nonneg=True)
+    if rest is None:
+        rest = float(np.linalg.norm(r1 + R1 @ p1 - r2 - R2 @ p2))
+    return _done(r, SpatialForce("spring_damper", name, b1, b2,
+                                 reals=(*p1, *p2, k, c, rest)))
+
+
+def _done(r, x):
+    r.done()
+    return x
+
+
+def is_spatial(data: dict) -> bool:
+    """Whether a parsed scene file is spatial: one of its bodies says kind = "spatial"."""
+    bodies = data.get("body", []) if isinstance(data, dict) else []
+    return isinstance(bodies, list) and any(isinstance(b, dict) and b.get("kind") == "spatial"
+                                            for b in bodies)
+
+
+def spatial_scene_from_dict(data: dict, source: str = "<dict>") -> SpatialScene:
+    """Builds and checks a SpatialScene from the parsed TOML structure."""
+    known = {"scene", "body", "joint", "force"}
+    extra = [k for k in data if k not in known]
+    if extra:
+        raise SceneError(f"{source}: unknown section {extra[0]!r}; a scene has "
+                         "[scene], [[body]], [[joint]] and [[force]]")
+    hr = _SpatialReader(source, "scene", 0, data.get("scene", {}))
+    name = hr.name("name", required=False, default=source.rsplit("/", 1)[-1].removesuffix(".toml"))
+    desc = hr.get("description", "")
+    hr.get("reference")
+    rotation = hr.name("rotation", required=False, default="quaternion")
+    if rotation not in ROTATIONS:
+        raise hr.err("rotation", f"= {rotation!r}; known: {', '.join(ROTATIONS)}")
+    norm = hr.name("quaternion_norm", required=False, default="project")
+    if norm not in NORMS:
+        raise hr.err("quaternion_norm", f"= {norm!r}; known: {', '.join(NORMS)}")
+    gain = hr.num("norm_gain", 10.0, nonneg=True)
+    hr.done()
+
+    def items(key):
+        v = data.get(key, [])
+        if not isinstance(v, list):
+            raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
+        return v
+
+    raw_bodies = items("body")
+    # a joint between a planar and a spatial body is named before the planar body is
+    kinds = {t.get("name"): t.get("kind", "planar") for t in raw_bodies
+             if isinstance(t, dict) and isinstance(t.get("name"), str)}
+    for i, t in enumerate(items("joint")):
+        if isinstance(t, dict):
+            ends = [e for e in (t.get("body1"), t.get("body2", GROUND)) if isinstance(e, str)]
+            if any(kinds.get(e) not in (None, "spatial") for e in ends if e != GROUND):
+                jr = _SpatialReader(source, "joint", i, t)
+                planar = next(e for e in ends if kinds.get(e) not in (None, "spatial"))
+                raise jr.err("body1" if planar == ends[0] else "body2",
+                             f"= {planar!r} is a {kinds[planar]} body and the other end a "
+                             "spatial one: a joint connects bodies of one kind (make both "
+                             "spatial)")
+    bodies = {}
+    for i, t in enumerate(raw_bodies):
+        b = _spatial_body(_SpatialReader(source, "body", i, t))
+        if b.name in bodies or b.name == GROUND:
+            raise SceneError(f"{source}: body #{i + 1}: name {b.name!r} is "
+                             f"{'reserved' if b.name == GROUND else 'used twice'}")
+        bodies[b.name] = b
+    if not bodies:
+        raise SceneError(f"{source}: a scene needs at least one [[body]]")
+    joints = [_spatial_joint(_SpatialReader(source, "joint", i, t), bodies)
+              for i, t in enumerate(items("joint"))]
+    forces = [_spatial_force(_SpatialReader(source, "force", i, t), bodies)
+              for i, t in enumerate(items("force"))]
+    names = [j.name for j in joints]
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise SceneError(f"{source}: joint name {dup!r} is used twice")
+    return SpatialScene(name, list(bodies.values()), joints, forces, rotation, norm, gain,
+                        desc, source)
+
+
+# ---- running --------------------------------------------------------------------------------
+
+@dataclass
+class SpatialResult(Result):
+    """A spatial scene run: t, q (orientation coordinates per the scene's rotation), w = (v,
+    Omega) per body, the energy parts, residuals and multipliers at the samples."""
+
+    t: np.ndarray
+    q: np.ndarray
+    w: np.ndarray
+    energy: np.ndarray               # kinetic + gravity + spring potential
+    energy_parts: dict
+    residuals: np.ndarray            # (nsamp, 3): max |Phi|, max |C w|, max ||p| - 1|
+    multipliers: np.ndarray | None
+    stats: Stats
+    status: Status
+    message: str
+    manifest: dict = field(default_factory=dict)
+    bodies: list = field(default_factory=list)
+    joints: list = field(default_factory=list)
+    rotation: str = "quaternion"
+    assembly: dict = field(default_factory=dict)
+    drift: dict | None = None
+
+    @property
+    def y(self) -> np.ndarray:
+        return np.hstack([self.q, self.w])
+
+    def position(self, body: str) -> np.ndarray:
+        """(nsamp, 3): the body's centre of mass."""
+        k = self.bodies.index(body)
+        nqb = 7 if self.rotation == "quaternion" else 6
+        return self.q[:, k * nqb:k * nqb + 3]
+
+    def orientation(self, body: str) -> np.ndarray:
+        """(nsamp, 3, 3): the body's rotation matrix (body to space)."""
+        k = self.bodies.index(body)
+        nqb = 7 if self.rotation == "quaternion" else 6
+        p = self.q[:, k * nqb + 3:(k + 1) * nqb]
+        if self.rotation == "quaternion":
+            return np.array([from_quaternion(x / np.linalg.norm(x)) for x in p])
+        return np.array([from_angles(x, self.rotation[-3:]) for x in p])
+
+    def omega_body(self, body: str) -> np.ndarray:
+        k = self.bodies.index(body)
+        return self.w[:, 6 * k + 3:6 * k + 6]
+
+    def energy_balance(self) -> np.ndarray:
+        """E(t) - E(0) - (work of dampers and loads): zero for an exact solution."""
+        p = self.energy_parts["power"]
+        dt = np.diff(self.t)
+        work = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * dt)])
+        return self.energy - self.energy[0] - work
+
+
+def _tables(sc: SpatialScene):
+    nb = len(sc.bodies)
+    mass = np.array([b.mass for b in sc.bodies])
+    inertia = np.asfortranarray(np.stack([b.inertia for b in sc.bodies], axis=2))
+    nj, nf = len(sc.joints), len(sc.forces)
+    jtype = np.zeros(max(nj, 1), dtype=np.int32)
+    jbody = np.zeros((2, max(nj, 1)), dtype=np.int32, order="F")
+    jreal = np.zeros((12, max(nj, 1)), order="F")
+    for k, j in enumerate(sc.joints):
+        jtype[k] = JOINT_TYPES[j.type]
+        jbody[:, k] = sc.body_index(j.body1), sc.body_index(j.body2)
+        jreal[:, k] = np.concatenate([j.point1, j.point2, j.axis1, j.axis2])
+    ftype = np.zeros(max(nf, 1), dtype=np.int32)
+    fbody = np.zeros((2, max(nf, 1)), dtype=np.int32, order="F")
+    freal = np.zeros((9, max(nf, 1)), order="F")
+    for k, f in enumerate(sc.forces):
+        ftype[k] = FORCE_TYPES[f.type]
+        fbody[:, k] = (sc.body_index(f.body1) if f.body1 else 0,
+                       sc.body_index(f.body2) if f.type == "spring_damper" else 0)
+        freal[:len(f.reals), k] = f.reals
+    return nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal
+
+
+def _validate(sc: SpatialScene) -> None:
+    """The checks of the reader, again on a SpatialScene whose fields were changed in Python
+    after it was read: each names the element and the field."""
+    if not isinstance(sc.bodies, list) or not sc.bodies:
+        raise SceneError(f"{sc.source}: a spatial scene needs a list of at least one body")
+    for fld in ("joints", "forces"):
+        if not isinstance(getattr(sc, fld), list):
+            raise SceneError(f"{sc.source}: scene: field {fld!r} = {getattr(sc, fld)!r} must "
+                             "be a list")
+    if not isinstance(sc.rotation, str) or not isinstance(sc.quaternion_norm, str) or \
+            sc.rotation not in ROTATIONS or sc.quaternion_norm not in NORMS:
+        raise SceneError(f"{sc.source}: scene: rotation = {sc.rotation!r} (known: "
+                         f"{', '.join(ROTATIONS)}), quaternion_norm = {sc.quaternion_norm!r} "
+                         f"(known: {', '.join(NORMS)})")
+    if isinstance(sc.norm_gain, bool) or not isinstance(sc.norm_gain, (int, float)) or \
+            not (math.isfinite(sc.norm_gain) and sc.norm_gain >= 0):
+        raise SceneError(f"{sc.source}: scene: norm_gain = {sc.norm_gain!r} must be a finite "
+                         "number >= 0")
+
+    def vec(label, fld, v, shape):
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.shape != shape or not np.all(np.isfinite(a)):
+            raise SceneError(f"{sc.source}: {label}: field {fld!r} = {v!r} must be finite "
+                             f"numbers of shape {shape}")
+        return a
+    names = set()
+    for b in sc.bodies:
+        label = f"body {getattr(b, 'name', '?')!r}"
+        if not isinstance(b, SpatialBody) or not isinstance(b.name, str) or b.name in names:
+            raise SceneError(f"{sc.source}: {label} is not a SpatialBody with a name of its own")
+        names.add(b.name)
+        if isinstance(b.mass, bool) or not isinstance(b.mass, (int, float)) or \
+                not (math.isfinite(b.mass) and b.mass > 0):
+            raise SceneError(f"{sc.source}: {label}: field 'mass' = {b.mass!r} must be > 0")
+        j = vec(label, "inertia", b.inertia, (3, 3))
+        ev = np.linalg.eigvalsh(0.5 * (j + j.T))
+        if not np.allclose(j, j.T, rtol=0, atol=1e-12 * np.abs(j).max()) or not ev[0] > 0 or \
+                ev[2] > ev[0] + ev[1] + 1e-12 * ev[2]:
+            raise SceneError(f"{sc.source}: {label}: field 'inertia' = {j.tolist()} must be "
+                             "symmetric, positive definite and keep J3 <= J1 + J2")
+        rot = vec(label, "rotation", b.rotation, (3, 3))
+        if not (np.allclose(rot.T @ rot, np.eye(3), rtol=0, atol=UNIT_TOL)
+                and np.linalg.det(rot) > 0):
+            raise SceneError(f"{sc.source}: {label}: field 'rotation' = {rot.tolist()} is not "
+                             "a rotation matrix (R^T R = I, det R = 1)")
+        for fld in ("position", "velocity", "omega_body"):
+            vec(label, fld, getattr(b, fld), (3,))
+    for j in sc.joints:
+        label = f"joint {getattr(j, 'name', '?')!r}"
+        if not isinstance(j, SpatialJoint) or not isinstance(j.type, str) or \
+                j.type not in JOINT_TYPES:
+            raise SceneError(f"{sc.source}: {label}: field 'type' must be one of "
+                             f"{', '.join(JOINT_TYPES)}")
+        for fld in ("body1", "body2"):
+            if not isinstance(getattr(j, fld), str):
+                raise SceneError(f"{sc.source}: {label}: field {fld!r} = {getattr(j, fld)!r} "
+                                 "must be a body's name")
+            if getattr(j, fld) != GROUND and getattr(j, fld) not in names or \
+                    (fld == "body1" and j.body1 == GROUND):
+                raise SceneError(f"{sc.source}: {label}: field {fld!r} = "
+                                 f"{getattr(j, fld)!r} is not a body of this scene")
+        if j.body1 == j.body2:
+            raise SceneError(f"{sc.source}: {label}: field 'body2' = {j.body2!r} is body1 too")
+        for fld in ("point1", "point2", "axis1", "axis2"):
+            a = vec(label, fld, getattr(j, fld), (3,))
+            if fld.startswith("axis") and not np.linalg.norm(a) > 0:
+                raise SceneError(f"{sc.source}: {label}: field {fld!r} has zero length")
+    for f in sc.forces:
+        label = f"force {getattr(f, 'name', '?')!r}"
+        if not isinstance(f, SpatialForce) or not isinstance(f.type, str) or \
+                f.type not in FORCE_TYPES:
+            raise SceneError(f"{sc.source}: {label}: field 'type' must be one of "
+                             f"{', '.join(FORCE_TYPES)}")
+        if f.type in ("spring", "damper"):
+            raise SceneError(f"{sc.source}: {label}: field 'type' = {f.type!r}: a SpatialForce "
+                             "object's spring or damper has type 'spring_damper'")
+        for fld in ("body1", "body2"):
+            if not isinstance(getattr(f, fld), str):
+                raise SceneError(f"{sc.source}: {label}: field {fld!r} = {getattr(f, fld)!r} "
+                                 "must be a body's name")
+        want = {"gravity": 3, "point_force": 6, "torque": 3}.get(f.type, 9)
+        r = vec(label, "reals", f.reals, (want,))
+        if f.type == "spring_damper" and not (r[6] >= 0 and r[7] >= 0 and r[8] >= 0):
+            raise SceneError(f"{sc.source}: {label}: stiffness, damping and rest_length "
+                             f"{r[6:].tolist()} must be >= 0")
+        ends = [f.body1] + ([f.body2] if f.type == "spring_damper" else [])
+        if f.type != "gravity" and (f.body1 not in names or any(
+                e != GROUND and e not in names for e in ends) or
+                (len(ends) == 2 and ends[0] == ends[1])):
+            raise SceneError(f"{sc.source}: {label}: its bodies {ends} are not two (or one) "
+                             "distinct bodies of this scene")
+
+
+def joint_rows(sc: SpatialScene) -> list:
+    """(joint name, first row, row count) of each joint, in the kernel's row order."""
+    out, first = [], 0
+    for j in sc.joints:
+        out.append((j.name, first, JOINT_ROWS[j.type]))
+        first += JOINT_ROWS[j.type]
+    return out
+
+
+def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulation=None,
+                     t0=0.0, every=1, alpha=None, beta=None, projection_tol=1e-12,
+                     assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
+                     h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
+                     raise_on_failure=True, newton_rtol=None, newton_atol=None,
+                     **unsupported) -> SpatialResult:
+    """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
+    docstring). Options of the planar path that do not apply are refused by name."""
+    from .ode import build_info
+    from .simulate import _ode_plan, check_run
+    from .watch import as_watch, drift_message, drift_report
+
+    bad = sorted(k for k, v in unsupported.items() if v is not None)
+    if bad:
+        raise NotApplicableError(f"{', '.join(bad)}: not options of a spatial scene run (its "
+                                 "formulations: reduced, baumgarte, projection; solver, "
+                                 "penalty and the index-3 options are the planar model's)")
+    _validate(sc)
+    info_m = _method(method)
+    if info_m.solves != "ode":
+        raise NotApplicableError(
+            f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
+            "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
+            "baumgarte or projection formulation")
+    if info_m.family == "euler_cromer":
+        raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
+                                 "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
+                                 "not its coordinates' rates; use symplectic methods on planar "
+                                 "scenes, or rk4 here")
+    formulation = formulation or "reduced"
+    if formulation not in FORMULATIONS:
+        raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
+                                 f"spatial scenes run {', '.join(FORMULATIONS)}")
+    if method.startswith("cvode") and formulation == "projection":
+        raise NotApplicableError(f"{method} with the projection formulation: CVODE cannot "
+                                 "change the state between its steps; use reduced or baumgarte")
+    if info_m.adaptive:
+        if every != 1:
+            raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
+                                    "dt_out (the spacing of the samples) instead")
+        check_run(1.0 if not h else h, t_end, t0, 1)
+        adaptive = dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0, h_min=h_min or 0.0,
+                        h_max=h_max or 0.0, max_steps=max_steps or 0, max_order=max_order or 0)
+        href = 1e-3 * (t_end - t0)
+    else:
+        given = [n for n, v in (("rtol", rtol), ("atol", atol), ("dt_out", dt_out),
+                                ("max_steps", max_steps), ("max_order", max_order)) if v]
+        if given:
+            raise InvalidInputError(f"{', '.join(given)}: options of the error-controlled "
+                                    f"methods; {method} takes a fixed step h")
+        if h is None:
+            raise InvalidInputError(f"{method} takes a fixed step: give h")
+        check_run(h, t_end, t0, every)
+        adaptive = None
+        href = h
+    plan_ = _ode_plan(info_m, formulation, href, t_end, t0, int(every), alpha, beta,
+                      (1e7, 10.0, 1.0), projection_tol, startup, newton_rtol, newton_atol,
+                      adaptive)
+    opt = plan_["ode"]
+    from dataclasses import replace
+    opt = replace(opt, method=info_m.id)
+    w = as_watch(watch)
+    sopt = np.array([FORMULATIONS[formulation], ROTATIONS[sc.rotation], NORMS[sc.quaternion_norm],
+                     plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
+                     w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every], dtype=float)
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
+    y0 = sc.state0()
+    _check_initial(sc, y0, assemble_initial)
+    stats, flag = empty("mbdk_stats"), _compiled.new_flag()
+    m1 = max(sc.rows, 1)
+    nsamp = plan_["nsamp"]
+    args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
+            flag, np.zeros(0), y0, int(bool(assemble_initial)), float(t0), float(t_end), nsamp,
+            m1, stats)
+    t_wall = time.perf_counter()
+    (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
+        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0))
+    status = Status(int(status))
+    nqb = 7 if sc.rotation == "quaternion" else 6
+    nq = nb * nqb
+    ys = y[:, :nw].T
+    o = out[:, :nw].T
+    manifest = {**build_info(), "scene": sc.name, "kind": "spatial", "method": method,
+                "formulation": formulation, "rotation": sc.rotation,
+                "quaternion_norm": sc.quaternion_norm, "t0": t0, "t_end": t_end,
+                **plan_["manifest"], "linear_solve": "dense Schur complement (LAPACK dpotrf)",
+                "watch": {"position": w.position, "velocity": w.velocity,
+                          "energy": w.energy, "every": w.every},
+                "python_wall_time": time.perf_counter() - t_wall}
+    if formulation == "projection":
+        manifest["projection_tol"] = projection_tol
+    result = SpatialResult(
+        t=t[:nw], q=ys[:, :nq], w=ys[:, nq:], energy=o[:, 0] + o[:, 1] + o[:, 2],
+        energy_parts={"kinetic": o[:, 0], "gravity": o[:, 1], "springs": o[:, 2],
+                      "power": o[:, 3]},
+        residuals=o[:, 4:7], multipliers=lam[:sc.rows, :nw].T if sc.rows else None,
+        stats=Stats.from_words(stats), status=status, message=status_message(status),
+        manifest=manifest, bodies=[b.name for b in sc.bodies],
+        joints=[j.name for j in sc.joints], rotation=sc.rotation,
+        assembly={"moved": float(moved)})
+    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+        result.drift = drift_report(report, joint_rows(sc))
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
+                          f"{drift_message(report, joint_rows(sc))}. A smaller step, the "
+                          "projection formulation or watch=False (to study the drift) are "
+                          "the remedies")
+    elif status == Status.ERR_SINGULAR_MATRIX:
+        where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
+                 "could not start (the initial state's assembly or first evaluation)")
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} {where}: " +
+                          ("the orientation angles reached their gimbal lock (" +
+                           ("sin(theta) = 0" if sc.rotation == "euler313" else "cos(beta) = 0") +
+                           "), where their rates are undefined; rotation = 'quaternion' has no "
+                           "such point" if sc.rotation != "quaternion" else
+                           "the joints' constraint rows became dependent (redundant joints or "
+                           "a singular pose): the multipliers are not unique there"))
+    elif status.failed:
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
+                          f"{status_message(status)} (t = {result.t[-1] if nw else t0:.6g})")
+    if interrupted or status == Status.ERR_INTERRUPTED:
+        from .errors import SolveInterrupted
+        raise SolveInterrupted(result.message, status=status, result=result)
+    if status.failed and raise_on_failure:
+        raise exception_for(status)(result.message, status=status, result=result)
+    return result
+
+
+def evaluate_spatial(sc: SpatialScene, y=None) -> dict:
+    """At the state y (default: the scene's initial state): the energy parts and residuals of
+    the outputs, Phi, C (rows x 6 bodies), gamma, the reduced formulation's multipliers and the
+    status of that solve (SINGULAR for dependent rows)."""
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
+    y = sc.state0() if y is None else np.asarray(y, dtype=float)
+    m = sc.rows
+    out, phi, c, gam, lam, status = _kernel.spatial_residuals(
+        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+        float(ROTATIONS[sc.rotation]), sc.state0(), y, max(m, 1))
+    return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
+            "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "multipliers": lam[:m],
+            "status": Status(int(status))}
+
+
+def _check_initial(sc, y0, assemble):
+    """Refuses, naming the joint, an initial state off its joints by more than the assembly
+    should move (ASSEMBLY_TOL of the scene's size); without assembly, by more than roundoff."""
+    if not sc.joints:
+        return
+    ev = evaluate_spatial(sc, y0)
+    if ev["status"] not in (Status.SUCCESS, Status.ERR_SINGULAR_MATRIX):
+        raise exception_for(ev["status"])(
+            f"spatial scene {sc.name!r}: the kernel refused its tables "
+            f"({status_message(ev['status'])})")
+    phi = ev["phi"]
+    size = max(1.0, max(float(np.max(np.abs(j.point1))) for j in sc.joints))
+    tol = ASSEMBLY_TOL * size if assemble else 1e-10 * size
+    for name, first, count in joint_rows(sc):
+        worst = float(np.max(np.abs(phi[first:first + count])))
+        if worst > tol:
+            raise InvalidInputError(
+                f"{sc.source}: joint {name!r}: the initial state is off this joint by "
+                f"{worst:.3g} (largest |Phi| of its rows; tolerance {tol:.3g}"
+                f"{'' if assemble else ', assemble_initial=False'}): give the bodies positions "
+                "and orientations that satisfy it (the joint's 'at' point in space puts both "
+                "ends on it)")

@@ -1,0 +1,203 @@
+"""Spatial scenes (mbdk.spatial; Fekete (2023) chapter 5): accuracy and CPU time of each
+formulation and method on the heavy top and on the double pendulum built from spatial bodies,
+the quaternion norm by the user's choice, and what a spatial body costs beside a planar one.
+
+1. Formulations. The scene heavy_top (a spherical joint to the ground) and the scene
+   spatial_double_pendulum (two spherical joints), over 2 s, by rk4 at two steps and by dopri54
+   and bdf at two tolerances, each on the reduced, baumgarte (alpha = 1/h, beta = sqrt(2)/h;
+   for the error-controlled methods 1/(1 ms) and sqrt(2)/(1 ms)) and projection formulations.
+   Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
+   which rk4 then does not resolve: its forces of beta^2 Phi perturb the motion far more than
+   the reduced form's drift does (the same holds on planar scenes, studies/scene_drift.py).
+   The error is the largest state difference at the samples (every 10 ms) against a reference:
+   the compiled problem heavy_top (Euler's equations in quaternions with the tip fixed, rk4 at
+   h = 1e-5) for the top, the planar double pendulum scene (rk4, reduced, h = 1e-5) for the
+   spatial one; beside it the steps, the solving thread's CPU time, max |Phi| and max ||p| - 1|.
+2. The quaternion norm. free_body (the intermediate-axis flip) by explicit Euler, heun and rk4
+   with |p| kept by projection, by the stabilisation term (norm_gain 10 1/s) and not at all:
+   the largest ||p| - 1| and of |R^T R - I| over 10 s. R is formed from p / |p|, so the state's
+   drift of |p| never scales the body; the study shows how large it grows. The stabilised norm
+   settles at 1 - O(h^p), whatever the gain: the method's stages evaluate the term off the
+   sphere (Heun's predictor has |p|^2 = 1 + h^2 |Omega|^2 / 4), which pulls every step inward
+   by as much as the gain pushes back (Heun: -h^2 |Omega|^2 / 16); so for Heun and rk4 the
+   stabilisation leaves |p| further from 1 than no treatment at all, and projection is the one
+   that keeps it at roundoff.
+3. Cost. The same double pendulum as the planar scene (3 coordinates per body, closed-form
+   Schur complement) and as the spatial one (7 + 6 states per body, dense Schur complement):
+   the rk4 step's CPU time of each, measured in one run. The planar path has no code in common
+   with the spatial model but the integrators: a planar scene does not pay for 3D.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import main, progress  # noqa: E402
+
+import mbdk  # noqa: E402
+from mbdk.analysis.tables import write_table  # noqa: E402
+
+FORMULATIONS = ("reduced", "baumgarte", "projection")
+T_END = 2.0
+
+
+def top_reference(sc):
+    b = sc.bodies[0]
+    q0 = mbdk.rotations.to_quaternion(b.rotation)
+    r = mbdk.solve_ode("heavy_top", "rk4", h=1e-5, t_end=T_END, every=1000,
+                       y0=[*q0, *b.omega_body],
+                       params=dict(J1=0.015, J2=0.015, J3=0.01, m=1.0, g=9.81, l=0.1))
+    return r.y          # [q, Omega]: compared with the scene's [p, Omega]
+
+
+def top_error(r, ref):
+    return float(max(np.abs(r.q[:, 3:7] - ref[:, :4]).max(),
+                     np.abs(r.w[:, 3:6] - ref[:, 4:]).max()))
+
+
+def pendulum_setup():
+    planar = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-5, t_end=T_END,
+                           every=1000)
+    sc = mbdk.scene("spatial_double_pendulum")
+    for k, b in enumerate(sc.bodies):   # the planar run's assembled start
+        x, y, a = planar.q[0, 3 * k:3 * k + 3]
+        b.position = np.array([x, y, 0.0])
+        b.rotation = mbdk.rotations.from_angles([0.0, 0.0, a], "123")
+    return sc, planar
+
+
+def pendulum_error(r, planar):
+    err = 0.0
+    for k, name in enumerate(("bar1", "bar2")):
+        rot = r.orientation(name)
+        ang = np.unwrap(np.arctan2(rot[:, 1, 0], rot[:, 0, 0]))
+        err = max(err, np.abs(ang - planar.q[:, 3 * k + 2]).max(),
+                  np.abs(r.position(name)[:, :2] - planar.q[:, 3 * k:3 * k + 2]).max())
+    return float(err)
+
+
+def runs(quick: bool):
+    steps = (2e-3, 1e-3) if quick else (2e-3, 1e-3, 5e-4)
+    tols = (1e-6, 1e-9)
+    for h in steps:
+        yield "rk4", {"h": h, "every": int(round(0.01 / h))}, f"h = {h:g}"
+    for m in ("dopri54", "bdf"):
+        for tol in tols:
+            yield m, {"rtol": tol, "atol": tol * 1e-2, "dt_out": 0.01,
+                      "alpha": 1e3, "beta": 2 ** 0.5 * 1e3}, f"rtol = {tol:g}"
+
+
+def formulation_rows(quick: bool) -> list[dict]:
+    rows = []
+    top = mbdk.scene("heavy_top")
+    top_ref = top_reference(top)
+    pend, planar = pendulum_setup()
+    for scene_name, sc, err_fn, ref in (("heavy_top", top, top_error, top_ref),
+                                        ("spatial_double_pendulum", pend, pendulum_error,
+                                         planar)):
+        for method, kw, control in runs(quick):
+            for form in FORMULATIONS:
+                args = dict(kw)
+                if form != "baumgarte" or method == "rk4":
+                    args.pop("alpha", None)
+                    args.pop("beta", None)
+                progress(f"{scene_name} {method} {control} {form}")
+                try:
+                    r = mbdk.simulate(sc, method, t_end=T_END, formulation=form, **args)
+                except mbdk.MbdkError as exc:
+                    rows.append({"scene": scene_name, "method": method, "control": control,
+                                 "formulation": form, "status": type(exc).__name__})
+                    continue
+                rows.append({"scene": scene_name, "method": method, "control": control,
+                             "formulation": form, "status": "ok",
+                             "error": err_fn(r, ref), "steps": r.stats.steps,
+                             "cpu_ms": 1e3 * r.cpu_time,
+                             "max_abs_phi": float(r.residuals[:, 0].max()),
+                             "max_norm_drift": float(r.residuals[:, 2].max())})
+    return rows
+
+
+def norm_rows(quick: bool) -> list[dict]:
+    rows = []
+    t_end = 5.0 if quick else 10.0
+    for method, h in (("explicit_euler", 1e-3), ("heun", 1e-3), ("rk4", 1e-2)):
+        for norm in ("project", "stabilise", "none"):
+            sc = mbdk.scene("free_body")
+            sc.quaternion_norm = norm
+            r = mbdk.simulate(sc, method, h=h, t_end=t_end, every=max(1, int(0.05 / h)),
+                              watch=False)
+            p = r.q[:, 3:7]
+            rot = np.array([mbdk.rotations.from_quaternion(x / np.linalg.norm(x)) for x in p])
+            orth = np.abs(np.einsum("kji,kjl->kil", rot, rot) - np.eye(3)).max()
+            rows.append({"method": method, "h": h, "quaternion_norm": norm,
+                         "max_norm_drift": float(r.residuals[:, 2].max()),
+                         "max_RtR_minus_I": float(orth),
+                         "energy_rel_error": float(np.abs(r.energy / r.energy[0] - 1).max()),
+                         "cpu_ms": 1e3 * r.cpu_time})
+    return rows
+
+
+def cost_rows(quick: bool) -> list[dict]:
+    n = 2000 if quick else 20000
+    h = 1e-4
+    pend, _ = pendulum_setup()
+    best = {}
+    for _ in range(5):   # the least of five, the two taken in turn
+        for name, sc in (("planar scene double_pendulum", mbdk.scene("double_pendulum")),
+                         ("spatial scene spatial_double_pendulum", pend)):
+            r = mbdk.simulate(sc, "rk4", h=h, t_end=n * h, every=n, watch=False)
+            best[name] = min(best.get(name, np.inf), r.cpu_time / n)
+    planar = best["planar scene double_pendulum"]
+    return [{"scene": k, "states": 6 if k.startswith("planar") else 26,
+             "us_per_rk4_step": 1e6 * v, "ratio_to_planar": v / planar}
+            for k, v in best.items()]
+
+
+def run(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    progress("formulations")
+    f_rows = formulation_rows(quick)
+    tables = [write_table(
+        f_rows, ["scene", "method", "control", "formulation", "status", "error", "steps",
+                 "cpu_ms", "max_abs_phi", "max_norm_drift"], out, "spatial_formulations",
+        "Spatial scenes: error, steps and CPU time per method and formulation",
+        "error: the largest difference at the samples from the compiled heavy_top (rk4, "
+        "h = 1e-5) or from the planar double pendulum scene (rk4, h = 1e-5); cpu_ms: the "
+        "solving thread's CPU time; max_norm_drift: ||p| - 1| (quaternion_norm = project)")]
+    progress("quaternion norm")
+    tables.append(write_table(
+        norm_rows(quick), ["method", "h", "quaternion_norm", "max_norm_drift",
+                           "max_RtR_minus_I", "energy_rel_error", "cpu_ms"],
+        out, "spatial_quaternion_norm",
+        "The quaternion's norm on free_body, kept by projection, by stabilisation or not at all",
+        "max_RtR_minus_I: of R formed from p / |p|, at roundoff whatever |p| does"))
+    progress("cost against the planar scene")
+    tables.append(write_table(
+        cost_rows(quick), ["scene", "states", "us_per_rk4_step", "ratio_to_planar"], out,
+        "spatial_cost", "The double pendulum as a planar and as a spatial scene: rk4 step",
+        "thread CPU time per step, the least of five runs taken in turn"))
+    from mbdk.analysis import plotting
+    fig, axes = plotting.plt.subplots(1, 2, figsize=(10, 4))
+    for ax, scene_name in zip(axes, ("heavy_top", "spatial_double_pendulum")):
+        for form, marker in zip(FORMULATIONS, "osd"):
+            for method, ls in (("rk4", "-"), ("dopri54", "--"), ("bdf", ":")):
+                pts = [(r["cpu_ms"], r["error"]) for r in f_rows
+                       if r["scene"] == scene_name and r["formulation"] == form
+                       and r["method"] == method and r["status"] == "ok"]
+                if pts:
+                    x, y = zip(*sorted(pts))
+                    ax.loglog(x, y, ls, marker=marker, label=f"{method} {form}", ms=4)
+        ax.set_xlabel("CPU time [ms]")
+        ax.set_ylabel("max error")
+        ax.set_title(scene_name)
+    axes[0].legend(fontsize=7)
+    figs = [plotting.save(fig, out, "spatial_work_precision")]
+    return {"title": "Spatial scenes: formulations, the quaternion norm, cost", "tables": tables,
+            "figures": figs}
+
+
+if __name__ == "__main__":
+    sys.exit(main(run, "spatial_scenes"))
