@@ -162,10 +162,10 @@ def run(out: Path, quick: bool) -> dict:
             k_step, c_step = k_step / n_fast, c_step / n_fast
         else:
             k_step = b4.best_of(b4.kernel, n_fast, 1e-5)[0] / n_fast
-    peers.append({"what": "rk4 step, double pendulum, minimal coordinates (least of 7 runs "
-                          "taken in turn with the C loop"
-                          + (f"; median ratio of the rounds {median_ratio:.2f})"
-                             if median_ratio else ")"),
+    peers.append({"what": "rk4 step, double pendulum, minimal coordinates"
+                          + (" (least of 7 runs taken in turn with the C loop; median ratio of "
+                             f"the rounds {median_ratio:.2f})" if median_ratio else
+                             " (no C compiler: no C loop)"),
                   "mbdk us": 1e6 * k_step, "peer": "plain scalar C loop (cc -O3)",
                   "peer us": 1e6 * c_step if c_step else None,
                   "ratio": k_step / c_step if c_step else None})

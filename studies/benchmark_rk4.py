@@ -207,7 +207,7 @@ def run(out: Path, quick: bool = False) -> dict:
             rows.append(row)
         notes = (f"rk4, double_pendulum (m1=1, m2=2, l1=1, l2=2; phi0 = (-75, -90) deg), t = 0..10 s. "
                  f"Per-step cost from {n_fast} kernel/C steps (the least of 7 runs each, kernel and C "
-                 "taken in turn), {n_py} pure-Python and "
+                 f"taken in turn), {n_py} pure-Python and "
                  f"{n_np} numpy steps. {n_need} steps reach max error {err_need:.2e} at t = 10 s "
                  f"against rk4 with {nref} steps; the kernel's CPU time for them is measured, the "
                  "others' is per-step cost times steps.")

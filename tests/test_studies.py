@@ -342,7 +342,7 @@ def test_spatial_scenes_study(tmp_path, root):
     h^4 on the reduced and projection forms (the error against an independent reference: the
     compiled heavy_top and the planar double pendulum); the projection formulation keeps |Phi|
     at its tolerance; a projected quaternion keeps its norm at roundoff while no treatment lets
-    explicit Euler's grow; and the cost table holds both scenes, the planar one first."""
+    explicit Euler's grow; the cost table holds both scenes; and the IFToMM mechanisms run."""
     sys.path.insert(0, str(root / "studies"))
     import spatial_scenes
     summary = spatial_scenes.run(tmp_path, quick=True)
@@ -364,7 +364,18 @@ def test_spatial_scenes_study(tmp_path, root):
     assert norm[("explicit_euler", "none")] > 1e-3
     assert all(v < 1e-15 for (m, n), v in norm.items() if n == "project")
     cost = rows(tmp_path / "spatial_cost.csv")
-    assert cost[0]["scene"].startswith("planar") and num(cost[0]["ratio_to_planar"]) == 1.0
+    assert [r["scene"].split()[0] for r in cost] == ["planar", "spatial"]
+    assert num(cost[1]["us_per_rk4_step"]) > 0
+    # the IFToMM mechanisms: Bricard's redundant loop on the projection form at rk4's order
+    # against the dopri54 reference; the stiff governor by bdf and cvode_bdf near theirs
+    bench = rows(tmp_path / "spatial_benchmarks.csv")
+    pick = {(r["scene"], r["method"], r["control"], r["formulation"]): r for r in bench}
+    e4, e1 = (num(pick[("bricard", "rk4", f"h = {h}", "projection")]["error"])
+              for h in ("0.004", "0.001"))
+    assert 4 ** 3 < e4 / e1 and e1 < 1e-10
+    for m in ("bdf", "cvode_bdf"):
+        r = pick[("flyball_governor", m, "rtol = 1e-08", "reduced")]
+        assert r["status"] == "ok" and num(r["error"]) < 1e-5, m
 
 
 def test_ch5_formulas_study(tmp_path, root):

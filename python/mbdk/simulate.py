@@ -220,9 +220,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             watch=watch, raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
             newton_atol=newton_atol, solver=None if solver == "auto" else solver,
             small_dense=None if small_dense else small_dense,
-            penalty=None if tuple(penalty) == (1e7, 10.0, 1.0) else penalty,
+            penalty=None if penalty == (1e7, 10.0, 1.0) else penalty,
             adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol, max_iter=max_iter,
-            outputs=None if outputs == tuple(OUTPUTS) else outputs)
+            outputs=outputs)
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")

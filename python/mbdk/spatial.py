@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from numbers import Real
 
 import numpy as np
 
@@ -154,7 +155,8 @@ def orientation_coordinates(r: np.ndarray, rotation: str) -> np.ndarray:
     if rotation == "euler313":
         # R33 = cos(theta), R13 = sin(theta) sin(phi), R23 = -sin(theta) cos(phi),
         # R31 = sin(theta) sin(psi), R32 = sin(theta) cos(psi)
-        theta = math.acos(max(-1.0, min(1.0, r[2, 2])))
+        # theta from atan2, not acos(R33): acos loses half the digits near the lock
+        theta = math.atan2(math.hypot(r[0, 2], r[1, 2]), r[2, 2])
         if math.hypot(r[0, 2], r[1, 2]) > 1e-12:
             a = np.array([math.atan2(r[0, 2], -r[1, 2]), theta, math.atan2(r[2, 0], r[2, 1])])
         else:   # the lock: only phi +- psi is defined; psi = 0, R = R3(phi) R1(theta)
@@ -162,7 +164,7 @@ def orientation_coordinates(r: np.ndarray, rotation: str) -> np.ndarray:
     else:
         # 1-2-3: R13 = sin(beta), R23 = -sin(alpha) cos(beta), R33 = cos(alpha) cos(beta),
         # R12 = -cos(beta) sin(gamma), R11 = cos(beta) cos(gamma)
-        beta = math.asin(max(-1.0, min(1.0, r[0, 2])))
+        beta = math.atan2(r[0, 2], math.hypot(r[0, 0], r[0, 1]))   # not asin: see theta
         if math.hypot(r[1, 2], r[2, 2]) > 1e-12:
             a = np.array([math.atan2(-r[1, 2], r[2, 2]), beta, math.atan2(-r[0, 1], r[0, 0])])
         else:   # the lock: gamma = 0, R = R1(alpha) R2(beta), whose first column is
@@ -557,7 +559,7 @@ def _validate(sc: SpatialScene) -> None:
         raise SceneError(f"{sc.source}: scene: rotation = {sc.rotation!r} (known: "
                          f"{', '.join(ROTATIONS)}), quaternion_norm = {sc.quaternion_norm!r} "
                          f"(known: {', '.join(NORMS)})")
-    if isinstance(sc.norm_gain, bool) or not isinstance(sc.norm_gain, (int, float)) or \
+    if isinstance(sc.norm_gain, bool) or not isinstance(sc.norm_gain, Real) or \
             not (math.isfinite(sc.norm_gain) and sc.norm_gain >= 0):
         raise SceneError(f"{sc.source}: scene: norm_gain = {sc.norm_gain!r} must be a finite "
                          "number >= 0")
@@ -577,7 +579,7 @@ def _validate(sc: SpatialScene) -> None:
         if not isinstance(b, SpatialBody) or not isinstance(b.name, str) or b.name in names:
             raise SceneError(f"{sc.source}: {label} is not a SpatialBody with a name of its own")
         names.add(b.name)
-        if isinstance(b.mass, bool) or not isinstance(b.mass, (int, float)) or \
+        if isinstance(b.mass, bool) or not isinstance(b.mass, Real) or \
                 not (math.isfinite(b.mass) and b.mass > 0):
             raise SceneError(f"{sc.source}: {label}: field 'mass' = {b.mass!r} must be > 0")
         j = vec(label, "inertia", b.inertia, (3, 3))
@@ -653,9 +655,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
-                     **unsupported) -> SpatialResult:
+                     outputs=None, **unsupported) -> SpatialResult:
     """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
-    docstring). Options of the planar path that do not apply are refused by name."""
+    docstring). Options of the planar path that do not apply are refused by name; outputs is
+    checked and otherwise moot: a spatial run computes every output at its samples."""
     from .ode import build_info
     from .simulate import _ode_plan, check_run
     from .watch import as_watch, drift_message, drift_report
@@ -665,6 +668,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         raise NotApplicableError(f"{', '.join(bad)}: not options of a spatial scene run (its "
                                  "formulations: reduced, baumgarte, projection; solver, "
                                  "penalty and the index-3 options are the planar model's)")
+    if outputs is not None:
+        from .simulate import _want
+        _want(outputs)
     _validate(sc)
     info_m = _method(method)
     if info_m.solves != "ode":
@@ -677,13 +683,18 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
                                  "not its coordinates' rates; use symplectic methods on planar "
                                  "scenes, or rk4 here")
-    formulation = formulation or "reduced"
-    if formulation not in FORMULATIONS:
+    formulation = "reduced" if formulation is None else formulation
+    if not isinstance(formulation, str) or formulation not in FORMULATIONS:
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
                                  f"spatial scenes run {', '.join(FORMULATIONS)}")
     if method.startswith("cvode") and formulation == "projection":
         raise NotApplicableError(f"{method} with the projection formulation: CVODE cannot "
                                  "change the state between its steps; use reduced or baumgarte")
+    if method.startswith("cvode") and sc.rotation == "quaternion" and \
+            sc.quaternion_norm == "project":
+        raise NotApplicableError(f"{method} on spatial scene {sc.name!r} with quaternion_norm = "
+                                 "'project': CVODE cannot change the state between its steps; "
+                                 "set the scene's quaternion_norm to 'stabilise' or 'none'")
     if info_m.adaptive:
         if every != 1:
             raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
@@ -751,19 +762,25 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(report, joint_rows(sc))
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
-                          f"{drift_message(report, joint_rows(sc))}. A smaller step, the "
+                          f"{drift_message(report, joint_rows(sc)).replace('D v + Phi_t', 'C w')}"
+                          ". A smaller step, the "
                           "projection formulation or watch=False (to study the drift) are "
                           "the remedies")
     elif status == Status.ERR_SINGULAR_MATRIX:
         where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")
-        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} {where}: " +
-                          ("the orientation angles reached their gimbal lock (" +
-                           ("sin(theta) = 0" if sc.rotation == "euler313" else "cos(beta) = 0") +
-                           "), where their rates are undefined; rotation = 'quaternion' has no "
-                           "such point" if sc.rotation != "quaternion" else
-                           "the joints' constraint rows became dependent (redundant joints or "
-                           "a singular pose): the multipliers are not unique there"))
+        lock = _lock_distance(sc, result.q[-1]) if nw else None
+        joints = ("the joints' constraint rows lost their rank (a singular pose: rows that "
+                  "were independent at the start became dependent), where the multipliers are "
+                  "not unique")
+        if lock is not None and (lock < 1e-3 or not sc.joints):
+            why = (f"the orientation angles reached their gimbal lock ({_LOCK[sc.rotation]} = "
+                   f"{lock:.2g} at "
+                   "the last sample), where their rates are undefined; rotation = 'quaternion' "
+                   "has no such point")
+        else:
+            why = joints
+        result.message = f"{method}/{formulation} on spatial scene {sc.name!r} {where}: {why}"
     elif status.failed:
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
                           f"{status_message(status)} (t = {result.t[-1] if nw else t0:.6g})")
@@ -777,17 +794,41 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
 
 def evaluate_spatial(sc: SpatialScene, y=None) -> dict:
     """At the state y (default: the scene's initial state): the energy parts and residuals of
-    the outputs, Phi, C (rows x 6 bodies), gamma, the reduced formulation's multipliers and the
-    status of that solve (SINGULAR for dependent rows)."""
+    the outputs, Phi, C (rows x 6 bodies), gamma, the rank of the joints' rows at the initial
+    state (below the row count: redundant joints), the reduced formulation's multipliers and
+    the status of that solve (SINGULAR at a singular pose)."""
+    _validate(sc)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
-    y = sc.state0() if y is None else np.asarray(y, dtype=float)
+    y0 = sc.state0()
+    if y is not None:
+        try:
+            y = np.asarray(y, dtype=float)
+        except (TypeError, ValueError):
+            y = None
+        if y is None or y.shape != y0.shape or not np.all(np.isfinite(y)):
+            raise InvalidInputError(f"y must be a finite state of {y0.size} numbers (the "
+                                    f"scene's layout: q then (v, Omega) per body)")
+    y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, lam, status = _kernel.spatial_residuals(
+    out, phi, c, gam, lam, rank, status = _kernel.spatial_residuals(
         mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-        float(ROTATIONS[sc.rotation]), sc.state0(), y, max(m, 1))
+        float(ROTATIONS[sc.rotation]), y0, y, max(m, 1))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
             "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "multipliers": lam[:m],
-            "status": Status(int(status))}
+            "rank": int(rank), "status": Status(int(status))}
+
+
+_LOCK = {"euler313": "min |sin(theta)|", "cardan123": "min |cos(beta)|"}
+
+
+def _lock_distance(sc: SpatialScene, q) -> float | None:
+    """How near the bodies' angles are to their sequence's gimbal lock at coordinates q:
+    the least |sin(theta)| (3-1-3) or |cos(beta)| (1-2-3); None for quaternions."""
+    if sc.rotation == "quaternion":
+        return None
+    a = np.asarray(q).reshape(len(sc.bodies), 6)[:, 3:]
+    return float(np.min(np.abs(np.sin(a[:, 1]) if sc.rotation == "euler313"
+                               else np.cos(a[:, 1]))))
 
 
 def _check_initial(sc, y0, assemble):
@@ -803,6 +844,20 @@ def _check_initial(sc, y0, assemble):
     phi = ev["phi"]
     size = max(1.0, max(float(np.max(np.abs(j.point1))) for j in sc.joints))
     tol = ASSEMBLY_TOL * size if assemble else 1e-10 * size
+    w = y0[len(y0) - 6 * len(sc.bodies):]
+    cw = ev["C"] @ w
+    # the velocity rows: against the size of the terms that must cancel (|C| |w|), with a floor
+    # of the speeds the scene's size gives to 1 rad/s
+    vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(np.abs(ev["C"]) @ np.abs(w),
+                                                                     initial=0.0)), size)
+    for name, first, count in joint_rows(sc):
+        worst = float(np.max(np.abs(cw[first:first + count])))
+        if worst > vtol:
+            raise InvalidInputError(
+                f"{sc.source}: joint {name!r}: the initial velocities break this joint by "
+                f"{worst:.3g} (largest |C w| of its rows; tolerance {vtol:.3g}): give "
+                "velocities and angular velocities the joint allows (a body turning about a "
+                "fixed point moves its centre at Omega x r)")
     for name, first, count in joint_rows(sc):
         worst = float(np.max(np.abs(phi[first:first + count])))
         if worst > tol:

@@ -955,11 +955,11 @@ end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, y, m1, out, phi, c, gam, lam, &
-                             status)
+                             rank, status)
   ! At the state y of a spatial scene whose model is built at its initial state y0 (the
   ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
-  ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma and the
-  ! reduced formulation's multipliers (rows 1..m; lam is 0 where the solve failed, and status
+  ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma, the rank of the joints' rows at
+  ! y0 (below m: redundant joints) and the reduced formulation's multipliers (rows 1..m; lam is 0 where the solve failed, and status
   ! then says why).
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_spatial_model
@@ -969,7 +969,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), lam(m1)
-  integer, intent(out) :: status
+  integer, intent(out) :: rank, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
 !f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
@@ -982,6 +982,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   c = 0.0d0
   gam = 0.0d0
   lam = 0.0d0
+  rank = 0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   so%rotation = nint(rotation)
@@ -990,6 +991,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return
+  rank = model%rank0
   call mbdk_spatial_outputs(model, y, out, status)
   if (status /= MBDK_SUCCESS) return
   call mbdk_spatial_constraints(model, y, phi(1:model%m), c(1:model%m, :), gam(1:model%m), &

@@ -1,5 +1,6 @@
 !> The only file that names LAPACK: dense LU factorisation and solve (dgetrf / dgetrs),
 !> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs),
+!> the rank-revealing Cholesky factorisation of semidefinite ones (dpstrf),
 !> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
 module mbdk_lapack
   use mbdk_kinds, only: dp
@@ -8,7 +9,7 @@ module mbdk_lapack
   implicit none
   private
   public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
-    mbdk_least_squares
+    mbdk_least_squares, mbdk_chol_pivoted
 
   interface
     subroutine dgetrf(m, n, a, lda, ipiv, info)
@@ -41,6 +42,15 @@ module mbdk_lapack
       real(dp), intent(inout) :: b(ldb, *)
       integer, intent(out) :: info
     end subroutine dpotrs
+    subroutine dpstrf(uplo, n, a, lda, piv, rank, tol, work, info)
+      import :: dp
+      character(len=1), intent(in) :: uplo
+      integer, intent(in) :: n, lda
+      real(dp), intent(inout) :: a(lda, *)
+      integer, intent(out) :: piv(*), rank, info
+      real(dp), intent(in) :: tol
+      real(dp), intent(out) :: work(*)
+    end subroutine dpstrf
     subroutine dgelsd(m, n, nrhs, a, lda, b, ldb, s, rcond, rank, work, lwork, iwork, info)
       import :: dp
       integer, intent(in) :: m, n, nrhs, lda, ldb, lwork
@@ -128,6 +138,28 @@ contains
     call dpotrf('L', n, a, n, info)
     stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info == 0)
   end subroutine mbdk_chol_factor
+
+  !> In-place Cholesky with complete pivoting of a symmetric positive semidefinite A (lower):
+  !> P^T A P = L L^T with L's first rank columns nonzero, stopping at the first pivot at or
+  !> below rtol times A's largest diagonal entry. piv(k): the row of A in position k.
+  subroutine mbdk_chol_pivoted(a, piv, rank, rtol, stat)
+    real(dp), intent(inout) :: a(:, :)
+    integer, intent(out) :: piv(:), rank, stat
+    real(dp), intent(in) :: rtol
+    real(dp) :: work(2 * size(a, 1)), big
+    integer :: info, n, k
+    n = size(a, 1)
+    rank = 0
+    stat = MBDK_SUCCESS
+    if (n == 0) return
+    stat = MBDK_ERR_NONFINITE
+    if (.not. all(abs(a) <= huge(1.0_dp))) return
+    big = maxval([(a(k, k), k = 1, n)])
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (.not. (big > 0.0_dp)) return
+    call dpstrf('L', n, a, n, piv, rank, rtol * big, work, info)
+    stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info >= 0)
+  end subroutine mbdk_chol_pivoted
 
   !> Solves A x = b with the factor of mbdk_chol_factor; b is overwritten by x.
   subroutine mbdk_chol_solve(l, b, stat)

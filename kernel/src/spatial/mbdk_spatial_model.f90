@@ -11,14 +11,15 @@
 !> matrix is constant and block diagonal, M = diag(m I, J) per body, J the inertia about the
 !> centre in the body frame, and the equations of motion are Newton-Euler's (5.1)-(5.3):
 !>
-!>   m v' = f + (C^T lambda)_v,   J W' + W x J W = n + (C^T lambda)_W,   C w' = gamma
+!>   M w' + C^T lambda = (f, n - W x J W),   C w' = gamma      (the planar model's signs)
 !>
 !> with f and n the applied force (space frame) and moment (body frame), C the constraint
 !> Jacobian in the velocities w (Phi' = C w: a rotation R -> R (I + skew(dtheta)) in the body
 !> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
-!> multipliers come from the Schur complement S = C M^-1 C^T (LAPACK dpotrf: a small spatial
-!> scene is dense); a singular S (redundant joints, a singular pose) stops the run with
-!> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
+!> multipliers come from the Schur complement S = C M^-1 C^T, dense (a small spatial scene), by
+!> Cholesky: redundant joints (rows found dependent at the start by LAPACK's rank-revealing
+!> Cholesky) are passed, the rows independent there carrying the multipliers (schur_solve), and a
+!> rank lost along the motion (a singular pose) stops the run with MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
 !>   1 reduced      C w' = gamma
 !>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
 !>   4 projection   reduced, then after every step the positions are moved back onto Phi = 0
@@ -59,7 +60,7 @@ module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
@@ -89,6 +90,16 @@ module mbdk_spatial_model
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
   !> quadratically from a step's drift: two or three are the rule)
   integer, parameter :: PROJECTION_MAX_ITER = 20
+  !> pivots of the Cholesky factorisation of S = C M^-1 C^T at or below this fraction of their
+  !> row's diagonal entry count as zero: a dependent row leaves roundoff there (1e-16), and a
+  !> regular pose of a sound mechanism keeps its least pivot far above
+  real(dp), parameter :: REDUNDANT_RTOL = 1.0e-10_dp
+  !> The reduced formulation refuses a relative pivot below this (MBDK_ERR_SINGULAR_MATRIX): a
+  !> near rank loss, where its accelerations amplify the drift in the vanishing direction and a
+  !> fixed step across a singular pose can leave the mechanism on another assembly branch. The
+  !> planar model's window (MBDK_MODEL_NEAR_PIVOT, whose comment says why it is this wide); the
+  !> stabilised formulations keep the constraints through such a step, and test REDUNDANT_RTOL.
+  real(dp), parameter, public :: MBDK_SPATIAL_NEAR_PIVOT = 1.0e-4_dp
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3
 
   type, public :: mbdk_spatial_options_t
@@ -125,6 +136,10 @@ module mbdk_spatial_model
     real(dp), allocatable :: freal(:, :)
     logical :: has_power = .false.
     real(dp) :: length = 1.0_dp, gscale = 0.0_dp
+    !> the rank of C at the initial state, and the rows found independent there (rank-revealing
+    !> Cholesky): below m, the joints are redundant, and these rows alone are solved
+    integer :: rank0 = 0
+    integer, allocatable :: active(:)
     type(mbdk_spatial_work_t), pointer :: work => null()
   contains
     procedure :: rhs => spatial_rhs
@@ -182,7 +197,8 @@ contains
     if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
     allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb))
     do b = 1, nb
-      if (.not. (mass(b) > 0.0_dp)) return
+      if (.not. (mass(b) > 0.0_dp .and. mass(b) <= huge(1.0_dp))) return
+      if (.not. all(abs(inertia(:, :, b)) <= huge(1.0_dp))) return
       jb = inertia(:, :, b)
       if (any(abs(jb - transpose(jb)) > 1.0e-12_dp * maxval(abs(jb)))) return
       model%mass(b) = mass(b)
@@ -272,7 +288,7 @@ contains
       case (MBDK_SPATIAL_SPRING_DAMPER)
         if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
             fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
-        if (.not. (freal(9, k) >= 0.0_dp)) return
+        if (.not. all(freal(7:9, k) >= 0.0_dp)) return
       end select
       if (ftype(k) /= MBDK_SPATIAL_GRAVITY) model%has_power = .true.
     end do
@@ -285,6 +301,10 @@ contains
     do k = 1, model%nprim
       model%length = max(model%length, norm2(model%prim(k)%si), norm2(model%prim(k)%sj))
     end do
+    do k = 1, model%nf
+      if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
+        norm2(freal(1:3, k)), norm2(freal(4:6, k)))
+    end do
     do b = 1, nb
       model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
     end do
@@ -295,6 +315,14 @@ contains
     end do
     model%gscale = model%gscale * sum(model%mass) * model%length
 
+    model%rank0 = 0
+    model%active = [(k, k = 1, model%m)]
+    if (model%m > 0) then
+      call initial_rank(model, fr, k, model%active, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    model%rank0 = model%m
+    if (model%m > 0) model%rank0 = size(model%active)
     model%nq = 0
     model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
@@ -392,7 +420,9 @@ contains
     integer, intent(out) :: stat
     integer :: b, k
     allocate (fr%r(3, 0:model%nb), fr%rot(3, 3, 0:model%nb), fr%v(3, 0:model%nb), &
-              fr%om(3, 0:model%nb))
+              fr%om(3, 0:model%nb), stat=k)
+    stat = MBDK_ERR_NO_MEMORY
+    if (k /= 0) return
     fr%r(:, 0) = 0.0_dp
     fr%rot(:, :, 0) = reshape([1, 0, 0, 0, 1, 0, 0, 0, 1], [3, 3]) * 1.0_dp
     fr%v(:, 0) = 0.0_dp
@@ -544,32 +574,169 @@ contains
     end do
   end subroutine apply_minv
 
-  !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T. MBDK_ERR_SINGULAR_MATRIX when the
-  !> rows of C are dependent (S not positive definite).
-  subroutine schur_solve(model, c, rhs, lam, mc, stat)
+  !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T, by Cholesky; a pivot at or below
+  !> REDUNDANT_RTOL of its row's diagonal entry is a dependent row: MBDK_ERR_SINGULAR_MATRIX
+  !> (a singular pose). Redundant joints (rank0 < m; Bricard's linkage, a planar loop of
+  !> revolute joints built in 3D): only the rows found independent at the initial state (active)
+  !> are solved, and the others get no multiplier: a rigid mechanism's reactions on redundant
+  !> joints are not determined, and these are one valid set. A fixed set of rows, not one chosen
+  !> afresh at every evaluation, keeps F(y) smooth: the stages of a Runge-Kutta step lie off the
+  !> constraint manifold by O(h^2), where the dependent rows no longer agree with the others,
+  !> and a choice that changed from stage to stage (or a least-squares fit of all rows) would
+  !> put that disagreement into the accelerations and cut rk4 to second order. On the manifold
+  !> the active rows imply the others; the watch checks every row, so a run that leaves them
+  !> stops with MBDK_ERR_CONSTRAINT_DRIFT, and a position projection iterates until every row
+  !> holds. Where the rows chosen at the start near a rank loss of their own while all the rows
+  !> keep rank0 (Bricard's linkage turning), the rows independent at the state are taken for
+  !> that evaluation instead; F is then smooth again away from the switch.
+  subroutine schur_solve(model, c, rhs, lam, mc, stat, near)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), rhs(:)
     real(dp), intent(out) :: lam(:), mc(:, :)
     integer, intent(out) :: stat
-    real(dp) :: s(size(c, 1), size(c, 1)), scale
-    integer :: k, info, m
+    real(dp), intent(in), optional :: near   !< the window of near_test, if any
+    integer, allocatable :: rows(:)
+    integer :: k, m
     m = size(c, 1)
     do k = 1, m
       call apply_minv(model, c(k, :), mc(:, k))
     end do
-    s = matmul(c, mc)
-    ! a pivot below roundoff of the diagonal's size is a dependent row, not a tiny one
-    scale = maxval([(abs(s(k, k)), k = 1, m)])
-    lam = rhs
+    if (model%rank0 == m) then
+      call solve_rows(model, c, rhs, mc, model%active, lam, stat, near)
+      return
+    end if
+    ! redundant joints: the rows chosen at the start while they stay well clear of a rank loss
+    ! (the near window, whatever the formulation: a subset near its own degeneration amplifies
+    ! the disagreement of the rows it leaves out) ...
+    call solve_rows(model, c, rhs, mc, model%active, lam, stat, MBDK_SPATIAL_NEAR_PIVOT)
+    if (stat == MBDK_SUCCESS) return
+    ! ... and where they degenerate while the rows as a whole keep their rank (another subset
+    ! spans them), that subset, for this evaluation
+    call independent_rows(model, c, mc, rows, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call solve_rows(model, c, rhs, mc, rows, lam, stat, near)
+  end subroutine schur_solve
+
+  !> schur_solve on the given rows of C (the others get no multiplier).
+  subroutine solve_rows(model, c, rhs, mc, rows, lam, stat, near)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :), rhs(:), mc(:, :)
+    integer, intent(in) :: rows(:)
+    real(dp), intent(out) :: lam(:)
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: near
+    real(dp) :: s(size(rows), size(rows)), x(size(rows)), diag(size(rows))
+    integer :: k, info, r
+    r = size(rows)
+    if (r == size(c, 1)) then      ! every row (independent joints): no copies by index
+      s = matmul(c, mc)
+    else
+      s = matmul(c(rows, :), mc(:, rows))
+    end if
+    x = rhs(rows)
+    lam = 0.0_dp
+    diag = [(s(k, k), k = 1, r)]
     call mbdk_chol_factor(s, info)
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (info /= MBDK_SUCCESS) return
-    do k = 1, m
-      if (.not. (s(k, k)**2 > 1.0e-10_dp * scale)) return
+    ! each pivot against its own row's diagonal: S mixes 1/m and 1/J, so a light body's rows
+    ! are small without being dependent
+    do k = 1, r
+      if (.not. (s(k, k)**2 > REDUNDANT_RTOL * diag(k))) return
     end do
-    call mbdk_chol_solve(s, lam, stat)
-    if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
-  end subroutine schur_solve
+    if (present(near)) then
+      if (r == size(c, 1)) then
+        call near_test(model, c, near, stat)
+      else
+        call near_test(model, c(rows, :), near, stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    call mbdk_chol_solve(s, x, stat)
+    if (stat /= MBDK_SUCCESS) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      return
+    end if
+    lam(rows) = x
+  end subroutine solve_rows
+
+  !> The rows of C that LAPACK's rank-revealing Cholesky of C M^-1 C^T (scaled to a unit
+  !> diagonal, so that the test is on each row's own size; pivots at or below REDUNDANT_RTOL are
+  !> zero) finds independent, in their order in C. MBDK_ERR_SINGULAR_MATRIX when there are not
+  !> rank0 of them (or a row vanishes).
+  subroutine independent_rows(model, c, mc, rows, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :), mc(:, :)
+    integer, allocatable, intent(out) :: rows(:)
+    integer, intent(out) :: stat
+    real(dp) :: s(size(c, 1), size(c, 1)), d(size(c, 1))
+    integer :: k, m, rank, piv(size(c, 1))
+    logical :: keep(size(c, 1))
+    m = size(c, 1)
+    s = matmul(c, mc)
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    do k = 1, m
+      if (.not. (s(k, k) > 0.0_dp)) return
+    end do
+    d = 1.0_dp / sqrt([(s(k, k), k = 1, m)])
+    do k = 1, m
+      s(:, k) = s(:, k) * d * d(k)
+    end do
+    call mbdk_chol_pivoted(s, piv, rank, REDUNDANT_RTOL, stat)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (rank < 1 .or. (model%rank0 > 0 .and. rank /= model%rank0)) return
+    keep = .false.
+    keep(piv(1:rank)) = .true.
+    rows = pack([(k, k = 1, m)], keep)
+    stat = MBDK_SUCCESS
+  end subroutine independent_rows
+
+  !> MBDK_ERR_SINGULAR_MATRIX when the active rows of C are near a rank loss: a relative pivot
+  !> (to its row's diagonal) of C G C^T below near, G = diag(1, 1, 1, L^2, L^2, L^2) per body (L
+  !> the length scale). The geometry alone, not the masses: with M^-1 in its place a slender
+  !> body's small axial inertia (a bar's) makes rows look near dependent at a regular pose.
+  subroutine near_test(model, c, near, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :), near     !< the rows to test
+    integer, intent(out) :: stat
+    real(dp) :: g(size(c, 1), size(c, 1)), cg(size(c, 1), size(c, 2)), diag(size(c, 1)), l2
+    integer :: k, b, info
+    l2 = model%length**2
+    cg = c
+    do b = 1, model%nb
+      cg(:, 6 * b - 2:6 * b) = cg(:, 6 * b - 2:6 * b) * l2
+    end do
+    g = matmul(cg, transpose(c))
+    diag = [(g(k, k), k = 1, size(c, 1))]
+    call mbdk_chol_factor(g, info)
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (info /= MBDK_SUCCESS) return
+    do k = 1, size(c, 1)
+      if (.not. (g(k, k)**2 > near * diag(k))) return
+    end do
+    stat = MBDK_SUCCESS
+  end subroutine near_test
+
+  !> The rank of C M^-1 C^T at the initial frames and the rows found independent there
+  !> (independent_rows).
+  subroutine initial_rank(model, fr, rank, active, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    integer, intent(out) :: rank, stat
+    integer, allocatable, intent(out) :: active(:)
+    real(dp) :: phi(model%m), c(model%m, 6 * model%nb), gam(model%m), &
+      mc(6 * model%nb, model%m)
+    integer :: k
+    call constraints(model, fr, phi, c, gam)
+    do k = 1, model%m
+      call apply_minv(model, c(k, :), mc(:, k))
+    end do
+    ! model%rank0 is 0 here: any rank is accepted
+    call independent_rows(model, c, mc, active, stat)
+    rank = 0
+    if (allocated(active)) rank = size(active)
+  end subroutine initial_rank
 
   ! ---- forces --------------------------------------------------------------------------------
 
@@ -670,7 +837,11 @@ contains
       if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
         gam = gam - 2.0_dp * self%opt%alpha * matmul(c, y(wi(self, 1):)) - &
               self%opt%beta**2 * phi
-      call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
+      if (self%opt%formulation == MBDK_SPATIAL_REDUCED) then
+        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
+      else
+        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
+      end if
       if (stat /= MBDK_SUCCESS) return
       acc = acc - matmul(mc, l)
       if (present(lam)) lam = l
