@@ -759,7 +759,14 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         manifest=manifest, bodies=[b.name for b in sc.bodies],
         joints=[j.name for j in sc.joints], rotation=sc.rotation,
         assembly={"moved": float(moved)})
-    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+    if status == Status.ERR_CONSTRAINT_DRIFT and int(report[0]) == 0:
+        # not the watch: the kernel found the redundant joints' dependent rows independent
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} stopped at t = "
+                          f"{result.t[-1] if nw else t0:.6g}: the state left the joints so far "
+                          "that the rows of its redundant joints, dependent on the others on the "
+                          "joints, no longer agree with them; the projection formulation keeps "
+                          "the state on the joints, or take a smaller step")
+    elif status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(report, joint_rows(sc))
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
                           f"{drift_message(report, joint_rows(sc)).replace('D v + Phi_t', 'C w')}"
@@ -837,6 +844,11 @@ def _check_initial(sc, y0, assemble):
     if not sc.joints:
         return
     ev = evaluate_spatial(sc, y0)
+    if ev["rank"] == 0 and sc.rows:
+        raise exception_for(Status.ERR_SINGULAR_MATRIX)(
+            f"{sc.source}: the joints' rows are degenerate at the initial state (a row vanishes: "
+            "e.g. a universal joint whose two axes are parallel, or coincident points where a "
+            "direction is needed); give a pose where each joint is well defined")
     if ev["status"] not in (Status.SUCCESS, Status.ERR_SINGULAR_MATRIX):
         raise exception_for(ev["status"])(
             f"spatial scene {sc.name!r}: the kernel refused its tables "

@@ -17,9 +17,10 @@
 !> Jacobian in the velocities w (Phi' = C w: a rotation R -> R (I + skew(dtheta)) in the body
 !> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
 !> multipliers come from the Schur complement S = C M^-1 C^T, dense (a small spatial scene), by
-!> Cholesky: redundant joints (rows found dependent at the start by LAPACK's rank-revealing
-!> Cholesky) are passed, the rows independent there carrying the multipliers (schur_solve), and a
-!> rank lost along the motion (a singular pose) stops the run with MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
+!> Cholesky. Redundant joints (rows found dependent at the start, on the geometry: select_rows)
+!> are passed, a fixed set of independent rows carrying the multipliers (schur_solve); on the
+!> reduced form a rank lost along the motion (a singular pose) stops the run with
+!> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
 !>   1 reduced      C w' = gamma
 !>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
 !>   4 projection   reduced, then after every step the positions are moved back onto Phi = 0
@@ -90,10 +91,14 @@ module mbdk_spatial_model
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
   !> quadratically from a step's drift: two or three are the rule)
   integer, parameter :: PROJECTION_MAX_ITER = 20
-  !> pivots of the Cholesky factorisation of S = C M^-1 C^T at or below this fraction of their
-  !> row's diagonal entry count as zero: a dependent row leaves roundoff there (1e-16), and a
-  !> regular pose of a sound mechanism keeps its least pivot far above
+  !> pivots of the rank-revealing Cholesky factorisation of the geometric G = C W C^T (scaled to
+  !> a unit diagonal; select_rows) at or below this count as zero: a dependent row leaves
+  !> roundoff there (1e-16), and a regular pose of a sound mechanism keeps its least pivot far
+  !> above
   real(dp), parameter :: REDUNDANT_RTOL = 1.0e-10_dp
+  !> a pivot of the mass-weighted S at or below this fraction of its row's diagonal is a
+  !> numerically singular solve
+  real(dp), parameter :: SOLVE_RTOL = 64.0_dp * epsilon(1.0_dp)
   !> The reduced formulation refuses a relative pivot below this (MBDK_ERR_SINGULAR_MATRIX): a
   !> near rank loss, where its accelerations amplify the drift in the vanishing direction and a
   !> fixed step across a singular pose can leave the mechanism on another assembly branch. The
@@ -123,6 +128,11 @@ module mbdk_spatial_model
   !> what the caller owns and the model points to (rhs receives the model read-only)
   type, public :: mbdk_spatial_work_t
     type(mbdk_watch_t) :: watch
+    !> redundant joints: the rows solved now (the model's initial set until it nears a rank loss
+    !> of its own, then the set chosen there, kept until it nears one in turn) and how often the
+    !> set changed
+    integer, allocatable :: active(:)
+    integer :: switches = 0
   end type mbdk_spatial_work_t
 
   type, extends(mbdk_problem_t), public :: mbdk_spatial_model_t
@@ -315,14 +325,24 @@ contains
     end do
     model%gscale = model%gscale * sum(model%mass) * model%length
 
-    model%rank0 = 0
-    model%active = [(k, k = 1, model%m)]
-    if (model%m > 0) then
-      call initial_rank(model, fr, k, model%active, stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
     model%rank0 = model%m
-    if (model%m > 0) model%rank0 = size(model%active)
+    if (model%m > 0) then
+      block
+        integer, allocatable :: rows(:)
+        real(dp), allocatable :: phi(:), c(:, :), gam(:)
+        allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m))
+        call constraints(model, fr, phi, c, gam)
+        model%rank0 = 0                     ! any rank is accepted at the start
+        call select_rows(model, c, rows, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call move_alloc(rows, model%active)
+      end block
+      model%rank0 = size(model%active)
+    else
+      allocate (model%active(0))
+    end if
+    work%active = model%active
+    work%switches = 0
     model%nq = 0
     model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
@@ -574,11 +594,11 @@ contains
     end do
   end subroutine apply_minv
 
-  !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T, by Cholesky; a pivot at or below
-  !> REDUNDANT_RTOL of its row's diagonal entry is a dependent row: MBDK_ERR_SINGULAR_MATRIX
+  !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T, by Cholesky; a pivot at roundoff of
+  !> its row's diagonal entry (SOLVE_RTOL) is a singular solve: MBDK_ERR_SINGULAR_MATRIX
   !> (a singular pose). Redundant joints (rank0 < m; Bricard's linkage, a planar loop of
-  !> revolute joints built in 3D): only the rows found independent at the initial state (active)
-  !> are solved, and the others get no multiplier: a rigid mechanism's reactions on redundant
+  !> revolute joints built in 3D): only the rows chosen at the initial state (select_rows: those
+  !> with the greatest margin) are solved, and the others get no multiplier: a rigid mechanism's reactions on redundant
   !> joints are not determined, and these are one valid set. A fixed set of rows, not one chosen
   !> afresh at every evaluation, keeps F(y) smooth: the stages of a Runge-Kutta step lie off the
   !> constraint manifold by O(h^2), where the dependent rows no longer agree with the others,
@@ -586,9 +606,9 @@ contains
   !> put that disagreement into the accelerations and cut rk4 to second order. On the manifold
   !> the active rows imply the others; the watch checks every row, so a run that leaves them
   !> stops with MBDK_ERR_CONSTRAINT_DRIFT, and a position projection iterates until every row
-  !> holds. Where the rows chosen at the start near a rank loss of their own while all the rows
-  !> keep rank0 (Bricard's linkage turning), the rows independent at the state are taken for
-  !> that evaluation instead; F is then smooth again away from the switch.
+  !> holds. Where the set kept nears a rank loss of its own (near_test) while all the rows keep
+  !> rank0, the set select_rows chooses at that state takes over and is kept (work%active; the
+  !> switches are counted): F is smooth again away from the switch.
   subroutine schur_solve(model, c, rhs, lam, mc, stat, near)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), rhs(:)
@@ -602,19 +622,22 @@ contains
       call apply_minv(model, c(k, :), mc(:, k))
     end do
     if (model%rank0 == m) then
-      call solve_rows(model, c, rhs, mc, model%active, lam, stat, near)
+      call solve_rows(model, c, rhs, mc, [(k, k = 1, m)], lam, stat, near)
       return
     end if
     ! redundant joints: the rows chosen at the start while they stay well clear of a rank loss
     ! (the near window, whatever the formulation: a subset near its own degeneration amplifies
     ! the disagreement of the rows it leaves out) ...
-    call solve_rows(model, c, rhs, mc, model%active, lam, stat, MBDK_SPATIAL_NEAR_PIVOT)
+    call solve_rows(model, c, rhs, mc, model%work%active, lam, stat, MBDK_SPATIAL_NEAR_PIVOT)
     if (stat == MBDK_SUCCESS) return
-    ! ... and where they degenerate while the rows as a whole keep their rank (another subset
-    ! spans them), that subset, for this evaluation
-    call independent_rows(model, c, mc, rows, stat)
+    ! ... and where they near one while the rows as a whole keep their rank (another subset
+    ! spans them), the subset with the greatest margin here, kept from now on (a set chosen
+    ! afresh at every evaluation flips between near-equal choices, and F with it)
+    call select_rows(model, c, rows, stat)
     if (stat /= MBDK_SUCCESS) return
-    call solve_rows(model, c, rhs, mc, rows, lam, stat, near)
+    call move_alloc(rows, model%work%active)
+    model%work%switches = model%work%switches + 1
+    call solve_rows(model, c, rhs, mc, model%work%active, lam, stat, near)
   end subroutine schur_solve
 
   !> schur_solve on the given rows of C (the others get no multiplier).
@@ -628,21 +651,18 @@ contains
     real(dp) :: s(size(rows), size(rows)), x(size(rows)), diag(size(rows))
     integer :: k, info, r
     r = size(rows)
-    if (r == size(c, 1)) then      ! every row (independent joints): no copies by index
-      s = matmul(c, mc)
-    else
-      s = matmul(c(rows, :), mc(:, rows))
-    end if
+    call gram(model, c, mc, rows, s)
     x = rhs(rows)
     lam = 0.0_dp
     diag = [(s(k, k), k = 1, r)]
     call mbdk_chol_factor(s, info)
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (info /= MBDK_SUCCESS) return
-    ! each pivot against its own row's diagonal: S mixes 1/m and 1/J, so a light body's rows
-    ! are small without being dependent
+    ! each pivot against its own row's diagonal, at roundoff: which rows are dependent is the
+    ! geometry's to say (select_rows, near_test); S mixes 1/m and 1/J, and a near point mass
+    ! (J = 1e-10 on a lever of 1 m) leaves relative pivots of 1e-10 at a regular pose
     do k = 1, r
-      if (.not. (s(k, k)**2 > REDUNDANT_RTOL * diag(k))) return
+      if (.not. (s(k, k)**2 > SOLVE_RTOL * diag(k))) return
     end do
     if (present(near)) then
       if (r == size(c, 1)) then
@@ -660,54 +680,153 @@ contains
     lam(rows) = x
   end subroutine solve_rows
 
-  !> The rows of C that LAPACK's rank-revealing Cholesky of C M^-1 C^T (scaled to a unit
-  !> diagonal, so that the test is on each row's own size; pivots at or below REDUNDANT_RTOL are
-  !> zero) finds independent, in their order in C. MBDK_ERR_SINGULAR_MATRIX when there are not
-  !> rank0 of them (or a row vanishes).
-  subroutine independent_rows(model, c, mc, rows, stat)
+  !> The lower triangle of S = C(rows, :) X C(rows, :)^T from xc = X C^T (X block diagonal by
+  !> body), body block by body block: a row of C touches at most two bodies, so only rows that
+  !> share a body meet (a quarter of the dense product's work on the flyball governor, less on
+  !> longer chains). The upper triangle is left zero (the Cholesky factorisations read the lower).
+  pure subroutine gram(model, c, xc, rows, s)
     type(mbdk_spatial_model_t), intent(in) :: model
-    real(dp), intent(in) :: c(:, :), mc(:, :)
+    real(dp), intent(in) :: c(:, :), xc(:, :)
+    integer, intent(in) :: rows(:)
+    real(dp), intent(out) :: s(:, :)
+    integer :: b, o, i, j, ii, jj, n, list(size(rows))
+    s = 0.0_dp
+    do b = 1, model%nb
+      o = 6 * (b - 1)
+      n = 0
+      do i = 1, size(rows)
+        if (any(c(rows(i), o + 1:o + 6) /= 0.0_dp)) then
+          n = n + 1
+          list(n) = i
+        end if
+      end do
+      do jj = 1, n
+        j = list(jj)
+        do ii = jj, n
+          i = list(ii)
+          s(i, j) = s(i, j) + dot_product(c(rows(i), o + 1:o + 6), xc(o + 1:o + 6, rows(j)))
+        end do
+      end do
+    end do
+  end subroutine gram
+
+  !> The independent rows of C with the greatest margin (in their order in C), judged on the
+  !> geometry G = C W C^T (W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per body: rotations as the
+  !> displacements they give at the length scale, so that neither the unit of length nor a
+  !> light or slender body sways the test) scaled to a unit diagonal. LAPACK's rank-revealing
+  !> Cholesky (dpstrf; pivots at or below REDUNDANT_RTOL are zero) gives the rank r and the
+  !> dependencies of the m - r remaining rows on the others: the left null vectors Y of the
+  !> scaled C. The rows left out are then chosen by pivoting on the rows of Y (the subset
+  !> selection of Golub, Klema and Stewart): those with the largest share in the dependencies,
+  !> whose removal leaves the others furthest from dependent. dpstrf's own choice breaks the ties
+  !> of a unit diagonal by order and can leave a set that degenerates along the motion (Bricard's
+  !> linkage: its last row, which falls to a pivot of 8e-9 every 2.5 s, where the chosen set
+  !> keeps 0.09). With rank0 set: a rank above it is MBDK_ERR_CONSTRAINT_DRIFT (the state left the
+  !> joints far enough that their dependent rows disagree), one below MBDK_ERR_SINGULAR_MATRIX (a
+  !> singular pose); a vanishing row is MBDK_ERR_SINGULAR_MATRIX too.
+  subroutine select_rows(model, c, rows, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :)
     integer, allocatable, intent(out) :: rows(:)
     integer, intent(out) :: stat
-    real(dp) :: s(size(c, 1), size(c, 1)), d(size(c, 1))
-    integer :: k, m, rank, piv(size(c, 1))
+    real(dp) :: g(size(c, 1), size(c, 1)), wc(size(c, 2), size(c, 1)), d(size(c, 1)), &
+      y(size(c, 1), size(c, 1)), l11(size(c, 1), size(c, 1)), big
+    integer :: k, j, l, m, r, nd, b, piv(size(c, 1)), best, col
     logical :: keep(size(c, 1))
     m = size(c, 1)
-    s = matmul(c, mc)
+    wc = transpose(c)
+    do b = 1, model%nb
+      wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / model%length**2
+    end do
+    call gram(model, c, wc, [(k, k = 1, m)], g)
     stat = MBDK_ERR_SINGULAR_MATRIX
     do k = 1, m
-      if (.not. (s(k, k) > 0.0_dp)) return
+      if (.not. (g(k, k) > 0.0_dp)) return
     end do
-    d = 1.0_dp / sqrt([(s(k, k), k = 1, m)])
+    d = 1.0_dp / sqrt([(g(k, k), k = 1, m)])
     do k = 1, m
-      s(:, k) = s(:, k) * d * d(k)
+      g(:, k) = g(:, k) * d * d(k)
     end do
-    call mbdk_chol_pivoted(s, piv, rank, REDUNDANT_RTOL, stat)
+    call mbdk_chol_pivoted(g, piv, r, REDUNDANT_RTOL, stat)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_SINGULAR_MATRIX
-    if (rank < 1 .or. (model%rank0 > 0 .and. rank /= model%rank0)) return
-    keep = .false.
-    keep(piv(1:rank)) = .true.
+    if (r < 1) return
+    if (model%rank0 > 0 .and. r /= model%rank0) then
+      if (r > model%rank0) stat = MBDK_ERR_CONSTRAINT_DRIFT
+      return
+    end if
+    keep = .true.
+    nd = m - r
+    if (nd > 0) then
+      ! Y(:, k), k = 1..nd: a dependency of permuted row r + k on the first r, [-a; e_k] with
+      ! L11^T a = L21(k, :)^T, mapped back to the rows' own order
+      l11(1:r, 1:r) = g(1:r, 1:r)
+      y = 0.0_dp
+      do k = 1, nd
+        y(piv(1:r), k) = -lower_transpose_solve(l11(1:r, 1:r), g(r + k, 1:r))
+        y(piv(r + k), k) = 1.0_dp
+      end do
+      ! Gaussian elimination with complete pivoting on Y's rows: leave out the row holding the
+      ! largest remaining entry, take it out of the other columns, repeat; the rows left out
+      ! then make Y(out, :) nonsingular, which is what leaves the kept rows independent
+      do k = 1, nd
+        big = -1.0_dp
+        best = 0
+        col = k
+        do l = k, nd
+          do j = 1, m
+            if (keep(j) .and. abs(y(j, l)) > big) then
+              big = abs(y(j, l))
+              best = j
+              col = l
+            end if
+          end do
+        end do
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        if (.not. (big > 0.0_dp)) return
+        keep(best) = .false.
+        if (col /= k) then
+          d = y(:, k)
+          y(:, k) = y(:, col)
+          y(:, col) = d
+        end if
+        do l = k + 1, nd
+          y(:, l) = y(:, l) - (y(best, l) / y(best, k)) * y(:, k)
+        end do
+      end do
+    end if
     rows = pack([(k, k = 1, m)], keep)
     stat = MBDK_SUCCESS
-  end subroutine independent_rows
+  contains
+    !> x solving L^T x = bvec for the lower triangular L.
+    pure function lower_transpose_solve(l, bvec) result(x)
+      real(dp), intent(in) :: l(:, :), bvec(:)
+      real(dp) :: x(size(bvec))
+      integer :: i
+      do i = size(bvec), 1, -1
+        x(i) = (bvec(i) - dot_product(l(i + 1:, i), x(i + 1:))) / l(i, i)
+      end do
+    end function lower_transpose_solve
+  end subroutine select_rows
 
   !> MBDK_ERR_SINGULAR_MATRIX when the active rows of C are near a rank loss: a relative pivot
-  !> (to its row's diagonal) of C G C^T below near, G = diag(1, 1, 1, L^2, L^2, L^2) per body (L
-  !> the length scale). The geometry alone, not the masses: with M^-1 in its place a slender
-  !> body's small axial inertia (a bar's) makes rows look near dependent at a regular pose.
+  !> (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per
+  !> body (L the length scale: rotations as the displacements they give there, so that the test
+  !> does not depend on the unit of length). The geometry alone, not the masses: with M^-1 in
+  !> its place a slender body's small axial inertia (a bar's) makes rows look near dependent at a
+  !> regular pose.
   subroutine near_test(model, c, near, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), near     !< the rows to test
     integer, intent(out) :: stat
-    real(dp) :: g(size(c, 1), size(c, 1)), cg(size(c, 1), size(c, 2)), diag(size(c, 1)), l2
+    real(dp) :: g(size(c, 1), size(c, 1)), wc(size(c, 2), size(c, 1)), diag(size(c, 1)), l2
     integer :: k, b, info
     l2 = model%length**2
-    cg = c
+    wc = transpose(c)
     do b = 1, model%nb
-      cg(:, 6 * b - 2:6 * b) = cg(:, 6 * b - 2:6 * b) * l2
+      wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / l2
     end do
-    g = matmul(cg, transpose(c))
+    call gram(model, c, wc, [(k, k = 1, size(c, 1))], g)
     diag = [(g(k, k), k = 1, size(c, 1))]
     call mbdk_chol_factor(g, info)
     stat = MBDK_ERR_SINGULAR_MATRIX
@@ -718,25 +837,7 @@ contains
     stat = MBDK_SUCCESS
   end subroutine near_test
 
-  !> The rank of C M^-1 C^T at the initial frames and the rows found independent there
-  !> (independent_rows).
-  subroutine initial_rank(model, fr, rank, active, stat)
-    type(mbdk_spatial_model_t), intent(in) :: model
-    type(frames_t), intent(in) :: fr
-    integer, intent(out) :: rank, stat
-    integer, allocatable, intent(out) :: active(:)
-    real(dp) :: phi(model%m), c(model%m, 6 * model%nb), gam(model%m), &
-      mc(6 * model%nb, model%m)
-    integer :: k
-    call constraints(model, fr, phi, c, gam)
-    do k = 1, model%m
-      call apply_minv(model, c(k, :), mc(:, k))
-    end do
-    ! model%rank0 is 0 here: any rank is accepted
-    call independent_rows(model, c, mc, active, stat)
-    rank = 0
-    if (allocated(active)) rank = size(active)
-  end subroutine initial_rank
+
 
   ! ---- forces --------------------------------------------------------------------------------
 
