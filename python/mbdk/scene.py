@@ -399,6 +399,14 @@ def _force(r: _Reader) -> Force:
     return f
 
 
+def section_items(data: dict, key: str, source: str) -> list:
+    """A scene file's array of tables [[key]] (empty when absent), or a SceneError."""
+    v = data.get(key, [])
+    if not isinstance(v, list):
+        raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
+    return v
+
+
 def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     """Builds and checks a Scene from the parsed TOML structure."""
     if not isinstance(data, dict):
@@ -419,10 +427,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     hr.done()
 
     def items(key):
-        v = data.get(key, [])
-        if not isinstance(v, list):
-            raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
-        return v
+        return section_items(data, key, source)
 
     bodies = [_body(_Reader(source, "body", i, t)) for i, t in enumerate(items("body"))]
     joints = [_joint(_Reader(source, "joint", i, t)) for i, t in enumerate(items("joint"))]

@@ -63,7 +63,7 @@ from .methods import method as _method
 from .options import empty
 from .result import Result, Stats
 from .rotations import from_angles, from_quaternion, to_quaternion
-from .scene import GROUND, SceneError, _Reader
+from .scene import GROUND, SceneError, _Reader, section_items
 
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
@@ -427,10 +427,7 @@ def spatial_scene_from_dict(data: dict, source: str = "<dict>") -> SpatialScene:
     hr.done()
 
     def items(key):
-        v = data.get(key, [])
-        if not isinstance(v, list):
-            raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
-        return v
+        return section_items(data, key, source)
 
     raw_bodies = items("body")
     # a joint between a planar and a spatial body is named before the planar body is

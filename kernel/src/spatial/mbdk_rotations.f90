@@ -35,7 +35,7 @@ module mbdk_rotations
   private
   public :: mbdk_skew, mbdk_unskew, mbdk_axis_rotation, mbdk_angles_matrix, &
     mbdk_angles_rate_maps, mbdk_angles_rates, mbdk_quat_mul, mbdk_quat_conj, &
-    mbdk_quat_matrix, mbdk_quat_from_matrix, mbdk_quat_rotate, mbdk_quat_rates, &
+    mbdk_quat_matrix, mbdk_quat_matrix_of, mbdk_quat_from_matrix, mbdk_quat_rotate, mbdk_quat_rates, &
     mbdk_quat_omega, mbdk_rodrigues, mbdk_axis_angle_from_matrix, mbdk_is_rotation
 
   !> the angle sequences of the scene file: 3-1-3 Euler, 1-2-3 Cardan
@@ -179,6 +179,16 @@ contains
     r = 0.0_dp
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. (abs(norm2(q) - 1.0_dp) <= MBDK_UNIT_TOL)) return
+    r = mbdk_quat_matrix_of(q)
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_quat_matrix
+
+  !> The rotation matrix of the quaternion q, taken as unit without a check (the callers have
+  !> checked or normalised it): (q0^2 - |v|^2) I + 2 v v^T + 2 q0 skew(v).
+  pure function mbdk_quat_matrix_of(q) result(r)
+    real(dp), intent(in) :: q(4)
+    real(dp) :: r(3, 3)
+    integer :: i, j
     do j = 1, 3
       do i = 1, 3
         r(i, j) = 2.0_dp * q(i + 1) * q(j + 1)
@@ -186,8 +196,7 @@ contains
       r(j, j) = r(j, j) + q(1)**2 - sum(q(2:4)**2)
     end do
     r = r + 2.0_dp * q(1) * mbdk_skew(q(2:4))
-    stat = MBDK_SUCCESS
-  end subroutine mbdk_quat_matrix
+  end function mbdk_quat_matrix_of
 
   !> R x by the sandwich product (0, R x) = q (0, x) q* of a unit quaternion.
   pure subroutine mbdk_quat_rotate(q, x, y, stat)

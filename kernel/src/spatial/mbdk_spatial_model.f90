@@ -63,7 +63,7 @@ module mbdk_spatial_model
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
-    mbdk_quat_rates, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
+    mbdk_quat_rates, mbdk_quat_matrix_of, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
   implicit none
@@ -413,19 +413,12 @@ contains
     real(dp), intent(out) :: rot(3, 3)
     integer, intent(out) :: stat
     real(dp) :: u(4)
-    integer :: i, j
     if (model%opt%rotation == MBDK_ROT_QUATERNION) then
       stat = MBDK_ERR_NONFINITE
       rot = 0.0_dp
       if (.not. (norm2(p(1:4)) > 0.0_dp)) return
       u = p(1:4) / norm2(p(1:4))
-      do j = 1, 3
-        do i = 1, 3
-          rot(i, j) = 2.0_dp * u(i + 1) * u(j + 1)
-        end do
-        rot(j, j) = rot(j, j) + u(1)**2 - sum(u(2:4)**2)
-      end do
-      rot = rot + 2.0_dp * u(1) * mbdk_skew(u(2:4))
+      rot = mbdk_quat_matrix_of(u)
       stat = MBDK_SUCCESS
     else
       call mbdk_angles_matrix(model%seq, p(1:3), rot, stat)
