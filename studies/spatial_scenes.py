@@ -24,7 +24,8 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    that keeps it at roundoff.
 3. Two IFToMM benchmark mechanisms (the scenes bricard and flyball_governor; their files give
    the geometry and where it comes from; the benchmark's own reference values were not
-   available to us, so the references here are our own tightest runs, and the tables say so).
+   available to us, so the references here are our own tightest runs, which agree with an
+   independent Exudyn run to a few 1e-9: tests/test_spatial.py and benchmarks/exudyn_*.py).
    Bricard's linkage (A04) has 30 joint rows of rank 29: the kernel solves the 29 found
    independent at the start (another set where those degenerate) and the watch checks all 30.
    Released from rest it swings (P3 from x = 1 to about -0.78 and back within 5 s); the runs
