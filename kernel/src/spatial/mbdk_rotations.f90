@@ -33,7 +33,7 @@ module mbdk_rotations
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   implicit none
   private
-  public :: mbdk_skew, mbdk_unskew, mbdk_axis_rotation, mbdk_angles_matrix, &
+  public :: mbdk_cross, mbdk_skew, mbdk_unskew, mbdk_axis_rotation, mbdk_angles_matrix, &
     mbdk_angles_rate_maps, mbdk_angles_rates, mbdk_quat_mul, mbdk_quat_conj, &
     mbdk_quat_matrix, mbdk_quat_matrix_of, mbdk_quat_from_matrix, mbdk_quat_rotate, mbdk_quat_rates, &
     mbdk_quat_omega, mbdk_rodrigues, mbdk_axis_angle_from_matrix, mbdk_is_rotation
@@ -142,25 +142,26 @@ contains
     g = gs
     if (body) g = gb
     ! the inverse of a 3 x 3 matrix with unit columns by its adjugate (det G_b = det G_s)
-    adj(1, :) = cross(g(:, 2), g(:, 3))
-    adj(2, :) = cross(g(:, 3), g(:, 1))
-    adj(3, :) = cross(g(:, 1), g(:, 2))
-    ad = matmul(adj, w) / dot_product(g(:, 1), cross(g(:, 2), g(:, 3)))
+    adj(1, :) = mbdk_cross(g(:, 2), g(:, 3))
+    adj(2, :) = mbdk_cross(g(:, 3), g(:, 1))
+    adj(3, :) = mbdk_cross(g(:, 1), g(:, 2))
+    ad = matmul(adj, w) / dot_product(g(:, 1), mbdk_cross(g(:, 2), g(:, 3)))
     stat = MBDK_SUCCESS
   end subroutine mbdk_angles_rates
 
-  pure function cross(x, y) result(z)
+  !> The cross product x × y.
+  pure function mbdk_cross(x, y) result(z)
     real(dp), intent(in) :: x(3), y(3)
     real(dp) :: z(3)
     z = [x(2) * y(3) - x(3) * y(2), x(3) * y(1) - x(1) * y(3), x(1) * y(2) - x(2) * y(1)]
-  end function cross
+  end function mbdk_cross
 
   !> The quaternion product p q (scalar first).
   pure function mbdk_quat_mul(p, q) result(r)
     real(dp), intent(in) :: p(4), q(4)
     real(dp) :: r(4)
     r(1) = p(1) * q(1) - dot_product(p(2:4), q(2:4))
-    r(2:4) = p(1) * q(2:4) + q(1) * p(2:4) + cross(p(2:4), q(2:4))
+    r(2:4) = p(1) * q(2:4) + q(1) * p(2:4) + mbdk_cross(p(2:4), q(2:4))
   end function mbdk_quat_mul
 
   pure function mbdk_quat_conj(q) result(r)
@@ -222,7 +223,7 @@ contains
       e(i, i) = e(i, i) - 1.0_dp
     end do
     mbdk_is_rotation = all(abs(e) <= MBDK_UNIT_TOL) .and. &
-      dot_product(r(:, 1), cross(r(:, 2), r(:, 3))) > 0.0_dp
+      dot_product(r(:, 1), mbdk_cross(r(:, 2), r(:, 3))) > 0.0_dp
   end function mbdk_is_rotation
 
   !> The unit quaternion of a rotation matrix with s >= 0 (Shepperd's method: from the largest

@@ -63,7 +63,7 @@ module mbdk_spatial_model
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
-    mbdk_quat_rates, mbdk_quat_matrix_of, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
+    mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
   implicit none
@@ -382,16 +382,11 @@ contains
       return
     end if
     k = minloc(abs(a), 1)               ! the coordinate axis least aligned with a
-    b1 = cross(a, unit(k))
+    b1 = mbdk_cross(a, unit(k))
     b1 = b1 / norm2(b1)
-    b2 = cross(a, b1)
+    b2 = mbdk_cross(a, b1)
   end subroutine normals
 
-  pure function cross(x, y) result(z)
-    real(dp), intent(in) :: x(3), y(3)
-    real(dp) :: z(3)
-    z = [x(2) * y(3) - x(3) * y(2), x(3) * y(1) - x(1) * y(3), x(1) * y(2) - x(2) * y(1)]
-  end function cross
 
   !> index in y of body b's first coordinate; of its first velocity
   pure integer function qi(model, b)
@@ -530,7 +525,7 @@ contains
       o = (b - 1) * 6
       cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
       ! -x^T R skew(s) W = W . (s x R^T x)
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(s, matmul(transpose(fr%rot(:, :, b)), x))
+      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
     end subroutine point_row
 
     ! the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
@@ -541,28 +536,28 @@ contains
       integer :: o
       if (b == 0) return
       o = (b - 1) * 6
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(u, matmul(transpose(fr%rot(:, :, b)), x))
+      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
     end subroutine vec_cols
 
     pure function pvel(b, s) result(x)
       integer, intent(in) :: b
       real(dp), intent(in) :: s(3)
       real(dp) :: x(3)
-      x = fr%v(:, b) + matmul(fr%rot(:, :, b), cross(fr%om(:, b), s))
+      x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
     end function pvel
 
     pure function pquad(b, s) result(x)
       integer, intent(in) :: b
       real(dp), intent(in) :: s(3)
       real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), cross(fr%om(:, b), cross(fr%om(:, b), s)))
+      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
     end function pquad
 
     pure function vvel(b, u) result(x)
       integer, intent(in) :: b
       real(dp), intent(in) :: u(3)
       real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), cross(fr%om(:, b), u))
+      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
     end function vvel
 
     pure function vquad(b, u) result(x)
@@ -712,9 +707,8 @@ contains
   !> scaled C. The rows left out are then chosen by pivoting on the rows of Y (the subset
   !> selection of Golub, Klema and Stewart): those with the largest share in the dependencies,
   !> whose removal leaves the others furthest from dependent. dpstrf's own choice breaks the ties
-  !> of a unit diagonal by order and can leave a set that degenerates along the motion (Bricard's
-  !> linkage: its last row, which falls to a pivot of 8e-9 every 2.5 s, where the chosen set
-  !> keeps 0.09). With rank0 set: a rank above it is MBDK_ERR_CONSTRAINT_DRIFT (the state left the
+  !> of a unit diagonal by order and can leave a set that nears a rank loss of its own along the
+  !> motion (on Bricard's linkage it did, once per swing). With rank0 set: a rank above it is MBDK_ERR_CONSTRAINT_DRIFT (the state left the
   !> joints far enough that their dependent rows disagree), one below MBDK_ERR_SINGULAR_MATRIX (a
   !> singular pose); a vanishing row is MBDK_ERR_SINGULAR_MATRIX too.
   subroutine select_rows(model, c, rows, stat)
@@ -858,9 +852,9 @@ contains
         case (MBDK_SPATIAL_POINT_FORCE)
           b = model%fbody(1, k)
           fw(:, b) = fw(:, b) + r(4:6)
-          nb_(:, b) = nb_(:, b) + cross(r(1:3), matmul(transpose(fr%rot(:, :, b)), r(4:6)))
+          nb_(:, b) = nb_(:, b) + mbdk_cross(r(1:3), matmul(transpose(fr%rot(:, :, b)), r(4:6)))
           power = power + dot_product(r(4:6), fr%v(:, b) + &
-                                      matmul(fr%rot(:, :, b), cross(fr%om(:, b), r(1:3))))
+                                      matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), r(1:3))))
         case (MBDK_SPATIAL_TORQUE)
           b = model%fbody(1, k)
           nb_(:, b) = nb_(:, b) + matmul(transpose(fr%rot(:, :, b)), r(1:3))
@@ -870,8 +864,8 @@ contains
           j = model%fbody(2, k)
           pi = fr%r(:, i) + matmul(fr%rot(:, :, i), r(1:3))
           pj = fr%r(:, j) + matmul(fr%rot(:, :, j), r(4:6))
-          vi = fr%v(:, i) + matmul(fr%rot(:, :, i), cross(fr%om(:, i), r(1:3)))
-          vj = fr%v(:, j) + matmul(fr%rot(:, :, j), cross(fr%om(:, j), r(4:6)))
+          vi = fr%v(:, i) + matmul(fr%rot(:, :, i), mbdk_cross(fr%om(:, i), r(1:3)))
+          vj = fr%v(:, j) + matmul(fr%rot(:, :, j), mbdk_cross(fr%om(:, j), r(4:6)))
           d = pi - pj
           len = norm2(d)
           vs = vs + 0.5_dp * r(7) * (len - r(9))**2
@@ -882,10 +876,10 @@ contains
           power = power - r(8) * ldot**2
           fv = -f * e                            ! on body i
           fw(:, i) = fw(:, i) + fv
-          nb_(:, i) = nb_(:, i) + cross(r(1:3), matmul(transpose(fr%rot(:, :, i)), fv))
+          nb_(:, i) = nb_(:, i) + mbdk_cross(r(1:3), matmul(transpose(fr%rot(:, :, i)), fv))
           if (j > 0) then
             fw(:, j) = fw(:, j) - fv
-            nb_(:, j) = nb_(:, j) - cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
+            nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
           end if
         end select
       end associate
@@ -923,7 +917,7 @@ contains
       o = (b - 1) * 6
       jw = matmul(self%inertia(:, :, b), fr%om(:, b))
       gen(o + 1:o + 3) = fw(:, b)
-      gen(o + 4:o + 6) = nbd(:, b) - cross(fr%om(:, b), jw)
+      gen(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
     end do
     call apply_minv(self, gen, acc)
     if (self%m > 0) then
