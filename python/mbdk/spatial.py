@@ -26,7 +26,9 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
 
     [[joint]]
     type = "spherical"             # spherical | revolute | universal | cylindrical | prismatic
-    body1 = "top"                  #   | fixed
+    body1 = "top"                  #   | fixed | angle_driver (body1 turns relative to body2
+                                   #   about axis by function(t) from its start, f(t0) = 0;
+                                   #   with a revolute joint on that axis)
     body2 = "ground"               # the default
     at = [0.0, 0.0, 0.0]           # the joint's point in space at the start; or point1 (body1
                                    # frame) and point2 (body2 frame; global for the ground)
@@ -69,9 +71,9 @@ ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "projection": 4}
 JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
-               "fixed": 6}
+               "fixed": 6, "angle_driver": 7}
 JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5,
-              "fixed": 6}
+              "fixed": 6, "angle_driver": 1}
 FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, "spring": 4,
                "damper": 4}
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
@@ -102,6 +104,7 @@ class SpatialJoint:
     point2: np.ndarray                  # body2 frame (space for the ground)
     axis1: np.ndarray                   # body1 frame
     axis2: np.ndarray                   # body2 frame
+    function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)   # angle_driver: the angle's time function
 
 
 @dataclass
@@ -340,7 +343,13 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
         p1 = r.vec3("point1", np.zeros(3))
         p2 = r.vec3("point2", np.zeros(3))
     a1 = a2 = np.array([0.0, 0.0, 1.0])
-    if typ in ("revolute", "cylindrical", "prismatic"):
+    fn = (0.0, 0.0, 0.0, 0.0, 0.0)
+    if typ == "angle_driver":
+        fn = r.function("function", None)
+        if fn is None:
+            raise r.err("function", "is missing: an angle driver needs the angle's time "
+                                    "function, a number or {offset, rate, amplitude, omega, phase}")
+    if typ in ("revolute", "cylindrical", "prismatic", "angle_driver"):
         ax = r.unit3("axis", required=True)
         a1, a2 = R1.T @ ax, R2.T @ ax
     elif typ == "universal":
@@ -349,7 +358,7 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
             raise r.err("axis2", f"= {ax2.tolist()} is not normal to axis1 = {ax1.tolist()} "
                                  f"(cosine {ax1 @ ax2:.3g}); a universal joint's two axes are")
         a1, a2 = R1.T @ ax1, R2.T @ ax2
-    j = SpatialJoint(name, typ, b1, b2, p1, p2, a1, a2)
+    j = SpatialJoint(name, typ, b1, b2, p1, p2, a1, a2, fn)
     r.done()
     return j
 
@@ -526,11 +535,11 @@ def _tables(sc: SpatialScene):
     nj, nf = len(sc.joints), len(sc.forces)
     jtype = np.zeros(max(nj, 1), dtype=np.int32)
     jbody = np.zeros((2, max(nj, 1)), dtype=np.int32, order="F")
-    jreal = np.zeros((12, max(nj, 1)), order="F")
+    jreal = np.zeros((17, max(nj, 1)), order="F")
     for k, j in enumerate(sc.joints):
         jtype[k] = JOINT_TYPES[j.type]
         jbody[:, k] = sc.body_index(j.body1), sc.body_index(j.body2)
-        jreal[:, k] = np.concatenate([j.point1, j.point2, j.axis1, j.axis2])
+        jreal[:, k] = np.concatenate([j.point1, j.point2, j.axis1, j.axis2, j.function])
     ftype = np.zeros(max(nf, 1), dtype=np.int32)
     fbody = np.zeros((2, max(nf, 1)), dtype=np.int32, order="F")
     freal = np.zeros((9, max(nf, 1)), order="F")
@@ -608,6 +617,7 @@ def _validate(sc: SpatialScene) -> None:
                                  f"{getattr(j, fld)!r} is not a body of this scene")
         if j.body1 == j.body2:
             raise SceneError(f"{sc.source}: {label}: field 'body2' = {j.body2!r} is body1 too")
+        vec(label, "function", j.function, (5,))
         for fld in ("point1", "point2", "axis1", "axis2"):
             a = vec(label, fld, getattr(j, fld), (3,))
             if fld.startswith("axis") and not np.linalg.norm(a) > 0:
@@ -723,7 +733,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every], dtype=float)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
-    _check_initial(sc, y0, assemble_initial)
+    _check_initial(sc, y0, assemble_initial, float(t0))
     stats, flag = empty("mbdk_stats"), _compiled.new_flag()
     m1 = max(sc.rows, 1)
     nsamp = plan_["nsamp"]
@@ -796,9 +806,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     return result
 
 
-def evaluate_spatial(sc: SpatialScene, y=None) -> dict:
-    """At the state y (default: the scene's initial state): the energy parts and residuals of
-    the outputs, Phi, C (rows x 6 bodies), gamma, the rank of the joints' rows at the initial
+def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
+    """At the state y (default: the scene's initial state) and time t: the energy parts and
+    residuals of the outputs, Phi, C (rows x 6 bodies), gamma, Phi_t (a driver's rows), the rank of the joints' rows at the initial
     state (below the row count: redundant joints), the reduced formulation's multipliers and
     the status of that solve (SINGULAR at a singular pose)."""
     _validate(sc)
@@ -814,11 +824,12 @@ def evaluate_spatial(sc: SpatialScene, y=None) -> dict:
                                     f"scene's layout: q then (v, Omega) per body)")
     y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, lam, rank, status = _kernel.spatial_residuals(
+    out, phi, c, gam, phit, lam, rank, status = _kernel.spatial_residuals(
         mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-        float(ROTATIONS[sc.rotation]), y0, y, max(m, 1))
+        float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
-            "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "multipliers": lam[:m],
+            "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "phi_t": phit[:m],
+            "multipliers": lam[:m],
             "rank": int(rank), "status": Status(int(status))}
 
 
@@ -835,12 +846,12 @@ def _lock_distance(sc: SpatialScene, q) -> float | None:
                                else np.cos(a[:, 1]))))
 
 
-def _check_initial(sc, y0, assemble):
+def _check_initial(sc, y0, assemble, t0=0.0):
     """Refuses, naming the joint, an initial state off its joints by more than the assembly
     should move (ASSEMBLY_TOL of the scene's size); without assembly, by more than roundoff."""
     if not sc.joints:
         return
-    ev = evaluate_spatial(sc, y0)
+    ev = evaluate_spatial(sc, y0, t0)
     if ev["rank"] == 0 and sc.rows:
         raise exception_for(Status.ERR_SINGULAR_MATRIX)(
             f"{sc.source}: the joints' rows are degenerate at the initial state (a row vanishes: "
@@ -854,7 +865,7 @@ def _check_initial(sc, y0, assemble):
     size = max(1.0, max(float(np.max(np.abs(j.point1))) for j in sc.joints))
     tol = ASSEMBLY_TOL * size if assemble else 1e-10 * size
     w = y0[len(y0) - 6 * len(sc.bodies):]
-    cw = ev["C"] @ w
+    cw = ev["C"] @ w + ev["phi_t"]
     # the velocity rows: against the size of the terms that must cancel (|C| |w|), with a floor
     # of the speeds the scene's size gives to 1 rad/s
     vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(np.abs(ev["C"]) @ np.abs(w),

@@ -863,7 +863,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(12, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
   integer, intent(in), target :: interrupt(1)
@@ -921,13 +921,13 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   y = y0
   if (assemble /= 0) then
-    call mbdk_spatial_assemble(model, y, moved, status)
+    call mbdk_spatial_assemble(model, t0, y, moved, status)
     if (status /= MBDK_SUCCESS) return
   end if
   call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
   s = status
   do k = 1, nwritten
-    call mbdk_spatial_outputs(model, y_out(:, k), out(:, k), status)
+    call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status)
     if (status /= MBDK_SUCCESS) then
       out(:, k) = nan
       cycle
@@ -947,28 +947,28 @@ contains
     double precision, intent(in) :: ys(:)
     integer :: stat_l
     if (model%m == 0) return
-    call mbdk_spatial_multipliers(model, ys, lam_out(1:model%m, k), stat_l)
+    call mbdk_spatial_multipliers(model, t_out(k), ys, lam_out(1:model%m, k), stat_l)
     if (stat_l /= MBDK_SUCCESS) lam_out(:, k) = nan
   end subroutine spatial_lambda
 
 end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
-                             fbody, freal, rotation, n, y0, y, m1, out, phi, c, gam, lam, &
-                             rank, status)
-  ! At the state y of a spatial scene whose model is built at its initial state y0 (the
+                             fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &
+                             phit, lam, rank, status)
+  ! At the state (t, y) of a spatial scene whose model is built at its initial state y0 (the
   ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
   ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma, the rank of the joints' rows at
   ! y0 (below m: redundant joints) and the reduced formulation's multipliers (rows 1..m; lam is 0 where the solve failed, and status
   ! then says why).
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(12, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
-  double precision, intent(in) :: rotation, y0(n), y(n)
-  double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), lam(m1)
+  double precision, intent(in) :: rotation, y0(n), t, y(n)
+  double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)
   integer, intent(out) :: rank, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -982,6 +982,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   c = 0.0d0
   gam = 0.0d0
   lam = 0.0d0
+  phit = 0.0d0
   rank = 0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
@@ -992,11 +993,11 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return
   rank = model%rank0
-  call mbdk_spatial_outputs(model, y, out, status)
-  if (status /= MBDK_SUCCESS) return
-  call mbdk_spatial_constraints(model, y, phi(1:model%m), c(1:model%m, :), gam(1:model%m), &
-                                status)
+  call mbdk_spatial_outputs(model, t, y, out, status)
+  if (status /= MBDK_SUCCESS .and. status /= MBDK_ERR_SINGULAR_MATRIX) return
+  call mbdk_spatial_constraints(model, t, y, phi(1:model%m), c(1:model%m, :), gam(1:model%m), &
+                                phit(1:model%m), status)
   if (status /= MBDK_SUCCESS .or. model%m == 0) return
-  call mbdk_spatial_multipliers(model, y, lam(1:model%m), status)
+  call mbdk_spatial_multipliers(model, t, y, lam(1:model%m), status)
   if (status /= MBDK_SUCCESS) lam = 0.0d0
 end subroutine spatial_residuals

@@ -44,8 +44,14 @@
 !>   cylindrical 4 rows  a_i parallel to a_j, and the joint points' offset normal to a_j's normals
 !>   prismatic   5 rows  cylindrical, and the rotation about the axis kept at its initial value
 !>   fixed       6 rows  spherical, and the relative orientation kept at its initial value
+!>   angle_driver 1 row  the rotation of body i relative to body j about the axis (a_i in i,
+!>                       a_j in j; with a revolute joint on that axis) from its initial value
+!>                       follows f(t): Phi = sin(theta - f(t)), theta measured with two vectors
+!>                       normal to the axis, equal at the start (so f(t0) = 0 is consistent)
 !> A joint's reals (MBDK_SPATIAL_JOINT_REALS): s_i (3), s_j (3), a_i (3, body i frame), a_j (3,
-!> body j frame); axes are normalised here, one of zero length is MBDK_ERR_INVALID_INPUT.
+!> body j frame), the time function (5; mbdk_time_function, drivers only); axes are normalised
+!> here, one of zero length is MBDK_ERR_INVALID_INPUT. A driver makes the rows rheonomic: Phi' =
+!> C w + Phi_t, and the energy balance counts the drivers' power lambda . Phi_t.
 !> Forces (type, body i, body j; reals MBDK_SPATIAL_FORCE_REALS):
 !>   gravity        g (3)                            on every body
 !>   point_force    s (3, body frame), f (3, space)  a constant force at a body point
@@ -64,6 +70,7 @@ module mbdk_spatial_model
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
+  use mbdk_time_function, only: mbdk_time_fn
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
   implicit none
@@ -73,12 +80,12 @@ module mbdk_spatial_model
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
-    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_JOINT_TYPES = 6
+    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_ANGLE_DRIVER = 7, MBDK_SPATIAL_JOINT_TYPES = 7
   integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
-    [3, 5, 4, 4, 5, 6]
+    [3, 5, 4, 4, 5, 6, 1]
   integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
     MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_FORCE_TYPES = 4
-  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 12, MBDK_SPATIAL_FORCE_REALS = 9
+  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 9
   integer, parameter, public :: MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, &
     MBDK_ROT_CARDAN123 = 3
   integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
@@ -105,7 +112,7 @@ module mbdk_spatial_model
   !> planar model's window (MBDK_MODEL_NEAR_PIVOT, whose comment says why it is this wide); the
   !> stabilised formulations keep the constraints through such a step, and test REDUNDANT_RTOL.
   real(dp), parameter, public :: MBDK_SPATIAL_NEAR_PIVOT = 1.0e-4_dp
-  integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3
+  integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4
 
   type, public :: mbdk_spatial_options_t
     integer :: formulation = MBDK_SPATIAL_REDUCED
@@ -123,6 +130,8 @@ module mbdk_spatial_model
   type :: prim_t
     integer :: kind = 0, bi = 0, bj = 0, row = 0
     real(dp) :: si(3) = 0.0_dp, sj(3) = 0.0_dp, ui(3) = 0.0_dp, uj(3) = 0.0_dp
+    !> PRIM_ANGLE: the second reference vector on body j (a_j x uj) and the time function
+    real(dp) :: wj(3) = 0.0_dp, fn(5) = 0.0_dp
   end type prim_t
 
   !> what the caller owns and the model points to (rhs receives the model read-only)
@@ -145,6 +154,7 @@ module mbdk_spatial_model
     integer, allocatable :: ftype(:), fbody(:, :)
     real(dp), allocatable :: freal(:, :)
     logical :: has_power = .false.
+    logical :: has_drivers = .false.   !< rheonomic rows: Phi_t and the drivers' power
     real(dp) :: length = 1.0_dp, gscale = 0.0_dp
     !> the rank of C at the initial state, and the rows found independent there (rank-revealing
     !> Cholesky): below m, the joints are redundant, and these rows alone are solved
@@ -249,7 +259,8 @@ contains
         ai = r(7:9)
         aj = r(10:12)
         if (any(jtype(j) == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, &
-                             MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC])) then
+                             MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC, &
+                             MBDK_SPATIAL_ANGLE_DRIVER])) then
           if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
           ai = ai / norm2(ai)
           aj = aj / norm2(aj)
@@ -274,6 +285,13 @@ contains
           if (jtype(j) == MBDK_SPATIAL_PRISMATIC) &
             call add(PRIM_DOT1, r(1:3), r(4:6), &
                      matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
+        case (MBDK_SPATIAL_ANGLE_DRIVER)
+          ! u on body i: body j's b1 as body i sees it at the start; v = b1, w = a_j x b1 on j
+          call add(PRIM_ANGLE, zero3, zero3, &
+                   matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
+          model%prim(model%nprim)%wj = b2
+          model%prim(model%nprim)%fn = r(13:17)
+          model%has_drivers = .true.
         case (MBDK_SPATIAL_FIXED)
           call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
           ! body i's images of body j's axes e_k at the start: e1'.e2 = e2'.e3 = e3'.e1 = 0
@@ -302,6 +320,7 @@ contains
       end select
       if (ftype(k) /= MBDK_SPATIAL_GRAVITY) model%has_power = .true.
     end do
+    if (model%has_drivers) model%has_power = .true.
     model%ftype = ftype
     model%fbody = fbody
     model%freal = freal
@@ -331,7 +350,7 @@ contains
         integer, allocatable :: rows(:)
         real(dp), allocatable :: phi(:), c(:, :), gam(:)
         allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m))
-        call constraints(model, fr, phi, c, gam)
+        call constraints(model, fr, 0.0_dp, phi, c, gam)
         model%rank0 = 0                     ! any rank is accepted at the start
         call select_rows(model, c, rows, stat)
         if (stat /= MBDK_SUCCESS) return
@@ -358,7 +377,7 @@ contains
       real(dp), intent(in) :: si(3), sj(3), ui(3), uj(3)
       model%nprim = model%nprim + 1
       model%prim(model%nprim) = prim_t(kind, jbody(1, j), jbody(2, j), row, si, sj, ui, uj)
-      if (kind == PRIM_DOT1) model%row_angular(row) = .true.
+      if (kind == PRIM_DOT1 .or. kind == PRIM_ANGLE) model%row_angular(row) = .true.
       row = row + merge(3, 1, kind == PRIM_SPH)
     end subroutine add
 
@@ -449,16 +468,21 @@ contains
 
   ! ---- the constraints ---------------------------------------------------------------------
 
-  !> Phi (m), C (m x 6 nb) and gamma = -(C' w) at the frames.
-  pure subroutine constraints(model, fr, phi, c, gam)
+  !> Phi (m), C (m x 6 nb), gamma (the terms of Phi'' other than C w': -(C' w), and for a driver
+  !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames.
+  pure subroutine constraints(model, fr, t, phi, c, gam, phit)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: t
     real(dp), intent(out) :: phi(:), c(:, :), gam(:)
+    real(dp), intent(out), optional :: phit(:)
     integer :: k, i, j, r
-    real(dp) :: pi(3), pj(3), di(3), dj(3), ddi(3), ddj(3), h(3), hd(3)
+    real(dp) :: pi(3), pj(3), di(3), dj(3), ddi(3), ddj(3), h(3), hd(3), dv(3), dw(3), f, fd, &
+      fdd, cf, sf, a, b, qa, qb, da, db
     phi = 0.0_dp
     c = 0.0_dp
     gam = 0.0_dp
+    if (present(phit)) phit = 0.0_dp
     do k = 1, model%nprim
       associate (pr => model%prim(k))
         i = pr%bi
@@ -495,6 +519,33 @@ contains
           hd = pvel(i, pr%si) - pvel(j, pr%sj)
           gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
                      + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj)))
+        case (PRIM_ANGLE)
+          ! Phi = cos f (u . w) - sin f (u . v) = sin(theta - f): u = R_i ui, v = R_j uj,
+          ! w = R_j wj; A = u . w = sin theta, B = u . v = cos theta
+          call mbdk_time_fn(pr%fn, t, f, fd, fdd)
+          cf = cos(f)
+          sf = sin(f)
+          di = matmul(fr%rot(:, :, i), pr%ui)
+          dv = matmul(fr%rot(:, :, j), pr%uj)
+          dw = matmul(fr%rot(:, :, j), pr%wj)
+          a = dot_product(di, dw)
+          b = dot_product(di, dv)
+          phi(r) = cf * a - sf * b
+          call vec_cols(c(r, :), i, pr%ui, cf * dw - sf * dv)
+          call vec_cols(c(r, :), j, pr%wj, cf * di)
+          call vec_cols(c(r, :), j, pr%uj, -sf * di)
+          ddi = vvel(i, pr%ui)
+          qa = dot_product(dw, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%wj)) + &
+            2.0_dp * dot_product(ddi, vvel(j, pr%wj))
+          qb = dot_product(dv, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
+            2.0_dp * dot_product(ddi, vvel(j, pr%uj))
+          da = dot_product(ddi, dw) + dot_product(di, vvel(j, pr%wj))
+          db = dot_product(ddi, dv) + dot_product(di, vvel(j, pr%uj))
+          ! Phi_t = -f' (sin f A + cos f B); C_t w = -f' (sin f A' + cos f B');
+          ! Phi_tt = -f'' (sin f A + cos f B) - f'^2 (cos f A - sin f B)
+          if (present(phit)) phit(r) = -fd * (sf * a + cf * b)
+          gam(r) = -(cf * qa - sf * qb - 2.0_dp * fd * (sf * da + cf * db) &
+                     - fdd * (sf * a + cf * b) - fd**2 * (cf * a - sf * b))
         end select
       end associate
     end do
@@ -894,20 +945,20 @@ contains
     real(dp), intent(in), contiguous :: y(:)
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
-    call spatial_accelerations(self, y, f, stat)
+    call spatial_accelerations(self, t, y, f, stat)
   end subroutine spatial_rhs
 
-  !> F(y) and, optionally, the multipliers lam (m).
-  subroutine spatial_accelerations(self, y, f, stat, lam)
+  !> F(t, y) and, optionally, the multipliers lam (m).
+  subroutine spatial_accelerations(self, t, y, f, stat, lam)
     class(mbdk_spatial_model_t), intent(in) :: self
-    real(dp), intent(in) :: y(:)
+    real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: lam(:)
     type(frames_t) :: fr
     real(dp) :: fw(3, self%nb), nbd(3, self%nb), vg, vs, power, acc(6 * self%nb), &
       gen(6 * self%nb), phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
-      mc(6 * self%nb, self%m), p(4), jw(3)
+      mc(6 * self%nb, self%m), p(4), jw(3), phit(self%m)
     integer :: b, k, o
     f = 0.0_dp
     call frames(self, y, fr, stat)
@@ -921,9 +972,9 @@ contains
     end do
     call apply_minv(self, gen, acc)
     if (self%m > 0) then
-      call constraints(self, fr, phi, c, gam)
+      call constraints(self, fr, t, phi, c, gam, phit)
       if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
-        gam = gam - 2.0_dp * self%opt%alpha * matmul(c, y(wi(self, 1):)) - &
+        gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
               self%opt%beta**2 * phi
       if (self%opt%formulation == MBDK_SPATIAL_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
@@ -953,30 +1004,31 @@ contains
     stat = MBDK_SUCCESS
   end subroutine spatial_accelerations
 
-  !> Phi (m), C (m x 6 nb) and gamma (m) at the state y (tests check C and gamma against
-  !> differences of Phi along the motion).
-  subroutine mbdk_spatial_constraints(model, y, phi, c, gam, stat)
+  !> Phi (m), C (m x 6 nb), gamma (m) and Phi_t (m) at (t, y) (tests check C, gamma and Phi_t
+  !> against differences of Phi along the motion).
+  subroutine mbdk_spatial_constraints(model, t, y, phi, c, gam, phit, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
-    real(dp), intent(in) :: y(:)
-    real(dp), intent(out) :: phi(:), c(:, :), gam(:)
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: phi(:), c(:, :), gam(:), phit(:)
     integer, intent(out) :: stat
     type(frames_t) :: fr
     phi = 0.0_dp
     c = 0.0_dp
     gam = 0.0_dp
+    phit = 0.0_dp
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call constraints(model, fr, phi, c, gam)
+    call constraints(model, fr, t, phi, c, gam, phit)
   end subroutine mbdk_spatial_constraints
 
-  !> The multipliers lam (m) of the formulation's constrained solve at y.
-  subroutine mbdk_spatial_multipliers(model, y, lam, stat)
+  !> The multipliers lam (m) of the formulation's constrained solve at (t, y).
+  subroutine mbdk_spatial_multipliers(model, t, y, lam, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
-    real(dp), intent(in) :: y(:)
+    real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: lam(:)
     integer, intent(out) :: stat
     real(dp) :: f(size(y))
-    call spatial_accelerations(model, y, f, stat, lam)
+    call spatial_accelerations(model, t, y, f, stat, lam)
   end subroutine mbdk_spatial_multipliers
 
   !> After a step: quaternions back to unit norm (norm = project), and with the projection
@@ -986,21 +1038,22 @@ contains
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     integer, intent(out) :: stat
-    call spatial_project(self, y, self%opt%formulation == MBDK_SPATIAL_PROJECTION, stat)
+    call spatial_project(self, t, y, self%opt%formulation == MBDK_SPATIAL_PROJECTION, stat)
   end subroutine spatial_post_step
 
   !> Normalises the quaternions, and with constrained: the least mass-weighted change of
   !> positions (Gauss-Newton in dr and the body-frame rotation dtheta) that makes |Phi| <=
-  !> projection_tol, then of velocities that makes C w = 0. A projection that does not converge:
-  !> MBDK_ERR_NEWTON_DIVERGED; dependent rows: MBDK_ERR_SINGULAR_MATRIX.
-  subroutine spatial_project(self, y, constrained, stat)
+  !> projection_tol at time t, then of velocities that makes C w + Phi_t = 0. A projection that
+  !> does not converge: MBDK_ERR_NEWTON_DIVERGED; dependent rows: MBDK_ERR_SINGULAR_MATRIX.
+  subroutine spatial_project(self, t, y, constrained, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     logical, intent(in) :: constrained
     integer, intent(out) :: stat
     type(frames_t) :: fr
     real(dp) :: phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
-      mc(6 * self%nb, self%m), d(6 * self%nb), tol
+      mc(6 * self%nb, self%m), d(6 * self%nb), tol, phit(self%m)
     integer :: it, b, k
     stat = MBDK_SUCCESS
     if (self%opt%rotation == MBDK_ROT_QUATERNION .and. self%opt%norm == MBDK_NORM_PROJECT) &
@@ -1010,7 +1063,7 @@ contains
     do it = 1, PROJECTION_MAX_ITER + 1
       call frames(self, y, fr, stat)
       if (stat /= MBDK_SUCCESS) return
-      call constraints(self, fr, phi, c, gam)
+      call constraints(self, fr, t, phi, c, gam, phit)
       if (maxval(abs(phi)) <= tol) exit
       stat = MBDK_ERR_NEWTON_DIVERGED
       if (it > PROJECTION_MAX_ITER) return
@@ -1024,8 +1077,8 @@ contains
         if (stat /= MBDK_SUCCESS) return
       end do
     end do
-    ! velocities: w - M^-1 C^T S^-1 C w
-    call schur_solve(self, c, matmul(c, y(wi(self, 1):)), l, mc, stat)
+    ! velocities: w - M^-1 C^T S^-1 (C w + Phi_t)
+    call schur_solve(self, c, matmul(c, y(wi(self, 1):)) + phit, l, mc, stat)
     if (stat /= MBDK_SUCCESS) return
     y(wi(self, 1):) = y(wi(self, 1):) - matmul(mc, l)
   end subroutine spatial_project
@@ -1064,28 +1117,30 @@ contains
 
   !> The initial state made consistent: the projection of positions and velocities (with the
   !> quaternions normalised when norm = project). moved: the largest change of a coordinate.
-  subroutine mbdk_spatial_assemble(model, y, moved, stat)
+  subroutine mbdk_spatial_assemble(model, t, y, moved, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     real(dp), intent(out) :: moved
     integer, intent(out) :: stat
     real(dp) :: y0(size(y))
     y0 = y
-    call spatial_project(model, y, .true., stat)
+    call spatial_project(model, t, y, .true., stat)
     moved = maxval(abs(y - y0))
   end subroutine mbdk_spatial_assemble
 
-  !> The energy parts and residuals at a state (MBDK_SPATIAL_NOUT values): kinetic, gravity and
-  !> spring energy, the power of dampers and loads, max |Phi|, max |C w|, max ||p| - 1|.
-  subroutine mbdk_spatial_outputs(model, y, out, stat, phi_out, vres_out, vterm_out)
+  !> The energy parts and residuals at (t, y) (MBDK_SPATIAL_NOUT values): kinetic, gravity and
+  !> spring energy, the power of dampers, loads and drivers (lambda . Phi_t, the multipliers from
+  !> the model's constrained solve there), max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
+  subroutine mbdk_spatial_outputs(model, t, y, out, stat, phi_out, vres_out, vterm_out)
     type(mbdk_spatial_model_t), intent(in) :: model
-    real(dp), intent(in) :: y(:)
+    real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: out(MBDK_SPATIAL_NOUT)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: phi_out(:), vres_out(:), vterm_out(:)
     type(frames_t) :: fr
     real(dp) :: fw(3, model%nb), nbd(3, model%nb), phi(model%m), c(model%m, 6 * model%nb), &
-      gam(model%m), w(6 * model%nb), kin, qn
+      gam(model%m), w(6 * model%nb), kin, qn, phit(model%m), lam(model%m), f(size(y))
     integer :: b, k
     out = 0.0_dp
     call frames(model, y, fr, stat)
@@ -1104,13 +1159,18 @@ contains
     out(1) = kin
     out(7) = qn
     if (model%m > 0) then
-      call constraints(model, fr, phi, c, gam)
+      call constraints(model, fr, t, phi, c, gam, phit)
       w = y(wi(model, 1):)
       out(5) = maxval(abs(phi))
-      out(6) = maxval(abs(matmul(c, w)))
+      out(6) = maxval(abs(matmul(c, w) + phit))
       if (present(phi_out)) phi_out = phi
-      if (present(vres_out)) vres_out = matmul(c, w)
-      if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w))
+      if (present(vres_out)) vres_out = matmul(c, w) + phit
+      if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w)) + abs(phit)
+      if (model%has_drivers) then
+        call spatial_accelerations(model, t, y, f, stat, lam)
+        if (stat /= MBDK_SUCCESS) return
+        out(4) = out(4) + dot_product(lam, phit)
+      end if
     end if
   end subroutine mbdk_spatial_outputs
 
@@ -1119,7 +1179,7 @@ contains
     real(dp), intent(in) :: t, y(:)
     integer, intent(out) :: stat
     real(dp) :: out(MBDK_SPATIAL_NOUT)
-    call mbdk_spatial_outputs(self, y, out, stat)
+    call mbdk_spatial_outputs(self, t, y, out, stat)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
                           self%opt%watch_energy, self%opt%watch_every, self%has_power, &
@@ -1137,7 +1197,7 @@ contains
     stat = MBDK_SUCCESS
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
-    call mbdk_spatial_outputs(self, y, out, stat, phi, vres, vterm)
+    call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm)
     if (stat /= MBDK_SUCCESS) return
     if (due == MBDK_WATCH_POWER_ONLY) then
       call mbdk_watch_power(self%work%watch, t, out(4))
