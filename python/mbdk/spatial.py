@@ -334,7 +334,9 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
     if b1 == GROUND:
         raise r.err("body1", "= 'ground': body1 must be a body (the ground may be body2)")
     (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
-    if r.has("at"):
+    if typ == "angle_driver":   # an angle has no point: at, point1 and point2 are refused
+        p1 = p2 = np.zeros(3)
+    elif r.has("at"):
         if r.has("point1") or r.has("point2"):
             raise r.err("at", "and point1/point2 are both given; give one")
         at = r.vec3("at")
@@ -776,7 +778,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     elif status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(report, joint_rows(sc))
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
-                          f"{drift_message(report, joint_rows(sc)).replace('D v + Phi_t', 'C w')}"
+                          f"{drift_message(report, joint_rows(sc)).replace('D v', 'C w')}"
                           ". A smaller step, the "
                           "projection formulation or watch=False (to study the drift) are "
                           "the remedies")
@@ -851,6 +853,15 @@ def _check_initial(sc, y0, assemble, t0=0.0):
     should move (ASSEMBLY_TOL of the scene's size); without assembly, by more than roundoff."""
     if not sc.joints:
         return
+    for j in sc.joints:
+        if j.type == "angle_driver":
+            c = j.function
+            f0 = c[0] + c[1] * t0 + c[2] * math.sin(c[3] * t0 + c[4])
+            if abs(f0) > 1e-12:
+                raise SceneError(
+                    f"{sc.source}: joint {j.name!r}: field 'function' gives f(t0) = {f0:.6g} at "
+                    f"t0 = {t0:g}: an angle driver turns body1 by f(t) from where it starts, so "
+                    "f(t0) must be 0 (shift the offset or the phase)")
     ev = evaluate_spatial(sc, y0, t0)
     if ev["rank"] == 0 and sc.rows:
         raise exception_for(Status.ERR_SINGULAR_MATRIX)(
@@ -868,14 +879,14 @@ def _check_initial(sc, y0, assemble, t0=0.0):
     cw = ev["C"] @ w + ev["phi_t"]
     # the velocity rows: against the size of the terms that must cancel (|C| |w|), with a floor
     # of the speeds the scene's size gives to 1 rad/s
-    vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(np.abs(ev["C"]) @ np.abs(w),
-                                                                     initial=0.0)), size)
+    vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(
+        np.abs(ev["C"]) @ np.abs(w) + np.abs(ev["phi_t"]), initial=0.0)), size)
     for name, first, count in joint_rows(sc):
         worst = float(np.max(np.abs(cw[first:first + count])))
         if worst > vtol:
             raise InvalidInputError(
                 f"{sc.source}: joint {name!r}: the initial velocities break this joint by "
-                f"{worst:.3g} (largest |C w| of its rows; tolerance {vtol:.3g}): give "
+                f"{worst:.3g} (largest |C w + Phi_t| of its rows; tolerance {vtol:.3g}): give "
                 "velocities and angular velocities the joint allows (a body turning about a "
                 "fixed point moves its centre at Omega x r)")
     for name, first, count in joint_rows(sc):

@@ -913,7 +913,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%watch_energy = sopt(10)
   so%watch_every = nint(sopt(11))
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), y0, status)
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
+                         y0, status)
   if (status /= MBDK_SUCCESS) return
   if (m1 < max(model%m, 1)) then
     status = MBDK_ERR_INVALID_INPUT
@@ -988,7 +989,8 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   so%rotation = nint(rotation)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), y0, status)
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
+                         y0, status)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return

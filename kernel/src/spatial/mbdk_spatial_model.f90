@@ -25,7 +25,7 @@
 !>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
 !>   4 projection   reduced, then after every step the positions are moved back onto Phi = 0
 !>                  (Gauss-Newton with the least mass-weighted change, dr and the body-frame
-!>                  rotation dtheta) and the velocities onto C w = 0.
+!>                  rotation dtheta) and the velocities onto C w + Phi_t = 0.
 !> The unit norm of a quaternion (rotation = quaternion) is kept by the user's choice (norm):
 !>   1 project      p / |p| after every step (with the projection of the projection formulation)
 !>   2 stabilise    p' = p (0, W) / 2 + k (1 - |p|^2) p / 2: the constraint |p| = 1 stabilised in
@@ -59,10 +59,11 @@
 !>   spring_damper  s_i (3), s_j (3), k, c, l0       along the line of the two points
 !> Only the elements a scene declares are visited.
 !>
-!> The watch (mbdk_watch) checks Phi, C w and the energy balance as on planar scenes; rows of
+!> The watch (mbdk_watch) checks Phi, C w + Phi_t and the energy balance as on planar scenes
+!> (a driven scene pays a constrained solve per step for its drivers' power); rows of
 !> the direction constraints (a dot product of unit vectors) are measured in radians, the others
 !> in the mechanism's length scale. Outputs (mbdk_spatial_outputs): kinetic, gravity and spring
-!> energy, the power of dampers and loads, max |Phi|, max |C w|, max ||p| - 1|.
+!> energy, the power of dampers, loads and drivers, max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
 module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -181,11 +182,11 @@ contains
   !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
   !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first).
   subroutine mbdk_spatial_init(model, work, opt, mass, inertia, jtype, jbody, jreal, ftype, &
-                               fbody, freal, y0, stat)
+                               fbody, freal, t0, y0, stat)
     type(mbdk_spatial_model_t), intent(out) :: model
     type(mbdk_spatial_work_t), intent(inout), target :: work
     type(mbdk_spatial_options_t), intent(in) :: opt
-    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), y0(:)
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), t0, y0(:)
     integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
     integer, intent(out) :: stat
     integer :: nb, nj, b, j, row, info, k
@@ -350,7 +351,7 @@ contains
         integer, allocatable :: rows(:)
         real(dp), allocatable :: phi(:), c(:, :), gam(:)
         allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m))
-        call constraints(model, fr, 0.0_dp, phi, c, gam)
+        call constraints(model, fr, t0, phi, c, gam)
         model%rank0 = 0                     ! any rank is accepted at the start
         call select_rows(model, c, rows, stat)
         if (stat /= MBDK_SUCCESS) return
@@ -1032,7 +1033,7 @@ contains
   end subroutine mbdk_spatial_multipliers
 
   !> After a step: quaternions back to unit norm (norm = project), and with the projection
-  !> formulation positions onto Phi = 0 and velocities onto C w = 0.
+  !> formulation positions onto Phi = 0 and velocities onto C w + Phi_t = 0.
   subroutine spatial_post_step(self, t, y, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t
