@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.rotations import from_quaternion, quaternion_product
+from mbdk.rotations import quaternion_product
 from mbdk.spatial import evaluate_spatial, spatial_scene_from_dict
 
 G = 9.81

@@ -52,7 +52,6 @@ Bad scenes raise SceneError naming the file, the element and the field.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from numbers import Real
 
@@ -742,7 +741,6 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
             flag, np.zeros(0), y0, int(bool(assemble_initial)), float(t0), float(t_end), nsamp,
             m1, stats)
-    t_wall = time.perf_counter()
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0))
     status = Status(int(status))
@@ -755,8 +753,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                 "quaternion_norm": sc.quaternion_norm, "t0": t0, "t_end": t_end,
                 **plan_["manifest"], "linear_solve": "dense Schur complement (LAPACK dpotrf)",
                 "watch": {"position": w.position, "velocity": w.velocity,
-                          "energy": w.energy, "every": w.every},
-                "python_wall_time": time.perf_counter() - t_wall}
+                          "energy": w.energy, "every": w.every}}
     if formulation == "projection":
         manifest["projection_tol"] = projection_tol
     result = SpatialResult(
