@@ -161,6 +161,7 @@ module mbdk_spatial_model
     !> Cholesky): below m, the joints are redundant, and these rows alone are solved
     integer :: rank0 = 0
     integer, allocatable :: active(:)
+    integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
     type(mbdk_spatial_work_t), pointer :: work => null()
   contains
     procedure :: rhs => spatial_rhs
@@ -345,6 +346,7 @@ contains
     end do
     model%gscale = model%gscale * sum(model%mass) * model%length
 
+    model%all_rows = [(k, k = 1, model%m)]
     model%rank0 = model%m
     if (model%m > 0) then
       block
@@ -452,7 +454,10 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     if (k /= 0) return
     fr%r(:, 0) = 0.0_dp
-    fr%rot(:, :, 0) = reshape([1, 0, 0, 0, 1, 0, 0, 0, 1], [3, 3]) * 1.0_dp
+    fr%rot(:, :, 0) = 0.0_dp
+    do k = 1, 3
+      fr%rot(k, k, 0) = 1.0_dp
+    end do
     fr%v(:, 0) = 0.0_dp
     fr%om(:, 0) = 0.0_dp
     stat = MBDK_SUCCESS
@@ -662,7 +667,7 @@ contains
       call apply_minv(model, c(k, :), mc(:, k))
     end do
     if (model%rank0 == m) then
-      call solve_rows(model, c, rhs, mc, [(k, k = 1, m)], lam, stat, near)
+      call solve_rows(model, c, rhs, mc, model%all_rows, lam, stat, near)
       return
     end if
     ! redundant joints: the rows chosen at the start while they stay well clear of a rank loss
