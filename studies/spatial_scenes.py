@@ -100,6 +100,24 @@ def runs(quick: bool):
                       "alpha": 1e3, "beta": 2 ** 0.5 * 1e3}, f"rtol = {tol:g}"
 
 
+def run_case(sc, scene_name, method, kw, control, form, t_end, measure):
+    """One run of the tables: a row with its status, and if it succeeded, measure(r)'s fields
+    beside the steps and the solving thread's CPU time. Baumgarte's alpha and beta are given to
+    the error-controlled methods only (rk4 takes its default, 1/h and sqrt(2)/h)."""
+    args = dict(kw)
+    if form != "baumgarte" or method == "rk4":
+        args.pop("alpha", None)
+        args.pop("beta", None)
+    progress(f"{scene_name} {method} {control} {form}")
+    row = {"scene": scene_name, "method": method, "control": control, "formulation": form}
+    try:
+        r = mbdk.simulate(sc, method, t_end=t_end, formulation=form, **args)
+    except mbdk.MbdkError as exc:
+        return {**row, "status": type(exc).__name__}
+    return {**row, "status": "ok", "steps": r.stats.steps, "cpu_ms": 1e3 * r.cpu_time,
+            "max_abs_phi": float(r.residuals[:, 0].max()), **measure(r)}
+
+
 def formulation_rows(quick: bool) -> list[dict]:
     rows = []
     top = mbdk.scene("heavy_top")
@@ -110,23 +128,10 @@ def formulation_rows(quick: bool) -> list[dict]:
                                          planar)):
         for method, kw, control in runs(quick):
             for form in FORMULATIONS:
-                args = dict(kw)
-                if form != "baumgarte" or method == "rk4":
-                    args.pop("alpha", None)
-                    args.pop("beta", None)
-                progress(f"{scene_name} {method} {control} {form}")
-                try:
-                    r = mbdk.simulate(sc, method, t_end=T_END, formulation=form, **args)
-                except mbdk.MbdkError as exc:
-                    rows.append({"scene": scene_name, "method": method, "control": control,
-                                 "formulation": form, "status": type(exc).__name__})
-                    continue
-                rows.append({"scene": scene_name, "method": method, "control": control,
-                             "formulation": form, "status": "ok",
-                             "error": err_fn(r, ref), "steps": r.stats.steps,
-                             "cpu_ms": 1e3 * r.cpu_time,
-                             "max_abs_phi": float(r.residuals[:, 0].max()),
-                             "max_norm_drift": float(r.residuals[:, 2].max())})
+                rows.append(run_case(
+                    sc, scene_name, method, kw, control, form, T_END,
+                    lambda r: {"error": err_fn(r, ref),
+                               "max_norm_drift": float(r.residuals[:, 2].max())}))
     return rows
 
 
@@ -176,34 +181,19 @@ def benchmark_rows(quick: bool) -> list[dict]:
                         formulation="projection")
     cases = [("rk4", {"h": h, "every": int(round(t_end / h))}, f"h = {h:g}")
              for h in ((4e-3, 1e-3) if quick else (4e-3, 2e-3, 1e-3))]
-    # the error-controlled runs are capped: on the reduced form the rows' switch is a jump of
-    # the size of the drift, which their error test answers with ever smaller steps (bdf at
-    # rtol 1e-9 took 116 000 steps and 330 s for 5 s), and Baumgarte's gains of 1e3 1/s make
-    # the explicit pair take steps of a millisecond
+    # the error-controlled runs are capped: Baumgarte's gains of 1e3 1/s make the explicit pair
+    # take steps of a millisecond, which at tight tolerances would dominate the study's time
     cases += [(m, {"rtol": tol, "atol": tol * 1e-2, "alpha": 1e3, "beta": 2 ** 0.5 * 1e3,
                    "max_steps": 4000 if quick else 20000},
                f"rtol = {tol:g}") for m in ("dopri54", "bdf") for tol in (1e-6, 1e-9)]
     for method, kw, control in cases:
         for form in FORMULATIONS:
-            args = dict(kw)
-            if form != "baumgarte" or method == "rk4":
-                args.pop("alpha", None)
-                args.pop("beta", None)
-            progress(f"bricard {method} {control} {form}")
-            try:
-                r = mbdk.simulate(sc, method, t_end=t_end, formulation=form, **args)
-            except mbdk.MbdkError as exc:
-                rows.append({"scene": "bricard", "method": method, "control": control,
-                             "formulation": form, "status": type(exc).__name__})
-                continue
-            rows.append({"scene": "bricard", "method": method, "control": control,
-                         "formulation": form, "status": "ok",
-                         "error": float(np.abs(r.q[-1] - ref.q[-1]).max()),
-                         "steps": r.stats.steps, "cpu_ms": 1e3 * r.cpu_time,
-                         "max_abs_phi": float(r.residuals[:, 0].max()),
-                         "energy_error": float(np.abs(r.energy - r.energy[0]).max()),
-                         "output": float(r.position("rod2")[-1, 0] + (
-                             r.orientation("rod2")[-1] @ [0.0, -0.5, 0.0])[0])})
+            rows.append(run_case(
+                sc, "bricard", method, kw, control, form, t_end,
+                lambda r: {"error": float(np.abs(r.q[-1] - ref.q[-1]).max()),
+                           "energy_error": float(np.abs(r.energy - r.energy[0]).max()),
+                           "output": float(r.position("rod2")[-1, 0] + (
+                               r.orientation("rod2")[-1] @ [0.0, -0.5, 0.0])[0])}))
     p3 = ref.position("rod2")[-1] + ref.orientation("rod2")[-1] @ [0.0, -0.5, 0.0]
     notes_b = (f"bricard: rank {rank} of {sc.rows} rows; from rest, {t_end:g} s; the "
                "error-controlled runs stop at 4000 steps (quick) or 20 000 (TooManyStepsError "
@@ -229,20 +219,10 @@ def benchmark_rows(quick: bool) -> list[dict]:
             sc_f = mbdk.scene("flyball_governor")
             if method.startswith("cvode"):
                 sc_f.quaternion_norm = "stabilise"
-            progress(f"flyball {method} {control} {form}")
-            try:
-                r = mbdk.simulate(sc_f, method, t_end=t_fly, formulation=form, **kw)
-            except mbdk.MbdkError as exc:
-                rows.append({"scene": "flyball_governor", "method": method,
-                             "control": control, "formulation": form,
-                             "status": type(exc).__name__})
-                continue
-            s_end = float(r.position("slider")[-1, 2])
-            rows.append({"scene": "flyball_governor", "method": method, "control": control,
-                         "formulation": form, "status": "ok", "error": abs(s_end - s_ref),
-                         "steps": r.stats.steps, "cpu_ms": 1e3 * r.cpu_time,
-                         "max_abs_phi": float(r.residuals[:, 0].max()),
-                         "energy_error": None, "output": s_end})
+            rows.append(run_case(
+                sc_f, "flyball_governor", method, kw, control, form, t_fly,
+                lambda r: {"error": abs(float(r.position("slider")[-1, 2]) - s_ref),
+                           "output": float(r.position("slider")[-1, 2])}))
     notes_f = (f"flyball_governor: {t_fly:g} s; output: the sleeve's height s at the end "
                f"(reference {s_ref:.10f} m from bdf at rtol 1e-11, projection); error: "
                "|s - s_ref|; cvode_bdf runs with quaternion_norm = 'stabilise' (CVODE cannot "
