@@ -10,15 +10,15 @@ import pytest
 
 import mbdk
 from mbdk import _kernel, model as M
-from mbdk.scene import FORCE_TYPES, JOINT_TYPES
+from mbdk.scene import FORCE_TYPES, JOINT_TYPES, WEAR_LAWS
 
 
 def header_kinds(root):
     text = (root / "kernel" / "include" / "mbdk.h").read_text()
     out = {}
-    for enum, cls in (("mbdk_joint_kind", 1), ("mbdk_force_kind", 2)):
+    for enum, cls in (("mbdk_joint_kind", 1), ("mbdk_force_kind", 2), ("mbdk_effect_kind", 3)):
         body = re.search(r"enum %s \{(.*?)\};" % enum, text, re.S).group(1)
-        for m in re.finditer(r"MBDK_(JOINT|FORCE)_(\w+)\s*=\s*(\d+)", body):
+        for m in re.finditer(r"MBDK_(JOINT|FORCE|EFFECT)_(\w+)\s*=\s*(\d+)", body):
             out[(cls, int(m.group(3)))] = m.group(2).lower()
     return out
 
@@ -36,8 +36,10 @@ def test_header_enums_are_the_kernel_registry(root):
 def test_every_scene_type_is_a_kernel_kind_and_back():
     kinds = {name for _c, _k, name, _r, _s in M.ELEMENT_KINDS}
     assert set(JOINT_TYPES) == set(M.JOINT_CODES) <= kinds
-    assert set(FORCE_TYPES) == set(M.FORCE_CODES)
+    # friction is written in its contact's table, not as a [[force]] of its own
+    assert set(FORCE_TYPES) | {"friction"} == set(M.FORCE_CODES)
     assert set(M.FORCE_CODES.values()) == {k for c, k, *_ in M.ELEMENT_KINDS if c == 2}
+    assert set(WEAR_LAWS) and set(M.EFFECT_CODES) == {"wear"}
     assert M.VISIT_NAMES == [name for _c, _k, name, _r, _s in M.ELEMENT_KINDS]
 
 

@@ -161,7 +161,11 @@ enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_J
                        MBDK_JOINT_DRIVER = 4 };
 enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
                        MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
-                       MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7 };
+                       MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_CONTACT = 8,
+                       MBDK_FORCE_FRICTION = 9 };
+/* Effects share the force table and carry states (kernel/src/model/mbdk_wear.f90): a scene
+ * with nw wear elements has the state [q; v; w], 6 nb + nw values per sample. */
+enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
 
 /* The 4th integer of a prismatic or fixed joint (jint[j][3]) or of a spring, damper or
  * spring-damper (fint[f][3]): take the relative angle, or the rest length, from the initial

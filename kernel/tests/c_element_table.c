@@ -21,6 +21,9 @@ int main(void)
         {MBDK_CLASS_FORCE, "coordinate_spring_damper", MBDK_FORCE_COORDINATE},
         {MBDK_CLASS_FORCE, "spring", MBDK_FORCE_SPRING},
         {MBDK_CLASS_FORCE, "damper", MBDK_FORCE_DAMPER},
+        {MBDK_CLASS_FORCE, "contact", MBDK_FORCE_CONTACT},
+        {MBDK_CLASS_FORCE, "friction", MBDK_FORCE_FRICTION},
+        {MBDK_CLASS_EFFECT, "wear", MBDK_EFFECT_WEAR},
     };
     const int nh = sizeof header / sizeof header[0];
     int bad = 0, n = 0, cls, code, rows, states;

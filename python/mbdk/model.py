@@ -10,6 +10,7 @@ pose (rest lengths, relative angles) and the assembly are computed in the kernel
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,8 @@ import numpy as np
 from . import _kernel
 from .errors import NotApplicableError, Status, exception_for
 from .options import ModelOptions
-from .scene import BODY_KINDS, COORDS, Scene, SceneError, body_kind_problem
+from .scene import (BODY_KINDS, COORDS, WEAR_LAWS, WEAR_LOADS, Scene, SceneError,
+                    body_kind_problem)
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
@@ -59,6 +61,10 @@ _FORCE_KIND = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls ==
 #: scene force types -> kernel codes; the coordinate spring and damper are one kernel kind
 FORCE_CODES = {**_FORCE_KIND, "coordinate_spring": _FORCE_KIND["coordinate_spring_damper"],
                "coordinate_damper": _FORCE_KIND["coordinate_spring_damper"]}
+EFFECT_CLASS = 3
+EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
+#: a contact's body2 shape -> the kernel's geometry code (kernel/src/model/mbdk_contact.f90)
+CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3}
 #: the kernel's visit counters, in its order: one per element kind
 VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
 
@@ -102,7 +108,12 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
             raise (NotApplicableError if b.kind in BODY_KINDS else SceneError)(
                 f"{sc.source}: body {b.name!r}: field 'kind' {problem}")
     kind = np.array([BODY_KINDS[b.kind][0] for b in sc.bodies], np.int32)
-    nj, nf = len(sc.joints), len(sc.forces)
+    nj = len(sc.joints)
+    # the scene's forces first (the kernel names a bad one by its column), then one friction
+    # element per contact that has friction, then the wear elements
+    frictions = [k for k, f in enumerate(sc.forces) if f.type == "contact" and
+                 f.friction is not None]
+    nf = len(sc.forces) + len(frictions) + len(sc.wear)
     jint = np.zeros((4, max(nj, 1)), np.int32, order="F")
     jreal = np.zeros((12, max(nj, 1)), order="F")
     rows, r = [], 0
@@ -139,6 +150,14 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
         elif f.type == "torque":
             freal[0, k] = f.torque
             freal[7:12, k] = f.function
+        elif f.type == "contact":
+            fint[1:4, k] = [b1, sc.body_index(f.body2), CONTACT_GEOMETRY[f.shape2[0]]]
+            freal[0:2, k] = f.shape1[1]
+            freal[2, k] = f.shape1[2]
+            freal[3:5, k] = f.shape2[1]
+            third = f.shape2[2]
+            freal[5, k] = math.atan2(third[1], third[0]) if f.shape2[0] == "line" else third
+            freal[6:10, k] = [f.stiffness, f.exponent, f.damping, f.damping_depth]
         elif two_point:
             freal[0:2, k] = f.point1
             freal[2:4, k] = f.point2
@@ -152,6 +171,25 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
             freal[0, k] = f.stiffness
             freal[1, k] = f.damping
             freal[2, k] = f.rest
+    col = len(sc.forces)
+    friction_col = {}
+    for k in frictions:     # columns are 1-based in the kernel's tables
+        fint[:, col] = [FORCE_CODES["friction"], 0, 0, k + 1]
+        freal[0:4, col] = sc.forces[k].friction
+        friction_col[sc.forces[k].name] = col + 1
+        col += 1
+    contact_col = {f.name: k + 1 for k, f in enumerate(sc.forces) if f.type == "contact"}
+    for w in sc.wear:
+        friction = w.quantity == "friction_force"
+        ref = (friction_col if friction else contact_col)[w.contact]
+        fint[:, col] = [EFFECT_CODES["wear"], WEAR_LAWS[w.law], WEAR_LOADS[w.quantity], ref]
+        freal[0, col] = w.coefficient
+        if w.law == "gear":
+            freal[1:7, col] = [w.radius, w.temperature, w.a_x, w.t0, w.activation_energy,
+                               w.gas_constant]
+        elif w.law == "knee":
+            freal[1:5, col] = w.slide_roll
+        col += 1
     tab = Tables(mass, inertia, nj, jint, jreal, nf, fint, freal, r, 3 * nb, rows, kind)
     if resolve:
         resolve_tables(sc, tab, sc.q0() if q0 is None else q0)

@@ -40,7 +40,40 @@ Forces: gravity (g); point_force (body, point, force = [Fx, Fy] global, function
 (body, torque, function); spring (body1, point1, body2, point2, stiffness, rest_length: default
 the initial length); damper (same points, damping); spring_damper (both); coordinate_spring,
 coordinate_damper, coordinate_spring_damper (body, coordinate, stiffness, damping, rest: the
-trolley's -s x1 - k x1').
+trolley's -s x1 - k x1'); contact (below).
+
+A contact (kernel/src/model/mbdk_contact.f90: the IMPACT normal force with Coulomb friction)::
+
+    [[force]]
+    type = "contact"
+    name = "floor"
+    body1 = "ball"
+    shape1 = { type = "circle", radius = 0.1 }            # or { type = "point" }; centre = [x, y]
+    body2 = "ground"
+    shape2 = { type = "line", point = [0, 0], normal = [0, 1] }
+    #        or { type = "circle", radius, centre }: two circles outside each other
+    #        or { type = "ring", radius, centre }: body1's circle held inside (Fekete 2023, (1.22))
+    stiffness = 1e6              # F = k delta^exponent + damping step(delta; 0, damping_depth) delta'
+    exponent = 1.5               # >= 1 (default 1)
+    damping = 50.0               # default 0
+    damping_depth = 1e-4         # penetration at which the full damping acts (default 0: at once)
+    friction = { static = 0.3, dynamic = 0.2, stiction_speed = 1e-3, transition_speed = 2e-3 }
+
+Points and normals of a shape are in its body's frame (global on the ground); a line's normal
+points to the side body1 is on. Friction is optional (dynamic defaults to static, the speeds to
+1e-3 and 2e-3 m/s).
+
+Wear (kernel/src/model/mbdk_wear.f90: the laws of chapter 6), a state of its own integrated with
+the motion; the result's wear[name] is the worn volume against time::
+
+    [[wear]]
+    name = "plateau"
+    law = "archard"              # archard | gear | knee
+    load = "floor.normal_force"  # CONTACT.normal_force or CONTACT.friction_force
+    coefficient = 1.3e-15        # k: volume per newton and metre of sliding (m^3/(N m))
+    # gear: radius (R of (6.6)), temperature (K), and a_x, t0, activation_energy, gas_constant
+    #       (defaults: table 6.4's 3e-10 m, 3e-12 s, 49e3 J/mol, 8.31 J/(mol K))
+    # knee: slide_roll = [c0, c1, c2, c3], S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3 (table 6.7)
 
 A time function is a table {offset, rate, amplitude, omega, phase}: f(t) = offset + rate t +
 amplitude sin(omega t + phase); a number is a constant. Loads are multiplied by f(t) (default 1).
@@ -110,6 +143,41 @@ class Force:
     rest: float = 0.0
     coordinate: str = "x"
     function: tuple = (1.0, 0.0, 0.0, 0.0, 0.0)
+    #: contacts: each shape as ("point" | "circle" | "line" | "ring", point, radius or normal)
+    shape1: tuple = ()
+    shape2: tuple = ()
+    exponent: float = 1.0
+    damping_depth: float = 0.0
+    #: (static, dynamic, stiction_speed, transition_speed), or None: no friction
+    friction: tuple | None = None
+
+
+@dataclass
+class Wear:
+    name: str
+    law: str
+    load: str                    # "CONTACT.normal_force" or "CONTACT.friction_force"
+    coefficient: float
+    radius: float = 0.0
+    temperature: float = 293.0
+    a_x: float = 3e-10
+    t0: float = 3e-12
+    activation_energy: float = 49e3
+    gas_constant: float = 8.31
+    slide_roll: tuple = (1.0, 0.0, 0.0, 0.0)
+    initial: float = 0.0
+
+    @property
+    def contact(self) -> str:
+        return self.load.rpartition(".")[0]
+
+    @property
+    def quantity(self) -> str:
+        return self.load.rpartition(".")[2]
+
+
+WEAR_LAWS = {"archard": 1, "gear": 2, "knee": 3}
+WEAR_LOADS = {"normal_force": 1, "friction_force": 2}
 
 
 @dataclass
@@ -120,6 +188,7 @@ class Scene:
     forces: list[Force] = field(default_factory=list)
     description: str = ""
     source: str = "<python>"
+    wear: list[Wear] = field(default_factory=list)
 
     def body_index(self, name: str) -> int:
         """1-based index of a body; 0 for the ground."""
@@ -184,7 +253,7 @@ def body_kind_problem(kind) -> str | None:
     return None
 JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
-               "coordinate_spring", "coordinate_damper", "coordinate_spring_damper"}
+               "coordinate_spring", "coordinate_damper", "coordinate_spring_damper", "contact"}
 
 
 class _Reader:
@@ -387,6 +456,23 @@ def _force(r: _Reader) -> Force:
             f.rest_length = r.num("rest_length", None, nonneg=True)
         if typ != "spring":
             f.damping = r.num("damping", required=True, nonneg=True)
+    elif typ == "contact":
+        f.body1 = r.name("body1")
+        f.body2 = r.name("body2", required=False, default=GROUND)
+        f.shape1 = _shape(r, "shape1", ("point", "circle"))
+        f.shape2 = _shape(r, "shape2", ("line", "circle", "ring"))
+        f.stiffness = r.num("stiffness", required=True, nonneg=True)
+        f.exponent = r.num("exponent", 1.0)
+        if f.exponent < 1:
+            raise r.err("exponent", f"= {f.exponent} must be at least 1 (below 1 the force's "
+                                    "slope is infinite where the contact closes)")
+        f.damping = r.num("damping", 0.0, nonneg=True)
+        f.damping_depth = r.num("damping_depth", 0.0, nonneg=True)
+        if f.shape2[0] == "ring" and not f.shape2[2] > f.shape1[2]:
+            raise r.err("shape2", f"= ring of radius {f.shape2[2]} must be larger than body1's "
+                                  f"circle (radius {f.shape1[2]}) to hold it")
+        if r.has("friction"):
+            f.friction = _friction(r)
     else:
         f.body1 = r.name("body")
         f.coordinate = r.coordinate("coordinate", "x")
@@ -397,6 +483,81 @@ def _force(r: _Reader) -> Force:
             f.damping = r.num("damping", required=True, nonneg=True)
     r.done()
     return f
+
+
+def _shape(r: _Reader, fld: str, kinds: tuple) -> tuple:
+    """A contact's shape table as (type, point, radius or normal)."""
+    v = r.get(fld, required=True)
+    if not isinstance(v, dict) or v.get("type") not in kinds:
+        raise r.err(fld, f"= {v!r} must be a table {{type = {' | '.join(kinds)}, ...}}")
+    sr = _Reader(r.source, f"{r.label} {fld}", 0, v)
+    typ = sr.get("type")
+    if typ == "line":
+        point = sr.vec("point", (0.0, 0.0))
+        n = sr.vec("normal", required=True)
+        ln = math.hypot(*n)
+        if not ln > 0:
+            raise r.err(fld, f"normal = {list(n)} has no direction")
+        out = (typ, point, (n[0] / ln, n[1] / ln))
+    elif typ == "point":
+        out = (typ, sr.vec("point", (0.0, 0.0)), 0.0)
+    else:
+        out = (typ, sr.vec("centre", (0.0, 0.0)), sr.num("radius", required=True, positive=True))
+    try:
+        sr.done()
+    except SceneError:
+        extra = [k for k in v if k not in sr.used]
+        raise r.err(fld, f"entry {extra[0]!r} is not a field of a {typ} "
+                         f"(a {typ} has {', '.join(sorted(sr.used))})") from None
+    return out
+
+
+def _friction(r: _Reader) -> tuple:
+    v = r.get("friction")
+    if not isinstance(v, dict):
+        raise r.err("friction", f"= {v!r} must be a table {{static, dynamic, stiction_speed, "
+                                "transition_speed}")
+    fr = _Reader(r.source, f"{r.label} friction", 0, v)
+    st = fr.num("static", required=True, nonneg=True)
+    dy = fr.num("dynamic", st, nonneg=True)
+    vs = fr.num("stiction_speed", 1e-3, positive=True)
+    vd = fr.num("transition_speed", 2 * vs, positive=True)
+    if not vd > vs:
+        raise r.err("friction", f"transition_speed = {vd} must exceed stiction_speed = {vs}")
+    extra = [k for k in v if k not in fr.used]
+    if extra:
+        raise r.err("friction", f"entry {extra[0]!r} is not known; known: static, dynamic, "
+                                "stiction_speed, transition_speed")
+    return (st, dy, vs, vd)
+
+
+def _wear(r: _Reader) -> Wear:
+    name = r.name("name", required=False, default=f"wear{r.index + 1}")
+    law = r.name("law")
+    if law not in WEAR_LAWS:
+        raise r.err("law", f"= {law!r} is not a wear law; known: {', '.join(WEAR_LAWS)}")
+    load = r.name("load")
+    contact, _, qty = load.rpartition(".")
+    if not contact or qty not in WEAR_LOADS:
+        raise r.err("load", f"= {load!r} must be CONTACT.normal_force or CONTACT.friction_force")
+    w = Wear(name, law, load, r.num("coefficient", required=True, nonneg=True),
+             initial=r.num("initial", 0.0, nonneg=True))
+    if law == "gear":
+        w.radius = r.num("radius", required=True, nonneg=True)
+        w.temperature = r.num("temperature", required=True, positive=True)
+        w.a_x = r.num("a_x", w.a_x, positive=True)
+        w.t0 = r.num("t0", w.t0, positive=True)
+        w.activation_energy = r.num("activation_energy", w.activation_energy, nonneg=True)
+        w.gas_constant = r.num("gas_constant", w.gas_constant, positive=True)
+    elif law == "knee":
+        c = r.get("slide_roll", required=True)
+        if not isinstance(c, list) or len(c) != 4 or any(
+                isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
+                for x in c):
+            raise r.err("slide_roll", f"= {c!r} must be four finite numbers [c0, c1, c2, c3]")
+        w.slide_roll = tuple(float(x) for x in c)
+    r.done()
+    return w
 
 
 def section_items(data: dict, key: str, source: str) -> list:
@@ -414,11 +575,11 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     from .spatial import is_spatial, spatial_scene_from_dict
     if is_spatial(data):   # a body of kind "spatial": the whole scene is (mbdk.spatial)
         return spatial_scene_from_dict(data, source)
-    known = {"scene", "body", "joint", "force"}
+    known = {"scene", "body", "joint", "force", "wear"}
     extra = [k for k in data if k not in known]
     if extra:
         raise SceneError(f"{source}: unknown section {extra[0]!r}; a scene has "
-                         "[scene], [[body]], [[joint]] and [[force]]")
+                         "[scene], [[body]], [[joint]], [[force]] and [[wear]]")
     head = data.get("scene", {})
     hr = _Reader(source, "scene", 0, head)
     name = hr.name("name", required=False, default=Path(source).stem)
@@ -432,7 +593,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     bodies = [_body(_Reader(source, "body", i, t)) for i, t in enumerate(items("body"))]
     joints = [_joint(_Reader(source, "joint", i, t)) for i, t in enumerate(items("joint"))]
     forces = [_force(_Reader(source, "force", i, t)) for i, t in enumerate(items("force"))]
-    sc = Scene(name, bodies, joints, forces, desc, source)
+    wear = [_wear(_Reader(source, "wear", i, t)) for i, t in enumerate(items("wear"))]
+    sc = Scene(name, bodies, joints, forces, desc, source, wear)
     check_scene(sc)
     sc._read_as = _snapshot(sc)   # what checked() compares against
     return sc
@@ -495,6 +657,15 @@ def scene_to_dict(sc: Scene) -> dict:
                     d["rest_length"] = f.rest_length
             if t != "spring":
                 d["damping"] = f.damping
+        elif t == "contact":
+            d.update(body1=f.body1, body2=f.body2, shape1=_shape_dict(f.shape1),
+                     shape2=_shape_dict(f.shape2), stiffness=f.stiffness, exponent=f.exponent,
+                     damping=f.damping, damping_depth=f.damping_depth)
+            if f.friction is not None:
+                d["friction"] = (dict(zip(("static", "dynamic", "stiction_speed",
+                                           "transition_speed"), f.friction))
+                                 if isinstance(f.friction, (tuple, list)) and len(f.friction) == 4
+                                 else f.friction)
         elif t is not None and t.startswith("coordinate_"):
             d.update(body=f.body1, coordinate=f.coordinate)
             if t != "coordinate_damper":
@@ -502,8 +673,33 @@ def scene_to_dict(sc: Scene) -> dict:
             if t != "coordinate_spring":
                 d["damping"] = f.damping
         forces.append(d)
-    return {"scene": {"name": sc.name, "description": sc.description}, "body": bodies,
-            "joint": joints, "force": forces}
+    wear = []
+    for w in sc.wear:
+        d = {"name": w.name, "law": w.law, "load": w.load, "coefficient": w.coefficient,
+             "initial": w.initial}
+        if w.law == "gear":
+            d.update(radius=w.radius, temperature=w.temperature, a_x=w.a_x, t0=w.t0,
+                     activation_energy=w.activation_energy, gas_constant=w.gas_constant)
+        elif w.law == "knee":
+            d["slide_roll"] = _seq(w.slide_roll)
+        wear.append(d)
+    out = {"scene": {"name": sc.name, "description": sc.description}, "body": bodies,
+           "joint": joints, "force": forces}
+    if wear:
+        out["wear"] = wear
+    return out
+
+
+def _shape_dict(sh):
+    """A contact shape as the file writes it (the reader names what is wrong with an odd one)."""
+    if not (isinstance(sh, (tuple, list)) and len(sh) == 3):
+        return sh
+    typ, point, third = sh
+    if typ == "line":
+        return {"type": typ, "point": _seq(point), "normal": _seq(third)}
+    if typ == "point":
+        return {"type": typ, "point": _seq(point)}
+    return {"type": typ, "centre": _seq(point), "radius": third}
 
 
 def checked(sc: Scene) -> Scene:
@@ -514,8 +710,8 @@ def checked(sc: Scene) -> Scene:
     if not isinstance(sc, Scene):
         raise SceneError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
     if not isinstance(sc.bodies, list) or not isinstance(sc.joints, list) or \
-            not isinstance(sc.forces, list):
-        raise SceneError(f"{sc.source}: bodies, joints and forces must be lists")
+            not isinstance(sc.forces, list) or not isinstance(sc.wear, list):
+        raise SceneError(f"{sc.source}: bodies, joints, forces and wear must be lists")
     read_as = getattr(sc, "_read_as", None)
     if read_as is not None:
         try:
@@ -533,7 +729,7 @@ def _snapshot(sc: Scene):
     user puts in a field never equals the tuple it replaced."""
     return (sc.name, sc.description, sc.source,
             *(tuple((type(o), tuple(vars(o).values())) for o in items)
-              for items in (sc.bodies, sc.joints, sc.forces)))
+              for items in (sc.bodies, sc.joints, sc.forces, sc.wear)))
 
 
 def check_scene(sc: Scene) -> None:
@@ -559,7 +755,7 @@ def check_scene(sc: Scene) -> None:
                     continue
                 if kind == "joint" and e.type == "driver" and fld == "body2":
                     continue
-                if kind == "force" and fld == "body2" and e.type not in ("spring", "damper",
+                if kind == "force" and fld == "body2" and e.type not in ("spring", "damper", "contact",
                                                                        "spring_damper"):
                     continue
                 shown = fld if not (kind == "force" and e.type in (
@@ -573,6 +769,22 @@ def check_scene(sc: Scene) -> None:
             if kind == "joint" and e.type != "driver" and e.body1 == e.body2:
                 raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = {e.body2!r} is body1 "
                                  "itself")
+    contacts = {f.name: f for f in sc.forces if f.type == "contact"}
+    for f in contacts.values():
+        if f.body1 == f.body2:
+            raise SceneError(f"{src}: force {f.name!r}: field 'body2' = {f.body2!r} is body1 itself")
+    for w in sc.wear:
+        if ("wear", w.name) in seen:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'name' is used twice")
+        seen[("wear", w.name)] = True
+        c = contacts.get(w.contact)
+        if c is None:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r} names no contact"
+                             f"; contacts: {', '.join(contacts) or 'none'}")
+        if w.quantity == "friction_force" and c.friction is None:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
+                             f"{c.name!r} has no friction; give it a friction table, or use "
+                             f"'{c.name}.normal_force'")
     rows = sum({"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}[j.type] for j in sc.joints)
     if rows > 3 * len(sc.bodies):
         raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "

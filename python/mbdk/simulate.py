@@ -106,6 +106,8 @@ class SceneResult(Result):
     iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
     #: a run the watch stopped: what left its tolerance, where and when (mbdk.watch.drift_report)
     drift: dict | None = None
+    #: each wear element's worn volume per sample, by name (integrated with the motion)
+    wear: dict = field(default_factory=dict)
 
     @property
     def y(self) -> np.ndarray:
@@ -355,9 +357,23 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                                 f"{[b.name for b in scene.bodies if b.inertia == 0]} have none: "
                                 "use solver = 'kkt' or 'auto'")
 
+    contacts = [f.name for f in scene.forces if f.type == "contact"]
+    if index3 and contacts:
+        raise NotApplicableError(
+            f"{method} on scene {scene.name!r}: its Newton matrix has no tangent stiffness of "
+            f"the contacts ({', '.join(contacts)}); use an ODE method (rk4, dopri54, bdf, "
+            "cvode_bdf) with formulation reduced, baumgarte or projection")
+    if dae_form and scene.wear:
+        raise NotApplicableError(
+            f"{method}/{formulation} on scene {scene.name!r}: the DAE's state [q, v, lambda] has "
+            f"no place for the wear states ({', '.join(w.name for w in scene.wear)}); use an ODE "
+            "method with formulation reduced, baumgarte or projection")
     # built once: the kernel fills in the values taken from the pose where it starts the run
     tab = build_tables(scene, resolve=False)
-    y0 = np.concatenate([np.array(scene.q0(), float), np.array(scene.v0(), float)])
+    # the state [q; v; w]: the wear elements' volumes after the bodies' coordinates and rates
+    y0 = np.concatenate([np.array(scene.q0(), float), np.array(scene.v0(), float),
+                         np.array([w.initial for w in scene.wear], float)])
+    given = np.concatenate([given_mask(scene), np.zeros(len(scene.wear), np.int32)])
     nsamp, nc, m = plan_["nsamp"], tab.nc, tab.m
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
@@ -371,7 +387,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
     args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
             plan_["index3"].pack(),
-            flag, y0, given_mask(scene), int(bool(assemble_initial)), t0, t_end, want, nsamp,
+            flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
     (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
      status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
@@ -404,7 +420,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
     result = SceneResult(
-        t=t, q=y[:nc].T, v=y[nc:].T,
+        t=t, q=y[:nc].T, v=y[nc:2 * nc].T,
         a=a_out[:, :nw].T if want & 1 else None,
         multipliers=lam_out[:m, :nw].T if want & 2 else None,
         reactions=np.transpose(reac[:, :tab.nj, :nw], (2, 1, 0)) if want & 4 else None,
@@ -414,7 +430,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         visits=dict(zip(VISIT_NAMES, (int(x) for x in visits))), manifest=manifest,
         assembly=report, joints=[j.name for j in scene.joints],
         bodies=[b.name for b in scene.bodies],
-        iterations=np.array(iters[:nw]) if index3 else None)
+        iterations=np.array(iters[:nw]) if index3 else None,
+        wear={w.name: y[2 * nc + k] for k, w in enumerate(scene.wear)})
     if want & 8:
         kin, vg, vs, pd, pc, pl = energy[:, :nw]
         result.energy = kin + vg + vs

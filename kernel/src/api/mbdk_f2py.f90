@@ -363,7 +363,8 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   status = MBDK_ERR_INVALID_INPUT
   if (8 * nmow /= c_sizeof(mopt) .or. 8 * noptw /= c_sizeof(opt) .or. &
       8 * ni3w /= c_sizeof(i3) .or. 8 * nstatw /= c_sizeof(st)) return
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n /= 6 * nb .or. nc /= 3 * nb) return
+  ! y = [q; v; w]: the effects' states w after the bodies' (mbdk_model), checked once it is built
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n < 6 * nb .or. nc /= 3 * nb) return
   if (want < 0 .or. want > MBDK_OUT_ALL .or. nvis /= MBDK_VISIT_COUNT) return
   call mbdk_method_info(method_id, name, family, order)
   index3 = family == MBDK_FAMILY_DAE_INDEX3
@@ -374,11 +375,13 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   mopt = transfer(mobuf, mopt)
   ys = y0
   call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
-                        fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys, given(1:nc) /= 0, &
-                        given(nc + 1:) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
+                        fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys(1:2 * nc), given(1:nc) /= 0, &
+                        given(nc + 1:2 * nc) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
                         bad_joint, bad_force, status, bkind)
   asm_velocity = merge(1, 0, vel)
   if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (n /= model%n) return
   m = model%m
   status = MBDK_ERR_OUTPUT_SIZE
   if (m1 < max(m, 1)) return

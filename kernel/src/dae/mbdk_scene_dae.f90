@@ -51,6 +51,11 @@ contains
     integer :: nc, m
     stat = MBDK_ERR_INVALID_INPUT
     if (form /= MBDK_DAE_I3 .and. form /= MBDK_DAE_SI2) return
+    ! the DAE's state is [q; v; lambda]: a scene with effect states (wear) is not one
+    if (model%ns > 0) then
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
     nc = model%nc
     m = model%m
     self%model => model

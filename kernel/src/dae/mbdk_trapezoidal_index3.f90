@@ -271,6 +271,11 @@ contains
     if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. &
         opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
+    ! the Newton matrix has no tangent of contacts and friction, and the state no effects
+    if (model%has_contacts) then
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
     if (size(y0) /= 2 * nc) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then

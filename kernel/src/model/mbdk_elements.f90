@@ -27,8 +27,13 @@ module mbdk_elements
   !> damping, a damper no stiffness (mbdk_model_init refuses tables that say otherwise)
   integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
     MBDK_FORCE_TORQUE = 3, MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5, &
-    MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_TYPES = 7
-  integer, parameter, public :: MBDK_ELEMENT_KINDS = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
+    MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_CONTACT = 8, &
+    MBDK_FORCE_FRICTION = 9, MBDK_FORCE_TYPES = 9
+  !> effects share the force table (fint, freal) and continue its codes, so that a scene's
+  !> element columns stay one table and a kind's visit counter is MBDK_JOINT_TYPES + code
+  integer, parameter, public :: MBDK_EFFECT_WEAR = 10, MBDK_EFFECT_TYPES = 1
+  integer, parameter, public :: MBDK_ELEMENT_KINDS = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES + &
+    MBDK_EFFECT_TYPES
   !> constraint rows by joint type: a named constant, so that the joints' evaluation (another
   !> module, called for every joint at every evaluation) reads it inline instead of calling
   !> mbdk_joint_rows
@@ -71,7 +76,10 @@ module mbdk_elements
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPRING_DAMPER, 'spring_damper', 0, 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_COORDINATE, 'coordinate_spring_damper', 0, 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPRING, 'spring', 0, 0), &
-    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_DAMPER, 'damper', 0, 0) ]
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_DAMPER, 'damper', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_CONTACT, 'contact', 0, 0), &
+    kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_FRICTION, 'friction', 0, 0), &
+    kind_entry(MBDK_CLASS_EFFECT, MBDK_EFFECT_WEAR, 'wear', 0, 1) ]
 
 contains
 
@@ -108,7 +116,8 @@ contains
   pure integer function mbdk_element_visit(cls, code)
     integer, intent(in) :: cls, code
     mbdk_element_visit = code
-    if (cls == MBDK_CLASS_FORCE) mbdk_element_visit = MBDK_JOINT_TYPES + code
+    if (cls == MBDK_CLASS_FORCE .or. cls == MBDK_CLASS_EFFECT) &
+      mbdk_element_visit = MBDK_JOINT_TYPES + code
   end function mbdk_element_visit
 
   !> Constraint rows of a joint type (0 for an unknown type).

@@ -16,12 +16,21 @@
 !>                          scene's visit counters say which it has (mbdk_elements)
 !>   5 coordinate spring-damper on q(3 body1 - 3 + coordinate): -k (q - q0) - c q',
 !>                          k = freal(1), c = freal(2), q0 = freal(3) (the trolley's -s x1 - k x1')
-!> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE.
+!>   8 contact              compliant contact between two bodies' shapes (mbdk_contact: layout
+!>                          and law); fint(4) = its geometry
+!>   9 friction             Coulomb friction of a contact (mbdk_contact); fint(4) = the column
+!>                          of that contact in the same table
+!> Wear elements (mbdk_wear) share the table; the model takes them out of it (they carry states
+!> and are no forces) and this module skips them.
+!> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE, and so has a
+!> penetrating contact of two circles with coincident centres.
 !> Every routine takes the rotations rot(2, nb) of the bodies at q (mbdk_joints).
 module mbdk_force_elements
   use mbdk_elements, only: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
     MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, &
-    MBDK_FORCE_TYPES
+    MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, MBDK_FORCE_TYPES
+  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, &
+    mbdk_contact_apply
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   use mbdk_time_function, only: mbdk_time_fn
@@ -32,7 +41,8 @@ module mbdk_force_elements
 
   ! the force types are the element registry's (mbdk_elements)
   public :: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, MBDK_FORCE_SPRING_DAMPER, &
-    MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_TYPES
+    MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_CONTACT, &
+    MBDK_FORCE_FRICTION, MBDK_FORCE_TYPES
 
 contains
 
@@ -47,10 +57,13 @@ contains
     integer :: e, b, nb, k
     real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2), gv(2)
     real(dp) :: len, ldot, ften, tf, tfd, tfdd, fv(2)
+    type(mbdk_contact_t) :: ct
+    logical :: ok
 
     stat = MBDK_SUCCESS
     nb = size(mass) / 3
     do e = 1, size(fint, 2)
+      if (fint(1, e) > MBDK_FORCE_TYPES) cycle
       visits(fint(1, e)) = visits(fint(1, e)) + 1
       select case (fint(1, e))
       case (MBDK_FORCE_GRAVITY)
@@ -91,6 +104,25 @@ contains
       case (MBDK_FORCE_COORDINATE)
         k = 3 * fint(2, e) - 3 + fint(4, e)
         f(k) = f(k) - freal(1, e) * (q(k) - freal(3, e)) - freal(2, e) * v(k)
+      case (MBDK_FORCE_CONTACT)
+        call mbdk_contact_eval(fint(:, e), freal(:, e), rot, q, v, ct, ok)
+        if (.not. ok) then
+          stat = MBDK_ERR_NONFINITE
+          return
+        end if
+        if (ct%touching) call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c, ct%force * ct%n, &
+                                                 q, f)
+      case (MBDK_FORCE_FRICTION)
+        k = fint(4, e)
+        call mbdk_contact_eval(fint(:, k), freal(:, k), rot, q, v, ct, ok)
+        if (.not. ok) then
+          stat = MBDK_ERR_NONFINITE
+          return
+        end if
+        if (ct%touching) then
+          ften = -mbdk_friction_mu(ct%slip, freal(:, e)) * ct%force
+          call mbdk_contact_apply(fint(2, k), fint(3, k), ct%c, ften * [-ct%n(2), ct%n(1)], q, f)
+        end if
       end select
     end do
   end subroutine mbdk_forces_eval
@@ -105,6 +137,8 @@ contains
     integer :: e, b, nb, k
     real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2), gv(2), len, ldot
     real(dp) :: tf, tfd, tfdd
+    type(mbdk_contact_t) :: ct
+    logical :: ok
 
     v_gravity = 0.0_dp
     v_springs = 0.0_dp
@@ -134,6 +168,17 @@ contains
         k = 3 * fint(2, e) - 3 + fint(4, e)
         v_springs = v_springs + 0.5_dp * freal(1, e) * (q(k) - freal(3, e))**2
         p_damp = p_damp + freal(2, e) * v(k)**2
+      case (MBDK_FORCE_CONTACT)
+        call mbdk_contact_eval(fint(:, e), freal(:, e), rot, q, v, ct, ok)
+        if (ok .and. ct%touching) then
+          v_springs = v_springs + ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+          p_damp = p_damp + (ct%force - ct%elastic) * ct%rate
+        end if
+      case (MBDK_FORCE_FRICTION)
+        k = fint(4, e)
+        call mbdk_contact_eval(fint(:, k), freal(:, k), rot, q, v, ct, ok)
+        if (ok .and. ct%touching) &
+          p_damp = p_damp + mbdk_friction_mu(ct%slip, freal(:, e)) * ct%force * ct%slip
       end select
     end do
   end subroutine mbdk_forces_energy
@@ -167,6 +212,8 @@ contains
     do e = 1, size(fint, 2)
       ! gravity and torques have no tangent: only the elements with one are visited
       if (fint(1, e) == MBDK_FORCE_GRAVITY .or. fint(1, e) == MBDK_FORCE_TORQUE) cycle
+      ! contacts, friction and effects have none here: trapezoidal_index3 refuses their scenes
+      if (fint(1, e) >= MBDK_FORCE_CONTACT) cycle
       visits(fint(1, e)) = visits(fint(1, e)) + 1
       select case (fint(1, e))
       case (MBDK_FORCE_POINT)

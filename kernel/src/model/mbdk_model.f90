@@ -1,5 +1,7 @@
 !> A planar multibody scene as a problem y' = F(t, y) for every integrator of the kernel:
-!> y = [q; v], q = (x, y, theta) per body in absolute coordinates (nq = 3 bodies), and
+!> y = [q; v; w], q = (x, y, theta) per body in absolute coordinates (nq = 3 bodies), w the
+!> states of the scene's effects (one worn volume per wear element, mbdk_wear: none in a scene
+!> that declares none), and
 !>
 !>   M q'' + D^T lambda = f(q, v, t),        Phi(q, t) = 0          (Fekete (2023) (2.54))
 !>
@@ -60,7 +62,11 @@ module mbdk_model
     MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_POINT, &
     MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
-    MBDK_ELEMENT_NAME_LEN
+    MBDK_ELEMENT_NAME_LEN, MBDK_ELEMENT_KINDS, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, &
+    MBDK_EFFECT_WEAR
+  use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_CIRCLES, MBDK_CONTACT_INSIDE
+  use mbdk_wear, only: mbdk_wear_rate, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
+    MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
@@ -86,7 +92,7 @@ module mbdk_model
   ! the linear solve an evaluation takes (mbdk_model_linear_solve): mbdk_constrained's codes
   public :: MBDK_SOLVE_NONE, MBDK_SOLVE_REVOLUTE, MBDK_SOLVE_SCHUR_SMALL, MBDK_SOLVE_SCHUR_LAPACK, &
     MBDK_SOLVE_KKT, MBDK_SOLVE_PENALTY_SMALL, MBDK_SOLVE_PENALTY_LAPACK, MBDK_SOLVE_SCHUR_SPARSE
-  integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_JOINT_TYPES + MBDK_FORCE_TYPES
+  integer, parameter, public :: MBDK_VISIT_COUNT = MBDK_ELEMENT_KINDS
   !> outputs per sample: energy parts and residuals
   integer, parameter, public :: MBDK_ENERGY_PARTS = 6, MBDK_RESIDUALS = 3
   !> the outputs a run asks for (mbdk_model_outputs' want, a sum of these bits); a run computes
@@ -176,6 +182,12 @@ module mbdk_model
     !> a power term needs the bodies' rotations (a point force, a two-point damper)
     logical :: power_rot = .false.
     type(mbdk_model_work_t), pointer :: work => null()
+    !> effect states (wear elements: eint/ereal, their columns referring to fint_v) and whether
+    !> the scene has contacts or friction (no tangent for trapezoidal_index3's Newton matrix)
+    integer :: ns = 0
+    integer, allocatable :: eint(:, :)
+    real(dp), allocatable :: ereal(:, :)
+    logical :: has_contacts = .false.
     !> every joint revolute and S solved in-house: the closed-form Schur complement
     logical :: revolute = .false.
     type(mbdk_revolute_schur_t) :: rs
@@ -237,8 +249,10 @@ contains
       model%qoff(b) = model%nc + 1
       model%nc = model%nc + coords
     end do
-    model%n = 2 * model%nc
+    model%ns = count(fint(1, :) == MBDK_EFFECT_WEAR)
+    model%n = 2 * model%nc + model%ns
     model%nq = model%nc
+    model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
     allocate (model%mass(model%nc), model%winv(model%nc))
     do b = 1, model%nb
       model%mass(model%qoff(b):model%qoff(b) + 1) = mass(b)
@@ -266,7 +280,11 @@ contains
     model%m = rows
     if (model%m > model%nc) return
     do j = 1, size(fint, 2)
-      if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES) return
+      if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES + 1) return
+      if (fint(1, j) >= MBDK_FORCE_CONTACT) then
+        if (.not. contact_entry_ok(j)) return
+        cycle
+      end if
       ! a spring has no damping, a damper no stiffness (their own kinds: mbdk_elements)
       if (fint(1, j) == MBDK_FORCE_SPRING .and. freal(7, j) /= 0.0_dp) return
       if (fint(1, j) == MBDK_FORCE_DAMPER .and. freal(5, j) /= 0.0_dp) return
@@ -351,7 +369,7 @@ contains
     end if
     allocate (work%fq(nc), work%phi(m), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%xc(nc), work%y_post(2 * nc), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc), &
+              work%xc(nc), work%y_post(model%n), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc), &
               work%wres(m), work%wterm(m), work%wa(nc), work%wlam(m))
     work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
@@ -377,6 +395,52 @@ contains
     model%work => work
     model%has_jac = .false.
     call split_forces(model, stat)
+
+  contains
+
+    !> A contact (geometry 1..3, two distinct bodies, radii >= 0 with the ring larger than its
+    !> circle, k >= 0, exponent >= 1, damping >= 0), friction (refers to a contact; mus, mud >= 0,
+    !> 0 < vs < vd) or wear entry (law, load, and a column of the right kind; k >= 0).
+    logical function contact_entry_ok(e) result(ok)
+      integer, intent(in) :: e
+      integer :: c
+      ok = .false.
+      if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
+      if (.not. all(abs(freal(:, e)) <= huge(1.0_dp))) return
+      select case (fint(1, e))
+      case (MBDK_FORCE_CONTACT)
+        if (fint(2, e) < 1 .or. fint(2, e) > model%nb .or. fint(3, e) < 0 .or. &
+            fint(3, e) > model%nb .or. fint(2, e) == fint(3, e)) return
+        if (fint(4, e) < MBDK_CONTACT_LINE .or. fint(4, e) > MBDK_CONTACT_INSIDE) return
+        if (freal(3, e) < 0.0_dp .or. freal(7, e) < 0.0_dp .or. freal(8, e) < 1.0_dp .or. &
+            freal(9, e) < 0.0_dp .or. freal(10, e) < 0.0_dp) return
+        if (fint(4, e) /= MBDK_CONTACT_LINE .and. freal(6, e) < 0.0_dp) return
+        if (fint(4, e) == MBDK_CONTACT_INSIDE .and. .not. (freal(6, e) > freal(3, e))) return
+      case (MBDK_FORCE_FRICTION)
+        c = fint(4, e)
+        if (fint(2, e) /= 0 .or. fint(3, e) /= 0) return
+        if (c < 1 .or. c > size(fint, 2)) return
+        if (fint(1, c) /= MBDK_FORCE_CONTACT) return
+        if (freal(1, e) < 0.0_dp .or. freal(2, e) < 0.0_dp .or. .not. (freal(3, e) > 0.0_dp) &
+            .or. .not. (freal(4, e) > freal(3, e))) return
+      case (MBDK_EFFECT_WEAR)
+        c = fint(4, e)
+        if (fint(2, e) < 1 .or. fint(2, e) > MBDK_WEAR_LAWS) return
+        if (c < 1 .or. c > size(fint, 2)) return
+        if (fint(3, e) == MBDK_WEAR_LOAD_NORMAL) then
+          if (fint(1, c) /= MBDK_FORCE_CONTACT) return
+        else if (fint(3, e) == MBDK_WEAR_LOAD_FRICTION) then
+          if (fint(1, c) /= MBDK_FORCE_FRICTION) return
+        else
+          return
+        end if
+        if (freal(1, e) < 0.0_dp) return
+        if (fint(2, e) == MBDK_WEAR_GEAR .and. .not. (freal(2, e) >= 0.0_dp .and. &
+            freal(3, e) > 0.0_dp .and. freal(5, e) > 0.0_dp .and. freal(7, e) > 0.0_dp)) return
+      end select
+      ok = .true.
+    end function contact_entry_ok
+
   end subroutine mbdk_model_init
 
   !> Gravity does not depend on (q, v, t): its generalised force is summed once (fconst, by
@@ -390,12 +454,24 @@ contains
     logical, allocatable :: grav(:)
     integer, allocatable :: idx(:)
     real(dp) :: rot(2, model%nb), y0(model%nc)
+    integer :: newcol(size(model%fint, 2))
+    logical :: visit(size(model%fint, 2)), wear(size(model%fint, 2))
     nf = size(model%fint, 2)
     grav = model%fint(1, :) == MBDK_FORCE_GRAVITY
+    wear = model%fint(1, :) == MBDK_EFFECT_WEAR
+    visit = .not. (grav .or. wear)
     idx = [(e, e = 1, nf)]
     model%ngrav = count(grav)
-    model%fint_v = model%fint(:, pack(idx, .not. grav))
-    model%freal_v = model%freal(:, pack(idx, .not. grav))
+    model%fint_v = model%fint(:, pack(idx, visit))
+    model%freal_v = model%freal(:, pack(idx, visit))
+    model%eint = model%fint(:, pack(idx, wear))
+    model%ereal = model%freal(:, pack(idx, wear))
+    ! friction and wear refer to table columns: in fint_v those of the visited elements
+    newcol = 0
+    newcol(pack(idx, visit)) = [(e, e = 1, count(visit))]
+    where (model%fint_v(1, :) == MBDK_FORCE_FRICTION) &
+      model%fint_v(4, :) = newcol(model%fint_v(4, :))
+    if (model%ns > 0) model%eint(4, :) = newcol(model%eint(4, :))
     allocate (model%fconst(model%nc))
     model%fconst = 0.0_dp
     rot = 0.0_dp
@@ -520,7 +596,33 @@ contains
     do i = 1, nc
       f(i) = y(nc + i)
     end do
+    if (self%ns > 0 .and. stat == MBDK_SUCCESS) call effect_rates(self, t, y, f, stat)
   end subroutine model_rhs
+
+  !> f(2 nc + 1:) = the effects' rates at (t, y), after an evaluation has left work%rot at q.
+  subroutine effect_rates(self, t, y, f, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: y(:)
+    real(dp), intent(inout), contiguous :: f(:)
+    integer, intent(out) :: stat
+    integer :: e, nc
+    logical :: ok
+    nc = self%nc
+    stat = MBDK_SUCCESS
+    associate (w => self%work)
+      w%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) = &
+        w%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) + self%ns
+      do e = 1, self%ns
+        call mbdk_wear_rate(self%eint(:, e), self%ereal(:, e), self%fint_v, self%freal_v, &
+                            w%rot, y(1:nc), y(nc + 1:2 * nc), t, f(2 * nc + e), ok)
+        if (.not. ok) then
+          stat = MBDK_ERR_NONFINITE
+          return
+        end if
+      end do
+    end associate
+  end subroutine effect_rates
 
   !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
   !> self%work%lam_rhs; no argument may alias the other work buffers. near: the relative pivot
@@ -814,6 +916,10 @@ contains
         if (self%freal(7, e) /= 0.0_dp) power = .true.
       case (MBDK_FORCE_COORDINATE)
         if (self%freal(2, e) /= 0.0_dp) power = .true.
+      case (MBDK_FORCE_CONTACT)
+        if (self%freal(9, e) /= 0.0_dp) power = .true.
+      case (MBDK_FORCE_FRICTION)
+        power = .true.
       end select
     end do
     ! the spread of the bodies: twice the largest distance from their mean position

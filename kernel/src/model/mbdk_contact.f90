@@ -1,0 +1,176 @@
+!> Compliant contact and regularised Coulomb friction between planar shapes (Fekete (2023) 6.1.2:
+!> the commercial codes' IMPACT contact with Coulomb friction; the unilateral constraint of
+!> (1.21)-(1.22) as a contact).
+!>
+!> Geometry (fint(4) of a contact; body2 = 0 is the ground, its points global):
+!>   1 point/circle on line   the circle of radius r1 >= 0 (0: a point) centred at s1 on body1,
+!>                            the line through s2 on body2 with the unit normal (cos a, sin a),
+!>                            a = freal(6), in body2's frame, pointing to the side body1 belongs
+!>                            to. Penetration delta = r1 - n . (P1 - P2).
+!>   2 circle on circle       circles r1 (body1, centre s1) and r2 = freal(6) (body2, centre s2),
+!>                            outside each other: delta = r1 + r2 - |P1 - P2|.
+!>   3 circle in circle       circle r1 inside the hollow circle r2 > r1 of body2 (a particle held
+!>                            in a ring, (1.22)): delta = |P1 - P2| + r1 - r2.
+!> The normal n points from body2 into body1 (the direction the force pushes body1); the contact
+!> point c is body1's deepest point, P1 - r1 n. The contact force F n acts on body1 at c and -F n
+!> on body2 at the same point. Since F n passes through P1 (and, for the circles, through P2 as
+!> well), its generalised force is exactly -grad of the potential below: the contact conserves
+!> energy without damping, whatever its exponent.
+!>
+!> Normal force (IMPACT): for delta > 0
+!>   F = max(0, k delta^e + step(delta; 0, 0, dmax, cmax) delta'),  F = 0 for delta <= 0,
+!> with delta' the penetration rate and step the cubic 3 x^2 - 2 x^3 on x = delta/dmax clipped to
+!> [0, 1] (dmax = 0: the full cmax at once, a Kelvin-Voigt contact). The ramp keeps F continuous
+!> where the contact closes; the clip keeps a contact from pulling (a damped contact otherwise
+!> ends with a tensile force). Potential k delta^(e+1)/(e+1); the dissipated power is
+!> (F - k delta^e) delta', >= 0 in both branches.
+!> freal: 1:2 s1, 3 r1, 4:5 s2, 6 a or r2, 7 k, 8 e (>= 1), 9 cmax, 10 dmax.
+!>
+!> Friction (an element of its own, fint(4) = the column of its contact in the same table):
+!> the slip speed u = t . (v1(c) - v2(c)) along t = perp(n), the force -mu(u) F t on body1 at c
+!> and the opposite on body2, with the signed coefficient
+!>   |u| <= vs:       mu = mus step(|u|; 0, 0, vs, 1) sign(u)      (stiction, regularised)
+!>   vs < |u| < vd:   mu = (mus + (mud - mus) step(|u|; vs, 0, vd, 1)) sign(u)
+!>   |u| >= vd:       mu = mud sign(u)
+!> (Adams' friction law with its stiction and friction transition speeds). Its dissipated power
+!> is |mu| F |u| >= 0. freal: 1 mus, 2 mud, 3 vs > 0, 4 vd > vs.
+!>
+!> A circle on circle whose centres coincide has no normal while it penetrates:
+!> MBDK_ERR_NONFINITE, as for a spring of zero length.
+module mbdk_contact
+  use mbdk_kinds, only: dp
+  use mbdk_joints, only: mbdk_body_point
+  implicit none
+  private
+  public :: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, mbdk_step3, &
+    mbdk_contact_apply
+
+  integer, parameter, public :: MBDK_CONTACT_LINE = 1, MBDK_CONTACT_CIRCLES = 2, &
+    MBDK_CONTACT_INSIDE = 3
+
+  !> One contact's state at (q, v): penetration and its rate, the normal force and its elastic
+  !> part, the normal, the contact point, the slip speed along perp(n), and whether it touches.
+  type :: mbdk_contact_t
+    real(dp) :: delta = 0.0_dp, rate = 0.0_dp, force = 0.0_dp, elastic = 0.0_dp
+    real(dp) :: n(2) = 0.0_dp, c(2) = 0.0_dp, slip = 0.0_dp
+    logical :: touching = .false.
+  end type mbdk_contact_t
+
+contains
+
+  !> The cubic step: 0 at x <= x0, 1 at x >= x1, 3 s^2 - 2 s^3 between (s = (x - x0)/(x1 - x0));
+  !> a jump at x0 when x1 <= x0.
+  pure real(dp) function mbdk_step3(x, x0, x1) result(s)
+    real(dp), intent(in) :: x, x0, x1
+    if (x <= x0) then
+      s = 0.0_dp
+    else if (x >= x1) then
+      s = 1.0_dp
+    else
+      s = (x - x0) / (x1 - x0)
+      s = s * s * (3.0_dp - 2.0_dp * s)
+    end if
+  end function mbdk_step3
+
+  !> The contact of table entry (fi, fr) at (q, v), rot the bodies' (cos, sin). ok = .false.
+  !> where a penetrating contact has no normal (coincident centres).
+  pure subroutine mbdk_contact_eval(fi, fr, rot, q, v, ct, ok)
+    integer, intent(in) :: fi(:)
+    real(dp), intent(in) :: fr(:), rot(:, :), q(:), v(:)
+    type(mbdk_contact_t), intent(out) :: ct
+    logical, intent(out) :: ok
+    real(dp) :: p1(2), p2(2), rho(2), pv(2), w, d(2), dist, nb(2), vc1(2), vc2(2), u(2)
+    integer :: b1, b2
+
+    ok = .true.
+    b1 = fi(2)
+    b2 = fi(3)
+    call mbdk_body_point(b1, fr(1:2), rot, q, v, p1, rho, pv, w)
+    call mbdk_body_point(b2, fr(4:5), rot, q, v, p2, rho, pv, w)
+    d = p1 - p2
+    select case (fi(4))
+    case (MBDK_CONTACT_LINE)
+      nb = [cos(fr(6)), sin(fr(6))]
+      if (b2 > 0) then
+        ct%n = [rot(1, b2) * nb(1) - rot(2, b2) * nb(2), rot(2, b2) * nb(1) + rot(1, b2) * nb(2)]
+      else
+        ct%n = nb
+      end if
+      ct%delta = fr(3) - dot_product(ct%n, d)
+    case (MBDK_CONTACT_CIRCLES)
+      dist = norm2(d)
+      ct%delta = fr(3) + fr(6) - dist
+      if (ct%delta <= 0.0_dp) return
+      if (.not. (dist > 0.0_dp)) then
+        ok = .false.
+        return
+      end if
+      ct%n = d / dist
+    case default   ! MBDK_CONTACT_INSIDE
+      dist = norm2(d)
+      ct%delta = dist + fr(3) - fr(6)
+      if (ct%delta <= 0.0_dp) return
+      ct%n = -d / dist
+    end select
+    if (.not. (ct%delta > 0.0_dp)) return
+    ct%touching = .true.
+    ct%c = p1 - fr(3) * ct%n
+    vc1 = point_velocity(b1, ct%c)
+    vc2 = point_velocity(b2, ct%c)
+    u = vc1 - vc2
+    ct%rate = -dot_product(ct%n, u)
+    ct%slip = -ct%n(2) * u(1) + ct%n(1) * u(2)
+    ct%elastic = fr(7) * ct%delta**fr(8)
+    ct%force = max(0.0_dp, ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate)
+
+  contains
+
+    !> Velocity of body b's material point at the global point x (0 on the ground).
+    pure function point_velocity(b, x) result(vx)
+      integer, intent(in) :: b
+      real(dp), intent(in) :: x(2)
+      real(dp) :: vx(2)
+      if (b == 0) then
+        vx = 0.0_dp
+      else
+        vx = [v(3 * b - 2) - v(3 * b) * (x(2) - q(3 * b - 1)), &
+              v(3 * b - 1) + v(3 * b) * (x(1) - q(3 * b - 2))]
+      end if
+    end function point_velocity
+
+  end subroutine mbdk_contact_eval
+
+  !> The signed friction coefficient at slip speed u (see the module header).
+  pure real(dp) function mbdk_friction_mu(u, fr) result(mu)
+    real(dp), intent(in) :: u, fr(:)
+    real(dp) :: a
+    a = abs(u)
+    if (a <= fr(3)) then
+      mu = fr(1) * mbdk_step3(a, 0.0_dp, fr(3))
+    else if (a < fr(4)) then
+      mu = fr(1) + (fr(2) - fr(1)) * mbdk_step3(a, fr(3), fr(4))
+    else
+      mu = fr(2)
+    end if
+    mu = sign(mu, u)
+  end function mbdk_friction_mu
+
+  !> f += the generalised force of the force fv acting at the global point c on body b1 and of
+  !> -fv on body b2 (bodies 0, the ground, take nothing).
+  pure subroutine mbdk_contact_apply(b1, b2, c, fv, q, f)
+    integer, intent(in) :: b1, b2
+    real(dp), intent(in) :: c(2), fv(2), q(:)
+    real(dp), intent(inout) :: f(:)
+    if (b1 > 0) then
+      f(3 * b1 - 2) = f(3 * b1 - 2) + fv(1)
+      f(3 * b1 - 1) = f(3 * b1 - 1) + fv(2)
+      f(3 * b1) = f(3 * b1) + (c(1) - q(3 * b1 - 2)) * fv(2) - (c(2) - q(3 * b1 - 1)) * fv(1)
+    end if
+    if (b2 > 0) then
+      f(3 * b2 - 2) = f(3 * b2 - 2) - fv(1)
+      f(3 * b2 - 1) = f(3 * b2 - 1) - fv(2)
+      f(3 * b2) = f(3 * b2) - ((c(1) - q(3 * b2 - 2)) * fv(2) - (c(2) - q(3 * b2 - 1)) * fv(1))
+    end if
+  end subroutine mbdk_contact_apply
+
+end module mbdk_contact

@@ -1,0 +1,92 @@
+!> Wear laws as scene effects (Fekete (2023) chapter 6): each wear element carries one state W,
+!> the worn volume, integrated with the dynamics as part of y = [q; v; W] by whichever method
+!> runs the scene, so that its accuracy is the run's and no second pass over stored samples is
+!> needed. Its rate is
+!>   1 archard  dW/dt = k F u                                   (6.3)-(6.4)
+!>   2 gear     dW/dt = k F psi(u, Ts) u,  u = R |omega1 - omega2|   (6.7)-(6.10), see below
+!>   3 knee     dW/dt = k F u S/R(t)                            (6.11)-(6.13)
+!> with F the load: the normal force of a contact (load 1) or the force of a friction element
+!> (load 2), and u the contact's sliding speed |slip| (archard, knee) or, for the gear law, the
+!> relative angular speed of the contact's two bodies times the radius R the book uses as the
+!> distance of the contact from the pitch point. The book writes the gear law's speed as
+!> 2 pi R (omega1 + omega2) in (6.5), (6.7) and (6.10) but R (omega1 + omega2) in (6.9): with
+!> omega in rad/s the speed is R |omega1 - omega2| (the two gears turn in opposite senses, so
+!> that is the sum of their speeds), and the 2 pi belongs to neither (studies/ch6_numbers.py).
+!> The lubrication factor (6.8):
+!>   psi(u, Ts) = 1 - exp(-(a_x / (u t0)) exp(-Ea / (Rg Ts))),   psi = 1 at u = 0 (its limit).
+!> S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3 (table 6.7 gives its coefficients).
+!>
+!> Table entries in the scene's force table: fint = (MBDK_EFFECT_WEAR, law, load, column of the
+!> contact (load 1) or of the friction element (load 2)); freal(1) = k; gear: freal(2:7) = R, Ts,
+!> a_x, t0, Ea, Rg; knee: freal(2:5) = c0..c3.
+module mbdk_wear
+  use mbdk_kinds, only: dp
+  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu
+  implicit none
+  private
+  public :: mbdk_wear_rate, mbdk_wear_psi
+
+  integer, parameter, public :: MBDK_WEAR_ARCHARD = 1, MBDK_WEAR_GEAR = 2, MBDK_WEAR_KNEE = 3, &
+    MBDK_WEAR_LAWS = 3
+  integer, parameter, public :: MBDK_WEAR_LOAD_NORMAL = 1, MBDK_WEAR_LOAD_FRICTION = 2
+
+contains
+
+  !> The lubrication factor (6.8) at sliding speed u >= 0; fr = freal of a gear-law entry.
+  pure real(dp) function mbdk_wear_psi(u, fr) result(psi)
+    real(dp), intent(in) :: u, fr(:)
+    real(dp) :: x
+    if (.not. (u > 0.0_dp)) then
+      psi = 1.0_dp
+      return
+    end if
+    x = fr(4) / (u * fr(5)) * exp(-fr(6) / (fr(7) * fr(3)))
+    psi = -expm1_(-x)
+  end function mbdk_wear_psi
+
+  !> 1 - exp(-x) without the cancellation of small x (psi is about 1e-7 at the book's values).
+  pure real(dp) function expm1_(x) result(e)
+    real(dp), intent(in) :: x
+    if (abs(x) < 1.0e-5_dp) then
+      e = x * (1.0_dp + x * (0.5_dp + x / 6.0_dp))
+    else
+      e = exp(x) - 1.0_dp
+    end if
+  end function expm1_
+
+  !> dW/dt of wear entry (fi, fr) at (q, v, t); fint, freal: the table its column refers to.
+  !> ok = .false. where the contact has no normal (mbdk_contact_eval).
+  pure subroutine mbdk_wear_rate(fi, fr, fint, freal, rot, q, v, t, rate, ok)
+    integer, intent(in) :: fi(:), fint(:, :)
+    real(dp), intent(in) :: fr(:), freal(:, :), rot(:, :), q(:), v(:), t
+    real(dp), intent(out) :: rate
+    logical, intent(out) :: ok
+    type(mbdk_contact_t) :: ct
+    integer :: c, cc
+    real(dp) :: load, u, w1, w2
+
+    rate = 0.0_dp
+    c = fi(4)
+    cc = c
+    if (fi(3) == MBDK_WEAR_LOAD_FRICTION) cc = fint(4, c)
+    call mbdk_contact_eval(fint(:, cc), freal(:, cc), rot, q, v, ct, ok)
+    if (.not. ok .or. .not. ct%touching) return
+    load = ct%force
+    if (fi(3) == MBDK_WEAR_LOAD_FRICTION) load = abs(mbdk_friction_mu(ct%slip, freal(:, c))) * load
+    select case (fi(2))
+    case (MBDK_WEAR_GEAR)
+      w1 = 0.0_dp
+      w2 = 0.0_dp
+      if (fint(2, cc) > 0) w1 = v(3 * fint(2, cc))
+      if (fint(3, cc) > 0) w2 = v(3 * fint(3, cc))
+      u = fr(2) * abs(w1 - w2)
+      rate = fr(1) * load * mbdk_wear_psi(u, fr) * u
+    case (MBDK_WEAR_KNEE)
+      u = abs(ct%slip)
+      rate = fr(1) * load * u * (fr(2) + t * (fr(3) + t * (fr(4) + t * fr(5))))
+    case default
+      rate = fr(1) * load * abs(ct%slip)
+    end select
+  end subroutine mbdk_wear_rate
+
+end module mbdk_wear

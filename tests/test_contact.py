@@ -1,0 +1,299 @@
+"""Contacts, friction and wear (kernel/src/model/mbdk_contact.f90, mbdk_wear.f90) against closed
+forms: a ball's restitution and contact time, a block sliding to rest on an incline, a particle
+held in a ring (Fekete 2023, (1.22)) and where it leaves the wall, and each wear law's volume
+against an independent quadrature of the simulated contact forces."""
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+from scipy.special import beta
+
+import mbdk
+from mbdk.errors import NotApplicableError
+from mbdk.scene import SceneError, scene_from_dict
+
+G = 9.81
+
+
+def ball(k=1e5, c=0.0, e=1.0, v0=2.0, r=0.1, m=1.0, depth=0.0, gravity=False, wear=None):
+    d = {"scene": {"name": "ball"},
+         "body": [{"name": "ball", "mass": m, "inertia": 0.4 * m * r * r, "y": r + 0.01,
+                   "vy": -v0}],
+         "force": [{"type": "contact", "name": "floor", "body1": "ball",
+                    "shape1": {"type": "circle", "radius": r},
+                    "shape2": {"type": "line", "point": [0, 0], "normal": [0, 1]},
+                    "stiffness": k, "exponent": e, "damping": c, "damping_depth": depth}]}
+    if gravity:
+        d["force"].append({"type": "gravity", "g": [0, -G]})
+    if wear:
+        d["wear"] = wear
+    return scene_from_dict(d)
+
+
+def test_kelvin_voigt_restitution():
+    """A linear spring-dashpot contact without gravity: the ball leaves when the force k x + c x'
+    returns to zero (the contact does not pull), at the speed of the damped oscillator's closed
+    form x = v0/wd exp(-z w t) sin(wd t) there; not the unclipped exp(-z pi / sqrt(1 - z^2))."""
+    m, k, c, v0 = 1.0, 1e5, 20.0, 2.0
+    r = mbdk.simulate(ball(k, c, v0=v0), "rk4", h=2e-6, t_end=0.03, every=50)
+    w, z = math.sqrt(k / m), c / (2 * math.sqrt(k * m))
+    wd = w * math.sqrt(1 - z * z)
+    x = lambda t: v0 / wd * math.exp(-z * w * t) * math.sin(wd * t)          # noqa: E731
+    xd = lambda t: v0 / wd * math.exp(-z * w * t) * (wd * math.cos(wd * t)   # noqa: E731
+                                                     - z * w * math.sin(wd * t))
+    ts = brentq(lambda t: k * x(t) + c * xd(t), 0.5 * math.pi / wd, math.pi / wd)
+    e_closed = -xd(ts) / v0
+    e_sim = r.v[-1, 1] / v0
+    assert abs(e_sim - e_closed) < 2e-5, (e_sim, e_closed)
+    unclipped = math.exp(-z * math.pi / math.sqrt(1 - z * z))
+    assert abs(e_sim - unclipped) > 1e-3     # the clip matters at this damping
+
+
+def test_hertz_contact_time_and_restitution():
+    """F = k delta^(3/2) without damping: the ball leaves at its arrival speed, after
+    t_c = 2 delta_max/v0 * (2/5) B(2/5, 1/2), delta_max = (5 m v0^2 / (4 k))^(2/5) (energy)."""
+    m, k, v0 = 1.0, 1e8, 1.0
+    r = mbdk.simulate(ball(k, e=1.5, v0=v0), "rk4", h=1e-6, t_end=0.015, every=1)
+    dmax = (5 * m * v0 ** 2 / (4 * k)) ** 0.4
+    tc = 2 * dmax / v0 * 0.4 * beta(0.4, 0.5)
+    pen = 0.1 - r.q[:, 1]
+    inside = r.t[pen > 0]
+    assert abs((inside[-1] - inside[0]) - tc) < 3e-6, (inside[-1] - inside[0], tc)
+    assert abs(pen.max() - dmax) < 1e-3 * dmax
+    assert abs(r.v[-1, 1] - v0) < 1e-8
+
+
+def incline(alpha_deg=20.0, mu=0.5, v0=1.0, k=1e6, wear=None):
+    a = math.radians(alpha_deg)
+    n = (-math.sin(a), math.cos(a))
+    d0 = G * math.cos(a) / k            # the static penetration: no normal oscillation
+    d = {"scene": {"name": "incline"},
+         "body": [{"name": "block", "mass": 1.0, "inertia": 0.1, "x": n[0] * -d0,
+                   "y": n[1] * -d0, "vx": -v0 * math.cos(a), "vy": -v0 * math.sin(a)}],
+         "force": [{"type": "gravity", "g": [0, -G]},
+                   {"type": "contact", "name": "slope", "body1": "block",
+                    "shape1": {"type": "point"},
+                    "shape2": {"type": "line", "point": [0, 0], "normal": list(n)},
+                    "stiffness": k, "damping": 200.0,
+                    "friction": {"static": mu, "dynamic": mu, "stiction_speed": 1e-3,
+                                 "transition_speed": 2e-3}}]}
+    if wear:
+        d["wear"] = wear
+    return scene_from_dict(d), a
+
+
+def test_block_slides_to_rest_on_an_incline():
+    """mu > tan(alpha): the block decelerates at g (mu cos a - sin a) and stops after
+    v0 / that, having slid v0^2 / (2 that). Then the regularised friction, which vanishes at
+    zero slip, lets it creep at the speed u_c where mu(u_c) = tan a: 3 s^2 - 2 s^3 = tan a / mu
+    with s = u_c / stiction_speed (the law's cubic step)."""
+    sc, a = incline()
+    r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=1.2, every=10, outputs=("energy",))
+    dec = G * (0.5 * math.cos(a) - math.sin(a))
+    ts, dist = 1.0 / dec, 1.0 / (2 * dec)
+    s = -(r.q[:, 0] * math.cos(a) + r.q[:, 1] * math.sin(a))
+    speed = np.hypot(r.v[:, 0], r.v[:, 1])
+    t_stop = r.t[np.argmax(speed < 1e-3)]
+    assert abs(t_stop - (ts - 1e-3 / dec)) < 2e-3
+    uc = 1e-3 * brentq(lambda x: x * x * (3 - 2 * x) - math.tan(a) / 0.5, 0, 1)
+    assert abs(speed[-1] - uc) < 1e-3 * uc
+    assert abs(s[-1] - dist - uc * (r.t[-1] - ts)) < 2e-4
+    # the friction's and the damper's work close the energy balance
+    assert np.abs(r.energy_balance()).max() < 1e-4 * 0.5
+
+
+def ring(v0, k=1e7, r=0.05, R=1.0):
+    """Started at the penetration that carries its circular motion (m (v0^2/L + g) / k), so that
+    the wall does not ring."""
+    L = R - r
+    d = {"scene": {"name": "ring"},
+         "body": [{"name": "p", "mass": 1.0, "inertia": 1e-4, "y": -L - (v0 ** 2 / L + G) / k,
+                   "vx": v0}],
+         "force": [{"type": "gravity", "g": [0, -G]},
+                   {"type": "contact", "name": "wall", "body1": "p",
+                    "shape1": {"type": "circle", "radius": r},
+                    "shape2": {"type": "ring", "radius": R, "centre": [0, 0]},
+                    "stiffness": k}]}
+    return scene_from_dict(d), L
+
+
+def test_particle_in_a_ring_loops_like_a_pendulum():
+    """Fast enough (v0^2 = 6 g L) the particle presses on the wall all the way round: it stays
+    inside (penetration at most the force's m (v^2/L + g) / k) and moves as the rigid pendulum of
+    length L (integrated here by SciPy) to within the wall's compliance."""
+    sc, L = ring(math.sqrt(6 * G * 0.95))
+    r = mbdk.simulate(sc, "rk4", h=2e-5, t_end=2.0, every=50)
+    rho = np.hypot(r.q[:, 0], r.q[:, 1])
+    assert rho.max() - L <= 7 * G / 1e7 * 1.01
+    assert rho.min() - L > 0          # touching throughout: never off the wall
+    phi = np.unwrap(np.arctan2(r.q[:, 0], -r.q[:, 1]))
+    ref = solve_ivp(lambda t, y: [y[1], -G / L * math.sin(y[0])], (0, 2.0),
+                    [0.0, math.sqrt(6 * G * L) / L], t_eval=r.t, rtol=1e-12, atol=1e-12)
+    assert np.abs(phi - ref.y[0]).max() < 2e-3
+
+
+def test_particle_leaves_the_wall_where_the_normal_force_vanishes():
+    """2 g L < v0^2 < 5 g L: the contact is unilateral, and the particle leaves the wall where
+    m v^2 / L = -m g cos(phi), cos(phi_s) = -(v0^2/(g L) - 2)/3 (phi from the bottom): 120 deg
+    for v0^2 = 3.5 g L."""
+    sc, L = ring(math.sqrt(3.5 * G * 0.95))
+    r = mbdk.simulate(sc, "rk4", h=2e-5, t_end=1.5, every=5)
+    rho = np.hypot(r.q[:, 0], r.q[:, 1])
+    off = np.argmax(rho < L)           # the first sample without penetration
+    phi_s = math.degrees(math.atan2(r.q[off, 0], -r.q[off, 1]))
+    assert abs(phi_s - 120.0) < 0.3, phi_s
+    # it lands again and stays inside: an undamped impact penetrates at most as far as the
+    # normal speed's energy carries it, |v| sqrt(m/k) <= v0 sqrt(m/k), far less than its radius
+    v0 = math.sqrt(3.5 * G * 0.95)
+    assert rho[off:].max() > L
+    assert rho.max() - L < v0 / math.sqrt(1e7) + 5 * G / 1e7
+
+
+def quadrature(r, integrand):
+    f = integrand(r)
+    return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(r.t))])
+
+
+def test_archard_wear_of_the_sliding_block():
+    """dW = k F u dt integrated with the motion against the trapezoidal quadrature of k F |u|
+    recomputed here from the sampled states (F = k_c delta + c delta', u the slip), and against
+    the closed form k m g cos(a) * sliding distance."""
+    kw = 1e-9
+    sc, a = incline(wear=[{"name": "w", "law": "archard", "load": "slope.normal_force",
+                           "coefficient": kw}])
+    r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=1.0, every=1)
+    n = np.array([-math.sin(a), math.cos(a)])
+    tdir = np.array([-n[1], n[0]])
+
+    def rate(res):
+        delta = -(res.q[:, :2] @ n)
+        rate_ = -(res.v[:, :2] @ n)
+        f = np.maximum(0.0, 1e6 * delta + 200.0 * rate_) * (delta > 0)
+        return kw * f * np.abs(res.v[:, :2] @ tdir)
+    w_ref = quadrature(r, rate)
+    assert np.abs(r.wear["w"] - w_ref).max() < 1e-6 * w_ref[-1]
+    dec = G * (0.5 * math.cos(a) - math.sin(a))
+    assert abs(r.wear["w"][-1] - kw * G * math.cos(a) / (2 * dec)) < 1e-3 * r.wear["w"][-1]
+
+
+def spinning_disc(wear):
+    d = {"scene": {"name": "disc"},
+         "body": [{"name": "disc", "mass": 1.0, "shape": {"type": "disc", "radius": 0.1},
+                   "y": 0.1 - G / 1e6, "omega": 30.0}],
+         "force": [{"type": "gravity", "g": [0, -G]},
+                   {"type": "contact", "name": "floor", "body1": "disc",
+                    "shape1": {"type": "circle", "radius": 0.1},
+                    "shape2": {"type": "line", "point": [0, 0], "normal": [0, 1]},
+                    "stiffness": 1e6, "damping": 500.0,
+                    "friction": {"static": 0.3, "dynamic": 0.25, "stiction_speed": 1e-3,
+                                 "transition_speed": 1e-2}}],
+         "wear": wear}
+    return scene_from_dict(d)
+
+
+def test_gear_and_knee_wear_laws_against_quadrature():
+    """A disc spun on the floor slides until it rolls (omega from 30 to 30/3 rad/s, the
+    friction's closed form for a disc, I = m r^2/2). The gear law (6.8)-(6.10) with its speed
+    R |omega1 - omega2| and lubrication factor psi, and the knee law (6.12) on the friction force
+    with S/R(t), each against the quadrature of its rate from the sampled states."""
+    psi_pars = dict(radius=7.6e-4, temperature=293.0)
+    sr = [1.137558, 0.02378365, 0.3631732, -0.111667]
+    sc = spinning_disc([{"name": "gear", "law": "gear", "load": "floor.normal_force",
+                         "coefficient": 6.5e-13, **psi_pars},
+                        {"name": "knee", "law": "knee", "load": "floor.friction_force",
+                         "coefficient": 1.3e-15, "slide_roll": sr}])
+    r = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.6, every=1)
+    assert abs(r.v[-1, 2] - 10.0) < 0.05          # rolling: omega0 / 3 for a uniform disc
+    assert abs(r.v[-1, 0] + 1.0) < 0.005          # v = -omega r
+
+    def contact(res):
+        delta = 0.1 - res.q[:, 1]
+        f = np.maximum(0.0, 1e6 * delta + 500.0 * -res.v[:, 1]) * (delta > 0)
+        slip = res.v[:, 0] + 0.1 * res.v[:, 2]    # the contact point's speed along t = (1, 0)
+        return f, slip
+
+    def gear_rate(res):
+        f, _ = contact(res)
+        u = 7.6e-4 * np.abs(res.v[:, 2])
+        x = 3e-10 / (u * 3e-12) * math.exp(-49e3 / (8.31 * 293.0))
+        return 6.5e-13 * f * -np.expm1(-x) * u
+
+    def mu(u):
+        a = np.abs(u)
+        s1 = np.clip(a / 1e-3, 0, 1)
+        s2 = np.clip((a - 1e-3) / 9e-3, 0, 1)
+        m_ = np.where(a <= 1e-3, 0.3 * s1 * s1 * (3 - 2 * s1),
+                      0.3 + (0.25 - 0.3) * s2 * s2 * (3 - 2 * s2))
+        return m_
+
+    def knee_rate(res):
+        f, slip = contact(res)
+        t = res.t
+        return 1.3e-15 * mu(slip) * f * np.abs(slip) * (sr[0] + t * (sr[1] + t * (sr[2] + t * sr[3])))
+    for name, fn in (("gear", gear_rate), ("knee", knee_rate)):
+        ref = quadrature(r, fn)
+        assert ref[-1] > 0
+        assert np.abs(r.wear[name] - ref).max() < 1e-5 * ref[-1], name
+
+
+def test_energy_balance_with_friction_and_damping():
+    """The disc's kinetic energy lost while it slides is the friction's and the dampers'
+    dissipated work (energy_balance() stays at roundoff of the quadrature)."""
+    sc = spinning_disc([])
+    r = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.6, every=1, outputs=("energy",))
+    lost = r.energy[0] - r.energy[-1]
+    assert lost > 0.1
+    assert np.abs(r.energy_balance()).max() < 1e-4 * lost
+
+
+def test_only_declared_effects_are_visited():
+    """A scene without contacts visits none; a contact without friction visits no friction."""
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=0.01)
+    assert r.visits["contact"] == r.visits["friction"] == r.visits["wear"] == 0
+    r = mbdk.simulate(ball(), "rk4", h=1e-4, t_end=0.01)
+    assert r.visits["contact"] > 0 and r.visits["friction"] == 0 and r.visits["wear"] == 0
+
+
+@pytest.mark.parametrize("change, field", [
+    (lambda d: d["force"][0].update(stiffness=-1.0), "stiffness"),
+    (lambda d: d["force"][0].update(exponent=0.5), "exponent"),
+    (lambda d: d["force"][0].update(damping=-2.0), "damping"),
+    (lambda d: d["force"][0].update(friction={"static": -0.1}), "static"),
+    (lambda d: d["force"][0].update(friction={"static": 0.2, "stiction_speed": 1e-2,
+                                              "transition_speed": 1e-3}), "transition_speed"),
+    (lambda d: d["force"][0].update(shape2={"type": "ring", "radius": 0.05}), "shape2"),
+    (lambda d: d["force"][0].update(shape2={"type": "line", "normal": [0, 0]}), "normal"),
+    (lambda d: d["force"][0].update(shape1={"type": "square"}), "shape1"),
+    (lambda d: d.update(wear=[{"law": "archard", "load": "wall.normal_force",
+                               "coefficient": 1.0}]), "'wall.normal_force' names no contact"),
+    (lambda d: d.update(wear=[{"law": "archard", "load": "floor.friction_force",
+                               "coefficient": 1.0}]), "has no friction"),
+    (lambda d: d.update(wear=[{"law": "archard", "load": "floor.normal_force",
+                               "coefficient": -1.0}]), "coefficient"),
+    (lambda d: d.update(wear=[{"law": "gear", "load": "floor.normal_force",
+                               "coefficient": 1.0, "radius": 1e-3}]), "temperature"),
+    (lambda d: d.update(wear=[{"law": "paris", "load": "floor.normal_force",
+                               "coefficient": 1.0}]), "law"),
+])
+def test_bad_contacts_and_wear_are_named(change, field):
+    d = {"scene": {"name": "bad"},
+         "body": [{"name": "ball", "mass": 1.0, "inertia": 0.01, "y": 0.2}],
+         "force": [{"type": "contact", "name": "floor", "body1": "ball",
+                    "shape1": {"type": "circle", "radius": 0.1},
+                    "shape2": {"type": "line", "normal": [0, 1]}, "stiffness": 1e5}]}
+    change(d)
+    with pytest.raises(SceneError) as exc:
+        scene_from_dict(d, "bad.toml")
+    msg = str(exc.value)
+    assert "bad.toml" in msg and field in msg, msg
+
+
+def test_methods_without_contacts_or_wear_say_so():
+    with pytest.raises(NotApplicableError, match="floor"):
+        mbdk.simulate(ball(), "trapezoidal_index3", h=1e-4, t_end=0.01)
+    sc = ball(wear=[{"name": "w", "law": "archard", "load": "floor.normal_force",
+                     "coefficient": 1e-9}])
+    with pytest.raises(NotApplicableError, match="wear"):
+        mbdk.simulate(sc, "ida", t_end=0.01, rtol=1e-6)
