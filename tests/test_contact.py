@@ -297,3 +297,152 @@ def test_methods_without_contacts_or_wear_say_so():
                      "coefficient": 1e-9}])
     with pytest.raises(NotApplicableError, match="wear"):
         mbdk.simulate(sc, "ida", t_end=0.01, rtol=1e-6)
+
+
+MOD = 1.35e-3     # table 6.2 of the book: module 1.35 mm, 80 and 40 teeth, 13 mm wide, PLA
+
+
+def gear_pair(a=None, friction=None, damping=0.0, torque1=0.0, torque2=0.0, driver=None,
+              wear=None, k=1e8):
+    def disc(z):
+        r = MOD * z / 2
+        mass = math.pi * r * r * 13e-3 * 1250.0
+        return mass, mass * r * r / 2
+    (m1, j1), (m2, j2) = disc(80), disc(40)
+    a = MOD * 60 if a is None else a
+    mesh = {"type": "contact", "name": "mesh", "body1": "g1", "body2": "g2",
+            "shape1": {"type": "gear", "teeth": 80, "module": MOD},
+            "shape2": {"type": "gear", "teeth": 40, "module": MOD},
+            "stiffness": k, "exponent": 1.5, "damping": damping, "damping_depth": 1e-6}
+    if friction:
+        mesh["friction"] = friction
+    d = {"scene": {"name": "gears"},
+         "body": [{"name": "g1", "mass": m1, "inertia": j1, "given": ["angle"]},
+                  {"name": "g2", "mass": m2, "inertia": j2, "x": a, "given": ["angle"]}],
+         "joint": [{"type": "revolute", "name": "axle1", "body1": "g1"},
+                   {"type": "revolute", "name": "axle2", "body1": "g2", "point2": [a, 0]}],
+         "force": [mesh]}
+    for body, tq in (("g1", torque1), ("g2", torque2)):
+        if tq:
+            d["force"].append({"type": "torque", "body": body, "torque": tq})
+    if driver:
+        d["joint"].append({"type": "driver", "name": "motor", "body1": "g1",
+                           "coordinate": "angle", "function": {"rate": driver}})
+        d["body"][0]["omega"] = driver
+        d["body"][1]["omega"] = -2 * driver
+    if wear:
+        d["wear"] = wear
+    return scene_from_dict(d), (j1, j2)
+
+
+def involute(a):
+    """Base and tip radii, base pitch, working pressure angle and contact ratio of the pair at
+    centre distance a, from the module's definitions (r = m z/2, r_tip = r + m,
+    r_base = r cos 20 deg, p_b = pi m cos 20 deg)."""
+    c = math.cos(math.radians(20))
+    rb1, rb2, ra1, ra2 = MOD * 40 * c, MOD * 20 * c, MOD * 41, MOD * 21
+    pb = math.pi * MOD * c
+    alpha = math.acos((rb1 + rb2) / a)
+    eps = (math.sqrt(ra1 ** 2 - rb1 ** 2) + math.sqrt(ra2 ** 2 - rb2 ** 2)
+           - a * math.sin(alpha)) / pb
+    return rb1, rb2, pb, alpha, eps
+
+
+@pytest.mark.parametrize("stretch", [1.0, 1.01])
+def test_involute_mesh_statics(stretch):
+    """Gear 1 turned through one base pitch with gear 2 following the conjugate motion
+    (theta2 = -(rb1/rb2) theta1 + delta0/rb2: a constant penetration delta0 along the line of
+    action, the involute's property). The force on gear 2's centre points along the line of
+    action at the working pressure angle acos((rb1 + rb2)/a) from the normal to the centre line;
+    the torques stand as rb1 : rb2; the load, in pairs, is 1 or 2, and two pairs carry it over a
+    share eps - 1 - relief of the pitch (eps the contact ratio, relief the 0.1 pitch over which a
+    pair takes up its load)."""
+    from mbdk import model as M
+    a = MOD * 60 * stretch
+    sc, _ = gear_pair(a=a)
+    tab = M.build_tables(sc)
+    rb1, rb2, pb, alpha, eps = involute(a)
+    delta0, k = 2e-6, 1e8
+    full = k * delta0 ** 1.5
+    q0 = np.array(sc.q0(), float)
+    loads, plain = [], []
+    for th1 in np.linspace(0, pb / rb1, 2001)[:-1]:
+        q = q0.copy()
+        q[2], q[5] = th1, -(rb1 / rb2) * th1 + delta0 / rb2
+        f = M.evaluate(tab, q, np.zeros(6))["f"]
+        loads.append(-f[5] / (full * rb2))
+        if abs(loads[-1] - round(loads[-1])) < 1e-9:      # no pair in its relief ramp
+            plain.append(f)
+    loads = np.array(loads)
+    assert loads.min() > 0.999 and loads.max() < 2.001
+    assert abs(np.mean(loads > 1.5) - (eps - 1 - 0.1)) < 2e-3
+    assert len(plain) > 1000
+    for f in plain:
+        assert abs(f[2] / f[5] - rb1 / rb2) < 1e-9
+        assert abs(math.atan2(f[3], f[4]) - alpha) < 1e-9     # gear 2's centre: along d
+        assert np.allclose(f[0:2], -f[3:5], rtol=0, atol=1e-9 * full)
+
+
+def test_gear_train_spins_up_as_a_rigid_train():
+    """A torque on gear 1 of the frictionless pair spins both up as the rigid train would:
+    theta1 = T t^2 / (2 (J1 + (z1/z2)^2 J2)), theta2 = -(z1/z2) theta1 (the mesh's compliance
+    and its ringing aside), and the undamped mesh conserves energy: the torque's work is the
+    kinetic and mesh energy."""
+    sc, (j1, j2) = gear_pair(torque1=0.1)
+    r = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.1, every=10, outputs=("energy",))
+    th1 = 0.5 * 0.1 / (j1 + 4 * j2) * r.t ** 2
+    assert np.abs(r.q[:, 2] - th1).max() < 1e-4 * th1[-1]
+    # gear 2 lags the rigid ratio by the mesh's deflection along the line of action, a few
+    # times the static one (F/k)^(2/3), F = J2 alpha2 / rb2 (the suddenly applied load rings)
+    rb2 = involute(MOD * 60)[1]
+    static = (j2 * 2 * 0.1 / (j1 + 4 * j2) / rb2 / 1e8) ** (2 / 3)
+    assert np.abs(r.q[:, 5] + 2 * r.q[:, 2]).max() * rb2 < 10 * static
+    assert np.abs(r.energy_balance()).max() < 1e-6 * r.energy[-1]
+
+
+def test_gear_friction_costs_efficiency_and_wear_follows_the_mesh():
+    """Driven at a constant speed against a load torque, friction makes gear 1's driver supply
+    more than the load takes (efficiency below 1); the speed ratio stays z1/z2; the Archard wear
+    of the mesh equals the quadrature of k F u over the pairs (F the normal force, u the slip),
+    checked here through its bound k F_total max|u| and its positivity."""
+    sc, _ = gear_pair(driver=10.0, torque2=0.5, damping=20.0,
+                      friction={"static": 0.3, "dynamic": 0.1, "stiction_speed": 1e-3,
+                                "transition_speed": 1e-2},
+                      wear=[{"name": "W", "law": "archard", "load": "mesh.normal_force",
+                             "coefficient": 6.5e-13}])
+    r = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.2, every=10, outputs=("energy", "multipliers"))
+    late = r.t > 0.05
+    assert abs(r.v[late, 5].mean() / 10.0 + 2) < 1e-4
+    # the driver's moment (its multiplier) against the load's 0.5 N m over the ratio 2
+    drive = -r.multipliers[late, -1].mean()
+    assert 0.25 < drive and 0.25 / drive < 0.99
+    rb1, rb2, pb, alpha, eps = involute(MOD * 60)
+    u_max = 30.0 * (math.sqrt((MOD * 41) ** 2 - rb1 ** 2) - rb1 * math.tan(alpha))
+    f_total = 0.5 / rb2 * 1.2
+    w = r.wear["W"]
+    assert np.all(np.diff(w) >= 0) and w[-1] > 0
+    assert w[-1] < 6.5e-13 * f_total * u_max * r.t[-1]
+
+
+@pytest.mark.parametrize("change, field", [
+    (lambda d: d["force"][0].update(shape2={"type": "line", "normal": [1, 0]}), "meshes only"),
+    (lambda d: d["force"][0]["shape2"].update(module=1.5e-3), "base pitch"),
+    (lambda d: d["force"][0].update(body2="ground"), "body2"),
+    (lambda d: d["body"][1].update(x=MOD * 62), "contact ratio"),
+    (lambda d: d["body"][1].update(x=MOD * 50), "cannot mesh"),
+    (lambda d: d["force"][0].update(hand="left"), "hand"),
+])
+def test_gears_that_do_not_mesh_are_named(change, field):
+    from mbdk import model as M
+    d = {"scene": {"name": "bad"},
+         "body": [{"name": "g1", "mass": 1.0, "inertia": 1e-3},
+                  {"name": "g2", "mass": 1.0, "inertia": 1e-3, "x": MOD * 60}],
+         "force": [{"type": "contact", "name": "mesh", "body1": "g1", "body2": "g2",
+                    "shape1": {"type": "gear", "teeth": 80, "module": MOD},
+                    "shape2": {"type": "gear", "teeth": 40, "module": MOD},
+                    "stiffness": 1e8}]}
+    change(d)
+    with pytest.raises(SceneError) as exc:
+        M.build_tables(scene_from_dict(d, "bad.toml"))
+    msg = str(exc.value)
+    assert "bad.toml" in msg and field in msg and "mesh" in msg, msg

@@ -29,6 +29,8 @@ def state(name, seed=1):
 @pytest.mark.parametrize("name", ALL)
 def test_jacobian_and_gamma_against_finite_differences(name):
     sc, tab, q, v = state(name)
+    if tab.m == 0:
+        pytest.skip(f"{name} has no joints: no D or gamma to check")
     q = q + np.random.default_rng(3).normal(0, 0.05, q.size)   # off the manifold on purpose
     e = M.evaluate(tab, q, v, 0.3)
     eps = 1e-6

@@ -396,3 +396,31 @@ def test_ch5_formulas_study(tmp_path, root):
         assert num(data[e]["corrected_vs_kernel"]) < 1e-9, e
     for e in ("5.9", "5.29", "5.40", "5.49"):
         assert data[e]["verdict"] == "correct" and num(data[e]["printed_vs_kernel"]) < 1e-12
+
+
+def test_gear_wear_study(tmp_path, root):
+    """The PLA gears of 6.1: gear 1 turns as the frictionless rigid train would (within the
+    friction's loss) and reaches five revolutions; the wear volume converges as the step falls
+    from the book's 0.1/1500 s; the temperature raises the gear law's wear by psi's Arrhenius
+    factor exp(Ea/Rg (1/293 - 1/T)) (table 6.4's constants); friction changes it by far less
+    than the book's 37.6 %."""
+    sys.path.insert(0, str(root / "studies"))
+    import gear_wear
+    gear_wear.run(tmp_path, quick=True)
+    conv = rows(tmp_path / "gear_wear_convergence.csv")
+    errs = [num(r["W_rel_error"]) for r in conv if r["method"] == "rk4"]
+    assert errs == sorted(errs, reverse=True) and errs[-1] < 1e-5
+    j1, j2 = (b.inertia for b in mbdk.scene("pla_gears").bodies)
+    rigid = 0.5 * 0.1 / (j1 + 4 * j2) * 0.1 ** 2 / (2 * math.pi)
+    cond = rows(tmp_path / "gear_wear_conditions.csv")
+    for r in cond:
+        assert 0.99 * rigid < num(r["revs_at_0.1s"]) <= rigid
+        assert num(r["W_gear_5rev_m3"]) > num(r["W_gear_0.1s_m3"]) > 0
+    pct = rows(tmp_path / "gear_wear_percentages.csv")
+    for r in pct:
+        if r["comparison"].startswith("293 K"):
+            t = float(r["comparison"].split("-> ")[1].split(" K")[0])
+            arrhenius = 100 * (math.exp(49e3 / 8.31 * (1 / 293 - 1 / t)) - 1)
+            assert abs(num(r["computed_percent"]) - arrhenius) < 0.01 * arrhenius
+        else:
+            assert abs(num(r["computed_percent"])) < 1.0

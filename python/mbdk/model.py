@@ -64,7 +64,7 @@ FORCE_CODES = {**_FORCE_KIND, "coordinate_spring": _FORCE_KIND["coordinate_sprin
 EFFECT_CLASS = 3
 EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
 #: a contact's body2 shape -> the kernel's geometry code (kernel/src/model/mbdk_contact.f90)
-CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3}
+CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3, "gear": 4}
 #: the kernel's visit counters, in its order: one per element kind
 VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
 
@@ -150,6 +150,9 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
         elif f.type == "torque":
             freal[0, k] = f.torque
             freal[7:12, k] = f.function
+        elif f.type == "contact" and f.shape1[0] == "gear":
+            fint[1:4, k] = [b1, sc.body_index(f.body2), CONTACT_GEOMETRY["gear"]]
+            freal[:, k] = gear_mesh_reals(sc, f)
         elif f.type == "contact":
             fint[1:4, k] = [b1, sc.body_index(f.body2), CONTACT_GEOMETRY[f.shape2[0]]]
             freal[0:2, k] = f.shape1[1]
@@ -194,6 +197,41 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
     if resolve:
         resolve_tables(sc, tab, sc.q0() if q0 is None else q0)
     return tab
+
+
+def gear_mesh_reals(sc: Scene, f) -> np.ndarray:
+    """The kernel's reals of an involute gear mesh (kernel/src/model/mbdk_contact.f90): base and
+    tip radii, base pitch, and the phases that put the flanks in touch (delta = -backlash) with
+    a flank of gear 1 at the pitch point, at the scene's initial pose. A centre distance at
+    which the gears do not mesh (base circles overlapping, or a contact ratio below 1) is a
+    SceneError naming the contact."""
+    (z1, m1, a1, ha1), (z2, m2, a2, ha2) = f.shape1[2], f.shape2[2]
+    b1, b2 = sc.bodies[sc.body_index(f.body1) - 1], sc.bodies[sc.body_index(f.body2) - 1]
+    rb1, rb2 = m1 * z1 * math.cos(a1) / 2, m2 * z2 * math.cos(a2) / 2
+    ra1, ra2 = m1 * z1 / 2 + ha1 * m1, m2 * z2 / 2 + ha2 * m2
+    pb = math.pi * m1 * math.cos(a1)
+    h = 1.0 if f.hand == "ccw" else -1.0
+    a = math.hypot(b2.x - b1.x, b2.y - b1.y)
+    src = f"{sc.source}: force {f.name!r}"
+    if not a > rb1 + rb2:
+        raise SceneError(f"{src}: the gears' centre distance {a:.6g} m does not reach their base "
+                         f"radii's sum {rb1 + rb2:.6g} m: they cannot mesh (standard centre "
+                         f"distance {m1 * (z1 + z2) / 2:.6g} m)")
+    alpha = math.acos((rb1 + rb2) / a)
+    path = math.sqrt(ra1 ** 2 - rb1 ** 2) - max(0.0, a * math.sin(alpha)
+                                                  - math.sqrt(ra2 ** 2 - rb2 ** 2))
+    if path < pb:
+        raise SceneError(f"{src}: at the centre distance {a:.6g} m the path of contact "
+                         f"({path:.6g} m) is shorter than the base pitch ({pb:.6g} m): contact "
+                         f"ratio {path / pb:.3f} < 1, the gears do not mesh (standard centre "
+                         f"distance {m1 * (z1 + z2) / 2:.6g} m)")
+    phie = math.atan2(b2.y - b1.y, b2.x - b1.x)
+    raw = h * (rb1 * b1.angle + rb2 * b2.angle) - (rb1 + rb2) * (h * phie - alpha) \
+        - a * math.sin(alpha)
+    c0 = -f.backlash - raw
+    psi1 = rb1 * math.tan(alpha) - rb1 * (h * b1.angle - h * phie + alpha)
+    return np.array([rb1, rb2, ra1, ra2, pb, c0, f.stiffness, f.exponent, f.damping,
+                     f.damping_depth, psi1, h])
 
 
 def resolve_tables(sc: Scene, tab: Tables, q0) -> None:

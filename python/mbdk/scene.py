@@ -150,6 +150,9 @@ class Force:
     damping_depth: float = 0.0
     #: (static, dynamic, stiction_speed, transition_speed), or None: no friction
     friction: tuple | None = None
+    #: gear meshes: the backlash along the line of action and which flanks mesh
+    backlash: float = 0.0
+    hand: str = "ccw"
 
 
 @dataclass
@@ -459,8 +462,28 @@ def _force(r: _Reader) -> Force:
     elif typ == "contact":
         f.body1 = r.name("body1")
         f.body2 = r.name("body2", required=False, default=GROUND)
-        f.shape1 = _shape(r, "shape1", ("point", "circle"))
-        f.shape2 = _shape(r, "shape2", ("line", "circle", "ring"))
+        f.shape1 = _shape(r, "shape1", ("point", "circle", "gear"))
+        f.shape2 = _shape(r, "shape2", ("line", "circle", "ring", "gear"))
+        if (f.shape1[0] == "gear") != (f.shape2[0] == "gear"):
+            raise r.err("shape2", f"= {f.shape2[0]!r} against shape1 = {f.shape1[0]!r}: a gear "
+                                  "meshes only with a gear")
+        if f.shape1[0] == "gear":
+            z1, m1, a1, _ = f.shape1[2]
+            z2, m2, a2, _ = f.shape2[2]
+            if abs(m1 * math.cos(a1) - m2 * math.cos(a2)) > 1e-12 * m1:
+                raise r.err("shape2", f"module {m2} and pressure angle {math.degrees(a2):g} deg "
+                                      f"against gear 1's {m1} and {math.degrees(a1):g} deg: "
+                                      "involute gears mesh only with the same base pitch "
+                                      "pi m cos(alpha)")
+            if f.body2 == GROUND:
+                raise r.err("body2", "= 'ground': a gear mesh is between two bodies, each gear "
+                                     "centred at its body's origin")
+            f.backlash = r.num("backlash", 0.0, nonneg=True)
+            hand = r.name("hand", required=False, default="ccw")
+            if hand not in ("ccw", "cw"):
+                raise r.err("hand", f"= {hand!r} must be 'ccw' (the flanks gear 1 drives "
+                                    "counter-clockwise) or 'cw'")
+            f.hand = hand
         f.stiffness = r.num("stiffness", required=True, nonneg=True)
         f.exponent = r.num("exponent", 1.0)
         if f.exponent < 1:
@@ -501,6 +524,16 @@ def _shape(r: _Reader, fld: str, kinds: tuple) -> tuple:
         out = (typ, point, (n[0] / ln, n[1] / ln))
     elif typ == "point":
         out = (typ, sr.vec("point", (0.0, 0.0)), 0.0)
+    elif typ == "gear":
+        z = sr.num("teeth", required=True, positive=True)
+        if z != int(z) or z < 3:
+            raise r.err(fld, f"teeth = {z} must be a whole number of at least 3")
+        alpha = math.radians(sr.num("pressure_angle_deg", 20.0))
+        if not 0 < alpha < math.pi / 2:
+            raise r.err(fld, f"pressure_angle_deg = {math.degrees(alpha)} must lie between 0 "
+                             "and 90")
+        out = (typ, (0.0, 0.0), (int(z), sr.num("module", required=True, positive=True), alpha,
+                                 sr.num("addendum", 1.0, positive=True)))
     else:
         out = (typ, sr.vec("centre", (0.0, 0.0)), sr.num("radius", required=True, positive=True))
     try:
@@ -661,6 +694,8 @@ def scene_to_dict(sc: Scene) -> dict:
             d.update(body1=f.body1, body2=f.body2, shape1=_shape_dict(f.shape1),
                      shape2=_shape_dict(f.shape2), stiffness=f.stiffness, exponent=f.exponent,
                      damping=f.damping, damping_depth=f.damping_depth)
+            if isinstance(f.shape1, (tuple, list)) and f.shape1 and f.shape1[0] == "gear":
+                d.update(backlash=f.backlash, hand=f.hand)
             if f.friction is not None:
                 d["friction"] = (dict(zip(("static", "dynamic", "stiction_speed",
                                            "transition_speed"), f.friction))
@@ -699,6 +734,9 @@ def _shape_dict(sh):
         return {"type": typ, "point": _seq(point), "normal": _seq(third)}
     if typ == "point":
         return {"type": typ, "point": _seq(point)}
+    if typ == "gear" and isinstance(third, (tuple, list)) and len(third) == 4:
+        return {"type": typ, "teeth": third[0], "module": third[1],
+                "pressure_angle_deg": math.degrees(third[2]), "addendum": third[3]}
     return {"type": typ, "centre": _seq(point), "radius": third}
 
 

@@ -11,6 +11,8 @@
 !>                            outside each other: delta = r1 + r2 - |P1 - P2|.
 !>   3 circle in circle       circle r1 inside the hollow circle r2 > r1 of body2 (a particle held
 !>                            in a ring, (1.22)): delta = |P1 - P2| + r1 - r2.
+!>   4 involute gear pair     the spur gears of bodies 1 and 2 (both bodies; each gear centred at
+!>                            its body's origin), below.
 !> The normal n points from body2 into body1 (the direction the force pushes body1); the contact
 !> point c is body1's deepest point, P1 - r1 n. The contact force F n acts on body1 at c and -F n
 !> on body2 at the same point. Since F n passes through P1 (and, for the circles, through P2 as
@@ -25,6 +27,32 @@
 !> ends with a tensile force). Potential k delta^(e+1)/(e+1); the dissipated power is
 !> (F - k delta^e) delta', >= 0 in both branches.
 !> freal: 1:2 s1, 3 r1, 4:5 s2, 6 a or r2, 7 k, 8 e (>= 1), 9 cmax, 10 dmax.
+!>
+!> Involute gear pair (geometry 4; freal: 1 rb1, 2 rb2 the base radii, 3 ra1, 4 ra2 the tip radii,
+!> 5 pb the base pitch pi m cos(alpha0), 6 c0 the mesh phase, 7:10 as above, 11 psi1 gear 1's
+!> flank phase, 12 the hand h = +1 or -1). With the centres C1, C2 at distance a > rb1 + rb2,
+!> e = (C2 - C1)/a at the angle phi_e, the working pressure angle alpha' = acos((rb1 + rb2)/a),
+!> the drive flanks meet on the line of action through the tangent points T1 = C1 + rb1 (cos
+!> alpha' e - h sin alpha' perp(e)) and T2, direction d = sin alpha' e + h cos alpha' perp(e)
+!> (h = +1: the flanks gear 1 pushes when it turns counter-clockwise). By the involute's rolling
+!> property every pair in contact has the same penetration along d,
+!>   delta = h (rb1 theta1 + rb2 theta2) - (rb1 + rb2)(h phi_e - alpha') - a sin alpha' + c0,
+!> taken modulo pb into [-pb/2, pb/2) (the nearest pair of flanks), whose gradient is exactly
+!> the force F d on gear 2 at the contact point and -F d on gear 1: the mesh conserves energy
+!> between pair changes. Gear 1's flanks cross the line of action at the distances
+!> L = rb1 (h theta1 - h phi_e + alpha') + psi1 + k pb from T1; a flank is in contact where L lies
+!> on the path of contact [s_A, s_E], between a sin alpha' - sqrt(ra2^2 - rb2^2) (gear 2's tip)
+!> and sqrt(ra1^2 - rb1^2) (gear 1's tip): one or two pairs for a contact ratio between 1 and 2.
+!> A pair carries w(L) F, its weight w rising from 0 to 1 over the first MBDK_GEAR_RELIEF base
+!> pitches of the path and falling back over the last ones (step3: the tip relief of real teeth,
+!> which lets a pair take up its load gradually). Without it the stiffness would jump where a
+!> pair enters or leaves, F and the mesh energy with it, and the balance drifts by about F
+!> delta at every pair change. With it the potential is sum w(L_k) k delta^(e+1)/(e+1), and its
+!> exact gradient adds the force -w'(L_k) k delta^(e+1)/(e+1) dL/dq per pair (on gear 1's angle
+!> and on both centres, through phi_e and alpha'): the undamped, frictionless mesh conserves
+!> energy to the integrator's accuracy. Each pair's slip is its own (zero at the pitch point,
+!> changing sign there). A mesh whose base circles overlap (a <= rb1 + rb2) has no line of
+!> action: MBDK_ERR_NONFINITE.
 !>
 !> Friction (an element of its own, fint(4) = the column of its contact in the same table):
 !> the slip speed u = t . (v1(c) - v2(c)) along t = perp(n), the force -mu(u) F t on body1 at c
@@ -46,13 +74,23 @@ module mbdk_contact
     mbdk_contact_apply
 
   integer, parameter, public :: MBDK_CONTACT_LINE = 1, MBDK_CONTACT_CIRCLES = 2, &
-    MBDK_CONTACT_INSIDE = 3
+    MBDK_CONTACT_INSIDE = 3, MBDK_CONTACT_GEAR = 4
+  !> pairs of flanks a gear mesh can have in contact at once (contact ratio below 3)
+  integer, parameter, public :: MBDK_CONTACT_PAIRS = 3
+  !> the length over which a gear pair takes up and sheds its load, in base pitches
+  real(dp), parameter, public :: MBDK_GEAR_RELIEF = 0.1_dp
 
-  !> One contact's state at (q, v): penetration and its rate, the normal force and its elastic
-  !> part, the normal, the contact point, the slip speed along perp(n), and whether it touches.
+  !> One contact's state at (q, v): penetration and its rate, the normal force of a fully loaded
+  !> pair and its elastic part, the normal, each pair's contact point, slip speed along perp(n),
+  !> weight (pair k carries weight(k) * force) and the weight's derivative along the path, the
+  !> path coordinate's gradient (gear 1's angle, both centres: gear meshes only), the number of
+  !> touching pairs (one for the shapes 1-3) and whether any touches.
   type :: mbdk_contact_t
     real(dp) :: delta = 0.0_dp, rate = 0.0_dp, force = 0.0_dp, elastic = 0.0_dp
-    real(dp) :: n(2) = 0.0_dp, c(2) = 0.0_dp, slip = 0.0_dp
+    real(dp) :: n(2) = 0.0_dp, c(2, MBDK_CONTACT_PAIRS) = 0.0_dp, slip(MBDK_CONTACT_PAIRS) = 0.0_dp
+    real(dp) :: weight(MBDK_CONTACT_PAIRS) = 1.0_dp, dweight(MBDK_CONTACT_PAIRS) = 0.0_dp
+    real(dp) :: dl_th1 = 0.0_dp, dl_c1(2) = 0.0_dp, dl_c2(2) = 0.0_dp
+    integer :: npair = 0
     logical :: touching = .false.
   end type mbdk_contact_t
 
@@ -79,12 +117,16 @@ contains
     real(dp), intent(in) :: fr(:), rot(:, :), q(:), v(:)
     type(mbdk_contact_t), intent(out) :: ct
     logical, intent(out) :: ok
-    real(dp) :: p1(2), p2(2), rho(2), pv(2), w, d(2), dist, nb(2), vc1(2), vc2(2), u(2)
+    real(dp) :: p1(2), p2(2), rho(2), pv(2), w, d(2), dist, nb(2), u(2)
     integer :: b1, b2
 
     ok = .true.
     b1 = fi(2)
     b2 = fi(3)
+    if (fi(4) == MBDK_CONTACT_GEAR) then
+      call gear_mesh(ct, ok)
+      return
+    end if
     call mbdk_body_point(b1, fr(1:2), rot, q, v, p1, rho, pv, w)
     call mbdk_body_point(b2, fr(4:5), rot, q, v, p2, rho, pv, w)
     d = p1 - p2
@@ -114,16 +156,79 @@ contains
     end select
     if (.not. (ct%delta > 0.0_dp)) return
     ct%touching = .true.
-    ct%c = p1 - fr(3) * ct%n
-    vc1 = point_velocity(b1, ct%c)
-    vc2 = point_velocity(b2, ct%c)
-    u = vc1 - vc2
+    ct%npair = 1
+    ct%c(:, 1) = p1 - fr(3) * ct%n
+    u = point_velocity(b1, ct%c(:, 1)) - point_velocity(b2, ct%c(:, 1))
     ct%rate = -dot_product(ct%n, u)
-    ct%slip = -ct%n(2) * u(1) + ct%n(1) * u(2)
-    ct%elastic = fr(7) * ct%delta**fr(8)
-    ct%force = max(0.0_dp, ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate)
+    ct%slip(1) = -ct%n(2) * u(1) + ct%n(1) * u(2)
+    call normal_force(ct)
 
   contains
+
+    pure subroutine normal_force(ct)
+      type(mbdk_contact_t), intent(inout) :: ct
+      ct%elastic = fr(7) * ct%delta**fr(8)
+      ct%force = max(0.0_dp, ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate)
+    end subroutine normal_force
+
+    !> The involute pair (the module header): delta, the touching pairs' points and slips.
+    pure subroutine gear_mesh(ct, ok)
+      type(mbdk_contact_t), intent(inout) :: ct
+      logical, intent(out) :: ok
+      real(dp) :: u(2), c1(2), c2(2), e(2), ep(2), a, rsum, ca, sa, alpha, phie, h, dd(2), t1(2)
+      real(dp) :: raw, l, s_start, s_end, pb, ramp, up, down, dup, ddown
+      integer :: k
+      ok = .false.
+      c1 = q(3 * b1 - 2:3 * b1 - 1)
+      c2 = q(3 * b2 - 2:3 * b2 - 1)
+      e = c2 - c1
+      a = norm2(e)
+      rsum = fr(1) + fr(2)
+      if (.not. (a > rsum)) return
+      ok = .true.
+      e = e / a
+      ep = [-e(2), e(1)]
+      h = fr(12)
+      pb = fr(5)
+      ca = rsum / a
+      sa = sqrt((1.0_dp - ca) * (1.0_dp + ca))
+      alpha = atan2(sa, ca)
+      phie = atan2(e(2), e(1))
+      raw = h * (fr(1) * q(3 * b1) + fr(2) * q(3 * b2)) - rsum * (h * phie - alpha) - a * sa + fr(6)
+      ct%delta = raw - pb * anint(raw / pb)
+      if (.not. (ct%delta > 0.0_dp)) return
+      dd = sa * e + h * ca * ep
+      ct%n = -dd
+      t1 = c1 + fr(1) * (ca * e - h * sa * ep)
+      s_start = max(0.0_dp, a * sa - sqrt(max(0.0_dp, fr(4)**2 - fr(2)**2)))
+      s_end = sqrt(max(0.0_dp, fr(3)**2 - fr(1)**2))
+      l = fr(1) * (h * q(3 * b1) - h * phie + alpha) + fr(11)
+      l = l - pb * floor((l - s_start) / pb)
+      ramp = MBDK_GEAR_RELIEF * pb
+      ! dL/dq: h rb1 on theta1; through phi_e (d phi_e/d C2 = perp(e)/a) and alpha'
+      ! (d alpha'/d a = (rb1 + rb2)/(a^2 sin alpha'), d a/d C2 = e) on the centres
+      ct%dl_th1 = h * fr(1)
+      ct%dl_c2 = fr(1) * (-h * ep / a + e * rsum / (a * a * sa))
+      ct%dl_c1 = -ct%dl_c2
+      do k = 1, MBDK_CONTACT_PAIRS
+        if (l > s_end) exit
+        ct%npair = k
+        up = mbdk_step3(l, s_start, s_start + ramp)
+        down = mbdk_step3(l, s_end - ramp, s_end)
+        dup = dstep3(l, s_start, s_start + ramp)
+        ddown = dstep3(l, s_end - ramp, s_end)
+        ct%weight(k) = up * (1.0_dp - down)
+        ct%dweight(k) = dup * (1.0_dp - down) - up * ddown
+        ct%c(:, k) = t1 + l * dd
+        u = point_velocity(b1, ct%c(:, k)) - point_velocity(b2, ct%c(:, k))
+        ct%slip(k) = -ct%n(2) * u(1) + ct%n(1) * u(2)
+        if (k == 1) ct%rate = -dot_product(ct%n, u)
+        l = l + pb
+      end do
+      if (ct%npair == 0) return
+      ct%touching = .true.
+      call normal_force(ct)
+    end subroutine gear_mesh
 
     !> Velocity of body b's material point at the global point x (0 on the ground).
     pure function point_velocity(b, x) result(vx)
@@ -139,6 +244,16 @@ contains
     end function point_velocity
 
   end subroutine mbdk_contact_eval
+
+  !> d/dx of mbdk_step3 (0 outside (x0, x1)).
+  pure real(dp) function dstep3(x, x0, x1) result(ds)
+    real(dp), intent(in) :: x, x0, x1
+    real(dp) :: s
+    ds = 0.0_dp
+    if (x <= x0 .or. x >= x1) return
+    s = (x - x0) / (x1 - x0)
+    ds = 6.0_dp * s * (1.0_dp - s) / (x1 - x0)
+  end function dstep3
 
   !> The signed friction coefficient at slip speed u (see the module header).
   pure real(dp) function mbdk_friction_mu(u, fr) result(mu)

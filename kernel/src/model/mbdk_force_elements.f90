@@ -110,8 +110,19 @@ contains
           stat = MBDK_ERR_NONFINITE
           return
         end if
-        if (ct%touching) call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c, ct%force * ct%n, &
-                                                 q, f)
+        do k = 1, ct%npair
+          call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c(:, k), &
+                                  ct%weight(k) * ct%force * ct%n, q, f)
+          ! a gear pair's weight changes along the path: its potential's gradient there
+          if (ct%dweight(k) /= 0.0_dp) then
+            ften = -ct%dweight(k) * ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+            b = fint(2, e)
+            f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1
+            f(3 * b) = f(3 * b) + ften * ct%dl_th1
+            b = fint(3, e)
+            f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c2
+          end if
+        end do
       case (MBDK_FORCE_FRICTION)
         k = fint(4, e)
         call mbdk_contact_eval(fint(:, k), freal(:, k), rot, q, v, ct, ok)
@@ -119,10 +130,11 @@ contains
           stat = MBDK_ERR_NONFINITE
           return
         end if
-        if (ct%touching) then
-          ften = -mbdk_friction_mu(ct%slip, freal(:, e)) * ct%force
-          call mbdk_contact_apply(fint(2, k), fint(3, k), ct%c, ften * [-ct%n(2), ct%n(1)], q, f)
-        end if
+        do b = 1, ct%npair
+          ften = -mbdk_friction_mu(ct%slip(b), freal(:, e)) * ct%weight(b) * ct%force
+          call mbdk_contact_apply(fint(2, k), fint(3, k), ct%c(:, b), ften * [-ct%n(2), ct%n(1)], &
+                                  q, f)
+        end do
       end select
     end do
   end subroutine mbdk_forces_eval
@@ -171,14 +183,20 @@ contains
       case (MBDK_FORCE_CONTACT)
         call mbdk_contact_eval(fint(:, e), freal(:, e), rot, q, v, ct, ok)
         if (ok .and. ct%touching) then
-          v_springs = v_springs + ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
-          p_damp = p_damp + (ct%force - ct%elastic) * ct%rate
+          do b = 1, ct%npair
+            v_springs = v_springs + ct%weight(b) * ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+            p_damp = p_damp + ct%weight(b) * (ct%force - ct%elastic) * ct%rate
+          end do
         end if
       case (MBDK_FORCE_FRICTION)
         k = fint(4, e)
         call mbdk_contact_eval(fint(:, k), freal(:, k), rot, q, v, ct, ok)
-        if (ok .and. ct%touching) &
-          p_damp = p_damp + mbdk_friction_mu(ct%slip, freal(:, e)) * ct%force * ct%slip
+        if (ok) then
+          do b = 1, ct%npair
+            p_damp = p_damp + mbdk_friction_mu(ct%slip(b), freal(:, e)) * ct%weight(b) * &
+                              ct%force * ct%slip(b)
+          end do
+        end if
       end select
     end do
   end subroutine mbdk_forces_energy

@@ -64,7 +64,7 @@ module mbdk_model
   use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
     MBDK_ELEMENT_NAME_LEN, MBDK_ELEMENT_KINDS, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, &
     MBDK_EFFECT_WEAR
-  use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_CIRCLES, MBDK_CONTACT_INSIDE
+  use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR
   use mbdk_wear, only: mbdk_wear_rate, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
@@ -411,10 +411,17 @@ contains
       case (MBDK_FORCE_CONTACT)
         if (fint(2, e) < 1 .or. fint(2, e) > model%nb .or. fint(3, e) < 0 .or. &
             fint(3, e) > model%nb .or. fint(2, e) == fint(3, e)) return
-        if (fint(4, e) < MBDK_CONTACT_LINE .or. fint(4, e) > MBDK_CONTACT_INSIDE) return
+        if (fint(4, e) < MBDK_CONTACT_LINE .or. fint(4, e) > MBDK_CONTACT_GEAR) return
         if (freal(3, e) < 0.0_dp .or. freal(7, e) < 0.0_dp .or. freal(8, e) < 1.0_dp .or. &
             freal(9, e) < 0.0_dp .or. freal(10, e) < 0.0_dp) return
-        if (fint(4, e) /= MBDK_CONTACT_LINE .and. freal(6, e) < 0.0_dp) return
+        if (fint(4, e) == MBDK_CONTACT_GEAR) then
+          ! two gears (no ground), base radii below the tip radii, a base pitch, a hand
+          if (fint(3, e) < 1 .or. .not. (freal(1, e) > 0.0_dp .and. freal(2, e) > 0.0_dp .and. &
+              freal(3, e) > freal(1, e) .and. freal(4, e) > freal(2, e) .and. &
+              freal(5, e) > 0.0_dp .and. abs(freal(12, e)) == 1.0_dp)) return
+        else if (fint(4, e) /= MBDK_CONTACT_LINE .and. freal(6, e) < 0.0_dp) then
+          return
+        end if
         if (fint(4, e) == MBDK_CONTACT_INSIDE .and. .not. (freal(6, e) > freal(3, e))) return
       case (MBDK_FORCE_FRICTION)
         c = fint(4, e)

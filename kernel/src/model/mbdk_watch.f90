@@ -163,6 +163,11 @@ contains
       end if
     end if
     if (w%tol_velocity > 0.0_dp .and. size(vres) > 0) then
+      ! the floor from the energy reached so far, this state's included: a scene started at
+      ! rest (gears spun up by a torque about joints at their centroids) has terms of roundoff
+      ! size only, and its first check would measure roundoff against roundoff
+      w%e_scale = max(w%e_scale, kinetic + abs(v_springs) + abs(v_gravity - w%vg0) + &
+                                 abs(w%work))
       w%vel_scale = max(w%vel_scale, vterm, w%row_scale / w%length * &
                         sqrt(2.0_dp * w%e_scale / w%mass))
       call worst_ratio(vres, w%vel_scale, rmax, worst)

@@ -62,7 +62,7 @@ contains
     real(dp), intent(out) :: rate
     logical, intent(out) :: ok
     type(mbdk_contact_t) :: ct
-    integer :: c, cc
+    integer :: c, cc, k
     real(dp) :: load, u, w1, w2
 
     rate = 0.0_dp
@@ -71,22 +71,26 @@ contains
     if (fi(3) == MBDK_WEAR_LOAD_FRICTION) cc = fint(4, c)
     call mbdk_contact_eval(fint(:, cc), freal(:, cc), rot, q, v, ct, ok)
     if (.not. ok .or. .not. ct%touching) return
-    load = ct%force
-    if (fi(3) == MBDK_WEAR_LOAD_FRICTION) load = abs(mbdk_friction_mu(ct%slip, freal(:, c))) * load
-    select case (fi(2))
-    case (MBDK_WEAR_GEAR)
-      w1 = 0.0_dp
-      w2 = 0.0_dp
-      if (fint(2, cc) > 0) w1 = v(3 * fint(2, cc))
-      if (fint(3, cc) > 0) w2 = v(3 * fint(3, cc))
-      u = fr(2) * abs(w1 - w2)
-      rate = fr(1) * load * mbdk_wear_psi(u, fr) * u
-    case (MBDK_WEAR_KNEE)
-      u = abs(ct%slip)
-      rate = fr(1) * load * u * (fr(2) + t * (fr(3) + t * (fr(4) + t * fr(5))))
-    case default
-      rate = fr(1) * load * abs(ct%slip)
-    end select
+    ! the sum over the touching pairs (a gear mesh has one or two)
+    do k = 1, ct%npair
+      load = ct%weight(k) * ct%force
+      if (fi(3) == MBDK_WEAR_LOAD_FRICTION) &
+        load = abs(mbdk_friction_mu(ct%slip(k), freal(:, c))) * load
+      select case (fi(2))
+      case (MBDK_WEAR_GEAR)
+        w1 = 0.0_dp
+        w2 = 0.0_dp
+        if (fint(2, cc) > 0) w1 = v(3 * fint(2, cc))
+        if (fint(3, cc) > 0) w2 = v(3 * fint(3, cc))
+        u = fr(2) * abs(w1 - w2)
+        rate = rate + fr(1) * load * mbdk_wear_psi(u, fr) * u
+      case (MBDK_WEAR_KNEE)
+        u = abs(ct%slip(k))
+        rate = rate + fr(1) * load * u * (fr(2) + t * (fr(3) + t * (fr(4) + t * fr(5))))
+      case default
+        rate = rate + fr(1) * load * abs(ct%slip(k))
+      end select
+    end do
   end subroutine mbdk_wear_rate
 
 end module mbdk_wear
