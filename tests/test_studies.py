@@ -424,3 +424,28 @@ def test_gear_wear_study(tmp_path, root):
             assert abs(num(r["computed_percent"]) - arrhenius) < 0.01 * arrhenius
         else:
             assert abs(num(r["computed_percent"])) < 1.0
+
+
+def test_knee_wear_study(tmp_path, root):
+    """The planar knee of 6.2: with medial and lateral alike and no misalignment the wear is
+    balanced (WIB = 0 by symmetry, for PS and the Prototype); the imbalance grows with the varus
+    misalignment for every design; the wear converges as rk4's step falls, and the book's step
+    of 1 ms is stopped by the watch instead of returning a wrong volume."""
+    sys.path.insert(0, str(root / "studies"))
+    import knee_wear
+    knee_wear.run(tmp_path, quick=True)
+    var = rows(tmp_path / "knee_wear_varus.csv")
+    for design in ("PS", "Prototype"):
+        zero = [r for r in var if r["design"] == design and num(r["varus_deg"]) == 0]
+        assert abs(num(zero[0]["mean_WIB_percent"])) < 1e-6
+    for design in ("PS", "CR", "Prototype"):
+        wib = [num(r["mean_WIB_percent"]) for r in var if r["design"] == design]
+        assert all(b > a for a, b in zip(wib, wib[1:])), (design, wib)
+    conv = rows(tmp_path / "knee_wear_convergence.csv")
+    assert conv[0]["status"] != "ok" and num(conv[0]["h_or_rtol"]) == 1e-3
+    errs = [num(r["WVL_rel_error"]) for r in conv[1:]]
+    assert errs == sorted(errs, reverse=True) and errs[-1] < 1e-8
+    des = {r["design"]: r for r in rows(tmp_path / "knee_wear_designs.csv")}
+    for r in des.values():      # (6.14)-(6.16): the sides add up to WVL
+        assert abs(num(r["medial_mm3"]) + num(r["lateral_mm3"])
+                   - num(r["wear_per_cycle_mm3"])) < 1e-12 * num(r["wear_per_cycle_mm3"]) + 1e-20
