@@ -51,6 +51,29 @@ def test_kelvin_voigt_restitution():
     assert abs(e_sim - unclipped) > 1e-3     # the clip matters at this damping
 
 
+def test_error_control_locates_where_the_contact_closes_and_lets_go():
+    """dopri54 ends a step where the ball touches (delta = 0, where the damping force jumps in)
+    and where the clipped force lets go (k delta + c delta' = 0): at rtol 1e-10 its restitution
+    is then within 1e-9 of the closed form (test above), several times closer than with the
+    kinks inside steps, for about the same number of steps."""
+    m, k, c, v0 = 1.0, 1e5, 20.0, 2.0
+    w, z = math.sqrt(k / m), c / (2 * math.sqrt(k * m))
+    wd = w * math.sqrt(1 - z * z)
+    x = lambda t: v0 / wd * math.exp(-z * w * t) * math.sin(wd * t)          # noqa: E731
+    xd = lambda t: v0 / wd * math.exp(-z * w * t) * (wd * math.cos(wd * t)   # noqa: E731
+                                                     - z * w * math.sin(wd * t))
+    ts = brentq(lambda t: k * x(t) + c * xd(t), 0.5 * math.pi / wd, math.pi / wd, xtol=1e-15)
+    e_closed = -xd(ts) / v0
+    err, steps = {}, {}
+    for located in (True, False):
+        r = mbdk.simulate(ball(k, c, v0=v0), "dopri54", rtol=1e-10, atol=1e-12, t_end=0.03,
+                          dt_out=0.03, locate_events=located)
+        err[located], steps[located] = abs(r.v[-1, 1] / v0 - e_closed), r.stats.steps
+        assert r.manifest["locate_events"] is located
+    assert err[True] < 1e-9 and err[True] < err[False] / 5, err
+    assert steps[True] < 1.2 * steps[False]
+
+
 def test_hertz_contact_time_and_restitution():
     """F = k delta^(3/2) without damping: the ball leaves at its arrival speed, after
     t_c = 2 delta_max/v0 * (2/5) B(2/5, 1/2), delta_max = (5 m v0^2 / (4 k))^(2/5) (energy)."""

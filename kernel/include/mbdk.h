@@ -204,6 +204,7 @@ typedef struct mbdk_model_options {
      * Start from mbdk_model_default_options (a zeroed struct turns the tests off). */
     double watch_position, watch_velocity, watch_energy;
     int watch_every;              /* steps between checks; 0: the default (16) */
+    int locate_events;            /* 1: dopri54 and bs32 end a step where a contact closes or opens */
 } mbdk_model_options;
 
 /* The defaults of every field; start from them and set what differs. */

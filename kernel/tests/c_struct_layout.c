@@ -40,7 +40,8 @@ static const struct field model[] = {
     F(mbdk_model_options, formulation), F(mbdk_model_options, solver),
     F(mbdk_model_options, small_dense), F(mbdk_model_options, projection_max_iter),
     F(mbdk_model_options, watch_position), F(mbdk_model_options, watch_velocity),
-    F(mbdk_model_options, watch_energy), F(mbdk_model_options, watch_every)};
+    F(mbdk_model_options, watch_energy), F(mbdk_model_options, watch_every),
+    F(mbdk_model_options, locate_events)};
 
 struct table { const char *name; size_t size; const struct field *f; int n; };
 

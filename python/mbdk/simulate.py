@@ -182,7 +182,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              h_min: float | None = None, h_max: float | None = None,
              rtol: float | None = None, atol: float | None = None,
              max_steps: int | None = None, max_order: int | None = None,
-             watch=True, raise_on_failure: bool = True, **unknown) -> SceneResult:
+             watch=True, locate_events: bool = True, raise_on_failure: bool = True,
+             **unknown) -> SceneResult:
     """Integrate a scene. See the module docstring for methods, formulations and outputs.
 
     formulation: default "reduced" for the ODE methods, "augmented_lagrangian" for
@@ -208,7 +209,10 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
 
     watch: what the run must keep (mbdk.watch): True for the kernel's tolerances, False to turn
     the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
-    ConstraintDriftError or EnergyDriftError at the check where it happened."""
+    ConstraintDriftError or EnergyDriftError at the check where it happened.
+
+    locate_events: dopri54 and bs32 end a step where a contact closes or opens (its penetration
+    changes sign), so that no step straddles the kink in the force (default True)."""
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
@@ -345,7 +349,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                           projection_tol, startup, newton_rtol, newton_atol)
         mopt = model_options(formulation, plan_["alpha"], plan_["beta"], penalty,
                              projection_tol, solver, small_dense)
-    mopt = replace(mopt, **watch_.options())
+    mopt = replace(mopt, **watch_.options(), locate_events=int(bool(locate_events)))
     if solver == "revolute_schur":
         other = [f"{j.name} ({j.type})" for j in scene.joints if j.type != "revolute"]
         if other:
@@ -416,7 +420,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 "outputs": [o for o in OUTPUTS if want & OUTPUTS[o]],
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
                 "small_dense": small_dense,
-                "watch": asdict(watch_), **plan_["manifest"]}
+                "watch": asdict(watch_), "locate_events": bool(locate_events),
+                **plan_["manifest"]}
     if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
     result = SceneResult(

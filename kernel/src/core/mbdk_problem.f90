@@ -20,6 +20,9 @@ module mbdk_problem
     !> .true.: the driver calls watch_start at t0 and watch after every accepted step (a scene
     !> watching its constraints and energy, mbdk_watch)
     logical :: has_watch = .false.
+    !> > 0: events g(t, y) whose sign changes the error-controlled Runge-Kutta pairs locate and
+    !> end a step on (a contact that closes or opens: F is not smooth there)
+    integer :: nevents = 0
   contains
 
     procedure(rhs_iface), deferred :: rhs
@@ -27,6 +30,7 @@ module mbdk_problem
     procedure :: post_step => no_post_step
     procedure :: watch_start => no_watch_start
     procedure :: watch => no_watch
+    procedure :: events => no_events
   end type mbdk_problem_t
 
   abstract interface
@@ -68,6 +72,16 @@ contains
     integer, intent(out) :: stat
     stat = MBDK_SUCCESS
   end subroutine no_watch_start
+
+  !> Default: no events (nevents = 0).
+  subroutine no_events(self, t, y, g, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: g(:)
+    integer, intent(out) :: stat
+    g = 0.0_dp
+    stat = MBDK_SUCCESS
+  end subroutine no_events
 
   !> Default: nothing watched. force: the step is a sample (or the last one): check it.
   subroutine no_watch(self, t, y, force, stat)

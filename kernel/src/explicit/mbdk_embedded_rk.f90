@@ -17,6 +17,17 @@
 !> Samples inside a step come from the pair's dense output; a sample at the step's end is the
 !> step's state itself. After a projection (has_post_step) F is evaluated again at the
 !> projected state, as the next step's first stage.
+!>
+!> Events (prob%nevents > 0: a contact's penetration, mbdk_problem). F is not smooth where an
+!> event function changes sign (a contact closes or opens), and a step across that point
+!> carries a low-order error that the controller meets only by rejecting steps and shrinking h
+!> around it. So an accepted step whose end has an event of another sign than its start is
+!> searched for the earliest root on the dense output (the Illinois variant of regula falsi on
+!> g(y(theta)), to 1e-12 of the step), then taken again, shortened to end just past it; the
+!> root then lies on the step boundary, and each step sees F on one side of it only. A root
+!> within EVENT_EDGE of either end of a step is taken as it lands (the shortened step's own
+!> dense output puts the root a little off its end, and the next step's start sits on it), and
+!> a step is shortened at most MAX_REDO times.
 module mbdk_embedded_rk
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -32,6 +43,8 @@ module mbdk_embedded_rk
   public :: mbdk_embedded_rk_solve
 
   real(dp), parameter :: SAFETY = 0.9_dp, FAC_MIN = 0.2_dp, FAC_MAX = 10.0_dp
+  real(dp), parameter :: EVENT_EDGE = 1.0e-6_dp
+  integer, parameter :: MAX_REDO = 3
 
 contains
 
@@ -48,10 +61,11 @@ contains
 
     type(mbdk_pair_t) :: pr
     logical :: found, rejected_last, finite, projected, sample
-    integer :: n, i, j, ns, k
+    integer :: n, i, j, ns, k, redo
     integer(i8) :: tries, limit
-    real(dp) :: t, t_end, h, hmax, err, expo, fac, theta, t_new
-    real(dp), allocatable :: y(:), ynew(:), kk(:, :), w(:), e(:), bth(:)
+    real(dp) :: t, t_end, h, hmax, err, expo, fac, theta, t_new, root
+    real(dp), allocatable :: y(:), ynew(:), kk(:, :), w(:), e(:), bth(:), g0(:), g1(:), gt(:)
+    real(dp), allocatable :: yt(:)
 
     n = size(y0)
     ns = size(t_out)
@@ -60,8 +74,13 @@ contains
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (.not. found) return
     allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s))
+    allocate (g0(prob%nevents), g1(prob%nevents), gt(prob%nevents), yt(n))
     y = y0
     t = t0
+    if (prob%nevents > 0) then
+      call prob%events(t, y, g0, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     call prob%rhs(t, y, kk(:, 1), stat)
     st%nfev = st%nfev + 1
     if (stat /= MBDK_SUCCESS) return
@@ -73,6 +92,7 @@ contains
     expo = -1.0_dp / real(pr%est_order + 1, dp)
     limit = mbdk_adaptive_step_limit(opt)
     tries = 0
+    redo = 0
     rejected_last = .false.
     k = nwritten + 1           ! the next sample to write
 
@@ -129,6 +149,21 @@ contains
         cycle
       end if
 
+      ! accepted, unless an event changed sign inside: then again, ending at its root
+      if (prob%nevents > 0) then
+        call prob%events(t_new, ynew, g1, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call earliest_root(root, stat)
+        if (stat /= MBDK_SUCCESS) return
+        if (root > EVENT_EDGE .and. root < 1.0_dp - EVENT_EDGE .and. redo < MAX_REDO) then
+          h = root * h
+          redo = redo + 1
+          cycle
+        end if
+        redo = 0
+        g0 = g1
+      end if
+
       ! accepted: samples inside (t, t_new) from the dense output
       sample = .false.
       do while (k <= ns)
@@ -155,6 +190,8 @@ contains
         call prob%rhs(t, y, kk(:, 1), stat)
         st%nfev = st%nfev + 1
         if (stat /= MBDK_SUCCESS) return
+        if (prob%nevents > 0) call prob%events(t, y, g0, stat)
+        if (stat /= MBDK_SUCCESS) return
       else
         kk(:, 1) = kk(:, pr%s)
       end if
@@ -171,6 +208,65 @@ contains
       rejected_last = .false.
     end do
     stat = MBDK_SUCCESS
+
+  contains
+
+    !> The earliest theta in (0, 1] at which an event that changes sign over the step (g0 at
+    !> theta = 0, g1 at 1) crosses zero on the dense output; 1 when none does.
+    subroutine earliest_root(root, st_)
+      real(dp), intent(out) :: root
+      integer, intent(out) :: st_
+      integer :: ev, it, side
+      real(dp) :: a, b, ga, gb, c, gc
+      root = 1.0_dp
+      st_ = MBDK_SUCCESS
+      do ev = 1, size(g0)
+        if (.not. ((g0(ev) > 0.0_dp .and. g1(ev) <= 0.0_dp) .or. &
+                   (g0(ev) <= 0.0_dp .and. g1(ev) > 0.0_dp))) cycle
+        a = 0.0_dp
+        b = 1.0_dp
+        ga = g0(ev)
+        gb = g1(ev)
+        side = 0
+        do it = 1, 100
+          c = (a * gb - b * ga) / (gb - ga)
+          if (.not. (c > a .and. c < b)) c = 0.5_dp * (a + b)
+          call event_at(c, ev, gc, st_)
+          if (st_ /= MBDK_SUCCESS) return
+          if ((gc > 0.0_dp) .eqv. (ga > 0.0_dp)) then
+            a = c
+            ga = gc
+            if (side == -1) gb = 0.5_dp * gb
+            side = -1
+          else
+            b = c
+            gb = gc
+            if (side == 1) ga = 0.5_dp * ga
+            side = 1
+          end if
+          if (b - a < 1.0e-12_dp) exit
+        end do
+        ! b: the first point past the root, so that the shortened step ends on its other side
+        root = min(root, b)
+      end do
+    end subroutine earliest_root
+
+    !> Event ev at theta of the step, on the dense output.
+    subroutine event_at(th, ev, gv, st_)
+      real(dp), intent(in) :: th
+      integer, intent(in) :: ev
+      real(dp), intent(out) :: gv
+      integer, intent(out) :: st_
+      integer :: jj
+      yt = y
+      do jj = 1, pr%s
+        bth(jj) = dense_weight(pr, jj, th)
+        if (bth(jj) /= 0.0_dp) yt = yt + (h * bth(jj)) * kk(:, jj)
+      end do
+      call prob%events(t + th * h, yt, gt, st_)
+      gv = gt(ev)
+    end subroutine event_at
+
   end subroutine mbdk_embedded_rk_solve
 
   !> sum_m p(j, m) theta^m: stage j's weight in the dense output at theta.

@@ -66,12 +66,14 @@
 !> A circle on circle whose centres coincide has no normal while it penetrates:
 !> MBDK_ERR_NONFINITE, as for a spring of zero length.
 module mbdk_contact
-  use mbdk_kinds, only: dp
+  use mbdk_kinds, only: dp, i8
   use mbdk_joints, only: mbdk_body_point
+  use mbdk_elements, only: FRICTION => MBDK_FORCE_FRICTION
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   implicit none
   private
   public :: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, mbdk_step3, &
-    mbdk_contact_apply
+    mbdk_contact_apply, mbdk_contact_forces, mbdk_contact_forces_all
 
   integer, parameter, public :: MBDK_CONTACT_LINE = 1, MBDK_CONTACT_CIRCLES = 2, &
     MBDK_CONTACT_INSIDE = 3, MBDK_CONTACT_GEAR = 4
@@ -87,6 +89,8 @@ module mbdk_contact
   !> touching pairs (one for the shapes 1-3) and whether any touches.
   type :: mbdk_contact_t
     real(dp) :: delta = 0.0_dp, rate = 0.0_dp, force = 0.0_dp, elastic = 0.0_dp
+    !> the force before the clip at 0 (negative where the damping would pull)
+    real(dp) :: unclipped = 0.0_dp
     real(dp) :: n(2) = 0.0_dp, c(2, MBDK_CONTACT_PAIRS) = 0.0_dp, slip(MBDK_CONTACT_PAIRS) = 0.0_dp
     real(dp) :: weight(MBDK_CONTACT_PAIRS) = 1.0_dp, dweight(MBDK_CONTACT_PAIRS) = 0.0_dp
     real(dp) :: dl_th1 = 0.0_dp, dl_c1(2) = 0.0_dp, dl_c2(2) = 0.0_dp
@@ -168,7 +172,8 @@ contains
     pure subroutine normal_force(ct)
       type(mbdk_contact_t), intent(inout) :: ct
       ct%elastic = fr(7) * ct%delta**fr(8)
-      ct%force = max(0.0_dp, ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate)
+      ct%unclipped = ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate
+      ct%force = max(0.0_dp, ct%unclipped)
     end subroutine normal_force
 
     !> The involute pair (the module header): delta, the touching pairs' points and slips.
@@ -287,5 +292,64 @@ contains
       f(3 * b2) = f(3 * b2) - ((c(1) - q(3 * b2 - 2)) * fv(2) - (c(2) - q(3 * b2 - 1)) * fv(1))
     end if
   end subroutine mbdk_contact_apply
+
+  !> f += the generalised forces of the contact or friction element in column e of the table
+  !> (fint, freal).
+  subroutine mbdk_contact_forces(fint, freal, e, rot, q, v, f, stat)
+    integer, intent(in), contiguous :: fint(:, :)
+    real(dp), intent(in), contiguous :: freal(:, :), rot(:, :), q(:), v(:)
+    integer, intent(in) :: e
+    real(dp), intent(inout), contiguous :: f(:)
+    integer, intent(out) :: stat
+    type(mbdk_contact_t) :: ct
+    logical :: ok
+    integer :: b, k, c
+    real(dp) :: ften
+
+    stat = MBDK_SUCCESS
+    c = e
+    if (fint(1, e) == FRICTION) c = fint(4, e)
+    call mbdk_contact_eval(fint(:, c), freal(:, c), rot, q, v, ct, ok)
+    if (.not. ok) then
+      stat = MBDK_ERR_NONFINITE
+      return
+    end if
+    do k = 1, ct%npair
+      if (fint(1, e) == FRICTION) then
+        ften = -mbdk_friction_mu(ct%slip(k), freal(:, e)) * ct%weight(k) * ct%force
+        call mbdk_contact_apply(fint(2, c), fint(3, c), ct%c(:, k), ften * [-ct%n(2), ct%n(1)], &
+                                q, f)
+        cycle
+      end if
+      call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c(:, k), &
+                              ct%weight(k) * ct%force * ct%n, q, f)
+      ! a gear pair's weight changes along the path: its potential's gradient there
+      if (ct%dweight(k) /= 0.0_dp) then
+        ften = -ct%dweight(k) * ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+        b = fint(2, e)
+        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1
+        f(3 * b) = f(3 * b) + ften * ct%dl_th1
+        b = fint(3, e)
+        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c2
+      end if
+    end do
+  end subroutine mbdk_contact_forces
+
+  !> f += the generalised forces of every entry of a table of contacts and friction (their
+  !> columns refer to this table); visits(code) counts them.
+  subroutine mbdk_contact_forces_all(fint, freal, rot, q, v, f, visits, stat)
+    integer, intent(in), contiguous :: fint(:, :)
+    real(dp), intent(in), contiguous :: freal(:, :), rot(:, :), q(:), v(:)
+    real(dp), intent(inout), contiguous :: f(:)
+    integer(i8), intent(inout), contiguous :: visits(:)
+    integer, intent(out) :: stat
+    integer :: e
+    stat = MBDK_SUCCESS
+    do e = 1, size(fint, 2)
+      visits(fint(1, e)) = visits(fint(1, e)) + 1
+      call mbdk_contact_forces(fint, freal, e, rot, q, v, f, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end do
+  end subroutine mbdk_contact_forces_all
 
 end module mbdk_contact

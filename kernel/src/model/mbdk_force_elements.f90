@@ -20,8 +20,10 @@
 !>                          and law); fint(4) = its geometry
 !>   9 friction             Coulomb friction of a contact (mbdk_contact); fint(4) = the column
 !>                          of that contact in the same table
-!> Wear elements (mbdk_wear) share the table; the model takes them out of it (they carry states
-!> and are no forces) and this module skips them.
+!> mbdk_forces_eval skips contacts and friction: the model evaluates them from a table of their
+!> own (mbdk_contact_forces_all), so that the force loop of a scene without them is the one it
+!> was before they existed; their energy and power are here. Wear elements (mbdk_wear) share
+!> the table; the model takes them out of it (they carry states and are no forces).
 !> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE, and so has a
 !> penetrating contact of two circles with coincident centres.
 !> Every routine takes the rotations rot(2, nb) of the bodies at q (mbdk_joints).
@@ -29,8 +31,7 @@ module mbdk_force_elements
   use mbdk_elements, only: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
     MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, &
     MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, MBDK_FORCE_TYPES
-  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, &
-    mbdk_contact_apply
+  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   use mbdk_time_function, only: mbdk_time_fn
@@ -57,13 +58,12 @@ contains
     integer :: e, b, nb, k
     real(dp) :: p1(2), rho1(2), rho2(2), pv1(2), w1, w2, el(2), gv(2)
     real(dp) :: len, ldot, ften, tf, tfd, tfdd, fv(2)
-    type(mbdk_contact_t) :: ct
-    logical :: ok
 
     stat = MBDK_SUCCESS
     nb = size(mass) / 3
     do e = 1, size(fint, 2)
-      if (fint(1, e) > MBDK_FORCE_TYPES) cycle
+      ! contacts and friction: mbdk_contact_forces_all, over the model's table of them
+      if (fint(1, e) >= MBDK_FORCE_CONTACT) cycle
       visits(fint(1, e)) = visits(fint(1, e)) + 1
       select case (fint(1, e))
       case (MBDK_FORCE_GRAVITY)
@@ -104,40 +104,10 @@ contains
       case (MBDK_FORCE_COORDINATE)
         k = 3 * fint(2, e) - 3 + fint(4, e)
         f(k) = f(k) - freal(1, e) * (q(k) - freal(3, e)) - freal(2, e) * v(k)
-      case (MBDK_FORCE_CONTACT)
-        call mbdk_contact_eval(fint(:, e), freal(:, e), rot, q, v, ct, ok)
-        if (.not. ok) then
-          stat = MBDK_ERR_NONFINITE
-          return
-        end if
-        do k = 1, ct%npair
-          call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c(:, k), &
-                                  ct%weight(k) * ct%force * ct%n, q, f)
-          ! a gear pair's weight changes along the path: its potential's gradient there
-          if (ct%dweight(k) /= 0.0_dp) then
-            ften = -ct%dweight(k) * ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
-            b = fint(2, e)
-            f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1
-            f(3 * b) = f(3 * b) + ften * ct%dl_th1
-            b = fint(3, e)
-            f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c2
-          end if
-        end do
-      case (MBDK_FORCE_FRICTION)
-        k = fint(4, e)
-        call mbdk_contact_eval(fint(:, k), freal(:, k), rot, q, v, ct, ok)
-        if (.not. ok) then
-          stat = MBDK_ERR_NONFINITE
-          return
-        end if
-        do b = 1, ct%npair
-          ften = -mbdk_friction_mu(ct%slip(b), freal(:, e)) * ct%weight(b) * ct%force
-          call mbdk_contact_apply(fint(2, k), fint(3, k), ct%c(:, b), ften * [-ct%n(2), ct%n(1)], &
-                                  q, f)
-        end do
       end select
     end do
   end subroutine mbdk_forces_eval
+
 
   !> Potential energy of gravity and of the springs, the power dissipated by the dampers (>= 0)
   !> and the power of the applied loads (point forces and torques).

@@ -64,8 +64,9 @@ module mbdk_model
   use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
     MBDK_ELEMENT_NAME_LEN, MBDK_ELEMENT_KINDS, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, &
     MBDK_EFFECT_WEAR
-  use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR
-  use mbdk_wear, only: mbdk_wear_rate, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
+  use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR, &
+    mbdk_contact_forces_all, mbdk_contact_t, mbdk_contact_eval
+  use mbdk_wear, only: mbdk_wear_rates, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
@@ -135,6 +136,9 @@ module mbdk_model
     real(c_double) :: watch_velocity = 1.0e-2_c_double
     real(c_double) :: watch_energy = 1.0e-1_c_double
     integer(c_int) :: watch_every = MBDK_WATCH_EVERY    !< steps between checks; 0: the default
+    !> 1: the contacts' penetrations are events (mbdk_problem), which dopri54 and bs32 locate
+    !> and end a step on; 0: off
+    integer(c_int) :: locate_events = 1
   end type mbdk_model_options_t
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
@@ -182,7 +186,7 @@ module mbdk_model
     !> a power term needs the bodies' rotations (a point force, a two-point damper)
     logical :: power_rot = .false.
     type(mbdk_model_work_t), pointer :: work => null()
-    !> effect states (wear elements: eint/ereal, their columns referring to fint_v) and whether
+    !> effect states (wear elements: eint/ereal, their columns referring to fint_c) and whether
     !> the scene has contacts or friction (no tangent for trapezoidal_index3's Newton matrix)
     integer :: ns = 0
     integer, allocatable :: eint(:, :)
@@ -195,13 +199,16 @@ module mbdk_model
     !> elements it holds; the other force elements, which an evaluation visits
     real(dp), allocatable :: fconst(:)
     integer :: ngrav = 0
-    integer, allocatable :: fint_v(:, :)
-    real(dp), allocatable :: freal_v(:, :)
+    integer, allocatable :: fint_v(:, :), fint_c(:, :)
+    real(dp), allocatable :: freal_v(:, :), freal_c(:, :)
   contains
     procedure :: rhs => model_rhs
+    !> the rhs of a scene with effects (a type-bound call, so that it is not inlined into rhs)
+    procedure :: rhs_effects => rhs_with_effects
     procedure :: post_step => model_post_step
     procedure :: watch_start => model_watch_start
     procedure :: watch => model_watch
+    procedure :: events => model_events
   end type mbdk_model_t
 
 contains
@@ -395,6 +402,12 @@ contains
     model%work => work
     model%has_jac = .false.
     call split_forces(model, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ! events: every contact but the gear meshes (whose penetration wraps around the base
+    ! pitch; their pairs take up their load smoothly): model_events
+    if (opt%locate_events /= 0 .and. model%has_contacts) &
+      model%nevents = count(model%fint_c(1, :) == MBDK_FORCE_CONTACT .and. &
+                            model%fint_c(4, :) /= MBDK_CONTACT_GEAR)
 
   contains
 
@@ -452,7 +465,10 @@ contains
 
   !> Gravity does not depend on (q, v, t): its generalised force is summed once (fconst, by
   !> mbdk_forces_eval itself) and an evaluation starts from it, visiting only the other
-  !> elements (fint_v, freal_v, in table order).
+  !> elements (fint_v, freal_v, in table order). Contacts and friction go to a table of their
+  !> own (fint_c, freal_c; mbdk_contact_forces_all), wear to eint, ereal: a scene without them
+  !> runs the force loop it ran before they existed. Friction and wear refer to columns, which
+  !> are renumbered to fint_c's.
   subroutine split_forces(model, stat)
     type(mbdk_model_t), intent(inout) :: model
     integer, intent(out) :: stat
@@ -462,22 +478,24 @@ contains
     integer, allocatable :: idx(:)
     real(dp) :: rot(2, model%nb), y0(model%nc)
     integer :: newcol(size(model%fint, 2))
-    logical :: visit(size(model%fint, 2)), wear(size(model%fint, 2))
+    logical :: visit(size(model%fint, 2)), wear(size(model%fint, 2)), cont(size(model%fint, 2))
     nf = size(model%fint, 2)
     grav = model%fint(1, :) == MBDK_FORCE_GRAVITY
     wear = model%fint(1, :) == MBDK_EFFECT_WEAR
-    visit = .not. (grav .or. wear)
+    cont = model%fint(1, :) == MBDK_FORCE_CONTACT .or. model%fint(1, :) == MBDK_FORCE_FRICTION
+    visit = .not. (grav .or. wear .or. cont)
     idx = [(e, e = 1, nf)]
     model%ngrav = count(grav)
     model%fint_v = model%fint(:, pack(idx, visit))
     model%freal_v = model%freal(:, pack(idx, visit))
+    model%fint_c = model%fint(:, pack(idx, cont))
+    model%freal_c = model%freal(:, pack(idx, cont))
     model%eint = model%fint(:, pack(idx, wear))
     model%ereal = model%freal(:, pack(idx, wear))
-    ! friction and wear refer to table columns: in fint_v those of the visited elements
     newcol = 0
-    newcol(pack(idx, visit)) = [(e, e = 1, count(visit))]
-    where (model%fint_v(1, :) == MBDK_FORCE_FRICTION) &
-      model%fint_v(4, :) = newcol(model%fint_v(4, :))
+    newcol(pack(idx, cont)) = [(e, e = 1, count(cont))]
+    where (model%fint_c(1, :) == MBDK_FORCE_FRICTION) &
+      model%fint_c(4, :) = newcol(model%fint_c(4, :))
     if (model%ns > 0) model%eint(4, :) = newcol(model%eint(4, :))
     allocate (model%fconst(model%nc))
     model%fconst = 0.0_dp
@@ -566,7 +584,13 @@ contains
       if (size(self%fint_v, 2) > 0) &
         call mbdk_forces_eval(self%fint_v, self%freal_v, self%mass, w%rot, q, v, t, w%fq, &
                               w%visits(MBDK_JOINT_TYPES + 1:), stat)
-      if (stat /= MBDK_SUCCESS .or. self%m == 0) return
+      if (stat /= MBDK_SUCCESS) return
+      if (self%has_contacts) then
+        call mbdk_contact_forces_all(self%fint_c, self%freal_c, w%rot, q, v, w%fq, &
+                                     w%visits(MBDK_JOINT_TYPES + 1:), stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      if (self%m == 0) return
       if (self%revolute) then
         w%visits(MBDK_JOINT_REVOLUTE) = w%visits(MBDK_JOINT_REVOLUTE) + self%rs%nj
         if (self%formulation == MBDK_FORM_BAUMGARTE) then
@@ -590,6 +614,13 @@ contains
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     integer :: nc, i
+    ! a scene with effects takes a routine of its own, called through the type (not inlined):
+    ! with their code here, every scene's evaluation paid for keeping registers across the
+    ! solve (24 to 30 instructions per evaluation, counted by callgrind)
+    if (self%ns > 0) then
+      call self%rhs_effects(t, y, f, stat)
+      return
+    end if
     nc = self%nc
     ! y and f contiguous (mbdk_problem): the accelerations are written into f in place
     ! the reduced formulation refuses a near rank loss of D (see MBDK_MODEL_NEAR_PIVOT)
@@ -603,33 +634,33 @@ contains
     do i = 1, nc
       f(i) = y(nc + i)
     end do
-    if (self%ns > 0 .and. stat == MBDK_SUCCESS) call effect_rates(self, t, y, f, stat)
   end subroutine model_rhs
 
-  !> f(2 nc + 1:) = the effects' rates at (t, y), after an evaluation has left work%rot at q.
-  subroutine effect_rates(self, t, y, f, stat)
+  !> model_rhs of a scene with effects: the accelerations, then the effects' rates
+  !> f(2 nc + 1:), after the evaluation has left work%rot at q.
+  subroutine rhs_with_effects(self, t, y, f, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(in), contiguous :: y(:)
     real(dp), intent(inout), contiguous :: f(:)
     integer, intent(out) :: stat
-    integer :: e, nc
-    logical :: ok
+    integer :: nc
     nc = self%nc
-    stat = MBDK_SUCCESS
-    associate (w => self%work)
-      w%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) = &
-        w%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) + self%ns
-      do e = 1, self%ns
-        call mbdk_wear_rate(self%eint(:, e), self%ereal(:, e), self%fint_v, self%freal_v, &
-                            w%rot, y(1:nc), y(nc + 1:2 * nc), t, f(2 * nc + e), ok)
-        if (.not. ok) then
-          stat = MBDK_ERR_NONFINITE
-          return
-        end if
-      end do
-    end associate
-  end subroutine effect_rates
+    if (self%formulation == MBDK_FORM_REDUCED) then
+      call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                    self%work%lam_rhs, stat, MBDK_MODEL_NEAR_PIVOT)
+    else
+      call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), f(nc + 1:2 * nc), &
+                                    self%work%lam_rhs, stat)
+    end if
+    f(1:nc) = y(nc + 1:2 * nc)
+    if (stat /= MBDK_SUCCESS) return
+    self%work%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) = &
+      self%work%visits(MBDK_JOINT_TYPES + MBDK_EFFECT_WEAR) + self%ns
+    call mbdk_wear_rates(self%eint, self%ereal, self%fint_c, self%freal_c, self%work%rot, &
+                         y(1:nc), y(nc + 1:2 * nc), t, f(2 * nc + 1:), stat)
+  end subroutine rhs_with_effects
+
 
   !> Accelerations a and multipliers lam at (t, q, v) by the model's formulation. lam may be
   !> self%work%lam_rhs; no argument may alias the other work buffers. near: the relative pivot
@@ -855,6 +886,39 @@ contains
     end do
     end associate
   end subroutine mbdk_model_outputs
+
+  !> The events of a scene, one per contact (not gear meshes) in table order: the normal force
+  !> before its clip at zero, k delta^e + c step(delta) delta' while it touches, extended by
+  !> -k |delta|^e where it does not (delta itself for k = 0). Continuous, it changes sign where
+  !> the contact closes and where it lets go: at delta = 0, or, damped, where the force would
+  !> turn into a pull and the clip cuts it (the kink the ball's exit has, delta still > 0).
+  subroutine model_events(self, t, y, g, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: g(:)
+    integer, intent(out) :: stat
+    integer :: e, k, nc
+    type(mbdk_contact_t) :: ct
+    logical :: ok
+    nc = self%nc
+    stat = MBDK_SUCCESS
+    call mbdk_body_rotations(y(1:nc), self%work%rot)
+    k = 0
+    do e = 1, size(self%fint_c, 2)
+      if (self%fint_c(1, e) /= MBDK_FORCE_CONTACT .or. &
+          self%fint_c(4, e) == MBDK_CONTACT_GEAR) cycle
+      k = k + 1
+      call mbdk_contact_eval(self%fint_c(:, e), self%freal_c(:, e), self%work%rot, y(1:nc), &
+                             y(nc + 1:2 * nc), ct, ok)
+      if (ct%touching) then
+        g(k) = ct%unclipped
+      else if (self%freal_c(7, e) > 0.0_dp) then
+        g(k) = -self%freal_c(7, e) * abs(ct%delta)**self%freal_c(8, e)
+      else
+        g(k) = ct%delta
+      end if
+    end do
+  end subroutine model_events
 
   subroutine model_watch_start(self, t, y, stat)
     class(mbdk_model_t), intent(in) :: self

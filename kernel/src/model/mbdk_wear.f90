@@ -21,10 +21,11 @@
 !> a_x, t0, Ea, Rg; knee: freal(2:5) = c0..c3.
 module mbdk_wear
   use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu
   implicit none
   private
-  public :: mbdk_wear_rate, mbdk_wear_psi
+  public :: mbdk_wear_rate, mbdk_wear_rates, mbdk_wear_psi
 
   integer, parameter, public :: MBDK_WEAR_ARCHARD = 1, MBDK_WEAR_GEAR = 2, MBDK_WEAR_KNEE = 3, &
     MBDK_WEAR_LAWS = 3
@@ -92,5 +93,25 @@ contains
       end select
     end do
   end subroutine mbdk_wear_rate
+
+  !> rates(e) = dW/dt of every wear entry (eint, ereal) at (q, v, t); (fint, freal) the table
+  !> their columns refer to, rot the bodies' (cos, sin) at q. MBDK_ERR_NONFINITE where a
+  !> contact has no normal.
+  subroutine mbdk_wear_rates(eint, ereal, fint, freal, rot, q, v, t, rates, stat)
+    integer, intent(in) :: eint(:, :), fint(:, :)
+    real(dp), intent(in) :: ereal(:, :), freal(:, :), rot(:, :), q(:), v(:), t
+    real(dp), intent(out) :: rates(:)
+    integer, intent(out) :: stat
+    integer :: e
+    logical :: ok
+    stat = MBDK_SUCCESS
+    do e = 1, size(eint, 2)
+      call mbdk_wear_rate(eint(:, e), ereal(:, e), fint, freal, rot, q, v, t, rates(e), ok)
+      if (.not. ok) then
+        stat = MBDK_ERR_NONFINITE
+        return
+      end if
+    end do
+  end subroutine mbdk_wear_rates
 
 end module mbdk_wear
