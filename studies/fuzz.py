@@ -42,7 +42,7 @@ BAD_VALUES = [None, "abc", "", -1.0, 0.0, -0.0, math.nan, math.inf, -math.inf, 1
               "ground", "\u00e9\u00e8", [None, None], ["x", "y"]]
 SCENES = ["double_pendulum", "four_bar", "trolley_crane", "spring_damper_bar",
           "parallelogram_redundant", "three_link_pendulum", "physical_pendulum", "spring_bar",
-          "heavy_top", "free_body", "spatial_double_pendulum"]
+          "heavy_top", "free_body", "spatial_double_pendulum", "pla_gears", "particle_in_ring"]
 
 
 def _scene_dict(name: str) -> dict:
@@ -79,7 +79,7 @@ def to_toml(d: dict) -> str:
         if isinstance(d.get(key), dict):
             lines.append(f"[{key}]")
             lines += [f"{k} = {_toml_value(v)}" for k, v in d[key].items() if v is not None]
-    for key in ("body", "joint", "force"):
+    for key in ("body", "joint", "force", "wear"):
         items = d.get(key)
         if isinstance(items, list):
             for item in items:
@@ -112,7 +112,7 @@ def bad_scenes(seed: int, n: int):
             out.append((label + f" ({depth} deep)", ("x = " + "[" * depth + "]" * depth + "\n"
                                                      + to_toml(d)).encode()))
             continue
-        section = rng.choice([s for s in ("body", "joint", "force") if d.get(s)])
+        section = rng.choice([s for s in ("body", "joint", "force", "wear") if d.get(s)])
         item = rng.choice(d[section])
         fld = rng.choice(list(item))
         if kind == "value":
@@ -157,8 +157,8 @@ def bad_objects(seed: int, n: int):
     while len(out) < n:
         name = rng.choice(SCENES)
         sc = mbdk.scene(name)
-        group = rng.choice(["bodies", "joints", "forces"])
-        items = getattr(sc, group)
+        group = rng.choice(["bodies", "joints", "forces", "wear"])
+        items = getattr(sc, group, [])
         if not items:
             continue
         item = rng.choice(items)

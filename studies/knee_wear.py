@@ -186,7 +186,8 @@ def run(out: Path, quick: bool = False) -> dict:
                             "more_than_PS_percent", "mean_WIB_percent", "book_mean_WIB_percent",
                             "WIB_end_percent", "medial_mm3", "lateral_mm3", "cpu_ms"], out,
         "knee_wear_designs", "Per-cycle wear and mean imbalance (the counterpart of table 6.8)",
-        f"varus {VARUS_DEG} deg (calibrated to PS, module docstring); rk4, h = 5e-5 s. The book's values are for its CAD "
+        f"varus {VARUS_DEG} deg (calibrated to PS, module docstring); rk4, h = 5e-5 s. The "
+        "book's values are for its CAD "
         "prostheses, ours for the circle-and-dish designs of the module docstring: the order "
         "of magnitude (1e-5 mm^3 per cycle) is what compares, not the digits. "
         "more_than_PS_percent takes PS as the base (the book's 23 % and 13.7 % take the other "

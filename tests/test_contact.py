@@ -254,7 +254,8 @@ def test_gear_and_knee_wear_laws_against_quadrature():
     def knee_rate(res):
         f, slip = contact(res)
         t = res.t
-        return 1.3e-15 * mu(slip) * f * np.abs(slip) * (sr[0] + t * (sr[1] + t * (sr[2] + t * sr[3])))
+        slide_roll = sr[0] + t * (sr[1] + t * (sr[2] + t * sr[3]))
+        return 1.3e-15 * mu(slip) * f * np.abs(slip) * slide_roll
     for name, fn in (("gear", gear_rate), ("knee", knee_rate)):
         ref = quadrature(r, fn)
         assert ref[-1] > 0

@@ -424,6 +424,17 @@ def test_gear_wear_study(tmp_path, root):
             assert abs(num(r["computed_percent"]) - arrhenius) < 0.01 * arrhenius
         else:
             assert abs(num(r["computed_percent"])) < 1.0
+    # the POM case: wear per revolution grows with the torque step; the two grades run the
+    # same motion, so their volumes stand as their k (4.98e-6 / 5.84e-6, seed line 4009)
+    pom = rows(tmp_path / "gear_wear_pom.csv")
+    per_rev = [num(r["POM_per_rev_mm3"]) for r in pom]
+    assert [num(r["torque_Nm"]) for r in pom] == list(range(6, 13))
+    assert all(b > a for a, b in zip(per_rev, per_rev[1:]))
+    for r in pom:
+        assert abs(num(r["GFR_POM_per_rev_mm3"]) / num(r["POM_per_rev_mm3"])
+                   - 4.98 / 5.84) < 1e-9
+    total = 20000 * sum(per_rev)
+    assert abs(num(pom[-1]["POM_cumulative_mm3"]) - total) < 1e-9 * total
 
 
 def test_knee_wear_study(tmp_path, root):

@@ -230,6 +230,8 @@ typedef struct mbdk_stepper mbdk_stepper;
 
 int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,
                             const double *y0, const mbdk_options *opt, mbdk_stepper **stepper);
+/* y0 = (q, v, w): 6 nb values and then the initial volumes of the scene's wear elements, if
+ * any (mbdk_stepper_size gives the state's length) */
 int mbdk_stepper_create_scene(int nb, const double *mass, const double *inertia, int nj,
                               const int *jint, const double *jreal, int nf, const int *fint,
                               const double *freal, const mbdk_model_options *model_opt,

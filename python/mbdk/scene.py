@@ -53,10 +53,10 @@ A contact (kernel/src/model/mbdk_contact.f90: the IMPACT normal force with Coulo
     shape2 = { type = "line", point = [0, 0], normal = [0, 1] }
     #        or { type = "circle", radius, centre }: two circles outside each other
     #        or { type = "ring", radius, centre }: body1's circle held inside (Fekete 2023, (1.22))
-    stiffness = 1e6              # F = k delta^exponent + damping step(delta; 0, damping_depth) delta'
+    stiffness = 1e6              # F = k delta^exponent + damping step(delta) delta'
     exponent = 1.5               # >= 1 (default 1)
     damping = 50.0               # default 0
-    damping_depth = 1e-4         # penetration at which the full damping acts (default 0: at once)
+    damping_depth = 1e-4         # where the damping is fully in (step: 0 at delta = 0; 0: at once)
     friction = { static = 0.3, dynamic = 0.2, stiction_speed = 1e-3, transition_speed = 2e-3 }
 
 Points and normals of a shape are in its body's frame (global on the ground); a line's normal
@@ -793,8 +793,8 @@ def check_scene(sc: Scene) -> None:
                     continue
                 if kind == "joint" and e.type == "driver" and fld == "body2":
                     continue
-                if kind == "force" and fld == "body2" and e.type not in ("spring", "damper", "contact",
-                                                                       "spring_damper"):
+                if kind == "force" and fld == "body2" and e.type not in (
+                        "spring", "damper", "spring_damper", "contact"):
                     continue
                 shown = fld if not (kind == "force" and e.type in (
                     "point_force", "torque") or e.type.startswith("coordinate")) else "body"
@@ -810,7 +810,8 @@ def check_scene(sc: Scene) -> None:
     contacts = {f.name: f for f in sc.forces if f.type == "contact"}
     for f in contacts.values():
         if f.body1 == f.body2:
-            raise SceneError(f"{src}: force {f.name!r}: field 'body2' = {f.body2!r} is body1 itself")
+            raise SceneError(f"{src}: force {f.name!r}: field 'body2' = {f.body2!r} is body1 "
+                             "itself")
     for w in sc.wear:
         if ("wear", w.name) in seen:
             raise SceneError(f"{src}: wear {w.name!r}: field 'name' is used twice")

@@ -100,7 +100,8 @@ contains
   end function mbdk_c_stepper_create_ode
 
   !> Stepper for a scene given by its tables (as mbdk_index3_solve takes them) and the model's
-  !> options (formulation, solver), from (t0, y0[6 nb] = (q, v)) with opt (method, h, ...).
+  !> options (formulation, solver), from (t0, y0[6 nb + nw] = (q, v, w)) with opt (method, h,
+  !> ...): w the initial volumes of the scene's nw wear elements (mbdk_wear), none without.
   integer(c_int) function mbdk_c_stepper_create_scene(nb, mass, inertia, nj, jint, jreal, nf, &
       fint, freal, mopt, opt, t0, y0, handle) bind(C, name='mbdk_stepper_create_scene')
     integer(c_int), value :: nb, nj, nf
@@ -120,7 +121,7 @@ contains
     allocate (b)
     b%kind = KIND_SCENE
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
-    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb), stat)
+    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb + b%model%ns), stat)
     mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_scene
 
