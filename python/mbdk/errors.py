@@ -31,6 +31,7 @@ class Status(IntEnum):
     ERR_NONFINITE = -30
     ERR_CONSTRAINT_DRIFT = -31
     ERR_ENERGY_DRIFT = -32
+    ERR_CONTACT_OVERRUN = -33
     ERR_CALLBACK_FAILED = -40
     ERR_BACKEND = -50
     ERR_INTERRUPTED = -60
@@ -130,6 +131,14 @@ class EnergyDriftError(MbdkError, ArithmeticError):
     status = Status.ERR_ENERGY_DRIFT
 
 
+class ContactOverrunError(MbdkError, ArithmeticError):
+    """A contact penetrated beyond what its compliant model covers (a gear mesh's flanks by a
+    quarter of the base pitch, where the next tooth would be met): the load or the impact is
+    too large for the contact's stiffness."""
+
+    status = Status.ERR_CONTACT_OVERRUN
+
+
 class CallbackError(MbdkError):
     status = Status.ERR_CALLBACK_FAILED
 
@@ -166,6 +175,7 @@ _BY_STATUS = {
     Status.ERR_NONFINITE: NonFiniteSolutionError,
     Status.ERR_CONSTRAINT_DRIFT: ConstraintDriftError,
     Status.ERR_ENERGY_DRIFT: EnergyDriftError,
+    Status.ERR_CONTACT_OVERRUN: ContactOverrunError,
     Status.ERR_CALLBACK_FAILED: CallbackError,
     Status.ERR_BACKEND: BackendError,
     Status.ERR_INTERRUPTED: SolveInterrupted,

@@ -109,11 +109,14 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
                 f"{sc.source}: body {b.name!r}: field 'kind' {problem}")
     kind = np.array([BODY_KINDS[b.kind][0] for b in sc.bodies], np.int32)
     nj = len(sc.joints)
-    # the scene's forces first (the kernel names a bad one by its column), then one friction
-    # element per contact that has friction, then the wear elements
+    # the scene's forces first (the kernel names a bad one by its column), then the coast
+    # flanks of each gear mesh, then one friction element per contact column that has friction,
+    # then the wear elements
+    gears = [k for k, f in enumerate(sc.forces) if f.type == "contact" and f.shape1[0] == "gear"]
     frictions = [k for k, f in enumerate(sc.forces) if f.type == "contact" and
                  f.friction is not None]
-    nf = len(sc.forces) + len(frictions) + len(sc.wear)
+    nf = (len(sc.forces) + len(gears) + len(frictions) + len(set(frictions) & set(gears))
+          + len(sc.wear))
     jint = np.zeros((4, max(nj, 1)), np.int32, order="F")
     jreal = np.zeros((12, max(nj, 1)), order="F")
     rows, r = [], 0
@@ -152,7 +155,7 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
             freal[7:12, k] = f.function
         elif f.type == "contact" and f.shape1[0] == "gear":
             fint[1:4, k] = [b1, sc.body_index(f.body2), CONTACT_GEOMETRY["gear"]]
-            freal[:, k] = gear_mesh_reals(sc, f)
+            freal[:, k] = gear_mesh_reals(sc, f)[0]
         elif f.type == "contact":
             fint[1:4, k] = [b1, sc.body_index(f.body2), CONTACT_GEOMETRY[f.shape2[0]]]
             freal[0:2, k] = f.shape1[1]
@@ -175,12 +178,19 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
             freal[1, k] = f.damping
             freal[2, k] = f.rest
     col = len(sc.forces)
+    coast = {}
+    for k in gears:         # the coast flanks: the same mesh with h = -1 and its own phases
+        fint[:, col] = fint[:, k]
+        freal[:, col] = gear_mesh_reals(sc, sc.forces[k])[1]
+        coast[k] = col
+        col += 1
     friction_col = {}
     for k in frictions:     # columns are 1-based in the kernel's tables
-        fint[:, col] = [FORCE_CODES["friction"], 0, 0, k + 1]
-        freal[0:4, col] = sc.forces[k].friction
-        friction_col[sc.forces[k].name] = col + 1
-        col += 1
+        for c in ([k, coast[k]] if k in coast else [k]):
+            fint[:, col] = [FORCE_CODES["friction"], 0, 0, c + 1]
+            freal[0:4, col] = sc.forces[k].friction
+            friction_col.setdefault(sc.forces[k].name, col + 1)
+            col += 1
     contact_col = {f.name: k + 1 for k, f in enumerate(sc.forces) if f.type == "contact"}
     for w in sc.wear:
         friction = w.quantity == "friction_force"
@@ -200,19 +210,26 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
 
 
 def gear_mesh_reals(sc: Scene, f) -> np.ndarray:
-    """The kernel's reals of an involute gear mesh (kernel/src/model/mbdk_contact.f90): base and
-    tip radii, base pitch, and the phases that put the flanks in touch (delta = -backlash) with
-    a flank of gear 1 at the pitch point, at the scene's initial pose. A centre distance at
-    which the gears do not mesh (base circles overlapping, or a contact ratio below 1) is a
-    SceneError naming the contact."""
+    """The kernel's reals of an involute gear mesh (kernel/src/model/mbdk_contact.f90), its
+    drive flanks (h = +1) and its coast flanks (h = -1): base and tip radii, base pitch, and the
+    phases that put the drive flanks in touch (delta = 0) with a flank of gear 1 at the pitch
+    point at the scene's initial pose, and the coast flanks the backlash apart (delta =
+    -backlash). Gear 1's coast flank of a tooth lies 2 rb1 eta_b beyond its drive flank along
+    the lines of action, eta_b = pi / (2 z1) + inv(alpha0) the half thickness of a standard
+    tooth at the base circle. A centre distance at which the gears do not mesh (base circles
+    overlapping, or a contact ratio below 1) and a backlash of half a base pitch or more are
+    SceneErrors naming the contact."""
     (z1, m1, a1, ha1), (z2, m2, a2, ha2) = f.shape1[2], f.shape2[2]
     b1, b2 = sc.bodies[sc.body_index(f.body1) - 1], sc.bodies[sc.body_index(f.body2) - 1]
     rb1, rb2 = m1 * z1 * math.cos(a1) / 2, m2 * z2 * math.cos(a2) / 2
     ra1, ra2 = m1 * z1 / 2 + ha1 * m1, m2 * z2 / 2 + ha2 * m2
     pb = math.pi * m1 * math.cos(a1)
-    h = 1.0 if f.hand == "ccw" else -1.0
     a = math.hypot(b2.x - b1.x, b2.y - b1.y)
     src = f"{sc.source}: force {f.name!r}"
+    if not f.backlash < pb / 2:
+        raise SceneError(f"{src}: field 'backlash' = {f.backlash:.6g} m is half the base pitch "
+                         f"({pb / 2:.6g} m) or more: the flanks' gap would pass the next tooth; "
+                         "give a backlash below it")
     if not a > rb1 + rb2:
         raise SceneError(f"{src}: the gears' centre distance {a:.6g} m does not reach their base "
                          f"radii's sum {rb1 + rb2:.6g} m: they cannot mesh (standard centre "
@@ -226,12 +243,16 @@ def gear_mesh_reals(sc: Scene, f) -> np.ndarray:
                          f"ratio {path / pb:.3f} < 1, the gears do not mesh (standard centre "
                          f"distance {m1 * (z1 + z2) / 2:.6g} m)")
     phie = math.atan2(b2.y - b1.y, b2.x - b1.x)
-    raw = h * (rb1 * b1.angle + rb2 * b2.angle) - (rb1 + rb2) * (h * phie - alpha) \
-        - a * math.sin(alpha)
-    c0 = -f.backlash - raw
-    psi1 = rb1 * math.tan(alpha) - rb1 * (h * b1.angle - h * phie + alpha)
-    return np.array([rb1, rb2, ra1, ra2, pb, c0, f.stiffness, f.exponent, f.damping,
-                     f.damping_depth, psi1, h])
+    out = []
+    psi_drive = rb1 * math.tan(alpha) - rb1 * (b1.angle - phie + alpha)
+    for h, gap in ((1.0, 0.0), (-1.0, f.backlash)):
+        raw = h * (rb1 * b1.angle + rb2 * b2.angle) - (rb1 + rb2) * (h * phie - alpha) \
+            - a * math.sin(alpha)
+        psi1 = psi_drive if h > 0 else \
+            pb / 2 + 2 * rb1 * (math.tan(a1) - a1) - psi_drive
+        out.append(np.array([rb1, rb2, ra1, ra2, pb, -gap - raw, f.stiffness, f.exponent,
+                             f.damping, f.damping_depth, psi1, h]))
+    return out
 
 
 def resolve_tables(sc: Scene, tab: Tables, q0) -> None:

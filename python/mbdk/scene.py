@@ -150,9 +150,9 @@ class Force:
     damping_depth: float = 0.0
     #: (static, dynamic, stiction_speed, transition_speed), or None: no friction
     friction: tuple | None = None
-    #: gear meshes: the backlash along the line of action and which flanks mesh
+    #: gear meshes: the backlash along the line of action (the coast flanks' gap at the start;
+    #: the drive flanks, those gear 1 pushes turning counter-clockwise, start in touch)
     backlash: float = 0.0
-    hand: str = "ccw"
 
 
 @dataclass
@@ -479,11 +479,6 @@ def _force(r: _Reader) -> Force:
                 raise r.err("body2", "= 'ground': a gear mesh is between two bodies, each gear "
                                      "centred at its body's origin")
             f.backlash = r.num("backlash", 0.0, nonneg=True)
-            hand = r.name("hand", required=False, default="ccw")
-            if hand not in ("ccw", "cw"):
-                raise r.err("hand", f"= {hand!r} must be 'ccw' (the flanks gear 1 drives "
-                                    "counter-clockwise) or 'cw'")
-            f.hand = hand
         f.stiffness = r.num("stiffness", required=True, nonneg=True)
         f.exponent = r.num("exponent", 1.0)
         if f.exponent < 1:
@@ -695,7 +690,7 @@ def scene_to_dict(sc: Scene) -> dict:
                      shape2=_shape_dict(f.shape2), stiffness=f.stiffness, exponent=f.exponent,
                      damping=f.damping, damping_depth=f.damping_depth)
             if isinstance(f.shape1, (tuple, list)) and f.shape1 and f.shape1[0] == "gear":
-                d.update(backlash=f.backlash, hand=f.hand)
+                d["backlash"] = f.backlash
             if f.friction is not None:
                 d["friction"] = (dict(zip(("static", "dynamic", "stiction_speed",
                                            "transition_speed"), f.friction))

@@ -211,8 +211,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
     ConstraintDriftError or EnergyDriftError at the check where it happened.
 
-    locate_events: dopri54 and bs32 end a step where a contact closes or opens (its penetration
-    changes sign), so that no step straddles the kink in the force (default True)."""
+    locate_events: dopri54 and bs32 end a step where a contact closes or lets go (its force
+    before the clip at zero changes sign), so that no step straddles the kink in the force
+    (default True; the manifest says whether the run's method located them)."""
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
@@ -367,6 +368,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             f"{method} on scene {scene.name!r}: its Newton matrix has no tangent stiffness of "
             f"the contacts ({', '.join(contacts)}); use an ODE method (rk4, dopri54, bdf, "
             "cvode_bdf) with formulation reduced, baumgarte or projection")
+    if method == "euler_cromer" and scene.wear:
+        raise NotApplicableError(
+            f"euler_cromer on scene {scene.name!r}: it integrates a state [q, v] of positions "
+            f"and velocities, which has no place for the wear states "
+            f"({', '.join(w.name for w in scene.wear)}); use rk4, heun or an error-controlled "
+            "method")
     if dae_form and scene.wear:
         raise NotApplicableError(
             f"{method}/{formulation} on scene {scene.name!r}: the DAE's state [q, v, lambda] has "
@@ -409,7 +416,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if status == Status.ERR_INCONSISTENT_INITIAL:
         raise assembly_error(scene, tab, asm_resid, velocity=bool(asm_velocity))
     # the first sample is the (assembled) initial state
-    report = (assembly_report(scene, y0[:nc], y0[nc:], y[:nc, 0], y[nc:, 0], int(asm_iters))
+    report = (assembly_report(scene, y0[:nc], y0[nc:2 * nc], y[:nc, 0], y[nc:2 * nc, 0],
+                              int(asm_iters))
               if assemble_initial and nw else {})
     # the results are views of the arrays the kernel wrote, not copies: a long run's peak
     # memory is its result arrays once (tests/test_pipeline.py measures it)
@@ -420,7 +428,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 "outputs": [o for o in OUTPUTS if want & OUTPUTS[o]],
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
                 "small_dense": small_dense,
-                "watch": asdict(watch_), "locate_events": bool(locate_events),
+                "watch": asdict(watch_),
+                "locate_events": bool(locate_events) and method in ("dopri54", "bs32"),
                 **plan_["manifest"]}
     if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
@@ -453,7 +462,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         if nw:
             q0, v0 = result.q[0], result.v[0]
         else:   # the consistent start of index3 failed: the state it would start from
-            q0, v0 = y0[:nc], y0[nc:]
+            q0, v0 = y0[:nc], y0[nc:2 * nc]
             if assemble_initial:
                 from .model import assemble
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
@@ -722,6 +731,17 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                     f"relative pivot below {REDUCED_NEAR_PIVOT:g}, where its accelerations "
                     "amplify the drift of v. "
                     "baumgarte, projection or trapezoidal_index3 run it")
+        contacts = [f.name for f in scene.forces if f.type == "contact"]
+        gears = [f.name for f in scene.forces if f.type == "contact" and f.shape1[0] == "gear"]
+        if r.status == Status.ERR_CONTACT_OVERRUN and gears:
+            note = (f"; the flanks of {', '.join(gears)} penetrated by a quarter of the base "
+                    "pitch, where the next tooth would be met: the load or the impact across "
+                    "the backlash is beyond the mesh's stiffness. A stiffer mesh, damping, a "
+                    "smaller backlash or a load applied gradually keeps it within")
+        if not note and r.status == Status.ERR_NONFINITE and contacts:
+            note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
+                    "whose centres coincide, or gears whose centres came within their base "
+                    "circles' sum; a smaller h or a stiffer contact keeps them apart")
         if not note:
             note = _singular_note(scene, tab, r)
             if note:   # a smaller h meets the singular configuration as well

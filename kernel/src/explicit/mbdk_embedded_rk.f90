@@ -27,7 +27,9 @@
 !> root then lies on the step boundary, and each step sees F on one side of it only. A root
 !> within EVENT_EDGE of either end of a step is taken as it lands (the shortened step's own
 !> dense output puts the root a little off its end, and the next step's start sits on it), and
-!> a step is shortened at most MAX_REDO times.
+!> so is one whose shortened step would fall below the step floor; a step is shortened at most
+!> MAX_REDO times, and a shortened step is not stretched to land on t_end. A contact that closes
+!> and opens again within one step leaves no sign change between its ends and is not seen.
 module mbdk_embedded_rk
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -108,8 +110,9 @@ contains
       tries = tries + 1
       h = min(h, hmax)
       t_new = t + h
-      ! land on t_end; no sliver of a step is left before it
-      if (t_new >= t_end - 1.0e-3_dp * h) t_new = t_end
+      ! land on t_end; no sliver of a step is left before it (unless an event shortened it)
+      if (t_new >= t_end - 1.0e-3_dp * h .and. redo == 0) t_new = t_end
+      if (t_new > t_end) t_new = t_end
       h = t_new - t
       if (h < mbdk_adaptive_h_floor(opt, t, landing=t_new == t_end)) then
         stat = MBDK_ERR_STEP_TOO_SMALL
@@ -155,7 +158,8 @@ contains
         if (stat /= MBDK_SUCCESS) return
         call earliest_root(root, stat)
         if (stat /= MBDK_SUCCESS) return
-        if (root > EVENT_EDGE .and. root < 1.0_dp - EVENT_EDGE .and. redo < MAX_REDO) then
+        if (root > EVENT_EDGE .and. root < 1.0_dp - EVENT_EDGE .and. redo < MAX_REDO .and. &
+            root * h >= mbdk_adaptive_h_floor(opt, t, landing=.false.)) then
           h = root * h
           redo = redo + 1
           cycle

@@ -47,12 +47,18 @@
 !> pitches of the path and falling back over the last ones (step3: the tip relief of real teeth,
 !> which lets a pair take up its load gradually). Without it the stiffness would jump where a
 !> pair enters or leaves, F and the mesh energy with it, and the balance drifts by about F
-!> delta at every pair change. With it the potential is sum w(L_k) k delta^(e+1)/(e+1), and its
-!> exact gradient adds the force -w'(L_k) k delta^(e+1)/(e+1) dL/dq per pair (on gear 1's angle
-!> and on both centres, through phi_e and alpha'): the undamped, frictionless mesh conserves
-!> energy to the integrator's accuracy. Each pair's slip is its own (zero at the pitch point,
-!> changing sign there). A mesh whose base circles overlap (a <= rb1 + rb2) has no line of
-!> action: MBDK_ERR_NONFINITE.
+!> delta at every pair change. With it the potential is sum w(L_k, a) k delta^(e+1)/(e+1), and
+!> its exact gradient adds per pair the force -(dw/dL dL/dq + dw/da da/dq) k delta^(e+1)/(e+1),
+!> on gear 1's angle and on both centres: through phi_e and alpha' (L) and through the path's
+!> start, which moves with the centre distance a as d s_A/d a = 1/sin alpha'. The undamped,
+!> frictionless mesh conserves energy to the integrator's accuracy, its centres fixed or not.
+!> Each pair's slip is its own (zero at the pitch point, changing sign there). A mesh whose base
+!> circles overlap (a <= rb1 + rb2) has no line of action: MBDK_ERR_NONFINITE. One entry is one
+!> side of the teeth: the scene reader enters a mesh as two, the drive flanks (h = +1) and the
+!> coast flanks (h = -1) with their own phases, so that a load that reverses meets the other
+!> flanks across the backlash (below half a base pitch, within which delta does not wrap). A side
+!> that penetrates beyond a quarter of the base pitch (about a millimetre at module 1.35) has
+!> left what the model covers, and the run stops there: MBDK_ERR_CONTACT_OVERRUN.
 !>
 !> Friction (an element of its own, fint(4) = the column of its contact in the same table):
 !> the slip speed u = t . (v1(c) - v2(c)) along t = perp(n), the force -mu(u) F t on body1 at c
@@ -69,7 +75,7 @@ module mbdk_contact
   use mbdk_kinds, only: dp, i8
   use mbdk_joints, only: mbdk_body_point
   use mbdk_elements, only: FRICTION => MBDK_FORCE_FRICTION
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE, MBDK_ERR_CONTACT_OVERRUN
   implicit none
   private
   public :: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, mbdk_step3, &
@@ -93,9 +99,13 @@ module mbdk_contact
     real(dp) :: unclipped = 0.0_dp
     real(dp) :: n(2) = 0.0_dp, c(2, MBDK_CONTACT_PAIRS) = 0.0_dp, slip(MBDK_CONTACT_PAIRS) = 0.0_dp
     real(dp) :: weight(MBDK_CONTACT_PAIRS) = 1.0_dp, dweight(MBDK_CONTACT_PAIRS) = 0.0_dp
+    !> d weight / d a (the path's start moves with the centre distance a), and d a / d C2
+    real(dp) :: dweight_a(MBDK_CONTACT_PAIRS) = 0.0_dp, da_c2(2) = 0.0_dp
     real(dp) :: dl_th1 = 0.0_dp, dl_c1(2) = 0.0_dp, dl_c2(2) = 0.0_dp
     integer :: npair = 0
     logical :: touching = .false.
+    !> a gear side penetrated beyond a quarter base pitch (MBDK_ERR_CONTACT_OVERRUN)
+    logical :: overrun = .false.
   end type mbdk_contact_t
 
 contains
@@ -181,7 +191,7 @@ contains
       type(mbdk_contact_t), intent(inout) :: ct
       logical, intent(out) :: ok
       real(dp) :: u(2), c1(2), c2(2), e(2), ep(2), a, rsum, ca, sa, alpha, phie, h, dd(2), t1(2)
-      real(dp) :: raw, l, s_start, s_end, pb, ramp, up, down, dup, ddown
+      real(dp) :: raw, l, s_start, s_end, pb, ramp, up, down, dup, ddown, ds_start
       integer :: k
       ok = .false.
       c1 = q(3 * b1 - 2:3 * b1 - 1)
@@ -201,11 +211,20 @@ contains
       phie = atan2(e(2), e(1))
       raw = h * (fr(1) * q(3 * b1) + fr(2) * q(3 * b2)) - rsum * (h * phie - alpha) - a * sa + fr(6)
       ct%delta = raw - pb * anint(raw / pb)
+      ! a penetration beyond a quarter pitch is no tooth's any more: the flanks overran (or the
+      ! other side's did, and this side's delta wrapped around)
+      ct%overrun = ct%delta > 0.25_dp * pb
       if (.not. (ct%delta > 0.0_dp)) return
       dd = sa * e + h * ca * ep
       ct%n = -dd
       t1 = c1 + fr(1) * (ca * e - h * sa * ep)
-      s_start = max(0.0_dp, a * sa - sqrt(max(0.0_dp, fr(4)**2 - fr(2)**2)))
+      s_start = a * sa - sqrt(max(0.0_dp, fr(4)**2 - fr(2)**2))
+      ! d s_start / d a = sin alpha' + a cos alpha' d alpha'/d a = 1 / sin alpha'
+      ds_start = 1.0_dp / sa
+      if (s_start < 0.0_dp) then
+        s_start = 0.0_dp
+        ds_start = 0.0_dp
+      end if
       s_end = sqrt(max(0.0_dp, fr(3)**2 - fr(1)**2))
       l = fr(1) * (h * q(3 * b1) - h * phie + alpha) + fr(11)
       l = l - pb * floor((l - s_start) / pb)
@@ -213,6 +232,7 @@ contains
       ! dL/dq: h rb1 on theta1; through phi_e (d phi_e/d C2 = perp(e)/a) and alpha'
       ! (d alpha'/d a = (rb1 + rb2)/(a^2 sin alpha'), d a/d C2 = e) on the centres
       ct%dl_th1 = h * fr(1)
+      ct%da_c2 = e
       ct%dl_c2 = fr(1) * (-h * ep / a + e * rsum / (a * a * sa))
       ct%dl_c1 = -ct%dl_c2
       do k = 1, MBDK_CONTACT_PAIRS
@@ -224,6 +244,7 @@ contains
         ddown = dstep3(l, s_end - ramp, s_end)
         ct%weight(k) = up * (1.0_dp - down)
         ct%dweight(k) = dup * (1.0_dp - down) - up * ddown
+        ct%dweight_a(k) = -dup * (1.0_dp - down) * ds_start
         ct%c(:, k) = t1 + l * dd
         u = point_velocity(b1, ct%c(:, k)) - point_velocity(b2, ct%c(:, k))
         ct%slip(k) = -ct%n(2) * u(1) + ct%n(1) * u(2)
@@ -304,7 +325,7 @@ contains
     type(mbdk_contact_t) :: ct
     logical :: ok
     integer :: b, k, c
-    real(dp) :: ften
+    real(dp) :: ften, pot
 
     stat = MBDK_SUCCESS
     c = e
@@ -312,6 +333,10 @@ contains
     call mbdk_contact_eval(fint(:, c), freal(:, c), rot, q, v, ct, ok)
     if (.not. ok) then
       stat = MBDK_ERR_NONFINITE
+      return
+    end if
+    if (ct%overrun) then
+      stat = MBDK_ERR_CONTACT_OVERRUN
       return
     end if
     do k = 1, ct%npair
@@ -323,14 +348,18 @@ contains
       end if
       call mbdk_contact_apply(fint(2, e), fint(3, e), ct%c(:, k), &
                               ct%weight(k) * ct%force * ct%n, q, f)
-      ! a gear pair's weight changes along the path: its potential's gradient there
-      if (ct%dweight(k) /= 0.0_dp) then
-        ften = -ct%dweight(k) * ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+      ! a gear pair's weight changes along the path and with the centre distance: its
+      ! potential's gradient there
+      if (ct%dweight(k) /= 0.0_dp .or. ct%dweight_a(k) /= 0.0_dp) then
+        pot = ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+        ften = -ct%dweight(k) * pot
         b = fint(2, e)
-        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1
+        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1 &
+                                 + ct%dweight_a(k) * pot * ct%da_c2
         f(3 * b) = f(3 * b) + ften * ct%dl_th1
         b = fint(3, e)
-        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c2
+        f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c2 &
+                                 - ct%dweight_a(k) * pot * ct%da_c2
       end if
     end do
   end subroutine mbdk_contact_forces

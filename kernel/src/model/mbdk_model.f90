@@ -331,7 +331,9 @@ contains
     model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER)
     do j = 1, size(fint, 2)
       if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
-          fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp)) &
+          fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp) .or. &
+          (fint(1, j) == MBDK_FORCE_CONTACT .and. freal(9, j) /= 0.0_dp) .or. &
+          fint(1, j) == MBDK_FORCE_FRICTION) &
         model%power_rot = .true.
     end do
     model%solver = opt%solver
@@ -494,9 +496,13 @@ contains
     model%ereal = model%freal(:, pack(idx, wear))
     newcol = 0
     newcol(pack(idx, cont)) = [(e, e = 1, count(cont))]
-    where (model%fint_c(1, :) == MBDK_FORCE_FRICTION) &
-      model%fint_c(4, :) = newcol(model%fint_c(4, :))
-    if (model%ns > 0) model%eint(4, :) = newcol(model%eint(4, :))
+    do e = 1, size(model%fint_c, 2)
+      if (model%fint_c(1, e) == MBDK_FORCE_FRICTION) &
+        model%fint_c(4, e) = newcol(model%fint_c(4, e))
+    end do
+    do e = 1, model%ns
+      model%eint(4, e) = newcol(model%eint(4, e))
+    end do
     allocate (model%fconst(model%nc))
     model%fconst = 0.0_dp
     rot = 0.0_dp
@@ -910,7 +916,9 @@ contains
       k = k + 1
       call mbdk_contact_eval(self%fint_c(:, e), self%freal_c(:, e), self%work%rot, y(1:nc), &
                              y(nc + 1:2 * nc), ct, ok)
-      if (ct%touching) then
+      if (.not. ok) then     ! no normal: the evaluation itself reports it
+        g(k) = ct%delta
+      else if (ct%touching) then
         g(k) = ct%unclipped
       else if (self%freal_c(7, e) > 0.0_dp) then
         g(k) = -self%freal_c(7, e) * abs(ct%delta)**self%freal_c(8, e)
@@ -1030,7 +1038,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: lam(:)
     logical, intent(in), optional :: solve_lam
-    real(dp) :: kin, vg, vs, p
+    real(dp) :: kin, vg, vs, p, g
     integer :: due
     logical :: reuse
     stat = MBDK_SUCCESS
@@ -1040,13 +1048,13 @@ contains
     reuse = due == MBDK_WATCH_POWER_ONLY
     if (present(solve_lam)) reuse = reuse .and. .not. solve_lam
     call watch_quantities(self, t, q, v, self%work%watch%power, due == MBDK_WATCH_POWER_ONLY, &
-                          kin, vg, vs, p, stat, lam, reuse)
+                          kin, vg, vs, p, stat, lam, reuse, g)
     if (stat /= MBDK_SUCCESS) return
     associate (w => self%work)
       if (due == MBDK_WATCH_POWER_ONLY) then
-        call mbdk_watch_power(w%watch, t, p)
+        call mbdk_watch_power(w%watch, t, p, g)
       else
-        call mbdk_watch_test(w%watch, t, w%phi, w%wres, w%wterm, kin, vg, vs, p, stat)
+        call mbdk_watch_test(w%watch, t, w%phi, w%wres, w%wterm, kin, vg, vs, p, stat, g)
       end if
     end associate
   end subroutine mbdk_model_watch
@@ -1056,12 +1064,13 @@ contains
   !> loads and drivers less the dampers' (power_only: that alone). The passes are not counted in
   !> the visit counters: they are the watch's, not the integration's.
   subroutine watch_quantities(self, t, q, v, power, power_only, kin, vg, vs, p, stat, lam, &
-                              reuse_lam)
+                              reuse_lam, gross)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     logical, intent(in) :: power, power_only
     real(dp), intent(in), optional :: lam(:)
     logical, intent(in), optional :: reuse_lam
+    real(dp), intent(out), optional :: gross   !< |loads| + |drivers| + dissipation
     real(dp), intent(out) :: kin, vg, vs, p
     integer, intent(out) :: stat
     integer(i8) :: unused(MBDK_JOINT_TYPES), visits(MBDK_VISIT_COUNT)
@@ -1069,6 +1078,7 @@ contains
     integer :: r, k, c
     stat = MBDK_SUCCESS
     pc = 0.0_dp
+    if (present(gross)) gross = 0.0_dp
     associate (w => self%work)
       ! the drivers' power -lambda . D v needs the multipliers: one constrained solve, only
       ! where a driver makes the balance have power terms. Where D has lost a rank (redundant
@@ -1116,6 +1126,7 @@ contains
       kin = 0.5_dp * kin
       call mbdk_forces_energy(self%fint, self%freal, self%mass, w%rot, q, v, t, vg, vs, pd, pl)
       p = pl - pd + pc
+      if (present(gross)) gross = abs(pl) + abs(pc) + abs(pd)
     end associate
 
   contains

@@ -22,7 +22,11 @@
 !>   energy     |E - E0 - W| <= tol_energy * S, E = kinetic + gravity + spring potential, W the
 !>              work of dampers, loads and drivers integrated by the trapezoidal rule over the
 !>              checks, S the energy scale: the initial kinetic and spring energy plus
-!>              sum m_b |g| L, or the largest T + |V_springs| + |V_g - V_g0| + |W| seen so far.
+!>              sum m_b |g| L, or the largest T + |V_springs| + |V_g - V_g0| + |W| + G seen so
+!>              far, G the gross work that has flowed (the integral of |loads| + |drivers| +
+!>              dissipation, where the model gives it): the quadrature of W errs in proportion
+!>              to that flow, not to the net W, which a machine running steadily against its
+!>              load keeps near zero while hundreds of watts pass through its gears.
 !>
 !> A tolerance <= 0 turns its test off. Checks happen every `every` steps and at every sample.
 !> A scene whose energy balance has power terms (dampers, loads, drivers) has its power
@@ -60,6 +64,7 @@ module mbdk_watch
     real(dp), allocatable :: row_scale(:)   !< L_i
     real(dp), allocatable :: vel_scale(:)   !< V_i (running)
     real(dp) :: e0 = 0.0_dp, vg0 = 0.0_dp, work = 0.0_dp, p_prev = 0.0_dp, t_prev = 0.0_dp
+    real(dp) :: gross = 0.0_dp, g_prev = 0.0_dp   !< G and its last power (module header)
     real(dp) :: e_scale = 0.0_dp    !< S (running)
     real(dp) :: mass = 1.0_dp       !< sum m_b (the velocity floor sqrt(2 S / sum m_b))
     real(dp) :: t_good = 0.0_dp     !< the time of the last check passed
@@ -100,6 +105,8 @@ contains
     w%e0 = kinetic + v_gravity + v_springs
     w%vg0 = v_gravity
     w%work = 0.0_dp
+    w%gross = 0.0_dp
+    w%g_prev = 0.0_dp
     w%p_prev = power0
     w%t_prev = t0
     w%e_scale = kinetic + abs(v_springs) + gravity_scale
@@ -133,12 +140,17 @@ contains
 
   !> The power of dampers, loads and drivers at an accepted state at time t: its work since the
   !> last evaluation, by the trapezoidal rule.
-  subroutine mbdk_watch_power(w, t, power)
+  subroutine mbdk_watch_power(w, t, power, gross)
     type(mbdk_watch_t), intent(inout) :: w
     real(dp), intent(in) :: t, power
+    real(dp), intent(in), optional :: gross   !< |loads| + |drivers| + dissipation at t
     if (.not. w%power) return
     w%work = w%work + 0.5_dp * (w%p_prev + power) * (t - w%t_prev)
     w%p_prev = power
+    if (present(gross)) then
+      w%gross = w%gross + 0.5_dp * (w%g_prev + gross) * (t - w%t_prev)
+      w%g_prev = gross
+    end if
     w%t_prev = t
   end subroutine mbdk_watch_power
 
@@ -146,10 +158,12 @@ contains
   !> and its terms' size vterm (m), the energy parts and the power of dampers, loads and drivers
   !> (its work accumulated here unless mbdk_watch_power already took it at t).
   !> MBDK_SUCCESS, or the drift status with the report filled in.
-  subroutine mbdk_watch_test(w, t, phi, vres, vterm, kinetic, v_gravity, v_springs, power, stat)
+  subroutine mbdk_watch_test(w, t, phi, vres, vterm, kinetic, v_gravity, v_springs, power, stat, &
+                             gross)
     type(mbdk_watch_t), intent(inout) :: w
     real(dp), intent(in) :: t, phi(:), vres(:), vterm(:), kinetic, v_gravity, v_springs, power
     integer, intent(out) :: stat
+    real(dp), intent(in), optional :: gross
     integer :: worst
     real(dp) :: rmax, e_err
     stat = MBDK_SUCCESS
@@ -178,9 +192,9 @@ contains
       end if
     end if
     if (w%tol_energy > 0.0_dp) then
-      if (t /= w%t_prev) call mbdk_watch_power(w, t, power)
+      if (t /= w%t_prev) call mbdk_watch_power(w, t, power, gross)
       w%e_scale = max(w%e_scale, kinetic + abs(v_springs) + abs(v_gravity - w%vg0) + &
-                                 abs(w%work))
+                                 abs(w%work) + w%gross)
       e_err = abs(kinetic + v_gravity + v_springs - w%e0 - w%work) / w%e_scale
       if (.not. (e_err <= w%tol_energy)) then
         call fail(MBDK_WATCH_ENERGY, 0, e_err, w%tol_energy, w%e_scale, MBDK_ERR_ENERGY_DRIFT)

@@ -14,7 +14,8 @@
 !> that is the sum of their speeds), and the 2 pi belongs to neither (studies/ch6_numbers.py).
 !> The lubrication factor (6.8):
 !>   psi(u, Ts) = 1 - exp(-(a_x / (u t0)) exp(-Ea / (Rg Ts))),   psi = 1 at u = 0 (its limit).
-!> S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3 (table 6.7 gives its coefficients).
+!> S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3 (table 6.7 gives its coefficients for one squat cycle
+!> from t = 0; t is the run's own time, so a run over several cycles extrapolates the cubic).
 !>
 !> Table entries in the scene's force table: fint = (MBDK_EFFECT_WEAR, law, load, column of the
 !> contact (load 1) or of the friction element (load 2)); freal(1) = k; gear: freal(2:7) = R, Ts,
