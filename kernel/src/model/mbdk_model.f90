@@ -621,8 +621,8 @@ contains
     integer, intent(out) :: stat
     integer :: nc, i
     ! a scene with effects takes a routine of its own, called through the type (not inlined):
-    ! with their code here, every scene's evaluation paid for keeping registers across the
-    ! solve (24 to 30 instructions per evaluation, counted by callgrind)
+    ! with their code after the solve here, every scene's evaluation would keep registers
+    ! across the solve, and the plain path has to end in it (so the solve below repeats there)
     if (self%ns > 0) then
       call self%rhs_effects(t, y, f, stat)
       return
