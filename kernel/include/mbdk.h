@@ -159,7 +159,7 @@ int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj,
  * kernel's registry. Table layouts: mbdk_joints.f90, mbdk_force_elements.f90. */
 enum mbdk_element_class { MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3 };
 enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_JOINT_FIXED = 3,
-                       MBDK_JOINT_DRIVER = 4 };
+                       MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5 };
 enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
                        MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
                        MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_CONTACT = 8,
@@ -168,9 +168,9 @@ enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_
  * with nw wear elements has the state [q; v; w], 6 nb + nw values per sample. */
 enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
 
-/* The 4th integer of a prismatic or fixed joint (jint[j][3]) or of a spring, damper or
- * spring-damper (fint[f][3]): take the relative angle, or the rest length, from the initial
- * pose (y0) instead of the table. */
+/* The 4th integer of a prismatic or fixed joint (jint[j][3]), of a distance joint, or of a
+ * spring, damper or spring-damper (fint[f][3]): take the relative angle, the length L(0), or
+ * the rest length from the initial pose (y0) instead of the table. */
 enum { MBDK_FROM_POSE = 1 };
 
 /* Entry i (1-based) of the kernel's element registry: class, code, name, constraint rows,

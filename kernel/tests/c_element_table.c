@@ -14,6 +14,7 @@ int main(void)
         {MBDK_CLASS_JOINT, "prismatic", MBDK_JOINT_PRISMATIC},
         {MBDK_CLASS_JOINT, "fixed", MBDK_JOINT_FIXED},
         {MBDK_CLASS_JOINT, "driver", MBDK_JOINT_DRIVER},
+        {MBDK_CLASS_JOINT, "distance", MBDK_JOINT_DISTANCE},
         {MBDK_CLASS_FORCE, "gravity", MBDK_FORCE_GRAVITY},
         {MBDK_CLASS_FORCE, "point_force", MBDK_FORCE_POINT},
         {MBDK_CLASS_FORCE, "torque", MBDK_FORCE_TORQUE},

@@ -133,6 +133,11 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
                 jreal[6, k] = j.angle0
         if j.type == "driver":
             jreal[7:12, k] = j.function
+        if j.type == "distance":
+            if j.length is None:
+                jint[3, k] = FROM_POSE
+            else:
+                jreal[7:12, k] = j.length
         rows.append((j.name, r, JOINT_ROWS[j.type]))
         r += JOINT_ROWS[j.type]
     fint = np.zeros((4, max(nf, 1)), np.int32, order="F")
@@ -273,7 +278,12 @@ def pose_error(sc: Scene, bad_joint: int, bad_force: int) -> SceneError:
                           "at the initial pose, so the element has no direction; move one "
                           "attachment point")
     if bad_joint:
-        return SceneError(f"{sc.source}: joint {sc.joints[bad_joint - 1].name!r}: its relative "
+        j = sc.joints[bad_joint - 1]
+        if j.type == "distance":
+            return SceneError(f"{sc.source}: joint {j.name!r}: fields 'point1' and 'point2' "
+                              "coincide at the initial pose, so the distance has no direction; "
+                              "move one point")
+        return SceneError(f"{sc.source}: joint {j.name!r}: its relative "
                           "angle cannot be taken from the initial pose")
     return SceneError(f"{sc.source}: the initial pose is not finite")
 

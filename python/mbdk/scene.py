@@ -34,7 +34,9 @@ of the book): mbdk.spatial reads and runs it, and its docstring gives the format
 Joints: revolute (body1, point1, body2, point2); prismatic (the same, plus axis: a unit vector
 fixed in body2, global for the ground, and the relative angle kept at its initial value or
 angle0); fixed (revolute plus the relative angle); driver (body1, coordinate = x | y | angle,
-function: the coordinate follows f(t)).
+function: the coordinate follows f(t)); distance (body1, point1, body2, point2, length: the
+points' distance, a number or a time function L(t), by default the initial distance; the
+mathematical pendulum (1.5) and the pendulum of changing length (1.6)).
 
 Forces: gravity (g); point_force (body, point, force = [Fx, Fy] global, function); torque
 (body, torque, function); spring (body1, point1, body2, point2, stiffness, rest_length: default
@@ -124,6 +126,8 @@ class Joint:
     angle0: float | None = None
     coordinate: str = "angle"
     function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+    #: a distance joint's L(t) as a time function; None: the initial distance, constant
+    length: tuple | None = None
 
 
 @dataclass
@@ -254,7 +258,7 @@ def body_kind_problem(kind) -> str | None:
         return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
                 "velocities) but the planar model cannot simulate it; use 'planar'")
     return None
-JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver"}
+JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver", "distance"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
                "coordinate_spring", "coordinate_damper", "coordinate_spring_damper", "contact"}
 
@@ -429,6 +433,14 @@ def _joint(r: _Reader) -> Joint:
             j.axis = (ax[0] / n, ax[1] / n)
         if typ in ("prismatic", "fixed") and (r.has("angle0") or r.has("angle0_deg")):
             j.angle0 = r.angle("angle0")
+        if typ == "distance":
+            j.length = r.function("length", None)
+            if j.length is not None:
+                off, _rate, amp, _om, ph = j.length
+                if not off + amp * math.sin(ph) > 0:
+                    raise r.err("length", f"= {r.get('length')!r} gives L(0) = "
+                                          f"{off + amp * math.sin(ph):g}: a distance must be "
+                                          "positive")
     r.done()
     return j
 
@@ -664,6 +676,8 @@ def scene_to_dict(sc: Scene) -> dict:
             if isinstance(j.type, str) and j.type in ("prismatic", "fixed") and \
                     j.angle0 is not None:
                 d["angle0"] = j.angle0
+            if isinstance(j.type, str) and j.type == "distance" and j.length is not None:
+                d["length"] = _fn(j.length)
         joints.append(d)
     forces = []
     for f in sc.forces:
@@ -819,7 +833,8 @@ def check_scene(sc: Scene) -> None:
             raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
                              f"{c.name!r} has no friction; give it a friction table, or use "
                              f"'{c.name}.normal_force'")
-    rows = sum({"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1}[j.type] for j in sc.joints)
+    rows = sum({"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1, "distance": 1}[j.type]
+               for j in sc.joints)
     if rows > 3 * len(sc.bodies):
         raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
                          f"({len(sc.bodies)} bodies): more constraints than coordinates")

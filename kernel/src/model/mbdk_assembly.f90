@@ -26,7 +26,7 @@ module mbdk_assembly
   use mbdk_status
   use mbdk_lapack, only: mbdk_least_squares
   use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
-    MBDK_JOINT_FIXED
+    MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
@@ -69,6 +69,25 @@ contains
     if (size(q) /= 3 * nb .or. .not. all(abs(q) <= huge(1.0_dp))) return
     v = 0.0_dp
     call mbdk_body_rotations(q, rot)
+    ! a distance joint needs a direction at the start; a marked one takes L(0) from the pose
+    do j = 1, size(jint, 2)
+      if (jint(1, j) /= MBDK_JOINT_DISTANCE) cycle
+      b1 = jint(2, j)
+      b2 = jint(3, j)
+      if (b1 < 1 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
+        bad_joint = j
+        return
+      end if
+      call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho, pv, w)
+      call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho, pv, w)
+      len = sqrt((p1(1) - p2(1))**2 + (p1(2) - p2(2))**2)
+      if (.not. (len > 0.0_dp)) then
+        bad_joint = j
+        return
+      end if
+      ! L(t) = offset + rate t + amplitude sin(omega t + phase): L(0) = len
+      if (jint(4, j) == MBDK_FROM_POSE) jreal(8, j) = len - jreal(10, j) * sin(jreal(12, j))
+    end do
     do j = 1, size(jint, 2)
       if (jint(4, j) /= MBDK_FROM_POSE) cycle
       if (jint(1, j) /= MBDK_JOINT_PRISMATIC .and. jint(1, j) /= MBDK_JOINT_FIXED) cycle

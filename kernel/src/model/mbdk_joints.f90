@@ -25,10 +25,20 @@
 !>                          n2 = perp(u2), theta0 = jreal(7)
 !>   3 fixed      (3 rows)  the revolute rows and theta1 - theta2 - theta0 = 0
 !>   4 driver     (1 row)   q(3 body1 - 3 + coordinate) - f(t) = 0, f = time function jreal(8:12)
+!>   5 distance   (1 row)   |P1 - P2| - L(t) = 0, L = time function jreal(8:12) (a constant: the
+!>                          mathematical pendulum (1.5); L0 + v t, or a sine: the pendulum of
+!>                          changing length (1.6), rheonomic); MBDK_FROM_POSE takes L's offset
+!>                          from the initial pose. With e = (P1 - P2)/|P1 - P2|:
+!>                          D = e^T [I, perp(rho1) | -I, -perp(rho2)], Phi_t = -L',
+!>                          gamma = e.(w1^2 rho1 - w2^2 rho2) - (|d'|^2 - (e.d')^2)/|d| + L''.
+!>                          In metres, as the other rows (the book's squared form (1.5) has the
+!>                          same zero set, but in m^2). Points that coincide have no direction:
+!>                          Phi = 0 there has no Jacobian, and the assembly refuses them.
 !> Row order is the table order; the caller gives each joint's first row.
 module mbdk_joints
   use mbdk_elements, only: mbdk_joint_rows, MBDK_JOINT_ROW_COUNT, MBDK_JOINT_REVOLUTE, &
-    MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_TYPES
+    MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_DISTANCE, &
+    MBDK_JOINT_TYPES
   use mbdk_kinds, only: dp, i8
   use mbdk_time_function, only: mbdk_time_fn
   implicit none
@@ -38,7 +48,7 @@ module mbdk_joints
 
   ! the joint types and their rows are the element registry's (mbdk_elements)
   public :: MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, &
-    MBDK_JOINT_TYPES
+    MBDK_JOINT_DISTANCE, MBDK_JOINT_TYPES
   !> slots of a compact row of D: (x, y, theta) of body1, then of body2
   integer, parameter, public :: MBDK_JOINT_SLOTS = 6
 
@@ -124,6 +134,8 @@ contains
         nz(:, r + 1) = [.true., .true., rot1, .true., .true., .true.]
       case (MBDK_JOINT_DRIVER)
         nz(jint(4, j), r) = .true.
+      case (MBDK_JOINT_DISTANCE)
+        nz(:, r) = [.true., .true., rot1, .true., .true., rot2]
       end select
     end do
     nz = nz .and. col > 0
@@ -154,7 +166,7 @@ contains
     integer(i8), intent(inout), contiguous :: visits(:)
     integer :: j, r, b1, b2
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, dd(2), ddot(2)
-    real(dp) :: u2(2), n2(2), f, fd, fdd
+    real(dp) :: u2(2), n2(2), f, fd, fdd, len, el(2), edot
 
     do j = 1, size(jint, 2)
       r = row0(j)
@@ -197,6 +209,22 @@ contains
         gam(r) = fdd
         dz(:, r) = 0.0_dp
         dz(jint(4, j), r) = 1.0_dp
+      case (MBDK_JOINT_DISTANCE)
+        call mbdk_time_fn(jreal(8:12, j), t, f, fd, fdd)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho2, pv2, w2)
+        dd = p1 - p2
+        ddot = pv1 - pv2
+        len = norm2(dd)
+        ! coinciding points: no direction (NaN rows, which the solve and the watch report)
+        el = dd / len
+        edot = dot_product(el, ddot)
+        phi(r) = len - f
+        phit(r) = -fd
+        gam(r) = dot_product(el, w1**2 * rho1 - w2**2 * rho2) &
+                 - (dot_product(ddot, ddot) - edot**2) / len + fdd
+        dz(:, r) = [el(1), el(2), -el(1) * rho1(2) + el(2) * rho1(1), -el(1), -el(2), &
+                    el(1) * rho2(2) - el(2) * rho2(1)]
       end select
       ! (the types were checked at mbdk_model_init)
       if (b2 == 0) dz(4:6, r:r + MBDK_JOINT_ROW_COUNT(jint(1, j)) - 1) = 0.0_dp
@@ -227,6 +255,8 @@ contains
   !>   prismatic row n2 . d (n2 turns with body 2, dn2/dth2 = -u2, du2/dth2 = n2), times lam:
   !>     (th1, th1) -n2.rho1;  (r1, th2) -u2;  (th1, th2) -u2.perp(rho1);  (r2, th2) +u2;
   !>     (th2, th2) -n2.d + 2 u2.perp(rho2) + n2.rho2   (symmetric)
+!>   distance row |d| - L, G = dd/dq on the six coordinates (I, perp(rho1); -I, -perp(rho2)):
+!>     lam [G^T (I - e e^T) G / |d|; (th1, th1) -= e.rho1; (th2, th2) += e.rho2]
   subroutine mbdk_joints_tangent(jint, jreal, row0, rot, q, lam, kc, visits)
     integer, intent(in), contiguous :: jint(:, :), row0(:)
     real(dp), intent(in), contiguous :: jreal(:, :), rot(:, :), q(:), lam(:)
@@ -234,7 +264,8 @@ contains
     integer(i8), intent(inout), contiguous :: visits(:)
     integer :: j, r, b1, b2, i1, i2, c
     real(dp) :: p1(2), p2(2), rho1(2), rho2(2), pv1(2), pv2(2), w1, w2, u2(2), n2(2), dd(2)
-    real(dp) :: l, x
+    real(dp) :: l, x, g(2, 6), pg(2, 6), el(2), len
+    integer :: col(6), a, bb
 
     ! mbdk_body_point gets q in place of v: only the positions p and offsets rho are used
     do j = 1, size(jint, 2)
@@ -271,6 +302,33 @@ contains
           kc(i2, i2) = kc(i2, i2) + l * (-dot_product(n2, dd) &
                        + 2.0_dp * dot_product(u2, [-rho2(2), rho2(1)]) + dot_product(n2, rho2))
         end if
+      case (MBDK_JOINT_DISTANCE)
+        l = lam(r)
+        call mbdk_body_point(b1, jreal(1:2, j), rot, q, q, p1, rho1, pv1, w1)
+        call mbdk_body_point(b2, jreal(3:4, j), rot, q, q, p2, rho2, pv2, w2)
+        dd = p1 - p2
+        len = norm2(dd)
+        el = dd / len
+        col = 0
+        if (b1 > 0) col(1:3) = [i1 - 2, i1 - 1, i1]
+        if (b2 > 0) col(4:6) = [i2 - 2, i2 - 1, i2]
+        g(:, 1) = [1.0_dp, 0.0_dp]
+        g(:, 2) = [0.0_dp, 1.0_dp]
+        g(:, 3) = [-rho1(2), rho1(1)]
+        g(:, 4:5) = -g(:, 1:2)
+        g(:, 6) = [rho2(2), -rho2(1)]
+        ! (I - e e^T) G / |d|
+        pg(1, :) = ((1.0_dp - el(1)**2) * g(1, :) - el(1) * el(2) * g(2, :)) / len
+        pg(2, :) = (-el(1) * el(2) * g(1, :) + (1.0_dp - el(2)**2) * g(2, :)) / len
+        do bb = 1, 6
+          if (col(bb) == 0) cycle
+          do a = 1, 6
+            if (col(a) == 0) cycle
+            kc(col(a), col(bb)) = kc(col(a), col(bb)) + l * dot_product(g(:, a), pg(:, bb))
+          end do
+        end do
+        if (b1 > 0) kc(i1, i1) = kc(i1, i1) - l * dot_product(el, rho1)
+        if (b2 > 0) kc(i2, i2) = kc(i2, i2) + l * dot_product(el, rho2)
       end select
     end do
   end subroutine mbdk_joints_tangent

@@ -56,6 +56,7 @@ module mbdk_model
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
+    MBDK_JOINT_DISTANCE, &
     MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, &
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
@@ -328,7 +329,10 @@ contains
     if (opt%watch_every == 0) model%watch_every = MBDK_WATCH_EVERY
     if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
-    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER)
+    ! rheonomic rows: drivers, and distances whose length changes in time
+    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. (jint(1, :) == &
+                            MBDK_JOINT_DISTANCE .and. (jreal(9, :) /= 0.0_dp .or. &
+                            jreal(10, :) /= 0.0_dp)))
     do j = 1, size(fint, 2)
       if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
           fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp) .or. &
@@ -976,6 +980,9 @@ contains
       case (MBDK_JOINT_FIXED)
         angular(r:r + 1) = .false.
         angular(r + 2) = .true.
+      case (MBDK_JOINT_DISTANCE)
+        angular(r) = .false.
+        if (self%jreal(9, j) /= 0.0_dp .or. self%jreal(10, j) /= 0.0_dp) power = .true.
       case default   ! a driver: of x, y or theta
         angular(r) = self%jint(4, j) == 3
         power = .true.
