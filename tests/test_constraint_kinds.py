@@ -111,3 +111,58 @@ def test_bad_distances_are_named(change, text):
         mbdk.simulate(scene_from_dict(d, "bad.toml"), "rk4", h=1e-3, t_end=0.01)
     msg = str(exc.value)
     assert "bad.toml" in msg and "rod" in msg and text in msg, msg
+
+
+#: degrees of freedom of the built-in scenes, from the mechanisms themselves: a pendulum 1,
+#: the double and the three-link pendulum 2 and 3, the trolley and its pendulum 2, the four-bar
+#: and the parallelogram 1 (Grubler's count gives the parallelogram 0: its third link is
+#: redundant), the gear pair 2 (two axles; the mesh is a compliant contact, not a row), a free
+#: particle in a ring 3, the heavy top 3 (a spherical joint), a free body 6, the spatial double
+#: pendulum 6 (two spherical joints), Bricard's linkage 1 (six hinges, Grubler's count 0)
+DOF = {"physical_pendulum": 1, "spring_bar": 1, "spring_damper_bar": 1, "double_pendulum": 2,
+       "three_link_pendulum": 3, "trolley_crane": 2, "four_bar": 1,
+       "parallelogram_redundant": 1, "pla_gears": 2, "particle_in_ring": 3, "heavy_top": 3,
+       "free_body": 6, "spatial_double_pendulum": 6, "bricard": 1}
+
+
+@pytest.mark.parametrize("name", sorted(DOF))
+def test_scene_report_degrees_of_freedom(name):
+    r = mbdk.scene_report(mbdk.scene(name))
+    assert r.dof == DOF[name]
+    assert r.dof == r.velocities - r.rank
+    assert r.index == (3 if r.rows else 0)
+    redundant = r.rows - r.rank
+    assert redundant == (1 if name in ("parallelogram_redundant", "bricard") else 0)
+    assert bool(r.redundant) == bool(redundant)
+    assert f"{r.dof} degrees of freedom" in str(r)
+
+
+def test_scene_report_classifies_the_book_examples():
+    """The mathematical pendulum (1.5), holonomic and scleronomic: the book's point mass has one
+    freedom; the bob here is a planar body whose own rotation, free since the rod holds its
+    centroid, is a second. The pendulum of changing length (1.6): rheonomic. Contacts are
+    unilateral and take no row."""
+    r = mbdk.scene_report(pendulum())
+    assert r.dof == 2 and r.rows == r.rank == 1
+    assert [c.kind() for c in r.constraints] == ["holonomic, scleronomic, bilateral"]
+    r = mbdk.scene_report(pendulum({"offset": 1.0, "rate": 0.2}))
+    assert r.dof == 2 and r.constraints[0].rheonomic
+    r = mbdk.scene_report(mbdk.scene("pla_gears"))
+    assert r.contacts == ["mesh"] and r.effects == ["gear_law", "archard"]
+    assert "unilateral" in str(r)
+
+
+def test_scene_report_of_a_scene_that_does_not_assemble_is_named():
+    """A bar hinged at the origin cannot reach a tie of 0.5 m to a point 3 m away: the report
+    names the file and the joints the assembly could not close."""
+    d = {"scene": {"name": "torn"},
+         "body": [{"name": "bar", "mass": 1.0, "shape": {"type": "bar", "length": 1.0},
+                   "x": 0.5}],
+         "joint": [{"type": "revolute", "name": "left", "body1": "bar", "point1": [-0.5, 0],
+                    "point2": [0, 0]},
+                   {"type": "distance", "name": "tie", "body1": "bar", "point1": [0.5, 0],
+                    "point2": [3, 0], "length": 0.5}]}
+    with pytest.raises(SceneError) as exc:
+        mbdk.scene_report(scene_from_dict(d, "torn.toml"))
+    msg = str(exc.value)
+    assert "torn.toml" in msg and "tie" in msg and "cannot be assembled" in msg, msg

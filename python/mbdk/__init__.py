@@ -20,6 +20,7 @@ from .result import ODEResult, Result, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
 from .scene import Scene, SceneError, load_scene, scene, scenes
+from .scene_report import SceneReport, scene_report
 from .simulate import RedundantConstraintsError, SceneResult, evaluate, simulate
 from .watch import Watch
 from .spatial import SpatialResult, SpatialScene
@@ -31,7 +32,7 @@ __all__ = [
     "TooManyStepsError", "TooMuchAccuracyError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
-    "scene", "scenes", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
+    "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "ContactOverrunError", "Watch", "SpatialScene",
     "SpatialResult",
