@@ -72,15 +72,11 @@ contains
     ! a distance joint needs a direction at the start; a marked one takes L(0) from the pose
     do j = 1, size(jint, 2)
       if (jint(1, j) /= MBDK_JOINT_DISTANCE) cycle
-      b1 = jint(2, j)
-      b2 = jint(3, j)
-      if (b1 < 1 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
+      if (jint(2, j) < 1) then
         bad_joint = j
         return
       end if
-      call mbdk_body_point(b1, jreal(1:2, j), rot, q, v, p1, rho, pv, w)
-      call mbdk_body_point(b2, jreal(3:4, j), rot, q, v, p2, rho, pv, w)
-      len = sqrt((p1(1) - p2(1))**2 + (p1(2) - p2(2))**2)
+      len = point_distance(jint(2, j), jint(3, j), jreal(1:2, j), jreal(3:4, j))
       if (.not. (len > 0.0_dp)) then
         bad_joint = j
         return
@@ -106,15 +102,7 @@ contains
     do j = 1, size(fint, 2)
       if (fint(1, j) /= MBDK_FORCE_SPRING_DAMPER .and. fint(1, j) /= MBDK_FORCE_SPRING .and. &
           fint(1, j) /= MBDK_FORCE_DAMPER) cycle
-      b1 = fint(2, j)
-      b2 = fint(3, j)
-      if (b1 < 0 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
-        bad_force = j
-        return
-      end if
-      call mbdk_body_point(b1, freal(1:2, j), rot, q, v, p1, rho, pv, w)
-      call mbdk_body_point(b2, freal(3:4, j), rot, q, v, p2, rho, pv, w)
-      len = sqrt((p1(1) - p2(1))**2 + (p1(2) - p2(2))**2)
+      len = point_distance(fint(2, j), fint(3, j), freal(1:2, j), freal(3:4, j))
       if (.not. (len > 0.0_dp)) then
         bad_force = j
         return
@@ -122,6 +110,21 @@ contains
       if (fint(4, j) == MBDK_FROM_POSE) freal(6, j) = len
     end do
     stat = MBDK_SUCCESS
+
+  contains
+
+    !> The distance at q between point s1 of body b1 and point s2 of body b2 (0: the ground,
+    !> its points global); -1 for a body index out of range.
+    real(dp) function point_distance(b1, b2, s1, s2) result(dist)
+      integer, intent(in) :: b1, b2
+      real(dp), intent(in) :: s1(2), s2(2)
+      dist = -1.0_dp
+      if (b1 < 0 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) return
+      call mbdk_body_point(b1, s1, rot, q, v, p1, rho, pv, w)
+      call mbdk_body_point(b2, s2, rot, q, v, p2, rho, pv, w)
+      dist = sqrt((p1(1) - p2(1))**2 + (p1(2) - p2(2))**2)
+    end function point_distance
+
   end subroutine mbdk_tables_resolve
 
   !> Assembles (q, v) at t0 in place, moving only the coordinates whose given_q / given_v is
