@@ -21,8 +21,8 @@
 !>   9 friction             Coulomb friction of a contact (mbdk_contact); fint(4) = the column
 !>                          of that contact in the same table
 !> mbdk_forces_eval skips contacts and friction: the model evaluates them from a table of their
-!> own (mbdk_contact_forces_all), so that the force loop of a scene without them is the one it
-!> was before they existed; their energy and power are here. Wear elements (mbdk_wear) share
+!> own (mbdk_contact_forces_all), so that the force loop of a scene without them holds no
+!> contact code and sets up no contact state; their energy and power are here. Wear elements (mbdk_wear) share
 !> the table; the model takes them out of it (they carry states and are no forces).
 !> A spring-damper whose two points coincide has no direction: MBDK_ERR_NONFINITE, and so has a
 !> penetrating contact of two circles with coincident centres.

@@ -473,8 +473,8 @@ contains
   !> mbdk_forces_eval itself) and an evaluation starts from it, visiting only the other
   !> elements (fint_v, freal_v, in table order). Contacts and friction go to a table of their
   !> own (fint_c, freal_c; mbdk_contact_forces_all), wear to eint, ereal: a scene without them
-  !> runs the force loop it ran before they existed. Friction and wear refer to columns, which
-  !> are renumbered to fint_c's.
+  !> visits none of their code. Friction and wear refer to columns, which are renumbered to
+  !> fint_c's.
   subroutine split_forces(model, stat)
     type(mbdk_model_t), intent(inout) :: model
     integer, intent(out) :: stat
