@@ -159,7 +159,9 @@ int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj,
  * kernel's registry. Table layouts: mbdk_joints.f90, mbdk_force_elements.f90. */
 enum mbdk_element_class { MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3 };
 enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_JOINT_FIXED = 3,
-                       MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5 };
+                       MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5, MBDK_JOINT_POINT_LINE = 6,
+                       MBDK_JOINT_POINT_CURVE = 7, MBDK_JOINT_COUPLING = 8,
+                       MBDK_JOINT_ROLLING = 9, MBDK_JOINT_KNIFE_EDGE = 10 };
 enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
                        MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
                        MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_CONTACT = 8,

@@ -18,7 +18,7 @@ import numpy as np
 from . import _kernel
 from .errors import NotApplicableError, Status, exception_for
 from .options import ModelOptions
-from .scene import (BODY_KINDS, COORDS, WEAR_LAWS, WEAR_LOADS, Scene, SceneError,
+from .scene import (BODY_KINDS, COORDS, GROUND_JOINTS, WEAR_LAWS, WEAR_LOADS, Scene, SceneError,
                     body_kind_problem)
 
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
@@ -121,11 +121,24 @@ def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
     jreal = np.zeros((12, max(nj, 1)), order="F")
     rows, r = [], 0
     for k, j in enumerate(sc.joints):
-        b1, b2 = sc.body_index(j.body1), (sc.body_index(j.body2) if j.type != "driver" else 0)
+        b1 = sc.body_index(j.body1)
+        b2 = sc.body_index(j.body2) if j.type not in GROUND_JOINTS else 0
         jint[:, k] = [JOINT_CODES[j.type], b1, b2, COORDS[j.coordinate] if j.type == "driver" else 0]
         jreal[0:2, k] = j.point1
         jreal[2:4, k] = j.point2
         jreal[4:6, k] = j.axis
+        if j.type == "point_curve":
+            jreal[7:12, k] = j.curve
+        if j.type == "coupling":
+            # q2 - ratio q1 - c = 0, c from the pose
+            jreal[0:6, k] = 0.0
+            jreal[COORDS[j.coordinate] - 1, k] = -j.ratio
+            jreal[3 + COORDS[j.coordinate2] - 1, k] = 1.0
+            jint[3, k] = FROM_POSE
+        if j.type == "rolling":
+            jreal[0:2, k] = 0.0
+            jreal[6, k] = j.radius
+            jint[3, k] = FROM_POSE
         if j.type in ("prismatic", "fixed"):
             if j.angle0 is None:
                 jint[3, k] = FROM_POSE
@@ -334,16 +347,16 @@ def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
     """D made free of units, for rank tests of the geometry: each rotation column divided by
     its body's radius of gyration (its entries, lengths, become ratios), and the rows that are
     angles (a prismatic joint's first, a fixed joint's third, a driver of an angle) times the
-    radius of gyration of their first body. A mechanism measured in millimetres then has the
-    singular values of one in metres; masses enter only through the radii of gyration, so a
-    light body beside heavy ones (an ill-conditioned D M^-1 D^T, at a regular pose) is not taken
-    for a rank loss. A body without inertia is given the gyration radius of its largest joint
-    point."""
+    radius of gyration of their first body, a coupling to an angle times its second body's. A
+    mechanism measured in millimetres then has the singular values of one in metres; masses
+    enter only through the radii of gyration, so a light body beside heavy ones (an
+    ill-conditioned D M^-1 D^T, at a regular pose) is not taken for a rank loss. A body without
+    inertia is given the gyration radius of its largest joint point."""
     nb = len(tab.mass)
     reach = np.zeros(nb)
     for k in range(tab.nj):
         for b, pts in ((tab.jint[1, k], tab.jreal[0:2, k]), (tab.jint[2, k], tab.jreal[2:4, k])):
-            if b > 0 and tab.jint[0, k] != JOINT_CODES["driver"]:
+            if b > 0 and tab.jint[0, k] not in (JOINT_CODES["driver"], JOINT_CODES["coupling"]):
                 reach[b - 1] = max(reach[b - 1], float(np.hypot(*pts)))
     gyr = np.sqrt(np.where(tab.inertia > 0, tab.inertia / tab.mass, 0.0))
     gyr = np.where(gyr > 0, gyr, np.where(reach > 0, reach, 1.0))
@@ -361,6 +374,9 @@ def scaled_jacobian(tab: Tables, d: np.ndarray) -> np.ndarray:
             row[r + 2] = g
         elif code == JOINT_CODES["driver"] and tab.jint[3, k] == 3:
             row[r] = g
+        elif code == JOINT_CODES["coupling"] and tab.jreal[5, k] != 0:
+            # in radians (body 2's angle): as an angle row
+            row[r] = gyr[tab.jint[2, k] - 1]
         r += JOINT_ROWS_BY_CODE[code]
     return row[:, None] * d * col[None, :]
 

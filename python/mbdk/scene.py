@@ -18,7 +18,7 @@ A scene file (SI units; angles in radians unless a field ends in _deg)::
 
     [[joint]]
     name = "hinge"
-    type = "revolute"                         # revolute | prismatic | fixed | driver
+    type = "revolute"                         # revolute | prismatic | fixed | driver | ...
     body1 = "bar"
     point1 = [-0.5, 0.0]                      # body-fixed, from the centroid
     body2 = "ground"                          # ground points are global
@@ -36,7 +36,16 @@ fixed in body2, global for the ground, and the relative angle kept at its initia
 angle0); fixed (revolute plus the relative angle); driver (body1, coordinate = x | y | angle,
 function: the coordinate follows f(t)); distance (body1, point1, body2, point2, length: the
 points' distance, a number or a time function L(t), by default the initial distance; the
-mathematical pendulum (1.5) and the pendulum of changing length (1.6)).
+mathematical pendulum (1.5) and the pendulum of changing length (1.6)); point_line (body1,
+point1 on the line through point2 of body2 along axis: a slider that turns freely);
+point_curve (body1, point1 on the ground curve y = f(x), curve a time-function table taken in
+x); coupling (body1, coordinate1, body2, coordinate2, ratio: q2 - q2(0) = ratio (q1 - q1(0));
+gears on fixed axles: the angles with ratio -R1/R2, or +R1/R2 for an internal gear; a rack
+along x driven by a pinion: coordinate1 = "angle", coordinate2 = "x", ratio -R); rolling
+(body1 a disc of radius rolling without slip on the ground line through point along
+direction, on its left: (1.15)-(1.20), integrated to the position rows of x = R phi and y =
+R); knife_edge (body1, point1, axis: the point has no velocity across the body-fixed axis, a
+nonholonomic constraint: the car of (1.7)-(1.14) at the centroid, a skate off it).
 
 Forces: gravity (g); point_force (body, point, force = [Fx, Fy] global, function); torque
 (body, torque, function); spring (body1, point1, body2, point2, stiffness, rest_length: default
@@ -128,6 +137,13 @@ class Joint:
     function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
     #: a distance joint's L(t) as a time function; None: the initial distance, constant
     length: tuple | None = None
+    #: a point_curve joint's ground curve y = f(x), f of the time-function family taken in x
+    curve: tuple | None = None
+    #: a coupling's second coordinate and its ratio: q2 - q2(0) = ratio (q1 - q1(0))
+    coordinate2: str = "angle"
+    ratio: float = 1.0
+    #: a rolling disc's radius
+    radius: float = 0.0
 
 
 @dataclass
@@ -258,7 +274,14 @@ def body_kind_problem(kind) -> str | None:
         return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
                 "velocities) but the planar model cannot simulate it; use 'planar'")
     return None
-JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver", "distance"}
+JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver", "distance", "point_line",
+               "point_curve", "coupling", "rolling", "knife_edge"}
+#: constraint rows per joint type (the kernel's table, mbdk_elements; tests/test_elements.py)
+JOINT_ROW_COUNT = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1, "distance": 1,
+                   "point_line": 1, "point_curve": 1, "coupling": 1, "rolling": 2,
+                   "knife_edge": 1}
+#: joints fixed to the ground by their nature (no body2)
+GROUND_JOINTS = {"driver", "point_curve", "rolling", "knife_edge"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
                "coordinate_spring", "coordinate_damper", "coordinate_spring_damper", "contact"}
 
@@ -412,6 +435,15 @@ def _body(r: _Reader) -> Body:
     return b
 
 
+def _unit(r: _Reader, fld: str, default) -> tuple:
+    """A direction: the vector fld made unit (required when default is None)."""
+    ax = r.vec(fld, default, required=default is None)
+    n = math.hypot(*ax)
+    if n == 0:
+        raise r.err(fld, "= [0, 0] has no direction")
+    return (ax[0] / n, ax[1] / n)
+
+
 def _joint(r: _Reader) -> Joint:
     typ = r.name("type")
     if typ not in JOINT_TYPES:
@@ -422,15 +454,34 @@ def _joint(r: _Reader) -> Joint:
                   function=r.function("function", None))
         if j.function is None:
             raise r.err("function", "is missing (the driven coordinate's f(t))")
+    elif typ == "point_curve":
+        j = Joint(name, typ, r.name("body1"), point1=r.vec("point1", (0.0, 0.0)),
+                  curve=r.function("curve", None))
+        if j.curve is None:
+            raise r.err("curve", "is missing (the ground curve y = f(x): a table {offset, rate, "
+                                 "amplitude, omega, phase})")
+    elif typ == "coupling":
+        j = Joint(name, typ, r.name("body1"), r.name("body2"),
+                  coordinate=r.coordinate("coordinate1", "angle"),
+                  coordinate2=r.coordinate("coordinate2", "angle"),
+                  ratio=r.num("ratio", required=True))
+        if j.ratio == 0:
+            raise r.err("ratio", "= 0 couples nothing: body2's coordinate would be fixed; use a "
+                                 "driver or a fixed joint")
+    elif typ == "rolling":
+        j = Joint(name, typ, r.name("body1"), point2=r.vec("point", (0.0, 0.0)),
+                  radius=r.num("radius", required=True))
+        if not j.radius > 0:
+            raise r.err("radius", f"= {j.radius:g} must be positive (the disc's rolling radius)")
+        j.axis = _unit(r, "direction", (1.0, 0.0))
+    elif typ == "knife_edge":
+        j = Joint(name, typ, r.name("body1"), point1=r.vec("point1", (0.0, 0.0)))
+        j.axis = _unit(r, "axis", (1.0, 0.0))
     else:
         j = Joint(name, typ, r.name("body1"), r.name("body2", required=False, default=GROUND),
                   r.vec("point1", (0.0, 0.0)), r.vec("point2", (0.0, 0.0)))
-        if typ == "prismatic":
-            ax = r.vec("axis", required=True)
-            n = math.hypot(*ax)
-            if n == 0:
-                raise r.err("axis", "= [0, 0] has no direction")
-            j.axis = (ax[0] / n, ax[1] / n)
+        if typ in ("prismatic", "point_line"):
+            j.axis = _unit(r, "axis", None)
         if typ in ("prismatic", "fixed") and (r.has("angle0") or r.has("angle0_deg")):
             j.angle0 = r.angle("angle0")
         if typ == "distance":
@@ -667,11 +718,21 @@ def scene_to_dict(sc: Scene) -> dict:
     joints = []
     for j in sc.joints:
         d = {"name": j.name, "type": j.type, "body1": j.body1}
-        if isinstance(j.type, str) and j.type == "driver":
+        t = j.type if isinstance(j.type, str) else None
+        if t == "driver":
             d.update(coordinate=j.coordinate, function=_fn(j.function))
+        elif t == "point_curve":
+            d.update(point1=_seq(j.point1), curve=_fn(j.curve))
+        elif t == "coupling":
+            d.update(body2=j.body2, coordinate1=j.coordinate, coordinate2=j.coordinate2,
+                     ratio=j.ratio)
+        elif t == "rolling":
+            d.update(point=_seq(j.point2), direction=_seq(j.axis), radius=j.radius)
+        elif t == "knife_edge":
+            d.update(point1=_seq(j.point1), axis=_seq(j.axis))
         else:
             d.update(body2=j.body2, point1=_seq(j.point1), point2=_seq(j.point2))
-            if isinstance(j.type, str) and j.type == "prismatic":
+            if isinstance(j.type, str) and j.type in ("prismatic", "point_line"):
                 d["axis"] = _seq(j.axis)
             if isinstance(j.type, str) and j.type in ("prismatic", "fixed") and \
                     j.angle0 is not None:
@@ -800,8 +861,12 @@ def check_scene(sc: Scene) -> None:
                 v = getattr(e, fld)
                 if kind == "force" and e.type in ("gravity",):
                     continue
-                if kind == "joint" and e.type == "driver" and fld == "body2":
+                if kind == "joint" and e.type in GROUND_JOINTS and fld == "body2":
                     continue
+                if kind == "joint" and e.type == "coupling" and v == GROUND:
+                    raise SceneError(f"{src}: joint {e.name!r}: field 'body2' must name a body: "
+                                     "a coupling joins two bodies' coordinates (to follow a "
+                                     "function of time, use a driver)")
                 if kind == "force" and fld == "body2" and e.type not in (
                         "spring", "damper", "spring_damper", "contact"):
                     continue
@@ -813,7 +878,7 @@ def check_scene(sc: Scene) -> None:
                 if v == GROUND and fld == "body1":
                     raise SceneError(f"{src}: {kind} {e.name!r}: field {shown!r} must name a "
                                      "body, not the ground")
-            if kind == "joint" and e.type != "driver" and e.body1 == e.body2:
+            if kind == "joint" and e.type not in GROUND_JOINTS and e.body1 == e.body2:
                 raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = {e.body2!r} is body1 "
                                  "itself")
     contacts = {f.name: f for f in sc.forces if f.type == "contact"}
@@ -833,8 +898,7 @@ def check_scene(sc: Scene) -> None:
             raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
                              f"{c.name!r} has no friction; give it a friction table, or use "
                              f"'{c.name}.normal_force'")
-    rows = sum({"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1, "distance": 1}[j.type]
-               for j in sc.joints)
+    rows = sum(JOINT_ROW_COUNT[j.type] for j in sc.joints)
     if rows > 3 * len(sc.bodies):
         raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
                          f"({len(sc.bodies)} bodies): more constraints than coordinates")

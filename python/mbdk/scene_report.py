@@ -16,7 +16,10 @@ The index is counted, not looked up: a position-level (holonomic) row must be di
 twice to reach the accelerations, D q'' = gamma; there the multipliers follow algebraically
 where [M B^T; B 0] is regular, B a basis of the independent rows (checked: with a body without
 inertia that needs the joints to hold it), and one more differentiation gives their
-derivatives: index 3. A scene without rows is an ODE (index 0).
+derivatives: index 3. A velocity-level (nonholonomic) row, a knife edge's, needs one
+differentiation less: a scene whose rows are all such is index 2. A scene without rows is an
+ODE (index 0). With nonholonomic rows the freedom of position (coordinates less the rank of
+the holonomic rows) exceeds the freedom of motion (velocities less the rank of all rows).
 """
 from __future__ import annotations
 
@@ -52,18 +55,24 @@ class SceneReport:
     velocities: int           # independent velocities (3 per planar body, 6 per spatial one)
     rows: int                 # constraint rows
     rank: int                 # rank of the constraint Jacobian at the assembled pose
-    dof: int                  # velocities - rank
+    dof: int                  # velocities - rank: the freedom of motion
     redundant: list = field(default_factory=list)     # joints with dependent rows
     constraints: list = field(default_factory=list)   # ConstraintInfo per joint
     contacts: list = field(default_factory=list)      # unilateral, compliant (forces)
     effects: list = field(default_factory=list)       # states of their own (wear)
     index: int = 0
     index_reason: str = ""
+    #: coordinates - the rank of the holonomic rows: the freedom of position, larger than dof
+    #: by the independent nonholonomic rows (a car parks anywhere, but cannot slide sideways)
+    configuration_dof: int = 0
 
     def __str__(self) -> str:
         lines = [f"scene {self.scene!r} ({self.kind}): {self.bodies} bodies, "
                  f"{self.coordinates} coordinates, {self.velocities} velocities",
                  f"constraint rows {self.rows}, rank {self.rank}: {self.dof} degrees of freedom"]
+        if self.configuration_dof != self.dof:
+            lines.append(f"nonholonomic: {self.configuration_dof} degrees of freedom of position "
+                         f"(coordinates less the holonomic rows' rank), {self.dof} of velocity")
         if self.redundant:
             lines.append(f"redundant: {self.rows - self.rank} row(s) among the joints "
                          f"{', '.join(self.redundant)} (their rows are dependent; leaving out "
@@ -79,7 +88,7 @@ class SceneReport:
         return "\n".join(lines)
 
 
-def _index(rows: int, schur_regular: bool) -> tuple[int, str]:
+def _index(rows: int, schur_regular: bool, velocity_rows: int = 0) -> tuple[int, str]:
     if rows == 0:
         return 0, "no constraint rows: an ODE"
     if not schur_regular:
@@ -87,8 +96,16 @@ def _index(rows: int, schur_regular: bool) -> tuple[int, str]:
                                 "body without inertia that no joint holds): the multipliers do not "
                                 "follow from the accelerations, and the index is not defined; "
                                 "give the body an inertia or a joint")
-    return 3, ("Phi differentiated twice gives D q'' = gamma, where [M D^T; D 0] is regular "
-               "on the independent rows, so lambda follows algebraically; once more for lambda'")
+    if velocity_rows == rows:
+        return 2, ("the rows constrain velocities only (A v = b): differentiated once they give "
+                   "A q'' = gamma, where [M A^T; A 0] is regular on the independent rows, so "
+                   "lambda follows algebraically; once more for lambda'")
+    why = ("Phi differentiated twice gives D q'' = gamma, where [M D^T; D 0] is regular "
+           "on the independent rows, so lambda follows algebraically; once more for lambda'")
+    if velocity_rows:
+        why += (f" (the {velocity_rows} nonholonomic row(s) need one differentiation less: "
+                "index 2 in those)")
+    return 3, why
 
 
 def scene_report(sc) -> SceneReport:
@@ -122,16 +139,24 @@ def scene_report(sc) -> SceneReport:
         kkt = np.block([[np.diag(tab_mass(tab)), b.T], [b, np.zeros((rank, rank))]])
         regular = np.linalg.matrix_rank(kkt) == tab.nc + rank
     constraints = []
-    for j in sc.joints:
+    holo = np.ones(tab.m, bool)
+    for (name, r0, nr), j in zip(tab.rows, sc.joints):
         rheo = j.type == "driver" or (j.type == "distance" and j.length is not None and
                                       (j.length[1] != 0 or j.length[2] != 0))
-        constraints.append(ConstraintInfo(j.name, j.type, dict(
-            (n, r) for n, _r0, r in tab.rows).get(j.name, 0), True, rheo, True))
-    index, reason = _index(tab.m, regular)
+        # a knife edge's A v = 0 is not integrable: the blade's direction turns with the body;
+        # a rolling disc's velocity rows are, to its two position rows (1.18), (1.20)
+        holonomic = j.type != "knife_edge"
+        holo[r0:r0 + nr] = holonomic
+        constraints.append(ConstraintInfo(name, j.type, nr, holonomic, rheo, True))
+    rank_h = rank
+    if tab.m and not holo.all():
+        sh = np.linalg.svd(scaled_jacobian(tab, d)[holo], compute_uv=False)
+        rank_h = int(np.sum(sh > 1e-9 * max(sh[0], 1.0))) if sh.size else 0
+    index, reason = _index(tab.m, regular, int((~holo).sum()))
     return SceneReport(sc.name, "planar", len(sc.bodies), tab.nc, tab.nc, tab.m, rank,
                        tab.nc - rank, redundant, constraints,
                        [f.name for f in sc.forces if f.type == "contact"],
-                       [w_.name for w_ in sc.wear], index, reason)
+                       [w_.name for w_ in sc.wear], index, reason, tab.nc - rank_h)
 
 
 def tab_mass(tab) -> np.ndarray:
@@ -164,4 +189,4 @@ def _spatial_report(sc) -> SceneReport:
                    for (name, _r0, n), j in zip(table, sc.joints)]
     index, reason = _index(rows, True)
     return SceneReport(sc.name, "spatial", nb, coords, 6 * nb, rows, rank, 6 * nb - rank,
-                       redundant, constraints, [], [], index, reason)
+                       redundant, constraints, [], [], index, reason, 6 * nb - rank)

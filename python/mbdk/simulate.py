@@ -30,7 +30,8 @@ Linear solves (solver=; the manifest's linear_solve says which one ran):
 
 Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing per sample):
   "a" accelerations, "multipliers", "reactions" (per joint: Fx, Fy and the moment about the
-  joint point, exerted by the joint on its body1, global frame: -D_body1^T lambda), "energy"
+  joint point (a driver's, a coupling's: the centroid), exerted by the joint on its body1, global
+  frame: -D_body1^T lambda), "energy"
   (kinetic + potential, its parts, and the work of dampers, constraints and loads accumulated by
   the trapezoidal rule over the samples: exact only as every -> 1), "residuals" (max |Phi|,
   max |Phi'|, max |D a - gamma|). An output not asked for is None in the result.
@@ -368,6 +369,18 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             f"{method} on scene {scene.name!r}: its Newton matrix has no tangent stiffness of "
             f"the contacts ({', '.join(contacts)}); use an ODE method (rk4, dopri54, bdf, "
             "cvode_bdf) with formulation reduced, baumgarte or projection")
+    knives = [j.name for j in scene.joints if j.type == "knife_edge"]
+    if index3 and knives:
+        raise NotApplicableError(
+            f"{method} on scene {scene.name!r}: it solves the joints at position level, and the "
+            f"knife edges ({', '.join(knives)}) constrain velocities only (nonholonomic); use an "
+            "ODE method with formulation reduced, baumgarte or projection, bdf with formulation "
+            "'i3' (index 2 in their rows) or ida with formulation 'index1'")
+    if dae_form and knives and formulation in ("ggl", "si2"):
+        raise NotApplicableError(
+            f"{method}/{formulation} on scene {scene.name!r}: its mu stabilises position rows, "
+            f"and the knife edges ({', '.join(knives)}) have none (nonholonomic); use "
+            f"{'formulation index1' if ida else 'formulation i3'}")
     if method == "euler_cromer" and scene.wear:
         raise NotApplicableError(
             f"euler_cromer on scene {scene.name!r}: it integrates a state [q, v] of positions "

@@ -3,9 +3,12 @@
 !> itself, not to the reduced ODE. Two forms (nc = 3 nb coordinates, m constraint rows):
 !>   i3  (index 3, GSTIFF I3)   Y = [q; v; lam], E = diag(I, M, 0):
 !>         q' = v,   M v' = f - D^T lam,   0 = Phi(q, t)
+!>       (a knife edge's row, which constrains velocities only, reads 0 = D v + Phi_t: the form
+!>       is index 2 in that row, the index-2 form of nonholonomic scenes)
 !>   si2 (stabilised index 2, the GGL form as in GSTIFF SI2)  Y = [q; v; lam; mu],
 !>       E = diag(I, M, 0, 0):
 !>         q' = v - D^T mu,   M v' = f - D^T lam,   0 = Phi(q, t),   0 = D v + Phi_t
+!>       (refused for knife edges, MBDK_ERR_NOT_APPLICABLE: they have no position row for mu)
 !> G is the rhs of this problem type; mbdk_variable_bdf takes E as its mass argument and tests
 !> the local error of q and v only (lam and mu are algebraic). A body without inertia has a
 !> zero in M: its rotation's velocity row is algebraic too, which the same E expresses.
@@ -51,8 +54,9 @@ contains
     integer :: nc, m
     stat = MBDK_ERR_INVALID_INPUT
     if (form /= MBDK_DAE_I3 .and. form /= MBDK_DAE_SI2) return
-    ! the DAE's state is [q; v; lambda]: a scene with effect states (wear) is not one
-    if (model%ns > 0) then
+    ! the DAE's state is [q; v; lambda]: a scene with effect states (wear) is not one. The
+    ! GGL form stabilises position rows; a knife edge has none (its mu would be undetermined)
+    if (model%ns > 0 .or. (form == MBDK_DAE_SI2 .and. model%has_pfaffian)) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
     end if
@@ -97,6 +101,9 @@ contains
       if (m == 0) return
       f(nc + 1:2 * nc) = f(nc + 1:2 * nc) - matmul(y(2 * nc + 1:2 * nc + m), w%d)
       f(2 * nc + 1:2 * nc + m) = w%phi
+      ! a knife edge's row is its velocity constraint (index 2 in that row)
+      if (self%model%has_pfaffian) &
+        f(2 * nc + 1:2 * nc + m) = merge(matmul(w%d, v) + w%phit, w%phi, self%model%pfaffian)
       if (self%form == MBDK_DAE_SI2) then
         f(1:nc) = f(1:nc) - matmul(y(2 * nc + m + 1:2 * nc + 2 * m), w%d)
         f(2 * nc + m + 1:2 * nc + 2 * m) = matmul(w%d, v) + w%phit

@@ -271,8 +271,9 @@ contains
     if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. &
         opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
-    ! the Newton matrix has no tangent of contacts and friction, and the state no effects
-    if (model%has_contacts) then
+    ! the Newton matrix has no tangent of contacts and friction, and the state no effects; a
+    ! knife edge has no position row to solve for (its velocity row would be left unkept)
+    if (model%has_contacts .or. model%has_pfaffian) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
     end if

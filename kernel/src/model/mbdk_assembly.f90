@@ -26,7 +26,7 @@ module mbdk_assembly
   use mbdk_status
   use mbdk_lapack, only: mbdk_least_squares
   use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
-    MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE
+    MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
@@ -86,17 +86,29 @@ contains
     end do
     do j = 1, size(jint, 2)
       if (jint(4, j) /= MBDK_FROM_POSE) cycle
-      if (jint(1, j) /= MBDK_JOINT_PRISMATIC .and. jint(1, j) /= MBDK_JOINT_FIXED) cycle
+      if (jint(1, j) /= MBDK_JOINT_PRISMATIC .and. jint(1, j) /= MBDK_JOINT_FIXED .and. &
+          jint(1, j) /= MBDK_JOINT_COUPLING .and. jint(1, j) /= MBDK_JOINT_ROLLING) cycle
       b1 = jint(2, j)
       b2 = jint(3, j)
       if (b1 < 1 .or. b1 > nb .or. b2 < 0 .or. b2 > nb) then
         bad_joint = j
         return
       end if
-      th1 = q(3 * b1)
-      th2 = 0.0_dp
-      if (b2 > 0) th2 = q(3 * b2)
-      jreal(7, j) = th1 - th2
+      select case (jint(1, j))
+      case (MBDK_JOINT_COUPLING)
+        ! c(0) = offset + amplitude sin(phase) = a . q1 + b . q2 at the pose
+        len = dot_product(jreal(1:3, j), q(3 * b1 - 2:3 * b1))
+        if (b2 > 0) len = len + dot_product(jreal(4:6, j), q(3 * b2 - 2:3 * b2))
+        jreal(8, j) = len - jreal(10, j) * sin(jreal(12, j))
+      case (MBDK_JOINT_ROLLING)
+        ! the roll's offset c0 = u . c + R theta at the pose
+        jreal(8, j) = dot_product(jreal(5:6, j), q(3 * b1 - 2:3 * b1 - 1)) + jreal(7, j) * q(3 * b1)
+      case default
+        th1 = q(3 * b1)
+        th2 = 0.0_dp
+        if (b2 > 0) th2 = q(3 * b2)
+        jreal(7, j) = th1 - th2
+      end select
     end do
     ! every two-point force needs a direction at the start; marked ones take their rest length
     do j = 1, size(fint, 2)

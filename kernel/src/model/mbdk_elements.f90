@@ -22,7 +22,9 @@ module mbdk_elements
   integer, parameter, public :: MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3
 
   integer, parameter, public :: MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, &
-    MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5, MBDK_JOINT_TYPES = 5
+    MBDK_JOINT_FIXED = 3, MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5, &
+    MBDK_JOINT_POINT_LINE = 6, MBDK_JOINT_POINT_CURVE = 7, MBDK_JOINT_COUPLING = 8, &
+    MBDK_JOINT_ROLLING = 9, MBDK_JOINT_KNIFE_EDGE = 10, MBDK_JOINT_TYPES = 10
   !> spring, damper and spring_damper share the point-to-point geometry; a spring has no
   !> damping, a damper no stiffness (mbdk_model_init refuses tables that say otherwise)
   integer, parameter, public :: MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, &
@@ -37,7 +39,8 @@ module mbdk_elements
   !> constraint rows by joint type: a named constant, so that the joints' evaluation (another
   !> module, called for every joint at every evaluation) reads it inline instead of calling
   !> mbdk_joint_rows
-  integer, parameter, public :: MBDK_JOINT_ROW_COUNT(MBDK_JOINT_TYPES) = [2, 2, 3, 1, 1]
+  integer, parameter, public :: MBDK_JOINT_ROW_COUNT(MBDK_JOINT_TYPES) = &
+    [2, 2, 3, 1, 1, 1, 1, 1, 2, 1]
   integer, parameter, public :: MBDK_ELEMENT_NAME_LEN = 32
 
   integer, parameter, public :: MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2, MBDK_BODY_KINDS = 2
@@ -72,6 +75,16 @@ module mbdk_elements
                MBDK_JOINT_ROW_COUNT(MBDK_JOINT_DRIVER), 0), &
     kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_DISTANCE, 'distance', &
                MBDK_JOINT_ROW_COUNT(MBDK_JOINT_DISTANCE), 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_POINT_LINE, 'point_line', &
+               MBDK_JOINT_ROW_COUNT(MBDK_JOINT_POINT_LINE), 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_POINT_CURVE, 'point_curve', &
+               MBDK_JOINT_ROW_COUNT(MBDK_JOINT_POINT_CURVE), 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_COUPLING, 'coupling', &
+               MBDK_JOINT_ROW_COUNT(MBDK_JOINT_COUPLING), 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_ROLLING, 'rolling', &
+               MBDK_JOINT_ROW_COUNT(MBDK_JOINT_ROLLING), 0), &
+    kind_entry(MBDK_CLASS_JOINT, MBDK_JOINT_KNIFE_EDGE, 'knife_edge', &
+               MBDK_JOINT_ROW_COUNT(MBDK_JOINT_KNIFE_EDGE), 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_GRAVITY, 'gravity', 0, 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_POINT, 'point_force', 0, 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_TORQUE, 'torque', 0, 0), &

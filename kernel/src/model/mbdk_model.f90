@@ -56,7 +56,8 @@ module mbdk_model
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
-    MBDK_JOINT_DISTANCE, &
+    MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
+    MBDK_JOINT_ROLLING, MBDK_JOINT_KNIFE_EDGE, mbdk_joints_pfaffian, &
     MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, &
     MBDK_JOINT_SLOTS, mbdk_body_rotations, mbdk_body_point
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
@@ -184,6 +185,9 @@ module mbdk_model
     real(dp) :: watch_tol(3) = 0.0_dp   !< position, velocity, energy (mbdk_watch)
     integer :: watch_every = MBDK_WATCH_EVERY
     logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
+    !> rows that constrain velocities only (knife edges: mbdk_joints_pfaffian)
+    logical, allocatable :: pfaffian(:)
+    logical :: has_pfaffian = .false.
     !> a power term needs the bodies' rotations (a point force, a two-point damper)
     logical :: power_rot = .false.
     type(mbdk_model_work_t), pointer :: work => null()
@@ -282,6 +286,13 @@ contains
       if (jint(4, j) < 0 .or. jint(4, j) > 3) return
       ! a driver drives one coordinate of its body: x, y or theta
       if (jint(1, j) == MBDK_JOINT_DRIVER .and. jint(4, j) == 0) return
+      ! curves, rolling lines and knife edges are the ground's; a coupling joins two bodies
+      if ((jint(1, j) == MBDK_JOINT_POINT_CURVE .or. jint(1, j) == MBDK_JOINT_ROLLING .or. &
+           jint(1, j) == MBDK_JOINT_KNIFE_EDGE) .and. jint(3, j) /= 0) return
+      if (jint(1, j) == MBDK_JOINT_COUPLING .and. jint(3, j) == jint(2, j)) return
+      if (jint(1, j) == MBDK_JOINT_ROLLING .and. .not. (jreal(7, j) > 0.0_dp .and. &
+          abs(norm2(jreal(5:6, j)) - 1.0_dp) <= 1.0e-12_dp)) return
+      if (jint(1, j) == MBDK_JOINT_KNIFE_EDGE .and. .not. (norm2(jreal(5:6, j)) > 0.0_dp)) return
       model%row0(j) = rows + 1
       rows = rows + mbdk_joint_rows(jint(1, j))
     end do
@@ -329,10 +340,13 @@ contains
     if (opt%watch_every == 0) model%watch_every = MBDK_WATCH_EVERY
     if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
-    ! rheonomic rows: drivers, and distances whose length changes in time
-    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. (jint(1, :) == &
-                            MBDK_JOINT_DISTANCE .and. (jreal(9, :) /= 0.0_dp .or. &
-                            jreal(10, :) /= 0.0_dp)))
+    ! rheonomic rows: drivers, and distances and couplings that change in time
+    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. ((jint(1, :) == &
+                            MBDK_JOINT_DISTANCE .or. jint(1, :) == MBDK_JOINT_COUPLING) .and. &
+                            (jreal(9, :) /= 0.0_dp .or. jreal(10, :) /= 0.0_dp)))
+    allocate (model%pfaffian(model%m))
+    call mbdk_joints_pfaffian(jint, model%row0, model%pfaffian)
+    model%has_pfaffian = any(model%pfaffian)
     do j = 1, size(fint, 2)
       if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
           fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp) .or. &
@@ -888,8 +902,10 @@ contains
           if (self%jint(3, j) == b1) qf(c) = qf(c) - self%work%dz(c + 3, i) * lam(i)
         end do
       end do
+      ! about the joint point; a driver's or coupling's moment about the centroid (their reals
+      ! are no points), a rolling disc's about its centre
       rho = 0.0_dp
-      if (self%jint(1, j) /= MBDK_JOINT_DRIVER) &
+      if (self%jint(1, j) /= MBDK_JOINT_DRIVER .and. self%jint(1, j) /= MBDK_JOINT_COUPLING) &
         call mbdk_body_point(b1, self%jreal(1:2, j), self%work%rot, q, v, p, rho, pv, w)
       reac(1:2, j) = qf(1:2)
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
@@ -967,9 +983,10 @@ contains
     do j = 1, size(self%jint, 2)
       typ = self%jint(1, j)
       r = self%row0(j)
-      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER) &
+      ! (a driver's and a coupling's reals are no points)
+      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING) &
         length = max(length, norm2(self%jreal(1:2, j)))
-      if (self%jint(3, j) > 0 .and. typ /= MBDK_JOINT_DRIVER) &
+      if (self%jint(3, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING) &
         length = max(length, norm2(self%jreal(3:4, j)))
       select case (typ)
       case (MBDK_JOINT_REVOLUTE)
@@ -982,6 +999,16 @@ contains
         angular(r + 2) = .true.
       case (MBDK_JOINT_DISTANCE)
         angular(r) = .false.
+        if (self%jreal(9, j) /= 0.0_dp .or. self%jreal(10, j) /= 0.0_dp) power = .true.
+      case (MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_KNIFE_EDGE)
+        angular(r) = .false.
+      case (MBDK_JOINT_ROLLING)
+        angular(r:r + 1) = .false.
+        length = max(length, self%jreal(7, j))
+      case (MBDK_JOINT_COUPLING)
+        ! in the unit of body 2's coordinate (radians for gears, metres for a rack)
+        angular(r) = self%jreal(6, j) /= 0.0_dp .or. (self%jint(3, j) == 0 .and. &
+                                                    self%jreal(3, j) /= 0.0_dp)
         if (self%jreal(9, j) /= 0.0_dp .or. self%jreal(10, j) /= 0.0_dp) power = .true.
       case default   ! a driver: of x, y or theta
         angular(r) = self%jint(4, j) == 3

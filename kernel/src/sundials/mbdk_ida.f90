@@ -3,7 +3,8 @@
 !>   M q'' + D^T lam = f(q, v, t),   Phi(q, t) = 0,   D = dPhi/dq,
 !>   Phi' = D v + Phi_t,   D a = gamma
 !> as a differential-algebraic system F(t, Y, Y') = 0, not as the reduced ODE, in one of two
-!> forms, index1 or ggl.
+!> forms, index1 or ggl (ggl refuses knife edges, MBDK_ERR_NOT_APPLICABLE: they have no
+!> position row for its mu to stabilise).
 !>
 !> IDA solves F(t, Y, Y') = 0 with variable-order, variable-step BDF formulas (orders 1..5) in
 !> fixed-leading-coefficient form (Brenan, Campbell and Petzold, Numerical Solution of IVPs in
@@ -228,6 +229,8 @@ contains
     nlam = size(lam_out, 2)
     stat = MBDK_ERR_NOT_APPLICABLE
     if (model%formulation /= MBDK_FORM_REDUCED) return
+    ! GGL's mu stabilises position rows; a knife edge has none (index1 keeps it: D a = gamma)
+    if (ggl .and. model%has_pfaffian) return
     stat = MBDK_ERR_INVALID_INPUT
     if (nc < 1 .or. size(y0) /= 2 * nc .or. ns < 2) return
     t_end = t_out(ns)
