@@ -460,3 +460,18 @@ def test_knee_wear_study(tmp_path, root):
     des = {r["design"]: r for r in rows(tmp_path / "knee_wear_designs.csv")}
     for r in des.values():
         assert num(r["medial_mm3"]) > num(r["lateral_mm3"]) > 0
+
+
+def test_symbolic_check_study(tmp_path, root):
+    """The quick run: every built-in scene and every constraint kind in the table, each within
+    roundoff of its derivation; the verdict names the book's equations that differ."""
+    sys.path.insert(0, str(root / "studies"))
+    import symbolic_check
+    summary = symbolic_check.run(tmp_path, quick=True)
+    assert all(p.exists() for p in summary["figures"])
+    table = rows(tmp_path / "scenes.csv")
+    assert {r["scene"] for r in table} >= set(mbdk.scenes("all"))
+    assert all(num(r["Phi, D, gamma, Phi_t"]) < 1e-13 for r in table)
+    assert all(num(r["a, lambda"]) < 1e-9 for r in table)
+    for eq in ("(2.27)", "(2.145)", "(2.146)", "(2.151)"):
+        assert eq in summary["verdict"]

@@ -807,9 +807,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
 
 def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
     """At the state y (default: the scene's initial state) and time t: the energy parts and
-    residuals of the outputs, Phi, C (rows x 6 bodies), gamma, Phi_t (a driver's rows), the rank of the joints' rows at the initial
-    state (below the row count: redundant joints), the reduced formulation's multipliers and
-    the status of that solve (SINGULAR at a singular pose)."""
+    residuals of the outputs, Phi, C (rows x 6 bodies), gamma, Phi_t (a driver's rows), the
+    rank of the joints' rows at the initial state (below the row count: redundant joints), the
+    reduced formulation's multipliers and y' (ydot), and the status of that solve (SINGULAR
+    at a singular pose)."""
     _validate(sc)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
@@ -823,12 +824,12 @@ def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
                                     f"scene's layout: q then (v, Omega) per body)")
     y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, phit, lam, rank, status = _kernel.spatial_residuals(
+    out, phi, c, gam, phit, lam, ydot, rank, status = _kernel.spatial_residuals(
         mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
         float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
             "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "phi_t": phit[:m],
-            "multipliers": lam[:m],
+            "multipliers": lam[:m], "ydot": ydot,
             "rank": int(rank), "status": Status(int(status))}
 
 

@@ -959,12 +959,12 @@ end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &
-                             phit, lam, rank, status)
+                             phit, lam, ydot, rank, status)
   ! At the state (t, y) of a spatial scene whose model is built at its initial state y0 (the
   ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
   ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma, the rank of the joints' rows at
-  ! y0 (below m: redundant joints) and the reduced formulation's multipliers (rows 1..m; lam is 0 where the solve failed, and status
-  ! then says why).
+  ! y0 (below m: redundant joints), the reduced formulation's multipliers (rows 1..m; lam is 0
+  ! where the solve failed, and status then says why) and its y' = F(t, y) (0 likewise).
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_spatial_model
   implicit none
@@ -973,6 +973,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)
+  double precision, intent(out) :: ydot(n)
   integer, intent(out) :: rank, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -987,6 +988,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   gam = 0.0d0
   lam = 0.0d0
   phit = 0.0d0
+  ydot = 0.0d0
   rank = 0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
@@ -1002,6 +1004,9 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   if (status /= MBDK_SUCCESS .and. status /= MBDK_ERR_SINGULAR_MATRIX) return
   call mbdk_spatial_constraints(model, t, y, phi(1:model%m), c(1:model%m, :), gam(1:model%m), &
                                 phit(1:model%m), status)
+  if (status /= MBDK_SUCCESS) return
+  call model%rhs(t, y, ydot, status)
+  if (status /= MBDK_SUCCESS) ydot = 0.0d0
   if (status /= MBDK_SUCCESS .or. model%m == 0) return
   call mbdk_spatial_multipliers(model, t, y, lam(1:model%m), status)
   if (status /= MBDK_SUCCESS) lam = 0.0d0
