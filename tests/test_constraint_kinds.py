@@ -79,10 +79,10 @@ def test_distance_rows_against_finite_differences():
     check_rows_by_differences(scene_from_dict(d), seed=2)
 
 
-def check_rows_by_differences(sc, seed):
+def check_rows_by_differences(sc, seed, tab=None):
     """At a random state near the scene's pose: D against central differences of Phi in q,
     Phi_t in t, and gamma against Phi's second difference along q + s v, t + s (a = 0)."""
-    tab = M.build_tables(sc)
+    tab = M.build_tables(sc) if tab is None else tab
     rng = np.random.default_rng(seed)
     n = len(sc.q0())
     q = np.array(sc.q0()) + rng.normal(0, 0.05, n)
@@ -190,19 +190,21 @@ def car(steer, v0=10.0, point=(0.0, 0.0), driver=True):
     return scene_from_dict(d, "car.toml")
 
 
-@pytest.mark.parametrize("method, formulation, kw, tol", [
-    ("rk4", "reduced", dict(h=1e-3, every=10), 1e-10),
-    ("rk4", "baumgarte", dict(h=1e-3, every=10, alpha=5.0, beta=5.0), 1e-10),
-    ("rk4", "projection", dict(h=1e-3, every=10), 1e-10),
-    ("dopri54", "reduced", dict(rtol=1e-10, atol=1e-12, dt_out=0.05), 1e-7),
-    ("bdf", "i3", dict(rtol=1e-8, atol=1e-10, dt_out=0.05), 1e-4),
-    ("ida", "index1", dict(rtol=1e-9, atol=1e-11, dt_out=0.05), 1e-5),
+@pytest.mark.parametrize("method, formulation, kw, tol, force_tol", [
+    ("rk4", "reduced", dict(h=1e-3, every=10), 1e-10, 1e-9),
+    ("rk4", "baumgarte", dict(h=1e-3, every=10, alpha=5.0, beta=5.0), 1e-10, 1e-6),
+    ("rk4", "projection", dict(h=1e-3, every=10), 1e-10, 1e-9),
+    ("dopri54", "reduced", dict(rtol=1e-10, atol=1e-12, dt_out=0.05), 1e-7, 1e-5),
+    ("bdf", "i3", dict(rtol=1e-8, atol=1e-10, dt_out=0.05), 1e-4, 0.1),
+    ("ida", "index1", dict(rtol=1e-9, atol=1e-11, dt_out=0.05), 1e-5, 2e-3),
 ])
-def test_car_follows_its_steering_law(method, formulation, kw, tol):
+def test_car_follows_its_steering_law(method, formulation, kw, tol, force_tol):
     """Steered at phi = 0.4 sin(1.3 t) with v0 = 10 m/s: the knife edge lets the car move only
     along its heading, no force along it, so its speed stays v0 and its path is
     x = int v0 cos phi, y = int v0 sin phi (SciPy quadrature); the lateral reaction is the
-    centripetal force m v0 phi' (the multiplier, on the blade's normal)."""
+    centripetal force m v0 phi' (the multiplier, on the blade's normal; its amplitude 5200 N,
+    kept to force_tol N: the methods' errors measured at 4.5e-11, 1.9e-8 (Baumgarte), 7e-7,
+    0.020 (bdf, i3) and 4.2e-4 N (ida))."""
     a, w, v0 = 0.4, 1.3, 10.0
     r = mbdk.simulate(car({"amplitude": a, "omega": w}), method, formulation=formulation,
                       t_end=4.0, **kw)
@@ -214,8 +216,7 @@ def test_car_follows_its_steering_law(method, formulation, kw, tol):
     assert np.abs(np.hypot(r.v[:, 0], r.v[:, 1]) - v0).max() < tol * 100
     # the blade's normal n = (-sin phi, cos phi), its multiplier lam: the force -lam n on the car
     lateral = -r.multipliers[:, 0]
-    assert np.abs(lateral - 1000.0 * v0 * a * w * np.cos(w * r.t)).max() < 1e-3 * 1000 * v0 + \
-        tol * 1e6
+    assert np.abs(lateral - 1000.0 * v0 * a * w * np.cos(w * r.t)).max() < force_tol
 
 
 def test_car_on_a_circle():
@@ -349,14 +350,15 @@ def test_gear_coupling(method):
 
 
 def test_rack_and_pinion():
-    """A pinion of radius 0.1 on a fixed axle drives a rack of 4 kg along x (prismatic to the
-    ground, coupling ratio -R: x = -R theta): theta'' = T / (I + m R^2)."""
+    """A pinion of radius 0.1 on a fixed axle drives a rack of 4 kg above it along x
+    (prismatic to the ground; the pinion's top point moves by -R theta, so the coupling's ratio
+    is -R): theta'' = T / (I + m R^2)."""
     d = {"scene": {"name": "rack"},
          "body": [{"name": "pinion", "mass": 1.0, "inertia": 0.005},
-                  {"name": "rack", "mass": 4.0, "inertia": 0.1, "y": -0.1}],
+                  {"name": "rack", "mass": 4.0, "inertia": 0.1, "y": 0.1}],
          "joint": [{"name": "axle", "type": "revolute", "body1": "pinion"},
                    {"name": "guide", "type": "prismatic", "body1": "rack", "axis": [1, 0],
-                    "point2": [0, -0.1]},
+                    "point2": [0, 0.1]},
                    {"name": "teeth", "type": "coupling", "body1": "pinion",
                     "coordinate1": "angle", "body2": "rack", "coordinate2": "x",
                     "ratio": -0.1}],
@@ -396,6 +398,43 @@ def test_rolling_disc_down_an_incline(method):
     lam = r.multipliers
     assert np.abs(-lam[1:, 0] - m * G * math.cos(al)).max() < 1e-6
     assert np.abs(-lam[1:, 1] + m * G * math.sin(al) / 3).max() < 1e-6
+
+
+def test_scene_row_counts_are_the_kernels():
+    from mbdk.scene import JOINT_ROW_COUNT
+    assert JOINT_ROW_COUNT == M.JOINT_ROWS
+
+
+def test_a_time_dependent_coupling_row():
+    """The kernel's coupling with c(t) (Python writes a constant offset): coefficients on x and
+    theta of body 1 and on y of body 2, c = c0 + 0.3 t + 0.2 sin(2 t); D, Phi_t and gamma
+    against differences of Phi."""
+    d = {"scene": {"name": "two"},
+         "body": [{"name": "a", "mass": 1.0, "inertia": 0.1, "x": 0.1, "y": 0.2, "angle": 0.4},
+                  {"name": "b", "mass": 1.0, "inertia": 0.1, "x": 0.9, "y": 0.5, "angle": 0.7}],
+         "joint": [{"name": "j", "type": "coupling", "body1": "a", "body2": "b",
+                    "coordinate2": "y", "ratio": 0.5}]}
+    sc = scene_from_dict(d)
+    tab = M.build_tables(sc)
+    tab.jreal[0, 0] = 0.7                       # and 0.7 x1
+    tab.jreal[8:11, 0] = [0.3, 0.2, 2.0]        # rate, amplitude, omega
+    check_rows_by_differences(sc, seed=7, tab=tab)
+    assert M.evaluate(tab, sc.q0(), sc.v0(), 0.0)["phit"][0] == pytest.approx(-(0.3 + 0.4))
+
+
+def test_knife_edges_leave_the_positions_assembly_alone():
+    """A body held on a nearly vertical ground line (point_line), its x and angle given, with a
+    knife edge along x: the line alone fixes y = 9.95 x, which the assembly finds in one step;
+    the knife edge, a velocity row, does not hold the position's correction to its blade
+    (A dq = 0, which would leave the rail unmet)."""
+    d = {"scene": {"name": "k"},
+         "body": [{"name": "a", "mass": 1.0, "inertia": 0.1, "x": 1.0, "omega": 0.5,
+                   "given": ["x", "angle", "omega"]}],
+         "joint": [{"name": "rail", "type": "point_line", "body1": "a", "axis": [0.1, 0.995]},
+                   {"name": "blade", "type": "knife_edge", "body1": "a", "axis": [1.0, 0.0]}]}
+    r = mbdk.simulate(scene_from_dict(d, "k.toml"), "rk4", h=1e-3, t_end=0.5, every=100)
+    assert r.q[0, 1] == pytest.approx(9.95, abs=1e-12)
+    assert np.abs(r.v[:, :2]).max() < 1e-12 and r.q[-1, 2] == pytest.approx(0.25)
 
 
 @pytest.mark.parametrize("kind", ["point_line", "point_curve", "coupling", "rolling"])
@@ -467,7 +506,7 @@ def test_scene_report_of_the_new_kinds():
     ({"type": "rolling", "radius": 0.1, "direction": [0, 0]}, "'direction' = [0, 0]"),
     ({"type": "knife_edge", "axis": [0, 0]}, "'axis' = [0, 0]"),
     ({"type": "knife_edge", "body2": "ground"}, "'body2' is not a field"),
-    ({"type": "coupling", "body2": "ground", "ratio": 2.0}, "'body2' must name a body"),
+    ({"type": "coupling", "body2": "ground", "ratio": 2.0}, "'body2' = 'ground' must name"),
     ({"type": "coupling", "body2": "b", "ratio": 0}, "'ratio' = 0"),
     ({"type": "coupling", "body2": "b", "ratio": 1.0, "coordinate2": "z"},
      "'coordinate2' = 'z'"),
@@ -534,3 +573,25 @@ function = { rate = 0.5 }
     r = subprocess.run([sys.executable, "-m", "mbdk", "scene", str(tmp_path / "none.toml")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "none.toml" in r.stderr and "cannot read" in r.stderr
+
+
+def test_a_length_that_reaches_zero_within_the_run_is_named():
+    """L(t) = 1 - 0.5 t reaches 0 at t = 2: a run to 3 s is refused before it starts, naming the
+    joint, the field and when (a run to 1.5 s is not)."""
+    sc = pendulum({"offset": 1.0, "rate": -0.5})
+    with pytest.raises(SceneError) as exc:
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=3.0)
+    msg = str(exc.value)
+    assert "pendulum.toml" in msg and "'rod'" in msg and "'length'" in msg and "t = 2" in msg
+    r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=1.5, every=100)
+    assert abs(np.hypot(r.q[-1, 0], r.q[-1, 1]) - 0.25) < 1e-9
+
+
+def test_the_index3_newton_matrix_refuses_knife_edges():
+    """The knife edge's row is no Phi to differentiate: the Newton matrix of trapezoidal_index3,
+    reachable on its own (mbdk.index3.newton_matrix), is refused by status as the solver is."""
+    from mbdk.index3 import newton_matrix
+    sc = car({"rate": 1.0})
+    tab = M.build_tables(sc)
+    with pytest.raises(mbdk.NotApplicableError):
+        newton_matrix(tab, sc.q0(), sc.v0(), np.zeros(tab.m), 1e-3)

@@ -89,14 +89,16 @@ class Tables:
                 self.fint, self.freal)
 
 
-#: the 4th integer of a two-point force or a prismatic/fixed joint: take the value (rest length,
-#: relative angle) from the initial pose (kernel/src/model/mbdk_assembly.f90, MBDK_FROM_POSE)
+#: the 4th integer of a two-point force or a prismatic, fixed, distance, coupling or rolling
+#: joint: take the value (rest length, relative angle, length, offset) from the initial pose
+#: (kernel/src/model/mbdk_assembly.f90, MBDK_FROM_POSE)
 FROM_POSE = 1
 
 
 def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
     """The kernel's tables for a scene. Values a scene leaves to the initial configuration (a
-    spring's rest length, a prismatic or fixed joint's relative angle) are marked FROM_POSE;
+    spring's rest length, a prismatic or fixed joint's relative angle, a distance's length, a
+    coupling's or a rolling disc's offset) are marked FROM_POSE;
     with resolve (the default) the kernel fills them in at q0 (the scene's own pose if None),
     without it they stay marked for the kernel to fill in where it starts a run."""
     nb = len(sc.bodies)
@@ -296,8 +298,9 @@ def pose_error(sc: Scene, bad_joint: int, bad_force: int) -> SceneError:
             return SceneError(f"{sc.source}: joint {j.name!r}: fields 'point1' and 'point2' "
                               "coincide at the initial pose, so the distance has no direction; "
                               "move one point")
-        return SceneError(f"{sc.source}: joint {j.name!r}: its relative "
-                          "angle cannot be taken from the initial pose")
+        return SceneError(f"{sc.source}: joint {j.name!r}: the value it keeps (a relative "
+                          "angle, a length or an offset) cannot be taken from the initial pose: "
+                          "its bodies are not in the scene's tables")
     return SceneError(f"{sc.source}: the initial pose is not finite")
 
 

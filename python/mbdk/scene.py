@@ -41,7 +41,8 @@ point1 on the line through point2 of body2 along axis: a slider that turns freel
 point_curve (body1, point1 on the ground curve y = f(x), curve a time-function table taken in
 x); coupling (body1, coordinate1, body2, coordinate2, ratio: q2 - q2(0) = ratio (q1 - q1(0));
 gears on fixed axles: the angles with ratio -R1/R2, or +R1/R2 for an internal gear; a rack
-along x driven by a pinion: coordinate1 = "angle", coordinate2 = "x", ratio -R); rolling
+along x driven by a pinion: coordinate1 = "angle", coordinate2 = "x", ratio -R for a rack
+above the pinion, +R below it); rolling
 (body1 a disc of radius rolling without slip on the ground line through point along
 direction, on its left: (1.15)-(1.20), integrated to the position rows of x = R phi and y =
 R); knife_edge (body1, point1, axis: the point has no velocity across the body-fixed axis, a
@@ -864,9 +865,9 @@ def check_scene(sc: Scene) -> None:
                 if kind == "joint" and e.type in GROUND_JOINTS and fld == "body2":
                     continue
                 if kind == "joint" and e.type == "coupling" and v == GROUND:
-                    raise SceneError(f"{src}: joint {e.name!r}: field 'body2' must name a body: "
-                                     "a coupling joins two bodies' coordinates (to follow a "
-                                     "function of time, use a driver)")
+                    raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = 'ground' must "
+                                     "name a body: a coupling joins two bodies' coordinates "
+                                     "(to follow a function of time, use a driver)")
                 if kind == "force" and fld == "body2" and e.type not in (
                         "spring", "damper", "spring_damper", "contact"):
                     continue

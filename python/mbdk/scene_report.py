@@ -143,8 +143,10 @@ def scene_report(sc) -> SceneReport:
     for (name, r0, nr), j in zip(tab.rows, sc.joints):
         rheo = j.type == "driver" or (j.type == "distance" and j.length is not None and
                                       (j.length[1] != 0 or j.length[2] != 0))
-        # a knife edge's A v = 0 is not integrable: the blade's direction turns with the body;
-        # a rolling disc's velocity rows are, to its two position rows (1.18), (1.20)
+        # a knife edge's A v = 0 is not integrable: the blade's direction turns with the body
+        # (unless a driver holds its heading constant, which the report does not look for: it
+        # then counts one freedom of position too many); a rolling disc's velocity rows are
+        # integrable, to its two position rows (1.18), (1.20)
         holonomic = j.type != "knife_edge"
         holo[r0:r0 + nr] = holonomic
         constraints.append(ConstraintInfo(name, j.type, nr, holonomic, rheo, True))

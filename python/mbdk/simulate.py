@@ -72,7 +72,7 @@ from .model import evaluate as _evaluate
 from .ode import STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty
 from .result import Result, Stats
-from .scene import Scene, checked
+from .scene import GROUND, Scene, SceneError, checked
 
 #: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
 OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
@@ -369,6 +369,17 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             f"{method} on scene {scene.name!r}: its Newton matrix has no tangent stiffness of "
             f"the contacts ({', '.join(contacts)}); use an ODE method (rk4, dopri54, bdf, "
             "cvode_bdf) with formulation reduced, baumgarte or projection")
+    for j in scene.joints:
+        if j.type == "distance" and j.length is not None:
+            # L(t) must stay positive over the run: at L = 0 the row has no direction
+            off, rate, amp, om, ph = j.length
+            ts = np.linspace(t0, t_end, 20001)
+            low = np.nonzero(off + rate * ts + amp * np.sin(om * ts + ph) <= 0)[0]
+            if low.size:
+                raise SceneError(
+                    f"{scene.source}: joint {j.name!r}: field 'length' = {_fn_text(j.length)} "
+                    f"reaches 0 at t = {ts[low[0]]:.6g} s, within the run (t_end = {t_end:g}): "
+                    "a distance must stay positive; end the run before, or change L(t)")
     knives = [j.name for j in scene.joints if j.type == "knife_edge"]
     if index3 and knives:
         raise NotApplicableError(
@@ -663,6 +674,36 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
             "adaptive": adaptive}
 
 
+def _fn_text(fn) -> str:
+    """A time function as the scene file writes it."""
+    keys = ("offset", "rate", "amplitude", "omega", "phase")
+    return "{" + ", ".join(f"{k} = {v:g}" for k, v in zip(keys, fn) if v) + "}"
+
+
+def _distance_note(scene: Scene, r) -> str:
+    """A distance joint whose points met (its row has no direction there, and the solve
+    returns NaN): named, with its points' distance at the last finite sample."""
+    dist = [j for j in scene.joints if j.type == "distance"]
+    finite = [k for k in range(len(r.t)) if np.all(np.isfinite(r.q[k]))]
+    if not dist or not finite:
+        return ""
+    q = r.q[finite[-1]]
+
+    def point(body, s):
+        if body == GROUND:
+            return np.asarray(s, float)
+        i = 3 * scene.body_index(body) - 3
+        c, sn = math.cos(q[i + 2]), math.sin(q[i + 2])
+        return q[i:i + 2] + np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+    gaps = sorted((float(np.linalg.norm(point(j.body1, j.point1) - point(j.body2, j.point2))),
+                   j.name) for j in dist)
+    gap, name = gaps[0]
+    return (f"; distance joint {name!r}: its points were {gap:.3g} m apart at t = "
+            f"{r.t[finite[-1]]:.6g} s, and where they meet the distance has no direction (its "
+            "length L(t) reached 0, or the motion carried one point through the other); keep "
+            "L(t) positive, or use a revolute joint where the points coincide")
+
+
 def _refuse_redundant(scene, tab, q0, v0, t0, formulation, index3, result, dae=False):
     """A singular solve at the initial state: name the dependent joints, if any (not on a scene
     too large for the dense SVD that finds them)."""
@@ -751,6 +792,8 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                     "pitch, where the next tooth would be met: the load or the impact across "
                     "the backlash is beyond the mesh's stiffness. A stiffer mesh, damping, a "
                     "smaller backlash or a load applied gradually keeps it within")
+        if not note and r.status == Status.ERR_NONFINITE:
+            note = _distance_note(scene, r)
         if not note and r.status == Status.ERR_NONFINITE and contacts:
             note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
                     "whose centres coincide, or gears whose centres came within their base "

@@ -191,6 +191,11 @@ contains
     integer :: nc
     nc = model%nc
     s = 0.25_dp * h * h
+    ! a knife edge's velocity row is no Phi to differentiate (mbdk_index3_init refuses it too)
+    if (model%has_pfaffian) then
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
     call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
     call book_matrix(model, t, q, v, lam, h, d, lw, a, stat)
     if (stat /= MBDK_SUCCESS) return

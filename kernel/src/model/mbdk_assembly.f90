@@ -3,8 +3,9 @@
 !>
 !> Pose defaults. An element may take a value from the initial pose instead of the table: a
 !> spring, damper or spring-damper its rest length (freal(6) = the distance of its points),
-!> a prismatic or fixed joint its relative angle (jreal(7) = theta1 - theta2), when the 4th
-!> integer of its table entry is MBDK_FROM_POSE (that slot is the coordinate of drivers and
+!> a prismatic or fixed joint its relative angle (jreal(7) = theta1 - theta2), a distance joint
+!> its length L(0), a coupling its offset c(0) and a rolling disc its roll offset c0, when the
+!> 4th integer of its table entry is MBDK_FROM_POSE (that slot is the coordinate of drivers and
 !> coordinate forces, and unused otherwise). mbdk_tables_resolve fills them in at q; a
 !> two-point force whose points coincide there has no direction: MBDK_ERR_INVALID_INPUT with the
 !> force named (bad_force).
@@ -12,8 +13,11 @@
 !> Assembly (mbdk_assembly_run). The coordinates the scene does not mark as given move as little
 !> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
 !> solution of D_free dq = -Phi (LAPACK dgelsd, so redundant constraints are no obstacle), until
-!> max |Phi| <= tol (or Phi's roundoff at q, mbdk_phi_floor, where that is larger); then the velocities not given, v_free = least-squares solution of
-!> D_free v_free = -Phi_t - D_given v_given. A model on the sparse path (more than
+!> max |Phi| <= tol (or Phi's roundoff at q, mbdk_phi_floor, where that is larger); then the
+!> velocities not given, v_free = least-squares solution of D_free v_free = -Phi_t - D_given
+!> v_given. A knife edge's row constrains velocities only: the positions' corrections leave it
+!> out (a zero row of the dense D; a scene with knife edges assembles by the dense least
+!> squares where D is affordable), the velocities' keep it. A model on the sparse path (more than
 !> MBDK_SPARSE_MIN_ROWS rows) takes the same least change through the sparse Schur complement of
 !> the free columns, D_f D_f^T (mbdk_constrained), in O(nnz); where the free columns are
 !> dependent (redundant joints) it falls back to the dense least squares while D has at most
@@ -39,7 +43,8 @@ module mbdk_assembly
   private
   public :: mbdk_tables_resolve, mbdk_assembly_run, mbdk_model_start
 
-  !> the 4th integer of a two-point force or a prismatic/fixed joint: take the value from the pose
+  !> the 4th integer of a two-point force or a prismatic, fixed, distance, coupling or rolling
+  !> joint: take the value from the pose
   integer, parameter, public :: MBDK_FROM_POSE = 1
   !> residuals an assembled state must meet
   real(dp), parameter :: ASSEMBLED_TOL = 1.0e-9_dp
@@ -170,6 +175,7 @@ contains
     ! the free columns; a small one, and a large one whose free columns are dependent, by the
     ! dense least squares (which passes redundant joints) where its matrix is affordable
     sparse = model%work%proj%path == MBDK_SOLVE_SCHUR_SPARSE
+    if (model%has_pfaffian .and. dense_affordable()) sparse = .false.
     allocate (phi(m), gam(m), phit(m), dx(nc))
     if (.not. sparse) allocate (d(m, nc))
     free = pack([(k, k = 1, nc)], .not. given_q)
@@ -178,6 +184,8 @@ contains
         call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
       else
         call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
+        ! a knife edge's row holds no position (its phi is 0): out of the corrections
+        if (model%has_pfaffian) call drop_velocity_rows()
       end if
       if (maxval(abs(phi)) <= mbdk_phi_floor(tol, q) .or. it == max_iter .or. size(free) == 0) &
         exit
@@ -191,6 +199,8 @@ contains
       stat = MBDK_ERR_INCONSISTENT_INITIAL
       return
     end if
+    if (model%has_pfaffian .and. .not. sparse) &
+      call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
     if (.not. all(given_v)) then
       if (sparse) then
         call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
@@ -242,6 +252,14 @@ contains
       if (st == MBDK_SUCCESS) dx(fr) = b(1:size(fr))
       deallocate (b)
     end subroutine least_change
+
+    !> the knife edges' rows of the dense D zeroed, for the positions' least squares
+    subroutine drop_velocity_rows()
+      integer :: r
+      do r = 1, m
+        if (model%pfaffian(r)) d(r, :) = 0.0_dp
+      end do
+    end subroutine drop_velocity_rows
 
     !> the dense D of the model and its least squares fit in memory (at most 10^7 entries)
     logical function dense_affordable()

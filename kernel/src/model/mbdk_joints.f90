@@ -16,8 +16,9 @@
 !> dense D. The compact rows are what the sparse Schur complement (mbdk_sparse_schur) reads.
 !>
 !> Table jint(4, nj) = (type, body1, body2, coordinate or flag); jreal(12, nj). The 4th integer is
-!> the driven coordinate of a driver; for prismatic and fixed joints MBDK_FROM_POSE (1) takes
-!> theta0 from the initial pose (mbdk_assembly). Types and rows: mbdk_elements.
+!> the driven coordinate of a driver; for prismatic, fixed, distance, coupling and rolling joints
+!> MBDK_FROM_POSE (1) takes the value the row keeps (theta0, L(0), c(0), c0) from the initial
+!> pose (mbdk_assembly). Types and rows: mbdk_elements.
 !>   1 revolute   (2 rows)  P1 - P2 = 0,           s1 = jreal(1:2), s2 = jreal(3:4) (for the
 !>                                                    ground: the global point)
 !>   2 prismatic  (2 rows)  theta1 - theta2 - theta0 = 0 and n2 . (P1 - P2) = 0, with the axis
@@ -43,9 +44,12 @@
 !>                          D = g^T [I, perp(rho1)], gamma = g.(w1^2 rho1) + f'' P1x'^2
 !>   8 coupling   (1 row)   a . q_b1 + b . q_b2 - c(t) = 0, a = jreal(1:3) on (x, y, theta) of
 !>                          body 1, b = jreal(4:6) on body 2, c = time function jreal(8:12)
-!>                          (MBDK_FROM_POSE: c's offset from the initial pose): gear pairs on
-!>                          fixed axles (R1 theta1 + R2 theta2 = c) and racks (x2 + R theta1 =
-!>                          c); linear in q: gamma = c'', Phi_t = -c'
+!>                          (MBDK_FROM_POSE: c's offset from the initial pose). Python writes
+!>                          q2 - ratio q1 - c (b a unit vector), in the unit of body 2's
+!>                          coordinate, which the watch takes for the row's (radians where
+!>                          b(3) /= 0): gear pairs on fixed axles (theta2 + (R1/R2) theta1 = c),
+!>                          a rack above its pinion (x2 + R theta1 = c; below it x2 - R theta1);
+!>                          linear in q: gamma = c'', Phi_t = -c'
 !>   9 rolling    (2 rows)  the disc of radius R = jreal(7) centred at body 1's centroid rolls
 !>                          without slip on the ground line through jreal(3:4) along the unit
 !>                          u = jreal(5:6), the disc on the side of n = perp(u):
@@ -207,8 +211,8 @@ contains
   end subroutine mbdk_joints_pfaffian
 
   !> phi(m), the compact rows dz(6, m) of D (every slot written; ground slots 0), gam(m),
-  !> phit(m) at (q, v, t); rot from mbdk_body_rotations at q. visits(1:4) counts the
-  !> evaluations per joint type.
+  !> phit(m) at (q, v, t); rot from mbdk_body_rotations at q. visits(1:MBDK_JOINT_TYPES)
+  !> counts the evaluations per joint type.
   subroutine mbdk_joints_eval(jint, jreal, row0, rot, q, v, t, phi, dz, gam, phit, visits)
     integer, intent(in), contiguous :: jint(:, :), row0(:)
     real(dp), intent(in), contiguous :: jreal(:, :), rot(:, :), q(:), v(:)

@@ -43,7 +43,7 @@
 !> forms of ida and bdf): the other paths and the outputs work on the compact rows.
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
-!> element type (joints 1..4, forces 5..9) so that a test can show that absent effects cost
+!> element type (joints 1..MBDK_JOINT_TYPES, then forces and effects: mbdk_elements) so that a test can show that absent effects cost
 !> nothing. Gravity, constant in (q, v, t), is summed once at init and counted at every
 !> evaluation that starts from it. The counters and the evaluation buffers live in a
 !> mbdk_model_work_t that the caller owns and the model points to (rhs receives the problem
@@ -774,7 +774,10 @@ contains
 
   !> Projection after a step: q onto Phi(q, t) = 0 by Gauss-Newton with the weight W (M^-1, or
   !> the identity when a body has zero inertia), then v onto D v + Phi_t = 0; each correction
-  !> is -W D^T S^-1 r with S = D W D^T from the nonzeros of D (mbdk_sparse_schur).
+  !> is -W D^T S^-1 r with S = D W D^T from the nonzeros of D (mbdk_sparse_schur). A knife
+  !> edge's row (Phi = 0) stays in S with its residual 0: the positions' correction is the least
+  !> one that moves as the blades allow (A dq = 0), which after a step's drift differs from the
+  !> least change onto Phi = 0 by the order of that drift; the velocities' keeps A v = 0.
   subroutine model_post_step(self, t, y, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t
@@ -903,9 +906,10 @@ contains
         end do
       end do
       ! about the joint point; a driver's or coupling's moment about the centroid (their reals
-      ! are no points), a rolling disc's about its centre
+      ! are no points), a rolling disc's about its centre, the centroid
       rho = 0.0_dp
-      if (self%jint(1, j) /= MBDK_JOINT_DRIVER .and. self%jint(1, j) /= MBDK_JOINT_COUPLING) &
+      if (self%jint(1, j) /= MBDK_JOINT_DRIVER .and. self%jint(1, j) /= MBDK_JOINT_COUPLING &
+          .and. self%jint(1, j) /= MBDK_JOINT_ROLLING) &
         call mbdk_body_point(b1, self%jreal(1:2, j), self%work%rot, q, v, p, rho, pv, w)
       reac(1:2, j) = qf(1:2)
       reac(3, j) = qf(3) - (rho(1) * qf(2) - rho(2) * qf(1))
@@ -983,8 +987,9 @@ contains
     do j = 1, size(self%jint, 2)
       typ = self%jint(1, j)
       r = self%row0(j)
-      ! (a driver's and a coupling's reals are no points)
-      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING) &
+      ! (a driver's, a coupling's and a rolling disc's first reals are no points)
+      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING &
+          .and. typ /= MBDK_JOINT_ROLLING) &
         length = max(length, norm2(self%jreal(1:2, j)))
       if (self%jint(3, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING) &
         length = max(length, norm2(self%jreal(3:4, j)))
