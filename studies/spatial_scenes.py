@@ -5,7 +5,8 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
 1. Formulations. The scene heavy_top (a spherical joint to the ground) and the scene
    spatial_double_pendulum (two spherical joints), over 2 s, by rk4 at two steps and by dopri54
    and bdf at two tolerances, each on the reduced, baumgarte (alpha = 1/h, beta = sqrt(2)/h;
-   for the error-controlled methods 1/(1 ms) and sqrt(2)/(1 ms)) and projection formulations.
+   for the error-controlled methods 1/(1 ms) and sqrt(2)/(1 ms)), penalty (Jalon-Bayo, the
+   defaults alpha_p = 1e7, omega_p = 10, mu_p = 1) and projection formulations.
    Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
    which rk4 then does not resolve: its forces of beta^2 Phi perturb the motion far more than
    the reduced form's drift does (the same holds on planar scenes, studies/scene_drift.py).
@@ -50,7 +51,7 @@ from _common import main, progress  # noqa: E402
 import mbdk  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 
-FORMULATIONS = ("reduced", "baumgarte", "projection")
+FORMULATIONS = ("reduced", "baumgarte", "penalty", "projection")
 T_END = 2.0
 
 
@@ -264,7 +265,7 @@ def run(out: Path, quick: bool = False) -> dict:
     from mbdk.analysis import plotting
     fig, axes = plotting.plt.subplots(1, 2, figsize=(10, 4))
     for ax, scene_name in zip(axes, ("heavy_top", "spatial_double_pendulum")):
-        for form, marker in zip(FORMULATIONS, "osd"):
+        for form, marker in zip(FORMULATIONS, "osd^"):
             for method, ls in (("rk4", "-"), ("dopri54", "--"), ("bdf", ":")):
                 pts = [(r["cpu_ms"], r["error"]) for r in f_rows
                        if r["scene"] == scene_name and r["formulation"] == form

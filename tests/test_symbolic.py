@@ -76,3 +76,16 @@ def test_the_book_matrices_that_differ_from_their_derivation(root):
     ok = {r["equation"] for r in rows if r["verdict"] == "OK"}
     assert {"(2.31)", "(2.32)", "(2.33)", "(2.150)", "(2.151)", "(3.64)"} <= ok
     assert all(r["why"] for r in rows if r["verdict"] == "WRONG")
+
+
+def test_spatial_drivers_agree_with_their_derivation():
+    """The spatial drivers, which no built-in scene has: a slider driven along an inclined
+    prismatic guide and a crank driven about its hinge (rheonomic rows: Phi_t, and gamma with
+    C_t w and Phi_tt)."""
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+    from test_spatial import _driven_crank, _driven_slider
+    for sc in (_driven_slider(), _driven_crank(rate=0.7, amplitude=0.4)):
+        r = symbolic.cross_check(sc, states=3)
+        for k in ("phi", "D", "gamma", "phit"):
+            assert r[k] < 1e-13, (sc.source, k, r[k])
+        assert r["a"] < 1e-12

@@ -187,7 +187,7 @@ def _spatial_report(sc) -> SceneReport:
             c[:, 6 * b + 3:6 * b + 6] /= scale
         dep = dependent_rows(c)
         redundant = [name for name, r0, n in table if any(r0 <= r < r0 + n for r in dep)]
-    constraints = [ConstraintInfo(name, j.type, n, True, j.type == "angle_driver", True)
+    constraints = [ConstraintInfo(name, j.type, n, True, j.type.endswith("_driver"), True)
                    for (name, _r0, n), j in zip(table, sc.joints)]
     index, reason = _index(rows, True)
     return SceneReport(sc.name, "spatial", nb, coords, 6 * nb, rows, rank, 6 * nb - rank,

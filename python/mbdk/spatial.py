@@ -28,7 +28,9 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
     type = "spherical"             # spherical | revolute | universal | cylindrical | prismatic
     body1 = "top"                  #   | fixed | angle_driver (body1 turns relative to body2
                                    #   about axis by function(t) from its start, f(t0) = 0;
-                                   #   with a revolute joint on that axis)
+                                   #   with a revolute joint on that axis) | slide_driver (body1's
+                                   #   point slides from body2's along axis by function(t), in
+                                   #   metres, f(t0) = 0; with a prismatic joint on that axis)
     body2 = "ground"               # the default
     at = [0.0, 0.0, 0.0]           # the joint's point in space at the start; or point1 (body1
                                    # frame) and point2 (body2 frame; global for the ground)
@@ -42,10 +44,12 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
                                    # body2, point2 or at1/at2, stiffness, damping, rest_length:
                                    # default the initial length)
 
-Formulations: reduced, baumgarte, projection (the penalty form and trapezoidal_index3 are the
-planar model's: refused by name). Every ODE method runs: fixed step and error-controlled
-(dopri54, bs32, bdf; cvode_* on reduced and baumgarte); euler_cromer does not (its layout is
-y = [q, q'], and a spatial body's velocities are not its coordinates' rates).
+Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
+default (1e7, 10, 1)), projection (trapezoidal_index3 and the DAE forms are the planar model's:
+refused by name). Drivers: angle_driver and slide_driver. Every ODE method runs: fixed step
+and error-controlled (dopri54, bs32, bdf; cvode_* on reduced and baumgarte); euler_cromer does
+not (its layout is y = [q, q'], and a spatial body's velocities are not its coordinates'
+rates).
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
@@ -68,11 +72,13 @@ from .scene import GROUND, SceneError, _Reader, section_items
 
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
-FORMULATIONS = {"reduced": 1, "baumgarte": 2, "projection": 4}
+FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
-               "fixed": 6, "angle_driver": 7}
+               "fixed": 6, "angle_driver": 7, "slide_driver": 8}
 JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5,
-              "fixed": 6, "angle_driver": 1}
+              "fixed": 6, "angle_driver": 1, "slide_driver": 1}
+#: the drivers: rows that follow a time function, f(t0) = 0
+DRIVERS = {"angle_driver": "turns body1", "slide_driver": "slides body1's point"}
 FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, "spring": 4,
                "damper": 4}
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
@@ -345,12 +351,13 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
         p2 = r.vec3("point2", np.zeros(3))
     a1 = a2 = np.array([0.0, 0.0, 1.0])
     fn = (0.0, 0.0, 0.0, 0.0, 0.0)
-    if typ == "angle_driver":
+    if typ in DRIVERS:
         fn = r.function("function", None)
         if fn is None:
-            raise r.err("function", "is missing: an angle driver needs the angle's time "
+            what = "angle" if typ == "angle_driver" else "slide (metres)"
+            raise r.err("function", f"is missing: a driver needs the {what}'s time "
                                     "function, a number or {offset, rate, amplitude, omega, phase}")
-    if typ in ("revolute", "cylindrical", "prismatic", "angle_driver"):
+    if typ in ("revolute", "cylindrical", "prismatic", "angle_driver", "slide_driver"):
         ax = r.unit3("axis", required=True)
         a1, a2 = R1.T @ ax, R2.T @ ax
     elif typ == "universal":
@@ -663,7 +670,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
-                     outputs=None, **unsupported) -> SpatialResult:
+                     outputs=None, penalty=None, **unsupported) -> SpatialResult:
     """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
     docstring). Options of the planar path that do not apply are refused by name; outputs is
     checked and otherwise moot: a spatial run computes every output at its samples."""
@@ -674,8 +681,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     bad = sorted(k for k, v in unsupported.items() if v is not None)
     if bad:
         raise NotApplicableError(f"{', '.join(bad)}: not options of a spatial scene run (its "
-                                 "formulations: reduced, baumgarte, projection; solver, "
-                                 "penalty and the index-3 options are the planar model's)")
+                                 "formulations: reduced, baumgarte, penalty, projection; solver "
+                                 "and the index-3 options are the planar model's)")
     if outputs is not None:
         from .simulate import _want
         _want(outputs)
@@ -685,7 +692,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         raise NotApplicableError(
             f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
-            "baumgarte or projection formulation")
+            "baumgarte, penalty or projection formulation")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
@@ -695,6 +702,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     if not isinstance(formulation, str) or formulation not in FORMULATIONS:
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
                                  f"spatial scenes run {', '.join(FORMULATIONS)}")
+    if penalty is not None and formulation != "penalty":
+        raise InvalidInputError(f"penalty = {penalty!r}: an option of the penalty formulation; "
+                                f"this run's is {formulation!r}")
+    penalty = (1e7, 10.0, 1.0) if penalty is None else penalty
     if method.startswith("cvode") and formulation == "projection":
         raise NotApplicableError(f"{method} with the projection formulation: CVODE cannot "
                                  "change the state between its steps; use reduced or baumgarte")
@@ -723,15 +734,15 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         adaptive = None
         href = h
     plan_ = _ode_plan(info_m, formulation, href, t_end, t0, int(every), alpha, beta,
-                      (1e7, 10.0, 1.0), projection_tol, startup, newton_rtol, newton_atol,
-                      adaptive)
+                      penalty, projection_tol, startup, newton_rtol, newton_atol, adaptive)
     opt = plan_["ode"]
     from dataclasses import replace
     opt = replace(opt, method=info_m.id)
     w = as_watch(watch)
     sopt = np.array([FORMULATIONS[formulation], ROTATIONS[sc.rotation], NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
-                     w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every], dtype=float)
+                     w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
+                     *penalty], dtype=float)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
     _check_initial(sc, y0, assemble_initial, float(t0))
@@ -751,7 +762,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     manifest = {**build_info(), "scene": sc.name, "kind": "spatial", "method": method,
                 "formulation": formulation, "rotation": sc.rotation,
                 "quaternion_norm": sc.quaternion_norm, "t0": t0, "t_end": t_end,
-                **plan_["manifest"], "linear_solve": "dense Schur complement (LAPACK dpotrf)",
+                **plan_["manifest"],
+                "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
+                                 if formulation == "penalty" else
+                                 "dense Schur complement (LAPACK dpotrf)"),
                 "watch": {"position": w.position, "velocity": w.velocity,
                           "energy": w.energy, "every": w.every}}
     if formulation == "projection":
@@ -852,13 +866,13 @@ def _check_initial(sc, y0, assemble, t0=0.0):
     if not sc.joints:
         return
     for j in sc.joints:
-        if j.type == "angle_driver":
+        if j.type in DRIVERS:
             c = j.function
             f0 = c[0] + c[1] * t0 + c[2] * math.sin(c[3] * t0 + c[4])
             if abs(f0) > 1e-12:
                 raise SceneError(
                     f"{sc.source}: joint {j.name!r}: field 'function' gives f(t0) = {f0:.6g} at "
-                    f"t0 = {t0:g}: an angle driver turns body1 by f(t) from where it starts, so "
+                    f"t0 = {t0:g}: a driver {DRIVERS[j.type]} by f(t) from where it starts, so "
                     "f(t0) must be 0 (shift the offset or the phase)")
     ev = evaluate_spatial(sc, y0, t0)
     if ev["rank"] == 0 and sc.rows:

@@ -4,10 +4,10 @@ of mbdk.symbolic.
 
 Each joint is written as the kernel's primitive constraints, from their definitions: a point
 on a point P_i - P_j (P = r + R s), two vectors normal, (R_i u_i) . (R_j u_j), a vector normal
-to the points' offset, (R_j u_j) . (P_i - P_j), and an angle driver's sin(theta - f(t)) =
-cos f (u . w) - sin f (u . v); with the kernel's choice of the vectors (the two normals of an
-axis, a prismatic joint's and a driver's reference taken at the initial frames), so that the
-rows are the same functions. What SymPy derives, and the kernel writes out by hand, is their
+to the points' offset, (R_j u_j) . (P_i - P_j), an angle driver's sin(theta - f(t)) =
+cos f (u . w) - sin f (u . v) and a slide driver's (R_j a_j) . (P_i - P_j) - f(t); with the
+kernel's choice of the vectors (the two normals of an axis, a prismatic joint's and a driver's
+reference taken at the initial frames), so that the rows are the same functions. What SymPy derives, and the kernel writes out by hand, is their
 derivatives: along the motion r(s) = r + v s, R(s) = R exp(s skew(W)) (W in the body frame,
 so exp(s W^) = I + s W^ + s^2 W^2 / 2 to the order needed), t(s) = t + s,
     Phi'(0) = C w + Phi_t,   Phi''(0) = -gamma   (w' = 0),
@@ -89,7 +89,7 @@ def derive_spatial(sc):
     for k in range(nj):
         typ, (bi, bj), re = int(jtype[k]), jbody[:, k], jreal[:, k]
         si, sj, ai, aj, fn = re[0:3], re[3:6], re[6:9], re[9:12], re[12:17]
-        if typ in (2, 3, 4, 5, 7):
+        if typ in (2, 3, 4, 5, 7, 8):
             ai, aj = ai / np.linalg.norm(ai), aj / np.linalg.norm(aj)
         b1, b2 = _normals(aj) if np.linalg.norm(aj) > 0 else (np.eye(3)[0], np.eye(3)[1])
         sph = list(point(bi, si) - point(bj, sj))
@@ -114,11 +114,15 @@ def derive_spatial(sc):
         elif typ == 6:
             e = ri.T @ rj
             rows += sph + [dot1(e[:, m], np.eye(3)[(m + 1) % 3]) for m in range(3)]
-        elif typ == 7:
+        elif typ in (7, 8):
             off, rate, amp, om, ph = (float(x) for x in fn)
             f = off + rate * ts + amp * sp.sin(om * ts + ph)
-            u = vec(bi, ri.T @ rj @ b1)
-            rows.append(sp.cos(f) * (u.T * vec(bj, b2))[0] - sp.sin(f) * (u.T * vec(bj, b1))[0])
+            if typ == 7:
+                u = vec(bi, ri.T @ rj @ b1)
+                rows.append(sp.cos(f) * (u.T * vec(bj, b2))[0]
+                            - sp.sin(f) * (u.T * vec(bj, b1))[0])
+            else:
+                rows.append(dot2(aj) - f)
         else:
             raise InvalidInputError(f"{sc.source}: joint type code {typ} has no symbolic form")
 

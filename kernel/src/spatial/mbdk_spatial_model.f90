@@ -23,6 +23,9 @@
 !> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
 !>   1 reduced      C w' = gamma
 !>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
+!>   3 penalty      (M + ap C^T C) w' = f - ap C^T (-gamma + 2 mu om Phi' + om^2 Phi),
+!>                  lam = ap (C w' - gamma + 2 mu om Phi' + om^2 Phi)   (Jalon-Bayo (3.35)-(3.40);
+!>                  definite with redundant joints, so no rows are chosen)
 !>   4 projection   reduced, then after every step the positions are moved back onto Phi = 0
 !>                  (Gauss-Newton with the least mass-weighted change, dr and the body-frame
 !>                  rotation dtheta) and the velocities onto C w + Phi_t = 0.
@@ -44,6 +47,11 @@
 !>   cylindrical 4 rows  a_i parallel to a_j, and the joint points' offset normal to a_j's normals
 !>   prismatic   5 rows  cylindrical, and the rotation about the axis kept at its initial value
 !>   fixed       6 rows  spherical, and the relative orientation kept at its initial value
+!>   slide_driver 1 row  the offset of body i's point from body j's along the axis a_j (body j
+!>                       frame; with a prismatic or cylindrical joint on that axis) follows
+!>                       f(t): Phi = (R_j a_j) . (P_i - P_j) - f(t), the points together at the
+!>                       start (f(t0) = 0); the drive of a slider, a translation's twin of
+!>                       angle_driver
 !>   angle_driver 1 row  the rotation of body i relative to body j about the axis (a_i in i,
 !>                       a_j in j; with a revolute joint on that axis) from its initial value
 !>                       follows f(t): Phi = sin(theta - f(t)), theta measured with two vectors
@@ -81,9 +89,10 @@ module mbdk_spatial_model
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
-    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_ANGLE_DRIVER = 7, MBDK_SPATIAL_JOINT_TYPES = 7
+    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_ANGLE_DRIVER = 7, MBDK_SPATIAL_SLIDE_DRIVER = 8, &
+    MBDK_SPATIAL_JOINT_TYPES = 8
   integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
-    [3, 5, 4, 4, 5, 6, 1]
+    [3, 5, 4, 4, 5, 6, 1, 1]
   integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
     MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_FORCE_TYPES = 4
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 9
@@ -93,7 +102,7 @@ module mbdk_spatial_model
     MBDK_NORM_NONE = 3
   !> the formulations, with the codes of the planar model's (mbdk_model)
   integer, parameter, public :: MBDK_SPATIAL_REDUCED = 1, MBDK_SPATIAL_BAUMGARTE = 2, &
-    MBDK_SPATIAL_PROJECTION = 4
+    MBDK_SPATIAL_PENALTY = 3, MBDK_SPATIAL_PROJECTION = 4
   !> outputs per sample (mbdk_spatial_outputs)
   integer, parameter, public :: MBDK_SPATIAL_NOUT = 7
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
@@ -113,13 +122,16 @@ module mbdk_spatial_model
   !> planar model's window (MBDK_MODEL_NEAR_PIVOT, whose comment says why it is this wide); the
   !> stabilised formulations keep the constraints through such a step, and test REDUNDANT_RTOL.
   real(dp), parameter, public :: MBDK_SPATIAL_NEAR_PIVOT = 1.0e-4_dp
-  integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4
+  integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
+    PRIM_SLIDE = 5
 
   type, public :: mbdk_spatial_options_t
     integer :: formulation = MBDK_SPATIAL_REDUCED
     integer :: rotation = MBDK_ROT_QUATERNION
     integer :: norm = MBDK_NORM_PROJECT
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
+    !> Jalon-Bayo's penalty (3.35)-(3.40): alpha_p, omega_p, mu_p
+    real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp
     real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
     real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
     real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
@@ -131,7 +143,8 @@ module mbdk_spatial_model
   type :: prim_t
     integer :: kind = 0, bi = 0, bj = 0, row = 0
     real(dp) :: si(3) = 0.0_dp, sj(3) = 0.0_dp, ui(3) = 0.0_dp, uj(3) = 0.0_dp
-    !> PRIM_ANGLE: the second reference vector on body j (a_j x uj) and the time function
+    !> PRIM_ANGLE: the second reference vector on body j (a_j x uj) and the time function;
+    !> PRIM_SLIDE: the time function
     real(dp) :: wj(3) = 0.0_dp, fn(5) = 0.0_dp
   end type prim_t
 
@@ -203,8 +216,11 @@ contains
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
         MBDK_SPATIAL_FORCE_REALS .or. size(freal, 2) /= size(ftype)) return
-    if (opt%formulation /= MBDK_SPATIAL_REDUCED .and. opt%formulation /= &
-        MBDK_SPATIAL_BAUMGARTE .and. opt%formulation /= MBDK_SPATIAL_PROJECTION) return
+    if (opt%formulation < MBDK_SPATIAL_REDUCED .or. opt%formulation > &
+        MBDK_SPATIAL_PROJECTION) return
+    if (opt%formulation == MBDK_SPATIAL_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
+        opt%pen_omega > 0.0_dp .and. opt%pen_mu > 0.0_dp .and. opt%pen_alpha <= huge(1.0_dp) &
+        .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
     if (.not. (opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp &
@@ -262,7 +278,7 @@ contains
         aj = r(10:12)
         if (any(jtype(j) == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, &
                              MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC, &
-                             MBDK_SPATIAL_ANGLE_DRIVER])) then
+                             MBDK_SPATIAL_ANGLE_DRIVER, MBDK_SPATIAL_SLIDE_DRIVER])) then
           if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
           ai = ai / norm2(ai)
           aj = aj / norm2(aj)
@@ -292,6 +308,11 @@ contains
           call add(PRIM_ANGLE, zero3, zero3, &
                    matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
           model%prim(model%nprim)%wj = b2
+          model%prim(model%nprim)%fn = r(13:17)
+          model%has_drivers = .true.
+        case (MBDK_SPATIAL_SLIDE_DRIVER)
+          ! the offset of the joint points along a_j (on body j) follows f(t)
+          call add(PRIM_SLIDE, r(1:3), r(4:6), zero3, aj)
           model%prim(model%nprim)%fn = r(13:17)
           model%has_drivers = .true.
         case (MBDK_SPATIAL_FIXED)
@@ -525,6 +546,21 @@ contains
           hd = pvel(i, pr%si) - pvel(j, pr%sj)
           gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
                      + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj)))
+        case (PRIM_SLIDE)
+          ! Phi = d . h - f(t), d = R_j u_j, h = P_i - P_j: PRIM_DOT2 less the slide f(t)
+          call mbdk_time_fn(pr%fn, t, f, fd, fdd)
+          dj = matmul(fr%rot(:, :, j), pr%uj)
+          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+          h = pi - pj
+          phi(r) = dot_product(dj, h) - f
+          call point_row(c(r, :), i, pr%si, dj)
+          call point_row(c(r, :), j, pr%sj, -dj)
+          call vec_cols(c(r, :), j, pr%uj, h)
+          hd = pvel(i, pr%si) - pvel(j, pr%sj)
+          if (present(phit)) phit(r) = -fd
+          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
+                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj))) + fdd
         case (PRIM_ANGLE)
           ! Phi = cos f (u . w) - sin f (u . v) = sin(theta - f): u = R_i ui, v = R_j uj,
           ! w = R_j wj; A = u . w = sin theta, B = u . v = cos theta
@@ -977,7 +1013,12 @@ contains
       gen(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
     end do
     call apply_minv(self, gen, acc)
-    if (self%m > 0) then
+    if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
+      call constraints(self, fr, t, phi, c, gam, phit)
+      call penalty_solve(stat)
+      if (stat /= MBDK_SUCCESS) return
+      if (present(lam)) lam = l
+    else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
       if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
         gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
@@ -1008,6 +1049,39 @@ contains
     end do
     f(wi(self, 1):) = acc
     stat = MBDK_SUCCESS
+
+  contains
+
+    !> Jalon-Bayo (3.35)-(3.40) on the velocities w: (M + ap C^T C) w' = gen - ap C^T r with
+    !> r = -gamma + 2 mu omega (C w + Phi_t) + omega^2 Phi, lam = ap (C w' + r); M + ap C^T C
+    !> is definite whatever the rank of C, so redundant joints need no choice of rows
+    subroutine penalty_solve(st)
+      integer, intent(out) :: st
+      real(dp) :: a(6 * self%nb, 6 * self%nb), r(self%m)
+      integer :: bb, oo, kk
+      associate (ap => self%opt%pen_alpha, om => self%opt%pen_omega, mu => self%opt%pen_mu)
+        r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):)) + phit) + om**2 * phi
+        a = ap * matmul(transpose(c), c)
+        do bb = 1, self%nb
+          oo = (bb - 1) * 6
+          do kk = 1, 3
+            a(oo + kk, oo + kk) = a(oo + kk, oo + kk) + self%mass(bb)
+          end do
+          a(oo + 4:oo + 6, oo + 4:oo + 6) = a(oo + 4:oo + 6, oo + 4:oo + 6) + &
+                                            self%inertia(:, :, bb)
+        end do
+        acc = gen - ap * matmul(transpose(c), r)
+        call mbdk_chol_factor(a, st)
+        if (st /= MBDK_SUCCESS) then
+          st = MBDK_ERR_SINGULAR_MATRIX
+          return
+        end if
+        call mbdk_chol_solve(a, acc, st)
+        if (st /= MBDK_SUCCESS) return
+        l = ap * (matmul(c, acc) + r)
+      end associate
+    end subroutine penalty_solve
+
   end subroutine spatial_accelerations
 
   !> Phi (m), C (m x 6 nb), gamma (m) and Phi_t (m) at (t, y) (tests check C, gamma and Phi_t
