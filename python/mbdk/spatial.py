@@ -45,8 +45,9 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
                                    # default the initial length)
 
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
-default (1e7, 10, 1)), projection (trapezoidal_index3 and the DAE forms are the planar model's:
-refused by name). Drivers: angle_driver and slide_driver. Every ODE method runs: fixed step
+default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
+(kernel/src/spatial/mbdk_spatial_dae.f90). trapezoidal_index3, ida and bdf's si2 are the
+planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method runs: fixed step
 and error-controlled (dopri54, bs32, bdf; cvode_* on reduced and baumgarte); euler_cromer does
 not (its layout is y = [q, q'], and a spatial body's velocities are not its coordinates'
 rates).
@@ -699,9 +700,11 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                  "not its coordinates' rates; use symplectic methods on planar "
                                  "scenes, or rk4 here")
     formulation = "reduced" if formulation is None else formulation
-    if not isinstance(formulation, str) or formulation not in FORMULATIONS:
+    dae = formulation == "i3" and info_m.family == "variable_bdf"
+    if not isinstance(formulation, str) or (formulation not in FORMULATIONS and not dae):
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
-                                 f"spatial scenes run {', '.join(FORMULATIONS)}")
+                                 f"spatial scenes run {', '.join(FORMULATIONS)}, and bdf also "
+                                 "'i3' (the index-3 DAE itself)")
     if penalty is not None and formulation != "penalty":
         raise InvalidInputError(f"penalty = {penalty!r}: an option of the penalty formulation; "
                                 f"this run's is {formulation!r}")
@@ -739,7 +742,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     from dataclasses import replace
     opt = replace(opt, method=info_m.id)
     w = as_watch(watch)
-    sopt = np.array([FORMULATIONS[formulation], ROTATIONS[sc.rotation], NORMS[sc.quaternion_norm],
+    sopt = np.array([FORMULATIONS["reduced" if dae else formulation], ROTATIONS[sc.rotation],
+                     NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
                      *penalty], dtype=float)
@@ -750,8 +754,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     m1 = max(sc.rows, 1)
     nsamp = plan_["nsamp"]
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
-            flag, np.zeros(0), y0, int(bool(assemble_initial)), float(t0), float(t_end), nsamp,
-            m1, stats)
+            flag, np.zeros(0), y0, int(bool(assemble_initial)), int(dae), float(t0),
+            float(t_end), nsamp, m1, stats)
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0))
     status = Status(int(status))
@@ -770,6 +774,11 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                           "energy": w.energy, "every": w.every}}
     if formulation == "projection":
         manifest["projection_tol"] = projection_tol
+    if dae:
+        manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
+                            "0 = Phi on the independent rows; error test on q and h times w; "
+                            "the quaternion norm kept by the kinematic equation alone")
+        manifest["linear_solve"] = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
     result = SpatialResult(
         t=t[:nw], q=ys[:, :nq], w=ys[:, nq:], energy=o[:, 0] + o[:, 1] + o[:, 2],
         energy_parts={"kinetic": o[:, 0], "gravity": o[:, 1], "springs": o[:, 2],

@@ -848,24 +848,26 @@ end subroutine quaternion_omega
 
 subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
                        freal, nso, sopt, noptw, optbuf, interrupt, natol, atol, n, y0, assemble, &
-                       t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, nstatw, &
-                       statbuf, moved, watch_report, status)
+                       dae_form, t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, &
+                       nstatw, statbuf, moved, watch_report, status)
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
   ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
   ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu. The tables have nj1 = max(nj, 1) columns (nf1
   ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
   ! (moved: the largest change of a state). out(MBDK_SPATIAL_OUTPUTS, nsamp) and lam_out(m1,
   ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
-  ! none). watch_report as scene_run's.
+  ! none). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
+  ! the DAE's own). watch_report as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_solve, only: mbdk_solve_ode
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
+  integer, intent(in) :: dae_form
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
@@ -931,7 +933,17 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     call mbdk_spatial_assemble(model, t0, y, moved, status)
     if (status /= MBDK_SUCCESS) return
   end if
-  call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
+  if (dae_form == 1) then
+    lam_out = 0.0d0
+    call mbdk_solve_spatial_dae(model, opt, t0, t_end, y, t_out, y_out, lam_out, nwritten, st, &
+                                status)
+    lam_out(:, nwritten + 1:) = nan
+  else if (dae_form == 0) then
+    call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
+  else
+    status = MBDK_ERR_INVALID_INPUT
+    return
+  end if
   s = status
   do k = 1, nwritten
     call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status)
@@ -939,7 +951,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
       out(:, k) = nan
       cycle
     end if
-    call spatial_lambda(y_out(:, k))
+    if (dae_form == 0) call spatial_lambda(y_out(:, k))
   end do
   status = s
   statbuf = transfer(st, statbuf, nstatw)

@@ -29,9 +29,12 @@ module mbdk_solve
     MBDK_FORM_REDUCED
   use mbdk_ida, only: mbdk_ida_solve
   use mbdk_scene_dae, only: mbdk_scene_dae_t, mbdk_scene_dae_init, MBDK_DAE_I3
+  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_multipliers, &
+    mbdk_spatial_constraints, MBDK_SPATIAL_REDUCED
+  use mbdk_spatial_dae, only: mbdk_spatial_dae_t, mbdk_spatial_dae_init
   implicit none
   private
-  public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae
+  public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae, mbdk_solve_spatial_dae
 
   !> bdf on a scene's DAE: |Phi(q0)| and |D v0 + Phi_t| (per unit of |v0|) a consistent start
   !> keeps; the assembly of mbdk_model_start reaches 1e-12
@@ -211,6 +214,83 @@ contains
     end subroutine bdf_on_dae
 
   end subroutine mbdk_solve_scene_dae
+
+  !> bdf on a spatial scene's index-3 DAE (mbdk_spatial_dae, as GSTIFF I3), from y0 = [q0; w0]
+  !> on the joints: Y(0) = [q0; w0; lam0] and Y'(0) = [q'; w'; 0] from the model's reduced
+  !> solve (its formulation must be reduced). y_out gets [q; w] at the samples, lam_out(1:m, k)
+  !> the multipliers (zero on the rows a redundant scene leaves out). A start off the joints
+  !> (|Phi| or |C w + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL.
+  subroutine mbdk_solve_spatial_dae(model, opt, t0, t_end, y0, t_out, y_out, lam_out, &
+                                    nwritten, st, stat)
+    type(mbdk_spatial_model_t), intent(in), target :: model
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end, y0(:)
+    real(dp), intent(out) :: t_out(:), y_out(:, :)
+    real(dp), intent(inout) :: lam_out(:, :)
+    integer, intent(out) :: nwritten
+    type(mbdk_stats_t), intent(out) :: st
+    integer, intent(out) :: stat
+    character(len=MBDK_METHOD_NAME_LEN) :: name
+    integer :: family, order, nsamp, ny, m, nq, k
+    real(dp) :: no_atol(0)
+    real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), lam0(:), f0(:), phi(:), c(:, :), &
+      gam(:), phit(:)
+    type(mbdk_timer_t) :: timer
+    type(mbdk_spatial_dae_t) :: dae
+    nwritten = 0
+    call mbdk_method_info(opt%method, name, family, order)
+    stat = MBDK_ERR_NOT_APPLICABLE
+    if (family /= MBDK_FAMILY_VARIABLE_BDF .or. model%opt%formulation /= MBDK_SPATIAL_REDUCED) &
+      return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (opt%max_order > max_order_of(family, order)) return
+    ny = size(y0)
+    m = model%m
+    nq = ny - 6 * model%nb
+    call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
+    if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
+    call solve(stat)
+    call mbdk_timer_stop(timer, st)
+
+  contains
+
+    !> the DAE from the consistent start, and its samples copied out
+    subroutine solve(s)
+      integer, intent(out) :: s
+      call mbdk_spatial_dae_init(dae, model, ny, mass, s)
+      if (s /= MBDK_SUCCESS) return
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), lam0(m), f0(ny), phi(m), c(m, ny - nq), &
+                gam(m), phit(m))
+      if (m > 0) then
+        call mbdk_spatial_constraints(model, t0, y0, phi, c, gam, phit, s)
+        if (s /= MBDK_SUCCESS) return
+        s = MBDK_ERR_INCONSISTENT_INITIAL
+        if (maxval(abs(phi)) > CONSISTENT_PHI .or. maxval(abs(matmul(c, y0(nq + 1:)) + phit)) > &
+            CONSISTENT_PHI * max(1.0_dp, maxval(abs(y0(nq + 1:))))) return
+        call mbdk_spatial_multipliers(model, t0, y0, lam0, s)
+        if (s /= MBDK_SUCCESS) return
+      end if
+      call model%rhs(t0, y0, f0, s)
+      if (s /= MBDK_SUCCESS) return
+      yd(1:ny) = y0
+      yd(ny + 1:) = lam0(dae%rows)
+      ypd = 0.0_dp
+      ypd(1:ny) = f0
+      ys(:, 1) = yd
+      ! the velocities are index-2 variables: the error test sees h times theirs (as bdf on the
+      ! planar scene's i3 form), and not the multipliers'
+      call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, st, &
+                                   s, mass=mass, yp0=ypd, ntest=nq, nindex2=ny - nq)
+      do k = 1, nwritten
+        y_out(:, k) = ys(1:ny, k)
+        if (k <= size(lam_out, 2) .and. size(lam_out, 1) >= m) then
+          lam_out(1:m, k) = 0.0_dp
+          lam_out(dae%rows, k) = ys(ny + 1:, k)
+        end if
+      end do
+    end subroutine solve
+
+  end subroutine mbdk_solve_spatial_dae
 
   !> The largest max_order a method takes: its top order for the variable-order ones (bdf,
   !> cvode_*, ida), 0 for the explicit pairs (their order is fixed).

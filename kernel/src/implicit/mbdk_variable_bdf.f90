@@ -160,6 +160,8 @@ contains
       ! the slope is given; the explicit-Euler probe of the ODE guess means nothing for the
       ! algebraic rows, so the first step is 1 % of the time |y|/|y'| takes (Hairer's h0)
       f = yp0
+      ! (weights scales the index-2 components by h, which is not chosen yet: unscaled here)
+      h = 1.0_dp
       call weights(y0)
       d0 = mbdk_adaptive_wrms(y0, w)
       d1 = mbdk_adaptive_wrms(f, w)

@@ -85,7 +85,7 @@ module mbdk_spatial_model
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
-    mbdk_spatial_multipliers, mbdk_spatial_constraints
+    mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
@@ -990,13 +990,16 @@ contains
     call spatial_accelerations(self, t, y, f, stat)
   end subroutine spatial_rhs
 
-  !> F(t, y) and, optionally, the multipliers lam (m).
-  subroutine spatial_accelerations(self, t, y, f, stat, lam)
+  !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
+  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), and phi_out receives Phi.
+  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: lam(:)
+    real(dp), intent(in), optional :: lam_in(:)
+    real(dp), intent(out), optional :: phi_out(:)
     type(frames_t) :: fr
     real(dp) :: fw(3, self%nb), nbd(3, self%nb), vg, vs, power, acc(6 * self%nb), &
       gen(6 * self%nb), phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
@@ -1013,7 +1016,14 @@ contains
       gen(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
     end do
     call apply_minv(self, gen, acc)
-    if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
+    if (self%m > 0 .and. present(lam_in)) then
+      call constraints(self, fr, t, phi, c, gam, phit)
+      do k = 1, self%m
+        call apply_minv(self, c(k, :), mc(:, k))
+      end do
+      acc = acc - matmul(mc, lam_in)
+      if (present(phi_out)) phi_out = phi
+    else if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
       call constraints(self, fr, t, phi, c, gam, phit)
       call penalty_solve(stat)
       if (stat /= MBDK_SUCCESS) return
@@ -1083,6 +1093,18 @@ contains
     end subroutine penalty_solve
 
   end subroutine spatial_accelerations
+
+  !> The DAE form's right-hand side at (t, y = [q; w]) with the multipliers lam (m; zero on
+  !> the rows a redundant scene leaves out): f = [q'; w'], w' = M^-1 (f - C^T lam - W x J W
+  !> terms as Newton-Euler's), and phi = Phi (m) (mbdk_spatial_dae).
+  subroutine mbdk_spatial_dae_rhs(model, t, y, lam, f, phi, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, y(:), lam(:)
+    real(dp), intent(out) :: f(:), phi(:)
+    integer, intent(out) :: stat
+    phi = 0.0_dp
+    call spatial_accelerations(model, t, y, f, stat, lam_in=lam, phi_out=phi)
+  end subroutine mbdk_spatial_dae_rhs
 
   !> Phi (m), C (m x 6 nb), gamma (m) and Phi_t (m) at (t, y) (tests check C, gamma and Phi_t
   !> against differences of Phi along the motion).
