@@ -779,3 +779,60 @@ def test_bdf_i3_on_a_spatial_scene_is_reproducible():
                   atol=1e-8, t_end=0.1)
     b = mbdk.simulate(sc, "bdf", formulation="i3", rtol=1e-6, atol=1e-8, t_end=0.5, dt_out=0.1)
     assert np.array_equal(a.y, b.y) and a.stats.steps == b.stats.steps
+
+
+def _slide_between_moving_bodies():
+    """A slide driver between two bodies in general positions, both moving and turning, its
+    points off their centres (every term of the row: body i's and body j's rotations and
+    velocities), f(t) = 0.3 t + 0.1 sin(2 t)."""
+    return spatial_scene_from_dict({
+        "body": [body("a", position=[0.1, 0.2, 0.3], cardan123=[0.3, -0.2, 0.5],
+                      omega_body=[0.4, -0.3, 0.9], velocity=[0.2, 0.1, -0.3]),
+                 body("b", 2.0, (0.3, 0.2, 0.4), position=[0.8, 0.1, -0.2],
+                      cardan123=[-0.4, 0.6, 0.1], omega_body=[-0.5, 0.2, 0.3],
+                      velocity=[-0.1, 0.4, 0.2])],
+        "joint": [{"name": "slide", "type": "slide_driver", "body1": "b", "body2": "a",
+                   "at": [0.5, 0.1, 0.0], "axis": [0.0, 0.6, 0.8],
+                   "function": {"rate": 0.3, "amplitude": 0.1, "omega": 2.0}}],
+        "force": [{"type": "gravity", "g": [0.0, 0.0, -G]}]}, "slide.toml")
+
+
+def test_a_slide_driver_between_moving_bodies_has_the_derivatives_of_its_phi():
+    sc = _slide_between_moving_bodies()
+    rng = np.random.default_rng(6)
+    y = moved(sc, sc.state0(), rng.normal(0, 0.2, 12), 1.0)
+    w = rng.normal(0, 1.0, 12)
+    y[14:] = w
+    t, eps = 0.4, 1e-6
+    e = evaluate_spatial(sc, y, t)
+    p, mnus = (evaluate_spatial(sc, moved(sc, y, w, s * eps), t + s * eps) for s in (1, -1))
+    assert np.max(np.abs((p["phi"] - mnus["phi"]) / (2 * eps) - (e["C"] @ w + e["phi_t"]))) < 1e-8
+    rate = ((p["C"] @ w + p["phi_t"]) - (mnus["C"] @ w + mnus["phi_t"])) / (2 * eps)
+    assert np.max(np.abs(e["gamma"] + rate)) < 1e-6
+    # every block of the row is in play: body b's v and Omega, body a's v and Omega
+    assert all(np.abs(e["C"][0, k:k + 3]).max() > 1e-3 for k in (0, 3, 6, 9))
+
+
+def test_bdf_i3_on_a_driven_slider():
+    """The DAE form with a rheonomic row: the slide follows f(t), and the DAE's own multiplier
+    is the driving force m g . u - m s'' (the watch's drivers' power takes it too)."""
+    sc = _driven_slider()
+    r = mbdk.simulate(sc, "bdf", formulation="i3", rtol=1e-9, atol=1e-11, t_end=2.0,
+                      dt_out=0.1)
+    u = np.array([0.6, 0.0, 0.8])
+    s = 0.2 * np.sin(3.0 * r.t)
+    assert np.max(np.abs(r.position("s") - s[:, None] * u)) < 1e-9
+    lam = 3.0 * (np.array([0.0, 0.0, -G]) @ u) + 3.0 * 0.2 * 9.0 * np.sin(3.0 * r.t)
+    assert np.max(np.abs(r.multipliers[:, -1] - lam)) < 1e-5
+    assert "no projection" in r.manifest["form"] and r.manifest["quaternion_norm"].startswith(
+        "none")
+
+
+@pytest.mark.parametrize("method, kw, error, text", [
+    ("rk4", dict(formulation="i3", h=1e-3), mbdk.NotApplicableError, "'i3'"),
+    ("bdf", dict(formulation="i3", penalty=(1e6, 10.0, 1.0), rtol=1e-6, atol=1e-8),
+     mbdk.InvalidInputError, "penalty"),
+])
+def test_the_dae_form_is_bdfs_and_named(method, kw, error, text):
+    with pytest.raises(error, match=text):
+        mbdk.simulate(mbdk.scene("heavy_top"), method, t_end=0.1, **kw)

@@ -89,3 +89,12 @@ def test_spatial_drivers_agree_with_their_derivation():
         for k in ("phi", "D", "gamma", "phit"):
             assert r[k] < 1e-13, (sc.source, k, r[k])
         assert r["a"] < 1e-12
+
+
+def test_a_slide_driver_between_moving_bodies_agrees_with_its_derivation():
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+    from test_spatial import _slide_between_moving_bodies
+    r = symbolic.cross_check(_slide_between_moving_bodies(), states=3)
+    for k in ("phi", "D", "gamma", "phit"):
+        assert r[k] < 1e-13, (k, r[k])
+    assert r["a"] < 1e-12

@@ -228,7 +228,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             watch=watch, raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
             newton_atol=newton_atol, solver=None if solver == "auto" else solver,
             small_dense=None if small_dense else small_dense,
-            penalty=None if penalty == (1e7, 10.0, 1.0) else penalty,
+            penalty=None if _is_default_penalty(penalty) else penalty,
             adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol, max_iter=max_iter,
             outputs=outputs)
     if not isinstance(scene, Scene):
@@ -672,6 +672,14 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
             # (a worker thread, interruptible)
             "steps": float(nsteps) if not adaptive else math.inf, "manifest": manifest,
             "adaptive": adaptive}
+
+
+def _is_default_penalty(penalty) -> bool:
+    """penalty is simulate's default (1e7, 10, 1), as a tuple, a list or an array."""
+    try:
+        return tuple(float(p) for p in penalty) == (1e7, 10.0, 1.0)
+    except (TypeError, ValueError):
+        return False
 
 
 def _fn_text(fn) -> str:

@@ -48,7 +48,7 @@ Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90). trapezoidal_index3, ida and bdf's si2 are the
 planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method runs: fixed step
-and error-controlled (dopri54, bs32, bdf; cvode_* on reduced and baumgarte); euler_cromer does
+and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection); euler_cromer does
 not (its layout is y = [q, q'], and a spatial body's velocities are not its coordinates'
 rates).
 
@@ -110,7 +110,7 @@ class SpatialJoint:
     point2: np.ndarray                  # body2 frame (space for the ground)
     axis1: np.ndarray                   # body1 frame
     axis2: np.ndarray                   # body2 frame
-    function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)   # angle_driver: the angle's time function
+    function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)   # a driver's time function (angle or slide)
 
 
 @dataclass
@@ -693,7 +693,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         raise NotApplicableError(
             f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
-            "baumgarte, penalty or projection formulation")
+            "baumgarte, penalty or projection formulation, and bdf on their DAE itself "
+            "(formulation 'i3')")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
@@ -765,7 +766,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     o = out[:, :nw].T
     manifest = {**build_info(), "scene": sc.name, "kind": "spatial", "method": method,
                 "formulation": formulation, "rotation": sc.rotation,
-                "quaternion_norm": sc.quaternion_norm, "t0": t0, "t_end": t_end,
+                "quaternion_norm": ("none (bdf on the DAE: no projection between its steps)"
+                                    if dae and sc.quaternion_norm == "project"
+                                    else sc.quaternion_norm), "t0": t0, "t_end": t_end,
                 **plan_["manifest"],
                 "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
                                  if formulation == "penalty" else
@@ -777,7 +780,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     if dae:
         manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
                             "0 = Phi on the independent rows; error test on q and h times w; "
-                            "the quaternion norm kept by the kinematic equation alone")
+                            "no projection between steps")
         manifest["linear_solve"] = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
     result = SpatialResult(
         t=t[:nw], q=ys[:, :nq], w=ys[:, nq:], energy=o[:, 0] + o[:, 1] + o[:, 2],

@@ -934,7 +934,6 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     if (status /= MBDK_SUCCESS) return
   end if
   if (dae_form == 1) then
-    lam_out = 0.0d0
     call mbdk_solve_spatial_dae(model, opt, t0, t_end, y, t_out, y_out, lam_out, nwritten, st, &
                                 status)
     lam_out(:, nwritten + 1:) = nan
@@ -946,7 +945,12 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   s = status
   do k = 1, nwritten
-    call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status)
+    if (dae_form == 1) then   ! the drivers' power with the DAE's own multipliers
+      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status, &
+                                lam_in=lam_out(1:model%m, k))
+    else
+      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status)
+    end if
     if (status /= MBDK_SUCCESS) then
       out(:, k) = nan
       cycle

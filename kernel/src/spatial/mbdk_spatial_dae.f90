@@ -9,16 +9,18 @@
 !>     w' = M^-1 (f - W x J W - C_a^T lam)          (Newton-Euler, M block diagonal)
 !>     0  = Phi_a(q, t)
 !> w' is written explicit (M^-1 applied body by body) because E must be diagonal and a body's
-!> inertia need not be. The quaternions' norm is kept by nothing but the kinematic equation
-!> (the rotation is taken from p / |p|, so its drift, of the order of the BDF's error, does not
-!> scale the bodies); a projection between steps would corrupt BDF's history. The stabilised
+!> inertia need not be. The quaternions' norm is kept by the kinematic equation (with the
+!> scene's stabilising term where it asks for one), not by a projection between steps, which
+!> would corrupt BDF's history; the rotation is taken from p / |p|, so the drift of |p|, of the
+!> order of the BDF's error, does not scale the bodies. The watch and the drivers' power use
+!> the DAE's own multipliers. The stabilised
 !> index-2 (GGL) form is not offered: its mu enters q' through dPhi/dq in the coordinates q,
 !> which the spatial model (C is in w) does not form.
 module mbdk_spatial_dae
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs
+  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, mbdk_spatial_watch
   implicit none
   private
   public :: mbdk_spatial_dae_init
@@ -45,7 +47,11 @@ contains
     integer, intent(out) :: stat
     self%model => model
     self%ny = ny
-    self%rows = model%active
+    ! the rows the model solves now (the initial set, or the one its assembly moved to), which
+    ! its multipliers at the start are given on; kept for the run (the DAE does not switch
+    ! sets: one nearing a rank loss of its own makes Newton's matrix singular, and the run
+    ! stops by name)
+    self%rows = model%work%active
     self%na = size(self%rows)
     self%n = ny + self%na
     self%has_watch = model%has_watch
@@ -81,7 +87,11 @@ contains
     real(dp), intent(in) :: t, y(:)
     logical, intent(in) :: force
     integer, intent(out) :: stat
-    call self%model%watch(t, y(1:self%ny), force, stat)
+    real(dp) :: lam(self%model%m)
+    ! the drivers' power with the DAE's own multipliers
+    lam = 0.0_dp
+    lam(self%rows) = y(self%ny + 1:)
+    call mbdk_spatial_watch(self%model, t, y(1:self%ny), force, stat, lam)
   end subroutine sdae_watch
 
 end module mbdk_spatial_dae

@@ -85,7 +85,7 @@ module mbdk_spatial_model
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
-    mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs
+    mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
@@ -1234,10 +1234,13 @@ contains
   !> The energy parts and residuals at (t, y) (MBDK_SPATIAL_NOUT values): kinetic, gravity and
   !> spring energy, the power of dampers, loads and drivers (lambda . Phi_t, the multipliers from
   !> the model's constrained solve there), max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
-  subroutine mbdk_spatial_outputs(model, t, y, out, stat, phi_out, vres_out, vterm_out)
+  subroutine mbdk_spatial_outputs(model, t, y, out, stat, phi_out, vres_out, vterm_out, lam_in)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: out(MBDK_SPATIAL_NOUT)
+    !> the multipliers of the drivers' power, where the caller has them (the DAE form's own);
+    !> absent: the model's constrained solve at (t, y)
+    real(dp), intent(in), optional :: lam_in(:)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: phi_out(:), vres_out(:), vterm_out(:)
     type(frames_t) :: fr
@@ -1269,8 +1272,12 @@ contains
       if (present(vres_out)) vres_out = matmul(c, w) + phit
       if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w)) + abs(phit)
       if (model%has_drivers) then
-        call spatial_accelerations(model, t, y, f, stat, lam)
-        if (stat /= MBDK_SUCCESS) return
+        if (present(lam_in)) then
+          lam = lam_in
+        else
+          call spatial_accelerations(model, t, y, f, stat, lam)
+          if (stat /= MBDK_SUCCESS) return
+        end if
         out(4) = out(4) + dot_product(lam, phit)
       end if
     end if
@@ -1294,12 +1301,23 @@ contains
     real(dp), intent(in) :: t, y(:)
     logical, intent(in) :: force
     integer, intent(out) :: stat
+    call mbdk_spatial_watch(self, t, y, force, stat)
+  end subroutine spatial_watch
+
+  !> The watch at (t, y = [q; w]); lam: the multipliers of the drivers' power where the caller
+  !> has its own (the DAE form), else the model's constrained solve gives them.
+  subroutine mbdk_spatial_watch(self, t, y, force, stat, lam)
+    type(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: lam(:)
     real(dp) :: out(MBDK_SPATIAL_NOUT), phi(self%m), vres(self%m), vterm(self%m)
     integer :: due
     stat = MBDK_SUCCESS
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
-    call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm)
+    call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm, lam)
     if (stat /= MBDK_SUCCESS) return
     if (due == MBDK_WATCH_POWER_ONLY) then
       call mbdk_watch_power(self%work%watch, t, out(4))
@@ -1307,6 +1325,6 @@ contains
       call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
                            out(4), stat)
     end if
-  end subroutine spatial_watch
+  end subroutine mbdk_spatial_watch
 
 end module mbdk_spatial_model
