@@ -184,6 +184,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              rtol: float | None = None, atol: float | None = None,
              max_steps: int | None = None, max_order: int | None = None,
              watch=True, locate_events: bool = True, raise_on_failure: bool = True,
+             switch_angles: float | None = None,
              **unknown) -> SceneResult:
     """Integrate a scene. See the module docstring for methods, formulations and outputs.
 
@@ -229,8 +230,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             newton_atol=newton_atol, solver=None if solver == "auto" else solver,
             small_dense=None if small_dense else small_dense,
             penalty=None if _is_default_penalty(penalty) else penalty,
+            switch_angles=switch_angles,
             adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol, max_iter=max_iter,
             outputs=outputs)
+    if switch_angles is not None:
+        raise NotApplicableError(f"switch_angles = {switch_angles!r}: an option of spatial "
+                                 "scenes in angle coordinates; planar scenes have no gimbal lock")
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")

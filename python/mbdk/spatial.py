@@ -47,10 +47,10 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90). trapezoidal_index3, ida and bdf's si2 are the
-planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method runs: fixed step
-and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection); euler_cromer does
-not (its layout is y = [q, q'], and a spatial body's velocities are not its coordinates'
-rates).
+planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
+runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
+euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
+coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
@@ -505,6 +505,8 @@ class SpatialResult(Result):
     rotation: str = "quaternion"
     assembly: dict = field(default_factory=dict)
     drift: dict | None = None
+    #: each sample's angle set, where a run switched sets near a lock (switch_angles)
+    rotations: list | None = None
 
     @property
     def y(self) -> np.ndarray:
@@ -523,7 +525,8 @@ class SpatialResult(Result):
         p = self.q[:, k * nqb + 3:(k + 1) * nqb]
         if self.rotation == "quaternion":
             return np.array([from_quaternion(x / np.linalg.norm(x)) for x in p])
-        return np.array([from_angles(x, self.rotation[-3:]) for x in p])
+        sets = self.rotations or [self.rotation] * len(p)
+        return np.array([from_angles(x, s[-3:]) for x, s in zip(p, sets)])
 
     def omega_body(self, body: str) -> np.ndarray:
         k = self.bodies.index(body)
@@ -671,10 +674,26 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
-                     outputs=None, penalty=None, **unsupported) -> SpatialResult:
+                     outputs=None, penalty=None, switch_angles=None, _lock_guard=0.0,
+                     **unsupported) -> SpatialResult:
     """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
     docstring). Options of the planar path that do not apply are refused by name; outputs is
-    checked and otherwise moot: a spatial run computes every output at its samples."""
+    checked and otherwise moot: a spatial run computes every output at its samples.
+
+    switch_angles (angle sets only): a distance d from the gimbal lock (|sin theta| for
+    3-1-3, |cos beta| for 1-2-3; e.g. 0.1). The run stops where the bodies' angles come within
+    d of their set's lock and goes on from its last sample in the other set, whose lock is
+    elsewhere (the 3-1-3 lock is an orientation where the 1-2-3 beta is near 0, and back), as
+    often as the motion asks; result.rotations gives each sample's set, result.manifest
+    ["switches"] the times. Not with drivers (a driver starts from f(t0) = 0)."""
+    if switch_angles is not None:
+        return _switching_run(sc, method, switch_angles, dict(
+            h=h, t_end=t_end, formulation=formulation, t0=t0, every=every, alpha=alpha,
+            beta=beta, projection_tol=projection_tol, assemble_initial=assemble_initial,
+            startup=startup, rtol=rtol, atol=atol, dt_out=dt_out, h_min=h_min, h_max=h_max,
+            max_steps=max_steps, max_order=max_order, watch=watch,
+            raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
+            newton_atol=newton_atol, outputs=outputs, penalty=penalty, **unsupported))
     from .ode import build_info
     from .simulate import _ode_plan, check_run
     from .watch import as_watch, drift_message, drift_report
@@ -747,7 +766,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
-                     *penalty], dtype=float)
+                     *penalty, float(_lock_guard)], dtype=float)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
     _check_initial(sc, y0, assemble_initial, float(t0))
@@ -829,6 +848,124 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     if status.failed and raise_on_failure:
         raise exception_for(status)(result.message, status=status, result=result)
     return result
+
+
+#: the other angle set, whose lock lies elsewhere
+_OTHER_SET = {"euler313": "cardan123", "cardan123": "euler313"}
+#: the most switches a run may take (a motion that dwells at the locks of both sets would
+#: otherwise restart for ever)
+MAX_SWITCHES = 1000
+
+
+def _restarted(sc: SpatialScene, r: SpatialResult, k: int, rotation: str) -> SpatialScene:
+    """sc with its bodies at sample k of r (position, orientation, velocity, body-frame
+    angular velocity), in the angle set rotation."""
+    from dataclasses import replace
+    bodies = [replace(b, position=r.position(b.name)[k].copy(),
+                      rotation=r.orientation(b.name)[k].copy(),
+                      velocity=r.w[k, 6 * i:6 * i + 3].copy(),
+                      omega_body=r.w[k, 6 * i + 3:6 * i + 6].copy())
+              for i, b in enumerate(sc.bodies)]
+    return replace(sc, bodies=bodies, rotation=rotation)
+
+
+def _switching_run(sc: SpatialScene, method: str, guard, kw: dict) -> SpatialResult:
+    """simulate_spatial with switch_angles (its docstring): segments in alternating angle
+    sets, joined into one result."""
+    if sc.rotation not in _OTHER_SET:
+        raise InvalidInputError(f"switch_angles = {guard!r}: scene {sc.name!r} uses "
+                                f"rotation = {sc.rotation!r}, which has no gimbal lock; it "
+                                "applies to euler313 and cardan123")
+    if not (isinstance(guard, (int, float)) and not isinstance(guard, bool)
+            and 0 < guard < 0.5):
+        raise InvalidInputError(f"switch_angles = {guard!r} must be a distance from the lock "
+                                "between 0 and 0.5 (|sin theta| or |cos beta|; 0.1 is usual)")
+    drivers = [j.name for j in sc.joints if j.type in DRIVERS]
+    if drivers:
+        raise NotApplicableError(f"switch_angles on scene {sc.name!r}: its drivers "
+                                 f"({', '.join(drivers)}) start from f(t0) = 0, which a run "
+                                 "restarted mid-way cannot keep; use rotation = 'quaternion'")
+    from dataclasses import replace
+    raise_on_failure = kw.pop("raise_on_failure")
+    t0, t_end = float(kw["t0"]), float(kw["t_end"])
+    # a segment restarts from its last sample, so the segments sample densely (every step, or
+    # 2000 samples of the dense output) and the result keeps the samples asked for
+    adaptive = _method(method).adaptive
+    if adaptive:
+        dt_user = float(kw.get("dt_out") or 0.0)
+        inner = (t_end - t0) / 2000
+        if dt_user > 0:
+            inner = dt_user / max(1, math.ceil(dt_user / inner))
+        kw["dt_out"] = inner
+    else:
+        every_user = int(kw.get("every") or 1)
+        kw["every"] = 1
+    cur, t_start, segs, switches = sc, float(kw.pop("t0")), [], []
+    if _lock_distance(cur, cur.state0()[:6 * len(cur.bodies)]) < guard:
+        # a start near the scene's own set's lock: in the other set from the first step
+        cur = replace(cur, rotation=_OTHER_SET[cur.rotation])
+        switches.append(t_start)
+    while True:
+        r = simulate_spatial(cur, method, t0=t_start, raise_on_failure=False,
+                             _lock_guard=guard, **kw)
+        segs.append((cur.rotation, r))
+        near = (r.status == Status.ERR_SINGULAR_MATRIX and len(r.t) > 1
+                and r.t[-1] > t_start and _lock_distance(cur, r.q[-1]) < 2 * guard)
+        if not near or len(switches) >= MAX_SWITCHES:
+            break
+        # from the last sample, in the other set
+        t_start = float(r.t[-1])
+        cur = _restarted(cur, r, -1, _OTHER_SET[cur.rotation])
+        switches.append(t_start)
+    result = _joined(segs, switches)
+    n = len(result.t)
+    if adaptive:
+        grid = (np.zeros(n, bool) if dt_user <= 0 else
+                np.abs((result.t - t0) / dt_user - np.round((result.t - t0) / dt_user)) < 1e-6)
+    else:
+        grid = np.round((result.t - t0) / kw["h"]).astype(np.int64) % every_user == 0
+    grid[[0, -1]] = True
+    result = _subsampled(result, np.flatnonzero(grid))
+    if result.status == Status.SUCCESS or not raise_on_failure:
+        return result
+    raise exception_for(result.status)(result.message, status=result.status, result=result)
+
+
+def _subsampled(r: SpatialResult, idx) -> SpatialResult:
+    """r at the samples idx."""
+    from dataclasses import replace
+    return replace(r, t=r.t[idx], q=r.q[idx], w=r.w[idx], energy=r.energy[idx],
+                   energy_parts={k: v[idx] for k, v in r.energy_parts.items()},
+                   residuals=r.residuals[idx],
+                   multipliers=None if r.multipliers is None else r.multipliers[idx],
+                   rotations=[r.rotations[i] for i in idx])
+
+
+def _joined(segs, switches) -> SpatialResult:
+    """One result from the segments of a switching run: each segment's last sample is the
+    next one's first, kept once."""
+    first, last = segs[0][1], segs[-1][1]
+    keep = [(rot, r, slice(0, len(r.t) - 1) if i < len(segs) - 1 else slice(None))
+            for i, (rot, r) in enumerate(segs)]
+
+    def cat(get):
+        parts = [get(r)[s] for _rot, r, s in keep if get(r) is not None]
+        return np.concatenate(parts) if parts else None
+    stats = Stats(**{f: sum(getattr(r.stats, f) for _rot, r, _s in keep)
+                     for f in first.stats.__dataclass_fields__})
+    rotations = [rot for rot, r, s in keep for _ in range(len(r.t[s]))]
+    manifest = {**first.manifest, "switch_angles": True,
+                "switches": [float(x) for x in switches],
+                "segments": [{"rotation": rot, "t0": float(r.t[0]) if len(r.t) else None,
+                              "steps": r.stats.steps} for rot, r, _s in keep]}
+    return SpatialResult(
+        t=cat(lambda r: r.t), q=cat(lambda r: r.q), w=cat(lambda r: r.w),
+        energy=cat(lambda r: r.energy),
+        energy_parts={k: cat(lambda r, k=k: r.energy_parts[k]) for k in first.energy_parts},
+        residuals=cat(lambda r: r.residuals), multipliers=cat(lambda r: r.multipliers),
+        stats=stats, status=last.status, message=last.message, manifest=manifest,
+        bodies=first.bodies, joints=first.joints, rotation=first.rotation,
+        assembly=first.assembly, drift=last.drift, rotations=rotations)
 
 
 def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:

@@ -852,7 +852,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
                        nstatw, statbuf, moved, watch_report, status)
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
   ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
-  ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu. The tables have nj1 = max(nj, 1) columns (nf1
+  ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard. The tables have nj1 = max(nj, 1) columns (nf1
   ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
   ! (moved: the largest change of a state). out(MBDK_SPATIAL_OUTPUTS, nsamp) and lam_out(m1,
   ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
@@ -902,7 +902,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   moved = 0.0d0
   watch_report = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 14) return
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 15) return
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
@@ -920,6 +920,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%pen_alpha = sopt(12)
   so%pen_omega = sopt(13)
   so%pen_mu = sopt(14)
+  so%lock_guard = sopt(15)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
                          y0, status)

@@ -132,6 +132,10 @@ module mbdk_spatial_model
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
     !> Jalon-Bayo's penalty (3.35)-(3.40): alpha_p, omega_p, mu_p
     real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp
+    !> angle sets: an evaluation within this distance of the set's gimbal lock (|sin theta| for
+    !> 3-1-3, |cos beta| for 1-2-3) returns MBDK_ERR_SINGULAR_MATRIX, so that the caller can
+    !> switch to the other set before the rates blow up (mbdk.spatial's switch_angles); 0: off
+    real(dp) :: lock_guard = 0.0_dp
     real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
     real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
     real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
@@ -224,7 +228,8 @@ contains
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
     if (.not. (opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp &
-               .and. opt%projection_tol > 0.0_dp)) return
+               .and. opt%projection_tol > 0.0_dp .and. opt%lock_guard >= 0.0_dp .and. &
+               opt%lock_guard < 1.0_dp)) return
     if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
     model%opt = opt
     model%nb = nb
@@ -1052,6 +1057,13 @@ contains
         if (self%opt%norm == MBDK_NORM_STABILISE) f(k + 3:k + 6) = f(k + 3:k + 6) + &
           0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
       else
+        if (self%opt%lock_guard > 0.0_dp) then
+          if (merge(abs(sin(y(k + 4))), abs(cos(y(k + 4))), &
+                    self%opt%rotation == MBDK_ROT_EULER313) < self%opt%lock_guard) then
+            stat = MBDK_ERR_SINGULAR_MATRIX
+            return
+          end if
+        end if
         call mbdk_angles_rates(self%seq, y(k + 3:k + 5), fr%om(:, b), .true., f(k + 3:k + 5), &
                                stat)
         if (stat /= MBDK_SUCCESS) return
