@@ -1,10 +1,18 @@
 """The `mbdk` command: `mbdk report`, `mbdk methods`, `mbdk problems`, `mbdk solve`,
-`mbdk scene NAME|FILE [--symbolic]`."""
+`mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`, `mbdk plot FILE`.
+
+    mbdk run my_scene.toml --method rk4 --h 1e-3 --t-end 10 --out run.npz
+    mbdk plot run.npz                     # run.png: coordinates, energy balance, residuals
+
+Errors print the named message (no traceback; --traceback shows it) and exit with status 2;
+a run that fails writes no result file."""
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+
+from .errors import MbdkError as MbdkErrorBase
 
 
 def main(argv=None) -> int:
@@ -23,11 +31,31 @@ def main(argv=None) -> int:
     sp.add_argument("method")
     sp.add_argument("--h", type=float, required=True)
     sp.add_argument("--t-end", type=float, required=True)
-    sc = sub.add_parser("scene", help="print a scene's report: coordinates, constraint rows, "
+    sc = sub.add_parser("scene", aliases=["check"],
+                        help="check a scene and print its report: coordinates, constraint rows, "
                         "degrees of freedom, redundant joints, each joint's class, the index")
     sc.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
     sc.add_argument("--symbolic", action="store_true",
                     help="also derive its equations with SymPy and compare with the kernel")
+    run = sub.add_parser("run", help="run a scene and save its samples with the manifest")
+    run.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
+    run.add_argument("--method", required=True, help="a method of mbdk methods")
+    run.add_argument("--formulation", default=None)
+    run.add_argument("--h", type=float, default=None, help="the step (fixed-step methods)")
+    run.add_argument("--rtol", type=float, default=None, help="error-controlled methods")
+    run.add_argument("--atol", type=float, default=None)
+    run.add_argument("--dt-out", type=float, default=None,
+                     help="the samples' spacing (error-controlled methods)")
+    run.add_argument("--t-end", type=float, required=True)
+    run.add_argument("--t0", type=float, default=0.0)
+    run.add_argument("--every", type=int, default=1, help="keep every k-th step (fixed step)")
+    run.add_argument("--out", type=Path, required=True,
+                     help="the result file: .npz, .csv or .h5 (h5py)")
+    pl = sub.add_parser("plot", help="plot a saved result (PNG)")
+    pl.add_argument("result", type=Path)
+    pl.add_argument("--out", type=Path, default=None, help="the PNG (default: beside the result)")
+    for p in (rp, sp, sc, run, pl):
+        p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
     args = ap.parse_args(argv)
 
     from . import MbdkError
@@ -45,21 +73,9 @@ def main(argv=None) -> int:
             for p in problems().values():
                 print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
                       f"[{p.reference}]")
-        elif args.cmd == "scene":
-            from .scene import load_scene, scene as builtin
+        elif args.cmd in ("scene", "check"):
             from .scene_report import scene_report
-            path = Path(args.scene)
-            if path.suffix == ".toml" or path.exists():
-                from .spatial import is_spatial, spatial_scene_from_dict
-                import tomllib
-                try:
-                    data = tomllib.loads(path.read_text())
-                except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-                    data = None     # load_scene names the problem
-                sc = (spatial_scene_from_dict(data, str(path)) if data and is_spatial(data)
-                      else load_scene(path))
-            else:
-                sc = builtin(args.scene)
+            sc = _any_scene(args.scene)
             print(scene_report(sc))
             if args.symbolic:
                 from .symbolic import cross_check
@@ -70,12 +86,70 @@ def main(argv=None) -> int:
                                               if r[k] is not None)
                       + (" (f from the kernel: contacts)" if r["f_from_kernel"] else "")
                       + f"; derivation {r['derive_s']:.2f} s CPU")
+        elif args.cmd == "run":
+            _run(args)
+        elif args.cmd == "plot":
+            from .results_io import plot_result
+            print(f"wrote {plot_result(args.result, args.out)}")
         elif args.cmd == "solve":
             from .ode import solve_ode
             r = solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
             print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  steps = {r.stats.steps}  "
                   f"cpu = {r.cpu_time:.3g} s  status = {r.status.name}")
     except (MbdkError, FileNotFoundError) as exc:
-        print(f"mbdk: {exc}", file=sys.stderr)
+        if getattr(args, "traceback", False):
+            raise
+        print(f"mbdk: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+def _any_scene(arg: str):
+    """A built-in scene by name, or a scene file (planar or spatial)."""
+    from .scene import load_scene, scene as builtin
+    path = Path(arg)
+    if path.suffix == ".toml" or path.exists():
+        from .spatial import is_spatial, spatial_scene_from_dict
+        import tomllib
+        try:
+            data = tomllib.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            data = None     # load_scene names the problem
+        return (spatial_scene_from_dict(data, str(path)) if data and is_spatial(data)
+                else load_scene(path))
+    return builtin(arg)
+
+
+def _run(args) -> None:
+    """mbdk run: the scene run, a summary on one screen, the result file (written only when
+    the run succeeded)."""
+    import numpy as np
+
+    from .results_io import check_writable, save_result
+    from .simulate import simulate
+    out = check_writable(args.out)
+    sc = _any_scene(args.scene)
+    kw = {k: v for k, v in (("h", args.h), ("rtol", args.rtol), ("atol", args.atol),
+                            ("dt_out", args.dt_out), ("formulation", args.formulation))
+          if v is not None}
+    if args.every != 1:
+        kw["every"] = args.every
+    r = simulate(sc, args.method, t_end=args.t_end, t0=args.t0, **kw)
+    m = r.manifest
+    control = (f"h = {m['h']:g}" if m.get("h") else
+               f"rtol = {m.get('rtol')}, atol = {m.get('atol')}")
+    print(f"scene {sc.name!r}: {args.method}/{m.get('formulation', '')}, {control}, "
+          f"t = {r.t[0]:g} .. {r.t[-1]:g}")
+    print(f"status {r.status.name}; {r.stats.steps} steps; CPU {1e3 * r.cpu_time:.3g} ms "
+          f"(the solving thread), wall {1e3 * r.stats.wall_time:.3g} ms")
+    if r.residuals is not None and len(r.residuals):
+        res = np.max(np.abs(r.residuals), axis=0)
+        print(f"residuals (max over the samples): |Phi| {res[0]:.2e}, |Phi'| {res[1]:.2e}")
+    if getattr(r, "energy", None) is not None:
+        try:
+            bal = float(np.max(np.abs(r.energy_balance())))
+            print(f"energy balance: max |E - E0 - W| {bal:.2e} J (E0 = {r.energy[0]:.6g} J)")
+        except MbdkErrorBase:
+            pass
+    save_result(r, out)
+    print(f"wrote {out} ({len(r.t)} samples, with the manifest)")
