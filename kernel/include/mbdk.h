@@ -63,6 +63,8 @@ typedef struct mbdk_options {
     int nq;              /* > 0: y = [q; v] with n = 2*nq (needed by euler_cromer) */
     int startup;         /* k-step methods: MBDK_STARTUP_RK4 (the book) or MBDK_STARTUP_BDF */
     int max_order;       /* bdf, cvode_bdf (5), cvode_adams (12): the highest order; 0 = theirs */
+    volatile double *progress;  /* NULL, or where the solve stores the time it has reached,
+                                   once per step (for a progress display in another thread) */
 } mbdk_options;
 
 /* Start-up of bdf2..bdf6: RK4 steps (the book, (4.80)) or BDF steps of rising order. */
@@ -132,6 +134,7 @@ typedef struct mbdk_index3_options {
     int every;             /* fixed step: keep every k-th step as a sample */
     int newton_max_iter;
     int adaptive;          /* non-zero: step-size control (augmented only), samples every dt_out */
+    volatile double *progress; /* NULL, or where the solve stores the time reached, per step */
 } mbdk_index3_options;
 
 void mbdk_index3_default_options(mbdk_index3_options *opt);

@@ -24,7 +24,7 @@ static const struct field options[] = {
     F(mbdk_options, h_min), F(mbdk_options, h_max), F(mbdk_options, interrupt),
     F(mbdk_options, max_steps), F(mbdk_options, method), F(mbdk_options, every),
     F(mbdk_options, newton_max_iter), F(mbdk_options, fd_jacobian), F(mbdk_options, nq),
-    F(mbdk_options, startup), F(mbdk_options, max_order)};
+    F(mbdk_options, startup), F(mbdk_options, max_order), F(mbdk_options, progress)};
 static const struct field index3[] = {
     F(mbdk_index3_options, h), F(mbdk_index3_options, newton_rtol),
     F(mbdk_index3_options, newton_atol), F(mbdk_index3_options, alpha),
@@ -32,7 +32,7 @@ static const struct field index3[] = {
     F(mbdk_index3_options, dt_out), F(mbdk_index3_options, h_min), F(mbdk_index3_options, h_max),
     F(mbdk_index3_options, interrupt), F(mbdk_index3_options, formulation),
     F(mbdk_index3_options, every), F(mbdk_index3_options, newton_max_iter),
-    F(mbdk_index3_options, adaptive)};
+    F(mbdk_index3_options, adaptive), F(mbdk_index3_options, progress)};
 static const struct field model[] = {
     F(mbdk_model_options, baumgarte_alpha), F(mbdk_model_options, baumgarte_beta),
     F(mbdk_model_options, penalty_alpha), F(mbdk_model_options, penalty_omega),

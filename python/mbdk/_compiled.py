@@ -13,6 +13,11 @@ the partial result. Short solves (under LONG_WORK state-steps) run in the callin
 end within milliseconds. The worker is one thread, started at the first long solve and kept:
 a fresh thread per solve would open a new malloc arena with its first allocations, each time.
 Only the main thread hands it work, and waits while it runs, so it serves one solve at a time.
+While it waits, the main thread shows a progress bar (tqdm, on standard error) once a solve has
+run for PROGRESS_AFTER seconds, when standard error is a terminal (or MBDK_PROGRESS=1 asks for
+it): the kernel stores the time it has reached in the flag's second half, once per step (the
+options' progress field), and the bar reads it ten times a second. Nothing is shown otherwise,
+and a short solve never starts a bar.
 A forked child (multiprocessing's default on Linux) has no copy of the thread: it starts its
 own. A second Ctrl-C while the kernel winds down gives up the wait: the worker finishes the
 solve unseen (its arrays stay referenced) and the next long solve gets a fresh worker.
@@ -21,16 +26,64 @@ from __future__ import annotations
 
 import os
 import queue
+import sys
 import threading
+import time
 
 import numpy as np
 
 #: steps x state size above which a solve from the main thread runs in a worker thread
 LONG_WORK = 200_000
+#: seconds a solve runs before its progress bar appears
+PROGRESS_AFTER = 1.0
 
 
 def new_flag() -> np.ndarray:
-    return np.zeros(1, dtype=np.int32)
+    """The interrupt flag (element 0) and, in elements 2-3 (8-byte aligned: numpy aligns its
+    arrays to 16 bytes), the double the kernel stores the time reached in."""
+    return np.zeros(4, dtype=np.int32)
+
+
+def progress_of(flag: np.ndarray) -> float:
+    """The time a solve has reached, as the kernel stored it in flag."""
+    return float(flag[2:4].view(np.float64)[0])
+
+
+def _show_progress() -> bool:
+    setting = os.environ.get("MBDK_PROGRESS")
+    if setting is not None:
+        return setting not in ("", "0")
+    return sys.stderr.isatty()
+
+
+class _Bar:
+    """A tqdm bar over [t0, t_end], started PROGRESS_AFTER seconds into a solve."""
+
+    def __init__(self, span):
+        self.span, self.bar, self.start = span, None, time.monotonic()
+
+    def update(self, flag):
+        if self.span is None:
+            return
+        t0, t_end = self.span
+        if self.bar is None:
+            if time.monotonic() - self.start < PROGRESS_AFTER or not _show_progress():
+                return
+            try:
+                from tqdm import tqdm
+            except ImportError:     # pragma: no cover - tqdm is in the requirements
+                self.span = None
+                return
+            self.bar = tqdm(total=t_end - t0, unit="s", unit_scale=False, leave=False,
+                            desc="mbdk", file=sys.stderr,
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "
+                                       "{total:.4g} s [{elapsed}<{remaining}]")
+        now = min(max(progress_of(flag) - t0, 0.0), t_end - t0)
+        self.bar.update(now - self.bar.n)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
 
 
 class _Worker:
@@ -65,9 +118,10 @@ def _forget_worker():
 os.register_at_fork(after_in_child=_forget_worker)
 
 
-def call(fn, args: tuple, flag: np.ndarray, work: float):
+def call(fn, args: tuple, flag: np.ndarray, work: float, span=None):
     """fn(*args) (a threadsafe kernel entry that polls flag). Returns (fn's results, whether a
-    KeyboardInterrupt was turned into the flag)."""
+    KeyboardInterrupt was turned into the flag). span = (t0, t_end): the interval of the
+    solve, for its progress bar."""
     global _worker
     if work < LONG_WORK or threading.current_thread() is not threading.main_thread():
         return fn(*args), False
@@ -78,16 +132,21 @@ def call(fn, args: tuple, flag: np.ndarray, work: float):
     # waiting on an Event, not on Thread.join: a KeyboardInterrupt inside join can leave the
     # thread looking finished while it still runs (CPython 3.11)
     interrupted = False
-    while True:
-        try:
-            if done.wait(0.1):
-                break
-        except KeyboardInterrupt:
-            if interrupted:     # the second Ctrl-C: stop waiting
-                _worker = None
-                raise
-            flag[0] = 1
-            interrupted = True
+    bar = _Bar(span)
+    try:
+        while True:
+            try:
+                if done.wait(0.1):
+                    break
+                bar.update(flag)
+            except KeyboardInterrupt:
+                if interrupted:     # the second Ctrl-C: stop waiting
+                    _worker = None
+                    raise
+                flag[0] = 1
+                interrupted = True
+    finally:
+        bar.close()
     if "exc" in box:
         raise box["exc"]
     return box["out"], interrupted

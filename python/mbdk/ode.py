@@ -183,7 +183,7 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
     (t, y, nw, status), interrupted = _compiled.call(
         _kernel.solve_problem,
         (info_p.id, y0, t0, t_end, pvec, opt.pack(), flag, atol_v, nsamp, stats),
-        flag, nsteps * len(y0))
+        flag, nsteps * len(y0), span=(t0, t_end))
     manifest = {**build_info(), "problem": problem, "method": method, "t0": t0,
                 "t_end": t_end, **control,
                 "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)

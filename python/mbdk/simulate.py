@@ -431,7 +431,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
     (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
      status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
-                                           plan_["steps"] * y0.size)
+                                           plan_["steps"] * y0.size, span=(t0, t_end))
     status = Status(int(status))
     nw = int(nw)
     if bad_joint or bad_force:

@@ -777,7 +777,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             flag, np.zeros(0), y0, int(bool(assemble_initial)), int(dae), float(t0),
             float(t_end), nsamp, m1, stats)
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
-        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0))
+        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
     status = Status(int(status))
     nqb = 7 if sc.rotation == "quaternion" else 6
     nq = nb * nqb

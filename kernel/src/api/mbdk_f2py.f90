@@ -10,7 +10,8 @@
 !
 ! The solves are marked threadsafe: f2py releases the GIL around them, so two Python threads run
 ! two solves at once. interrupt(1) is a flag Python may set from another thread to stop a solve
-! (the options' interrupt field points at it). The callback solve keeps the GIL: it calls Python.
+! (the options' interrupt field points at it); interrupt(3:4) hold a double, 8-byte aligned (numpy
+! aligns its arrays), where the solve stores the time it has reached (the progress field). The callback solve keeps the GIL: it calls Python.
 
 subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf, interrupt, &
                          natol, atol, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
@@ -24,7 +25,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   implicit none
   integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol
   double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol)
-  integer, intent(in), target :: interrupt(1)
+  integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
@@ -45,6 +46,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st)) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+  opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
   call mbdk_textbook_init(prob, problem_id, n, params, status)
   if (status /= MBDK_SUCCESS) return
   call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
@@ -308,7 +310,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
   double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w)
-  integer, intent(in), target :: interrupt(1)
+  integer, intent(in), target :: interrupt(4)
   double precision, intent(in) :: y0(n), t0, t_end
   integer, intent(in) :: given(n), assemble
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
@@ -396,6 +398,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   if (index3) then
     i3 = transfer(i3buf, i3)
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    i3%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
     call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
                            lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
   else if (dae) then
@@ -403,12 +406,14 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
     call mbdk_solve_scene_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
                               lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+    opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
     call mbdk_solve_ode(model, opt, t0, t_end, ys, t_out, y_out, nwritten, st, status)
   end if
 
@@ -871,7 +876,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
-  integer, intent(in), target :: interrupt(1)
+  integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(7, nsamp), &
     lam_out(m1, nsamp), moved, watch_report(8)
   double precision, intent(inout) :: statbuf(nstatw)
@@ -906,6 +911,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
+  opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
   so%formulation = nint(sopt(1))
   so%rotation = nint(sopt(2))
   so%norm = nint(sopt(3))

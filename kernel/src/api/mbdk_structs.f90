@@ -133,6 +133,7 @@ contains
       call add('nq', transfer(c_loc(op%nq), base), MBDK_FIELD_INT)
       call add('startup', transfer(c_loc(op%startup), base), MBDK_FIELD_INT)
       call add('max_order', transfer(c_loc(op%max_order), base), MBDK_FIELD_INT)
+      call add('progress', transfer(c_loc(op%progress), base), MBDK_FIELD_POINTER)
     case (MBDK_STRUCT_INDEX3_OPTIONS)
       cname = 'mbdk_index3_options'
       nbytes = int(c_sizeof(i3))
@@ -151,6 +152,7 @@ contains
       call add('every', transfer(c_loc(i3%every), base), MBDK_FIELD_INT)
       call add('newton_max_iter', transfer(c_loc(i3%newton_max_iter), base), MBDK_FIELD_INT)
       call add('adaptive', transfer(c_loc(i3%adaptive), base), MBDK_FIELD_INT)
+      call add('progress', transfer(c_loc(i3%progress), base), MBDK_FIELD_POINTER)
     case (MBDK_STRUCT_MODEL_OPTIONS)
       cname = 'mbdk_model_options'
       nbytes = int(c_sizeof(mo))

@@ -37,6 +37,10 @@ module mbdk_options
     integer(c_int) :: nq = 0                         !< > 0: y = [q; v] with n = 2 nq (C callbacks; euler_cromer)
     integer(c_int) :: startup = MBDK_STARTUP_RK4     !< how a k-step method gets its first k-1 values
     integer(c_int) :: max_order = 0                  !< bdf, cvode_*: the highest order; 0 = the method's
+    !> address of a C double the drivers store the time reached in, once per step (for a
+    !> progress display in another thread); 0 (NULL): none. Last, so that initialisers written
+    !> for the fields before it still fill those.
+    integer(c_intptr_t) :: progress = 0
   end type mbdk_options_t
 
 end module mbdk_options

@@ -149,7 +149,7 @@ module mbdk_trapezoidal_index3
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_intptr_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, mbdk_model_sparse, &
     mbdk_model_watch_start, mbdk_model_watch
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
@@ -218,6 +218,8 @@ module mbdk_trapezoidal_index3
     integer(c_int) :: every = 1                        !< fixed step: keep every k-th step
     integer(c_int) :: newton_max_iter = 20
     integer(c_int) :: adaptive = 0                     !< non-zero: step-size control (augmented only)
+    !> address of a C double the solve stores the time reached in, once per step; 0: none
+    integer(c_intptr_t) :: progress = 0
   end type mbdk_index3_options_t
 
 
@@ -500,6 +502,7 @@ contains
           stat = MBDK_ERR_INTERRUPTED
           exit
         end if
+        if (opt%progress /= 0) call mbdk_progress(opt%progress, t_s)
         sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
         call mbdk_index3_advance(s, model, t_s, stat, sample)
         if (stat /= MBDK_SUCCESS) exit
@@ -545,6 +548,7 @@ contains
             ierr = MBDK_ERR_INTERRUPTED
             return
           end if
+          if (opt%progress /= 0) call mbdk_progress(opt%progress, s%t)
           s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
           s%h = s%tn - s%t
           ! keep the last matrix when the step changed little (modified Newton absorbs it)

@@ -28,7 +28,7 @@ module mbdk_fixed_step
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, &
     MBDK_METHOD_NAME_LEN
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
@@ -142,6 +142,7 @@ contains
         exit
       end if
       t_next = t0 + real(i, dp) * opt%h
+      if (opt%progress /= 0) call mbdk_progress(opt%progress, t_next)
       if (i == nsteps) t_next = t_end
       sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
       call mbdk_stepper_step(s, prob, t_next, stat, sample)

@@ -36,7 +36,7 @@ module mbdk_embedded_rk
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_embedded_pairs, only: mbdk_pair_t, mbdk_pair_table
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor
@@ -103,6 +103,7 @@ contains
         stat = MBDK_ERR_INTERRUPTED
         return
       end if
+      if (opt%progress /= 0) call mbdk_progress(opt%progress, t)
       if (tries >= limit) then
         stat = MBDK_ERR_TOO_MANY_STEPS
         return

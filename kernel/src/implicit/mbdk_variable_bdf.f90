@@ -63,7 +63,7 @@ module mbdk_variable_bdf
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
@@ -196,6 +196,7 @@ contains
         stat = MBDK_ERR_INTERRUPTED
         return
       end if
+      if (opt%progress /= 0) call mbdk_progress(opt%progress, t)
       ! the step: within h_max, landing on t_end without leaving a sliver
       if (h > hmax) call rescale(hmax / h)
       t_new = t + h

@@ -72,7 +72,7 @@ module mbdk_cvode
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_after_step, mbdk_adaptive_step_limit, &
     mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
@@ -248,6 +248,7 @@ contains
           stat = MBDK_ERR_INTERRUPTED
           exit run
         end if
+        if (opt%progress /= 0) call mbdk_progress(opt%progress, tret(1))
         flag = FCVodeGetNumSteps(mem, nst)
         flag = FCVodeGetNumErrTestFails(mem, netf)
         flag = FCVodeGetNumNonlinSolvConvFails(mem, ncfn)

@@ -131,7 +131,7 @@ module mbdk_ida
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
     mbdk_model_accelerations, mbdk_model_watch, MBDK_FORM_REDUCED
@@ -341,6 +341,7 @@ contains
           stat = MBDK_ERR_INTERRUPTED
           exit run
         end if
+        if (opt%progress /= 0) call mbdk_progress(opt%progress, tret(1))
         flag = FIDAGetNumSteps(mem, nst)
         flag = FIDAGetNumErrTestFails(mem, netf)
         flag = FIDAGetNumStepSolveFails(mem, ncfn)
