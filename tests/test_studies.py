@@ -475,3 +475,19 @@ def test_symbolic_check_study(tmp_path, root):
     assert all(num(r["a, lambda"]) < 1e-9 for r in table)
     for eq in ("(2.27)", "(2.145)", "(2.146)", "(2.151)"):
         assert eq in summary["verdict"]
+
+
+def test_sweep_scaling_study(tmp_path, root):
+    """The quick run: the grid serially and on 1 and 2 local workers (the study itself refuses
+    a table that differs between engines), the engines' times, and the model's table, whose
+    speed-up cannot exceed N and falls in efficiency as N grows."""
+    sys.path.insert(0, str(root / "studies"))
+    import sweep_scaling
+    summary = sweep_scaling.run(tmp_path, quick=True)
+    assert "2 workers" in summary["verdict"]
+    paper = rows(tmp_path / "sweep_on_paper.csv")
+    eff = [num(r["efficiency"]) for r in paper]
+    assert all(num(r["speed_up"]) <= int(r["workers"]) + 1e-9 for r in paper)
+    assert eff == sorted(eff, reverse=True) and eff[0] == pytest.approx(1.0)
+    assert {r["engine"] for r in rows(tmp_path / "sweep_engines.csv")} == {
+        "serial", "1 worker", "2 workers"}

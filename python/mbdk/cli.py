@@ -51,10 +51,17 @@ def main(argv=None) -> int:
     run.add_argument("--every", type=int, default=1, help="keep every k-th step (fixed step)")
     run.add_argument("--out", type=Path, required=True,
                      help="the result file: .npz, .csv or .h5 (h5py)")
+    sw = sub.add_parser("sweep", help="run a grid of runs on Dask and write its table (CSV)")
+    sw.add_argument("grid", type=Path, help="a TOML file with a [sweep] table (mbdk.sweep)")
+    sw.add_argument("--workers", type=int, default=2,
+                    help="local worker processes (0: serially in this process)")
+    sw.add_argument("--scheduler", default=None,
+                    help="the address of an existing Dask scheduler, tcp://host:port")
+    sw.add_argument("--out", type=Path, required=True, help="the table (CSV)")
     pl = sub.add_parser("plot", help="plot a saved result (PNG)")
     pl.add_argument("result", type=Path)
     pl.add_argument("--out", type=Path, default=None, help="the PNG (default: beside the result)")
-    for p in (rp, sp, sc, run, pl):
+    for p in (rp, sp, sc, run, pl, sw):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
     args = ap.parse_args(argv)
 
@@ -88,6 +95,19 @@ def main(argv=None) -> int:
                       + f"; derivation {r['derive_s']:.2f} s CPU")
         elif args.cmd == "run":
             _run(args)
+        elif args.cmd == "sweep":
+            from .results_io import check_writable
+            from .sweep import load_grid, sweep
+            if args.out.suffix.lower() != ".csv":
+                from .errors import InvalidInputError
+                raise InvalidInputError(f"{args.out}: a sweep's table is a CSV file; give a name "
+                                "ending in .csv")
+            check_writable(args.out)
+            table = sweep(load_grid(args.grid), workers=args.workers, scheduler=args.scheduler)
+            table.to_csv(args.out)
+            failed = sum(r["status"] != "SUCCESS" for r in table.rows)
+            print(f"{len(table.rows)} runs on {table.engine} in {table.wall_time:.3g} s "
+                  f"({failed} failed); wrote {args.out}")
         elif args.cmd == "plot":
             from .results_io import plot_result
             print(f"wrote {plot_result(args.result, args.out)}")

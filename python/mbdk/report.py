@@ -15,7 +15,7 @@ from .ode import build_info
 STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
            "benchmark_rk4", "stability", "scene_drift", "scene_checks", "index3", "pipeline_cost",
            "step_control", "ch5_formulas", "ch6_numbers", "gear_wear", "knee_wear",
-           "rigid_body", "spatial_scenes", "symbolic_check", "fuzz"]
+           "rigid_body", "spatial_scenes", "symbolic_check", "sweep_scaling", "fuzz"]
 
 
 def find_studies(explicit: Path | None = None) -> Path:
