@@ -13,6 +13,8 @@ PY="${PYTHON:-python3}"
 
 # 1. system packages (Debian)
 pkgs=(gfortran gcc pkg-config liblapack-dev libopenblas-dev libsundials-dev libsundials-fortran-dev libsuitesparse-dev)
+# the tests render the report in a real headless browser (tests/test_report_browser.py)
+if [ "$job" = test ]; then pkgs+=(chromium); fi
 if ! "$PY" -c 'import venv, ensurepip' 2>/dev/null; then pkgs+=(python3-venv); fi
 if ! "$PY" -c 'import sysconfig, os, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then
   pkgs+=(python3-dev)

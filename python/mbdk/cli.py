@@ -156,8 +156,8 @@ def _run(args) -> None:
         kw["every"] = args.every
     r = simulate(sc, args.method, t_end=args.t_end, t0=args.t0, **kw)
     m = r.manifest
-    control = (f"h = {m['h']:g}" if m.get("h") else
-               f"rtol = {m.get('rtol')}, atol = {m.get('atol')}")
+    control = (f"h = {args.h:g}" if args.h else
+               f"rtol = {m.get('rtol', args.rtol)}, atol = {m.get('atol', args.atol)}")
     print(f"scene {sc.name!r}: {args.method}/{m.get('formulation', '')}, {control}, "
           f"t = {r.t[0]:g} .. {r.t[-1]:g}")
     print(f"status {r.status.name}; {r.stats.steps} steps; CPU {1e3 * r.cpu_time:.3g} ms "

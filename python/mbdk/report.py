@@ -39,11 +39,13 @@ def load_study(folder: Path, name: str):
     return mod
 
 
-def _table_html(t: dict) -> str:
+def _table_html(t: dict, out_dir: Path) -> str:
     cols = t["columns"]
     from .analysis.tables import fmt
+    links = " · ".join(f"<a href='{html.escape(str(Path(t[k]).relative_to(out_dir)))}'>"
+                       f"{html.escape(Path(t[k]).name)}</a>" for k in ("csv", "md"))
     out = [f"<h3>{html.escape(t['title'])}</h3>",
-           f"<p class='files'>{html.escape(t['csv'].name)} · {html.escape(t['md'].name)}</p>",
+           f"<p class='files'>{links}</p>",
            "<table><thead><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols)
            + "</tr></thead><tbody>"]
     for r in t["rows"]:
@@ -54,6 +56,28 @@ def _table_html(t: dict) -> str:
     if t.get("notes"):
         out.append(f"<p class='note'>{html.escape(t['notes'])}</p>")
     return "\n".join(out)
+
+
+def _flags_that_matter(flags: str) -> str:
+    """The compiler options that change the numbers or the speed (optimisation, target, floating
+    point, language standard), not the build's include and output paths."""
+    keep = [f for f in str(flags).split() if f.startswith(("-O", "-m", "-f", "-std", "-g"))
+            and "/" not in f and not f.startswith(("-fdiagnostics", "-fpre-include",
+                                                   "-fintrinsic-modules-path"))]
+    return " ".join(keep) or "(none)"
+
+
+def _manifest_html(m: dict) -> str:
+    """The run's manifest as a table: what produced every number of the report."""
+    rows = [("mbdk version", m.get("version")), ("compiler", m.get("compiler")),
+            ("compiler flags", _flags_that_matter(m.get("compiler_flags", ""))),
+            ("numpy", m.get("numpy")), ("Python", m.get("python")),
+            ("machine", m.get("machine")), ("quick run", m.get("quick")),
+            ("generated", m.get("generated")), ("seconds", m.get("total_seconds"))]
+    body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in rows)
+    return (f"<table class='manifest'>{body}</table>"
+            "<p class='files'><a href='manifest.json'>manifest.json</a> (all fields)</p>")
 
 
 def build_report(out: Path, quick: bool = False, studies: Path | None = None,
@@ -82,7 +106,7 @@ def build_report(out: Path, quick: bool = False, studies: Path | None = None,
             parts.append(f"<figure><img src='{html.escape(str(rel))}' alt='{html.escape(rel.stem)}'>"
                          f"<figcaption>{html.escape(rel.name)}</figcaption></figure>")
         for t in summary["tables"]:
-            parts.append(_table_html(t))
+            parts.append(_table_html(t, out))
         sections.append((name, summary["title"], "\n".join(parts)))
     manifest = {**build_info(), "quick": quick,
                 "generated": time.strftime("%Y-%m-%d %H:%M:%S"),
@@ -98,7 +122,7 @@ th{{background:#eee}}tr.flag{{background:#ffe3e3}}img{{max-width:100%}}.note,.ve
 <p>Every number below was computed by the kernel in this run; rows where the book's printed value
 disagrees beyond its rounding are highlighted and the note says why. Every error is shown with the
 CPU time it took.</p>
-<pre>{html.escape(json.dumps(manifest, indent=2))}</pre>
+{_manifest_html(manifest)}
 <ul>{toc}</ul>
 {''.join(s for _, _, s in sections)}
 </body></html>"""

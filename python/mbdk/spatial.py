@@ -785,6 +785,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     o = out[:, :nw].T
     manifest = {**build_info(), "scene": sc.name, "kind": "spatial", "method": method,
                 "formulation": formulation, "rotation": sc.rotation,
+                **({"h": h, "every": int(every)} if not info_m.adaptive else {}),
                 "quaternion_norm": ("none (bdf on the DAE: no projection between its steps)"
                                     if dae and sc.quaternion_norm == "project"
                                     else sc.quaternion_norm), "t0": t0, "t_end": t_end,
