@@ -81,8 +81,9 @@ def main(argv=None) -> int:
                 print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
                       f"[{p.reference}]")
         elif args.cmd in ("scene", "check"):
+            from .scene import scene_or_file
             from .scene_report import scene_report
-            sc = _any_scene(args.scene)
+            sc = scene_or_file(args.scene)
             print(scene_report(sc))
             if args.symbolic:
                 from .symbolic import cross_check
@@ -124,31 +125,16 @@ def main(argv=None) -> int:
     return 0
 
 
-def _any_scene(arg: str):
-    """A built-in scene by name, or a scene file (planar or spatial)."""
-    from .scene import load_scene, scene as builtin
-    path = Path(arg)
-    if path.suffix == ".toml" or path.exists():
-        from .spatial import is_spatial, spatial_scene_from_dict
-        import tomllib
-        try:
-            data = tomllib.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-            data = None     # load_scene names the problem
-        return (spatial_scene_from_dict(data, str(path)) if data and is_spatial(data)
-                else load_scene(path))
-    return builtin(arg)
-
-
 def _run(args) -> None:
     """mbdk run: the scene run, a summary on one screen, the result file (written only when
     the run succeeded)."""
     import numpy as np
 
     from .results_io import check_writable, save_result
+    from .scene import scene_or_file
     from .simulate import simulate
     out = check_writable(args.out)
-    sc = _any_scene(args.scene)
+    sc = scene_or_file(args.scene)
     kw = {k: v for k, v in (("h", args.h), ("rtol", args.rtol), ("atol", args.atol),
                             ("dt_out", args.dt_out), ("formulation", args.formulation))
           if v is not None}

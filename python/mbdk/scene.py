@@ -941,6 +941,21 @@ def scenes(kind: str = "planar") -> list[str]:
     return sorted(p.stem for d in dirs[kind] for p in d.glob("*.toml"))
 
 
+def scene_or_file(arg):
+    """A built-in scene by name, or a scene file (planar, or a SpatialScene when its bodies are
+    spatial): what the command line and sweeps take."""
+    path = Path(arg)
+    if path.suffix == ".toml" or path.exists():
+        from .spatial import is_spatial, spatial_scene_from_dict
+        try:
+            data = tomllib.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            data = None     # load_scene names the problem
+        return (spatial_scene_from_dict(data, str(path)) if data and is_spatial(data)
+                else load_scene(path))
+    return scene(arg)
+
+
 def scene(name: str):
     """A built-in scene by name (python/mbdk/scenes/NAME.toml, or scenes/spatial/NAME.toml: a
     SpatialScene)."""

@@ -173,8 +173,8 @@ def run_task(task: dict, ref_state=None) -> dict:
            "control": task["h"] if task["h"] is not None else task["rtol"]}
     try:
         if task["kind"] == "scene":
-            from .cli import _any_scene
-            r = mbdk.simulate(_any_scene(task["case"]), task["method"],
+            from .scene import scene_or_file
+            r = mbdk.simulate(scene_or_file(task["case"]), task["method"],
                               formulation=task["formulation"], outputs=(), **kw)
             final = r.q[-1]
         else:
