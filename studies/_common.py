@@ -24,3 +24,24 @@ def main(run, default_name: str) -> int:
 
 def progress(msg: str) -> None:
     print(f"  .. {msg}", file=sys.stderr, flush=True)
+
+
+def study_workers() -> int:
+    """Local Dask worker processes for a study's sweep: MBDK_STUDY_WORKERS (0: serially in this
+    process), default 2 where dask.distributed is installed, else 0. Every engine gives the
+    same bits (mbdk.sweep); the CPU times are each run's own thread's."""
+    import os
+    v = os.environ.get("MBDK_STUDY_WORKERS")
+    if v is not None:
+        try:
+            n = int(v)
+        except ValueError:
+            raise SystemExit(f"MBDK_STUDY_WORKERS = {v!r}: give a whole number >= 0") from None
+        if n < 0:
+            raise SystemExit(f"MBDK_STUDY_WORKERS = {v!r}: give a whole number >= 0")
+        return n
+    try:
+        import dask.distributed  # noqa: F401 (only whether it is there)
+    except ImportError:
+        return 0
+    return 2

@@ -5,7 +5,9 @@ scenes, with the CPU time of every run beside its error.
 1. Convergence by tolerance (error_control_by_tolerance): problems with closed-form solutions,
    rtol from 1e-3 down (atol = rtol/100); the largest error over 41 samples, its ratio to rtol,
    the slope of log(error) against log(rtol) (1 = the error follows the tolerance), steps,
-   rejections, evaluations, Jacobians, factorisations, orders used and CPU time.
+   rejections, evaluations, Jacobians, factorisations, orders used and CPU time. The grid is
+   studies/grids/convergence_by_tolerance.toml, run by mbdk.sweep on MBDK_STUDY_WORKERS local
+   Dask processes (default 2; 0: serially), the same bits on either.
 2. Work-precision (error_control_work_precision_*): for each case every method, fixed-step ones
    over a step sweep and error-controlled ones over a tolerance sweep (on scenes also the
    Baumgarte, penalty and projection formulations by dopri54 and bdf, and the DAE itself: ida
@@ -37,12 +39,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import main, progress  # noqa: E402
+from _common import main, progress, study_workers  # noqa: E402
 
 import mbdk  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 from mbdk.analysis.timing import simulate_timed, solve_timed  # noqa: E402
+from mbdk.sweep import load_grid, sweep  # noqa: E402
 
 ADAPTIVE = list(mbdk.methods("ode", step="adaptive"))
 DAE_RUNS = (("ida", "index1"), ("ida", "ggl"), ("bdf", "i3"), ("bdf", "si2"))
@@ -55,46 +58,36 @@ TARGETS = (1e-3, 1e-6, 1e-9)
 CHAOTIC = {"m1": 12.85, "m2": 12.85, "l1": 1.0, "l2": 1.0}
 
 
-def _orders(st) -> str:
-    counts = [st.order1_steps, st.order2_steps, st.order3_steps, st.order4_steps,
-              st.order5_steps]
-    return " ".join(f"{k + 1}:{c}" for k, c in enumerate(counts) if c) or ""
+TOL_GRID = Path(__file__).resolve().parent / "grids" / "convergence_by_tolerance.toml"
 
 
-# ---- 1. convergence by tolerance ---------------------------------------------------------------
-TOL_PROBLEMS = {"damped_oscillator": (10.0, None), "riccati": (5.0, None),
-                "decay (lambda = 1e4, stiff)": (10.0, {"lambda": 1.0e4})}
-
-
-def by_tolerance(quick: bool) -> list[dict]:
-    tols = [1e-3, 1e-6, 1e-9] if quick else [10.0**-k for k in range(3, 12)]
-    rows = []
-    for label, (t_end, params) in TOL_PROBLEMS.items():
-        problem = label.split(" ")[0]
-        for m in ADAPTIVE:
-            if params and m in ("dopri54", "bs32", "cvode_adams") and quick:
-                continue   # thousands of steps at the stability limit; the full run has them
-            prev = None
-            for tol in tols:
-                try:
-                    r, cpu = solve_timed(problem, m, t_end=t_end, params=params, rtol=tol,
-                                         atol=tol * 1e-2, dt_out=t_end / 40, min_cpu=0.005,
-                                         max_reps=50)
-                except mbdk.MbdkError as exc:
-                    rows.append({"problem": label, "method": m, "rtol": tol,
-                                 "note": type(exc).__name__})
-                    prev = None
-                    continue
-                err = float(np.max(np.abs(r.y - r.exact())))
-                slope = (math.log(err / prev[1]) / math.log(tol / prev[0])
-                         if prev and err > 0 and prev[1] > 0 else None)
-                prev = (tol, err)
-                st = r.stats
-                rows.append({"problem": label, "method": m, "rtol": tol, "max_error": err,
-                             "error_over_rtol": err / tol, "slope": slope, "steps": st.steps,
-                             "rejected": st.rejected_steps, "nfev": st.nfev, "njev": st.njev,
-                             "nlu": st.nlu, "orders": _orders(st), "cpu_s": cpu, "note": ""})
-    return rows
+def by_tolerance(quick: bool) -> tuple[list[dict], str]:
+    """The grid file's runs by mbdk.sweep (on study_workers() local processes), with the
+    slope of log(error) against log(rtol) between neighbouring tolerances."""
+    grids = load_grid(TOL_GRID)
+    if quick:
+        grids = [{**g, "tolerances": [1e-3, 1e-6, 1e-9],
+                  "methods": [m for m in g["methods"] if not ("params" in g and m in
+                              ("dopri54", "bs32", "cvode_adams"))]} for g in grids]
+    result = sweep(grids, workers=study_workers())
+    rows, prev = [], {}
+    for r in result.rows:
+        key, tol = (r["case"], r["method"]), r["control"]
+        if r["status"] != "SUCCESS":
+            rows.append({"problem": r["case"], "method": r["method"], "rtol": tol,
+                         "note": r["status"]})
+            prev[key] = None
+            continue
+        err, p = r["error"], prev.get(key)
+        slope = (math.log(err / p[1]) / math.log(tol / p[0])
+                 if p and err > 0 and p[1] > 0 else None)
+        prev[key] = (tol, err)
+        rows.append({"problem": r["case"], "method": r["method"], "rtol": tol,
+                     "max_error": err, "error_over_rtol": err / tol, "slope": slope,
+                     "steps": r["steps"], "rejected": r["rejected"], "nfev": r["nfev"],
+                     "njev": r["njev"], "nlu": r["nlu"], "orders": r["orders"],
+                     "cpu_s": r["cpu_time"], "note": ""})
+    return rows, f"{len(result.rows)} runs of one sweep on {result.engine}"
 
 
 # ---- 2. work-precision ------------------------------------------------------------------------
@@ -395,14 +388,15 @@ def run(out: Path, quick: bool = False) -> dict:
     out = Path(out)
     tables, figures = [], []
     progress("convergence by tolerance")
-    rows = by_tolerance(quick)
+    rows, engine = by_tolerance(quick)
     tables.append(write_table(
         rows, ["problem", "method", "rtol", "max_error", "error_over_rtol", "slope", "steps",
                "rejected", "nfev", "njev", "nlu", "orders", "cpu_s", "note"], out,
         "error_control_by_tolerance", "Convergence by tolerance (atol = rtol/100)",
         "max_error: over 41 samples against the closed form. slope: d log(error) / d log(rtol) "
         "between neighbouring rows (1: the error is proportional to the tolerance). orders: "
-        "accepted steps at each order (bdf, cvode_*). cpu_s: the solving thread's CPU time."))
+        "accepted steps at each order (bdf, cvode_*). cpu_s: the solving thread's CPU time. "
+        f"{engine}; the grid: studies/grids/convergence_by_tolerance.toml."))
     allrows, notes = [], []
     for name, case in cases(quick).items():
         rows, ref_err = work_precision(name, case, quick)

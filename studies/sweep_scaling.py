@@ -7,10 +7,13 @@ from those measurements, what a 1 000-task sweep would cost on N workers.
    fewer runs); each run's error against dopri54 at rtol 1e-12, its steps and the solving
    thread's CPU time (the table), and the sweep's wall time per engine with the speed-up of
    two workers over one (both including their cluster's start).
-2. On paper: T(N) = S + ceil(1000 / N) (tau + o), with S the measured start of a local
-   cluster, tau the mean CPU time of a task of this grid and o the measured overhead per task
-   on one worker ((T(1) - S) / tasks - tau); the speed-up T(1) / T(N) and the efficiency.
-   A real cluster adds its network's latency to o; the table is a model, not a measurement.
+2. On paper: T(N) = S + F + ceil(1000 / N) (tau + p) + 8 o, with S the measured start of a
+   local cluster, o Dask's scheduling per task measured on a warm worker (each worker gets 8
+   batches of runs), tau the mean CPU time of a run of this grid, p the serial sweep's time
+   outside the kernel per run (set-up, results and the reference runs), and F the rest of the
+   one-worker sweep's time (the worker's first import, closing); the speed-up T(1) / T(N) and
+   the efficiency. A real cluster adds its network's latency to o; the table is a model, not
+   a measurement.
 """
 from __future__ import annotations
 
@@ -25,6 +28,8 @@ from _common import main, progress  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 from mbdk.sweep import same_rows, sweep  # noqa: E402
 
+BATCHES = 8   # mbdk.sweep's batches per worker thread (its default)
+
 
 def grid(quick: bool) -> dict:
     return {"t_end": 2.0 if quick else 20.0, "scenes": ["double_pendulum", "four_bar"],
@@ -33,17 +38,26 @@ def grid(quick: bool) -> dict:
             "tolerances": [1e-4, 1e-8] if quick else [1e-4, 1e-6, 1e-8, 1e-10]}
 
 
-def cluster_start() -> float:
-    """Seconds to start a local cluster of one worker and connect to it."""
+def _noop(x):
+    return x
+
+
+def cluster_costs(n: int = 200) -> tuple[float, float]:
+    """(seconds to start a local cluster of one worker and connect to it, seconds of Dask's
+    scheduling per task on it once warm: n tasks that do nothing)."""
     from dask.distributed import Client, LocalCluster
     t = time.perf_counter()
     cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                            dashboard_address=None)
     client = Client(cluster)
     start = time.perf_counter() - t
+    client.submit(_noop, 0).result()
+    t = time.perf_counter()
+    client.gather(client.map(_noop, range(n), pure=False))
+    per_task = (time.perf_counter() - t) / n
     client.close()
     cluster.close()
-    return start
+    return start, per_task
 
 
 def run(out: Path, quick: bool = False) -> dict:
@@ -62,10 +76,11 @@ def run(out: Path, quick: bool = False) -> dict:
                                  "cpu_ms"], out, "sweep_grid",
                           "The grid's runs (the same bits serially and on 1 and 2 workers)",
                           "error: max |q(t_end) - q_ref(t_end)| against dopri54 at rtol 1e-12")]
-    progress("sweep: cluster start")
-    start = cluster_start()
+    progress("sweep: cluster start and scheduling per task")
+    start, o = cluster_costs()
     tasks = len(base.rows)
     tau = sum(x["cpu_time"] for x in base.rows) / tasks
+    p = max((base.wall_time - tasks * tau) / tasks, 0.0)
     t1, t2 = runs["1 worker"].wall_time, runs["2 workers"].wall_time
     engines = [{"engine": label, "wall_s": r.wall_time, "speed_up_over_1_worker": t1 / r.wall_time}
                for label, r in runs.items()]
@@ -75,19 +90,24 @@ def run(out: Path, quick: bool = False) -> dict:
         f"{tasks * tau:.3g} s)",
         f"the local clusters' times include their start, measured alone at {start:.2f} s; the "
         "machine has 2 cores"))
-    overhead = max((t1 - start) / tasks - tau, 0.0)
+    per = BATCHES
+    fixed = max(t1 - start - tasks * (tau + p) - per * o, 0.0)
     paper = []
-    t_one = start + 1000 * (tau + overhead)
+    t_one = start + fixed + 1000 * (tau + p) + per * o
     for n in (1, 2, 8, 32, 128, 512):
-        tn = start + math.ceil(1000 / n) * (tau + overhead)
+        tn = start + fixed + math.ceil(1000 / n) * (tau + p) + per * o
         paper.append({"workers": n, "predicted_s": tn, "speed_up": t_one / tn,
                       "efficiency": t_one / tn / n})
     tables.append(write_table(
         paper, ["workers", "predicted_s", "speed_up", "efficiency"], out, "sweep_on_paper",
         "On paper: a 1 000-task sweep of this grid's mean task on N workers",
-        f"T(N) = S + ceil(1000/N) (tau + o): S = {start:.2f} s (a local cluster's start), "
-        f"tau = {1e3 * tau:.3g} ms (mean CPU time of a task), o = {1e3 * overhead:.3g} ms "
-        "(overhead per task on one worker, measured); a networked cluster adds its latency"))
+        f"T(N) = S + F + ceil(1000/N) (tau + p) + {per} o: S = {start:.2f} s (a local cluster's "
+        f"start), F = {fixed:.2f} s (the rest of the one-worker sweep's fixed cost: the "
+        f"worker's first import, the reference runs, closing), tau = {1e3 * tau:.3g} ms (mean "
+        f"CPU time of a run), p = {1e3 * p:.3g} ms (the serial sweep's time outside the "
+        f"kernel per run: set-up, results, the reference runs), o = {1e3 * o:.3g} ms (Dask's scheduling per task, measured on "
+        f"a warm worker; each worker gets {per} batches of runs). A networked cluster adds its "
+        "latency to o; the table is a model, not a measurement"))
     return {"title": "Sweeps on Dask: the same bits on every engine, and what workers buy",
             "tables": tables, "figures": [],
             "verdict": f"2 workers: {t1 / t2:.2f}x the speed of 1 on {tasks} runs"}

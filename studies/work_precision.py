@@ -1,78 +1,59 @@
 """What accuracy costs in time: error against the kernel's CPU time for every method across a
 step sweep, one figure per chapter-4 problem (work-precision diagrams).
 
-The error is the largest absolute error over 100 samples of the whole interval, against the exact
-solution where one exists and otherwise against an rk4 run with 16x more steps than the finest
-one shown (trolley_crane, double_pendulum). A method that fails at a step (overflow, Newton)
-has the exception's name in the table's note column and is left out of the figure there.
+The grid is studies/grids/work_precision.toml, run by mbdk.sweep: on a local Dask cluster of
+MBDK_STUDY_WORKERS processes (default 2; 0 runs it serially here), the same bits either way.
+`mbdk sweep studies/grids/work_precision.toml --out wp.csv` runs the same grid from the
+command line, on a scheduler's address with --scheduler. The error is the largest absolute
+error over 100 samples of the whole interval, against the exact solution where one exists and
+otherwise against an rk4 run with 16x more steps than the finest one of the grid
+(trolley_crane, double_pendulum). A method that fails at a step (overflow, Newton) has the
+exception's name in the table's note column and is left out of the figure there.
 """
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import main, progress  # noqa: E402
+from _common import main, progress, study_workers  # noqa: E402
 
 import mbdk  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.convergence import observed_order  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
-from mbdk.analysis.timing import solve_timed  # noqa: E402
+from mbdk.sweep import load_grid, sweep  # noqa: E402
 
-# problem -> (t_end, params, coarsest number of steps)
-PROBLEMS = {
-    "riccati": (5.0, None, 100),
-    "beam_nonlinear": (1000.0, None, 10),
-    "damped_oscillator": (10.0, None, 200),
-    "pendulum": (5.0, None, 100),
-    "pendulum_linear": (5.0, None, 100),
-    "trolley_crane": (5.0, None, 400),
-    "double_pendulum": (5.0, None, 400),
-}
+GRID = Path(__file__).resolve().parent / "grids" / "work_precision.toml"
+QUICK = ("riccati", "damped_oscillator", "double_pendulum")
 
 
-def sweep(problem: str, quick: bool):
-    t_end, params, n0 = PROBLEMS[problem]
-    info = mbdk.problems()[problem]
-    levels = [0, 2, 4] if quick else list(range(7))
-    ns = [n0 * 2**k for k in levels]
-    samples = 100
-    ref = None
-    if not info.has_exact:
-        nref = ns[-1] * 16
-        ref = mbdk.solve_ode(problem, "rk4", h=t_end / nref, t_end=t_end, params=params,
-                             every=nref // samples).y
-    rows = []
-    for name, m in mbdk.methods("ode", step="fixed").items():
-        if m.family == "euler_cromer" and not info.second_order:
-            continue
-        if name == "bdf1":      # the same formula as implicit_euler
-            continue
-        prev = None
-        for n in ns:
-            h = t_end / n
-            try:
-                r, cpu = solve_timed(problem, name, h=h, t_end=t_end, params=params,
-                                     every=max(1, n // samples), min_cpu=0.01, max_reps=20)
-            except mbdk.MbdkError as exc:
-                rows.append({"problem": problem, "method": name, "h": h, "steps": n,
-                             "max_error": None, "observed_order": None, "cpu_s": None,
-                             "nfev": None, "note": f"{type(exc).__name__}"})
-                prev = None
-                continue
-            if ref is not None:
-                err = float(np.max(np.abs(r.y - ref)))
-            else:
-                err = float(np.max(np.abs(r.y - r.exact())))
-            order = observed_order(prev[1], err, prev[0], h) if prev else None
-            prev = (h, err)
-            rows.append({"problem": problem, "method": name, "h": h, "steps": n,
-                         "max_error": err, "observed_order": order, "cpu_s": cpu,
-                         "nfev": r.stats.nfev, "note": ""})
-    return rows
+def grids(quick: bool) -> list[dict]:
+    """The grid file's sweeps; quick: three problems at every other step of the first five."""
+    out = load_grid(GRID)
+    if quick:
+        out = [{**g, "step_counts": g["step_counts"][:5:2]} for g in out
+               if g["problems"][0] in QUICK]
+    return out
+
+
+def table_rows(rows) -> list[dict]:
+    """The sweep's rows as the study's table: per problem and method, the observed order
+    between neighbouring steps."""
+    out, prev = [], {}
+    for r in rows:
+        key = (r["case"], r["method"])
+        ok = r["status"] == "SUCCESS"
+        err = r["error"] if ok else None
+        order = (observed_order(prev[key][1], err, prev[key][0], r["control"])
+                 if ok and prev.get(key) else None)
+        prev[key] = (r["control"], err) if ok else None
+        out.append({"problem": r["case"], "method": r["method"], "h": r["control"],
+                    "steps": r["steps"] if ok else None, "max_error": err,
+                    "observed_order": order, "cpu_s": r["cpu_time"] if ok else None,
+                    "wall_s": r["wall_time"] if ok else None,
+                    "nfev": r["nfev"] if ok else None, "note": "" if ok else r["status"]})
+    return out
 
 
 def figure(problem: str, rows, out: Path):
@@ -100,14 +81,22 @@ def figure(problem: str, rows, out: Path):
 
 def run(out: Path, quick: bool = False) -> dict:
     out = Path(out)
+    gs = grids(quick)
+    workers = study_workers()
+    progress(f"work-precision sweep: {len(gs)} problems on "
+             f"{f'{workers} local workers' if workers else 'this process'}")
+    result = sweep(gs, workers=workers)
+    every = table_rows(result.rows)
     tables, figures, cheapest = [], [], []
-    probs = ["riccati", "damped_oscillator", "double_pendulum"] if quick else list(PROBLEMS)
-    for p in probs:
-        progress(f"work-precision sweep: {p}")
-        rows = sweep(p, quick)
+    for g in gs:
+        p = g["problems"][0]
+        rows = [r for r in every if r["problem"] == p]
         figures.append(figure(p, rows, out))
         tables.append(write_table(rows, list(rows[0]), out, f"work_precision_{p}",
-                                  f"Work-precision: {p}"))
+                                  f"Work-precision: {p}",
+                                  f"{len(result.rows)} runs of one sweep on {result.engine}; "
+                                  "cpu_s and wall_s: the solving thread's CPU time and the "
+                                  "wall time of the kernel call, per run"))
         for tol in (1e-3, 1e-6):
             ok = [r for r in rows if r["max_error"] is not None and r["max_error"] <= tol]
             if ok:

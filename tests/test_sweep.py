@@ -4,12 +4,13 @@ against its reference, identical bit for bit to the serial loop of the same task
 named before any task starts."""
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mbdk import InvalidInputError
-from mbdk.sweep import same_rows, sweep, tasks_of
+from mbdk.sweep import load_grid, same_rows, sweep, tasks_of
 
 GRID = {"t_end": 2.0, "scenes": ["double_pendulum"], "problems": ["damped_oscillator"],
         "methods": ["rk4", "dopri54"], "steps": [1e-2, 1e-3], "tolerances": [1e-6, 1e-9]}
@@ -74,3 +75,74 @@ def test_the_command_line_writes_the_table(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "mbdk", "sweep", grid, "--workers", "0",
                           "--out", tmp_path / "t.txt"], capture_output=True, text=True)
     assert bad.returncode == 2 and "CSV" in bad.stderr and not (tmp_path / "t.txt").exists()
+
+
+STUDY_GRIDS = Path(__file__).resolve().parents[1] / "studies" / "grids"
+
+
+def test_the_work_precision_grid_runs_on_a_local_cluster_with_the_serial_bits():
+    """The work-precision study's grid file (every fixed-step method on seven problems, seven
+    steps each, the error over 100 samples) on 2 local worker processes and serially: the
+    same 525 rows, bit for bit, in the same order (the runs go out in round-robin batches)."""
+    from mbdk import methods
+    grids = [{**g, "min_cpu": 0.0} for g in load_grid(STUDY_GRIDS / "work_precision.toml")]
+    # the file keeps up with the registry: every fixed-step ODE method but bdf1 (implicit
+    # Euler's formula), euler_cromer only on the second-order problems
+    fixed = set(methods("ode", step="fixed")) - {"bdf1"}
+    for g in grids:
+        assert set(g["methods"]) | {"euler_cromer"} == fixed | {"euler_cromer"}, g["problems"]
+    serial = sweep(grids, workers=0)
+    local = sweep(grids, workers=2)
+    assert len(serial.rows) == 525 and same_rows(serial, local)
+    assert all(r["status"] == "SUCCESS" for r in serial.rows)
+    # fourth order where it should be: rk4's error falls 16-fold per halving on the riccati
+    # problem (closed form) and on the double pendulum (against rk4 at 16x the finest step)
+    for case in ("riccati", "double_pendulum"):
+        e = [r["error"] for r in serial.rows if r["case"] == case and r["method"] == "rk4"]
+        ratios = np.array(e[1:4]) / np.array(e[:3])
+        assert np.all((ratios > 1 / 20) & (ratios < 1 / 12)), (case, ratios)
+
+
+def test_samples_params_and_labels_against_direct_runs():
+    """The error over samples equals the same comparison done by hand: rk4 on the double
+    pendulum against rk4 at 8x the step, over 20 samples; and bdf on the stiff decay
+    (params) against its closed form exp(-lambda t) over 40 samples, under its label."""
+    import mbdk
+    grids = [{"t_end": 2.0, "problems": ["double_pendulum"], "methods": ["rk4"],
+              "step_counts": [200], "samples": 20,
+              "reference": {"method": "rk4", "step_count": 1600}},
+             {"t_end": 1.0, "problems": ["decay"], "params": {"lambda": 1.0e4},
+              "label": "stiff decay", "methods": ["bdf"], "tolerances": [1e-8],
+              "samples": 40}]
+    rows = sweep(grids, workers=0).rows
+    run = mbdk.solve_ode("double_pendulum", "rk4", h=0.01, t_end=2.0, every=10)
+    ref = mbdk.solve_ode("double_pendulum", "rk4", h=2.0 / 1600, t_end=2.0, every=80)
+    assert run.y.shape == (21, 4)
+    assert rows[0]["error"] == np.max(np.abs(run.y - ref.y)) > 0
+    d = mbdk.solve_ode("decay", "bdf", rtol=1e-8, atol=1e-10, t_end=1.0, dt_out=1.0 / 40,
+                       params={"lambda": 1.0e4})
+    assert rows[1]["case"] == "stiff decay" and rows[1]["steps"] == d.stats.steps
+    assert rows[1]["error"] == np.max(np.abs(d.y[:, 0] - np.exp(-1.0e4 * d.t)))
+    assert rows[1]["orders"] and rows[1]["nlu"] == d.stats.nlu
+
+
+@pytest.mark.parametrize("change, text", [
+    (dict(steps=None, step_counts=[150], samples=100), "150, which does not land on the 100"),
+    (dict(steps=[0.03], samples=10), "do not land on the 10 samples"),
+    (dict(params={"lam": 2.0}), "'params' is for problems"),
+    (dict(scenes=[], problems=["decay"], params={"lam": 2.0}), "'lam', not a parameter of decay"),
+    (dict(label="x"), "names the grid's one case"),
+    (dict(reference={"method": "rk4", "n": 3}), "'reference' has 'n'"),
+    (dict(min_cpu=-1.0), "'min_cpu' has -1.0"),
+    (dict(samples=0), "'samples' has 0"),
+    (dict(step_counts=[100]), "'steps' or 'step_counts', not both"),
+])
+def test_bad_grid_fields_are_named(change, text):
+    grid = {k: v for k, v in {**GRID, **change}.items() if v is not None}
+    with pytest.raises(InvalidInputError, match=text):
+        tasks_of(grid)
+
+
+def test_a_list_of_grids_names_the_bad_one():
+    with pytest.raises(InvalidInputError, match="sweep grid 2 of 2: field 'methods' has 'rk5'"):
+        tasks_of([GRID, {**GRID, "methods": ["rk5"]}])

@@ -52,7 +52,8 @@ def main(argv=None) -> int:
     run.add_argument("--out", type=Path, required=True,
                      help="the result file: .npz, .csv or .h5 (h5py)")
     sw = sub.add_parser("sweep", help="run a grid of runs on Dask and write its table (CSV)")
-    sw.add_argument("grid", type=Path, help="a TOML file with a [sweep] table (mbdk.sweep)")
+    sw.add_argument("grid", type=Path,
+                    help="a TOML file with a [sweep] table or [[sweep]] tables (mbdk.sweep)")
     sw.add_argument("--workers", type=int, default=2,
                     help="local worker processes (0: serially in this process)")
     sw.add_argument("--scheduler", default=None,

@@ -8,20 +8,32 @@ against its reference, CPU time and counters.
     >>> table = mbdk.sweep.sweep(grid, scheduler="tcp://10.0.0.5:8786")   # an existing one
     >>> table = mbdk.sweep.sweep(grid, workers=0)        # serially, in this process
 
-The grid (a dict, or the [sweep] table of a TOML file for `mbdk sweep GRID.toml`):
+A grid is a dict (the [sweep] table of a TOML file for `mbdk sweep GRID.toml`), or a list of
+them (an array of [[sweep]] tables), run as one set of tasks: a study whose cases differ in
+interval or steps (studies/grids/work_precision.toml) is one sweep. Its fields:
   t_end, t0 (default 0)
   scenes (built-in names or scene files) and/or problems (compiled problems' names)
+  params: a table of the problems' parameters (default theirs); label: the name of the case
+         in the table (default the scene's or problem's name)
   methods; formulations (scenes; default ["reduced"])
-  steps: h for the fixed-step methods; tolerances: rtol for the error-controlled ones (atol =
-         rtol * atol_ratio, default 1e-2), each sampled at t_end only
-  reference: {method, h or rtol} for a scene's (and a problem without a closed form's) final
-         state, default {method = "dopri54", rtol = 1e-12}; problems with an exact solution
-         use it
+  steps: h for the fixed-step methods, or step_counts: numbers of steps over the interval;
+         tolerances: rtol for the error-controlled ones (atol = rtol * atol_ratio, default
+         1e-2)
+  samples: the error is the largest over this many equal intervals of [t0, t_end] (their
+         ends; a fixed-step run must land on them when compared with a reference run);
+         default: at t_end only
+  reference: {method, h, step_count or rtol} for a scene's (and a problem without a closed
+         form's) states, default {method = "dopri54", rtol = 1e-12}; problems with an exact
+         solution use it
+  min_cpu, max_reps: a run shorter than min_cpu seconds of CPU (default 0) is repeated, at
+         most max_reps times (default 20), and its times are the mean per run (the kernel's
+         clock ticks in microseconds; every repetition gives the same numbers)
 Each task is one run; its row: case, method, formulation, control (h or rtol), status, error
-(max |y(t_end) - y_ref(t_end)| over the coordinates, or over the state for a problem), steps,
-nfev, cpu_time (the solving thread's), wall_time. A run is deterministic, so a task gives the
-same bits on any worker as in a serial loop (tests/test_sweep.py). Bad grids (an unknown
-method, case or field) raise InvalidInputError before any task starts.
+(max |y - y_ref| over the coordinates, or over the state for a problem), steps, nfev,
+cpu_time (the solving thread's), wall_time, and rejected, njev, nlu, orders (the steps taken
+at each order, "1:12 2:40", for the variable-order methods) and reps. A run is deterministic,
+so a task gives the same bits on any worker as in a serial loop (tests/test_sweep.py). Bad
+grids (an unknown method, case or field) raise InvalidInputError before any task starts.
 """
 from __future__ import annotations
 
@@ -33,10 +45,12 @@ import numpy as np
 
 from .errors import InvalidInputError, MbdkError
 
-FIELDS = {"t_end", "t0", "scenes", "problems", "methods", "formulations", "steps", "tolerances",
-          "reference", "atol_ratio"}
+FIELDS = {"t_end", "t0", "scenes", "problems", "params", "label", "methods", "formulations",
+          "steps", "step_counts", "tolerances", "samples", "reference", "atol_ratio", "min_cpu",
+          "max_reps"}
+REFERENCE_FIELDS = {"method", "h", "step_count", "rtol"}
 COLUMNS = ["case", "method", "formulation", "control", "status", "error", "steps", "nfev",
-           "cpu_time", "wall_time"]
+           "cpu_time", "wall_time", "rejected", "njev", "nlu", "orders", "reps"]
 
 
 @dataclass
@@ -67,8 +81,9 @@ class SweepResult:
         _atomic(path, write)
 
 
-#: the columns that are the same bits on every engine (the times are not)
-RESULT_KEYS = ("case", "method", "formulation", "control", "status", "error", "steps", "nfev")
+#: the columns that are the same bits on every engine (the times and repetitions are not)
+RESULT_KEYS = ("case", "method", "formulation", "control", "status", "error", "steps", "nfev",
+               "rejected", "njev", "nlu", "orders")
 
 
 def same_rows(a: SweepResult, b: SweepResult) -> bool:
@@ -80,133 +95,280 @@ def same_rows(a: SweepResult, b: SweepResult) -> bool:
     return [key(r) for r in a.rows] == [key(r) for r in b.rows]
 
 
-def _list(grid, key, default=None):
+def order_histogram(stats) -> str:
+    """The steps taken at each order, "1:12 2:40" (empty for a fixed-order method)."""
+    counts = [stats.order1_steps, stats.order2_steps, stats.order3_steps, stats.order4_steps,
+              stats.order5_steps]
+    return " ".join(f"{k + 1}:{c}" for k, c in enumerate(counts) if c)
+
+
+def _list(grid, key, where, default=None):
     v = grid.get(key, default)
     if v is None:
         return []
     if isinstance(v, (str, int, float)):
         return [v]
     if not isinstance(v, (list, tuple)):
-        raise InvalidInputError(f"sweep grid: field {key!r} = {v!r} must be a list")
+        raise InvalidInputError(f"{where}: field {key!r} = {v!r} must be a list")
     return list(v)
 
 
-def tasks_of(grid: dict) -> tuple[list, list]:
-    """(references, tasks) of a grid, every entry checked: each a plain dict a worker runs."""
+def _positive(v, key, where, integer=False):
+    ok = (isinstance(v, int) and not isinstance(v, bool)) if integer else \
+        isinstance(v, (int, float)) and not isinstance(v, bool)
+    if not ok or not v > 0 or (not integer and not math.isfinite(v)):
+        raise InvalidInputError(f"{where}: field {key!r} has {v!r}, not a positive "
+                                f"{'whole number' if integer else 'number'}")
+    return v
+
+
+def _span_steps(span, h, key, where, samples, compared):
+    """The number of fixed steps of size h over span, checked against the samples."""
+    n = max(1, round(span / h))
+    if samples and compared and n % samples:
+        raise InvalidInputError(f"{where}: field {key!r} has {h!r}, {n} steps, which do not "
+                                f"land on the {samples} samples compared with the reference "
+                                f"(give a multiple of {samples} steps)")
+    return n
+
+
+def _one(grid, where: str, gi: int) -> tuple[list, list]:
     from .methods import methods
     from .problems import problems
     from .scene import scenes as builtin_scenes
     if not isinstance(grid, dict):
-        raise InvalidInputError(f"sweep grid must be a table of fields, got {type(grid).__name__}")
+        raise InvalidInputError(f"{where} must be a table of fields, got "
+                                f"{type(grid).__name__}")
     unknown = sorted(set(grid) - FIELDS)
     if unknown:
-        raise InvalidInputError(f"sweep grid: unknown field {unknown[0]!r}; known: "
+        raise InvalidInputError(f"{where}: unknown field {unknown[0]!r}; known: "
                                 f"{', '.join(sorted(FIELDS))}")
     if "t_end" not in grid:
-        raise InvalidInputError("sweep grid: field 't_end' is missing")
+        raise InvalidInputError(f"{where}: field 't_end' is missing")
     t_end, t0 = float(grid["t_end"]), float(grid.get("t0", 0.0))
     if not t_end > t0:
-        raise InvalidInputError(f"sweep grid: t_end = {t_end} must be greater than t0 = {t0}")
+        raise InvalidInputError(f"{where}: t_end = {t_end} must be greater than t0 = {t0}")
+    span = t_end - t0
     known = methods()
-    ms = _list(grid, "methods")
+    ms = _list(grid, "methods", where)
     if not ms:
-        raise InvalidInputError("sweep grid: field 'methods' is missing or empty")
+        raise InvalidInputError(f"{where}: field 'methods' is missing or empty")
     for m in ms:
         if m not in known:
-            raise InvalidInputError(f"sweep grid: field 'methods' has {m!r}, not a method; "
+            raise InvalidInputError(f"{where}: field 'methods' has {m!r}, not a method; "
                                     f"known: {', '.join(known)}")
+    params = grid.get("params")
+    if params is not None and not isinstance(params, dict):
+        raise InvalidInputError(f"{where}: field 'params' = {params!r} must be a table")
     cases = []
-    for s in _list(grid, "scenes"):
+    for s in _list(grid, "scenes", where):
         if not isinstance(s, str):
-            raise InvalidInputError(f"sweep grid: field 'scenes' has {s!r}, not a name or path")
+            raise InvalidInputError(f"{where}: field 'scenes' has {s!r}, not a name or path")
         if s not in builtin_scenes("all") and not s.endswith(".toml"):
-            raise InvalidInputError(f"sweep grid: field 'scenes' has {s!r}: no built-in scene "
+            raise InvalidInputError(f"{where}: field 'scenes' has {s!r}: no built-in scene "
                                     "of that name, and not a .toml file")
+        if params:
+            raise InvalidInputError(f"{where}: field 'params' is for problems; a scene's "
+                                    "parameters are in its file")
         cases.append(("scene", s))
-    for p in _list(grid, "problems"):
+    for p in _list(grid, "problems", where):
         if p not in problems():
-            raise InvalidInputError(f"sweep grid: field 'problems' has {p!r}; known: "
+            raise InvalidInputError(f"{where}: field 'problems' has {p!r}; known: "
                                     f"{', '.join(problems())}")
+        bad = sorted(set(params or {}) - set(problems()[p].params))
+        if bad:
+            raise InvalidInputError(f"{where}: field 'params' has {bad[0]!r}, not a parameter "
+                                    f"of {p}; its parameters: {', '.join(problems()[p].params)}")
         cases.append(("problem", p))
     if not cases:
-        raise InvalidInputError("sweep grid: give 'scenes' or 'problems'")
-    forms = _list(grid, "formulations", ["reduced"])
-    steps = [float(h) for h in _list(grid, "steps")]
-    tols = [float(t) for t in _list(grid, "tolerances")]
-    ratio = float(grid.get("atol_ratio", 1e-2))
+        raise InvalidInputError(f"{where}: give 'scenes' or 'problems'")
+    label = grid.get("label")
+    if label is not None and (not isinstance(label, str) or len(cases) != 1):
+        raise InvalidInputError(f"{where}: field 'label' = {label!r} names the grid's one case "
+                                "(a string, with one scene or problem)")
+    samples = grid.get("samples")
+    if samples is not None:
+        _positive(samples, "samples", where, integer=True)
+    forms = _list(grid, "formulations", where, ["reduced"])
+    if "steps" in grid and "step_counts" in grid:
+        raise InvalidInputError(f"{where}: give 'steps' or 'step_counts', not both")
+    steps = [float(_positive(h, "steps", where)) for h in _list(grid, "steps", where)]
+    counts = [_positive(n, "step_counts", where, integer=True)
+              for n in _list(grid, "step_counts", where)]
+    tols = [float(_positive(t, "tolerances", where)) for t in _list(grid, "tolerances", where)]
+    ratio = float(_positive(grid.get("atol_ratio", 1e-2), "atol_ratio", where))
+    min_cpu = float(grid.get("min_cpu", 0.0))
+    if not (math.isfinite(min_cpu) and min_cpu >= 0):
+        raise InvalidInputError(f"{where}: field 'min_cpu' has {min_cpu!r}, not a number >= 0")
+    max_reps = _positive(grid.get("max_reps", 20), "max_reps", where, integer=True)
     ref = dict(grid.get("reference", {"method": "dopri54", "rtol": 1e-12}))
+    bad = sorted(set(ref) - REFERENCE_FIELDS)
+    if bad:
+        raise InvalidInputError(f"{where}: field 'reference' has {bad[0]!r}; known: "
+                                f"{', '.join(sorted(REFERENCE_FIELDS))}")
     if ref.get("method") not in known:
-        raise InvalidInputError(f"sweep grid: field 'reference' has method "
+        raise InvalidInputError(f"{where}: field 'reference' has method "
                                 f"{ref.get('method')!r}; known: {', '.join(known)}")
+    common = {"atol_ratio": ratio, "t0": t0, "t_end": t_end, "params": params,
+              "samples": samples, "min_cpu": min_cpu, "max_reps": max_reps}
     refs, tasks = [], []
     for kind, name in cases:
         exact = kind == "problem" and problems()[name].has_exact
+        key = None
         if not exact:
-            refs.append({"kind": kind, "case": name, "method": ref["method"],
-                         "formulation": "reduced", "h": ref.get("h"), "rtol": ref.get("rtol"),
-                         "atol_ratio": ratio, "t0": t0, "t_end": t_end})
+            key = f"{gi}:{kind}:{name}"
+            if known[ref["method"]].adaptive:
+                rh, rrtol = None, float(_positive(ref.get("rtol", 1e-12), "reference.rtol",
+                                                  where))
+            else:
+                if "step_count" in ref:
+                    rn = _positive(ref["step_count"], "reference.step_count", where, True)
+                else:
+                    rn = _span_steps(span, _positive(ref.get("h", 0), "reference.h", where),
+                                     "reference.h", where, samples, True)
+                if samples and rn % samples:
+                    raise InvalidInputError(f"{where}: the reference's {rn} steps do not land "
+                                            f"on the {samples} samples")
+                rh, rrtol = span / rn, None
+            refs.append({"kind": kind, "case": name, "label": name, "key": key,
+                         "method": ref["method"], "formulation": "reduced", "h": rh,
+                         "rtol": rrtol, **common, "min_cpu": 0.0})
         for m in ms:
             adaptive = known[m].adaptive
-            controls = tols if adaptive else steps
+            if adaptive:
+                controls = [(None, t) for t in tols]
+            else:
+                hs = [span / n for n in counts] if counts else steps
+                for n, h in zip(counts or [None] * len(hs), hs):
+                    if n is not None and samples and not exact and n % samples:
+                        raise InvalidInputError(f"{where}: field 'step_counts' has {n}, which "
+                                                f"does not land on the {samples} samples")
+                    if n is None:
+                        _span_steps(span, h, "steps", where, samples, not exact)
+                controls = [(h, None) for h in hs]
             if not controls:
-                raise InvalidInputError(f"sweep grid: {m} needs "
+                raise InvalidInputError(f"{where}: {m} needs "
                                         f"{'tolerances' if adaptive else 'steps'}")
             for f in (forms if kind == "scene" else ["-"]):
-                for c in controls:
-                    tasks.append({"kind": kind, "case": name, "method": m, "formulation": f,
-                                  "h": None if adaptive else c, "rtol": c if adaptive else None,
-                                  "atol_ratio": ratio, "t0": t0, "t_end": t_end,
-                                  "exact": exact})
+                for h, rtol in controls:
+                    tasks.append({"kind": kind, "case": name, "label": label or name,
+                                  "method": m, "formulation": f, "h": h, "rtol": rtol,
+                                  "exact": exact, "ref": key, **common})
     return refs, tasks
 
 
-def run_task(task: dict, ref_state=None) -> dict:
-    """One run of the grid (a worker's whole task): the row of the table."""
+def tasks_of(grid) -> tuple[list, list]:
+    """(references, tasks) of a grid or a list of grids, every entry checked: each a plain
+    dict a worker runs."""
+    if isinstance(grid, (list, tuple)):
+        if not grid:
+            raise InvalidInputError("sweep grid: an empty list of grids")
+        refs, tasks = [], []
+        for i, g in enumerate(grid):
+            r, t = _one(g, f"sweep grid {i + 1} of {len(grid)}", i)
+            refs += r
+            tasks += t
+        return refs, tasks
+    return _one(grid, "sweep grid", 0)
+
+
+def _compared(task, r):
+    """The states a run's error is taken over: every sample, or the last one."""
+    y = r.q if task["kind"] == "scene" else r.y
+    return y if task["samples"] else y[-1:]
+
+
+def run_task(task: dict, ref_states=None) -> dict:
+    """One run of the grid (a worker's whole task): the row of the table, and under "states"
+    the states its error is taken over (a reference's whole answer)."""
     import mbdk
     kw = {"t_end": task["t_end"], "t0": task["t0"]}
+    span = task["t_end"] - task["t0"]
+    samples = task["samples"]
     if task["h"] is not None:
-        n = max(1, round((task["t_end"] - task["t0"]) / task["h"]))
-        kw.update(h=task["h"], every=n)
+        n = max(1, round(span / task["h"]))
+        kw.update(h=task["h"], every=max(1, n // samples) if samples else n)
     else:
         kw.update(rtol=task["rtol"], atol=task["rtol"] * task["atol_ratio"])
-    row = {"case": task["case"], "method": task["method"], "formulation": task["formulation"],
+        if samples:
+            kw.update(dt_out=span / samples)
+    row = {"case": task["label"], "method": task["method"],
+           "formulation": task["formulation"],
            "control": task["h"] if task["h"] is not None else task["rtol"]}
+    if task["kind"] == "scene":
+        from .scene import scene_or_file
+        target = scene_or_file(task["case"])
+
+        def once():
+            return mbdk.simulate(target, task["method"], formulation=task["formulation"],
+                                 outputs=(), **kw)
+    else:
+        def once():
+            return mbdk.solve_ode(task["case"], task["method"], params=task["params"], **kw)
     try:
-        if task["kind"] == "scene":
-            from .scene import scene_or_file
-            r = mbdk.simulate(scene_or_file(task["case"]), task["method"],
-                              formulation=task["formulation"], outputs=(), **kw)
-            final = r.q[-1]
-        else:
-            r = mbdk.solve_ode(task["case"], task["method"], **kw)
-            final = r.y[-1]
+        r = once()
+        cpu, wall, reps = r.stats.cpu_time, r.stats.wall_time, 1
+        while cpu < task["min_cpu"] and reps < task["max_reps"]:
+            again = once()
+            cpu, wall, reps = cpu + again.stats.cpu_time, wall + again.stats.wall_time, reps + 1
     except MbdkError as exc:
         return {**row, "status": type(exc).__name__, "error": math.nan, "steps": 0, "nfev": 0,
-                "cpu_time": 0.0, "wall_time": 0.0, "final": None}
+                "cpu_time": 0.0, "wall_time": 0.0, "rejected": 0, "njev": 0, "nlu": 0,
+                "orders": "", "reps": 0, "states": None}
+    states = _compared(task, r)
     if task.get("exact"):
-        error = float(np.max(np.abs(r.y[-1] - r.exact()[-1])))
-    elif ref_state is not None:
-        error = float(np.max(np.abs(final - ref_state)))
+        ex = r.exact()
+        error = float(np.max(np.abs(states - (ex if samples else ex[-1:]))))
+    elif ref_states is not None and np.shape(ref_states) == states.shape:
+        error = float(np.max(np.abs(states - ref_states)))
     else:
         error = math.nan
-    return {**row, "status": r.status.name, "error": error, "steps": r.stats.steps,
-            "nfev": r.stats.nfev, "cpu_time": r.stats.cpu_time, "wall_time": r.stats.wall_time,
-            "final": final.tolist()}
+    st = r.stats
+    return {**row, "status": r.status.name, "error": error, "steps": st.steps,
+            "nfev": st.nfev, "cpu_time": cpu / reps, "wall_time": wall / reps,
+            "rejected": st.rejected_steps, "njev": st.njev, "nlu": st.nlu,
+            "orders": order_histogram(st), "reps": reps, "states": states}
 
 
-def _reference(task: dict) -> list:
-    return run_task(task)["final"]
+def _reference(task: dict):
+    return run_task(task)["states"]
 
 
-def sweep(grid: dict, workers: int = 2, scheduler: str | None = None) -> SweepResult:
-    """Runs the grid (module docstring): on the Dask scheduler at address scheduler, else on a
-    local cluster of workers processes (one thread each), else (workers = 0) serially here."""
+def _run_batch(batch: list) -> list:
+    """A worker's share: (task, reference states) pairs run one after the other."""
+    return [run_task(t, ref) for t, ref in batch]
+
+
+def _batches(items: list, count: int) -> list:
+    """items dealt round-robin into count batches, so that each holds coarse and fine runs
+    alike; _unbatch restores the order."""
+    return [items[k::count] for k in range(count)]
+
+
+def _unbatch(batches: list, n: int) -> list:
+    out = [None] * n
+    count = len(batches)
+    for k, b in enumerate(batches):
+        out[k::count] = b
+    return out
+
+
+def sweep(grid, workers: int = 2, scheduler: str | None = None,
+          batches_per_worker: int = 8) -> SweepResult:
+    """Runs the grid, or the list of grids (module docstring): on the Dask scheduler at
+    address scheduler, else on a local cluster of workers processes (one thread each), else
+    (workers = 0) serially here. The runs go to the workers in batches_per_worker batches per
+    worker thread, dealt round-robin: a Dask task costs about 4 ms of scheduling on a 2-core
+    machine, more than most runs of a work-precision grid."""
     refs, tasks = tasks_of(grid)
+    if not (isinstance(batches_per_worker, int) and batches_per_worker > 0):
+        raise InvalidInputError(f"batches_per_worker = {batches_per_worker!r} must be a whole "
+                                "number > 0")
     t_start = time.perf_counter()
     if scheduler is None and not workers:
         engine = "serial"
-        ref_states = {(r["kind"], r["case"]): _reference(r) for r in refs}
-        rows = [run_task(t, ref_states.get((t["kind"], t["case"]))) for t in tasks]
+        ref_states = {r["key"]: _reference(r) for r in refs}
+        rows = [run_task(t, ref_states.get(t["ref"])) for t in tasks]
     else:
         try:
             from dask.distributed import Client, LocalCluster
@@ -232,24 +394,26 @@ def sweep(grid: dict, workers: int = 2, scheduler: str | None = None) -> SweepRe
                 from None
         try:
             fr = client.map(_reference, refs, pure=False)
-            ref_states = dict(zip([(r["kind"], r["case"]) for r in refs], client.gather(fr)))
-            ft = client.map(run_task, tasks,
-                            [ref_states.get((t["kind"], t["case"])) for t in tasks], pure=False)
-            rows = client.gather(ft)
+            ref_states = dict(zip([r["key"] for r in refs], client.gather(fr)))
+            threads = max(1, sum(client.nthreads().values()))
+            count = max(1, min(len(tasks), batches_per_worker * threads))
+            pairs = [(t, ref_states.get(t["ref"])) for t in tasks]
+            ft = client.map(_run_batch, _batches(pairs, count), pure=False)
+            rows = _unbatch(client.gather(ft), len(tasks))
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
     for r in rows:
-        r.pop("final", None)
+        r.pop("states", None)
     from .ode import build_info
     return SweepResult(rows, engine, time.perf_counter() - t_start,
                        {**build_info(), "grid": grid, "tasks": len(tasks),
                         "references": len(refs)})
 
 
-def load_grid(path) -> dict:
-    """The [sweep] table of a TOML file."""
+def load_grid(path):
+    """The [sweep] table of a TOML file, or the list of its [[sweep]] tables."""
     import tomllib
     from pathlib import Path
     path = Path(path)
