@@ -103,10 +103,10 @@ def run(out: Path, quick: bool = False) -> dict:
         "On paper: a 1 000-task sweep of this grid's mean task on N workers",
         f"T(N) = S + F + ceil(1000/N) (tau + p) + {per} o: S = {start:.2f} s (a local cluster's "
         f"start), F = {fixed:.2f} s (the rest of the one-worker sweep's fixed cost: the "
-        f"worker's first import, the reference runs, closing), tau = {1e3 * tau:.3g} ms (mean "
+        f"worker's first import, closing), tau = {1e3 * tau:.3g} ms (mean "
         f"CPU time of a run), p = {1e3 * p:.3g} ms (the serial sweep's time outside the "
-        f"kernel per run: set-up, results, the reference runs), o = {1e3 * o:.3g} ms (Dask's scheduling per task, measured on "
-        f"a warm worker; each worker gets {per} batches of runs). A networked cluster adds its "
+        f"kernel per run: set-up, results, the reference runs), o = {1e3 * o:.3g} ms (Dask's "
+        f"scheduling per task, measured on a warm worker; each worker gets {per} batches of runs). A networked cluster adds its "
         "latency to o; the table is a model, not a measurement"))
     return {"title": "Sweeps on Dask: the same bits on every engine, and what workers buy",
             "tables": tables, "figures": [],
