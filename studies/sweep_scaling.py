@@ -106,8 +106,9 @@ def run(out: Path, quick: bool = False) -> dict:
         f"worker's first import, closing), tau = {1e3 * tau:.3g} ms (mean "
         f"CPU time of a run), p = {1e3 * p:.3g} ms (the serial sweep's time outside the "
         f"kernel per run: set-up, results, the reference runs), o = {1e3 * o:.3g} ms (Dask's "
-        f"scheduling per task, measured on a warm worker; each worker gets {per} batches of runs). A networked cluster adds its "
-        "latency to o; the table is a model, not a measurement"))
+        f"scheduling per task, measured on a warm worker; each worker gets {per} batches of "
+        "runs). A networked cluster adds its latency to o; the table is a model, not a "
+        "measurement"))
     return {"title": "Sweeps on Dask: the same bits on every engine, and what workers buy",
             "tables": tables, "figures": [],
             "verdict": f"2 workers: {t1 / t2:.2f}x the speed of 1 on {tasks} runs"}
