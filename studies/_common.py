@@ -23,7 +23,9 @@ def main(run, default_name: str) -> int:
 
 
 def progress(msg: str) -> None:
-    print(f"  .. {msg}", file=sys.stderr, flush=True)
+    """A study's step, on standard error (above the report's bar where there is one)."""
+    from mbdk._compiled import print_line
+    print_line(f"  .. {msg}", file=sys.stderr)
 
 
 def study_workers() -> int:
@@ -40,8 +42,5 @@ def study_workers() -> int:
         if n < 0:
             raise SystemExit(f"MBDK_STUDY_WORKERS = {v!r}: give a whole number >= 0")
         return n
-    try:
-        import dask.distributed  # noqa: F401 (only whether it is there)
-    except ImportError:
-        return 0
-    return 2
+    import importlib.util
+    return 2 if importlib.util.find_spec("distributed") is not None else 0

@@ -72,3 +72,38 @@ def test_a_long_run_shows_a_bar_when_asked(setting, shown):
 def test_the_flag_keeps_the_interrupt_in_its_first_element():
     f = _compiled.new_flag()
     assert f.dtype == np.int32 and f.size == 4 and f.ctypes.data % 8 == 0
+
+
+SWEEP = """
+from mbdk import _compiled
+from mbdk.sweep import sweep
+_compiled.PROGRESS_AFTER = 0.0
+t = sweep({"t_end": 1.0, "problems": ["pendulum"], "methods": ["rk4"],
+           "step_counts": [10, 20, 40, 80]}, workers=WORKERS)
+print(len(t.rows))
+"""
+
+
+@pytest.mark.parametrize("workers", [0, 2])
+@pytest.mark.parametrize("setting, shown", [("1", True), ("0", False)])
+def test_a_sweep_counts_its_runs_when_asked(setting, shown, workers):
+    """A sweep's bar counts the runs done, serially and as a cluster's batches come back, when
+    MBDK_PROGRESS=1 asks for it (shown at once here: PROGRESS_AFTER = 0), and is absent with 0."""
+    env = {**os.environ, "MBDK_PROGRESS": setting, "OPENBLAS_NUM_THREADS": "1"}
+    r = subprocess.run([sys.executable, "-c", SWEEP.replace("WORKERS", str(workers))],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 0 and r.stdout.strip() == "4", r.stderr
+    assert ("sweep:" in r.stderr and "/4 [" in r.stderr) == shown, r.stderr
+
+
+def test_the_report_counts_its_studies_when_asked(tmp_path, root):
+    """The report's bar over its studies, beside the lines it prints per study."""
+    env = {**os.environ, "MBDK_PROGRESS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    script = ("from mbdk import _compiled; _compiled.PROGRESS_AFTER = 0.0\n"
+              "from pathlib import Path\nfrom mbdk.report import build_report\n"
+              f"build_report(Path({str(tmp_path)!r}), quick=True, "
+              f"studies=Path({str(root / 'studies')!r}), "
+              "only=['ch5_formulas'])\n")
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "report:" in r.stderr and "/1 [" in r.stderr and "[1/1] ch5_formulas" in r.stdout

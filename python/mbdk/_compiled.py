@@ -56,6 +56,32 @@ def _show_progress() -> bool:
     return sys.stderr.isatty()
 
 
+def progress_bar(total: int, desc: str, unit: str):
+    """A bar for work longer than PROGRESS_AFTER seconds made of many pieces (the studies of
+    the report, the runs of a sweep), shown where a solve's bar would be; None when it would
+    not be (see _show_progress), or without tqdm. print_line writes beside it."""
+    if not _show_progress():
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:     # pragma: no cover - tqdm is in the requirements
+        return None
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, delay=PROGRESS_AFTER,
+                leave=False)
+
+
+def print_line(text: str, file=None) -> None:
+    """print, above any bar on the terminal rather than through it."""
+    file = file or sys.stdout
+    try:
+        from tqdm import tqdm
+    except ImportError:     # pragma: no cover
+        print(text, file=file, flush=True)
+        return
+    tqdm.write(text, file=file)
+    file.flush()
+
+
 class _Bar:
     """A tqdm bar over [t0, t_end], started PROGRESS_AFTER seconds into a solve."""
 

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+from ._compiled import print_line, progress_bar
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
@@ -88,13 +89,18 @@ def build_report(out: Path, quick: bool = False, studies: Path | None = None,
     sections = []
     started = time.perf_counter()
     names = [n for n in STUDIES if not only or n in only]
+    bar = progress_bar(len(names), "report", "study")
     for i, name in enumerate(names, 1):
-        print(f"[{i}/{len(names)}] {name} ...", flush=True)
+        print_line(f"[{i}/{len(names)}] {name} ...")
+        if bar is not None:
+            bar.set_postfix_str(name)
         t0 = time.perf_counter()
         summary = load_study(folder, name).run(out / name, quick)
         dt = time.perf_counter() - t0
-        print(f"[{i}/{len(names)}] {name}: {len(summary['tables'])} tables, "
-              f"{len(summary['figures'])} figures, {dt:.1f} s", flush=True)
+        print_line(f"[{i}/{len(names)}] {name}: {len(summary['tables'])} tables, "
+                   f"{len(summary['figures'])} figures, {dt:.1f} s")
+        if bar is not None:
+            bar.update(1)
         doc = (load_study(folder, name).__doc__ or "").strip()
         parts = [f"<h2 id='{name}'>{html.escape(summary['title'])}</h2>",
                  f"<pre class='doc'>{html.escape(doc)}</pre>",
@@ -111,6 +117,8 @@ def build_report(out: Path, quick: bool = False, studies: Path | None = None,
     manifest = {**build_info(), "quick": quick,
                 "generated": time.strftime("%Y-%m-%d %H:%M:%S"),
                 "total_seconds": round(time.perf_counter() - started, 1)}
+    if bar is not None:
+        bar.close()
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
     toc = "".join(f"<li><a href='#{n}'>{html.escape(t)}</a></li>" for n, t, _ in sections)
     page = f"""<!doctype html><html><head><meta charset='utf-8'><title>mbdk study report</title>

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._compiled import progress_bar
 from .errors import InvalidInputError, MbdkError
 
 FIELDS = {"t_end", "t0", "scenes", "problems", "params", "label", "methods", "formulations",
@@ -353,11 +354,17 @@ def _unbatch(batches: list, n: int) -> list:
     return out
 
 
+def _tick(bar, n: int) -> None:
+    if bar is not None:
+        bar.update(n)
+
+
 def sweep(grid, workers: int = 2, scheduler: str | None = None,
           batches_per_worker: int = 8) -> SweepResult:
     """Runs the grid, or the list of grids (module docstring): on the Dask scheduler at
     address scheduler, else on a local cluster of workers processes (one thread each), else
-    (workers = 0) serially here. The runs go to the workers in batches_per_worker batches per
+    (workers = 0) serially here, with a bar of the runs done on a terminal after a second
+    (MBDK_PROGRESS as for a solve). The runs go to the workers in batches_per_worker batches per
     worker thread, dealt round-robin: a Dask task costs about 4 ms of scheduling on a 2-core
     machine, more than most runs of a work-precision grid."""
     refs, tasks = tasks_of(grid)
@@ -367,8 +374,15 @@ def sweep(grid, workers: int = 2, scheduler: str | None = None,
     t_start = time.perf_counter()
     if scheduler is None and not workers:
         engine = "serial"
-        ref_states = {r["key"]: _reference(r) for r in refs}
-        rows = [run_task(t, ref_states.get(t["ref"])) for t in tasks]
+        bar = progress_bar(len(refs) + len(tasks), "sweep", "run")
+        ref_states = {}
+        for r in refs:
+            ref_states[r["key"]] = _reference(r)
+            _tick(bar, 1)
+        rows = []
+        for t in tasks:
+            rows.append(run_task(t, ref_states.get(t["ref"])))
+            _tick(bar, 1)
     else:
         try:
             from dask.distributed import Client, LocalCluster
@@ -392,18 +406,28 @@ def sweep(grid, workers: int = 2, scheduler: str | None = None,
                 cluster.close()
             raise InvalidInputError(f"scheduler = {scheduler!r}: cannot connect ({exc})") \
                 from None
+        bar = progress_bar(len(refs) + len(tasks), "sweep", "run")
         try:
+            from dask.distributed import as_completed
             fr = client.map(_reference, refs, pure=False)
+            for _ in as_completed(fr):
+                _tick(bar, 1)
             ref_states = dict(zip([r["key"] for r in refs], client.gather(fr)))
             threads = max(1, sum(client.nthreads().values()))
             count = max(1, min(len(tasks), batches_per_worker * threads))
             pairs = [(t, ref_states.get(t["ref"])) for t in tasks]
-            ft = client.map(_run_batch, _batches(pairs, count), pure=False)
+            batches = _batches(pairs, count)
+            ft = client.map(_run_batch, batches, pure=False)
+            size = {f.key: len(b) for f, b in zip(ft, batches)}
+            for f in as_completed(ft):
+                _tick(bar, size[f.key])
             rows = _unbatch(client.gather(ft), len(tasks))
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
+    if bar is not None:
+        bar.close()
     for r in rows:
         r.pop("states", None)
     from .ode import build_info
