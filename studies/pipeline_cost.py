@@ -17,6 +17,11 @@ kernel visits only what a scene declares, measured.
    threads at once (the solves release the GIL): wall time of both, and the results compared
    bit for bit. On a machine with two or more cores the threaded pair should take about as long
    as the longer solve.
+5. call_overhead: a 1 000-step rk4 solve of the double pendulum (3.64) by solve_ode, by a
+   prepared mbdk.ODESolver and by the bare f2py entry: the call's wall time minus the kernel
+   loop's CPU time, over 2 000 calls each in turn (10th percentile, median, 90th: a busy
+   machine's preemptions during the loop land in the difference too), and Python's own share
+   with the kernel entry replaced by one that returns its outputs (best of 7 x 2 000).
 """
 from __future__ import annotations
 
@@ -194,10 +199,68 @@ def threads(out: Path, quick: bool):
                        "threads' own CPU time.")
 
 
+def call_overhead(out: Path, quick: bool):
+    """Section 5 of the module docstring."""
+    import timeit
+
+    from mbdk import _kernel, ode
+    from mbdk.options import unpack
+    progress("call overhead")
+    solver = mbdk.ODESolver("double_pendulum", "rk4", h=0.01, t_end=10.0, every=1000)
+    args = (solver._id, solver.y0, 0.0, 10.0, solver._pvec, solver._opt)
+
+    def bare():
+        stats = np.zeros(15)
+        _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp, stats)
+        return unpack("mbdk_stats", stats)["cpu_time"]
+
+    calls = {"solve_ode": lambda: mbdk.solve_ode("double_pendulum", "rk4", h=0.01, t_end=10.0,
+                                                 every=1000).stats.cpu_time,
+             "ODESolver.solve": lambda: solver.solve().stats.cpu_time,
+             "bare f2py entry": bare}
+    n = 300 if quick else 2000
+    gaps = {k: [] for k in calls}
+    for _ in range(n):
+        for k, f in calls.items():
+            w0 = time.perf_counter()
+            cpu = f()
+            gaps[k].append(time.perf_counter() - w0 - cpu)
+    # Python's share alone: the kernel entry answers at once with a real solve's outputs
+    canned = _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp,
+                                   np.zeros(15))
+
+    class Canned:
+        def __getattr__(self, name):
+            return getattr(_kernel, name)
+
+        @staticmethod
+        def solve_problem(*a):
+            return canned
+    share = {}
+    ode._kernel = Canned()
+    try:
+        for k in ("solve_ode", "ODESolver.solve"):
+            share[k] = min(timeit.repeat(calls[k], number=n, repeat=7)) / n
+    finally:
+        ode._kernel = _kernel
+    rows = []
+    for k, g in gaps.items():
+        p10, p50, p90 = np.percentile(np.array(g) * 1e6, [10, 50, 90])
+        rows.append({"call": k, "p10_us": p10, "median_us": p50, "p90_us": p90,
+                     "python_share_us": 1e6 * share[k] if k in share else None})
+    return write_table(rows, ["call", "p10_us", "median_us", "p90_us", "python_share_us"], out,
+                       "call_overhead", "The call's cost beyond the kernel loop: a 1 000-step rk4 "
+                       "solve of the double pendulum (3.64), h = 0.01, one sample at the end",
+                       "p10/median/p90: wall time of the call minus the kernel loop's CPU time "
+                       f"over {n} calls each, in turn. python_share_us: the same call with the "
+                       "kernel entry answering at once (best of 7). ODESolver checks its "
+                       "arguments and packs its options once, at construction.")
+
+
 def run(out: Path, quick: bool = False) -> dict:
     out = Path(out)
     tables = [effects_cost(out, quick), outputs_cost(out, quick), simulate_overhead(out, quick),
-              threads(out, quick)]
+              threads(out, quick), call_overhead(out, quick)]
     return {"title": "What a run costs: effects, outputs, the call, threads", "tables": tables,
             "figures": []}
 

@@ -13,7 +13,7 @@ from .errors import (BackendError, CallbackError, ConstraintDriftError, ContactO
                      TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
-from .ode import build_info, evaluate_rhs, solve_ode
+from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions
 from .result import ODEResult, Result, Stats
@@ -26,7 +26,7 @@ from .watch import Watch
 from .spatial import SpatialResult, SpatialScene
 
 __all__ = [
-    "solve_ode", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
+    "solve_ode", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "TooManyStepsError", "TooMuchAccuracyError",

@@ -32,6 +32,8 @@ _IN_CALLBACK = threading.local()
 STARTUP = {"rk4": 0, "bdf": 1}
 MAX_STEPS = int(_kernel.max_steps())   # the kernel's limit (mbdk_fixed_step: MBDK_MAX_STEPS)
 _INT_MAX = 2**31 - 1
+_STATUS = {int(s): s for s in Status}
+_STATS_WORDS = empty("mbdk_stats").size
 
 
 @lru_cache(maxsize=1)
@@ -104,6 +106,26 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
     raise_on_failure: a failure inside the kernel raises its named exception (default); with
              False the partial result is returned with its status.
     """
+    if not callable(problem):
+        return ODESolver(problem, method, h=h, t_end=t_end, t0=t0, y0=y0, params=params,
+                         every=every, fd_jacobian=fd_jacobian, startup=startup, rtol=rtol,
+                         atol=atol, dt_out=dt_out, h_min=h_min, h_max=h_max,
+                         max_steps=max_steps, max_order=max_order, jac=jac,
+                         raise_on_failure=raise_on_failure).solve()
+    info_m, opt, nsteps, nsamp, control, t0, t_end = _plan_of(
+        method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
+        max_order, fd_jacobian)
+    if jac is not None and not callable(jac):
+        raise InvalidInputError(f"jac = {jac!r} must be a function jac(t, y) returning the "
+                                "n x n Jacobian")
+    return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure,
+                           atol, control, jac)
+
+
+def _plan_of(method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
+             max_order, fd_jacobian):
+    """The checked method and options of a solve: (method info, ODEOptions, steps (inf when
+    error-controlled), samples, the manifest's entries, t0, t_end)."""
     if startup not in STARTUP:
         raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
     info_m = _method(method)
@@ -157,43 +179,79 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
                 f"a whole number; use h = {(t_end - t0) / max(n_lo, 1):.12g} or "
                 f"h = {(t_end - t0) / (n_lo + 1):.12g}")
 
-    if jac is not None and not callable(jac):
-        raise InvalidInputError(f"jac = {jac!r} must be a function jac(t, y) returning the "
-                                "n x n Jacobian")
-    if callable(problem):
-        return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure,
-                               atol, control, jac)
-    if jac is not None:
-        raise InvalidInputError(f"jac: {problem!r} is a compiled problem, with its own Jacobian "
-                                "where it has one (fd_jacobian=True replaces it by differences); "
-                                "jac goes with a Python right-hand side")
+    return info_m, opt, nsteps, nsamp, control, t0, t_end
 
-    info_p = _problem(problem)
-    if y0 is None:
-        if info_p.y0 is None:
-            raise InvalidInputError(f"problem {problem!r} has no default y0; give y0")
-        y0 = info_p.y0
-    y0 = _state("y0", y0, info_p.n if info_p.n > 0 else None)
-    if info_m.family == "euler_cromer" and not info_p.second_order:
-        raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
-                                 f"{problem!r} is first order. Use explicit_euler, heun or rk4")
-    atol_v = _atol_vector(atol, len(y0), opt.rtol) if info_m.adaptive else np.zeros(0)
-    merged, pvec = resolve_params(info_p, params, len(y0))
-    stats, flag = empty("mbdk_stats"), _compiled.new_flag()
-    (t, y, nw, status), interrupted = _compiled.call(
-        _kernel.solve_problem,
-        (info_p.id, y0, t0, t_end, pvec, opt.pack(), flag, atol_v, nsamp, stats),
-        flag, nsteps * len(y0), span=(t0, t_end))
-    manifest = {**build_info(), "problem": problem, "method": method, "t0": t0,
-                "t_end": t_end, **control,
-                "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                           for k, v in merged.items()},
-                "y0": y0.tolist(),
-                "jacobian": "finite differences" if fd_jacobian else "analytic where available",
-                "newton": {"rtol": opt.newton_rtol, "atol": opt.newton_atol,
-                           "max_iter": opt.newton_max_iter}}
-    return _finish(t, y, stats, nw, status, manifest, problem, method, merged, t0, y0,
-                   raise_on_failure, None, interrupted)
+
+class ODESolver:
+    """A compiled problem's solve, checked once and run as often as wanted: the lean path for
+    many short solves (a parameter study, an optimiser's inner loop, a Monte-Carlo of initial
+    states). The arguments are solve_ode's (a compiled problem only; nq does not apply);
+    solve(y0=None) runs it, from the given initial state or the one given here, and returns
+    the ODEResult solve_ode would. Python's share of a 1 000-step rk4 solve is then a few
+    microseconds beside the f2py call (studies/pipeline_cost.py measures it)."""
+
+    def __init__(self, problem, method: str, *, h: float | None = None, t_end: float,
+                 t0: float = 0.0, y0=None, params: dict | None = None, every: int = 1,
+                 fd_jacobian: bool = False, startup: str = "rk4", rtol: float | None = None,
+                 atol=None, dt_out: float = 0.0, h_min: float = 0.0, h_max: float = 0.0,
+                 max_steps: int = 0, max_order: int = 0, jac=None,
+                 raise_on_failure: bool = True):
+        info_m, opt, nsteps, nsamp, control, t0, t_end = _plan_of(
+            method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
+            max_order, fd_jacobian)
+        if callable(problem):
+            raise NotApplicableError("ODESolver runs compiled problems; a Python f(t, y) goes "
+                                     "to solve_ode (the slow path)")
+        if jac is not None and not callable(jac):
+            raise InvalidInputError(f"jac = {jac!r} must be a function jac(t, y) returning the "
+                                    "n x n Jacobian")
+        if jac is not None:
+            raise InvalidInputError(f"jac: {problem!r} is a compiled problem, with its own "
+                                    "Jacobian where it has one (fd_jacobian=True replaces it by "
+                                    "differences); jac goes with a Python right-hand side")
+        info_p = _problem(problem)
+        if y0 is None:
+            if info_p.y0 is None:
+                raise InvalidInputError(f"problem {problem!r} has no default y0; give y0")
+            y0 = info_p.y0
+        y0 = _state("y0", y0, info_p.n if info_p.n > 0 else None)
+        if info_m.family == "euler_cromer" and not info_p.second_order:
+            raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
+                                     f"{problem!r} is first order. Use explicit_euler, heun or "
+                                     "rk4")
+        self._atol = _atol_vector(atol, len(y0), opt.rtol) if info_m.adaptive else np.zeros(0)
+        merged, self._pvec = resolve_params(info_p, params, len(y0))
+        self.problem, self.method, self.t0, self.t_end = problem, method, t0, t_end
+        self.params, self.y0 = merged, y0
+        self._id, self._opt, self._nsamp = info_p.id, opt.pack(), nsamp
+        self._n, self._nsteps, self._raise = len(y0), nsteps, raise_on_failure
+        self._work = nsteps * len(y0)
+        self._y0_list = y0.tolist()
+        self._manifest = {
+            **build_info(), "problem": problem, "method": method, "t0": t0, "t_end": t_end,
+            **control,
+            "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v)
+                       for k, v in merged.items()},
+            "jacobian": "finite differences" if fd_jacobian else "analytic where available",
+            "newton": {"rtol": opt.newton_rtol, "atol": opt.newton_atol,
+                       "max_iter": opt.newton_max_iter}}
+
+    def solve(self, y0=None) -> ODEResult:
+        """One solve, from y0 (checked: n finite numbers) or the initial state given at
+        construction."""
+        y0 = self.y0 if y0 is None else _state("y0", y0, self._n)
+        stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
+        args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
+                self._nsamp, stats)
+        if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
+            (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
+        else:
+            (t, y, nw, status), interrupted = _compiled.call(
+                _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        manifest = dict(self._manifest)
+        manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
+        return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
+                       self.params, self.t0, y0, self._raise, None, interrupted)
 
 
 def _nonneg(name: str, value, default: float = 0.0) -> float:
@@ -296,19 +354,25 @@ def _state(name: str, value, n: int | None) -> np.ndarray:
         raise InvalidInputError(f"{name} has {y.size} entries, the problem has {n} states")
     if y.size == 0:
         raise InvalidInputError(f"{name} is empty")
-    bad = np.flatnonzero(~np.isfinite(y))
-    if bad.size:
+    if not np.isfinite(y).all():
+        bad = np.flatnonzero(~np.isfinite(y))
         raise InvalidInputError(f"{name}[{bad[0]}] = {y[bad[0]]} is not finite")
     return y
 
 
 def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
             raise_on_failure, failure_note, interrupted=False):
-    status = Status(int(status))
-    result = ODEResult(t=t[:nw], y=y[:, :nw].T, stats=Stats.from_words(stats),
-                       status=status, message=status_message(status), manifest=manifest,
-                       problem=problem if isinstance(problem, str) else "",
-                       method=method, params=params, t0=t0, y0=y0)
+    code = int(status)
+    status = _STATUS.get(code)
+    if status is None:
+        status = Status(code)
+    # every field is set here, so the instance is filled directly: the generated __init__
+    # costs a short solve more than its own kernel call's overhead
+    result = object.__new__(ODEResult)
+    result.__dict__.update(t=t[:nw], y=y[:, :nw].T, stats=Stats.from_words(stats),
+                           status=status, message=status_message(status), manifest=manifest,
+                           problem=problem if isinstance(problem, str) else "",
+                           method=method, params=params, t0=t0, y0=y0)
     if status == Status.ERR_INTERRUPTED or interrupted:
         # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
         raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else

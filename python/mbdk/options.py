@@ -12,6 +12,7 @@ flag of its own (mbdk._compiled).
 """
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass, fields
 from functools import lru_cache
 
@@ -24,6 +25,7 @@ from .errors import _decode
 STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
               "mbdk_model_options": 4}
 _FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
+_F64 = np.dtype(np.float64)
 
 
 @lru_cache(maxsize=None)
@@ -76,13 +78,47 @@ def pack(cname: str, values: dict) -> np.ndarray:
         if i is None:
             raise KeyError(f"{cname} has no field {k!r}")
         fields_[i] = v
-    return np.array([tuple(fields_)], dtype=layout(cname)).view(np.float64)
+    order, writer = _writer(cname)
+    try:
+        raw = writer.pack(*[fields_[i] for i in order])
+    except struct.error:    # a value struct will not convert (a float in an integer field)
+        return np.array([tuple(fields_)], dtype=layout(cname)).view(np.float64)
+    return np.frombuffer(raw, dtype=np.float64).copy()
+
+
+_STRUCT_CODES = {np.dtype(np.intc): "i", np.dtype(np.int64): "q", np.dtype(np.float64): "d",
+                 np.dtype(np.uintp): "Q"}
+
+
+@lru_cache(maxsize=None)
+def _reader(cname: str):
+    """(field names in offset order, a struct.Struct that reads the kernel's bytes into them):
+    one C call, where a structured numpy view costs a Python-level safety check that is more
+    than the rest of a short solve's result."""
+    dt = layout(cname)
+    fields_ = sorted((dt.fields[n][1], n, dt.fields[n][0]) for n in dt.names)
+    fmt, at = "=", 0
+    for offset, _, ftype in fields_:
+        fmt += "x" * (offset - at) + _STRUCT_CODES[ftype]
+        at = offset + ftype.itemsize
+    fmt += "x" * (dt.itemsize - at)
+    return tuple(n for _, n, _ in fields_), struct.Struct(fmt)
+
+
+@lru_cache(maxsize=None)
+def _writer(cname: str):
+    """(the fields' indices in the layout's name order, taken in offset order; the
+    struct.Struct that writes them as the kernel's bytes)."""
+    names, reader = _reader(cname)
+    where = _position(cname)
+    return tuple(where[n] for n in names), reader
 
 
 def unpack(cname: str, words) -> dict:
-    rec = np.frombuffer(np.ascontiguousarray(words, dtype=np.float64).tobytes(),
-                        dtype=layout(cname))[0]
-    return dict(zip(layout(cname).names, rec.item()))
+    names, reader = _reader(cname)
+    if type(words) is not np.ndarray or words.dtype is not _F64:
+        words = np.ascontiguousarray(words, dtype=np.float64)
+    return dict(zip(names, reader.unpack(words.tobytes())))
 
 
 def empty(cname: str) -> np.ndarray:

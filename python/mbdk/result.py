@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import Status
+from .options import unpack as _unpack
 
 
 @dataclass(frozen=True)
@@ -33,12 +34,11 @@ class Stats:
     @classmethod
     def from_words(cls, words) -> "Stats":
         """From the kernel's struct bytes (8-byte words), field by field by name."""
-        from .options import unpack
         # every field comes from the kernel's struct, so the frozen instance is filled directly:
         # the generated __init__ sets 15 fields one by one through object.__setattr__, which
         # cost more than a short solve's kernel call
         stats = object.__new__(cls)
-        stats.__dict__.update(unpack("mbdk_stats", words))
+        stats.__dict__.update(_unpack("mbdk_stats", words))
         return stats
 
 
