@@ -7,7 +7,9 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    and bdf at two tolerances, each on the reduced, baumgarte (alpha = 1/h, beta = sqrt(2)/h;
    for the error-controlled methods 1/(1 ms) and sqrt(2)/(1 ms)), penalty (Jalon-Bayo, the
    defaults alpha_p = 1e7, omega_p = 10, mu_p = 1) and projection formulations, and bdf also
-   on the index-3 DAE itself (formulation i3, as GSTIFF I3).
+   on the index-3 DAE itself (formulation i3, as GSTIFF I3); trapezoidal_index3 at the rk4
+   steps, in its projected form (Newton with a Jacobian by differences, then the projections;
+   second order).
    Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
    which rk4 then does not resolve: its forces of beta^2 Phi perturb the motion far more than
    the reduced form's drift does (the same holds on planar scenes, studies/scene_drift.py).
@@ -94,8 +96,9 @@ def pendulum_error(r, planar):
 def runs(quick: bool):
     steps = (2e-3, 1e-3) if quick else (2e-3, 1e-3, 5e-4)
     tols = (1e-6, 1e-9)
-    for h in steps:
-        yield "rk4", {"h": h, "every": int(round(0.01 / h))}, f"h = {h:g}"
+    for m in ("rk4", "trapezoidal_index3"):
+        for h in steps:
+            yield m, {"h": h, "every": int(round(0.01 / h))}, f"h = {h:g}"
     for m in ("dopri54", "bdf"):
         for tol in tols:
             yield m, {"rtol": tol, "atol": tol * 1e-2, "dt_out": 0.01,
@@ -129,8 +132,11 @@ def formulation_rows(quick: bool) -> list[dict]:
                                         ("spatial_double_pendulum", pend, pendulum_error,
                                          planar)):
         for method, kw, control in runs(quick):
-            # bdf also integrates the index-3 DAE itself
-            for form in FORMULATIONS + (("i3",) if method == "bdf" else ()):
+            # bdf also integrates the index-3 DAE itself; trapezoidal_index3 has its projected
+            # form only
+            forms = (("projected",) if method == "trapezoidal_index3" else
+                     FORMULATIONS + (("i3",) if method == "bdf" else ()))
+            for form in forms:
                 rows.append(run_case(
                     sc, scene_name, method, kw, control, form, T_END,
                     lambda r: {"error": err_fn(r, ref),
@@ -189,8 +195,10 @@ def benchmark_rows(quick: bool) -> list[dict]:
     cases += [(m, {"rtol": tol, "atol": tol * 1e-2, "alpha": 1e3, "beta": 2 ** 0.5 * 1e3,
                    "max_steps": 4000 if quick else 20000},
                f"rtol = {tol:g}") for m in ("dopri54", "bdf") for tol in (1e-6, 1e-9)]
+    cases += [("trapezoidal_index3", {"h": h, "every": int(round(t_end / h))}, f"h = {h:g}")
+              for h in ((4e-3,) if quick else (4e-3, 2e-3))]
     for method, kw, control in cases:
-        for form in FORMULATIONS:
+        for form in (("projected",) if method == "trapezoidal_index3" else FORMULATIONS):
             rows.append(run_case(
                 sc, "bricard", method, kw, control, form, t_end,
                 lambda r: {"error": float(np.abs(r.q[-1] - ref.q[-1]).max()),

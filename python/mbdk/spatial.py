@@ -46,8 +46,9 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
 
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
-(kernel/src/spatial/mbdk_spatial_dae.f90). trapezoidal_index3, ida and bdf's si2 are the
-planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
+(kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
+(formulation "projected", the default: kernel/src/spatial/mbdk_spatial_index3.f90, fixed step).
+ida and bdf's si2 are the planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
@@ -708,20 +709,30 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         _want(outputs)
     _validate(sc)
     info_m = _method(method)
-    if info_m.solves != "ode":
+    index3 = info_m.family == "dae_index3"
+    if info_m.solves != "ode" and not index3:
         raise NotApplicableError(
             f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
-            "baumgarte, penalty or projection formulation, and bdf on their DAE itself "
-            "(formulation 'i3')")
+            "baumgarte, penalty or projection formulation, bdf on their DAE itself "
+            "(formulation 'i3') and trapezoidal_index3 (formulation 'projected')")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
                                  "not its coordinates' rates; use symplectic methods on planar "
                                  "scenes, or rk4 here")
+    if index3:
+        formulation = "projected" if formulation is None else formulation
+        if formulation != "projected":
+            raise NotApplicableError(
+                f"formulation {formulation!r} of trapezoidal_index3 on spatial scene "
+                f"{sc.name!r}: spatial scenes take its projected form only ('projected', "
+                "kernel/src/spatial/mbdk_spatial_index3.f90); the unprojected book scheme "
+                "(index3) and the augmented Lagrangian are the planar model's")
     formulation = "reduced" if formulation is None else formulation
     dae = formulation == "i3" and info_m.family == "variable_bdf"
-    if not isinstance(formulation, str) or (formulation not in FORMULATIONS and not dae):
+    if not isinstance(formulation, str) or (formulation not in FORMULATIONS and not dae
+                                            and not index3):
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
                                  f"spatial scenes run {', '.join(FORMULATIONS)}, and bdf also "
                                  "'i3' (the index-3 DAE itself)")
@@ -762,7 +773,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     from dataclasses import replace
     opt = replace(opt, method=info_m.id)
     w = as_watch(watch)
-    sopt = np.array([FORMULATIONS["reduced" if dae else formulation], ROTATIONS[sc.rotation],
+    model_form = "reduced" if dae else "projection" if index3 else formulation
+    sopt = np.array([FORMULATIONS[model_form], ROTATIONS[sc.rotation],
                      NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
@@ -774,7 +786,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     m1 = max(sc.rows, 1)
     nsamp = plan_["nsamp"]
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
-            flag, np.zeros(0), y0, int(bool(assemble_initial)), int(dae), float(t0),
+            flag, np.zeros(0), y0, int(bool(assemble_initial)), 2 if index3 else int(dae),
+            float(t0),
             float(t_end), nsamp, m1, stats)
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
@@ -795,8 +808,15 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                  "dense Schur complement (LAPACK dpotrf)"),
                 "watch": {"position": w.position, "velocity": w.velocity,
                           "energy": w.energy, "every": w.every}}
-    if formulation == "projection":
+    if formulation in ("projection", "projected"):
         manifest["projection_tol"] = projection_tol
+    if index3:
+        manifest["form"] = ("trapezoidal rule on the index-3 DAE, Newton on (q+, w+, lam+) "
+                            "with the equations of motion at t+, then the projections of "
+                            "positions, velocities and the quaternions' norm, and a+, lam+ "
+                            "from the constrained solve")
+        manifest["linear_solve"] = ("Newton matrix by forward differences (LAPACK LU), kept "
+                                    "while Newton contracts")
     if dae:
         manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
                             "0 = Phi on the independent rows; error test on q and h times w; "

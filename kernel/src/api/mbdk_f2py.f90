@@ -862,13 +862,15 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! (moved: the largest change of a state). out(MBDK_SPATIAL_OUTPUTS, nsamp) and lam_out(m1,
   ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
   ! none). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
-  ! the DAE's own). watch_report as scene_run's.
+  ! the DAE's own); 2: trapezoidal_index3's projected form (mbdk_spatial_index3; the model is
+  ! built with the projection formulation). watch_report as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
+  use mbdk_spatial_index3, only: mbdk_spatial_index3_solve
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
@@ -946,6 +948,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     lam_out(:, nwritten + 1:) = nan
   else if (dae_form == 0) then
     call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
+  else if (dae_form == 2) then
+    call mbdk_spatial_index3_solve(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status)
   else
     status = MBDK_ERR_INVALID_INPUT
     return
@@ -962,7 +966,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
       out(:, k) = nan
       cycle
     end if
-    if (dae_form == 0) call spatial_lambda(y_out(:, k))
+    if (dae_form /= 1) call spatial_lambda(y_out(:, k))
   end do
   status = s
   statbuf = transfer(st, statbuf, nstatw)
