@@ -944,3 +944,14 @@ def test_trapezoidal_index3_on_a_driven_slider():
 def test_trapezoidal_index3_on_spatial_scenes_refuses_what_it_does_not_do(kw, error, text):
     with pytest.raises(error, match=text):
         mbdk.simulate(mbdk.scene("heavy_top"), "trapezoidal_index3", t_end=0.1, **kw)
+
+
+@pytest.mark.parametrize("h", [6.25e-4, 3.125e-4])
+def test_trapezoidal_index3_on_spatial_scenes_at_small_steps(h):
+    """The Newton unknown is (h^2/4) lam: with lam itself the matrix's condition grows like
+    h^-2, and at h = 6.25e-4 the spatial double pendulum's updates stalled at roundoff above
+    the tolerance (NewtonDivergedError at t = 0.465). Past that point, on the joints."""
+    r = mbdk.simulate(mbdk.scene("spatial_double_pendulum"), "trapezoidal_index3", h=h,
+                      t_end=0.6, every=round(0.05 / h))
+    assert r.success and r.t[-1] == pytest.approx(0.6)
+    assert r.residuals[:, 0].max() < 1e-13 and r.residuals[:, 1].max() < 1e-12
