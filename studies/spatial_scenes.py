@@ -9,7 +9,7 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    defaults alpha_p = 1e7, omega_p = 10, mu_p = 1) and projection formulations, and bdf also
    on the index-3 DAE itself (formulation i3, as GSTIFF I3); trapezoidal_index3 at the rk4
    steps, in its projected form (Newton with a Jacobian by differences, then the projections;
-   second order).
+   second order); ida (SUNDIALS) on the DAE itself in its index1 and GGL forms.
    Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
    which rk4 then does not resolve: its forces of beta^2 Phi perturb the motion far more than
    the reduced form's drift does (the same holds on planar scenes, studies/scene_drift.py).
@@ -99,7 +99,7 @@ def runs(quick: bool):
     for m in ("rk4", "trapezoidal_index3"):
         for h in steps:
             yield m, {"h": h, "every": int(round(0.01 / h))}, f"h = {h:g}"
-    for m in ("dopri54", "bdf"):
+    for m in ("dopri54", "bdf", "ida"):
         for tol in tols:
             yield m, {"rtol": tol, "atol": tol * 1e-2, "dt_out": 0.01,
                       "alpha": 1e3, "beta": 2 ** 0.5 * 1e3}, f"rtol = {tol:g}"
@@ -135,6 +135,7 @@ def formulation_rows(quick: bool) -> list[dict]:
             # bdf also integrates the index-3 DAE itself; trapezoidal_index3 has its projected
             # form only
             forms = (("projected",) if method == "trapezoidal_index3" else
+                     ("index1", "ggl") if method == "ida" else
                      FORMULATIONS + (("i3",) if method == "bdf" else ()))
             for form in forms:
                 rows.append(run_case(
@@ -197,8 +198,11 @@ def benchmark_rows(quick: bool) -> list[dict]:
                f"rtol = {tol:g}") for m in ("dopri54", "bdf") for tol in (1e-6, 1e-9)]
     cases += [("trapezoidal_index3", {"h": h, "every": int(round(t_end / h))}, f"h = {h:g}")
               for h in ((4e-3,) if quick else (4e-3, 2e-3))]
+    cases += [("ida", {"rtol": tol, "atol": tol * 1e-2}, f"rtol = {tol:g}")
+              for tol in (1e-6, 1e-9)]
     for method, kw, control in cases:
-        for form in (("projected",) if method == "trapezoidal_index3" else FORMULATIONS):
+        for form in (("projected",) if method == "trapezoidal_index3" else
+                     ("index1", "ggl") if method == "ida" else FORMULATIONS):
             rows.append(run_case(
                 sc, "bricard", method, kw, control, form, t_end,
                 lambda r: {"error": float(np.abs(r.q[-1] - ref.q[-1]).max()),
@@ -221,10 +225,12 @@ def benchmark_rows(quick: bool) -> list[dict]:
              for tol in (1e-6, 1e-8)]
     cases += [("cvode_bdf", {"rtol": tol, "atol": tol * 1e-2}, f"rtol = {tol:g}")
               for tol in (1e-6, 1e-8)]
+    cases += [("ida", {"rtol": tol, "atol": tol * 1e-2}, f"rtol = {tol:g}")
+              for tol in (1e-6, 1e-8)]
     if not quick:
         cases.append(("rk4", {"h": 1e-4, "every": int(round(t_fly / 1e-4))}, "h = 1e-4"))
     for method, kw, control in cases:
-        for form in ("reduced", "projection"):
+        for form in (("index1", "ggl") if method == "ida" else ("reduced", "projection")):
             if method.startswith("cvode") and form == "projection":
                 continue
             sc_f = mbdk.scene("flyball_governor")

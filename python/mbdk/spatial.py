@@ -47,8 +47,9 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
-(formulation "projected", the default: kernel/src/spatial/mbdk_spatial_index3.f90, fixed step).
-ida and bdf's si2 are the planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
+(formulation "projected", the default: kernel/src/spatial/mbdk_spatial_index3.f90, fixed step);
+ida in the forms index1 (the default) and ggl (kernel/src/sundials/mbdk_ida.f90,
+mbdk_ida_solve_spatial). bdf's si2 is the planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
@@ -75,6 +76,13 @@ from .scene import GROUND, SceneError, _Reader, section_items
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+#: ida's forms on spatial scenes (the spatial_run's dae_form codes; mbdk_ida_solve_spatial)
+IDA_FORMS = {"index1": 3, "ggl": 4}
+IDA_FORM_TEXT = {
+    "index1": "index 1: q' = T(q) w, w' = M^-1 (f - C^T lam), C w' = gamma on the independent "
+              "rows; Phi and C w + Phi_t drift as in the reduced ODE (the watch names it)",
+    "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = T(q) (w + M^-1 C^T mu), "
+           "w' = M^-1 (f - C^T lam), Phi = 0, C w + Phi_t = 0 on the independent rows"}
 JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
                "fixed": 6, "angle_driver": 7, "slide_driver": 8}
 JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5,
@@ -710,12 +718,14 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     _validate(sc)
     info_m = _method(method)
     index3 = info_m.family == "dae_index3"
-    if info_m.solves != "ode" and not index3:
+    ida = info_m.family == "ida"
+    if info_m.solves != "ode" and not index3 and not ida:
         raise NotApplicableError(
             f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
             "baumgarte, penalty or projection formulation, bdf on their DAE itself "
-            "(formulation 'i3') and trapezoidal_index3 (formulation 'projected')")
+            "(formulation 'i3'), ida ('index1', 'ggl') and trapezoidal_index3 "
+            "(formulation 'projected')")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
@@ -729,10 +739,16 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                 f"{sc.name!r}: spatial scenes take its projected form only ('projected', "
                 "kernel/src/spatial/mbdk_spatial_index3.f90); the unprojected book scheme "
                 "(index3) and the augmented Lagrangian are the planar model's")
+    if ida:
+        formulation = "index1" if formulation is None else formulation
+        if formulation not in IDA_FORMS:
+            raise NotApplicableError(
+                f"formulation {formulation!r} of ida on spatial scene {sc.name!r}: ida "
+                f"integrates the DAE itself, in the forms {', '.join(IDA_FORMS)}")
     formulation = "reduced" if formulation is None else formulation
     dae = formulation == "i3" and info_m.family == "variable_bdf"
     if not isinstance(formulation, str) or (formulation not in FORMULATIONS and not dae
-                                            and not index3):
+                                            and not index3 and not ida):
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
                                  f"spatial scenes run {', '.join(FORMULATIONS)}, and bdf also "
                                  "'i3' (the index-3 DAE itself)")
@@ -773,7 +789,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     from dataclasses import replace
     opt = replace(opt, method=info_m.id)
     w = as_watch(watch)
-    model_form = "reduced" if dae else "projection" if index3 else formulation
+    model_form = "reduced" if dae or ida else "projection" if index3 else formulation
     sopt = np.array([FORMULATIONS[model_form], ROTATIONS[sc.rotation],
                      NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
@@ -786,8 +802,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     m1 = max(sc.rows, 1)
     nsamp = plan_["nsamp"]
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
-            flag, np.zeros(0), y0, int(bool(assemble_initial)), 2 if index3 else int(dae),
-            float(t0),
+            flag, np.zeros(0), y0, int(bool(assemble_initial)),
+            2 if index3 else IDA_FORMS[formulation] if ida else int(dae), float(t0),
             float(t_end), nsamp, m1, stats)
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
@@ -817,6 +833,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                             "from the constrained solve")
         manifest["linear_solve"] = ("Newton matrix by forward differences (LAPACK LU), kept "
                                     "while Newton contracts")
+    if ida:
+        manifest["form"] = IDA_FORM_TEXT[formulation]
+        manifest["linear_solve"] = "IDA's dense difference quotients, SUNDIALS dense LU"
+        manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
+                                       if sc.quaternion_norm == "project" else
+                                       sc.quaternion_norm)
     if dae:
         manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
                             "0 = Phi on the independent rows; error test on q and h times w; "

@@ -863,7 +863,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
   ! none). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
   ! the DAE's own); 2: trapezoidal_index3's projected form (mbdk_spatial_index3; the model is
-  ! built with the projection formulation). watch_report as scene_run's.
+  ! built with the projection formulation); 3, 4: ida in its index1 and GGL forms
+  ! (mbdk_ida_solve_spatial; multipliers its own). watch_report as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
@@ -942,9 +943,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     call mbdk_spatial_assemble(model, t0, y, moved, status)
     if (status /= MBDK_SUCCESS) return
   end if
-  if (dae_form == 1) then
-    call mbdk_solve_spatial_dae(model, opt, t0, t_end, y, t_out, y_out, lam_out, nwritten, st, &
-                                status)
+  if (dae_form == 1 .or. dae_form == 3 .or. dae_form == 4) then
+    ! bdf (1) or ida in its index1 (3) or GGL (4) form
+    call mbdk_solve_spatial_dae(model, opt, max(dae_form - 2, 1), t0, t_end, y, t_out, y_out, &
+                                lam_out, nwritten, st, status)
     lam_out(:, nwritten + 1:) = nan
   else if (dae_form == 0) then
     call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
@@ -956,7 +958,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   s = status
   do k = 1, nwritten
-    if (dae_form == 1) then   ! the drivers' power with the DAE's own multipliers
+    if (dae_form == 1 .or. dae_form >= 3) then   ! the drivers' power with the DAE's own
       call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status, &
                                 lam_in=lam_out(1:model%m, k))
     else
@@ -966,7 +968,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
       out(:, k) = nan
       cycle
     end if
-    if (dae_form /= 1) call spatial_lambda(y_out(:, k))
+    if (dae_form == 0 .or. dae_form == 2) call spatial_lambda(y_out(:, k))
   end do
   status = s
   statbuf = transfer(st, statbuf, nstatw)

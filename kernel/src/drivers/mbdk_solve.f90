@@ -27,7 +27,7 @@ module mbdk_solve
   use mbdk_cvode, only: mbdk_cvode_solve
   use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, mbdk_model_constraints, &
     MBDK_FORM_REDUCED
-  use mbdk_ida, only: mbdk_ida_solve
+  use mbdk_ida, only: mbdk_ida_solve, mbdk_ida_solve_spatial
   use mbdk_scene_dae, only: mbdk_scene_dae_t, mbdk_scene_dae_init, MBDK_DAE_I3
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_multipliers, &
     mbdk_spatial_constraints, MBDK_SPATIAL_REDUCED
@@ -215,15 +215,17 @@ contains
 
   end subroutine mbdk_solve_scene_dae
 
-  !> bdf on a spatial scene's index-3 DAE (mbdk_spatial_dae, as GSTIFF I3), from y0 = [q0; w0]
+  !> bdf on a spatial scene's index-3 DAE (mbdk_spatial_dae, as GSTIFF I3), or ida in form 1
+  !> (index 1) or 2 (GGL: mbdk_ida_solve_spatial), from y0 = [q0; w0]
   !> on the joints: Y(0) = [q0; w0; lam0] and Y'(0) = [q'; w'; 0] from the model's reduced
   !> solve (its formulation must be reduced). y_out gets [q; w] at the samples, lam_out(1:m, k)
   !> the multipliers (zero on the rows a redundant scene leaves out). A start off the joints
   !> (|Phi| or |C w + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL.
-  subroutine mbdk_solve_spatial_dae(model, opt, t0, t_end, y0, t_out, y_out, lam_out, &
+  subroutine mbdk_solve_spatial_dae(model, opt, form, t0, t_end, y0, t_out, y_out, lam_out, &
                                     nwritten, st, stat)
     type(mbdk_spatial_model_t), intent(in), target :: model
     type(mbdk_options_t), intent(in) :: opt
+    integer, intent(in) :: form
     real(dp), intent(in) :: t0, t_end, y0(:)
     real(dp), intent(out) :: t_out(:), y_out(:, :)
     real(dp), intent(inout) :: lam_out(:, :)
@@ -240,16 +242,22 @@ contains
     nwritten = 0
     call mbdk_method_info(opt%method, name, family, order)
     stat = MBDK_ERR_NOT_APPLICABLE
-    if (family /= MBDK_FAMILY_VARIABLE_BDF .or. model%opt%formulation /= MBDK_SPATIAL_REDUCED) &
-      return
+    if ((family /= MBDK_FAMILY_VARIABLE_BDF .and. family /= MBDK_FAMILY_IDA) .or. &
+        model%opt%formulation /= MBDK_SPATIAL_REDUCED) return
     stat = MBDK_ERR_INVALID_INPUT
     if (opt%max_order > max_order_of(family, order)) return
+    if (family == MBDK_FAMILY_IDA .and. form /= 1 .and. form /= 2) return
     ny = size(y0)
     m = model%m
     nq = ny - 6 * model%nb
     call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
     if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
-    call solve(stat)
+    if (family == MBDK_FAMILY_IDA) then
+      call mbdk_ida_solve_spatial(model, opt, form == 2, t0, y0, t_out(1:nsamp), y_out, &
+                                  lam_out, nwritten, st, stat)
+    else
+      call solve(stat)
+    end if
     call mbdk_timer_stop(timer, st)
 
   contains

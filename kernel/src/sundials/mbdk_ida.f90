@@ -4,7 +4,9 @@
 !>   Phi' = D v + Phi_t,   D a = gamma
 !> as a differential-algebraic system F(t, Y, Y') = 0, not as the reduced ODE, in one of two
 !> forms, index1 or ggl (ggl refuses knife edges, MBDK_ERR_NOT_APPLICABLE: they have no
-!> position row for its mu to stabilise).
+!> position row for its mu to stabilise). mbdk_ida_solve_spatial does the same for a spatial
+!> scene (mbdk_spatial_model: rotations in q, velocities w, its comment gives the forms);
+!> both share ida_run, the SUNDIALS part below.
 !>
 !> IDA solves F(t, Y, Y') = 0 with variable-order, variable-step BDF formulas (orders 1..5) in
 !> fixed-leading-coefficient form (Brenan, Campbell and Petzold, Numerical Solution of IVPs in
@@ -136,6 +138,9 @@ module mbdk_ida
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
     mbdk_model_accelerations, mbdk_model_watch, MBDK_FORM_REDUCED
   use mbdk_joints, only: MBDK_JOINT_TYPES
+  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
+    mbdk_spatial_constraints, mbdk_spatial_multipliers, mbdk_spatial_watch, &
+    MBDK_SPATIAL_REDUCED
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -155,7 +160,7 @@ module mbdk_ida
     FIDASVtolerances
   implicit none
   private
-  public :: mbdk_ida_solve
+  public :: mbdk_ida_solve, mbdk_ida_solve_spatial
 
   integer, parameter :: IDA_MAX_ORDER = 5
   !> a consistent initial residual row is within this many eps of the sum of its terms' sizes:
@@ -166,6 +171,8 @@ module mbdk_ida
   real(dp), parameter :: ASSEMBLED_PHI = 1.0e-12_dp
   !> ggl: mu's absolute tolerance, which leaves it out of the Newton test (module header)
   real(dp), parameter :: MU_ATOL = 1.0_dp
+  !> spatial ggl: the least first step, as a fraction of the interval (mbdk_ida_solve_spatial)
+  real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
 
   ! SUNDIALS' own accessor, called directly (as in mbdk_cvode): the interface's
   ! FN_VGetArrayPointer asks for the length through a second wrapper on every call.
@@ -181,7 +188,17 @@ module mbdk_ida
   type :: ida_context_t
     type(mbdk_model_t), pointer :: model => null()
     integer :: nc = 0, m = 0, n = 0
+    !> Y = [the differential part (ny); the multipliers (nl); (ggl) mu (nl)]: planar ny = 2 nc,
+    !> nl = m; spatial ny = nq + 6 nb, nl = the independent rows (rows)
+    integer :: ny = 0, nl = 0
+    !> the first step where the caller gave none (0: IDA's own estimate)
+    real(dp) :: h0 = 0.0_dp
     logical :: ggl = .false.
+    logical :: spatial = .false.
+    type(mbdk_spatial_model_t), pointer :: smodel => null()
+    integer :: nq = 0
+    integer, allocatable :: rows(:)
+    real(dp), allocatable :: c(:, :), lamfull(:), g(:), g2(:), ys(:), gt(:)
     !> a residual's failure status that made it return -1 (IDA then stops)
     integer :: stat = MBDK_SUCCESS
     !> MBDK_ERR_NONFINITE when a residual was not finite in the current step (recoverable)
@@ -209,18 +226,9 @@ contains
     integer, intent(out) :: stat
 
     type(ida_context_t), target :: ctx
-    type(c_ptr) :: sunctx, mem
-    type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id, nv_atol
-    type(SUNMatrix), pointer :: amat
-    type(SUNLinearSolver), pointer :: ls
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
     real(dp), allocatable :: r0(:), a0(:)
-    real(c_double) :: tret(1), hlast(1)
-    integer(c_int) :: flag, qlast(1)
-    integer(c_long) :: nst(1), netf(1), ncfn(1)
-    integer(i8) :: limit
-    integer :: nc, m, n, ns, k, ierr, nlam
-    logical :: sample
+    integer :: nc, m, n, ns, ierr, nlam
     real(dp) :: t_end
 
     nc = model%nc
@@ -272,6 +280,227 @@ contains
     atol_v(1:2 * nc + m) = opt%atol
     atol_v(2 * nc + m + 1:) = MU_ATOL
 
+    ctx%ny = 2 * nc
+    ctx%nl = m
+    call ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, nwritten, &
+                 st, stat)
+  end subroutine mbdk_ida_solve
+
+  !> ida on a spatial scene (mbdk_spatial_model, built with the reduced formulation), with the
+  !> state y0 = [q0; w0] (q: centres and quaternions or angles, w: velocities and body-frame
+  !> angular velocities) and the multipliers of the independent rows a = model%work%active
+  !> (Bricard's linkage keeps 29 of its 30), a(q, w, lam) = M^-1 (f - W x J W - C_a^T lam):
+  !>   index1  Y = [q; w; lam_a]:
+  !>       r_q = q' - T(q) w,   r_w = w' - a(q, w, lam),   r_lam = C_a w' - gamma_a
+  !>   ggl     Y = [q; w; lam_a; mu_a]:
+  !>       r_q = q' - T(q) (w + M^-1 C_a^T mu),   r_w = w' - a(q, w, lam),
+  !>       r_lam = Phi_a(q, t),   r_mu = C_a w + Phi_t,a
+  !>     GGL's mu acts through the rates T(q) of the velocities M^-1 C^T mu, since the spatial
+  !>     model forms C in w, not dPhi/dq in q: Phi' = C (w + M^-1 C^T mu) + Phi_t, so with
+  !>     C w + Phi_t = 0 and Phi = 0 held, mu = 0 (C M^-1 C^T is regular on the independent
+  !>     rows). M^-1 C^T mu comes from a's linearity in lam, a(lam - mu) - a(lam), and its rates
+  !>     from T(q) at the same q: three model evaluations and the constraints per residual.
+  !> The rest is mbdk_ida_solve's (the module header): consistent Y(0) = [q0; w0; lam0 (; 0)],
+  !> Y'(0) = [T(q0) w0; a0; 0 (; 0)] from the model's constrained solve, the error test on q
+  !> and w, mu out of the Newton test, the same statuses and counters. The quaternions' norm
+  !> is not projected (IDA's history forbids it); the rotation is read from p / |p|.
+  subroutine mbdk_ida_solve_spatial(model, opt, ggl, t0, y0, t_out, y_out, lam_out, nwritten, &
+                                    st, stat)
+    type(mbdk_spatial_model_t), intent(in), target :: model
+    type(mbdk_options_t), intent(in) :: opt
+    logical, intent(in) :: ggl
+    real(dp), intent(in) :: t0, y0(:)
+    real(dp), intent(in) :: t_out(:)
+    real(dp), intent(inout) :: y_out(:, :)
+    real(dp), intent(inout) :: lam_out(:, :)
+    integer, intent(inout) :: nwritten
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+
+    type(ida_context_t), target :: ctx
+    real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
+    real(dp), allocatable :: r0(:), phi(:), gam(:), phit(:), sizes(:)
+    integer :: ny, nq, m, na, n, ns, ierr, nlam, i, k
+    real(dp) :: t_end, tol, s
+
+    ny = size(y0)
+    nq = ny - 6 * model%nb
+    m = model%m
+    ns = size(t_out)
+    nlam = size(lam_out, 2)
+    stat = MBDK_ERR_NOT_APPLICABLE
+    if (model%opt%formulation /= MBDK_SPATIAL_REDUCED) return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (ny /= model%n .or. nq < 1 .or. ns < 2) return
+    t_end = t_out(ns)
+    if (.not. (t_end > t0)) return
+    if (opt%max_order < 0 .or. opt%max_order > IDA_MAX_ORDER) return
+    stat = MBDK_ERR_OUTPUT_SIZE
+    if (size(y_out, 1) /= ny .or. size(y_out, 2) < ns) return
+    if (nlam > 0 .and. size(lam_out, 1) < m) return
+    ctx%rows = model%work%active
+    na = size(ctx%rows)
+    n = ny + na
+    if (ggl) n = n + na
+
+    stat = MBDK_ERR_NO_MEMORY
+    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), phi(m), gam(m), phit(m), &
+              ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), ctx%gam(m), ctx%phit(m), &
+              ctx%g(ny), ctx%g2(ny), ctx%ys(ny), ctx%gt(ny), stat=ierr)
+    if (ierr /= 0) return
+    ctx%smodel => model
+    ctx%spatial = .true.
+    ctx%m = m
+    ctx%n = n
+    ctx%ny = ny
+    ctx%nq = nq
+    ctx%nl = na
+    ctx%ggl = ggl
+    ctx%interrupt = opt%interrupt
+
+    ! consistent initial values: the reduced formulation's rates and multipliers
+    y(1:ny) = y0
+    y(ny + 1:) = 0.0_dp
+    if (m > 0) then
+      call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
+      if (stat /= MBDK_SUCCESS) return
+      y(ny + 1:ny + na) = ctx%lamfull(ctx%rows)
+    end if
+    call model%rhs(t0, y0, yp(1:ny), stat)
+    if (stat /= MBDK_SUCCESS) return
+    yp(ny + 1:) = 0.0_dp
+    call dae_residual(ctx, t0, y, yp, r0, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ! every row within roundoff of its terms' sizes (the rates', the accelerations', C's)
+    stat = MBDK_ERR_INCONSISTENT_INITIAL
+    tol = CONSISTENT_ULPS * epsilon(1.0_dp)
+    s = maxval(abs(yp(1:nq))) + maxval(abs(ctx%g(1:nq)))
+    if (.not. all(abs(r0(1:nq)) <= tol * s)) return
+    s = maxval(abs(yp(nq + 1:ny))) + maxval(abs(ctx%g2(nq + 1:ny))) + tiny(1.0_dp)
+    if (.not. all(abs(r0(nq + 1:ny)) <= tol * s)) return
+    call mbdk_spatial_constraints(model, t0, y0, phi, ctx%c, gam, phit, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ! the constraint rows within roundoff of the largest row's terms: a row whose own terms are
+    ! all zero (a mechanism at rest) still carries the roundoff of gamma's
+    stat = MBDK_ERR_INCONSISTENT_INITIAL
+    allocate (sizes(na))
+    do i = 1, na
+      k = ctx%rows(i)
+      if (ggl) then
+        if (.not. (abs(r0(ny + i)) <= ASSEMBLED_PHI)) return
+        sizes(i) = sum(abs(ctx%c(k, :) * y0(nq + 1:))) + abs(phit(k))
+      else
+        ! C a = gamma with a = M^-1 (f - C^T lam): a's roundoff is that of its two parts,
+        ! which nearly cancel in a mechanism at rest under gravity
+        sizes(i) = sum(abs(ctx%c(k, :)) * (abs(yp(nq + 1:ny)) + abs(ctx%g2(nq + 1:ny)) + &
+                                           abs(ctx%g(nq + 1:ny) - ctx%g2(nq + 1:ny)))) + &
+                   abs(gam(k))
+      end if
+    end do
+    if (na > 0) then
+      if (.not. all(abs(r0(ny + merge(na, 0, ggl) + 1:ny + merge(na, 0, ggl) + na)) <= &
+                    tol * max(maxval(sizes), 1.0_dp))) return
+    end if
+    if (nlam >= 1 .and. m > 0) call put_lam(ctx, y(ny + 1:ny + na), lam_out(:, 1))
+    id(1:ny) = 1.0_dp
+    id(ny + 1:) = 0.0_dp
+    atol_v(1:ny + na) = opt%atol
+    atol_v(ny + na + 1:) = MU_ATOL
+    ! ggl: a multiplier near zero is tested against rtol times the largest one, the size of its
+    ! roundoff in the index-2 iteration (tested at atol, the flyball governor's stopped Newton
+    ! at its first step from rtol 1e-8 down, whatever the step)
+    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = max(opt%atol, &
+                                                        opt%rtol * maxval(abs(y(ny + 1:ny + na))))
+    if (ggl) then
+      ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
+      ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and IDA's estimate
+      ! for the heavy top at rtol 1e-9 (its 50 rad/s spin in Y'(0): about 1e-9 s) left it
+      ! singular to roundoff at the first step
+      s = sqrt(sum((yp(1:ny) / (opt%rtol * abs(y0) + opt%atol))**2) / ny)
+      ctx%h0 = (t_end - t0) * GGL_FIRST_STEP
+      if (s > 0.0_dp) ctx%h0 = min(max(0.5_dp / s, ctx%h0), 1.0e-3_dp * (t_end - t0))
+    end if
+    call ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, nwritten, &
+                 st, stat)
+  end subroutine mbdk_ida_solve_spatial
+
+  !> F(t, Y, Y') of a spatial scene's form (mbdk_ida_solve_spatial) into r; ctx%g holds
+  !> [T(q) w; a] (ggl: [T(q) (w + M^-1 C^T mu); a]) and ctx%g2 the accelerations' force part
+  !> M^-1 (f - W x J W) for the consistency test.
+  subroutine spatial_residual(ctx, t, y, yp, r, stat)
+    type(ida_context_t), intent(inout) :: ctx
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: y(:), yp(:)
+    real(dp), intent(out), contiguous :: r(:)
+    integer, intent(out) :: stat
+    integer :: ny, nq, na, i, k
+    ny = ctx%ny
+    nq = ctx%nq
+    na = ctx%nl
+    ctx%lamfull = 0.0_dp
+    ! the force part alone (lam = 0), then with the multipliers
+    call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g2, ctx%phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ctx%lamfull(ctx%rows) = y(ny + 1:ny + na)
+    call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g, ctx%phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    r(nq + 1:ny) = yp(nq + 1:ny) - ctx%g(nq + 1:ny)
+    if (ctx%ggl) then
+      ! M^-1 C^T mu = a(lam) - a(lam - mu), and T(q) applied to w + that
+      ctx%lamfull(ctx%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
+      call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%ys, ctx%phi, stat)
+      if (stat /= MBDK_SUCCESS) return
+      ctx%ys(1:nq) = y(1:nq)
+      ctx%ys(nq + 1:ny) = y(nq + 1:ny) + ctx%g(nq + 1:ny) - ctx%ys(nq + 1:ny)
+      ctx%lamfull = 0.0_dp
+      call mbdk_spatial_dae_rhs(ctx%smodel, t, ctx%ys, ctx%lamfull, ctx%gt, ctx%phi, stat)
+      if (stat /= MBDK_SUCCESS) return
+      ctx%g(1:nq) = ctx%gt(1:nq)
+    end if
+    r(1:nq) = yp(1:nq) - ctx%g(1:nq)
+    if (na == 0) return
+    call mbdk_spatial_constraints(ctx%smodel, t, y(1:ny), ctx%phi, ctx%c, ctx%gam, ctx%phit, &
+                                  stat)
+    if (stat /= MBDK_SUCCESS) return
+    do i = 1, na
+      k = ctx%rows(i)
+      if (ctx%ggl) then
+        r(ny + i) = ctx%phi(k)
+        r(ny + na + i) = dot_product(ctx%c(k, :), y(nq + 1:ny)) + ctx%phit(k)
+      else
+        r(ny + i) = dot_product(ctx%c(k, :), yp(nq + 1:ny)) - ctx%gam(k)
+      end if
+    end do
+  end subroutine spatial_residual
+
+  !> The SUNDIALS part of a solve (the module header), for either model: IDA from the
+  !> consistent (y, yp) of the context's form to t_out's last time, samples and multipliers out.
+  subroutine ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, &
+                     nwritten, st, stat)
+    type(ida_context_t), intent(inout), target :: ctx
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end
+    real(dp), intent(inout), target, contiguous :: y(:), yp(:), ydky(:), id(:), atol_v(:)
+    real(dp), intent(in) :: t_out(:)
+    real(dp), intent(inout) :: y_out(:, :), lam_out(:, :)
+    integer, intent(inout) :: nwritten
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    type(c_ptr) :: sunctx, mem
+    type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id, nv_atol
+    type(SUNMatrix), pointer :: amat
+    type(SUNLinearSolver), pointer :: ls
+    real(c_double) :: tret(1), hlast(1)
+    integer(c_int) :: flag, qlast(1)
+    integer(c_long) :: nst(1), netf(1), ncfn(1)
+    integer(i8) :: limit
+    integer :: n, ns, k, ierr, nlam, ny, nl
+    logical :: sample
+    n = ctx%n
+    ny = ctx%ny
+    nl = ctx%nl
+    ns = size(t_out)
+    nlam = size(lam_out, 2)
     ! every handle starts empty so that the release below frees what exists on any path
     sunctx = c_null_ptr
     mem = c_null_ptr
@@ -289,7 +518,7 @@ contains
       if (.not. associated(nv_dky)) exit run
       nv_id => FN_VMake_Serial(int(n, c_int64_t), id, sunctx)
       if (.not. associated(nv_id)) exit run
-      if (ggl) then
+      if (ctx%ggl) then
         nv_atol => FN_VMake_Serial(int(n, c_int64_t), atol_v, sunctx)
         if (.not. associated(nv_atol)) exit run
       end if
@@ -301,7 +530,7 @@ contains
 
       flag = FIDAInit(mem, c_funloc(ida_res), t0, nv_y, nv_yp)
       if (flag == 0) then
-        if (ggl) then
+        if (ctx%ggl) then
           flag = FIDASVtolerances(mem, opt%rtol, nv_atol)
         else
           flag = FIDASStolerances(mem, opt%rtol, opt%atol)
@@ -316,7 +545,11 @@ contains
       if (flag == 0) flag = FIDASetStopTime(mem, t_end)
       if (flag == 0 .and. opt%max_order > 0) &
         flag = FIDASetMaxOrd(mem, int(opt%max_order, c_int))
-      if (flag == 0 .and. opt%h > 0.0_dp) flag = FIDASetInitStep(mem, opt%h)
+      if (flag == 0 .and. opt%h > 0.0_dp) then
+        flag = FIDASetInitStep(mem, opt%h)
+      else if (flag == 0 .and. ctx%h0 > 0.0_dp) then
+        flag = FIDASetInitStep(mem, ctx%h0)
+      end if
       if (flag == 0 .and. opt%h_min > 0.0_dp) flag = FIDASetMinStep(mem, opt%h_min)
       if (flag == 0 .and. opt%h_max > 0.0_dp) flag = FIDASetMaxStep(mem, opt%h_max)
       if (flag /= 0) then
@@ -375,8 +608,8 @@ contains
             stat = MBDK_ERR_BACKEND
             exit run
           end if
-          y_out(:, k) = ydky(1:2 * nc)
-          if (nlam >= k) lam_out(1:m, k) = ydky(2 * nc + 1:2 * nc + m)
+          y_out(:, k) = ydky(1:ny)
+          if (nlam >= k) call put_lam(ctx, ydky(ny + 1:ny + nl), lam_out(:, k))
           nwritten = k
           k = k + 1
           sample = .true.
@@ -386,15 +619,22 @@ contains
           stat = MBDK_ERR_NONFINITE
           exit run
         end if
-        if (model%has_watch) then
-          call mbdk_model_watch(model, tret(1), y(1:nc), y(nc + 1:2 * nc), sample, stat, &
-                                lam=y(2 * nc + 1:2 * nc + m))
+        if (ctx%spatial) then
+          if (ctx%smodel%has_watch) then
+            call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
+            call mbdk_spatial_watch(ctx%smodel, tret(1), y(1:ny), sample, stat, &
+                                    lam=ctx%lamfull)
+            if (stat /= MBDK_SUCCESS) exit run
+          end if
+        else if (ctx%model%has_watch) then
+          call mbdk_model_watch(ctx%model, tret(1), y(1:ny / 2), y(ny / 2 + 1:ny), sample, &
+                                stat, lam=y(ny + 1:ny + nl))
           if (stat /= MBDK_SUCCESS) exit run
         end if
         do while (k <= ns)
           if (t_out(k) > tret(1)) exit
-          y_out(:, k) = y(1:2 * nc)
-          if (nlam >= k) lam_out(1:m, k) = y(2 * nc + 1:2 * nc + m)
+          y_out(:, k) = y(1:ny)
+          if (nlam >= k) call put_lam(ctx, y(ny + 1:ny + nl), lam_out(:, k))
           nwritten = k
           k = k + 1
         end do
@@ -412,7 +652,21 @@ contains
     if (associated(nv_yp)) call FN_VDestroy(nv_yp)
     if (associated(nv_y)) call FN_VDestroy(nv_y)
     if (c_associated(sunctx)) ierr = FSUNContext_Free(sunctx)
-  end subroutine mbdk_ida_solve
+  end subroutine ida_run
+
+  !> The multipliers of Y (the context's nl) as the model's m rows into dst (the spatial model's
+  !> dependent rows: 0).
+  subroutine put_lam(ctx, src, dst)
+    type(ida_context_t), intent(in) :: ctx
+    real(dp), intent(in) :: src(:)
+    real(dp), intent(inout) :: dst(:)
+    if (ctx%spatial) then
+      dst(1:ctx%m) = 0.0_dp
+      dst(ctx%rows) = src
+    else
+      dst(1:ctx%m) = src
+    end if
+  end subroutine put_lam
 
   !> Whether the residual r of the initial values (y, yp) is within roundoff, row by row (see
   !> the module header); ctx holds the evaluation at those values, a the accelerations.
@@ -465,6 +719,10 @@ contains
     integer :: nc, m, i, k, ol, om
     real(dp) :: s, vk
 
+    if (ctx%spatial) then
+      call spatial_residual(ctx, t, y, yp, r, stat)
+      return
+    end if
     nc = ctx%nc
     m = ctx%m
     ol = 2 * nc        ! lam(i) = y(ol + i)
