@@ -7,7 +7,8 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    and bdf at two tolerances, each on the reduced, baumgarte (alpha = 1/h, beta = sqrt(2)/h;
    for the error-controlled methods 1/(1 ms) and sqrt(2)/(1 ms)), penalty (Jalon-Bayo, the
    defaults alpha_p = 1e7, omega_p = 10, mu_p = 1) and projection formulations, and bdf also
-   on the index-3 DAE itself (formulation i3, as GSTIFF I3); trapezoidal_index3 at the rk4
+   on the DAE itself (formulation i3, as GSTIFF I3, and si2, the stabilised index-2 form);
+   trapezoidal_index3 at the rk4
    steps, in its projected form (Newton with a Jacobian by differences, then the projections;
    second order); ida (SUNDIALS) on the DAE itself in its index1 and GGL forms.
    Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
@@ -136,7 +137,7 @@ def formulation_rows(quick: bool) -> list[dict]:
             # form only
             forms = (("projected",) if method == "trapezoidal_index3" else
                      ("index1", "ggl") if method == "ida" else
-                     FORMULATIONS + (("i3",) if method == "bdf" else ()))
+                     FORMULATIONS + (("i3", "si2") if method == "bdf" else ()))
             for form in forms:
                 rows.append(run_case(
                     sc, scene_name, method, kw, control, form, T_END,

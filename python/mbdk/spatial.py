@@ -49,7 +49,8 @@ default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
 (formulation "projected", the default: kernel/src/spatial/mbdk_spatial_index3.f90, fixed step);
 ida in the forms index1 (the default) and ggl (kernel/src/sundials/mbdk_ida.f90,
-mbdk_ida_solve_spatial). bdf's si2 is the planar model's: refused by name. Drivers: angle_driver and slide_driver. Every ODE method
+mbdk_ida_solve_spatial); bdf also on the stabilised index-2 form, "si2" (GGL's mu through
+T(q) M^-1 C^T, as in ida's ggl). Drivers: angle_driver and slide_driver. Every ODE method
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
@@ -724,7 +725,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             f"{method} on spatial scene {sc.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
             "baumgarte, penalty or projection formulation, bdf on their DAE itself "
-            "(formulation 'i3'), ida ('index1', 'ggl') and trapezoidal_index3 "
+            "(formulations 'i3', 'si2'), ida ('index1', 'ggl') and trapezoidal_index3 "
             "(formulation 'projected')")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {sc.name!r}: its state layout "
@@ -746,12 +747,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                 f"formulation {formulation!r} of ida on spatial scene {sc.name!r}: ida "
                 f"integrates the DAE itself, in the forms {', '.join(IDA_FORMS)}")
     formulation = "reduced" if formulation is None else formulation
-    dae = formulation == "i3" and info_m.family == "variable_bdf"
+    dae = formulation in ("i3", "si2") and info_m.family == "variable_bdf"
     if not isinstance(formulation, str) or (formulation not in FORMULATIONS and not dae
                                             and not index3 and not ida):
         raise NotApplicableError(f"formulation {formulation!r} on spatial scene {sc.name!r}: "
                                  f"spatial scenes run {', '.join(FORMULATIONS)}, and bdf also "
-                                 "'i3' (the index-3 DAE itself)")
+                                 "'i3' and 'si2' (the DAE itself)")
     if penalty is not None and formulation != "penalty":
         raise InvalidInputError(f"penalty = {penalty!r}: an option of the penalty formulation; "
                                 f"this run's is {formulation!r}")
@@ -803,7 +804,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     nsamp = plan_["nsamp"]
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
             flag, np.zeros(0), y0, int(bool(assemble_initial)),
-            2 if index3 else IDA_FORMS[formulation] if ida else int(dae), float(t0),
+            2 if index3 else IDA_FORMS[formulation] if ida else
+            (5 if formulation == "si2" else 1) if dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
     (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
@@ -839,7 +841,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
                                        if sc.quaternion_norm == "project" else
                                        sc.quaternion_norm)
-    if dae:
+    if dae and formulation == "si2":
+        manifest["form"] = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w + M^-1 C^T mu), "
+                            "w' = M^-1 (f - C^T lam), 0 = Phi, 0 = C w + Phi_t on the "
+                            "independent rows; error test on q and w; no projection between "
+                            "steps")
+    elif dae:
         manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
                             "0 = Phi on the independent rows; error test on q and h times w; "
                             "no projection between steps")

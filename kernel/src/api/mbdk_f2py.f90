@@ -864,7 +864,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! none). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
   ! the DAE's own); 2: trapezoidal_index3's projected form (mbdk_spatial_index3; the model is
   ! built with the projection formulation); 3, 4: ida in its index1 and GGL forms
-  ! (mbdk_ida_solve_spatial; multipliers its own). watch_report as scene_run's.
+  ! (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
+  ! watch_report as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
@@ -943,10 +944,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     call mbdk_spatial_assemble(model, t0, y, moved, status)
     if (status /= MBDK_SUCCESS) return
   end if
-  if (dae_form == 1 .or. dae_form == 3 .or. dae_form == 4) then
-    ! bdf (1) or ida in its index1 (3) or GGL (4) form
-    call mbdk_solve_spatial_dae(model, opt, max(dae_form - 2, 1), t0, t_end, y, t_out, y_out, &
-                                lam_out, nwritten, st, status)
+  if (dae_form == 1 .or. (dae_form >= 3 .and. dae_form <= 5)) then
+    ! bdf in its I3 (1) or SI2 (5) form, ida in its index1 (3) or GGL (4) form
+    call mbdk_solve_spatial_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
+                                t_end, y, t_out, y_out, lam_out, nwritten, st, status)
     lam_out(:, nwritten + 1:) = nan
   else if (dae_form == 0) then
     call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)

@@ -215,7 +215,8 @@ contains
 
   end subroutine mbdk_solve_scene_dae
 
-  !> bdf on a spatial scene's index-3 DAE (mbdk_spatial_dae, as GSTIFF I3), or ida in form 1
+  !> bdf on a spatial scene's DAE (mbdk_spatial_dae: form 1 the index-3 form as GSTIFF I3, 2
+  !> the stabilised index-2 form as SI2), or ida in form 1
   !> (index 1) or 2 (GGL: mbdk_ida_solve_spatial), from y0 = [q0; w0]
   !> on the joints: Y(0) = [q0; w0; lam0] and Y'(0) = [q'; w'; 0] from the model's reduced
   !> solve (its formulation must be reduced). y_out gets [q; w] at the samples, lam_out(1:m, k)
@@ -246,7 +247,7 @@ contains
         model%opt%formulation /= MBDK_SPATIAL_REDUCED) return
     stat = MBDK_ERR_INVALID_INPUT
     if (opt%max_order > max_order_of(family, order)) return
-    if (family == MBDK_FAMILY_IDA .and. form /= 1 .and. form /= 2) return
+    if (form /= 1 .and. form /= 2) return
     ny = size(y0)
     m = model%m
     nq = ny - 6 * model%nb
@@ -265,7 +266,7 @@ contains
     !> the DAE from the consistent start, and its samples copied out
     subroutine solve(s)
       integer, intent(out) :: s
-      call mbdk_spatial_dae_init(dae, model, ny, mass, s)
+      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form)
       if (s /= MBDK_SUCCESS) return
       allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), lam0(m), f0(ny), phi(m), c(m, ny - nq), &
                 gam(m), phit(m))
@@ -280,20 +281,27 @@ contains
       end if
       call model%rhs(t0, y0, f0, s)
       if (s /= MBDK_SUCCESS) return
+      yd = 0.0_dp
       yd(1:ny) = y0
-      yd(ny + 1:) = lam0(dae%rows)
+      yd(ny + 1:ny + dae%na) = lam0(dae%rows)
       ypd = 0.0_dp
       ypd(1:ny) = f0
       ys(:, 1) = yd
-      ! the velocities are index-2 variables: the error test sees h times theirs (as bdf on the
-      ! planar scene's i3 form), and not the multipliers'
-      call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, st, &
-                                   s, mass=mass, yp0=ypd, ntest=nq, nindex2=ny - nq)
+      if (form == 1) then
+        ! the velocities are index-2 variables: the error test sees h times theirs (as bdf on
+        ! the planar scene's i3 form), and not the multipliers'
+        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
+                                     st, s, mass=mass, yp0=ypd, ntest=nq, nindex2=ny - nq)
+      else
+        ! si2's velocities are constrained themselves: both tested (as the planar si2)
+        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
+                                     st, s, mass=mass, yp0=ypd, ntest=ny)
+      end if
       do k = 1, nwritten
         y_out(:, k) = ys(1:ny, k)
         if (k <= size(lam_out, 2) .and. size(lam_out, 1) >= m) then
           lam_out(1:m, k) = 0.0_dp
-          lam_out(dae%rows, k) = ys(ny + 1:, k)
+          lam_out(dae%rows, k) = ys(ny + 1:ny + dae%na, k)
         end if
       end do
     end subroutine solve

@@ -13,14 +13,20 @@
 !> scene's stabilising term where it asks for one), not by a projection between steps, which
 !> would corrupt BDF's history; the rotation is taken from p / |p|, so the drift of |p|, of the
 !> order of the BDF's error, does not scale the bodies. The watch and the drivers' power use
-!> the DAE's own multipliers. The stabilised
-!> index-2 (GGL) form is not offered: its mu enters q' through dPhi/dq in the coordinates q,
-!> which the spatial model (C is in w) does not form.
+!> the DAE's own multipliers.
+!> form 2 is the stabilised index-2 form (GGL, as GSTIFF SI2), Y = [q; w; lam; mu]:
+!>     q' = T(q) (w + M^-1 C_a^T mu),  w' = M^-1 (f - W x J W - C_a^T lam),
+!>     0  = Phi_a(q, t),  0 = C_a w + Phi_t,a
+!> mu acts through the rates of the velocities M^-1 C^T mu, since the spatial model forms C in
+!> w, not dPhi/dq in q: Phi' = C (w + M^-1 C^T mu) + Phi_t, so mu = 0 where both rows hold.
+!> M^-1 C^T mu comes from the accelerations' linearity in lam, a(lam - mu) - a(lam), and its
+!> rates from T(q) at the same q: three model evaluations and the constraints per F.
 module mbdk_spatial_dae
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
-  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, mbdk_spatial_watch
+  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
+    mbdk_spatial_constraints
   implicit none
   private
   public :: mbdk_spatial_dae_init
@@ -29,6 +35,8 @@ module mbdk_spatial_dae
     type(mbdk_spatial_model_t), pointer :: model => null()
     integer :: ny = 0      !< size of [q; w]
     integer :: na = 0      !< multipliers: the independent rows model%active
+    integer :: npos = 0    !< positions and rotation coordinates (q)
+    integer :: form = 1    !< 1: index 3 (I3), 2: stabilised index 2 (SI2, with mu)
     integer, allocatable :: rows(:)
   contains
     procedure :: rhs => sdae_rhs
@@ -39,10 +47,11 @@ module mbdk_spatial_dae
 contains
 
   !> The DAE of model; mass(N) receives the diagonal of E. The model must outlive the problem.
-  subroutine mbdk_spatial_dae_init(self, model, ny, mass, stat)
+  subroutine mbdk_spatial_dae_init(self, model, ny, mass, stat, form)
     type(mbdk_spatial_dae_t), intent(out) :: self
     type(mbdk_spatial_model_t), intent(in), target :: model
     integer, intent(in) :: ny
+    integer, intent(in), optional :: form
     real(dp), allocatable, intent(out) :: mass(:)
     integer, intent(out) :: stat
     self%model => model
@@ -53,7 +62,10 @@ contains
     ! stops by name)
     self%rows = model%work%active
     self%na = size(self%rows)
+    self%npos = ny - 6 * model%nb
+    if (present(form)) self%form = form
     self%n = ny + self%na
+    if (self%form == 2) self%n = ny + 2 * self%na
     self%has_watch = model%has_watch
     allocate (mass(self%n))
     mass = 0.0_dp
@@ -67,12 +79,33 @@ contains
     real(dp), intent(in), contiguous :: y(:)
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
-    real(dp) :: lam(self%model%m), phi(self%model%m)
+    real(dp) :: lam(self%model%m), phi(self%model%m), g(self%ny), ys(self%ny), &
+      c(self%model%m, self%ny - self%npos), gam(self%model%m), phit(self%model%m)
+    integer :: ny, nq, na, i
+    ny = self%ny
+    nq = self%npos
+    na = self%na
     lam = 0.0_dp
-    lam(self%rows) = y(self%ny + 1:)
-    call mbdk_spatial_dae_rhs(self%model, t, y(1:self%ny), lam, f(1:self%ny), phi, stat)
+    lam(self%rows) = y(ny + 1:ny + na)
+    call mbdk_spatial_dae_rhs(self%model, t, y(1:ny), lam, f(1:ny), phi, stat)
     if (stat /= MBDK_SUCCESS) return
-    f(self%ny + 1:) = phi(self%rows)
+    f(ny + 1:ny + na) = phi(self%rows)
+    if (self%form /= 2) return
+    ! the rates T(q) (w + M^-1 C^T mu), M^-1 C^T mu = a(lam) - a(lam - mu)
+    lam(self%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
+    call mbdk_spatial_dae_rhs(self%model, t, y(1:ny), lam, g, phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ys(1:nq) = y(1:nq)
+    ys(nq + 1:) = y(nq + 1:ny) + f(nq + 1:ny) - g(nq + 1:)
+    lam = 0.0_dp
+    call mbdk_spatial_dae_rhs(self%model, t, ys, lam, g, phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    f(1:nq) = g(1:nq)
+    call mbdk_spatial_constraints(self%model, t, y(1:ny), phi, c, gam, phit, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do i = 1, na
+      f(ny + na + i) = dot_product(c(self%rows(i), :), y(nq + 1:ny)) + phit(self%rows(i))
+    end do
   end subroutine sdae_rhs
 
   subroutine sdae_watch_start(self, t, y, stat)
@@ -90,7 +123,7 @@ contains
     real(dp) :: lam(self%model%m)
     ! the drivers' power with the DAE's own multipliers
     lam = 0.0_dp
-    lam(self%rows) = y(self%ny + 1:)
+    lam(self%rows) = y(self%ny + 1:self%ny + self%na)
     call mbdk_spatial_watch(self%model, t, y(1:self%ny), force, stat, lam)
   end subroutine sdae_watch
 
