@@ -6,9 +6,10 @@ MBDK_STUDY_WORKERS processes (default 2; 0 runs it serially here), the same bits
 `mbdk sweep studies/grids/work_precision.toml --out wp.csv` runs the same grid from the
 command line, on a scheduler's address with --scheduler. The error is the largest absolute
 error over 100 samples of the whole interval, against the exact solution where one exists and
-otherwise against an rk4 run with 16x more steps than the finest one of the grid
-(trolley_crane, double_pendulum). A method that fails at a step (overflow, Newton) has the
-exception's name in the table's note column and is left out of the figure there.
+otherwise against an rk4 run with 16x more steps than the finest one of the full grid
+(trolley_crane, double_pendulum; --quick keeps it). A method that fails at a step (overflow,
+Newton) has the exception's name in the table's note column and is left out of the figure
+there.
 """
 from __future__ import annotations
 

@@ -128,7 +128,7 @@ def test_samples_params_and_labels_against_direct_runs():
 
 @pytest.mark.parametrize("change, text", [
     (dict(steps=None, step_counts=[150], samples=100), "150, which does not land on the 100"),
-    (dict(steps=[0.03], samples=10), "do not land on the 10 samples"),
+    (dict(steps=[0.025], samples=30), "do not land on the 30 samples"),
     (dict(params={"lam": 2.0}), "'params' is for problems"),
     (dict(scenes=[], problems=["decay"], params={"lam": 2.0}), "'lam', not a parameter of decay"),
     (dict(label="x"), "names the grid's one case"),
@@ -136,6 +136,9 @@ def test_samples_params_and_labels_against_direct_runs():
     (dict(min_cpu=-1.0), "'min_cpu' has -1.0"),
     (dict(samples=0), "'samples' has 0"),
     (dict(step_counts=[100]), "'steps' or 'step_counts', not both"),
+    (dict(problems=[], steps=[0.26], samples=2, methods=["rk4"]),
+     "0.26, which does not divide the interval"),
+    (dict(reference={"method": "rk4"}), "give its h or step_count"),
 ])
 def test_bad_grid_fields_are_named(change, text):
     grid = {k: v for k, v in {**GRID, **change}.items() if v is not None}
@@ -146,3 +149,13 @@ def test_bad_grid_fields_are_named(change, text):
 def test_a_list_of_grids_names_the_bad_one():
     with pytest.raises(InvalidInputError, match="sweep grid 2 of 2: field 'methods' has 'rk5'"):
         tasks_of([GRID, {**GRID, "methods": ["rk5"]}])
+
+
+def test_a_failed_reference_is_named_in_every_row_it_leaves_without_an_error():
+    """The reference run overflows (explicit Euler at 50 s steps on the double pendulum): its
+    cases' rows say so, with no error, rather than a success with NaN."""
+    rows = sweep({"t_end": 1000.0, "problems": ["double_pendulum"], "methods": ["rk4"],
+                  "step_counts": [100000],
+                  "reference": {"method": "explicit_euler", "step_count": 20}}, workers=0).rows
+    assert rows[0]["status"] == "reference NonFiniteSolutionError"
+    assert np.isnan(rows[0]["error"]) and rows[0]["steps"] == 100000

@@ -222,6 +222,7 @@ class ODESolver:
         self._atol = _atol_vector(atol, len(y0), opt.rtol) if info_m.adaptive else np.zeros(0)
         merged, self._pvec = resolve_params(info_p, params, len(y0))
         self.problem, self.method, self.t0, self.t_end = problem, method, t0, t_end
+        y0.setflags(write=False)     # every result of the default start shares it
         self.params, self.y0 = merged, y0
         self._id, self._opt, self._nsamp = info_p.id, opt.pack(), nsamp
         self._n, self._nsteps, self._raise = len(y0), nsteps, raise_on_failure
@@ -251,7 +252,7 @@ class ODESolver:
         manifest = dict(self._manifest)
         manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
         return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
-                       self.params, self.t0, y0, self._raise, None, interrupted)
+                       dict(self.params), self.t0, y0, self._raise, None, interrupted)
 
 
 def _nonneg(name: str, value, default: float = 0.0) -> float:

@@ -82,7 +82,7 @@ IDA_FORMS = {"index1": 3, "ggl": 4}
 IDA_FORM_TEXT = {
     "index1": "index 1: q' = T(q) w, w' = M^-1 (f - C^T lam), C w' = gamma on the independent "
               "rows; Phi and C w + Phi_t drift as in the reduced ODE (the watch names it)",
-    "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = T(q) (w + M^-1 C^T mu), "
+    "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = T(q) (w - M^-1 C^T mu), "
            "w' = M^-1 (f - C^T lam), Phi = 0, C w + Phi_t = 0 on the independent rows"}
 JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
                "fixed": 6, "angle_driver": 7, "slide_driver": 8}
@@ -842,10 +842,11 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                        if sc.quaternion_norm == "project" else
                                        sc.quaternion_norm)
     if dae and formulation == "si2":
-        manifest["form"] = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w + M^-1 C^T mu), "
-                            "w' = M^-1 (f - C^T lam), 0 = Phi, 0 = C w + Phi_t on the "
+        manifest["form"] = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w - M^-1 C^T "
+                            "mu), w' = M^-1 (f - C^T lam), 0 = Phi, 0 = C w + Phi_t on the "
                             "independent rows; error test on q and w; no projection between "
                             "steps")
+        manifest["linear_solve"] = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
     elif dae:
         manifest["form"] = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), "
                             "0 = Phi on the independent rows; error test on q and h times w; "

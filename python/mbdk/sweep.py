@@ -28,7 +28,8 @@ interval or steps (studies/grids/work_precision.toml) is one sweep. Its fields:
   min_cpu, max_reps: a run shorter than min_cpu seconds of CPU (default 0) is repeated, at
          most max_reps times (default 20), and its times are the mean per run (the kernel's
          clock ticks in microseconds; every repetition gives the same numbers)
-Each task is one run; its row: case, method, formulation, control (h or rtol), status, error
+Each task is one run; its row: case, method, formulation, control (h or rtol), status (the
+method's, or "reference <exception>" where the reference run failed), error
 (max |y - y_ref| over the coordinates, or over the state for a problem), steps, nfev,
 cpu_time (the solving thread's), wall_time, and rejected, njev, nlu, orders (the steps taken
 at each order, "1:12 2:40", for the variable-order methods) and reps. A run is deterministic,
@@ -124,8 +125,15 @@ def _positive(v, key, where, integer=False):
 
 
 def _span_steps(span, h, key, where, samples, compared):
-    """The number of fixed steps of size h over span, checked against the samples."""
+    """The number of fixed steps of size h over span, checked against the samples: compared
+    with a reference at its samples, the steps must fill the interval (the kernel shortens a
+    last step that does not, which would move the samples off the reference's times) and land
+    on the samples."""
     n = max(1, round(span / h))
+    if samples and compared and abs(span / h - n) > 1e-9 * max(n, 1):
+        raise InvalidInputError(f"{where}: field {key!r} has {h!r}, which does not divide the "
+                                f"interval {span!r} into whole steps; its samples would miss "
+                                "the reference's times (give step_counts, or such an h)")
     if samples and compared and n % samples:
         raise InvalidInputError(f"{where}: field {key!r} has {h!r}, {n} steps, which do not "
                                 f"land on the {samples} samples compared with the reference "
@@ -224,9 +232,13 @@ def _one(grid, where: str, gi: int) -> tuple[list, list]:
             else:
                 if "step_count" in ref:
                     rn = _positive(ref["step_count"], "reference.step_count", where, True)
-                else:
-                    rn = _span_steps(span, _positive(ref.get("h", 0), "reference.h", where),
+                elif "h" in ref:
+                    rn = _span_steps(span, _positive(ref["h"], "reference.h", where),
                                      "reference.h", where, samples, True)
+                else:
+                    raise InvalidInputError(f"{where}: field 'reference' names the fixed-step "
+                                            f"method {ref['method']!r}: give its h or "
+                                            "step_count")
                 if samples and rn % samples:
                     raise InvalidInputError(f"{where}: the reference's {rn} steps do not land "
                                             f"on the {samples} samples")
@@ -317,6 +329,12 @@ def run_task(task: dict, ref_states=None) -> dict:
                 "cpu_time": 0.0, "wall_time": 0.0, "rejected": 0, "njev": 0, "nlu": 0,
                 "orders": "", "reps": 0, "states": None}
     states = _compared(task, r)
+    if isinstance(ref_states, str):       # the reference run failed: no error to give
+        st = r.stats
+        return {**row, "status": f"reference {ref_states}", "error": math.nan,
+                "steps": st.steps, "nfev": st.nfev, "cpu_time": cpu / reps,
+                "wall_time": wall / reps, "rejected": st.rejected_steps, "njev": st.njev,
+                "nlu": st.nlu, "orders": order_histogram(st), "reps": reps, "states": None}
     if task.get("exact"):
         ex = r.exact()
         error = float(np.max(np.abs(states - (ex if samples else ex[-1:]))))
@@ -332,7 +350,9 @@ def run_task(task: dict, ref_states=None) -> dict:
 
 
 def _reference(task: dict):
-    return run_task(task)["states"]
+    """A case's reference states, or the name of the exception that stopped its run."""
+    row = run_task(task)
+    return row["states"] if row["states"] is not None else row["status"]
 
 
 def _run_batch(batch: list) -> list:

@@ -220,8 +220,9 @@ contains
   !> (index 1) or 2 (GGL: mbdk_ida_solve_spatial), from y0 = [q0; w0]
   !> on the joints: Y(0) = [q0; w0; lam0] and Y'(0) = [q'; w'; 0] from the model's reduced
   !> solve (its formulation must be reduced). y_out gets [q; w] at the samples, lam_out(1:m, k)
-  !> the multipliers (zero on the rows a redundant scene leaves out). A start off the joints
-  !> (|Phi| or |C w + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL.
+  !> the multipliers (zero on the rows a redundant scene leaves out). bdf: a start off the
+  !> joints (|Phi| or |C w + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL; ida
+  !> checks its own form's residual (mbdk_ida_solve_spatial: index1 not Phi).
   subroutine mbdk_solve_spatial_dae(model, opt, form, t0, t_end, y0, t_out, y_out, lam_out, &
                                     nwritten, st, stat)
     type(mbdk_spatial_model_t), intent(in), target :: model
@@ -266,10 +267,7 @@ contains
     !> the DAE from the consistent start, and its samples copied out
     subroutine solve(s)
       integer, intent(out) :: s
-      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form)
-      if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), lam0(m), f0(ny), phi(m), c(m, ny - nq), &
-                gam(m), phit(m))
+      allocate (lam0(m), f0(ny), phi(m), c(m, ny - nq), gam(m), phit(m))
       if (m > 0) then
         call mbdk_spatial_constraints(model, t0, y0, phi, c, gam, phit, s)
         if (s /= MBDK_SUCCESS) return
@@ -281,6 +279,11 @@ contains
       end if
       call model%rhs(t0, y0, f0, s)
       if (s /= MBDK_SUCCESS) return
+      ! the DAE's rows after the model's solve at t0, which may move a redundant scene to
+      ! another set of independent rows
+      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form)
+      if (s /= MBDK_SUCCESS) return
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp))
       yd = 0.0_dp
       yd(1:ny) = y0
       yd(ny + 1:ny + dae%na) = lam0(dae%rows)

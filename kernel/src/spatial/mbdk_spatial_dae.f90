@@ -15,10 +15,10 @@
 !> order of the BDF's error, does not scale the bodies. The watch and the drivers' power use
 !> the DAE's own multipliers.
 !> form 2 is the stabilised index-2 form (GGL, as GSTIFF SI2), Y = [q; w; lam; mu]:
-!>     q' = T(q) (w + M^-1 C_a^T mu),  w' = M^-1 (f - W x J W - C_a^T lam),
+!>     q' = T(q) (w - M^-1 C_a^T mu),  w' = M^-1 (f - W x J W - C_a^T lam),
 !>     0  = Phi_a(q, t),  0 = C_a w + Phi_t,a
 !> mu acts through the rates of the velocities M^-1 C^T mu, since the spatial model forms C in
-!> w, not dPhi/dq in q: Phi' = C (w + M^-1 C^T mu) + Phi_t, so mu = 0 where both rows hold.
+!> w, not dPhi/dq in q: Phi' = C (w - M^-1 C^T mu) + Phi_t, so mu = 0 where both rows hold.
 !> M^-1 C^T mu comes from the accelerations' linearity in lam, a(lam - mu) - a(lam), and its
 !> rates from T(q) at the same q: three model evaluations and the constraints per F.
 module mbdk_spatial_dae
@@ -91,7 +91,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     f(ny + 1:ny + na) = phi(self%rows)
     if (self%form /= 2) return
-    ! the rates T(q) (w + M^-1 C^T mu), M^-1 C^T mu = a(lam) - a(lam - mu)
+    ! the rates T(q) (w - M^-1 C^T mu), M^-1 C^T mu = a(lam - mu) - a(lam)
     lam(self%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
     call mbdk_spatial_dae_rhs(self%model, t, y(1:ny), lam, g, phi, stat)
     if (stat /= MBDK_SUCCESS) return

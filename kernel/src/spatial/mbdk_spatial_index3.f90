@@ -243,6 +243,17 @@ contains
       if (s /= MBDK_SUCCESS .or. na == 0) return
       call mbdk_spatial_multipliers(model, ts, ys, lamfull, s)
       if (s /= MBDK_SUCCESS) return
+      ! a redundant scene's model moves to another set of independent rows where the one it
+      ! keeps nears a rank loss: Newton follows it (a one-step method has no history to keep)
+      if (size(model%work%active) /= na) then
+        s = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
+      if (any(model%work%active /= rows)) then
+        rows = model%work%active
+        have_lu = .false.
+        have_prev = .false.
+      end if
       lams = lamfull(rows)
     end subroutine start_of_step
 

@@ -199,6 +199,8 @@ module mbdk_ida
     integer :: nq = 0
     integer, allocatable :: rows(:)
     real(dp), allocatable :: c(:, :), lamfull(:), g(:), g2(:), ys(:), gt(:)
+    !> spatial: whether the residual also keeps the accelerations' force part in g2
+    logical :: want_g2 = .false.
     !> a residual's failure status that made it return -1 (IDA then stops)
     integer :: stat = MBDK_SUCCESS
     !> MBDK_ERR_NONFINITE when a residual was not finite in the current step (recoverable)
@@ -293,13 +295,14 @@ contains
   !>   index1  Y = [q; w; lam_a]:
   !>       r_q = q' - T(q) w,   r_w = w' - a(q, w, lam),   r_lam = C_a w' - gamma_a
   !>   ggl     Y = [q; w; lam_a; mu_a]:
-  !>       r_q = q' - T(q) (w + M^-1 C_a^T mu),   r_w = w' - a(q, w, lam),
+  !>       r_q = q' - T(q) (w - M^-1 C_a^T mu),   r_w = w' - a(q, w, lam),
   !>       r_lam = Phi_a(q, t),   r_mu = C_a w + Phi_t,a
   !>     GGL's mu acts through the rates T(q) of the velocities M^-1 C^T mu, since the spatial
-  !>     model forms C in w, not dPhi/dq in q: Phi' = C (w + M^-1 C^T mu) + Phi_t, so with
+  !>     model forms C in w, not dPhi/dq in q: Phi' = C (w - M^-1 C^T mu) + Phi_t, so with
   !>     C w + Phi_t = 0 and Phi = 0 held, mu = 0 (C M^-1 C^T is regular on the independent
   !>     rows). M^-1 C^T mu comes from a's linearity in lam, a(lam - mu) - a(lam), and its rates
-  !>     from T(q) at the same q: three model evaluations and the constraints per residual.
+  !>     from T(q) at the same q: three model evaluations and the constraints per residual
+  !>     (index1: one and the constraints).
   !> The rest is mbdk_ida_solve's (the module header): consistent Y(0) = [q0; w0; lam0 (; 0)],
   !> Y'(0) = [T(q0) w0; a0; 0 (; 0)] from the model's constrained solve, the error test on q
   !> and w, mu out of the Newton test, the same statuses and counters. The quaternions' norm
@@ -338,15 +341,21 @@ contains
     stat = MBDK_ERR_OUTPUT_SIZE
     if (size(y_out, 1) /= ny .or. size(y_out, 2) < ns) return
     if (nlam > 0 .and. size(lam_out, 1) < m) return
+    stat = MBDK_ERR_NO_MEMORY
+    allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
+              ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), ctx%ys(ny), ctx%gt(ny), stat=ierr)
+    if (ierr /= 0) return
+    ! the rows after the model's solve at t0, which may move a redundant scene to another set
+    if (m > 0) then
+      call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     ctx%rows = model%work%active
     na = size(ctx%rows)
     n = ny + na
     if (ggl) n = n + na
-
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), phi(m), gam(m), phit(m), &
-              ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), ctx%gam(m), ctx%phit(m), &
-              ctx%g(ny), ctx%g2(ny), ctx%ys(ny), ctx%gt(ny), stat=ierr)
+    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
     if (ierr /= 0) return
     ctx%smodel => model
     ctx%spatial = .true.
@@ -361,15 +370,13 @@ contains
     ! consistent initial values: the reduced formulation's rates and multipliers
     y(1:ny) = y0
     y(ny + 1:) = 0.0_dp
-    if (m > 0) then
-      call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
-      if (stat /= MBDK_SUCCESS) return
-      y(ny + 1:ny + na) = ctx%lamfull(ctx%rows)
-    end if
+    if (m > 0) y(ny + 1:ny + na) = ctx%lamfull(ctx%rows)
     call model%rhs(t0, y0, yp(1:ny), stat)
     if (stat /= MBDK_SUCCESS) return
     yp(ny + 1:) = 0.0_dp
+    ctx%want_g2 = .true.          ! the force part, for the test below only
     call dae_residual(ctx, t0, y, yp, r0, stat)
+    ctx%want_g2 = .false.
     if (stat /= MBDK_SUCCESS) return
     ! every row within roundoff of its terms' sizes (the rates', the accelerations', C's)
     stat = MBDK_ERR_INCONSISTENT_INITIAL
@@ -387,7 +394,7 @@ contains
     do i = 1, na
       k = ctx%rows(i)
       if (ggl) then
-        if (.not. (abs(r0(ny + i)) <= ASSEMBLED_PHI)) return
+        if (.not. (abs(r0(ny + i)) <= max(ASSEMBLED_PHI, model%opt%projection_tol))) return
         sizes(i) = sum(abs(ctx%c(k, :) * y0(nq + 1:))) + abs(phit(k))
       else
         ! C a = gamma with a = M^-1 (f - C^T lam): a's roundoff is that of its two parts,
@@ -425,8 +432,8 @@ contains
   end subroutine mbdk_ida_solve_spatial
 
   !> F(t, Y, Y') of a spatial scene's form (mbdk_ida_solve_spatial) into r; ctx%g holds
-  !> [T(q) w; a] (ggl: [T(q) (w + M^-1 C^T mu); a]) and ctx%g2 the accelerations' force part
-  !> M^-1 (f - W x J W) for the consistency test.
+  !> [T(q) w; a] (ggl: [T(q) (w - M^-1 C^T mu); a]) and, when want_g2, ctx%g2 the
+  !> accelerations' force part M^-1 (f - W x J W) for the consistency test.
   subroutine spatial_residual(ctx, t, y, yp, r, stat)
     type(ida_context_t), intent(inout) :: ctx
     real(dp), intent(in) :: t
@@ -438,15 +445,16 @@ contains
     nq = ctx%nq
     na = ctx%nl
     ctx%lamfull = 0.0_dp
-    ! the force part alone (lam = 0), then with the multipliers
-    call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g2, ctx%phi, stat)
-    if (stat /= MBDK_SUCCESS) return
+    if (ctx%want_g2) then          ! the force part alone (lam = 0)
+      call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g2, ctx%phi, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     ctx%lamfull(ctx%rows) = y(ny + 1:ny + na)
     call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g, ctx%phi, stat)
     if (stat /= MBDK_SUCCESS) return
     r(nq + 1:ny) = yp(nq + 1:ny) - ctx%g(nq + 1:ny)
     if (ctx%ggl) then
-      ! M^-1 C^T mu = a(lam) - a(lam - mu), and T(q) applied to w + that
+      ! M^-1 C^T mu = a(lam - mu) - a(lam), and T(q) applied to w minus that
       ctx%lamfull(ctx%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
       call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%ys, ctx%phi, stat)
       if (stat /= MBDK_SUCCESS) return
