@@ -802,17 +802,23 @@ def test_a_slide_driver_between_moving_bodies_has_the_derivatives_of_its_phi():
     assert all(np.abs(e["C"][0, k:k + 3]).max() > 1e-3 for k in (0, 3, 6, 9))
 
 
+def check_driven_slider(r, pos_tol, lam_tol):
+    """_driven_slider's run: its slide follows f(t) = 0.2 sin 3t along u, and its driver's
+    multiplier is the driving force m g . u - m s'' (m = 3)."""
+    u = np.array([0.6, 0.0, 0.8])
+    s = 0.2 * np.sin(3.0 * r.t)
+    assert np.max(np.abs(r.position("s") - s[:, None] * u)) < pos_tol
+    lam = 3.0 * (np.array([0.0, 0.0, -G]) @ u) + 3.0 * 0.2 * 9.0 * np.sin(3.0 * r.t)
+    assert np.max(np.abs(r.multipliers[:, -1] - lam)) < lam_tol
+
+
 def test_bdf_i3_on_a_driven_slider():
     """The DAE form with a rheonomic row: the slide follows f(t), and the DAE's own multiplier
     is the driving force m g . u - m s'' (the watch's drivers' power takes it too)."""
     sc = _driven_slider()
     r = mbdk.simulate(sc, "bdf", formulation="i3", rtol=1e-9, atol=1e-11, t_end=2.0,
                       dt_out=0.1)
-    u = np.array([0.6, 0.0, 0.8])
-    s = 0.2 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.position("s") - s[:, None] * u)) < 1e-9
-    lam = 3.0 * (np.array([0.0, 0.0, -G]) @ u) + 3.0 * 0.2 * 9.0 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.multipliers[:, -1] - lam)) < 1e-5
+    check_driven_slider(r, 1e-9, 1e-5)
     assert "no projection" in r.manifest["form"] and r.manifest["quaternion_norm"].startswith(
         "none")
 
@@ -926,13 +932,8 @@ def test_trapezoidal_index3_on_a_spatial_pendulum_matches_the_planar_scene():
 def test_trapezoidal_index3_on_a_driven_slider():
     """A rheonomic row: the slide follows f(t) to roundoff at every step, and the multiplier
     (from the constrained solve after the projections) is the driving force m g . u - m s''."""
-    sc = _driven_slider()
-    r = mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=2.0, every=100)
-    u = np.array([0.6, 0.0, 0.8])
-    s = 0.2 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.position("s") - s[:, None] * u)) < 1e-12
-    lam = 3.0 * (np.array([0.0, 0.0, -G]) @ u) + 3.0 * 0.2 * 9.0 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.multipliers[:, -1] - lam)) < 1e-9
+    r = mbdk.simulate(_driven_slider(), "trapezoidal_index3", h=1e-3, t_end=2.0, every=100)
+    check_driven_slider(r, 1e-12, 1e-9)
 
 
 @pytest.mark.parametrize("kw, error, text", [
@@ -989,14 +990,9 @@ def test_ida_on_spatial_scenes(name, t_end, tols):
 def test_ida_ggl_on_a_driven_slider():
     """The GGL form with a rheonomic row: the slide follows f(t) to the tolerance, and the
     multiplier is the driving force m g . u - m s''."""
-    sc = _driven_slider()
-    r = mbdk.simulate(sc, "ida", formulation="ggl", rtol=1e-9, atol=1e-11, t_end=2.0,
-                      dt_out=0.1)
-    u = np.array([0.6, 0.0, 0.8])
-    s = 0.2 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.position("s") - s[:, None] * u)) < 1e-8
-    lam = 3.0 * (np.array([0.0, 0.0, -G]) @ u) + 3.0 * 0.2 * 9.0 * np.sin(3.0 * r.t)
-    assert np.max(np.abs(r.multipliers[:, -1] - lam)) < 1e-5
+    r = mbdk.simulate(_driven_slider(), "ida", formulation="ggl", rtol=1e-9, atol=1e-11,
+                      t_end=2.0, dt_out=0.1)
+    check_driven_slider(r, 1e-8, 1e-5)
 
 
 @pytest.mark.parametrize("kw, error, text", [
