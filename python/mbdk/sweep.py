@@ -385,8 +385,8 @@ def sweep(grid, workers: int = 2, scheduler: str | None = None,
     address scheduler, else on a local cluster of workers processes (one thread each), else
     (workers = 0) serially here, with a bar of the runs done on a terminal after a second
     (MBDK_PROGRESS as for a solve). The runs go to the workers in batches_per_worker batches per
-    worker thread, dealt round-robin: a Dask task costs about 4 ms of scheduling on a 2-core
-    machine, more than most runs of a work-precision grid."""
+    worker thread, dealt round-robin: a Dask task's scheduling costs milliseconds
+    (studies/sweep_scaling.py measures it), more than most runs of a work-precision grid."""
     refs, tasks = tasks_of(grid)
     if not (isinstance(batches_per_worker, int) and batches_per_worker > 0):
         raise InvalidInputError(f"batches_per_worker = {batches_per_worker!r} must be a whole "

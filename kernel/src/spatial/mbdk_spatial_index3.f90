@@ -25,18 +25,17 @@
 !> It is second order in q and w (tests/test_spatial.py measures it).
 !>
 !> Newton. The unknowns x = [q+; w+; s lam+], s = h^2/4: with lam+ itself the multipliers'
-!> pivots are O(h^2) and the matrix's condition grows like h^-2, until at h = 6e-4 on the spatial
-!> double pendulum roundoff kept the updates above the tolerance (the planar scheme scales its
-!> unknown the same way). The predictor is second order, q + h q' + (h^2/2) q'' with q'' from
+!> pivots are O(h^2) and the matrix's condition grows like h^-2, so that at small steps the
+!> roundoff of the updates exceeds the tolerance (the planar scheme scales its unknown the same
+!> way). The predictor is second order, q + h q' + (h^2/2) q'' with q'' from
 !> the last two steps' rates (likewise w and lam); the first step's is q + h q', w + h a, lam.
 !> The residual's Jacobian by forward differences (one residual evaluation per column),
 !> factorised by LAPACK's LU and kept across iterations and steps while Newton contracts:
 !> rebuilt at the current iterate when an update is more than half the previous one or too
 !> slow to converge within the iterations left, and when a try fails with an old matrix (the
-!> step then restarts from the first-order predictor with a matrix built there). Measured over
-!> 2 s at h = 1.25e-3: a matrix per 14 steps on the spatial double pendulum, per 90 on Bricard's
-!> linkage, and per 1.8 on the heavy top, whose spin of 50 rad/s turns the multipliers' columns
-!> M^-1 C^T by 6 % a step. A step converges when an update is below 1 in the norm
+!> step then restarts from the first-order predictor with a matrix built there). A fast spin
+!> turns the multipliers' columns M^-1 C^T with the bodies and makes old matrices fail sooner
+!> (studies/spatial_scenes.py counts them as njev). A step converges when an update is below 1 in the norm
 !> max |dx_i| / (newton_atol + newton_rtol |x_i|) over q and w and max |Phi_a| <= newton_atol
 !> there (not below 64 eps times the model's length), that last update applied. Each try takes
 !> at most max(newton_max_iter, 20) updates (the simplified iteration converges linearly); two

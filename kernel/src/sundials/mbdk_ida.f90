@@ -414,15 +414,16 @@ contains
     atol_v(1:ny + na) = opt%atol
     atol_v(ny + na + 1:) = MU_ATOL
     ! ggl: a multiplier near zero is tested against rtol times the largest one, the size of its
-    ! roundoff in the index-2 iteration (tested at atol, the flyball governor's stopped Newton
-    ! at its first step from rtol 1e-8 down, whatever the step)
+    ! roundoff in the index-2 iteration; at atol alone, that roundoff would keep Newton from
+    ! converging on a stiff scene at tight tolerances (tests/test_spatial.py: the flyball
+    ! governor)
     if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = max(opt%atol, &
                                                         opt%rtol * maxval(abs(y(ny + 1:ny + na))))
     if (ggl) then
       ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
-      ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and IDA's estimate
-      ! for the heavy top at rtol 1e-9 (its 50 rad/s spin in Y'(0): about 1e-9 s) left it
-      ! singular to roundoff at the first step
+      ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and a fast start
+      ! (a spinning body) at a tight rtol would make that estimate so small that the matrix is
+      ! singular to roundoff
       s = sqrt(sum((yp(1:ny) / (opt%rtol * abs(y0) + opt%atol))**2) / ny)
       ctx%h0 = (t_end - t0) * GGL_FIRST_STEP
       if (s > 0.0_dp) ctx%h0 = min(max(0.5_dp / s, ctx%h0), 1.0e-3_dp * (t_end - t0))
