@@ -35,9 +35,10 @@
 !> slow to converge within the iterations left, and when a try fails with an old matrix (the
 !> step then restarts from the first-order predictor with a matrix built there). A fast spin
 !> turns the multipliers' columns M^-1 C^T with the bodies and makes old matrices fail sooner
-!> (studies/spatial_scenes.py counts them as njev). A step converges when an update is below 1 in the norm
-!> max |dx_i| / (newton_atol + newton_rtol |x_i|) over q and w and max |Phi_a| <= newton_atol
-!> there (not below 64 eps times the model's length), that last update applied. Each try takes
+!> (studies/spatial_scenes.py counts them as njev). A step converges when an update is below 1
+!> in the norm max |dx_i| / (newton_atol + newton_rtol |x_i|) over q and w and max |Phi_a| <=
+!> newton_atol there (not below 64 eps times the model's length), that last update applied.
+!> Each try takes
 !> at most max(newton_max_iter, 20) updates (the simplified iteration converges linearly); two
 !> failed tries: MBDK_ERR_NEWTON_DIVERGED; a singular matrix (rows lost their rank):
 !> MBDK_ERR_SINGULAR_MATRIX.
