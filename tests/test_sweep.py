@@ -135,6 +135,8 @@ def test_samples_params_and_labels_against_direct_runs():
     (dict(reference={"method": "rk4", "n": 3}), "'reference' has 'n'"),
     (dict(min_cpu=-1.0), "'min_cpu' has -1.0"),
     (dict(samples=0), "'samples' has 0"),
+    (dict(min_cpu="fast"), "'min_cpu' has 'fast', not a finite number"),
+    (dict(t_end="ten"), "'t_end' has 'ten', not a finite number"),
     (dict(step_counts=[100]), "'steps' or 'step_counts', not both"),
     (dict(problems=[], steps=[0.26], samples=2, methods=["rk4"]),
      "0.26, which does not divide the interval"),

@@ -124,6 +124,12 @@ def _positive(v, key, where, integer=False):
     return v
 
 
+def _number(v, key, where) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise InvalidInputError(f"{where}: field {key!r} has {v!r}, not a finite number")
+    return float(v)
+
+
 def _span_steps(span, h, key, where, samples, compared):
     """The number of fixed steps of size h over span, checked against the samples: compared
     with a reference at its samples, the steps must fill the interval (the kernel shortens a
@@ -154,7 +160,7 @@ def _one(grid, where: str, gi: int) -> tuple[list, list]:
                                 f"{', '.join(sorted(FIELDS))}")
     if "t_end" not in grid:
         raise InvalidInputError(f"{where}: field 't_end' is missing")
-    t_end, t0 = float(grid["t_end"]), float(grid.get("t0", 0.0))
+    t_end, t0 = _number(grid["t_end"], "t_end", where), _number(grid.get("t0", 0.0), "t0", where)
     if not t_end > t0:
         raise InvalidInputError(f"{where}: t_end = {t_end} must be greater than t0 = {t0}")
     span = t_end - t0
@@ -206,8 +212,8 @@ def _one(grid, where: str, gi: int) -> tuple[list, list]:
               for n in _list(grid, "step_counts", where)]
     tols = [float(_positive(t, "tolerances", where)) for t in _list(grid, "tolerances", where)]
     ratio = float(_positive(grid.get("atol_ratio", 1e-2), "atol_ratio", where))
-    min_cpu = float(grid.get("min_cpu", 0.0))
-    if not (math.isfinite(min_cpu) and min_cpu >= 0):
+    min_cpu = _number(grid.get("min_cpu", 0.0), "min_cpu", where)
+    if not min_cpu >= 0:
         raise InvalidInputError(f"{where}: field 'min_cpu' has {min_cpu!r}, not a number >= 0")
     max_reps = _positive(grid.get("max_reps", 20), "max_reps", where, integer=True)
     ref = dict(grid.get("reference", {"method": "dopri54", "rtol": 1e-12}))

@@ -29,7 +29,7 @@ module mbdk_spatial_dae
     mbdk_spatial_constraints
   implicit none
   private
-  public :: mbdk_spatial_dae_init
+  public :: mbdk_spatial_dae_init, mbdk_spatial_ggl_rates
 
   type, extends(mbdk_problem_t), public :: mbdk_spatial_dae_t
     type(mbdk_spatial_model_t), pointer :: model => null()
@@ -79,7 +79,7 @@ contains
     real(dp), intent(in), contiguous :: y(:)
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
-    real(dp) :: lam(self%model%m), phi(self%model%m), g(self%ny), ys(self%ny), &
+    real(dp) :: lam(self%model%m), phi(self%model%m), &
       c(self%model%m, self%ny - self%npos), gam(self%model%m), phit(self%model%m)
     integer :: ny, nq, na, i
     ny = self%ny
@@ -91,22 +91,37 @@ contains
     if (stat /= MBDK_SUCCESS) return
     f(ny + 1:ny + na) = phi(self%rows)
     if (self%form /= 2) return
-    ! the rates T(q) (w - M^-1 C^T mu), M^-1 C^T mu = a(lam - mu) - a(lam)
     lam(self%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
-    call mbdk_spatial_dae_rhs(self%model, t, y(1:ny), lam, g, phi, stat)
+    call mbdk_spatial_ggl_rates(self%model, t, y(1:ny), nq, lam, f(nq + 1:ny), f(1:nq), stat)
     if (stat /= MBDK_SUCCESS) return
-    ys(1:nq) = y(1:nq)
-    ys(nq + 1:) = y(nq + 1:ny) + f(nq + 1:ny) - g(nq + 1:)
-    lam = 0.0_dp
-    call mbdk_spatial_dae_rhs(self%model, t, ys, lam, g, phi, stat)
-    if (stat /= MBDK_SUCCESS) return
-    f(1:nq) = g(1:nq)
     call mbdk_spatial_constraints(self%model, t, y(1:ny), phi, c, gam, phit, stat)
     if (stat /= MBDK_SUCCESS) return
     do i = 1, na
       f(ny + na + i) = dot_product(c(self%rows(i), :), y(nq + 1:ny)) + phit(self%rows(i))
     end do
   end subroutine sdae_rhs
+
+  !> The GGL forms' position rates qdot = T(q) (w - M^-1 C^T mu) at y = [q; w] (nq positions),
+  !> given lam_mu = lam - mu on the model's rows and a = a(lam), the accelerations already
+  !> evaluated there: by a's linearity in the multipliers, M^-1 C^T mu = a(lam - mu) - a(lam),
+  !> and T(q) is applied by one more evaluation at [q; w - that]. Shared by bdf's si2 form and
+  !> ida's ggl form on spatial scenes.
+  subroutine mbdk_spatial_ggl_rates(model, t, y, nq, lam_mu, a, qdot, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, y(:), lam_mu(:), a(:)
+    integer, intent(in) :: nq
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    real(dp) :: g(size(y)), ys(size(y)), phi(model%m), zero(model%m)
+    call mbdk_spatial_dae_rhs(model, t, y, lam_mu, g, phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    ys(1:nq) = y(1:nq)
+    ys(nq + 1:) = y(nq + 1:) + a - g(nq + 1:)
+    zero = 0.0_dp
+    call mbdk_spatial_dae_rhs(model, t, ys, zero, g, phi, stat)
+    if (stat /= MBDK_SUCCESS) return
+    qdot = g(1:nq)
+  end subroutine mbdk_spatial_ggl_rates
 
   subroutine sdae_watch_start(self, t, y, stat)
     class(mbdk_spatial_dae_t), intent(in) :: self

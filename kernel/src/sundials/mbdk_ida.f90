@@ -141,6 +141,7 @@ module mbdk_ida
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
     mbdk_spatial_constraints, mbdk_spatial_multipliers, mbdk_spatial_watch, &
     MBDK_SPATIAL_REDUCED
+  use mbdk_spatial_dae, only: mbdk_spatial_ggl_rates
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -198,7 +199,7 @@ module mbdk_ida
     type(mbdk_spatial_model_t), pointer :: smodel => null()
     integer :: nq = 0
     integer, allocatable :: rows(:)
-    real(dp), allocatable :: c(:, :), lamfull(:), g(:), g2(:), ys(:), gt(:)
+    real(dp), allocatable :: c(:, :), lamfull(:), g(:), g2(:)
     !> spatial: whether the residual also keeps the accelerations' force part in g2
     logical :: want_g2 = .false.
     !> a residual's failure status that made it return -1 (IDA then stops)
@@ -343,7 +344,7 @@ contains
     if (nlam > 0 .and. size(lam_out, 1) < m) return
     stat = MBDK_ERR_NO_MEMORY
     allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
-              ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), ctx%ys(ny), ctx%gt(ny), stat=ierr)
+              ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), stat=ierr)
     if (ierr /= 0) return
     ! the rows after the model's solve at t0, which may move a redundant scene to another set
     if (m > 0) then
@@ -454,17 +455,11 @@ contains
     call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g, ctx%phi, stat)
     if (stat /= MBDK_SUCCESS) return
     r(nq + 1:ny) = yp(nq + 1:ny) - ctx%g(nq + 1:ny)
-    if (ctx%ggl) then
-      ! M^-1 C^T mu = a(lam - mu) - a(lam), and T(q) applied to w minus that
+    if (ctx%ggl) then          ! T(q) (w - M^-1 C^T mu)
       ctx%lamfull(ctx%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
-      call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%ys, ctx%phi, stat)
+      call mbdk_spatial_ggl_rates(ctx%smodel, t, y(1:ny), nq, ctx%lamfull, ctx%g(nq + 1:ny), &
+                                  ctx%g(1:nq), stat)
       if (stat /= MBDK_SUCCESS) return
-      ctx%ys(1:nq) = y(1:nq)
-      ctx%ys(nq + 1:ny) = y(nq + 1:ny) + ctx%g(nq + 1:ny) - ctx%ys(nq + 1:ny)
-      ctx%lamfull = 0.0_dp
-      call mbdk_spatial_dae_rhs(ctx%smodel, t, ctx%ys, ctx%lamfull, ctx%gt, ctx%phi, stat)
-      if (stat /= MBDK_SUCCESS) return
-      ctx%g(1:nq) = ctx%gt(1:nq)
     end if
     r(1:nq) = yp(1:nq) - ctx%g(1:nq)
     if (na == 0) return
