@@ -111,6 +111,15 @@ int main(void)
     d = 0.0;
     for (int i = 0; i < 6; i++) d = fmax(d, fabs(qc[i] - qf[i]));
     if (!(d < 1e-4 && st.steps > 50)) { fprintf(stderr, "adaptive error %g\n", d); fails++; }
+    /* extrapolated (third order): at the same tolerance, within the fine run's own error */
+    opt.adaptive = MBDK_INDEX3_EXTRAPOLATED;
+    if (run(&opt, 2.0, qc, &st) != MBDK_SUCCESS) { fprintf(stderr, "extrapolated failed\n"); fails++; }
+    d = 0.0;
+    for (int i = 0; i < 6; i++) d = fmax(d, fabs(qc[i] - qf[i]));
+    if (!(d < 2e-6)) { fprintf(stderr, "extrapolated error %g\n", d); fails++; }
+    opt.adaptive = 3;
+    if (run(&opt, 1.0, qc, &st) != MBDK_ERR_INVALID_INPUT) { fprintf(stderr, "adaptive 3\n"); fails++; }
+    opt.adaptive = MBDK_INDEX3_ESTIMATED;
 
     /* statuses: the book's scheme refuses step-size control, an unknown formulation is bad input */
     opt.formulation = MBDK_INDEX3_BOOK;

@@ -123,6 +123,10 @@ int mbdk_solve_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, doubl
 /* trapezoidal_index3 (kernel/src/dae/mbdk_trapezoidal_index3.f90 is its manual): the index-3
  * DAE of a planar scene integrated by the implicit trapezoidal rule with Newton-Raphson. */
 enum mbdk_index3_formulation { MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2 };
+/* opt.adaptive: a fixed step, step-size control on the error estimated from differences of the
+ * accelerations (second order), or on local Richardson extrapolation (third order: the manual) */
+enum mbdk_index3_adaptive { MBDK_INDEX3_FIXED = 0, MBDK_INDEX3_ESTIMATED = 1,
+                            MBDK_INDEX3_EXTRAPOLATED = 2 };
 
 typedef struct mbdk_index3_options {
     double h;              /* fixed step, or the first step when adaptive */
@@ -133,7 +137,7 @@ typedef struct mbdk_index3_options {
     int formulation;       /* MBDK_INDEX3_BOOK (the book's scheme) or MBDK_INDEX3_AUGMENTED */
     int every;             /* fixed step: keep every k-th step as a sample */
     int newton_max_iter;
-    int adaptive;          /* non-zero: step-size control (augmented only), samples every dt_out */
+    int adaptive;          /* mbdk_index3_adaptive; controlled (augmented only): samples every dt_out */
     volatile double *progress; /* NULL, or where the solve stores the time reached, per step */
 } mbdk_index3_options;
 

@@ -25,10 +25,16 @@ Newton: converged when the update computed at an iterate is within rtol/atol (de
 and projection matrices. The result's `a` and `multipliers` are the integrator's own;
 `iterations` holds the Newton iterations of the step behind each sample.
 
-Step size: fixed (h, every) by default. adaptive=True starts from h and controls the step by a
-local-error estimate on q and v (multipliers excluded) against err_rtol/err_atol (defaults
-1e-6, 1e-8); samples every dt_out (default h * every), each one landed on exactly. Rejected
-steps and Newton failures (the step is retried at h/4) are counted in stats.
+Step size: fixed (h, every) by default. adaptive=True (= "extrapolated") starts from h and
+controls the step on q and v (multipliers excluded) against err_rtol/err_atol (defaults 1e-6,
+1e-8) by local Richardson extrapolation: each macro step is one step of H and two of H/2, their
+difference the error estimate, and the extrapolated, projected state the result (third order;
+stats.steps counts macro steps, three trapezoidal solves each; PI control). adaptive="estimated"
+takes one step with its local error estimated from differences of the accelerations (second
+order: on motions about equally hard throughout, no distribution of its steps saves much over
+the best fixed step; studies/step_control.py). Samples every dt_out (default h * every), each
+one landed on exactly. Rejected steps and Newton failures (the step is retried at h/4) are
+counted in stats.
 """
 from __future__ import annotations
 

@@ -13,8 +13,9 @@ Methods and formulations (mbdk.methods() lists the methods):
   trapezoidal_index3 on the index-3 DAE itself (kernel/src/dae/mbdk_trapezoidal_index3.f90):
     augmented_lagrangian  ALI3-P, the augmented Lagrangian with projections (the default)
     index3                the book's scheme (3.11)-(3.16)
-    with a fixed step, or adaptive=True (err_rtol, err_atol, dt_out, h_min, h_max), and Newton's
-    max_iter (default 20).
+    with a fixed step, or adaptive=True (local extrapolation, third order) or "estimated"
+    (second order), with err_rtol, err_atol, dt_out, h_min, h_max; and Newton's max_iter
+    (default 20).
 
 Linear solves (solver=; the manifest's linear_solve says which one ran):
   auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
@@ -178,7 +179,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              solver: str = "auto", small_dense: bool = True, assemble_initial: bool = True,
              startup: str = "rk4", newton_rtol: float | None = None,
              newton_atol: float | None = None, max_iter: int | None = None,
-             adaptive: bool | None = None, err_rtol: float | None = None,
+             adaptive: bool | str | None = None, err_rtol: float | None = None,
              err_atol: float | None = None, dt_out: float | None = None,
              h_min: float | None = None, h_max: float | None = None,
              rtol: float | None = None, atol: float | None = None,
@@ -198,8 +199,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     adaptive: a hundredth of err_rtol/err_atol where that is tighter (Newton then does not cap
     the accuracy asked for).
 
-    adaptive, err_rtol, err_atol, dt_out, h_min, h_max, max_iter: trapezoidal_index3 only
-    (step-size control and Newton's iteration limit; mbdk.index3 says what they do).
+    adaptive (False, True = "extrapolated", "estimated"), err_rtol, err_atol, dt_out, h_min,
+    h_max, max_iter: trapezoidal_index3 only (step-size control and Newton's iteration limit;
+    mbdk.index3 says what they do).
 
     The error-controlled ODE methods (dopri54, bs32, bdf, cvode_bdf, cvode_adams) run every
     formulation but cvode_* the projection one: rtol, atol (a number), dt_out, h (the first
@@ -540,6 +542,23 @@ _DRIFT_ADVICE = {
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
 #: (at most the fixed-step defaults), not below NEWTON_FLOOR
 NEWTON_SHARE, NEWTON_FLOOR = 0.01, 64 * float(np.finfo(float).eps)
+#: trapezoidal_index3's adaptive= values and the kernel's opt%adaptive codes: local Richardson
+#: extrapolation of two half-steps against the full step (True; order 3), or the step's error
+#: estimated from differences of the accelerations (order 2: on P1 no distribution of its steps
+#: saves more than 8 %, studies/step_control.py); kernel/src/dae/mbdk_trapezoidal_index3.f90
+ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
+
+
+EXTRAPOLATED_TEXT = ("local Richardson extrapolation: two steps of H/2 against one of H, "
+                     "error (y_H/2 - y_H)/3 on q and v, the step's result (4 y_H/2 - y_H)/3 "
+                     "projected onto Phi = 0, Phi' = 0")
+
+
+def _adaptive_mode(adaptive) -> int:
+    if isinstance(adaptive, (bool, str)) and adaptive in ADAPTIVE_MODES:
+        return ADAPTIVE_MODES[adaptive]
+    raise InvalidInputError(f"adaptive = {adaptive!r} must be False, True (= 'extrapolated') "
+                            "or 'estimated'")
 
 
 def _real(name: str, value) -> float:
@@ -620,7 +639,8 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
         raise InvalidInputError(f"alpha = {alpha}: the augmented Lagrangian's penalty factor "
                                 "must be finite and > 0, or 0 for the default (1e3 max(M) "
                                 "/ (h^2/4) at every step)")
-    adaptive = bool(given3.get("adaptive", False))
+    mode = _adaptive_mode(given3.get("adaptive", False))
+    adaptive = mode > 0
     err_rtol = given3.get("err_rtol", d.err_rtol)
     err_atol = given3.get("err_atol", d.err_atol)
     dt_out = given3.get("dt_out", h * every)
@@ -655,7 +675,7 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
     opt = Index3Options(h=h, newton_rtol=rtol, newton_atol=atol, alpha=alpha,
                         err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
                         h_max=h_max, formulation=INDEX3_FORMULATIONS[formulation],
-                        every=every, newton_max_iter=int(max_iter), adaptive=int(adaptive))
+                        every=every, newton_max_iter=int(max_iter), adaptive=mode)
     nsteps, nsamp, status = _kernel.index3_plan(opt.pack(), t0, t_end)
     if status < 0:
         raise InvalidInputError(
@@ -671,7 +691,9 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
     if adaptive:
         manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
                                     "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
-                                    "estimate": "h^2/12 |a+ - a| on q, h^3/12 |a''| on v"}
+                                    "mode": "estimated" if mode == 1 else "extrapolated",
+                                    "estimate": ("h^2/12 |a+ - a| on q, h^3/12 |a''| on v"
+                                                 if mode == 1 else EXTRAPOLATED_TEXT)}
     return {"ode": ODEOptions(), "index3": opt, "nsamp": int(nsamp),
             # adaptive: the steps are not known in advance, the run always counts as long
             # (a worker thread, interruptible)

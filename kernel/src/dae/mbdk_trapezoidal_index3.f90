@@ -115,18 +115,39 @@
 !> success, down to h / 4^5; the samples stay on the grid. Only below that is the failure
 !> returned. The book's scheme is not retried: its failures come from the growing oscillation
 !> of its v and a, which substeps do not cure (retried, it went on for 100 s on the double
-!> pendulum with |Phi| = 0.08 and the energy lost). Adaptive
-!> (opt%adaptive, augmented form only): from the initial step opt%h, the local error of q and
-!> v (multipliers excluded, as index-3 codes do), -h^3/12 q(3) and -h^3/12 q(4) with the
-!> derivatives from divided differences of the step-mean accelerations, is measured in the
-!> weighted RMS norm (err_atol + err_rtol |y|). err <= 1 accepts the step; the next
-!> h = h min(5, max(0.2, 0.9 err^(-1/3))), held while that would grow it by less than 20 %
-!> (the matrix stays valid; a change of 5 % or less keeps the old matrix too). A rejected step is
-!> retried with that h (stats%rejected_steps); a Newton failure retries at h/4
+!> pendulum with |Phi| = 0.08 and the energy lost).
+!>
+!> Adaptive (opt%adaptive, augmented form only), from the initial step opt%h; errors of q and v
+!> (multipliers excluded, as index-3 codes do) in the weighted RMS norm (err_atol + err_rtol
+!> |y|), err <= 1 accepting the step. Two modes:
+!>   2 extrapolated (MBDK_INDEX3_EXTRAPOLATED; Python's adaptive=True): local Richardson
+!>     extrapolation. A macro step of H is one step of H and two of H/2 from the same state; the
+!>     local error C H^3 of the second order rule makes their difference 3/4 C H^3, so the
+!>     half-steps' error is (y_H/2 - y_H)/3, the controller's err. The step keeps the
+!>     extrapolated (4 y_H/2 - y_H)/3, whose local error is O(H^4): the solution is third
+!>     order (projected, the rule is not symmetric, so no h^4 cancellation beyond). q is
+!>     projected onto Phi = 0 (Gauss-Newton), v onto D v + Phi_t = 0, and a, lambda come from
+!>     the constrained solve there, as at the end of every step. The predictors' history is
+!>     the half-step grid. PI control (mbdk_step_controller, ki = 0.7, kp = 0.4). Why: with a
+!>     second order method step-size control cannot pay on motions that are about equally
+!>     hard throughout: on the double pendulum P1 the best distribution of steps for additive
+!>     local errors saves 8 % over the best fixed step (studies/step_control.py derives the
+!>     bound), while the third order macro step reaches 1e-6 at t = 10 s with 11 % of the
+!>     fixed step's trapezoidal solves. A macro step costs three solves; stats%steps counts
+!>     macro steps. Next to a rank loss of D the difference of the solutions measures what the
+!>     stiffened Newton iteration leaves, not the truncation error: there a macro step the
+!>     difference would reject is judged as in mode 1 (extrapolated_attempt).
+!>   1 estimated (MBDK_INDEX3_ESTIMATED; adaptive='estimated'): one step, its local error
+!>     -h^3/12 q(3) on q and -h^3/12 q(4) on v, with the derivatives from divided differences of
+!>     the step-mean accelerations; I control. Second order and a third of the cost per step,
+!>     but no distribution of its steps beats the bound above.
+!> The next h = h min(5, max(0.2, 0.9 err^(-1/3) ..)), held while that would grow it by less
+!> than 20 % (a reused matrix stays valid; a change of 5 % or less keeps the old matrix too). A
+!> rejected step is retried with that h (stats%rejected_steps); a Newton failure retries at h/4
 !> (stats%newton_failures), within a retry budget (RETRY_BUDGET below: sustained failures end
 !> the run with MBDK_ERR_NEWTON_DIVERGED); below h_min (default 1e-12 of the interval) the
-!> solve ends with MBDK_ERR_STEP_TOO_SMALL. Samples every opt%dt_out, landed on exactly (a step within 1.1 h of
-!> a sample is stretched to it, within 2 h halved). The book's scheme is refused
+!> solve ends with MBDK_ERR_STEP_TOO_SMALL. Samples every opt%dt_out, landed on exactly (a step
+!> within 1.1 h of a sample is stretched to it, within 2 h halved). The book's scheme is refused
 !> (MBDK_ERR_NOT_APPLICABLE): its velocity error in the constraint directions grows without
 !> bound, and any error test on v would shrink h forever.
 !>
@@ -171,6 +192,8 @@ module mbdk_trapezoidal_index3
   public :: MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
+  !> opt%adaptive: 1 the local error estimate from differences, 2 local Richardson extrapolation
+  integer, parameter, public :: MBDK_INDEX3_ESTIMATED = 1, MBDK_INDEX3_EXTRAPOLATED = 2
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
   !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
@@ -193,6 +216,9 @@ module mbdk_trapezoidal_index3
   integer, parameter :: COOL_START = 8, COOL_MAX = 1024
   !> adaptive: a step within this fraction of the last matrix's h keeps the matrix
   real(dp), parameter :: KEEP_MATRIX = 0.05_dp
+  !> adaptive, extrapolated: Gauss-Newton iterations of the projection of the extrapolated q
+  !> (it starts within the square of the step's error of Phi = 0: one or two suffice)
+  integer, parameter :: PROJECT_MAX_ITER = 10
   !> adaptive: Newton failures, each retried with a quarter of the step, draw on a budget of
   !> RETRY_BUDGET failures that every accepted step refills by RETRY_REFILL. A run that fails
   !> in more than one attempt in ten for long, the controller circling a configuration it
@@ -238,6 +264,9 @@ module mbdk_trapezoidal_index3
     !> the regular path: D is (nearly) rank-deficient there
     logical :: regular = .false., regular_n = .false.
     logical :: have_lu = .false.
+    !> the last attempted step's Newton iteration stalled (alpha boosted, perhaps lam* frozen:
+    !> next to a rank loss of D)
+    logical :: stalled = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
     real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
@@ -251,6 +280,17 @@ module mbdk_trapezoidal_index3
     !> the projections of v and a (mbdk_constrained, weight M^-1)
     type(mbdk_constrained_t) :: cs
   end type mbdk_index3_t
+
+  !> adaptive = MBDK_INDEX3_EXTRAPOLATED: the accepted state a macro step starts from (restored
+  !> when it is rejected or fails) and the end of its full step
+  type :: mbdk_index3_snapshot_t
+    real(dp) :: t = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp, retries = 0.0_dp
+    logical :: regular = .false.
+    integer :: cool = 0
+    integer(i8) :: steps = 0
+    real(dp), allocatable :: q(:), v(:), a(:), lam(:), lst(:), lam_old(:), lst_old(:), &
+      a_prev(:), a_prev2(:), qf(:), vf(:)
+  end type mbdk_index3_snapshot_t
 
 contains
 
@@ -281,6 +321,7 @@ contains
     end if
     if (size(y0) /= 2 * nc) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
+    if (opt%adaptive < 0 .or. opt%adaptive > MBDK_INDEX3_EXTRAPOLATED) return
     if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
@@ -536,9 +577,17 @@ contains
     subroutine adaptive_loop(ierr)
       integer, intent(out) :: ierr
       integer :: k
-      real(dp) :: err
+      real(dp) :: err, h_ctl
+      logical :: extrapolated
       type(mbdk_step_controller_t) :: ctl
+      type(mbdk_index3_snapshot_t) :: x0
+      extrapolated = opt%adaptive == MBDK_INDEX3_EXTRAPOLATED
       call mbdk_controller_init(ctl, opt%h, opt%h_min, opt%h_max, t0, t_end, 2)
+      if (extrapolated) then
+        ctl%ki = 0.7_dp
+        ctl%kp = 0.4_dp
+      end if
+      if (extrapolated) call snapshot_init(x0, s%nc, s%m)
       ierr = MBDK_SUCCESS
       do k = 1, nsamp - 1
         t_s = t0 + real(k, dp) * opt%dt_out
@@ -551,29 +600,35 @@ contains
           if (opt%progress /= 0) call mbdk_progress(opt%progress, s%t)
           s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
           s%h = s%tn - s%t
-          ! keep the last matrix when the step changed little (modified Newton absorbs it)
-          if (s%have_lu .and. abs(s%h - s%h_lu) <= KEEP_MATRIX * s%h_lu) s%h_lu = s%h
-          call attempt(s, model, ierr)
+          ! the controller judges the step from t to tn (extrapolated: the macro step, whose
+          ! half-steps leave their own h in s%h for the predictors' history)
+          h_ctl = s%h
+          if (extrapolated) then
+            call extrapolated_attempt(s, model, x0, err, ierr)
+          else
+            call hold_matrix(s)
+            call attempt(s, model, ierr)
+            if (ierr == MBDK_SUCCESS) err = error_estimate(s)
+          end if
           if (newton_failed(ierr)) then
             if (.not. retry_allowed(s)) then
               ierr = MBDK_ERR_NEWTON_DIVERGED
               return
             end if
             s%have_lu = .false.
-            call mbdk_controller_newton_failure(ctl, s%h)
+            call mbdk_controller_newton_failure(ctl, h_ctl)
           else if (ierr /= MBDK_SUCCESS) then
             return
           else
-            err = error_estimate(s)
             if (err <= 1.0_dp) then
               call commit(s)
-              call mbdk_controller_accept(ctl, s%h, err)
+              call mbdk_controller_accept(ctl, h_ctl, err)
               call watch_step(s, model, s%t >= t_s, ierr)
               if (ierr /= MBDK_SUCCESS) return
               cycle
             end if
             s%st%rejected_steps = s%st%rejected_steps + 1
-            call mbdk_controller_reject(ctl, s%h, err)
+            call mbdk_controller_reject(ctl, h_ctl, err)
           end if
           ierr = MBDK_SUCCESS
           if (mbdk_controller_too_small(ctl)) then
@@ -586,6 +641,191 @@ contains
     end subroutine adaptive_loop
 
   end subroutine mbdk_index3_solve
+
+  subroutine snapshot_init(x, nc, m)
+    type(mbdk_index3_snapshot_t), intent(out) :: x
+    integer, intent(in) :: nc, m
+    allocate (x%q(nc), x%v(nc), x%a(nc), x%lam(m), x%lst(m), x%lam_old(m), x%lst_old(m), &
+              x%a_prev(nc), x%a_prev2(nc), x%qf(nc), x%vf(nc))
+  end subroutine snapshot_init
+
+  !> The accepted state and everything commit moves into x (save) or back from x (restore).
+  subroutine snapshot(s, x, save)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_index3_snapshot_t), intent(inout) :: x
+    logical, intent(in) :: save
+    if (save) then
+      x%t = s%t
+      x%h_prev = s%h_prev
+      x%h_prev2 = s%h_prev2
+      x%retries = s%retries
+      x%regular = s%regular
+      x%cool = s%cool
+      x%steps = s%st%steps
+      x%q = s%q
+      x%v = s%v
+      x%a = s%a
+      x%lam = s%lam
+      x%lst = s%lst
+      x%lam_old = s%lam_old
+      x%lst_old = s%lst_old
+      x%a_prev = s%a_prev
+      x%a_prev2 = s%a_prev2
+    else
+      s%t = x%t
+      s%h_prev = x%h_prev
+      s%h_prev2 = x%h_prev2
+      s%retries = x%retries
+      s%regular = x%regular
+      s%cool = x%cool
+      s%st%steps = x%steps
+      s%q = x%q
+      s%v = x%v
+      s%a = x%a
+      s%lam = x%lam
+      s%lst = x%lst
+      s%lam_old = x%lam_old
+      s%lst_old = x%lst_old
+      s%a_prev = x%a_prev
+      s%a_prev2 = x%a_prev2
+    end if
+  end subroutine snapshot
+
+  !> adaptive = MBDK_INDEX3_EXTRAPOLATED: the macro step from s%t to s%tn = s%t + H by local
+  !> Richardson extrapolation (module header). On success (qn, vn, an, ln) at tn hold the
+  !> extrapolated, projected state, to be committed as one step (the first half-step is
+  !> committed already, so that the history the predictors use is the half-step grid), and err
+  !> is the error norm of the half-step solution. When the step is rejected (err > 1) or a solve
+  !> fails, the state is restored to s%t.
+  subroutine extrapolated_attempt(s, model, x, err, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    type(mbdk_index3_snapshot_t), intent(inout) :: x
+    real(dp), intent(out) :: err
+    integer, intent(out) :: ierr
+    real(dp) :: t_end, wq, wv, sum2
+    integer :: k, nc
+    logical :: near
+    nc = s%nc
+    err = huge(1.0_dp)
+    t_end = s%tn
+    call snapshot(s, x, .true.)
+    ! the full step. Each change between H and H/2 rebuilds the Newton matrix; a second matrix
+    ! kept for the other size would not be reused either: at the steps this control takes,
+    ! h |omega| is above the 1e-3 where a matrix from the step before fails (measured: one
+    ! factorisation per solve on P1, the four-bar and the spring-damper bar)
+    s%h = t_end - s%t
+    call hold_matrix(s)
+    call attempt(s, model, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    x%qf = s%qn
+    x%vf = s%vn
+    near = s%regular_n .or. s%stalled
+    ! two half-steps
+    s%tn = s%t + 0.5_dp * (t_end - s%t)
+    s%h = s%tn - s%t
+    call hold_matrix(s)
+    call attempt(s, model, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    near = near .or. s%regular_n .or. s%stalled
+    call commit(s)
+    s%st%steps = x%steps
+    s%tn = t_end
+    s%h = t_end - s%t
+    call attempt(s, model, ierr)
+    if (ierr /= MBDK_SUCCESS) then
+      call snapshot(s, x, .false.)
+      return
+    end if
+    ! the half-steps' error is (y_half - y_full) / 3 (local error C h^3: C H^3 / 4 against
+    ! C H^3), measured as error_estimate's, on q and v
+    sum2 = 0.0_dp
+    do k = 1, nc
+      wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%qn(k)))
+      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%vn(k)))
+      sum2 = sum2 + ((s%qn(k) - x%qf(k)) / (3.0_dp * wq))**2 + &
+        ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
+    end do
+    err = sqrt(sum2 / real(2 * nc, dp))
+    if (.not. err <= 1.0_dp .and. (near .or. s%regular_n .or. s%stalled)) then
+      ! next to a rank loss of D (a Newton iteration stalled, or a projection took the regular
+      ! path) the three solutions differ by what the stiffened or frozen Newton steps and the
+      ! regular projections leave along the vanishing direction, whatever H (on the A02 chains
+      ! the error norm stayed at 2 from H = 1e-4 to 1e-11): there the difference is no
+      ! estimate of the truncation error. The second half-step stands, unextrapolated, judged
+      ! by the estimate from differences (error_estimate), as the estimated mode judges a step.
+      err = error_estimate(s)
+      if (.not. err <= 1.0_dp) call snapshot(s, x, .false.)
+      return
+    end if
+    if (.not. err <= 1.0_dp) then
+      call snapshot(s, x, .false.)
+      return
+    end if
+    s%qn = s%qn + (s%qn - x%qf) / 3.0_dp
+    s%vn = s%vn + (s%vn - x%vf) / 3.0_dp
+    call consistent_end(s, model, ierr)
+    if (ierr /= MBDK_SUCCESS) call snapshot(s, x, .false.)
+  end subroutine extrapolated_attempt
+
+  !> Keeps the current matrix for a step s%h within KEEP_MATRIX of the one it was built for
+  !> (modified Newton absorbs the difference).
+  subroutine hold_matrix(s)
+    type(mbdk_index3_t), intent(inout) :: s
+    if (s%have_lu .and. abs(s%h - s%h_lu) <= KEEP_MATRIX * s%h_lu) s%h_lu = s%h
+  end subroutine hold_matrix
+
+  !> (qn, vn) onto Phi = 0 (Gauss-Newton, as the projection formulation's) and D v + Phi_t = 0,
+  !> both mass-orthogonal, then an, ln from M a + D^T lambda = f, D a = gamma there: the solves
+  !> of a step's end (attempt), on its regular path where D is (nearly) rank-deficient.
+  subroutine consistent_end(s, model, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: ierr
+    integer :: it
+    real(dp) :: phi_tol
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+    do it = 0, PROJECT_MAX_ITER
+      call constraints_at(s, model)
+      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
+                                   model%mass, ierr, regular=.true., near=NEAR_PIVOT)
+      if (ierr /= MBDK_SUCCESS) return
+      if (s%m == 0) exit
+      if (maxval(abs(s%phi)) <= phi_tol) exit
+      ! at a rank loss the part of Phi that D cannot reach stays, as in a frozen Newton step
+      if (s%cs%regular .and. it > 0 .and. maxval(abs(s%phi)) <= FROZEN_PHI * phi_tol) exit
+      if (it == PROJECT_MAX_ITER) then
+        ierr = MBDK_ERR_NEWTON_DIVERGED
+        return
+      end if
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
+                                  s%zero_nc, s%phi, s%corr, s%mu, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      s%qn = s%qn - s%corr
+    end do
+    s%regular_n = s%cs%regular
+    if (s%m > 0) then
+      call mbdk_sparse_d_times(model%sp, model%work%dz, s%vn, s%rc, .false.)
+      s%rc = s%rc + s%phit
+      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
+                                  s%zero_nc, s%rc, s%corr, s%mu, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      s%vn = s%vn - s%corr
+      call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, s%qn, s%vn, &
+                            s%tn, s%phi, model%work%dz, s%gam, s%phit, &
+                            model%work%visits(1:MBDK_JOINT_TYPES))
+    end if
+    s%fq = 0.0_dp
+    call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%qn, s%vn, &
+                          s%tn, s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    s%st%nfev = s%st%nfev + 1
+    call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
+                                s%gam, s%an, s%ln, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+      ierr = MBDK_ERR_NONFINITE
+  end subroutine consistent_end
 
   !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
   !> rule, -h^3/12 q(3) and -h^3/12 q(4). The derivatives are divided differences of the step
@@ -801,6 +1041,7 @@ contains
     end do
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
+    s%stalled = boosted
     if (book) then
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a

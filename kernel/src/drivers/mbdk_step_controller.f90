@@ -5,7 +5,8 @@
 !>
 !> After a step with error norm err (the weighted RMS of the local error estimate, 1 = the
 !> tolerance) of a method whose error estimate is of order p + 1 in h:
-!>   accepted (err <= 1): fac = safety err^(-1/(p+1)), limited to fac_max (1 right after a
+!>   accepted (err <= 1): fac = safety err^(-ki/(p+1)) err_prev^(kp/(p+1)) (I control: ki = 1,
+!>                        kp = 0; PI: below), limited to fac_max (1 right after a
 !>                        rejection); h is held while fac is within [1, hold] (a driver that
 !>                        reuses its Newton matrix keeps it valid), else h_next = fac h, at
 !>                        least fac_min h, at most fac_max times the larger of h and the last
@@ -36,6 +37,11 @@ module mbdk_step_controller
     real(dp) :: h_min = 0.0_dp, h_max = 0.0_dp
     real(dp) :: h_next = 0.0_dp        !< the controller's proposal for the next step
     real(dp) :: growth_limit = 5.0_dp  !< fac_max, or 1 right after a rejection
+    !> PI control (Gustafsson 1991; Hairer, Norsett and Wanner I, II.4): an accepted step's
+    !> factor is safety err^(-ki exponent) err_prev^(kp exponent); ki = 1, kp = 0 is the I
+    !> controller, ki = 0.7, kp = 0.4 the PI controller they recommend
+    real(dp) :: ki = 1.0_dp, kp = 0.0_dp
+    real(dp) :: err_prev = 1.0_dp      !< the error norm of the last accepted step
   end type mbdk_step_controller_t
 
 contains
@@ -85,7 +91,10 @@ contains
     type(mbdk_step_controller_t), intent(inout) :: c
     real(dp), intent(in) :: h, err
     real(dp) :: fac
-    fac = min(factor(c, err), c%growth_limit)
+    fac = c%safety * max(err, c%err_floor)**(-c%ki * c%exponent) * &
+      c%err_prev**(c%kp * c%exponent)
+    fac = min(fac, c%growth_limit)
+    c%err_prev = max(err, c%err_floor)
     c%growth_limit = c%fac_max
     ! hold h while the controller asks for up to hold times more (a reused matrix stays valid)
     if (.not. (h >= c%hold_tol * c%h_next .and. fac >= 1.0_dp .and. fac <= c%hold)) &
