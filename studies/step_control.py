@@ -77,6 +77,19 @@ def bound_ratio(sc, t_end, h):
     return float(np.sum(w ** (1 / 3) * h) ** 1.5 / (t_end * np.sqrt(np.sum(w * h)))), r.t, w
 
 
+def controlled(sc, t_end, qref, target, mode, h0):
+    """(tol, steps, error, CPU s, rejected steps, solves) of the adaptive mode at the loosest
+    err_rtol = err_atol on 10^(-k/4) that reaches target at t_end, or None."""
+    for k in range(4, 48):
+        tol = 10.0 ** (-k / 4)
+        q, r = final_q(sc, t_end, adaptive=mode, h=h0, err_rtol=tol, err_atol=tol,
+                       dt_out=t_end)
+        err = float(np.max(np.abs(q - qref)))
+        if err <= target:
+            return tol, r.stats.steps, err, r.cpu_time, r.stats.rejected_steps, solves(r)
+    return None
+
+
 def variable_order(sc, t_end, qref, target, form):
     """(rtol, steps, error, CPU s) of bdf on the DAE form at the loosest rtol on 10^(-k/4) that
     reaches target at t_end, or None."""
@@ -115,26 +128,9 @@ def run(out: Path, quick: bool = False) -> dict:
                 fixed = (h, r.stats.steps, err, r.cpu_time)
                 break
         progress(f"{label}: estimated error control")
-        adapt = None
-        for k in range(4, 48):
-            tol = 10.0 ** (-k / 4)
-            q, r = final_q(sc, t_end, adaptive="estimated", h=h0 / 10, err_rtol=tol,
-                           err_atol=tol, dt_out=t_end)
-            err = float(np.max(np.abs(q - qref)))
-            if err <= target:
-                adapt = (tol, r.stats.steps, err, r.cpu_time, r.stats.rejected_steps)
-                break
+        adapt = controlled(sc, t_end, qref, target, "estimated", h0 / 10)
         progress(f"{label}: extrapolated error control")
-        extra = None
-        for k in range(4, 48):
-            tol = 10.0 ** (-k / 4)
-            q, r = final_q(sc, t_end, adaptive="extrapolated", h=h0 / 10, err_rtol=tol,
-                           err_atol=tol, dt_out=t_end)
-            err = float(np.max(np.abs(q - qref)))
-            if err <= target:
-                extra = (tol, r.stats.steps, err, r.cpu_time, r.stats.rejected_steps,
-                         solves(r))
-                break
+        extra = controlled(sc, t_end, qref, target, "extrapolated", h0 / 10)
         progress(f"{label}: bdf on the DAE")
         vo = {form: variable_order(sc, t_end, qref, target, form) for form in ("i3", "si2")}
         ratio, tw, w = bound_ratio(sc, t_end, h_ref * 4)
