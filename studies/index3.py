@@ -270,8 +270,10 @@ def cost(out: Path, quick: bool):
     def name(r):
         return f"{r['formulation']}, {r['measure']}: {r['us_per_step']:.2f} us"
 
-    met = [name(r) for r in rows if r["us_per_step"] <= 1.0]
-    missed = [name(r) for r in rows if r["us_per_step"] > 1.0 and "LAPACK" not in r["measure"]]
+    # the target is a trapezoidal step's: an extrapolated macro step is three
+    single = [r for r in rows if "extrapolated" not in r["measure"]]
+    met = [name(r) for r in single if r["us_per_step"] <= 1.0]
+    missed = [name(r) for r in single if r["us_per_step"] > 1.0 and "LAPACK" not in r["measure"]]
     target_note = (("met by " + "; ".join(met) if met else "met by no run")
                    + ("; not by " + "; ".join(missed) if missed else ""))
     return write_table(rows, ["measure", "formulation", "us_per_step", "newton_per_step",
@@ -285,7 +287,8 @@ def cost(out: Path, quick: bool):
                        "t = 10 s (quoted, not measured here). The book's scheme fails before "
                        "t = 10 s (table index3_long_runs), so the time to 1e-6 is the projected "
                        "form's. error: max |q - q_ref| at t_end against rk4 (reduced) at "
-                       "h = 1e-5.")
+                       "h = 1e-5. The extrapolated rows' steps are macro steps of three "
+                       "trapezoidal solves each.")
 
 
 def crossings(out: Path, quick: bool):

@@ -282,8 +282,7 @@ def test_step_control_study(tmp_path, root):
     """The quick run (four-bar, 1 s, to 1e-4): the best fixed step and the loosest tolerances
     of both error controls reach the target against the extrapolated reference, and the bound
     on what a distribution of second order steps can save lies in (0, 1] (Hoelder's inequality:
-    a bound above 1, or a controlled run that missed its target, is a defect of the study).
-    The extrapolated control's solves are three per macro step tried."""
+    a bound above 1, or a controlled run that missed its target, is a defect of the study)."""
     sys.path.insert(0, str(root / "studies"))
     import step_control
     summary = step_control.run(tmp_path, quick=True)
@@ -295,7 +294,6 @@ def test_step_control_study(tmp_path, root):
     assert 0.0 < num(row["bound N_opt/N_fixed"]) <= 1.0
     assert num(row["estimated steps / fixed"]) == pytest.approx(
         num(row["estimated steps"]) / num(row["fixed steps"]), rel=1e-3)
-    assert num(row["extrapolated solves"]) >= 3 * num(row["extrapolated steps"])
     assert num(row["extrapolated solves / fixed"]) == pytest.approx(
         num(row["extrapolated solves"]) / num(row["fixed steps"]), rel=1e-3)
     # what pays is order: bdf on the DAE forms reaches the target in a fraction of the steps

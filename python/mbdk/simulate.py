@@ -555,6 +555,10 @@ EXTRAPOLATED_TEXT = ("local Richardson extrapolation: two steps of H/2 against o
 
 
 def _adaptive_mode(adaptive) -> int:
+    """The kernel's code of an adaptive= value: a bool (numpy's too) or a mode's name; other
+    values, 0 and 1 included, are refused (1 would read as the kernel's code of 'estimated')."""
+    if isinstance(adaptive, np.bool_):
+        adaptive = bool(adaptive)
     if isinstance(adaptive, (bool, str)) and adaptive in ADAPTIVE_MODES:
         return ADAPTIVE_MODES[adaptive]
     raise InvalidInputError(f"adaptive = {adaptive!r} must be False, True (= 'extrapolated') "
@@ -648,7 +652,8 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
     h_max = given3.get("h_max", d.h_max)
     if adaptive and formulation == "index3":
         raise NotApplicableError(
-            "adaptive=True with formulation 'index3': the book's scheme leaves its velocities "
+            f"adaptive={given3['adaptive']!r} with formulation 'index3': the book's scheme "
+            "leaves its velocities "
             "off Phi' = 0 by a period-2 oscillation that grows with time and soon exceeds the "
             "local error, so an error test on q and v would shrink h without end (studies/"
             "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
@@ -849,10 +854,13 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
             Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
         where += f", also in substeps down to h/{4 ** MAX_CUTS}"
-    if (plan_["adaptive"] and r.status == Status.ERR_NEWTON_DIVERGED
-            and r.stats.newton_failures >= RETRY_BUDGET):
+    if plan_["adaptive"] and r.status == Status.ERR_NEWTON_DIVERGED:
+        # adaptive, every Newton failure is retried until the budget runs out (extrapolated:
+        # steps the error test could only judge next to a rank loss draw on it too)
         where += (f"; {r.stats.newton_failures} Newton failures in {r.stats.steps} steps "
-                  "exhausted the retry budget (more than one attempt in ten failing)")
+                  + ("" if r.stats.newton_failures >= RETRY_BUDGET else
+                     "and steps judged next to a rank loss ")
+                  + "exhausted the retry budget (more than one attempt in ten failing)")
     note = _singular_note(scene, tab, r)
     note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"

@@ -5,8 +5,9 @@
 !>
 !> After a step with error norm err (the weighted RMS of the local error estimate, 1 = the
 !> tolerance) of a method whose error estimate is of order p + 1 in h:
-!>   accepted (err <= 1): fac = safety err^(-ki/(p+1)) err_prev^(kp/(p+1)) (I control: ki = 1,
-!>                        kp = 0; PI: below), limited to fac_max (1 right after a
+!>   accepted (err <= 1): fac = safety err^(-ki/(p+1)) err_prev^(kp/(p+1)), err_prev the last
+!>                        accepted step's (I control: ki = 1, kp = 0, the default; PI control,
+!>                        Gustafsson's: ki = 0.7, kp = 0.4), limited to fac_max (1 right after a
 !>                        rejection); h is held while fac is within [1, hold] (a driver that
 !>                        reuses its Newton matrix keeps it valid), else h_next = fac h, at
 !>                        least fac_min h, at most fac_max times the larger of h and the last
