@@ -134,7 +134,11 @@
 !>     local errors saves 8 % over the best fixed step (studies/step_control.py derives the
 !>     bound), while the third order macro step reaches 1e-6 at t = 10 s with 11 % of the
 !>     fixed step's trapezoidal solves. A macro step costs three solves; stats%steps counts
-!>     macro steps. Next to a rank loss of D the difference of the solutions measures what the
+!>     macro steps. Extrapolation costs A-stability: the macro step amplifies a mode with
+!>     h lambda = z by (4 R(z/2)^2 - R(z))/3, R(z) = (1 + z/2)/(1 - z/2), which tends to 5/3 as
+!>     z -> -inf; a stiff mode's part in the difference of the solutions is twice its amplitude,
+!>     so the error test keeps stiff modes resolved instead (bdf does not need to).
+!>     Next to a rank loss of D the difference of the solutions measures what the
 !>     stiffened Newton iteration leaves, not the truncation error: there a macro step the
 !>     difference would reject is judged by mode 1's estimate instead, scaled to H
 !>     (extrapolated_attempt). iters_out counts the Newton iterations of all three solves.
