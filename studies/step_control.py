@@ -4,8 +4,8 @@ the bound on the saving that no distribution of second order steps can beat.
 
 For each case (the double pendulum P1 over 10 s, the four-bar released from 60 deg over 5 s,
 the spring-damper bar over 2 s, and the same with a spring a hundred times stiffer), the error
-is the largest difference of the coordinates at t_end from a reference (the same method at h_ref and h_ref / 2, Richardson-extrapolated for
-its order 2). The fixed step is the largest on a grid h0 2^(-k/4) that reaches the target; the
+is the largest difference of the coordinates at t_end from a reference (the same method at
+h_ref and h_ref / 2, Richardson-extrapolated for its order 2). The fixed step is the largest on a grid h0 2^(-k/4) that reaches the target; the
 error-controlled runs the loosest tolerance (err_rtol = err_atol) on a grid 10^(-k/4) that does:
 adaptive="estimated" (one step, its error estimated from differences of the accelerations;
 second order) and adaptive="extrapolated" (the default of adaptive=True: a macro step of one
@@ -25,9 +25,9 @@ keeps the local error per step at a tolerance approaches this optimum; no contro
 errors can beat it by much on a problem whose errors add up (on a chaotic one, where early
 errors grow, it does worse than the bound).
 
-What pays instead is order: the extrapolated macro step, and in the last columns bdf on the scene's DAE itself (variable step
-and order 1-5, as MSC Adams' GSTIFF), on the index-3 form (i3) and on the stabilised index-2
-form (si2), at the loosest rtol (atol = rtol/100) on the same grid that reaches the target,
+What pays instead is order: the extrapolated macro step, and in the last columns bdf on the
+scene's DAE itself (variable step and order 1-5, as MSC Adams' GSTIFF), on the index-3 form
+(i3) and on the stabilised index-2 form (si2), at the loosest rtol (atol = rtol/100) on the same grid that reaches the target,
 with their steps and CPU time beside the fixed-step trapezoidal rule's. The trapezoidal rule
 with a variable step also loses its symmetry: its energy error, bounded at a fixed step,
 drifts, and on the four-bar the phase error that follows makes the estimated run take more
@@ -53,7 +53,8 @@ from mbdk.analysis.tables import write_table  # noqa: E402
 CASES = [("double_pendulum (P1)", "double_pendulum", 10.0, 1e-3, 2.5e-5, None),
          ("four_bar", "four_bar", 5.0, 1e-2, 2.5e-5, None),
          ("spring_damper_bar", "spring_damper_bar", 2.0, 1e-2, 1e-5, None),
-         # a hundred times the spring: about 140 rad/s against the pendulum's 5, lightly damped
+         # a hundred times the spring, lightly damped: sqrt(3 k) = 245 rad/s at the start (the
+         # spring stands across the bar's tip, I = m l^2 / 3 about the hinge) against 24
          ("spring_damper_bar, k = 2e4", "spring_damper_bar", 2.0, 1e-3, 1e-5, 2e4)]
 
 
