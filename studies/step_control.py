@@ -2,16 +2,16 @@
 CPU time the best fixed step and the error-controlled runs need for a target error at t_end, and
 the bound on the saving that no distribution of second order steps can beat.
 
-For each case (the double pendulum P1 over 10 s, the four-bar released from 60 deg over 5 s,
-the spring-damper bar over 2 s, and the same with a spring a hundred times stiffer), the error
-is the largest difference of the coordinates at t_end from a reference (the same method at
-h_ref and h_ref / 2, Richardson-extrapolated for its order 2). The fixed step is the largest on a grid h0 2^(-k/4) that reaches the target; the
-error-controlled runs the loosest tolerance (err_rtol = err_atol) on a grid 10^(-k/4) that does:
-adaptive="estimated" (one step, its error estimated from differences of the accelerations;
-second order) and adaptive="extrapolated" (the default of adaptive=True: a macro step of one
-step of H and two of H/2, locally Richardson-extrapolated, third order, PI control). The
-extrapolated run's cost is counted in trapezoidal solves (three per macro step tried) beside its
-macro steps, against the fixed step's steps (one solve each).
+For each case (the double pendulum P1 over 10 s, the four-bar released from 60 deg over 5 s, the
+spring-damper bar over 2 s, and the same with a spring a hundred times stiffer), the error is
+the largest difference of the coordinates at t_end from a reference (the same method at h_ref
+and h_ref / 2, Richardson-extrapolated for its order 2). The fixed step is the largest on a grid
+h0 2^(-k/4) that reaches the target; the error-controlled runs the loosest tolerance (err_rtol =
+err_atol) on a grid 10^(-k/4) that does: adaptive="estimated" (one step, its error estimated
+from differences of the accelerations; second order) and adaptive="extrapolated" (the default of
+adaptive=True: a macro step of one step of H and two of H/2, locally Richardson-extrapolated,
+third order, PI control). The extrapolated run's cost is counted in trapezoidal solves (three
+per macro step tried) beside its macro steps, against the fixed step's steps (one solve each).
 
 The bound: a second-order method's local error is about h^3 |q'''| / 12 per step. Where those
 errors add up without amplification, the steps that reach a global error E fall with h(t) ~
@@ -26,14 +26,14 @@ errors can beat it by much on a problem whose errors add up (on a chaotic one, w
 errors grow, it does worse than the bound).
 
 What pays instead is order: the extrapolated macro step, and in the last columns bdf on the
-scene's DAE itself (variable step and order 1-5, as MSC Adams' GSTIFF), on the index-3 form
-(i3) and on the stabilised index-2 form (si2), at the loosest rtol (atol = rtol/100) on the same grid that reaches the target,
-with their steps and CPU time beside the fixed-step trapezoidal rule's. The trapezoidal rule
-with a variable step also loses its symmetry: its energy error, bounded at a fixed step,
-drifts, and on the four-bar the phase error that follows makes the estimated run take more
-steps than the fixed one (time-reversible step selection, Hairer and Soederlind 2005, is the
-known remedy for a second order controller; it is not built, as the bound caps what it could
-gain).
+scene's DAE itself (variable step and order 1-5, as MSC Adams' GSTIFF), on the index-3 form (i3)
+and on the stabilised index-2 form (si2), at the loosest rtol (atol = rtol/100) on the same grid
+that reaches the target, with their steps and CPU time beside the fixed-step trapezoidal rule's.
+The trapezoidal rule with a variable step also loses its symmetry: its energy error, bounded at
+a fixed step, drifts, and on the four-bar the phase error that follows makes the estimated run
+take more steps than the fixed one (time-reversible step selection, Hairer and Soederlind 2005,
+is the known remedy for a second order controller; it is not built, as the bound caps what it
+could gain).
 """
 from __future__ import annotations
 

@@ -711,9 +711,9 @@ def test_extrapolated_control_keeps_a_stiff_spring_resolved():
     """Local extrapolation is not A-stable (the macro step amplifies a mode with h lambda = z by
     (4 R(z/2)^2 - R(z))/3 -> 5/3 as z -> -inf): on the spring-damper bar with its spring 10^4
     times stiffer (sqrt(3 k) = 2 400 rad/s at the start) the error test must keep that mode
-    resolved rather than let it grow. Over 0.5 s, watched (the energy balance checked at every step), the run
-    succeeds and its error against the Richardson-extrapolated fixed step (h = 2.5e-6 and 5e-6)
-    falls with the tolerance (measured 0.17 and 0.014 at 1e-3 and 1e-4)."""
+    resolved rather than let it grow. Over 0.5 s, watched (the energy balance checked at every
+    step), the run succeeds and its error against the Richardson-extrapolated fixed step (h =
+    2.5e-6 and 5e-6) falls with the tolerance (measured 0.17 and 0.014 at 1e-3 and 1e-4)."""
     sc = mbdk.scene("spring_damper_bar")
     for f in sc.forces:
         if f.type == "spring":
