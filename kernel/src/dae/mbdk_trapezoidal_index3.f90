@@ -575,26 +575,26 @@ contains
   contains
 
     subroutine write_sample()
-      nwritten = nwritten + 1
-      t_out(nwritten) = s%t
-      y_out(1:s%nc, nwritten) = s%q
-      y_out(s%nc + 1:2 * s%nc, nwritten) = s%v
-      a_out(1:s%nc, nwritten) = s%a
-      if (s%m > 0) lam_out(1:s%m, nwritten) = s%lam
-      iters_out(nwritten) = s%iters
+      call write_row(s%t, s%q, s%v, s%a, s%lam, s%iters)
     end subroutine write_sample
 
     !> A saved state as the next sample (its Newton iterations unknown: 0).
     subroutine write_state(x)
       type(mbdk_index3_snapshot_t), intent(in) :: x
-      nwritten = nwritten + 1
-      t_out(nwritten) = x%t
-      y_out(1:s%nc, nwritten) = x%q
-      y_out(s%nc + 1:2 * s%nc, nwritten) = x%v
-      a_out(1:s%nc, nwritten) = x%a
-      if (s%m > 0) lam_out(1:s%m, nwritten) = x%lam
-      iters_out(nwritten) = 0
+      call write_row(x%t, x%q, x%v, x%a, x%lam, 0)
     end subroutine write_state
+
+    subroutine write_row(t, q, v, a, lam, iters)
+      real(dp), intent(in) :: t, q(:), v(:), a(:), lam(:)
+      integer, intent(in) :: iters
+      nwritten = nwritten + 1
+      t_out(nwritten) = t
+      y_out(1:s%nc, nwritten) = q
+      y_out(s%nc + 1:2 * s%nc, nwritten) = v
+      a_out(1:s%nc, nwritten) = a
+      if (s%m > 0) lam_out(1:s%m, nwritten) = lam
+      iters_out(nwritten) = iters
+    end subroutine write_row
 
     !> The step-size controller (see the module header and mbdk_step_controller). Samples land
     !> on t0 + k dt_out.
