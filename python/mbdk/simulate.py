@@ -51,7 +51,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, status_message)
-from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, RETRY_BUDGET, factorisation
+from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
 IDA_FORMULATIONS = {"index1": 1, "ggl": 2}
@@ -857,10 +857,10 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
     if plan_["adaptive"] and r.status == Status.ERR_NEWTON_DIVERGED:
         # adaptive, every Newton failure is retried until the budget runs out (extrapolated:
         # steps the error test could only judge next to a rank loss draw on it too)
-        where += (f"; {r.stats.newton_failures} Newton failures in {r.stats.steps} steps "
-                  + ("" if r.stats.newton_failures >= RETRY_BUDGET else
-                     "and steps judged next to a rank loss ")
-                  + "exhausted the retry budget (more than one attempt in ten failing)")
+        judged = plan_["index3"].adaptive == ADAPTIVE_MODES["extrapolated"]
+        where += (f"; {r.stats.newton_failures} Newton failures in {r.stats.steps} steps"
+                  + (", and steps judged next to a rank loss," if judged else "")
+                  + " exhausted the retry budget (more than one attempt in ten failing)")
     note = _singular_note(scene, tab, r)
     note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"

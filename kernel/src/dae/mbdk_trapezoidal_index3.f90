@@ -138,10 +138,13 @@
 !>     h lambda = z by (4 R(z/2)^2 - R(z))/3, R(z) = (1 + z/2)/(1 - z/2), which tends to 5/3 as
 !>     z -> -inf; a stiff mode's part in the difference of the solutions is twice its amplitude,
 !>     so the error test keeps stiff modes resolved instead (bdf does not need to).
-!>     Next to a rank loss of D the difference of the solutions measures what the
-!>     stiffened Newton iteration leaves, not the truncation error: there a macro step the
-!>     difference would reject is judged by mode 1's estimate instead, scaled to H
-!>     (extrapolated_attempt). iters_out counts the Newton iterations of all three solves.
+!>     Next to a rank loss of D (a solve froze its multipliers) the difference of the
+!>     solutions measures what the frozen iteration leaves, not the truncation error: there a
+!>     macro step the difference would reject, up to NEAR_FLOOR, is judged by mode 1's
+!>     estimate instead, scaled to H, and if accepted draws on the retry budget below, so that
+!>     a crawl along a dead point ends by name (extrapolated_attempt). The watch checks every
+!>     macro step, and when it refuses one the samples end with its start. iters_out counts
+!>     the Newton iterations of all three solves.
 !>   1 estimated (MBDK_INDEX3_ESTIMATED; adaptive='estimated'): one step, its local error
 !>     -h^3/12 q(3) on q and -h^3/12 q(4) on v, with the derivatives from divided differences of
 !>     the step-mean accelerations; I control. Second order and a third of the cost per step,
@@ -229,7 +232,8 @@ module mbdk_trapezoidal_index3
   !> A02 chains at err_rtol = 1e-6 it reached 154; a driver pushing a loop into its dead point
   !> gave 2e3 to 2e4 there)
   real(dp), parameter :: NEAR_FLOOR = 1.0e3_dp
-  !> adaptive: Newton failures, each retried with a quarter of the step, draw on a budget of
+  !> adaptive: Newton failures, each retried with a quarter of the step (and, extrapolated,
+  !> macro steps accepted on the weaker test next to a rank loss), draw on a budget of
   !> RETRY_BUDGET failures that every accepted step refills by RETRY_REFILL. A run that fails
   !> in more than one attempt in ten for long, the controller circling a configuration it
   !> cannot pass (at a singular crossing it can otherwise retry without end), ends with
@@ -275,8 +279,8 @@ module mbdk_trapezoidal_index3
     !> the regular path: D is (nearly) rank-deficient there
     logical :: regular = .false., regular_n = .false.
     logical :: have_lu = .false.
-    !> the last attempted step's Newton iteration stalled (alpha boosted, perhaps lam* frozen:
-    !> next to a rank loss of D)
+    !> the last attempted step's Newton iteration froze lam* (after two stalls: next to a rank
+    !> loss of D, where a multiplier no longer reaches the vanishing direction)
     logical :: stalled = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
@@ -563,8 +567,8 @@ contains
       if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
     end if
     ! on failure the last sample is the state the failed step started from (where it stopped);
-    ! a state the watch refused is not a sample (the last sample passed its checks; adaptive, it
-    ! is the accepted state before the refused one, written by adaptive_loop)
+    ! a state the watch refused is not a sample (the last sample passed its checks; adaptive,
+    ! extrapolated: the start of the refused macro step, written by adaptive_loop)
     if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. &
         stat /= MBDK_ERR_CONSTRAINT_DRIFT .and. stat /= MBDK_ERR_ENERGY_DRIFT) then
       if (s%t > t_out(nwritten)) call write_sample()
@@ -611,8 +615,7 @@ contains
         ctl%ki = 0.7_dp
         ctl%kp = 0.4_dp
       end if
-      ! (extrapolated: the macro step's start; both: the state before the last accepted step)
-      call snapshot_init(x0, s%nc, s%m)
+      if (extrapolated) call snapshot_init(x0, s%nc, s%m)
       ierr = MBDK_SUCCESS
       do k = 1, nsamp - 1
         t_s = t0 + real(k, dp) * opt%dt_out
@@ -648,15 +651,16 @@ contains
             return
           else
             if (err <= 1.0_dp) then
-              if (.not. extrapolated) call snapshot(s, x0, .true.)
               call commit(s)
               call mbdk_controller_accept(ctl, h_ctl, err)
-              call watch_step(s, model, s%t >= t_s, ierr)
+              ! extrapolated: the watch checks every macro step (three solves make a check
+              ! cheap beside it), so that the macro step's start passed when it refuses the
+              ! end; the samples then end there, where the run stopped (next to a dead point
+              ! the last sample on the dt_out grid can be far from it)
+              call watch_step(s, model, extrapolated .or. s%t >= t_s, ierr)
               if (ierr /= MBDK_SUCCESS) then
-                ! the watch refused the new state: the samples end with the accepted state
-                ! before it, which passed (where the run stopped, off the dt_out grid: next to
-                ! a dead point the last grid sample can be far from it)
-                if (nwritten < size(t_out) .and. x0%t > t_out(nwritten)) call write_state(x0)
+                if (extrapolated .and. nwritten < size(t_out) .and. x0%t > t_out(nwritten)) &
+                  call write_state(x0)
                 return
               end if
               cycle
@@ -757,14 +761,14 @@ contains
     x%qf = s%qn
     x%vf = s%vn
     iters = s%iters
-    near = s%regular_n .or. s%stalled
+    near = s%stalled
     ! two half-steps
     s%tn = s%t + 0.5_dp * (t_end - s%t)
     s%h = s%tn - s%t
     call hold_matrix(s)
     call attempt(s, model, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    near = near .or. s%regular_n .or. s%stalled
+    near = near .or. s%stalled
     iters = iters + s%iters
     call commit(s)
     ! the macro step is one step: counted, and refilling the retry budget, once
@@ -789,10 +793,10 @@ contains
         ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
     end do
     err = sqrt(sum2 / real(2 * nc, dp))
-    if (err > 1.0_dp .and. err <= NEAR_FLOOR .and. (near .or. s%regular_n .or. s%stalled)) then
-      ! next to a rank loss of D (a Newton iteration stalled, or a projection took the regular
-      ! path) the three solutions differ by what the stiffened or frozen Newton steps and the
-      ! regular projections leave along the vanishing direction, whatever H (on the A02 chains
+    if (err > 1.0_dp .and. err <= NEAR_FLOOR .and. (near .or. s%stalled)) then
+      ! next to a rank loss of D (a solve froze its multipliers) the three solutions differ by
+      ! the |Phi| up to FROZEN_PHI tolerances that frozen Newton steps leave along the
+      ! vanishing direction, whatever H (on the A02 chains
       ! the error norm stayed at 2 from H = 1e-4 to 1e-11): there the difference is no
       ! estimate of the truncation error, up to NEAR_FLOOR (beyond it the solutions disagree
       ! by more than such a floor: the step is rejected as any other). The half-steps stand, unextrapolated, judged by the
@@ -1100,7 +1104,7 @@ contains
     end do
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
-    s%stalled = boosted
+    s%stalled = frozen
     if (book) then
       s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
       s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a
