@@ -796,23 +796,22 @@ contains
     if (err > 1.0_dp .and. err <= NEAR_FLOOR .and. (near .or. s%stalled)) then
       ! next to a rank loss of D (a solve froze its multipliers) the three solutions differ by
       ! the |Phi| up to FROZEN_PHI tolerances that frozen Newton steps leave along the
-      ! vanishing direction, whatever H (on the A02 chains
-      ! the error norm stayed at 2 from H = 1e-4 to 1e-11): there the difference is no
-      ! estimate of the truncation error, up to NEAR_FLOOR (beyond it the solutions disagree
-      ! by more than such a floor: the step is rejected as any other). The half-steps stand, unextrapolated, judged by the
-      ! estimate from differences (error_estimate) of the second, scaled by 2^3 to a step of H
-      ! (the controller's step): what the estimated mode would ask of a step of H, for a
-      ! solution whose error is a quarter of that step's.
+      ! vanishing direction, whatever H (on the A02 chains the error norm stayed at 2 from H =
+      ! 1e-4 to 1e-11): there the difference is no estimate of the truncation error, up to
+      ! NEAR_FLOOR (beyond it the solutions disagree by more than such a floor: the step is
+      ! rejected as any other). The half-steps stand, unextrapolated, judged by the estimate
+      ! from differences (error_estimate) of the second, scaled by 2^3 to a step of H (the
+      ! controller's step): what the estimated mode would ask of a step of H, for a solution
+      ! whose error is a quarter of that step's.
       err = 8.0_dp * error_estimate(s)
       if (.not. err <= 1.0_dp) then
         call snapshot(s, x, .false.)
         return
       end if
-      ! a step accepted on this weaker test draws on the retry budget as a Newton failure does:
-      ! a driver pushing a loop past its dead point, where no pose follows, is otherwise passed
-      ! by a crawl of such steps (H down to 1e-12 s, each within the frozen iteration's |Phi|)
-      ! until the velocities it needs blow up. The run then ends here, where the macro step
-      ! started.
+      ! a step accepted on this weaker test draws on the retry budget as a Newton failure does,
+      ! so that a run cannot go on by such steps alone (as it could along a dead point, where no
+      ! pose follows and each tiny step stays within the frozen iteration's |Phi|). The run
+      ! then ends here, where the macro step started.
       s%retries = s%retries - 1.0_dp
       if (s%retries < 0.0_dp) then
         call snapshot(s, x, .false.)
