@@ -130,10 +130,9 @@
 !>     the constrained solve there, as at the end of every step. The predictors' history is
 !>     the half-step grid. PI control (mbdk_step_controller, ki = 0.7, kp = 0.4). Why: with a
 !>     second order method step-size control cannot pay on motions that are about equally
-!>     hard throughout: on the double pendulum P1 the best distribution of steps for additive
-!>     local errors saves 8 % over the best fixed step (studies/step_control.py derives the
-!>     bound), while the third order macro step reaches 1e-6 at t = 10 s with 11 % of the
-!>     fixed step's trapezoidal solves. A macro step costs three solves; stats%steps counts
+!>     hard throughout: on the double pendulum P1 no distribution of second order steps saves
+!>     much over the best fixed step (studies/step_control.py derives the bound), while the
+!>     third order macro step needs a fraction of its trapezoidal solves (table step_control). A macro step costs three solves; stats%steps counts
 !>     macro steps. Extrapolation costs A-stability: the macro step amplifies a mode with
 !>     h lambda = z by (4 R(z/2)^2 - R(z))/3, R(z) = (1 + z/2)/(1 - z/2), which tends to 5/3 as
 !>     z -> -inf; a stiff mode's part in the difference of the solutions is twice its amplitude,
@@ -228,9 +227,9 @@ module mbdk_trapezoidal_index3
   !> (it starts within the square of the step's error of Phi = 0: one or two suffice)
   integer, parameter :: PROJECT_MAX_ITER = 10
   !> adaptive, extrapolated: next to a rank loss of D, an error norm of the macro step up to
-  !> this is taken for the noise of the stiffened Newton iteration (extrapolated_attempt; on the
-  !> A02 chains at err_rtol = 1e-6 it reached 154; a driver pushing a loop into its dead point
-  !> gave 2e3 to 2e4 there)
+  !> this is taken for the noise of the frozen Newton iteration (extrapolated_attempt): above
+  !> the noise the A02 chains' crossings leave, below the disagreement of steps that run into
+  !> a dead point (studies/index3.py, table index3_crossings; tests/test_hard_cases.py)
   real(dp), parameter :: NEAR_FLOOR = 1.0e3_dp
   !> adaptive: Newton failures, each retried with a quarter of the step (and, extrapolated,
   !> macro steps accepted on the weaker test next to a rank loss), draw on a budget of
@@ -752,8 +751,7 @@ contains
     call snapshot(s, x, .true.)
     ! the full step. Each change between H and H/2 rebuilds the Newton matrix; a second matrix
     ! kept for the other size would not be reused either: at the steps this control takes,
-    ! h |omega| is above the 1e-3 where a matrix from the step before fails (measured: one
-    ! factorisation per solve on P1, the four-bar and the spring-damper bar)
+    ! h |omega| is above the 1e-3 where a matrix from the step before fails (module header)
     s%h = t_end - s%t
     call hold_matrix(s)
     call attempt(s, model, ierr)
@@ -796,13 +794,12 @@ contains
     if (err > 1.0_dp .and. err <= NEAR_FLOOR .and. (near .or. s%stalled)) then
       ! next to a rank loss of D (a solve froze its multipliers) the three solutions differ by
       ! the |Phi| up to FROZEN_PHI tolerances that frozen Newton steps leave along the
-      ! vanishing direction, whatever H (on the A02 chains the error norm stayed at 2 from H =
-      ! 1e-4 to 1e-11): there the difference is no estimate of the truncation error, up to
-      ! NEAR_FLOOR (beyond it the solutions disagree by more than such a floor: the step is
-      ! rejected as any other). The half-steps stand, unextrapolated, judged by the estimate
-      ! from differences (error_estimate) of the second, scaled by 2^3 to a step of H (the
-      ! controller's step): what the estimated mode would ask of a step of H, for a solution
-      ! whose error is a quarter of that step's.
+      ! vanishing direction, whatever H: there the difference is no estimate of the truncation
+      ! error, up to NEAR_FLOOR (beyond it the solutions disagree by more than such a floor:
+      ! the step is rejected as any other). The half-steps stand, unextrapolated, judged by
+      ! the estimate from differences (error_estimate) of the second, scaled by 2^3 to a step
+      ! of H (the controller's step): what the estimated mode would ask of a step of H, for a
+      ! solution whose error is a quarter of that step's.
       err = 8.0_dp * error_estimate(s)
       if (.not. err <= 1.0_dp) then
         call snapshot(s, x, .false.)
