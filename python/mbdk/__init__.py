@@ -6,7 +6,7 @@
 """
 from . import exact  # noqa: F401
 from .errors import (BackendError, CallbackError, ConstraintDriftError, ContactOverrunError,
-                     EnergyDriftError,
+                     EnergyDriftError, InvariantDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
                      NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
@@ -34,6 +34,7 @@ __all__ = [
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
-    "ConstraintDriftError", "EnergyDriftError", "ContactOverrunError", "Watch", "SpatialScene",
+    "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
+    "Watch", "SpatialScene",
     "SpatialResult",
 ]

@@ -32,6 +32,7 @@ class Status(IntEnum):
     ERR_CONSTRAINT_DRIFT = -31
     ERR_ENERGY_DRIFT = -32
     ERR_CONTACT_OVERRUN = -33
+    ERR_INVARIANT_DRIFT = -34
     ERR_CALLBACK_FAILED = -40
     ERR_BACKEND = -50
     ERR_INTERRUPTED = -60
@@ -139,6 +140,14 @@ class ContactOverrunError(MbdkError, ArithmeticError):
     status = Status.ERR_CONTACT_OVERRUN
 
 
+class InvariantDriftError(MbdkError, ArithmeticError):
+    """A momentum or angular momentum the scene conserves (no force or moment of its elements
+    along it), or a quaternion's unit norm, moved beyond the run's tolerance: the method does
+    not keep what the mechanics keeps (mbdk.watch names the invariant)."""
+
+    status = Status.ERR_INVARIANT_DRIFT
+
+
 class CallbackError(MbdkError):
     status = Status.ERR_CALLBACK_FAILED
 
@@ -176,6 +185,7 @@ _BY_STATUS = {
     Status.ERR_CONSTRAINT_DRIFT: ConstraintDriftError,
     Status.ERR_ENERGY_DRIFT: EnergyDriftError,
     Status.ERR_CONTACT_OVERRUN: ContactOverrunError,
+    Status.ERR_INVARIANT_DRIFT: InvariantDriftError,
     Status.ERR_CALLBACK_FAILED: CallbackError,
     Status.ERR_BACKEND: BackendError,
     Status.ERR_INTERRUPTED: SolveInterrupted,

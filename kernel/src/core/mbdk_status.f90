@@ -30,11 +30,12 @@ module mbdk_status
   integer, parameter, public :: MBDK_ERR_CONSTRAINT_DRIFT = -31
   integer, parameter, public :: MBDK_ERR_ENERGY_DRIFT = -32
   integer, parameter, public :: MBDK_ERR_CONTACT_OVERRUN = -33
+  integer, parameter, public :: MBDK_ERR_INVARIANT_DRIFT = -34
   integer, parameter, public :: MBDK_ERR_CALLBACK_FAILED = -40
   integer, parameter, public :: MBDK_ERR_BACKEND = -50
   integer, parameter, public :: MBDK_ERR_INTERRUPTED = -60
 
-  integer, parameter, public :: MBDK_STATUS_COUNT = 21
+  integer, parameter, public :: MBDK_STATUS_COUNT = 22
   integer, parameter, public :: MBDK_STATUS_NAME_LEN = 32
   integer, parameter, public :: MBDK_STATUS_MSG_LEN = 120
 
@@ -77,6 +78,9 @@ module mbdk_status
       'the energy balance was broken beyond the run''s tolerance'), &
     status_entry(MBDK_ERR_CONTACT_OVERRUN, 'ERR_CONTACT_OVERRUN', &
       'a contact penetrated beyond what its model covers (gear flanks by a quarter base pitch)'), &
+    status_entry(MBDK_ERR_INVARIANT_DRIFT, 'ERR_INVARIANT_DRIFT', &
+      'a momentum the scene conserves, or a quaternion''s unit norm, drifted beyond the run''s &
+      &tolerance'), &
     status_entry(MBDK_ERR_CALLBACK_FAILED, 'ERR_CALLBACK_FAILED', &
       'the user right-hand side returned a failure'), &
     status_entry(MBDK_ERR_BACKEND, 'ERR_BACKEND', 'a backend (SUNDIALS) reported an error'), &
