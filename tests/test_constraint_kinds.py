@@ -319,7 +319,10 @@ def test_slider_pendulum_keeps_its_momentum():
         end_y = r.q[:, 1] - 0.5 * np.sin(r.q[:, 2])
         # the reduced form's drift (1.9e-9 m after 4 s), the index-3 form's Newton tolerance
         assert np.abs(end_y).max() < 1e-8
-        assert np.abs(r.energy_balance()).max() < (1e-8 if method == "rk4" else 1e-3)
+        # the reduced form's drift lets the rail's force do work (1.9e-8 J in 4 s), which W,
+        # the work of loads, dampers and drivers, does not count: the balance shows it
+        assert np.abs(r.energy_balance()).max() < (1e-7 if method == "rk4" else 1e-3)
+        assert r.manifest["invariants"] == ["momentum along x"]
         assert np.ptp(r.q[:, 2]) > 1.0        # it swings
 
 

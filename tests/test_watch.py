@@ -142,7 +142,8 @@ def test_watch_off_and_other_tolerances_are_recorded_and_checked():
     sc = mbdk.scene("double_pendulum")
     r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, watch=False)
     assert r.manifest["watch"] == {"position": None, "velocity": None, "energy": None,
-                                   "every": mbdk.Watch().every}
+                                   "every": mbdk.Watch().every, "momentum": None,
+                                   "quaternion": None}
     r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, watch={"energy": 1e-6, "every": 1})
     assert r.manifest["watch"]["energy"] == 1e-6 and r.manifest["watch"]["every"] == 1
     for bad, words in (({"energy": -1.0}, "watch.energy = -1.0"),

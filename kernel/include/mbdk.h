@@ -216,6 +216,9 @@ typedef struct mbdk_model_options {
     double watch_position, watch_velocity, watch_energy;
     int watch_every;              /* steps between checks; 0: the default (16) */
     int locate_events;            /* 1: dopri54 and bs32 end a step where a contact closes or opens */
+    /* the momenta and angular momenta the scene conserves, per the size of their terms
+     * (mbdk_watch.f90 says which); MBDK_ERR_INVARIANT_DRIFT past it; <= 0: off */
+    double watch_momentum;
 } mbdk_model_options;
 
 /* The defaults of every field; start from them and set what differs. */
@@ -259,8 +262,9 @@ int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n)
 int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
 int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */
 int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
-/* After MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT (scene and index-3 steppers): what the
- * watch found, report[8] = quantity (1 position, 2 velocity, 3 energy), row (1-based; 0 for
+/* After MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT (scene and
+ * index-3 steppers): what the watch found, report[8] = quantity (1 position, 2 velocity,
+ * 3 energy, 4 momentum), row (1-based: the constraint row, or the conserved component; 0 for
  * energy), value per its scale, tolerance, time, time of the last check passed, the value
  * itself, its scale. ODE steppers: MBDK_ERR_NOT_APPLICABLE. */
 int mbdk_stepper_watch_report(const mbdk_stepper *stepper, double report[8]);

@@ -41,7 +41,7 @@ static const struct field model[] = {
     F(mbdk_model_options, small_dense), F(mbdk_model_options, projection_max_iter),
     F(mbdk_model_options, watch_position), F(mbdk_model_options, watch_velocity),
     F(mbdk_model_options, watch_energy), F(mbdk_model_options, watch_every),
-    F(mbdk_model_options, locate_events)};
+    F(mbdk_model_options, locate_events), F(mbdk_model_options, watch_momentum)};
 
 struct table { const char *name; size_t size; const struct field *f; int n; };
 

@@ -205,6 +205,7 @@ class ModelOptions(_Struct):
     watch_energy: float = 0.1
     watch_every: int = 16
     locate_events: int = 1   # dopri54, bs32: end a step where a contact closes or opens
+    watch_momentum: float = 1e-2   # the momenta the scene conserves (mbdk_watch.f90)
 
 
 MIRRORS = {"mbdk_options": ODEOptions, "mbdk_index3_options": Index3Options,

@@ -33,12 +33,15 @@ Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing 
   "a" accelerations, "multipliers", "reactions" (per joint: Fx, Fy and the moment about the
   joint point (a driver's, a coupling's: the centroid), exerted by the joint on its body1, global
   frame: -D_body1^T lambda), "energy"
-  (kinetic + potential, its parts, and the work of dampers, constraints and loads accumulated by
-  the trapezoidal rule over the samples: exact only as every -> 1), "residuals" (max |Phi|,
+  (kinetic + potential, its parts, and the work of dampers, constraints and loads as the run
+  integrated it, at every step whatever the samples (the watch's quadrature,
+  kernel/src/model/mbdk_watch.f90); "work" their sum W, which energy_balance() takes),
+  "residuals" (max |Phi|,
   max |Phi'|, max |D a - gamma|). An output not asked for is None in the result.
 
-What a run must keep (watch=, mbdk.watch): the constraint residuals and the energy balance are
-checked while it runs; leaving them ends the run with ConstraintDriftError or EnergyDriftError.
+What a run must keep (watch=, mbdk.watch): the constraint residuals, the energy balance and the
+momenta the scene conserves are checked while it runs; leaving them ends the run with
+ConstraintDriftError, EnergyDriftError or InvariantDriftError.
 """
 from __future__ import annotations
 
@@ -64,7 +67,7 @@ BDF_DAE_FORMS = {"i3": "index 3 (GSTIFF I3): q' = v, M v' = f - D^T lam, 0 = Phi
 IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not kept)",
              "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = v - D^T mu, "
                     "M v' + D^T lam = f, Phi = 0, D v + Phi_t = 0"}
-from .watch import as_watch, drift_message, drift_report
+from .watch import as_watch, drift_message, drift_report, invariant_names
 from .methods import method as _method
 from .model import (DENSE_NAMING_MAX, FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
@@ -124,21 +127,12 @@ class SceneResult(Result):
         return self.reactions[:, self.joints.index(joint), :]
 
     def energy_balance(self) -> np.ndarray:
-        """E(t) + damper work - load work - constraint work - E(0): zero for an exact solution."""
+        """E(t) - E(0) - W(t), W = load work + constraint work - damper work as the run
+        integrated it at every step: zero for an exact solution."""
         if self.energy is None:
             raise NotApplicableError("this run did not compute the energy: pass outputs "
                                      "including 'energy' to simulate")
-        p = self.energy_parts
-        return (self.energy + p["dissipated_dampers"] - p["work_loads"] - p["work_constraints"]
-                - self.energy[0])
-
-
-def _cumtrapz(t, p):
-    out = np.zeros_like(p)
-    if len(t) > 1:
-        with np.errstate(invalid="ignore", over="ignore"):
-            out[1:] = np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(t))
-    return out
+        return self.energy - self.energy[0] - self.energy_parts["work"]
 
 
 def check_run(h, t_end, t0, every) -> None:
@@ -424,7 +418,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     lam_out = np.zeros((max(m, 1), cols(2)), order="F")
     iters = np.zeros(nsamp if index3 else 1, np.int32)
     reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
-    energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
+    energy = np.zeros((9, nsamp if want & 8 else 1), order="F")
     resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
     args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
@@ -432,7 +426,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
     (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
-     status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
+     invariants, ninv, status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
                                            plan_["steps"] * y0.size, span=(t0, t_end))
     status = Status(int(status))
     nw = int(nw)
@@ -460,6 +454,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 "solver": solver, "linear_solve": LINEAR_SOLVES.get(int(path), "not built"),
                 "small_dense": small_dense,
                 "watch": asdict(watch_),
+                "invariants": invariant_names(invariants[:, :int(ninv)].T),
                 "locate_events": bool(locate_events) and method in ("dopri54", "bs32"),
                 **plan_["manifest"]}
     if index3 or info_m.adaptive:
@@ -478,13 +473,13 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         iterations=np.array(iters[:nw]) if index3 else None,
         wear={w.name: y[2 * nc + k] for k, w in enumerate(scene.wear)})
     if want & 8:
-        kin, vg, vs, pd, pc, pl = energy[:, :nw]
+        kin, vg, vs, pd, pc, pl, wd, wc, wl = energy[:, :nw]
         result.energy = kin + vg + vs
         result.energy_parts = {
             "kinetic": kin, "potential_gravity": vg, "potential_springs": vs,
             "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
-            "dissipated_dampers": _cumtrapz(t, pd), "work_constraints": _cumtrapz(t, pc),
-            "work_loads": _cumtrapz(t, pl)}
+            "dissipated_dampers": wd, "work_constraints": wc, "work_loads": wl,
+            "work": wl + wc - wd}
     if status == Status.ERR_INTERRUPTED or interrupted:
         raise SolveInterrupted(f"{method}/{formulation} on scene {scene.name!r}: interrupted"
                                + (f" at t = {t[-1]:.6g}" if nw else ""), status=status,
@@ -499,8 +494,10 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
         _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
                           result, dae=bool(dae_form))
-    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
-        result.drift = drift_report(watch_report, tab.rows)
+    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT,
+                  Status.ERR_INVARIANT_DRIFT):
+        inv = invariants[:, :int(ninv)].T
+        result.drift = drift_report(watch_report, tab.rows, inv)
         advice = _DRIFT_ADVICE[status]
         if index3:   # it is the index-3 form already: the stabilised ODE forms are no remedy
             advice = advice.replace(" or trapezoidal_index3", "").replace(
@@ -515,7 +512,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                       "load that pushes the mechanism against a dead point has no solution "
                       "there. watch=False accepts the run as it is.")
         result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
-                          f"{drift_message(watch_report, tab.rows)}. " + advice)
+                          f"{drift_message(watch_report, tab.rows, inv)}. " + advice)
         if raise_on_failure:
             raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:
@@ -536,7 +533,10 @@ _DRIFT_ADVICE = {
     Status.ERR_ENERGY_DRIFT: "The method added or removed energy the model does not: a smaller "
     "h, or a method whose stability region covers h times the system's eigenvalues (implicit "
     "for stiff elements). watch=mbdk.Watch(energy=...) sets another tolerance, watch=False "
-    "accepts it."}
+    "accepts it.",
+    Status.ERR_INVARIANT_DRIFT: "The method does not keep what the mechanics conserves here: a "
+    "smaller h (small beside the period of the fastest motion), or a higher-order method. "
+    "watch=mbdk.Watch(momentum=...) sets another tolerance, watch=False accepts it."}
 
 
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol

@@ -543,11 +543,9 @@ class SpatialResult(Result):
         return self.w[:, 6 * k + 3:6 * k + 6]
 
     def energy_balance(self) -> np.ndarray:
-        """E(t) - E(0) - (work of dampers and loads): zero for an exact solution."""
-        p = self.energy_parts["power"]
-        dt = np.diff(self.t)
-        work = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * dt)])
-        return self.energy - self.energy[0] - work
+        """E(t) - E(0) - W(t), W the work of dampers, loads and drivers as the run integrated it
+        at every step (energy_parts["work"]): zero for an exact solution."""
+        return self.energy - self.energy[0] - self.energy_parts["work"]
 
 
 def _tables(sc: SpatialScene):
@@ -706,7 +704,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             newton_atol=newton_atol, outputs=outputs, penalty=penalty, **unsupported))
     from .ode import build_info
     from .simulate import _ode_plan, check_run
-    from .watch import as_watch, drift_message, drift_report
+    from .watch import as_watch, drift_message, drift_report, invariant_names
 
     bad = sorted(k for k, v in unsupported.items() if v is not None)
     if bad:
@@ -795,7 +793,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
-                     *penalty, float(_lock_guard)], dtype=float)
+                     *penalty, float(_lock_guard), w.momentum or 0.0, w.quaternion or 0.0],
+                    dtype=float)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
     _check_initial(sc, y0, assemble_initial, float(t0))
@@ -807,7 +806,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             2 if index3 else IDA_FORMS[formulation] if ida else
             (5 if formulation == "si2" else 1) if dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
-    (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
+    (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = _compiled.call(
         _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
     status = Status(int(status))
     nqb = 7 if sc.rotation == "quaternion" else 6
@@ -825,7 +824,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                  if formulation == "penalty" else
                                  "dense Schur complement (LAPACK dpotrf)"),
                 "watch": {"position": w.position, "velocity": w.velocity,
-                          "energy": w.energy, "every": w.every}}
+                          "energy": w.energy, "every": w.every, "momentum": w.momentum,
+                          "quaternion": w.quaternion},
+                "invariants": invariant_names(invariants[:, :int(ninv)].T)}
     if formulation in ("projection", "projected"):
         manifest["projection_tol"] = projection_tol
     if index3:
@@ -855,7 +856,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     result = SpatialResult(
         t=t[:nw], q=ys[:, :nq], w=ys[:, nq:], energy=o[:, 0] + o[:, 1] + o[:, 2],
         energy_parts={"kinetic": o[:, 0], "gravity": o[:, 1], "springs": o[:, 2],
-                      "power": o[:, 3]},
+                      "power": o[:, 3], "work": o[:, 7]},
         residuals=o[:, 4:7], multipliers=lam[:sc.rows, :nw].T if sc.rows else None,
         stats=Stats.from_words(stats), status=status, message=status_message(status),
         manifest=manifest, bodies=[b.name for b in sc.bodies],
@@ -868,13 +869,19 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                           "that the rows of its redundant joints, dependent on the others on the "
                           "joints, no longer agree with them; the projection formulation keeps "
                           "the state on the joints, or take a smaller step")
-    elif status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
-        result.drift = drift_report(report, joint_rows(sc))
-        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
-                          f"{drift_message(report, joint_rows(sc)).replace('D v', 'C w')}"
-                          ". A smaller step, the "
-                          "projection formulation or watch=False (to study the drift) are "
-                          "the remedies")
+    elif status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT,
+                    Status.ERR_INVARIANT_DRIFT):
+        inv = invariants[:, :int(ninv)].T
+        bodies = [b.name for b in sc.bodies]
+        result.drift = drift_report(report, joint_rows(sc), inv, bodies)
+        said = drift_message(report, joint_rows(sc), inv, bodies).replace('D v', 'C w')
+        remedy = ("A smaller step (small beside the period of the fastest motion), a "
+                  "higher-order method or watch=False (to study the drift) are the remedies"
+                  if status == Status.ERR_INVARIANT_DRIFT else
+                  "A smaller step, the projection formulation or watch=False (to study the "
+                  "drift) are the remedies")
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: {said}. "
+                          + remedy)
     elif status == Status.ERR_SINGULAR_MATRIX:
         where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")
@@ -1002,6 +1009,14 @@ def _joined(segs, switches) -> SpatialResult:
     def cat(get):
         parts = [get(r)[s] for _rot, r, s in keep if get(r) is not None]
         return np.concatenate(parts) if parts else None
+
+    def work():   # each segment's work starts at 0 where the one before ended
+        parts, before = [], 0.0
+        for _rot, r, s in keep:
+            w = r.energy_parts["work"]
+            parts.append(before + w[s])
+            before += float(w[-1]) if len(w) else 0.0
+        return np.concatenate(parts)
     stats = Stats(**{f: sum(getattr(r.stats, f) for _rot, r, _s in keep)
                      for f in first.stats.__dataclass_fields__})
     rotations = [rot for rot, r, s in keep for _ in range(len(r.t[s]))]
@@ -1012,7 +1027,8 @@ def _joined(segs, switches) -> SpatialResult:
     return SpatialResult(
         t=cat(lambda r: r.t), q=cat(lambda r: r.q), w=cat(lambda r: r.w),
         energy=cat(lambda r: r.energy),
-        energy_parts={k: cat(lambda r, k=k: r.energy_parts[k]) for k in first.energy_parts},
+        energy_parts={k: work() if k == "work" else cat(lambda r, k=k: r.energy_parts[k])
+                      for k in first.energy_parts},
         residuals=cat(lambda r: r.residuals), multipliers=cat(lambda r: r.multipliers),
         stats=stats, status=last.status, message=last.message, manifest=manifest,
         bodies=first.bodies, joints=first.joints, rotation=first.rotation,

@@ -271,7 +271,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
                      t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
                      a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
                      nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
-                     bad_force, watch_report, status)
+                     bad_force, watch_report, invariants, ninv, status)
   ! The one entry that runs a scene. The tables' pose defaults are filled in at y0 and the model
   ! built (mbdk_assembly, mbdk_model); with assemble /= 0 the initial state is assembled (the
   ! coordinates whose given(:) is 0 move; asm_iters corrections; on failure,
@@ -288,7 +288,11 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   ! at) get NaN there. visits: the model's visit counters over the whole call (steps and
   ! outputs); linear_solve: the path the model's solves take (MBDK_SOLVE_*). watch_report: a
   ! drift failure's report (mbdk_watch): quantity, row, value, tolerance, time, last good time,
-  ! the value itself and its scale.
+  ! the value itself and its scale. invariants(:, 1:ninv): the components of the momentum and
+  ! angular momentum the scene conserves (mbdk_watch: kind, direction, point), which a
+  ! momentum failure's row counts. energy(9, :): kinetic, gravity and spring energy, the powers
+  ! of dampers (dissipated), constraints and loads, and their work as the run integrated it at
+  ! every step (mbdk_watch_work_at).
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_options, only: mbdk_options_t
@@ -302,6 +306,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
   use mbdk_assembly, only: mbdk_model_start
+  use mbdk_watch, only: mbdk_watch_work_at
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want
   integer, intent(in) :: nsamp
@@ -315,11 +320,12 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   integer, intent(in) :: given(n), assemble
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: a_out(nc, na), lam_out(m1, nl), reac(3, nj1, nr)
-  double precision, intent(inout) :: energy(6, ne), resid(3, nrs), statbuf(nstatw), visits(nvis)
+  double precision, intent(inout) :: energy(9, ne), resid(3, nrs), statbuf(nstatw), visits(nvis)
   integer, intent(inout) :: iters_out(ni)
   integer, intent(out) :: nwritten, linear_solve, status, asm_iters, asm_velocity, bad_joint
   integer, intent(out) :: bad_force
-  double precision, intent(out) :: asm_resid(m1), watch_report(8)
+  double precision, intent(out) :: asm_resid(m1), watch_report(8), invariants(7, 6)
+  integer, intent(out) :: ninv
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jint) :: nj1 = shape(jint, 1)
@@ -345,7 +351,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   type(mbdk_index3_options_t) :: i3
   type(mbdk_stats_t) :: st
   character(len=MBDK_METHOD_NAME_LEN) :: name
-  integer :: family, order, m, k, ostat
+  integer :: family, order, m, k, ostat, krec
   logical :: index3, dae
   double precision :: nan
   double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
@@ -355,6 +361,8 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   nwritten = 0
   linear_solve = -1
   watch_report = 0.0d0
+  invariants = 0.0d0
+  ninv = 0
   asm_iters = 0
   asm_resid = 0.0d0
   asm_velocity = 0
@@ -388,6 +396,11 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   status = MBDK_ERR_OUTPUT_SIZE
   if (m1 < max(m, 1)) return
   linear_solve = mbdk_model_linear_solve(model)
+  ninv = model%ninv
+  invariants = model%inv
+  ! the energy asked for: the watch integrates the work at every step, and the samples take it
+  model%record_work = iand(want, MBDK_OUT_ENERGY) /= 0
+  model%has_watch = model%has_watch .or. model%record_work
   if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
   if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
   if (index3 .and. ni < nsamp) return
@@ -420,6 +433,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   if (want /= 0 .and. nwritten > 0) then
     nan = ieee_value(nan, ieee_quiet_nan)
     allocate (a_s(nc), lam_s(m), reac_s(3, max(nj, 1)), en_s(6), res_s(3))
+    krec = 0
     do k = 1, nwritten
       if (index3) then
         a_s = a_out(:, k)
@@ -436,7 +450,10 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
       if (.not. (index3 .or. dae) .and. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) &
         lam_out(1:m, k) = lam_s
       if (iand(want, MBDK_OUT_REACTIONS) /= 0) reac(:, 1:nj, k) = reac_s(:, 1:nj)
-      if (iand(want, MBDK_OUT_ENERGY) /= 0) energy(:, k) = en_s
+      if (iand(want, MBDK_OUT_ENERGY) /= 0) then
+        energy(1:6, k) = en_s
+        call mbdk_watch_work_at(work%watch, t_out(k), krec, energy(7:9, k))
+      end if
       if (iand(want, MBDK_OUT_RESIDUALS) /= 0) resid(:, k) = res_s
     end do
   end if
@@ -854,21 +871,24 @@ end subroutine quaternion_omega
 subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
                        freal, nso, sopt, noptw, optbuf, interrupt, natol, atol, n, y0, assemble, &
                        dae_form, t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, &
-                       nstatw, statbuf, moved, watch_report, status)
+                       nstatw, statbuf, moved, watch_report, invariants, ninv, status)
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
   ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
-  ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard. The tables have nj1 = max(nj, 1) columns (nf1
+  ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard,
+  ! watch_momentum, watch_quaternion. The tables have nj1 = max(nj, 1) columns (nf1
   ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
-  ! (moved: the largest change of a state). out(MBDK_SPATIAL_OUTPUTS, nsamp) and lam_out(m1,
+  ! (moved: the largest change of a state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1,
   ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
-  ! none). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
+  ! none), the last row the work of dampers, loads and drivers as the run integrated it at every
+  ! step (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae; the multipliers are
   ! the DAE's own); 2: trapezoidal_index3's projected form (mbdk_spatial_index3; the model is
   ! built with the projection formulation); 3, 4: ida in its index1 and GGL forms
   ! (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
-  ! watch_report as scene_run's.
+  ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_watch, only: mbdk_watch_work_at
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
@@ -881,10 +901,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
   integer, intent(in), target :: interrupt(4)
-  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(7, nsamp), &
-    lam_out(m1, nsamp), moved, watch_report(8)
+  double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(8, nsamp), &
+    lam_out(m1, nsamp), moved, watch_report(8), invariants(7, 6)
   double precision, intent(inout) :: statbuf(nstatw)
-  integer, intent(out) :: nwritten, status
+  integer, intent(out) :: nwritten, status, ninv
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -899,8 +919,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   type(mbdk_spatial_options_t) :: so
   type(mbdk_options_t) :: opt
   type(mbdk_stats_t) :: st
-  double precision :: y(n), nan
-  integer :: k, s
+  double precision :: y(n), nan, parts(3)
+  integer :: k, s, krec
 
   nwritten = 0
   t_out = 0.0d0
@@ -910,8 +930,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   lam_out = nan
   moved = 0.0d0
   watch_report = 0.0d0
+  invariants = 0.0d0
+  ninv = 0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 15) return
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 17) return
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
@@ -931,10 +953,17 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%pen_omega = sopt(13)
   so%pen_mu = sopt(14)
   so%lock_guard = sopt(15)
+  so%watch_momentum = sopt(16)
+  so%watch_quaternion = sopt(17)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
                          y0, status)
   if (status /= MBDK_SUCCESS) return
+  ninv = model%ninv
+  invariants = model%inv
+  ! a spatial run samples its energy: the watch integrates the work at every step
+  model%record_work = .true.
+  model%has_watch = .true.
   if (m1 < max(model%m, 1)) then
     status = MBDK_ERR_INVALID_INPUT
     return
@@ -958,15 +987,18 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     return
   end if
   s = status
+  krec = 0
   do k = 1, nwritten
+    call mbdk_watch_work_at(work%watch, t_out(k), krec, parts)
+    out(8, k) = parts(3)
     if (dae_form == 1 .or. dae_form >= 3) then   ! the drivers' power with the DAE's own
-      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status, &
+      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status, &
                                 lam_in=lam_out(1:model%m, k))
     else
-      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(:, k), status)
+      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status)
     end if
     if (status /= MBDK_SUCCESS) then
-      out(:, k) = nan
+      out(1:7, k) = nan
       cycle
     end if
     if (dae_form == 0 .or. dae_form == 2) call spatial_lambda(y_out(:, k))

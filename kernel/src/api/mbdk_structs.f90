@@ -173,6 +173,7 @@ contains
       call add('watch_energy', transfer(c_loc(mo%watch_energy), base), MBDK_FIELD_DOUBLE)
       call add('watch_every', transfer(c_loc(mo%watch_every), base), MBDK_FIELD_INT)
       call add('locate_events', transfer(c_loc(mo%locate_events), base), MBDK_FIELD_INT)
+      call add('watch_momentum', transfer(c_loc(mo%watch_momentum), base), MBDK_FIELD_DOUBLE)
     end select
 
   contains

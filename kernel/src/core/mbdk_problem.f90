@@ -12,6 +12,14 @@ module mbdk_problem
   implicit none
   private
 
+  !> The three Gauss-Legendre nodes of a step (fractions of it), at which a driver with a dense
+  !> output hands the watch the state (watch_nodes): the work of dampers, loads and drivers is
+  !> then integrated over the step to sixth order, by points inside it, rather than by the
+  !> trapezoidal rule on its ends (a located event leaves its kink on a step's end), and a
+  !> sample inside the step takes it from the quadratic through the three.
+  real(dp), parameter, public :: MBDK_GAUSS3(3) = [0.5_dp - sqrt(0.15_dp), 0.5_dp, &
+                                                  0.5_dp + sqrt(0.15_dp)]
+
   type, abstract, public :: mbdk_problem_t
     integer :: n = 0             !< number of states
     integer :: nq = 0            !< > 0: y = [q; v], q' = v, n = 2*nq
@@ -30,6 +38,8 @@ module mbdk_problem
     procedure :: post_step => no_post_step
     procedure :: watch_start => no_watch_start
     procedure :: watch => no_watch
+    procedure :: watch_wants_nodes => no_wants_nodes
+    procedure :: watch_nodes => no_watch_nodes
     procedure :: events => no_events
   end type mbdk_problem_t
 
@@ -82,6 +92,22 @@ contains
     g = 0.0_dp
     stat = MBDK_SUCCESS
   end subroutine no_events
+
+  !> Default: no states inside a step are wanted (a watching problem whose work needs them
+  !> says so: a driver with a dense output then calls watch_nodes before watch).
+  logical function no_wants_nodes(self)
+    class(mbdk_problem_t), intent(in) :: self
+    no_wants_nodes = .false.
+  end function no_wants_nodes
+
+  !> Default: nothing to do with the states y(:, k) at t_a + MBDK_GAUSS3(k) (t_b - t_a) of the
+  !> accepted step [t_a, t_b], which the watch's call for t_b follows.
+  subroutine no_watch_nodes(self, t_a, t_b, y, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+  end subroutine no_watch_nodes
 
   !> Default: nothing watched. force: the step is a sample (or the last one): check it.
   subroutine no_watch(self, t, y, force, stat)

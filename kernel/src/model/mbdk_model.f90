@@ -53,7 +53,7 @@ module mbdk_model
   use, intrinsic :: iso_c_binding, only: c_int, c_double
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
@@ -72,7 +72,10 @@ module mbdk_model
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
-    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
+    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
+    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, mbdk_inv_gravity, &
+    mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT, &
+    MBDK_INV_ANGULAR_CENTRE, MBDK_WORK_PARTS
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
@@ -86,7 +89,7 @@ module mbdk_model
   private
   public :: mbdk_model_init, mbdk_model_accelerations, mbdk_model_outputs, mbdk_model_constraints
   public :: mbdk_model_assemble, mbdk_model_linear_solve, mbdk_model_watch_start, &
-    mbdk_model_watch, mbdk_model_sparse, mbdk_phi_floor
+    mbdk_model_watch, mbdk_model_watch_nodes, mbdk_model_sparse, mbdk_phi_floor
 
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
@@ -141,6 +144,9 @@ module mbdk_model
     !> 1: the contacts' penetrations are events (mbdk_problem), which dopri54 and bs32 locate
     !> and end a step on; 0: off
     integer(c_int) :: locate_events = 1
+    !> the momenta and angular momenta the scene conserves (mbdk_watch): their change per the
+    !> size of their terms; <= 0 turns the test off
+    real(c_double) :: watch_momentum = 1.0e-2_c_double
   end type mbdk_model_options_t
 
   !> Visit counters and the buffers of one evaluation, sized at mbdk_model_init.
@@ -182,8 +188,15 @@ module mbdk_model
     real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp   !< Jalon-Bayo
     real(dp) :: proj_tol = 1.0e-12_dp
     integer :: proj_max_iter = 20
-    real(dp) :: watch_tol(3) = 0.0_dp   !< position, velocity, energy (mbdk_watch)
+    real(dp) :: watch_tol(4) = 0.0_dp   !< position, velocity, energy, momentum (mbdk_watch)
     integer :: watch_every = MBDK_WATCH_EVERY
+    !> the components of the momentum and angular momentum the scene conserves, found at init
+    !> from its elements (mbdk_inv_result)
+    integer :: ninv = 0
+    real(dp) :: inv(MBDK_INV_WORDS, MBDK_INV_MAX) = 0.0_dp
+    !> the run samples the work of dampers, loads and drivers as the watch integrates it at
+    !> every step (mbdk_watch_work_at; set by the caller before the run)
+    logical :: record_work = .false.
     logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
     !> rows that constrain velocities only (knife edges: mbdk_joints_pfaffian)
     logical, allocatable :: pfaffian(:)
@@ -213,6 +226,8 @@ module mbdk_model
     procedure :: post_step => model_post_step
     procedure :: watch_start => model_watch_start
     procedure :: watch => model_watch
+    procedure :: watch_wants_nodes => model_wants_nodes
+    procedure :: watch_nodes => model_watch_nodes
     procedure :: events => model_events
   end type mbdk_model_t
 
@@ -335,11 +350,14 @@ contains
     model%pen_mu = opt%penalty_mu
     model%proj_tol = opt%projection_tol
     model%proj_max_iter = opt%projection_max_iter
-    model%watch_tol = [opt%watch_position, opt%watch_velocity, opt%watch_energy]
+    model%watch_tol = [opt%watch_position, opt%watch_velocity, opt%watch_energy, &
+                       opt%watch_momentum]
     model%watch_every = opt%watch_every
     if (opt%watch_every == 0) model%watch_every = MBDK_WATCH_EVERY
     if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
+    call planar_invariants(model%jint, model%jreal, model%fint, model%freal, model%inv, &
+                           model%ninv)
     ! rheonomic rows: drivers, and distances and couplings that change in time
     model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. ((jint(1, :) == &
                             MBDK_JOINT_DISTANCE .or. jint(1, :) == MBDK_JOINT_COUPLING) .and. &
@@ -967,18 +985,64 @@ contains
     call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat)
   end subroutine model_watch
 
+  !> Whether the watch integrates a work (mbdk_watch_nodes: the states inside a step serve it).
+  logical function model_wants_nodes(self)
+    class(mbdk_model_t), intent(in) :: self
+    model_wants_nodes = .false.
+    if (self%has_watch) model_wants_nodes = self%work%watch%power
+  end function model_wants_nodes
+
+  subroutine model_watch_nodes(self, t_a, t_b, y, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    call mbdk_model_watch_nodes(self, t_a, t_b, y(1:self%nc, :), &
+                                y(self%nc + 1:2 * self%nc, :), stat)
+  end subroutine model_watch_nodes
+
+  !> The powers of the work parts at the states (q(:, k), v(:, k)) of the accepted step
+  !> [t_a, t_b] at its Gauss nodes (MBDK_GAUSS3), for the watch's integral over the step
+  !> (mbdk_watch_nodes). lam(:, k): the integrator's own multipliers there (a DAE form's);
+  !> otherwise a driven scene's come from a constrained solve at each node.
+  subroutine mbdk_model_watch_nodes(self, t_a, t_b, q, v, stat, lam)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, q(:, :), v(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: lam(:, :)
+    real(dp) :: kin, vg, vs, p(MBDK_WORK_PARTS, 3), tn(3)
+    integer :: k
+    stat = MBDK_SUCCESS
+    if (.not. self%has_watch) return
+    if (.not. self%work%watch%power) return
+    tn = t_a + MBDK_GAUSS3 * (t_b - t_a)
+    do k = 1, 3
+      if (present(lam)) then
+        call watch_quantities(self, tn(k), q(:, k), v(:, k), .true., .true., kin, vg, vs, &
+                              p(:, k), stat, lam(:, k))
+      else
+        call watch_quantities(self, tn(k), q(:, k), v(:, k), .true., .true., kin, vg, vs, &
+                              p(:, k), stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+    end do
+    call mbdk_watch_nodes(self%work%watch, t_a, t_b, tn, p)
+  end subroutine mbdk_model_watch_nodes
+
   !> Starts the watch (mbdk_watch) at the initial state: the length scale L, which rows are
-  !> angles, whether the energy balance has power terms, the energies at t0. velocity = .false.:
-  !> the integrator does not promise the velocity constraints (the book's index-3 scheme, whose
-  !> velocities are the trapezoidal rule's on q), so they are not tested.
+  !> angles, whether the energy balance has power terms, the energies at t0, the momenta the
+  !> scene conserves. velocity = .false.: the integrator does not promise the velocity
+  !> constraints (the book's index-3 scheme, whose velocities are the trapezoidal rule's on q),
+  !> so they are not tested.
   subroutine mbdk_model_watch_start(self, t, q, v, stat, velocity)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, q(:), v(:)
     integer, intent(out) :: stat
     logical, intent(in), optional :: velocity
-    logical :: angular(self%m), power
-    real(dp) :: length, kin, vg, vs, p, gscale, rmean(2), tol_v
+    logical :: angular(self%m), power, ok
+    real(dp) :: length, reach, kin, vg, vs, p(MBDK_WORK_PARTS), gscale, rmean(2), tol_v, &
+      mom(6), msc(2)
     integer :: j, e, r, typ, b, nb
+    type(mbdk_contact_t) :: ct
     stat = MBDK_SUCCESS
     if (.not. self%has_watch) return
     nb = self%nb
@@ -1045,9 +1109,21 @@ contains
     do b = 1, nb
       length = max(length, 2.0_dp * norm2(q(self%qoff(b):self%qoff(b) + 1) - rmean))
     end do
+    ! what gravity can move the bodies by (mbdk_watch): the mechanism's length, each contact's
+    ! initial gap, each body's radius of gyration; the fallback below, a length the scene may
+    ! not have (1 m, or the distance from the origin), serves the position rows only
+    reach = length
+    do b = 1, nb
+      reach = max(reach, sqrt(self%mass(self%qoff(b) + 2) / self%mass(self%qoff(b))))
+    end do
+    call mbdk_body_rotations(q, self%work%rot)
+    do e = 1, size(self%fint, 2)
+      if (self%fint(1, e) /= MBDK_FORCE_CONTACT .or. self%fint(4, e) == MBDK_CONTACT_GEAR) cycle
+      call mbdk_contact_eval(self%fint(:, e), self%freal(:, e), self%work%rot, q, v, ct, ok)
+      if (ok .and. -ct%delta <= huge(1.0_dp)) reach = max(reach, -ct%delta)
+    end do
     if (.not. (length > 0.0_dp)) length = max(norm2(rmean), 1.0_dp)
-    gscale = gscale * sum(self%mass(self%qoff(:))) * length
-    power = power .and. self%watch_tol(3) > 0.0_dp   ! the work is for the energy test only
+    gscale = gscale * sum(self%mass(self%qoff(:))) * reach
     call watch_quantities(self, t, q, v, power, .false., kin, vg, vs, p, stat)
     if (stat /= MBDK_SUCCESS) return
     tol_v = self%watch_tol(2)
@@ -1056,13 +1132,18 @@ contains
     end if
     call mbdk_watch_start(self%work%watch, self%watch_tol(1), tol_v, self%watch_tol(3), &
                           self%watch_every, power, length, angular, t, kin, vg, vs, p, gscale, &
-                          sum(self%mass(self%qoff(:))))
+                          sum(self%mass(self%qoff(:))), self%record_work)
+    if (self%ninv > 0 .and. self%watch_tol(4) > 0.0_dp) then
+      call planar_momenta(self, q, v, mom, msc)
+      call mbdk_watch_start_invariants(self%work%watch, self%watch_tol(4), self%inv, self%ninv, &
+                                       mom, msc, 0.0_dp, 0)
+    end if
   end subroutine mbdk_model_watch_start
 
   !> The watch after an accepted step at (t, q, v): when a check is due (every watch_every
-  !> steps, force, or every step with power terms), the constraint residuals and the energy
-  !> balance against their tolerances. MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT with
-  !> the report in work%watch.
+  !> steps, force, or every step with power terms), the constraint residuals, the energy
+  !> balance and the conserved momenta against their tolerances. MBDK_ERR_CONSTRAINT_DRIFT,
+  !> MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT with the report in work%watch.
   !> The drivers' power needs the multipliers at (t, q, v). lam: the integrator's own, exact
   !> at the state (trapezoidal_index3's projected form). Otherwise a step that only owes its
   !> power takes those of the model's last evaluation (an ODE method's last stage, within
@@ -1077,7 +1158,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: lam(:)
     logical, intent(in), optional :: solve_lam
-    real(dp) :: kin, vg, vs, p, g
+    real(dp) :: kin, vg, vs, p(MBDK_WORK_PARTS), g, mom(6), msc(2)
     integer :: due
     logical :: reuse
     stat = MBDK_SUCCESS
@@ -1092,15 +1173,135 @@ contains
     associate (w => self%work)
       if (due == MBDK_WATCH_POWER_ONLY) then
         call mbdk_watch_power(w%watch, t, p, g)
+      else if (w%watch%ninv > 0) then
+        call planar_momenta(self, q, v, mom, msc)
+        call mbdk_watch_test(w%watch, t, w%phi, w%wres, w%wterm, kin, vg, vs, p, stat, g, &
+                             mom, msc)
       else
         call mbdk_watch_test(w%watch, t, w%phi, w%wres, w%wterm, kin, vg, vs, p, stat, g)
       end if
     end associate
   end subroutine mbdk_model_watch
 
+  !> The momentum p = sum m_b v_b and the angular momentum H = sum (r_b - c) x m_b v_b +
+  !> I_b w_b (along z; mom = (p, H) as 3-vectors) about the point of the scene's conserved
+  !> components (mbdk_inv_result: a fixed point, or the centre of mass c), and their scales
+  !> msc = (sum m_b |v_b|, sum |r_b - c| m_b |v_b - v_c| + |I_b w_b|) (mbdk_watch).
+  subroutine planar_momenta(self, q, v, mom, msc)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: mom(6), msc(2)
+    real(dp) :: c(2), vc(2), m, d(2), total
+    integer :: b, k
+    mom = 0.0_dp
+    msc = 0.0_dp
+    c = 0.0_dp
+    vc = 0.0_dp
+    total = 0.0_dp
+    do b = 1, self%nb
+      k = self%qoff(b)
+      m = self%mass(k)
+      mom(1:2) = mom(1:2) + m * v(k:k + 1)
+      msc(1) = msc(1) + m * norm2(v(k:k + 1))
+      c = c + m * q(k:k + 1)
+      total = total + m
+    end do
+    if (any(nint(self%inv(1, 1:self%ninv)) == MBDK_INV_ANGULAR_POINT)) then
+      c = self%inv(5:6, self%ninv)
+    else
+      c = c / total
+      vc = mom(1:2) / total
+    end if
+    do b = 1, self%nb
+      k = self%qoff(b)
+      m = self%mass(k)
+      d = q(k:k + 1) - c
+      mom(6) = mom(6) + m * (d(1) * v(k + 1) - d(2) * v(k)) + self%mass(k + 2) * v(k + 2)
+      msc(2) = msc(2) + m * norm2(d) * norm2(v(k:k + 1) - vc) + abs(self%mass(k + 2) * v(k + 2))
+    end do
+  end subroutine planar_momenta
+
+  !> The components of the momentum and angular momentum a planar scene conserves, from its
+  !> elements alone (mbdk_watch's rule): inv(:, 1:ninv).
+  subroutine planar_invariants(jint, jreal, fint, freal, inv, ninv)
+    integer, intent(in) :: jint(:, :), fint(:, :)
+    real(dp), intent(in) :: jreal(:, :), freal(:, :)
+    real(dp), intent(out) :: inv(MBDK_INV_WORDS, MBDK_INV_MAX)
+    integer, intent(out) :: ninv
+    type(mbdk_inv_rule_t) :: rule
+    integer :: j, e, c
+    logical :: rough(size(fint, 2))
+    do j = 1, size(jint, 2)
+      select case (jint(1, j))
+      case (MBDK_JOINT_REVOLUTE, MBDK_JOINT_DISTANCE)
+        ! to the ground: the reaction passes through the ground point (global)
+        if (jint(3, j) == 0) call mbdk_inv_pivot(rule, [jreal(3:4, j), 0.0_dp])
+      case (MBDK_JOINT_PRISMATIC, MBDK_JOINT_POINT_LINE)
+        ! to the ground: a force across the ground line u = jreal(5:6) (and a moment)
+        if (jint(3, j) == 0) call mbdk_inv_force(rule, [-jreal(6, j), jreal(5, j), 0.0_dp])
+      case (MBDK_JOINT_FIXED)
+        if (jint(3, j) == 0) call mbdk_inv_external(rule)
+      case default   ! drivers, couplings, and the ground's curves, rolling and knife edges
+        call mbdk_inv_external(rule)
+      end select
+    end do
+    ! the contacts with friction (a friction element names its contact's column)
+    rough = .false.
+    do e = 1, size(fint, 2)
+      if (fint(1, e) /= MBDK_FORCE_FRICTION) cycle
+      c = fint(4, e)
+      if (c < 1 .or. c > size(fint, 2)) then
+        call mbdk_inv_external(rule)
+      else
+        rough(c) = .true.
+      end if
+    end do
+    do e = 1, size(fint, 2)
+      select case (fint(1, e))
+      case (MBDK_FORCE_GRAVITY)
+        call mbdk_inv_gravity(rule, [freal(1:2, e), 0.0_dp])
+      case (MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_SPRING_DAMPER)
+        ! along the line of its points: to the ground, through the ground point
+        if (fint(3, e) == 0) call mbdk_inv_pivot(rule, [freal(3:4, e), 0.0_dp])
+      case (MBDK_FORCE_POINT)
+        call mbdk_inv_force(rule, [freal(3:4, e), 0.0_dp])
+      case (MBDK_FORCE_TORQUE)
+        call mbdk_inv_moment(rule)
+      case (MBDK_FORCE_COORDINATE)
+        select case (fint(4, e))
+        case (1)
+          call mbdk_inv_force(rule, [1.0_dp, 0.0_dp, 0.0_dp])
+        case (2)
+          call mbdk_inv_force(rule, [0.0_dp, 1.0_dp, 0.0_dp])
+        case default
+          call mbdk_inv_moment(rule)
+        end select
+      case (MBDK_FORCE_CONTACT)
+        if (fint(4, e) == MBDK_CONTACT_GEAR) then
+          ! its tooth-relief terms are not checked for a moment (gears turn on axles anyway)
+          call mbdk_inv_external(rule)
+        else if (fint(3, e) == 0 .and. rough(e)) then
+          call mbdk_inv_external(rule)
+        else if (fint(3, e) == 0 .and. fint(4, e) == MBDK_CONTACT_LINE) then
+          ! along the ground line's normal (cos a, sin a), a = freal(6)
+          call mbdk_inv_force(rule, [cos(freal(6, e)), sin(freal(6, e)), 0.0_dp])
+        else if (fint(3, e) == 0) then
+          ! a ground circle or ring: along the line through its centre s2 (global)
+          call mbdk_inv_pivot(rule, [freal(4:5, e), 0.0_dp])
+        end if
+      case (MBDK_FORCE_FRICTION, MBDK_EFFECT_WEAR)
+        ! friction: with its contact above; wear: a state of its own, no force
+      case default
+        call mbdk_inv_external(rule)
+      end select
+    end do
+    call mbdk_inv_result(rule, .true., inv, ninv)
+  end subroutine planar_invariants
+
   !> What the watch tests at (t, q, v): work%phi, work%wres = D v + Phi_t and work%wterm (the
-  !> size of its terms), the kinetic, gravity and spring energy and, with power, the power of
-  !> loads and drivers less the dampers' (power_only: that alone). The passes are not counted in
+  !> size of its terms), the kinetic, gravity and spring energy and, with power, the powers of
+  !> the work parts p = (dissipated by dampers, of the constraints, of the loads; mbdk_watch)
+  !> (power_only: those alone). The passes are not counted in
   !> the visit counters: they are the watch's, not the integration's.
   subroutine watch_quantities(self, t, q, v, power, power_only, kin, vg, vs, p, stat, lam, &
                               reuse_lam, gross)
@@ -1110,7 +1311,7 @@ contains
     real(dp), intent(in), optional :: lam(:)
     logical, intent(in), optional :: reuse_lam
     real(dp), intent(out), optional :: gross   !< |loads| + |drivers| + dissipation
-    real(dp), intent(out) :: kin, vg, vs, p
+    real(dp), intent(out) :: kin, vg, vs, p(MBDK_WORK_PARTS)
     integer, intent(out) :: stat
     integer(i8) :: unused(MBDK_JOINT_TYPES), visits(MBDK_VISIT_COUNT)
     real(dp) :: pd, pl, pc
@@ -1164,7 +1365,7 @@ contains
       end do
       kin = 0.5_dp * kin
       call mbdk_forces_energy(self%fint, self%freal, self%mass, w%rot, q, v, t, vg, vs, pd, pl)
-      p = pl - pd + pc
+      p = [pd, pc, pl]
       if (present(gross)) gross = abs(pl) + abs(pc) + abs(pd)
     end associate
 

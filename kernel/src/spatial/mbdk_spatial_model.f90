@@ -75,17 +75,20 @@
 module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_time_function, only: mbdk_time_fn
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
-    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY
+    mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
+    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, mbdk_inv_gravity, &
+    mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
-    mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch
+    mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
+    mbdk_spatial_watch_nodes
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
@@ -139,7 +142,7 @@ module mbdk_spatial_model
     real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
     real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
     real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
-      watch_energy = 1.0e-1_dp
+      watch_energy = 1.0e-1_dp, watch_momentum = 1.0e-2_dp, watch_quaternion = 1.0e-1_dp
     integer :: watch_every = MBDK_WATCH_EVERY
   end type mbdk_spatial_options_t
 
@@ -174,6 +177,12 @@ module mbdk_spatial_model
     logical :: has_power = .false.
     logical :: has_drivers = .false.   !< rheonomic rows: Phi_t and the drivers' power
     real(dp) :: length = 1.0_dp, gscale = 0.0_dp
+    !> the components of the momentum and angular momentum the scene conserves, found at init
+    !> from its elements (mbdk_watch's rule)
+    integer :: ninv = 0
+    real(dp) :: inv(MBDK_INV_WORDS, MBDK_INV_MAX) = 0.0_dp
+    !> the run samples its work as the watch integrates it at every step (set by the caller)
+    logical :: record_work = .false.
     !> the rank of C at the initial state, and the rows found independent there (rank-revealing
     !> Cholesky): below m, the joints are redundant, and these rows alone are solved
     integer :: rank0 = 0
@@ -185,6 +194,8 @@ module mbdk_spatial_model
     procedure :: post_step => spatial_post_step
     procedure :: watch_start => spatial_watch_start
     procedure :: watch => spatial_watch
+    procedure :: watch_wants_nodes => spatial_wants_nodes
+    procedure :: watch_nodes => spatial_watch_nodes
   end type mbdk_spatial_model_t
 
   !> the kinematics of every body at one state (index 0: the ground)
@@ -208,7 +219,7 @@ contains
     integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
     integer, intent(out) :: stat
     integer :: nb, nj, b, j, row, info, k
-    real(dp) :: jb(3, 3), ai(3), aj(3), b1(3), b2(3), e(3, 3)
+    real(dp) :: jb(3, 3), ai(3), aj(3), b1(3), b2(3), e(3, 3), reach
     real(dp), parameter :: zero3(3) = 0.0_dp
     type(frames_t) :: fr
 
@@ -365,12 +376,20 @@ contains
     do b = 1, nb
       model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
     end do
+    ! what gravity can move the bodies by (mbdk_watch): the mechanism's length and each body's
+    ! radius of gyration, not the fallback below (a length the scene may not have)
+    reach = model%length
+    do b = 1, nb
+      reach = max(reach, sqrt((model%inertia(1, 1, b) + model%inertia(2, 2, b) + &
+                               model%inertia(3, 3, b)) / (2.0_dp * model%mass(b))))
+    end do
     if (.not. (model%length > 0.0_dp)) model%length = 1.0_dp
     model%gscale = 0.0_dp
     do k = 1, model%nf
       if (ftype(k) == MBDK_SPATIAL_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
     end do
-    model%gscale = model%gscale * sum(model%mass) * model%length
+    model%gscale = model%gscale * sum(model%mass) * reach
+    call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
 
     model%all_rows = [(k, k = 1, model%m)]
     model%rank0 = model%m
@@ -395,7 +414,8 @@ contains
     model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
     model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
-      opt%watch_energy > 0.0_dp
+      opt%watch_energy > 0.0_dp .or. (model%ninv > 0 .and. opt%watch_momentum > 0.0_dp) .or. &
+      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%watch_quaternion > 0.0_dp)
     model%work => work
     stat = MBDK_SUCCESS
 
@@ -411,6 +431,93 @@ contains
     end subroutine add
 
   end subroutine mbdk_spatial_init
+
+  !> The components of the momentum and angular momentum a spatial scene conserves, from its
+  !> elements alone (mbdk_watch's rule): inv(:, 1:ninv).
+  subroutine spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, inv, ninv)
+    integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
+    real(dp), intent(in) :: jreal(:, :), freal(:, :)
+    real(dp), intent(out) :: inv(MBDK_INV_WORDS, MBDK_INV_MAX)
+    integer, intent(out) :: ninv
+    type(mbdk_inv_rule_t) :: rule
+    integer :: j, k
+    real(dp) :: a(3), b1(3), b2(3)
+    do j = 1, size(jtype)
+      if (jbody(2, j) /= 0 .and. jtype(j) /= MBDK_SPATIAL_ANGLE_DRIVER .and. &
+          jtype(j) /= MBDK_SPATIAL_SLIDE_DRIVER) cycle   ! between two bodies: internal
+      select case (jtype(j))
+      case (MBDK_SPATIAL_SPHERICAL)
+        ! a force at the ground point (global)
+        call mbdk_inv_pivot(rule, jreal(4:6, j))
+      case (MBDK_SPATIAL_REVOLUTE)
+        ! and moments normal to the axis (global for the ground)
+        call mbdk_inv_pivot(rule, jreal(4:6, j), jreal(10:12, j))
+      case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
+        ! forces across the axis (and moments)
+        a = jreal(10:12, j)
+        if (.not. (norm2(a) > 0.0_dp)) then
+          call mbdk_inv_external(rule)
+          cycle
+        end if
+        call normals(a / norm2(a), b1, b2)
+        call mbdk_inv_force(rule, b1)
+        call mbdk_inv_force(rule, b2)
+      case default   ! fixed and universal joints to the ground, drivers
+        call mbdk_inv_external(rule)
+      end select
+    end do
+    do k = 1, size(ftype)
+      select case (ftype(k))
+      case (MBDK_SPATIAL_GRAVITY)
+        call mbdk_inv_gravity(rule, freal(1:3, k))
+      case (MBDK_SPATIAL_SPRING_DAMPER)
+        ! along the line of its points: to the ground, through the ground point
+        if (fbody(2, k) == 0) call mbdk_inv_pivot(rule, freal(4:6, k))
+      case (MBDK_SPATIAL_POINT_FORCE)
+        call mbdk_inv_force(rule, freal(4:6, k))
+      case (MBDK_SPATIAL_TORQUE)
+        call mbdk_inv_moment(rule)
+      case default
+        call mbdk_inv_external(rule)
+      end select
+    end do
+    call mbdk_inv_result(rule, .false., inv, ninv)
+  end subroutine spatial_invariants
+
+  !> The momentum p = sum m_b v_b and the angular momentum H = sum (r_b - c) x m_b v_b +
+  !> R_b J_b W_b (mom = (p, H)) about the point of the scene's conserved components (a fixed
+  !> point, or the centre of mass c), and their scales msc = (sum m_b |v_b|, sum |r_b - c| m_b
+  !> |v_b - v_c| + |J_b W_b|) (mbdk_watch).
+  pure subroutine spatial_momenta(model, fr, mom, msc)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: mom(6), msc(2)
+    real(dp) :: c(3), vc(3), d(3), jw(3), total
+    integer :: b
+    mom = 0.0_dp
+    msc = 0.0_dp
+    c = 0.0_dp
+    total = sum(model%mass)
+    do b = 1, model%nb
+      mom(1:3) = mom(1:3) + model%mass(b) * fr%v(:, b)
+      msc(1) = msc(1) + model%mass(b) * norm2(fr%v(:, b))
+      c = c + model%mass(b) * fr%r(:, b)
+    end do
+    if (model%ninv > 0 .and. nint(model%inv(1, model%ninv)) == MBDK_INV_ANGULAR_POINT) then
+      c = model%inv(5:7, model%ninv)
+      vc = 0.0_dp
+    else
+      c = c / total
+      vc = mom(1:3) / total
+    end if
+    do b = 1, model%nb
+      d = fr%r(:, b) - c
+      jw = matmul(model%inertia(:, :, b), fr%om(:, b))
+      mom(4:6) = mom(4:6) + model%mass(b) * mbdk_cross(d, fr%v(:, b)) + &
+        matmul(fr%rot(:, :, b), jw)
+      msc(2) = msc(2) + model%mass(b) * norm2(d) * norm2(fr%v(:, b) - vc) + norm2(jw)
+    end do
+  end subroutine spatial_momenta
 
   pure function unit(k) result(e)
     integer, intent(in) :: k
@@ -1252,7 +1359,8 @@ contains
   !> The energy parts and residuals at (t, y) (MBDK_SPATIAL_NOUT values): kinetic, gravity and
   !> spring energy, the power of dampers, loads and drivers (lambda . Phi_t, the multipliers from
   !> the model's constrained solve there), max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
-  subroutine mbdk_spatial_outputs(model, t, y, out, stat, phi_out, vres_out, vterm_out, lam_in)
+  subroutine mbdk_spatial_outputs(model, t, y, out, stat, phi_out, vres_out, vterm_out, lam_in, &
+                                  mom, msc)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: out(MBDK_SPATIAL_NOUT)
@@ -1261,6 +1369,8 @@ contains
     real(dp), intent(in), optional :: lam_in(:)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: phi_out(:), vres_out(:), vterm_out(:)
+    !> the momenta and their scales (spatial_momenta), for the watch
+    real(dp), intent(out), optional :: mom(6), msc(2)
     type(frames_t) :: fr
     real(dp) :: fw(3, model%nb), nbd(3, model%nb), phi(model%m), c(model%m, 6 * model%nb), &
       gam(model%m), w(6 * model%nb), kin, qn, phit(model%m), lam(model%m), f(size(y))
@@ -1281,6 +1391,7 @@ contains
     end do
     out(1) = kin
     out(7) = qn
+    if (present(mom) .and. present(msc)) call spatial_momenta(model, fr, mom, msc)
     if (model%m > 0) then
       call constraints(model, fr, t, phi, c, gam, phit)
       w = y(wi(model, 1):)
@@ -1305,14 +1416,58 @@ contains
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     integer, intent(out) :: stat
-    real(dp) :: out(MBDK_SPATIAL_NOUT)
-    call mbdk_spatial_outputs(self, t, y, out, stat)
+    real(dp) :: out(MBDK_SPATIAL_NOUT), mom(6), msc(2)
+    call mbdk_spatial_outputs(self, t, y, out, stat, mom=mom, msc=msc)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
                           self%opt%watch_energy, self%opt%watch_every, self%has_power, &
-                          self%length, self%row_angular, t, out(1), out(2), out(3), out(4), &
-                          self%gscale, sum(self%mass))
+                          self%length, self%row_angular, t, out(1), out(2), out(3), &
+                          [0.0_dp, 0.0_dp, out(4)], self%gscale, sum(self%mass), &
+                          self%record_work)
+    call mbdk_watch_start_invariants(self%work%watch, self%opt%watch_momentum, self%inv, &
+                                     self%ninv, mom, msc, self%opt%watch_quaternion, &
+                                     merge(self%nb, 0, self%opt%rotation == MBDK_ROT_QUATERNION))
   end subroutine spatial_watch_start
+
+  !> Whether the watch integrates a work (the states inside a step serve it).
+  logical function spatial_wants_nodes(self)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    spatial_wants_nodes = .false.
+    if (self%has_watch) spatial_wants_nodes = self%work%watch%power
+  end function spatial_wants_nodes
+
+  subroutine spatial_watch_nodes(self, t_a, t_b, y, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch_nodes(self, t_a, t_b, y, stat)
+  end subroutine spatial_watch_nodes
+
+  !> The power of dampers, loads and drivers at the states y(:, k) = [q; w] of the accepted step
+  !> [t_a, t_b] at its Gauss nodes (MBDK_GAUSS3), for the watch's integral over the step; lam(:,
+  !> k): the multipliers there where the caller has its own (a DAE form's).
+  subroutine mbdk_spatial_watch_nodes(self, t_a, t_b, y, stat, lam)
+    type(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: lam(:, :)
+    real(dp) :: out(MBDK_SPATIAL_NOUT), p(3, 3), tn(3)
+    integer :: k
+    stat = MBDK_SUCCESS
+    if (.not. self%has_watch) return
+    if (.not. self%work%watch%power) return
+    tn = t_a + MBDK_GAUSS3 * (t_b - t_a)
+    do k = 1, 3
+      if (present(lam)) then
+        call mbdk_spatial_outputs(self, tn(k), y(:, k), out, stat, lam_in=lam(:, k))
+      else
+        call mbdk_spatial_outputs(self, tn(k), y(:, k), out, stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+      p(:, k) = [0.0_dp, 0.0_dp, out(4)]
+    end do
+    call mbdk_watch_nodes(self%work%watch, t_a, t_b, tn, p)
+  end subroutine mbdk_spatial_watch_nodes
 
   subroutine spatial_watch(self, t, y, force, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
@@ -1323,25 +1478,34 @@ contains
   end subroutine spatial_watch
 
   !> The watch at (t, y = [q; w]); lam: the multipliers of the drivers' power where the caller
-  !> has its own (the DAE form), else the model's constrained solve gives them.
+  !> has its own (the DAE form), else the model's constrained solve gives them. The power
+  !> (dampers, loads and drivers together) is the third of the watch's work parts.
   subroutine mbdk_spatial_watch(self, t, y, force, stat, lam)
     type(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     logical, intent(in) :: force
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: lam(:)
-    real(dp) :: out(MBDK_SPATIAL_NOUT), phi(self%m), vres(self%m), vterm(self%m)
-    integer :: due
+    real(dp) :: out(MBDK_SPATIAL_NOUT), phi(self%m), vres(self%m), vterm(self%m), mom(6), &
+      msc(2), qdev(self%nb)
+    integer :: due, b, k
     stat = MBDK_SUCCESS
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
-    call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm, lam)
+    call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm, lam, mom, msc)
     if (stat /= MBDK_SUCCESS) return
     if (due == MBDK_WATCH_POWER_ONLY) then
-      call mbdk_watch_power(self%work%watch, t, out(4))
+      call mbdk_watch_power(self%work%watch, t, [0.0_dp, 0.0_dp, out(4)])
     else
+      qdev = 0.0_dp
+      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+        do b = 1, self%nb
+          k = qi(self, b) + 3
+          qdev(b) = abs(norm2(y(k:k + 3)) - 1.0_dp)
+        end do
+      end if
       call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
-                           out(4), stat)
+                           [0.0_dp, 0.0_dp, out(4)], stat, mom=mom, mom_scale=msc, qdev=qdev)
     end if
   end subroutine mbdk_spatial_watch
 
