@@ -18,7 +18,7 @@ module mbdk_scene_dae
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
-    mbdk_model_watch, mbdk_model_watch_start
+    mbdk_model_watch, mbdk_model_watch_start, mbdk_model_watch_nodes
   implicit none
   private
   public :: mbdk_scene_dae_init
@@ -38,6 +38,8 @@ module mbdk_scene_dae
     procedure :: rhs => dae_rhs
     procedure :: watch_start => dae_watch_start
     procedure :: watch => dae_watch
+    procedure :: watch_wants_nodes => dae_wants_nodes
+    procedure :: watch_nodes => dae_watch_nodes
     final :: dae_free
   end type mbdk_scene_dae_t
 
@@ -128,5 +130,21 @@ contains
     call mbdk_model_watch(self%model, t, y(1:nc), y(nc + 1:2 * nc), force, stat, &
                           lam=y(2 * nc + 1:2 * nc + self%m))
   end subroutine dae_watch
+
+  logical function dae_wants_nodes(self)
+    class(mbdk_scene_dae_t), intent(in) :: self
+    dae_wants_nodes = self%model%watch_wants_nodes()
+  end function dae_wants_nodes
+
+  !> The work at the nodes of a step with the DAE's own multipliers there.
+  subroutine dae_watch_nodes(self, t_a, t_b, y, stat)
+    class(mbdk_scene_dae_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    integer :: nc
+    nc = self%nc
+    call mbdk_model_watch_nodes(self%model, t_a, t_b, y(1:nc, :), y(nc + 1:2 * nc, :), stat, &
+                                lam=y(2 * nc + 1:2 * nc + self%m, :))
+  end subroutine dae_watch_nodes
 
 end module mbdk_scene_dae

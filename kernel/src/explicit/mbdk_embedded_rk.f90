@@ -15,7 +15,8 @@
 !> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL.
 !>
 !> Samples inside a step come from the pair's dense output; a sample at the step's end is the
-!> step's state itself. After a projection (has_post_step) F is evaluated again at the
+!> step's state itself. A watching problem that integrates a work gets the dense output at the
+!> step's three Gauss nodes too (watch_nodes, mbdk_problem). After a projection (has_post_step) F is evaluated again at the
 !> projected state, as the next step's first stage.
 !>
 !> Events (prob%nevents > 0: a contact's penetration, mbdk_problem). F is not smooth where an
@@ -33,7 +34,7 @@
 module mbdk_embedded_rk
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
@@ -67,7 +68,7 @@ contains
     integer(i8) :: tries, limit
     real(dp) :: t, t_end, h, hmax, err, expo, fac, theta, t_new, root
     real(dp), allocatable :: y(:), ynew(:), kk(:, :), w(:), e(:), bth(:), g0(:), g1(:), gt(:)
-    real(dp), allocatable :: yt(:)
+    real(dp), allocatable :: yt(:), yn(:, :)
 
     n = size(y0)
     ns = size(t_out)
@@ -76,7 +77,7 @@ contains
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (.not. found) return
     allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s))
-    allocate (g0(prob%nevents), g1(prob%nevents), gt(prob%nevents), yt(n))
+    allocate (g0(prob%nevents), g1(prob%nevents), gt(prob%nevents), yt(n), yn(n, 3))
     y = y0
     t = t0
     if (prob%nevents > 0) then
@@ -186,6 +187,22 @@ contains
         sample = .true.
       end do
       if (k <= ns) sample = sample .or. t_out(k) <= t_new
+      ! the watch's work over the step from the dense output inside it
+      if (prob%has_watch) then
+        if (prob%watch_wants_nodes()) then
+          do i = 1, 3
+            do j = 1, pr%s
+              bth(j) = dense_weight(pr, j, MBDK_GAUSS3(i))
+            end do
+            yn(:, i) = y
+            do j = 1, pr%s
+              if (bth(j) /= 0.0_dp) yn(:, i) = yn(:, i) + (h * bth(j)) * kk(:, j)
+            end do
+          end do
+          call prob%watch_nodes(t, t_new, yn, stat)
+          if (stat /= MBDK_SUCCESS) return
+        end if
+      end if
       call mbdk_adaptive_after_step(prob, t_new, ynew, sample, projected, stat)
       if (stat /= MBDK_SUCCESS) return
       st%steps = st%steps + 1

@@ -39,7 +39,8 @@
 !> Start: order 1 (implicit Euler) with the first step of mbdk_adaptive_initial_step, D_1 = h F.
 !> Dense output: the interpolating polynomial of the history, degree q:
 !>   y(t) = D_0 + sum_{j=1..q} D_j prod_{m=0..j-1} (t - (t_n - m h)) / ((m + 1) h).
-!> opt%max_order (1..5; 0 = 5) caps the order. Statistics: steps at each order
+!> A watching problem that integrates a work gets it at the accepted step's three Gauss nodes
+!> (watch_nodes, mbdk_problem) before its watch. opt%max_order (1..5; 0 = 5) caps the order. Statistics: steps at each order
 !> (order1_steps .. order5_steps), rejected steps, Newton failures and iterations, nfev, njev, nlu.
 !> A projection (has_post_step) after a step enters the history as part of the correction d.
 !>
@@ -60,7 +61,7 @@
 module mbdk_variable_bdf
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
@@ -260,6 +261,12 @@ contains
       ! accepted. A projection moves y_{n+1}; the history takes the move as part of d.
       sample = .false.
       if (k <= ns) sample = t_out(k) <= t_new
+      if (prob%has_watch) then
+        if (prob%watch_wants_nodes()) then
+          call watch_nodes(stat)
+          if (stat /= MBDK_SUCCESS) return
+        end if
+      end if
       call mbdk_adaptive_after_step(prob, t_new, ynew, sample, projected, stat)
       if (stat /= MBDK_SUCCESS) return
       if (projected) corr = corr + (ynew - (yp + corr))
@@ -411,6 +418,29 @@ contains
       h = h * r
       n_equal = 0
     end subroutine rescale
+
+    !> The watch's work over the accepted step (t, t_new]: the states at its Gauss nodes
+    !> (MBDK_GAUSS3) from the polynomial of the history with the new point (the differences
+    !> the update below makes, on a copy).
+    subroutine watch_nodes(s)
+      integer, intent(out) :: s
+      real(dp) :: dn(n, 0:q + 1), yn(n, 3), p, tt
+      integer :: ii, jj
+      dn(:, q + 1) = corr
+      do ii = q, 0, -1
+        dn(:, ii) = d(:, ii) + dn(:, ii + 1)
+      end do
+      do ii = 1, 3
+        tt = t + MBDK_GAUSS3(ii) * (t_new - t)
+        yn(:, ii) = dn(:, 0)
+        p = 1.0_dp
+        do jj = 1, q
+          p = p * (tt - (t_new - real(jj - 1, dp) * h)) / (real(jj, dp) * h)
+          yn(:, ii) = yn(:, ii) + p * dn(:, jj)
+        end do
+      end do
+      call prob%watch_nodes(t, t_new, yn, s)
+    end subroutine watch_nodes
 
     !> The history's polynomial at time tt (t_old <= tt < t).
     subroutine interpolate(tt, yy)

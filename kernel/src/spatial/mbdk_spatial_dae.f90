@@ -26,7 +26,7 @@ module mbdk_spatial_dae
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
-    mbdk_spatial_constraints
+    mbdk_spatial_constraints, mbdk_spatial_watch_nodes
   implicit none
   private
   public :: mbdk_spatial_dae_init, mbdk_spatial_ggl_rates
@@ -42,6 +42,8 @@ module mbdk_spatial_dae
     procedure :: rhs => sdae_rhs
     procedure :: watch_start => sdae_watch_start
     procedure :: watch => sdae_watch
+    procedure :: watch_wants_nodes => sdae_wants_nodes
+    procedure :: watch_nodes => sdae_watch_nodes
   end type mbdk_spatial_dae_t
 
 contains
@@ -141,5 +143,21 @@ contains
     lam(self%rows) = y(self%ny + 1:self%ny + self%na)
     call mbdk_spatial_watch(self%model, t, y(1:self%ny), force, stat, lam)
   end subroutine sdae_watch
+
+  logical function sdae_wants_nodes(self)
+    class(mbdk_spatial_dae_t), intent(in) :: self
+    sdae_wants_nodes = self%model%watch_wants_nodes()
+  end function sdae_wants_nodes
+
+  !> The work at the nodes of a step with the DAE's own multipliers there.
+  subroutine sdae_watch_nodes(self, t_a, t_b, y, stat)
+    class(mbdk_spatial_dae_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :)
+    integer, intent(out) :: stat
+    real(dp) :: lam(self%model%m, size(y, 2))
+    lam = 0.0_dp
+    lam(self%rows, :) = y(self%ny + 1:self%ny + self%na, :)
+    call mbdk_spatial_watch_nodes(self%model, t_a, t_b, y(1:self%ny, :), stat, lam)
+  end subroutine sdae_watch_nodes
 
 end module mbdk_spatial_dae

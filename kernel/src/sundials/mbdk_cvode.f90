@@ -21,7 +21,8 @@
 !> The loop is mbdk_adaptive's: CVODE takes one internal step per call (CV_ONE_STEP) and never
 !> passes t_end (CVodeSetStopTime); after each step the samples in it come from CVODE's
 !> interpolant (CVodeGetDky), the sample at t_end is the last step's own state, the state is
-!> checked (finite, and the watch with force = a sample fell in the step) and the step's order
+!> checked (finite, and the watch with force = a sample fell in the step; before it, a watch
+!> that integrates a work gets the interpolant at the step's Gauss nodes) and the step's order
 !> is counted (order5_steps also takes Adams orders 6..12). max_steps bounds the accepted steps
 !> plus the error-test and convergence failures, counted here (CVODE's own limit is off):
 !> MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor (opt%h_min, and 10 ulps of t)
@@ -69,7 +70,7 @@ module mbdk_cvode
     c_associated, c_int, c_long, c_int64_t, c_double, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t
+  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
@@ -145,11 +146,12 @@ contains
     type(SUNLinearSolver), pointer :: ls
     type(SUNNonlinearSolver), pointer :: nls
     real(dp), allocatable, target :: y(:), ydky(:), atol_v(:)
-    real(c_double) :: tret(1), hlast(1)
+    real(dp), allocatable :: yn(:, :)
+    real(c_double) :: tret(1), hlast(1), told
     integer(c_int) :: flag, qlast(1)
     integer(c_long) :: nst(1), netf(1), ncfn(1)
     integer(i8) :: limit
-    integer :: n, ns, k, ierr
+    integer :: n, ns, k, ierr, i
     logical :: sample, projected
     real(dp) :: t_end
 
@@ -163,7 +165,7 @@ contains
     if (adams .and. opt%max_order > ADAMS_MAX_ORDER) return
     if (.not. adams .and. opt%max_order > BDF_MAX_ORDER) return
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), ydky(n), atol_v(size(atol)), stat=ierr)
+    allocate (y(n), ydky(n), atol_v(size(atol)), yn(n, 3), stat=ierr)
     if (ierr /= 0) return
     y = y0
     atol_v = atol
@@ -243,6 +245,7 @@ contains
       limit = mbdk_adaptive_step_limit(opt)
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
+      told = t0
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -287,6 +290,22 @@ contains
           sample = .true.
         end do
         if (k <= ns) sample = sample .or. t_out(k) <= tret(1)
+        ! the watch's work over the step from CVODE's interpolant at its Gauss nodes
+        if (prob%has_watch) then
+          if (prob%watch_wants_nodes()) then
+            do i = 1, 3
+              if (FCVodeGetDky(mem, told + MBDK_GAUSS3(i) * (tret(1) - told), 0_c_int, &
+                               nv_dky) /= 0) then
+                stat = MBDK_ERR_BACKEND
+                exit run
+              end if
+              yn(:, i) = ydky
+            end do
+            call prob%watch_nodes(told, tret(1), yn, stat)
+            if (stat /= MBDK_SUCCESS) exit run
+          end if
+        end if
+        told = tret(1)
         ! has_post_step was refused: this is the finite check and the watch
         call mbdk_adaptive_after_step(prob, tret(1), y, sample, projected, stat)
         if (stat /= MBDK_SUCCESS) exit run

@@ -81,7 +81,8 @@
 !> interpolant (IDAGetDky: [q; v] into y_out, lam into lam_out), the sample at t_end is the last
 !> step's own state, Y is checked (finite: else MBDK_ERR_NONFINITE) and the scene's watch runs
 !> (force = a sample fell in the step) with the step's own multipliers for the drivers' power:
-!> no model evaluation of IDA's leaves work%lam_rhs current. The step's order is counted.
+!> no model evaluation of IDA's leaves work%lam_rhs current (a watch that integrates a work gets
+!> the interpolant at the step's Gauss nodes first, mbdk_model_watch_nodes). The step's order is counted.
 !> max_steps bounds the accepted steps plus the steps retried after an error-test or a
 !> convergence failure (IDAGetNumErrTestFails + IDAGetNumStepSolveFails), counted here (IDA's
 !> own limit is off): MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor
@@ -131,16 +132,17 @@ module mbdk_ida
     c_associated, c_int, c_long, c_int64_t, c_double, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
+  use mbdk_problem, only: MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
-    mbdk_model_accelerations, mbdk_model_watch, MBDK_FORM_REDUCED
+    mbdk_model_accelerations, mbdk_model_watch, mbdk_model_watch_nodes, MBDK_FORM_REDUCED
   use mbdk_joints, only: MBDK_JOINT_TYPES
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
     mbdk_spatial_constraints, mbdk_spatial_multipliers, mbdk_spatial_watch, &
-    MBDK_SPATIAL_REDUCED
+    mbdk_spatial_watch_nodes, MBDK_SPATIAL_REDUCED
   use mbdk_spatial_dae, only: mbdk_spatial_ggl_rates
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
@@ -494,12 +496,13 @@ contains
     type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id, nv_atol
     type(SUNMatrix), pointer :: amat
     type(SUNLinearSolver), pointer :: ls
-    real(c_double) :: tret(1), hlast(1)
+    real(c_double) :: tret(1), hlast(1), told
     integer(c_int) :: flag, qlast(1)
     integer(c_long) :: nst(1), netf(1), ncfn(1)
     integer(i8) :: limit
-    integer :: n, ns, k, ierr, nlam, ny, nl
-    logical :: sample
+    integer :: n, ns, k, ierr, nlam, ny, nl, i
+    logical :: sample, nodes
+    real(dp), allocatable :: yn(:, :), lamn(:, :)
     n = ctx%n
     ny = ctx%ny
     nl = ctx%nl
@@ -573,6 +576,8 @@ contains
       limit = mbdk_adaptive_step_limit(opt)
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
+      told = t0
+      allocate (yn(ny, 3), lamn(ctx%m, 3))
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -623,6 +628,31 @@ contains
           stat = MBDK_ERR_NONFINITE
           exit run
         end if
+        ! the watch's work over the step from IDA's interpolant at its Gauss nodes
+        if (ctx%spatial) then
+          nodes = ctx%smodel%watch_wants_nodes()
+        else
+          nodes = ctx%model%watch_wants_nodes()
+        end if
+        if (nodes) then
+          do i = 1, 3
+            if (FIDAGetDky(mem, told + MBDK_GAUSS3(i) * (tret(1) - told), 0_c_int, &
+                           nv_dky) /= 0) then
+              stat = MBDK_ERR_BACKEND
+              exit run
+            end if
+            yn(:, i) = ydky(1:ny)
+            call put_lam(ctx, ydky(ny + 1:ny + nl), lamn(:, i))
+          end do
+          if (ctx%spatial) then
+            call mbdk_spatial_watch_nodes(ctx%smodel, told, tret(1), yn, stat, lamn)
+          else
+            call mbdk_model_watch_nodes(ctx%model, told, tret(1), yn(1:ny / 2, :), &
+                                        yn(ny / 2 + 1:ny, :), stat, lamn)
+          end if
+          if (stat /= MBDK_SUCCESS) exit run
+        end if
+        told = tret(1)
         if (ctx%spatial) then
           if (ctx%smodel%has_watch) then
             call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
