@@ -236,7 +236,10 @@ def _run(args) -> None:
     if getattr(r, "energy", None) is not None:
         try:
             bal = float(np.max(np.abs(r.energy_balance())))
-            print(f"energy balance: max |E - E0 - W| {bal:.2e} J (E0 = {r.energy[0]:.6g} J)")
+            work = float(r.energy_parts["work"][-1])
+            print(f"energy balance: max |E - E0 - W| {bal:.2e} J (E0 = {r.energy[0]:.6g} J; "
+                  f"W, the work of dampers, loads and drivers integrated at every step, "
+                  f"{work:.6g} J at the end)")
         except MbdkErrorBase:
             pass
     save_result(r, out)

@@ -6,8 +6,9 @@ the leading comment lines) or .h5 / .hdf5 (h5py, where it is installed).
     >>> d = mbdk.results_io.load_result("run.npz")     # d["t"], d["q"], d["manifest"], ...
 
 What is written: t; the coordinates q and the velocities (v of planar scenes, w = (v, Omega)
-of spatial ones) with their column names; where the run computed them, the energy, the energy
-balance E - E0 - W (W the work of dampers, loads and drivers) and the residuals; the
+of spatial ones) with their column names; where the run computed them, the energy, the work W
+of dampers, loads and drivers as the run integrated it at every step (not a quadrature over
+the samples), the energy balance E - E0 - W and the residuals; the
 multipliers; the status and the manifest (version, method, formulation, step or tolerances,
 compiler flags). A file is written under a temporary name beside the target and renamed
 when complete, so a failed or interrupted write leaves no partial file with the target's name.
@@ -84,16 +85,17 @@ def result_arrays(r) -> dict:
     qn, vn = _columns(r)
     vel = r.w if hasattr(r, "w") else r.v
     energy = getattr(r, "energy", None)
-    balance = None
+    balance = work = None
     if energy is not None:
         try:
             balance = r.energy_balance()
+            work = np.asarray(r.energy_parts["work"])
         except NotApplicableError:       # an output the run was not asked for
             balance = None
     return {"t": np.asarray(r.t), "q": np.asarray(r.q), "velocities": np.asarray(vel),
             "q_names": qn, "velocity_names": vn,
             "energy": None if energy is None else np.asarray(energy),
-            "energy_balance": balance,
+            "work": work, "energy_balance": balance,
             "residuals": None if r.residuals is None else np.asarray(r.residuals),
             "multipliers": None if r.multipliers is None else np.asarray(r.multipliers),
             "status": r.status.name, "manifest": r.manifest}
@@ -147,7 +149,7 @@ def save_result(r, path) -> Path:
             cols, blocks = ["t"], [a["t"][:, None]]
             cols += a["q_names"] + a["velocity_names"]
             blocks += [a["q"], a["velocities"]]
-            for name in ("energy", "energy_balance"):
+            for name in ("energy", "work", "energy_balance"):
                 if a[name] is not None:
                     cols.append(name)
                     blocks.append(a[name][:, None])
@@ -174,7 +176,7 @@ def save_result(r, path) -> Path:
 
 
 def load_result(path) -> dict:
-    """What save_result wrote: t, q, velocities, q_names, velocity_names, energy,
+    """What save_result wrote: t, q, velocities, q_names, velocity_names, energy, work,
     energy_balance, residuals, multipliers (None where absent), status, manifest."""
     path = Path(path)
     fmt = _format(path)
@@ -182,7 +184,7 @@ def load_result(path) -> dict:
         raise InvalidInputError(f"{path}: no such result file")
     if path.stat().st_size == 0:
         raise _not_a_result(path, "an empty file")
-    out = {k: None for k in ("energy", "energy_balance", "residuals", "multipliers")}
+    out = {k: None for k in ("energy", "work", "energy_balance", "residuals", "multipliers")}
     try:
         if fmt == "npz":
             if not zipfile.is_zipfile(path):
@@ -218,7 +220,7 @@ def load_result(path) -> dict:
                        q_names=cols[1:1 + nq], velocity_names=cols[1 + nq:1 + nq + nv],
                        status=status, manifest=manifest)
             rest = {c: data[:, k] for k, c in enumerate(cols) if k >= 1 + nq + nv}
-            for name in ("energy", "energy_balance"):
+            for name in ("energy", "work", "energy_balance"):
                 out[name] = rest.get(name)
             res = [rest[c] for c in ("residual_position", "residual_velocity",
                                      "residual_acceleration", "quaternion_norm") if c in rest]
@@ -266,7 +268,7 @@ def _check_layout(path, d: dict) -> None:
                       f"time and a column per name of {names!r}")
         if not np.issubdtype(a.dtype, np.number):
             raise bad(f"{k!r} holds {a.dtype}, not numbers")
-    for k, ndim in (("energy", 1), ("energy_balance", 1), ("residuals", 2),
+    for k, ndim in (("energy", 1), ("work", 1), ("energy_balance", 1), ("residuals", 2),
                     ("multipliers", 2)):
         a = d.get(k)
         if a is not None and not (isinstance(a, np.ndarray) and a.ndim == ndim
@@ -302,6 +304,7 @@ def plot_result(path, out=None) -> Path:
         ax.legend(fontsize=7, ncol=3)
     i = 1
     if data["energy_balance"] is not None:
+        # W: the work of dampers, loads and drivers as the run integrated it, at every step
         axes[i].plot(t, data["energy_balance"], lw=1)
         axes[i].set_ylabel("E - E0 - W [J]")
         i += 1
