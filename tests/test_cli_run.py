@@ -40,6 +40,8 @@ def test_run_saves_what_simulate_returns_and_plot_draws_it(tmp_path):
     assert np.array_equal(d["t"], ref.t) and np.array_equal(d["q"], ref.q)
     assert np.array_equal(d["velocities"], ref.v)
     assert np.array_equal(d["energy_balance"], ref.energy_balance())
+    assert np.array_equal(d["work"], ref.energy_parts["work"])
+    assert "W, the work of dampers, loads and drivers integrated at every step" in r.stdout
     assert d["manifest"]["method"] == "rk4" and d["manifest"]["h"] == 1e-3
     assert d["status"] == "SUCCESS" and d["q_names"][:3] == ["bar1.x", "bar1.y", "bar1.angle"]
     p = mbdk_cli("plot", out)
@@ -55,9 +57,11 @@ def test_every_format_holds_the_same_run(tmp_path, suffix):
     for sc, kw in ((mbdk.scene("trolley_crane"), dict(h=1e-3, t_end=1.0, every=20)),
                    (mbdk.scene("heavy_top"), dict(h=1e-3, t_end=0.2, every=20))):
         r = mbdk.simulate(sc, "rk4", **kw)
+        if sc.name == "trolley_crane":   # W: the damper's work, as the run integrated it
+            assert r.energy_parts["work"][-1] < 0
         a = load_result(save_result(r, tmp_path / "a.npz"))
         b = load_result(save_result(r, tmp_path / f"b{suffix}"))
-        for k in ("t", "q", "velocities", "energy", "energy_balance", "residuals",
+        for k in ("t", "q", "velocities", "energy", "work", "energy_balance", "residuals",
                   "multipliers"):
             assert np.array_equal(a[k], b[k]), (sc.name, k)
         assert a["q_names"] == b["q_names"] and a["manifest"] == b["manifest"]

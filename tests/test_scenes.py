@@ -400,7 +400,7 @@ def test_energy_of_conservative_scene_and_balance_of_damped_one():
     assert np.ptp(r.energy) < 1e-6 * r.energy_parts["kinetic"].max()
     r = mbdk.simulate(mbdk.scene("spring_damper_bar"), "rk4", h=1e-3, t_end=2.0)
     assert r.energy_parts["dissipated_dampers"][-1] > 1.0
-    # damper work by the trapezoidal rule over the samples (every = 1): O(h^2) quadrature error
+    # damper work by the kernel's trapezoidal rule over rk4's steps: O(h^2) quadrature error
     assert np.abs(r.energy_balance()).max() < 1e-4 * r.energy_parts["dissipated_dampers"][-1]
 
 

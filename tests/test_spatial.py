@@ -215,8 +215,8 @@ def test_forces_torques_and_spring_dampers_keep_the_energy_balance():
     sc.bodies[0].velocity = -v0                      # the centre turns about the fixed point
     bal = []
     for h in (2e-3, 1e-3):
-        # every step sampled: energy_balance integrates the power by the trapezoidal rule over
-        # the samples, whose O(h^2) error then sets the balance's
+        # energy_balance's W: the kernel's trapezoidal rule over rk4's steps, whose O(h^2)
+        # error then sets the balance's
         r = mbdk.simulate(sc, "rk4", h=h, t_end=1.0, every=1)
         bal.append(np.max(np.abs(r.energy_balance())))
     assert 3.0 < bal[0] / bal[1] < 5.0 and bal[1] < 1e-5
@@ -612,7 +612,7 @@ def check_rows_by_differences(sc, seed, t=0.4, eps=1e-6):
 
 def test_a_driven_crank_turns_as_told_and_its_driver_carries_gravitys_moment():
     sc = _driven_crank(rate=2.0)
-    # every step sampled: energy_balance integrates the power over the samples (trapezoidal)
+    # energy_balance's W: the kernel's trapezoidal rule over rk4's steps
     r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=2.0, every=1)
     rot = r.orientation("x")
     angle = np.unwrap(np.arctan2(rot[:, 1, 0], rot[:, 0, 0]))

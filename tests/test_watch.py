@@ -11,10 +11,12 @@ import mbdk
 
 
 def _balance(r):
-    """E - E0 - W from the run's own outputs (kernel energy parts, trapezoidal rule over the
-    samples in Python): an independent computation of what the watch tests."""
+    """E - E0 - W from the run's own outputs (the kernel's energy parts and powers at the
+    samples, W by the trapezoidal rule over the samples in Python): an independent computation
+    of what the watch tests."""
     p = r.energy_parts
-    w = -p["dissipated_dampers"] + p["work_constraints"] + p["work_loads"]
+    power = -p["power_dampers"] + p["power_constraints"] + p["power_loads"]
+    w = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(r.t))])
     return r.energy - r.energy[0] - w
 
 
