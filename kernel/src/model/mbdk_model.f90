@@ -985,11 +985,12 @@ contains
     call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat)
   end subroutine model_watch
 
-  !> Whether the watch integrates a work (mbdk_watch_nodes: the states inside a step serve it).
+  !> Whether the watch integrates a work the run reports (mbdk_watch_nodes: the states inside a
+  !> step serve it; the energy test alone takes the trapezoidal rule).
   logical function model_wants_nodes(self)
     class(mbdk_model_t), intent(in) :: self
     model_wants_nodes = .false.
-    if (self%has_watch) model_wants_nodes = self%work%watch%power
+    if (self%has_watch) model_wants_nodes = self%work%watch%power .and. self%work%watch%record
   end function model_wants_nodes
 
   subroutine model_watch_nodes(self, t_a, t_b, y, stat)

@@ -88,14 +88,15 @@
 !> alone would not resolve a power that oscillates within `every` steps; so has a run that
 !> reports its work (record: the run samples W, mbdk_watch_work_at, which is then the work the
 !> run integrated, not a quadrature over its samples: a sample's W does not depend on how
-!> often the run samples), the energy test off or not. The rule over a step: where the driver
-!> has a dense output (dopri54, bs32, bdf, cvode_*, ida) it hands the states at the step's three
-!> Gauss nodes (watch_nodes of mbdk_problem, mbdk_watch_nodes), and the step's work is the
-!> three-point Gauss-Legendre rule, of sixth order, which also never takes a power on a step's
-!> end (a located event leaves a contact's kink there); a sample inside the step takes the
-!> integral of the quadratic through the three. The fixed-step methods, whose steps the user
-!> sets, have the trapezoidal rule on the steps' ends (second order, the order of
-!> trapezoidal_index3 itself).
+!> often the run samples), the energy test off or not. The rule over a step: where the run
+!> reports W and the driver has a dense output (dopri54, bs32, bdf, cvode_*, ida) it hands the
+!> states at the step's three Gauss nodes (watch_nodes of mbdk_problem, mbdk_watch_nodes), and
+!> the step's work is the three-point Gauss-Legendre rule, of sixth order, which also never
+!> takes a power on a step's end (a located event leaves a contact's kink there); a sample
+!> inside the step takes the integral of the quadratic through the three. Otherwise, and for
+!> the fixed-step methods, whose steps the user sets, the trapezoidal rule on the steps' ends
+!> (second order, the order of trapezoidal_index3 itself): the energy test at its tolerance
+!> does not need more than the three power evaluations a step would cost.
 !>
 !> A tolerance <= 0 turns its test off. Checks happen every `every` steps and at every sample.
 !> A failure leaves its report in the watch: the quantity, the worst row (body, or invariant),

@@ -1429,11 +1429,11 @@ contains
                                      merge(self%nb, 0, self%opt%rotation == MBDK_ROT_QUATERNION))
   end subroutine spatial_watch_start
 
-  !> Whether the watch integrates a work (the states inside a step serve it).
+  !> Whether the watch integrates a work the run reports (the states inside a step serve it).
   logical function spatial_wants_nodes(self)
     class(mbdk_spatial_model_t), intent(in) :: self
     spatial_wants_nodes = .false.
-    if (self%has_watch) spatial_wants_nodes = self%work%watch%power
+    if (self%has_watch) spatial_wants_nodes = self%work%watch%power .and. self%work%watch%record
   end function spatial_wants_nodes
 
   subroutine spatial_watch_nodes(self, t_a, t_b, y, stat)
