@@ -387,10 +387,12 @@ contains
   end function mbdk_c_stepper_stats
 
   !> The report of the watch's check that stopped a scene or index-3 stepper with
-  !> MBDK_ERR_CONSTRAINT_DRIFT or MBDK_ERR_ENERGY_DRIFT (kernel/src/model/mbdk_watch.f90):
-  !> report(1:8) = quantity (1 position, 2 velocity, 3 energy; 0 while nothing failed), row
-  !> (1-based; 0 for energy), value per its scale, tolerance, time, time of the last check
-  !> passed, the value itself, its scale. An ODE stepper has no watch: MBDK_ERR_NOT_APPLICABLE.
+  !> MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT
+  !> (kernel/src/model/mbdk_watch.f90): report(1:8) = quantity (1 position, 2 velocity,
+  !> 3 energy, 4 momentum; 0 while nothing failed), row (1-based: the constraint row, or the
+  !> conserved component; 0 for energy), value per its scale, tolerance, time, time of the last
+  !> check passed, the value itself, its scale. An ODE stepper has no watch:
+  !> MBDK_ERR_NOT_APPLICABLE.
   integer(c_int) function mbdk_c_stepper_watch_report(handle, report) &
       bind(C, name='mbdk_stepper_watch_report')
     type(c_ptr), value :: handle
