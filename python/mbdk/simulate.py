@@ -71,7 +71,7 @@ from .model import (DENSE_NAMING_MAX, FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISI
                     pose_error, rows_to_joints, scaled_jacobian)
 from .model import evaluate as _evaluate
 from .ode import STARTUP, build_info, plan
-from .options import Index3Options, ODEOptions, empty
+from .options import Index3Options, ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
 from .scene import GROUND, Scene, SceneError, checked
 
@@ -175,7 +175,7 @@ _INDEX3_ONLY = ("adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", 
 def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              formulation: str | None = None, t0: float = 0.0, every: int = 1,
              outputs=tuple(OUTPUTS), alpha: float | None = None, beta: float | None = None,
-             penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float = 1e-12,
+             penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float | None = None,
              solver: str = "auto", small_dense: bool = True, assemble_initial: bool = True,
              startup: str = "rk4", newton_rtol: float | None = None,
              newton_atol: float | None = None, max_iter: int | None = None,
@@ -308,11 +308,14 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     dae_bdf = info_m.family == "variable_bdf" and formulation in BDF_DAE_FORMULATIONS
     dae_form = (IDA_FORMULATIONS.get(formulation, 0) if ida else
                 BDF_DAE_FORMULATIONS.get(formulation, 0) if dae_bdf else 0)
+    projection_given = projection_tol is not None
+    projection_tol = projection_tol_for(
+        projection_tol, (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
     if ida or dae_bdf:
         unused = [name for name, given in (("alpha", alpha is not None),
                                            ("beta", beta is not None),
                                            ("penalty", tuple(penalty) != (1e7, 10.0, 1.0)),
-                                           ("projection_tol", projection_tol != 1e-12),
+                                           ("projection_tol", projection_given),
                                            ("startup", startup != "rk4"),
                                            ("newton_rtol", newton_rtol is not None),
                                            ("newton_atol", newton_atol is not None)) if given]

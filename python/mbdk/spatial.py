@@ -69,7 +69,7 @@ from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
                      status_message)
 from .methods import method as _method
-from .options import empty
+from .options import ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
 from .rotations import from_angles, from_quaternion, to_quaternion
 from .scene import GROUND, SceneError, _Reader, section_items
@@ -680,7 +680,7 @@ def joint_rows(sc: SpatialScene) -> list:
 
 
 def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulation=None,
-                     t0=0.0, every=1, alpha=None, beta=None, projection_tol=1e-12,
+                     t0=0.0, every=1, alpha=None, beta=None, projection_tol=None,
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
@@ -769,6 +769,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         if every != 1:
             raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
                                     "dt_out (the spacing of the samples) instead")
+        if formulation == "baumgarte" and (alpha is None or beta is None):
+            raise InvalidInputError(f"{method} with formulation 'baumgarte': give alpha and "
+                                    "beta (Baumgarte's defaults 1/h and sqrt(2)/h need a fixed "
+                                    "step; an error-controlled method has none)")
         check_run(1.0 if not h else h, t_end, t0, 1)
         adaptive = dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0, h_min=h_min or 0.0,
                         h_max=h_max or 0.0, max_steps=max_steps or 0, max_order=max_order or 0)
@@ -784,6 +788,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         check_run(h, t_end, t0, every)
         adaptive = None
         href = h
+    projection_tol = projection_tol_for(
+        projection_tol, (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
     plan_ = _ode_plan(info_m, formulation, href, t_end, t0, int(every), alpha, beta,
                       penalty, projection_tol, startup, newton_rtol, newton_atol, adaptive)
     opt = plan_["ode"]

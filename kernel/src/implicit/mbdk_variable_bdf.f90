@@ -57,6 +57,15 @@
 !> predictor as a correction that no smaller step removes, so that the error test would reject
 !> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
 !> differences (N + 1 evaluations of F).
+!> Roundoff floor. A corrector that stalls or runs out of iterations is tested against the
+!> floor of its update (mbdk_newton_floor, with the current matrix, in the error test's
+!> norm): an ODE's iterate at that floor is accepted (it is as good as double precision makes
+!> it); a DAE's is not (its Newton tolerance is a thousandth of the error test's, and its
+!> matrix worsens as h shrinks), and if the steps then shrink below mbdk_adaptive_h_floor the
+!> solve ends with MBDK_ERR_TOO_MUCH_ACCURACY instead of MBDK_ERR_STEP_TOO_SMALL, as it does
+!> where the roundoff of the error estimate is a tenth of the error test or more
+!> (ERROR_FLOOR_SHARE): the tolerances lie below what the formulation reaches in double
+!> precision (bdf i3 at rtol 1e-13, atol 1e-15 on the built-in mechanisms).
 module mbdk_variable_bdf
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -66,6 +75,7 @@ module mbdk_variable_bdf
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
+  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
     mbdk_adaptive_count_order
@@ -86,6 +96,9 @@ module mbdk_variable_bdf
   !> a DAE's: its constraints hold only as far as Newton converged, and what is left over is in
   !> the next step's predictor, a correction that does not shrink with h (the module header)
   real(dp), parameter :: NEWTON_SHARE_DAE = 1.0e-3_dp
+  !> a step size gone to nothing is named MBDK_ERR_TOO_MUCH_ACCURACY where the error estimate's
+  !> roundoff is this share of the error test or more
+  real(dp), parameter :: ERROR_FLOOR_SHARE = 0.1_dp
 
 contains
 
@@ -109,6 +122,7 @@ contains
     integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
     integer(i8) :: tries, limit
     logical :: have_lu, jac_current, converged, projected, sample
+    logical :: at_floor   !< a corrector of this step stalled at its roundoff floor (a DAE's)
     real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
     real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
     real(dp), allocatable :: d(:, :), yp(:), psi(:), ynew(:), corr(:), w(:), f(:), dy(:)
@@ -182,6 +196,7 @@ contains
     q = 1
     n_equal = 0
     have_lu = .false.
+    at_floor = .false.
     c_lu = 0.0_dp
     crate = 1.0_dp
     call mbdk_jacobian(prob, opt, t, y0, nw, st, stat)
@@ -212,7 +227,16 @@ contains
         end if
         tries = tries + 1
         if (h < mbdk_adaptive_h_floor(opt, t, landing=t + h >= t_end)) then
+          ! the step shrank to nothing: because the tolerance lies below the corrector's
+          ! roundoff (its Newton stalled there, or the error estimate, a share of the
+          ! correction, carries a tenth of the tolerance in roundoff), or for another reason
+          if (.not. at_floor .and. have_lu .and. k > 0) then
+            call floor_norm(err, stat)
+            if (stat /= MBDK_SUCCESS) return
+            at_floor = errc(q) * err >= ERROR_FLOOR_SHARE
+          end if
           stat = MBDK_ERR_STEP_TOO_SMALL
+          if (at_floor) stat = MBDK_ERR_TOO_MUCH_ACCURACY
           return
         end if
         t_new = t + h
@@ -258,6 +282,7 @@ contains
       end do step
 
       ! accepted. A projection moves y_{n+1}; the history takes the move as part of d.
+      at_floor = .false.
       sample = .false.
       if (k <= ns) sample = t_out(k) <= t_new
       call mbdk_adaptive_after_step(prob, t_new, ynew, sample, projected, stat)
@@ -341,6 +366,7 @@ contains
       integer, intent(out) :: s
       integer :: it
       real(dp) :: dnorm, dnorm_old, rate
+      logical :: stop_here
       converged = .false.
       rate = 1.0_dp
       corr = 0.0_dp
@@ -364,8 +390,29 @@ contains
         if (.not. (dnorm <= huge(1.0_dp))) exit
         if (dnorm_old > 0.0_dp) then
           rate = dnorm / dnorm_old
-          if (rate >= 1.0_dp) exit
-          if (rate**(NEWTON_MAX_ITER - it + 1) / (1.0_dp - rate) * dnorm > tol) exit
+          stop_here = rate >= 1.0_dp
+          if (.not. stop_here) stop_here = &
+            rate**(NEWTON_MAX_ITER - it + 1) / (1.0_dp - rate) * dnorm > tol
+          if (stop_here .or. it == NEWTON_MAX_ITER) then
+            ! stalled, or out of iterations, with the update at its roundoff floor: an ODE's
+            ! iterate is then as good as double precision makes it. A DAE's (whose tolerance
+            ! is a thousandth of the error test's) is noted: the step is retried smaller as
+            ! after any failure, and if the steps shrink to the floor that way, the cause is
+            ! named (MBDK_ERR_TOO_MUCH_ACCURACY): a smaller step's matrix is worse conditioned
+            call floor_norm(dnorm_old, s)
+            if (s /= MBDK_SUCCESS) return
+            if (dnorm <= dnorm_old) then
+              if (dae) then
+                at_floor = .true.
+                exit
+              end if
+              ynew = ynew + dy
+              corr = corr + dy
+              converged = .true.
+              exit
+            end if
+          end if
+          if (stop_here) exit
           crate = max(CRATE_DOWN * crate, rate)
         end if
         ynew = ynew + dy
@@ -380,6 +427,35 @@ contains
         dnorm_old = dnorm
       end do
     end subroutine corrector
+
+    !> fl: the weighted norm of the Newton update's roundoff floor (mbdk_newton_floor) with the
+    !> current matrix, from the corrector's terms at the iterate (f, psi, corr, ynew of the
+    !> host): the residual's rows (an algebraic row, divided by c, carries eps times the largest
+    !> tested component: its terms are positions) through the matrix, plus the rounding of the
+    !> iterate itself. Uses dy's space for the probes only after dy has been tested.
+    subroutine floor_norm(fl, s)
+      real(dp), intent(out) :: fl
+      integer, intent(out) :: s
+      real(dp) :: e(n), b1(n), b2(n), fv(n), ymax
+      ymax = maxval(abs(ynew(1:nt)))
+      e = abs(c * f) + em * (abs(psi) + abs(corr))
+      if (dae) where (alg) e = abs(f) + ymax
+      e = epsilon(1.0_dp) * e
+      call mbdk_floor_probes(e, b1, b2)
+      call mbdk_lu_solve(nw%lu, nw%ipiv, b1, s)
+      if (s /= MBDK_SUCCESS) return
+      call mbdk_lu_solve(nw%lu, nw%ipiv, b2, s)
+      if (s /= MBDK_SUCCESS) return
+      if (dae) then
+        where (alg)
+          b1 = b1 / c
+          b2 = b2 / c
+        end where
+      end if
+      call mbdk_floor_from_probes(b1, b2, fv)
+      fv = fv + MBDK_FLOOR_FACTOR * epsilon(1.0_dp) * abs(ynew)
+      fl = mbdk_adaptive_wrms(fv, w)
+    end subroutine floor_norm
 
     !> The error weights at yy; a DAE's index-2 components (after the ntest tested ones) are
     !> weighted by h, as Radau5 and DASSL's index-2 practice do: their correction after a step
