@@ -15,7 +15,7 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from . import _compiled, _kernel
+from . import _compiled, _kernel, checks
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
                      Status, _decode, exception_for, status_message)
 from .methods import method as _method, methods
@@ -52,12 +52,7 @@ def build_info() -> dict:
 def _real(name: str, value) -> float:
     if type(value) is float and math.isfinite(value):   # the common case, without ABC checks
         return value
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise InvalidInputError(f"{name} = {value!r} is not a real number")
-    v = float(value)
-    if not math.isfinite(v):
-        raise InvalidInputError(f"{name} = {v} is not finite; give a finite number")
-    return v
+    return checks.real(name, value)
 
 
 def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, bool]:
@@ -126,8 +121,7 @@ def _plan_of(method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_
              max_order, fd_jacobian):
     """The checked method and options of a solve: (method info, ODEOptions, steps (inf when
     error-controlled), samples, the manifest's entries, t0, t_end)."""
-    if startup not in STARTUP:
-        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
+    checks.choice("startup", startup, STARTUP, what="a start-up of the multistep methods")
     info_m = _method(method)
     if info_m.solves != "ode":
         kind = "index-3 DAE" if info_m.family == "dae_index3" else "DAE"
@@ -268,6 +262,8 @@ def _count(name: str, value, upper: int) -> int:
     return int(value)
 
 
+#: the kernel's max_steps when the options say 0 (mbdk_adaptive)
+DEFAULT_MAX_STEPS = 10**8
 #: the highest order each error-controlled multistep method can select
 MAX_ORDER = {"bdf": 5, "cvode_bdf": 5, "cvode_adams": 12, "ida": 5}
 RTOL_FLOOR = 100 * np.finfo(float).eps   # the kernel's MBDK_RTOL_FLOOR (mbdk_adaptive)
@@ -302,6 +298,11 @@ def _adaptive_options(info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_
     if h_max and h_min > h_max:
         raise InvalidInputError(f"h_min = {h_min} is larger than h_max = {h_max}")
     max_steps = _count("max_steps", max_steps, 2**62)
+    checks.step_bounds(t0, t_end, h_max, max_steps, default_steps=DEFAULT_MAX_STEPS)
+    if h_min and h_min > span:
+        raise InvalidInputError(f"h_min = {h_min:g} is longer than the interval t_end - t0 = "
+                                f"{span:g}: no step of the run could be that long; give a "
+                                "smaller h_min (or 0: none)")
     top = MAX_ORDER.get(method, 0)
     if max_order and not top:
         raise InvalidInputError(f"max_order = {max_order}: {method} has one order "
@@ -330,7 +331,7 @@ def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
         return np.zeros(0)
     try:
         a = np.array(atol, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"atol = {atol!r} is neither a number nor a vector of numbers") \
             from None
     if a.ndim != 1 or a.size != n:
@@ -346,8 +347,9 @@ def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
 def _state(name: str, value, n: int | None) -> np.ndarray:
     try:
         y = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} = {value!r} is not a vector of numbers") from None
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{name} = {checks.show(value)} is not a vector of numbers "
+                                "(finite, in floating-point range)") from None
     if y.ndim > 1:
         raise InvalidInputError(f"{name} must be a flat vector, got an array of shape {y.shape}")
     y = y.ravel()
