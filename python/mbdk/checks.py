@@ -133,20 +133,44 @@ def step_bounds(t0: float, t_end: float, h_max: float, max_steps: int, *, defaul
             f"bound), a shorter interval{', or a larger max_steps' if has_max_steps else ''}")
 
 
+#: the share of the available memory a run's samples may take: the rest is for the process
+#: itself, the kernel's work arrays, the result's derived arrays and the rest of the system
+#: (a run that takes it all is ended by the system's out-of-memory killer, not by an error)
+MEMORY_SHARE = 0.75
+
+
 def available_memory() -> int | None:
-    """Bytes of memory the system can give without swapping: /proc/meminfo's MemAvailable, else
-    the physical memory; None where neither can be read."""
+    """Bytes of memory the system can give without swapping: /proc/meminfo's MemAvailable
+    (else the physical memory), less where a control group's limit leaves less; None where
+    none of these can be read."""
+    avail = None
     try:
         with open("/proc/meminfo", "rb") as f:
             for line in f:
                 if line.startswith(b"MemAvailable:"):
-                    return int(line.split()[1]) * 1024
+                    avail = int(line.split()[1]) * 1024
+                    break
     except (OSError, ValueError, IndexError):
         pass
-    try:
-        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (OSError, ValueError, AttributeError):
-        return None
+    if avail is None:
+        try:
+            avail = int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+        except (OSError, ValueError, AttributeError):
+            pass
+    for limit_file, usage_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        try:
+            with open(limit_file) as f:
+                limit = f.read().strip()
+            with open(usage_file) as f:
+                usage = int(f.read().strip())
+        except (OSError, ValueError):
+            continue
+        if limit.isdigit() and int(limit) < 2**60:
+            left = max(int(limit) - usage, 0)
+            avail = left if avail is None else min(avail, left)
+    return avail
 
 
 def _gib(nbytes: float) -> str:
@@ -157,9 +181,10 @@ def check_memory(nbytes: float, *, what: str, change: str) -> None:
     """Refuses a run whose sample arrays need more bytes than the machine has available, naming
     the size and the arguments that set it."""
     avail = available_memory()
-    if avail is not None and nbytes > avail:
-        raise NoMemoryError(f"{what} needs {_gib(nbytes)} for its samples, more than the "
-                            f"{_gib(avail)} of memory available: {change}")
+    if avail is not None and nbytes > MEMORY_SHARE * avail:
+        raise NoMemoryError(f"{what} needs {_gib(nbytes)} for its samples, more than "
+                            f"{MEMORY_SHARE:.0%} of the {_gib(avail)} of memory available "
+                            f"(the rest is the process's and the system's): {change}")
 
 
 def memory_error(exc: MemoryError, nbytes: float, *, what: str, change: str) -> NoMemoryError:

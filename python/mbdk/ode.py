@@ -220,6 +220,7 @@ class ODESolver:
         self.params, self.y0 = merged, y0
         self._id, self._opt, self._nsamp = info_p.id, opt.pack(), nsamp
         self._n, self._nsteps, self._raise = len(y0), nsteps, raise_on_failure
+        self._bytes = sample_bytes(nsamp, len(y0), method)
         self._work = nsteps * len(y0)
         self._y0_list = y0.tolist()
         self._manifest = {
@@ -238,15 +239,34 @@ class ODESolver:
         stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
                 self._nsamp, stats)
-        if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
-            (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
-        else:
-            (t, y, nw, status), interrupted = _compiled.call(
-                _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        try:
+            if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
+                (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
+            else:
+                (t, y, nw, status), interrupted = _compiled.call(
+                    _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        except MemoryError as exc:   # the sample arrays, allocated by the f2py layer
+            raise checks.memory_error(exc, self._bytes[0], what=self._bytes[1],
+                                      change=SAMPLE_ADVICE) from None
         manifest = dict(self._manifest)
         manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
         return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
                        dict(self.params), self.t0, y0, self._raise, None, interrupted)
+
+
+#: what to change when a solve's samples do not fit in memory
+SAMPLE_ADVICE = ("fewer samples: a larger every (fixed step) or dt_out (error control), or a "
+                 "shorter t_end")
+
+
+def sample_bytes(nsamp: int, n: int, method: str) -> tuple[float, str]:
+    """(bytes, a description) of an ODE solve's sample arrays (t and y: n + 1 doubles each),
+    refused with NoMemoryError before they are allocated when the machine has not that much
+    memory available."""
+    nbytes = 8.0 * nsamp * (n + 1)
+    what = f"{method}: {nsamp} samples of {n} states"
+    checks.check_memory(nbytes, what=what, change=SAMPLE_ADVICE)
+    return nbytes, what
 
 
 def _nonneg(name: str, value, default: float = 0.0) -> float:
@@ -448,11 +468,14 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
 
     opt = replace(opt, nq=int(nq))
     stats = empty("mbdk_stats")
+    nbytes, what = sample_bytes(nsamp, n, info_m.name)
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
             t, y, nw, status = _kernel.solve_callback(cb, cb_jac, int(jac is not None), y0, t0,
                                                       t_end, opt.pack(), atol_v, nsamp, stats)
+        except MemoryError as exc:   # the sample arrays, allocated by the f2py layer
+            raise checks.memory_error(exc, nbytes, what=what, change=SAMPLE_ADVICE) from None
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,

@@ -154,6 +154,11 @@ def check_run(h, t_end, t0, every) -> None:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
 
 
+#: what to change when a scene run's samples do not fit in memory
+SCENE_SAMPLE_ADVICE = ("fewer samples: a larger every (fixed step) or dt_out (error control), a "
+                       "shorter t_end, or fewer outputs (outputs=() keeps t, q and v only)")
+
+
 def scene_tolerances(rtol, atol) -> tuple[float, float]:
     """The rtol and atol of an error-controlled scene run, planar or spatial (one check, so that
     both refuse the same values): numbers, rtol in [RTOL_FLOOR, 1) or 0, atol > 0; a per-state
@@ -426,20 +431,34 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
         return nsamp if (want & bit) or index3 or (dae_form and bit == 2) else 1
-    a_out = np.zeros((nc, cols(1)), order="F")
-    lam_out = np.zeros((max(m, 1), cols(2)), order="F")
-    iters = np.zeros(nsamp if index3 else 1, np.int32)
-    reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
-    energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
-    resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+    # the samples: t and y (allocated by the f2py layer), the outputs' arrays here; refused
+    # before they are allocated where the machine has not that much memory
+    nbytes = 8.0 * (nsamp * (1 + y0.size) + nc * cols(1) + max(m, 1) * cols(2)
+                    + 3 * max(tab.nj, 1) * (nsamp if want & 4 else 1)
+                    + 6 * (nsamp if want & 8 else 1) + 3 * (nsamp if want & 16 else 1)
+                    + (nsamp / 2 if index3 else 0))
+    what = f"{method} on scene {scene.name!r} ({nsamp} samples)"
+    checks.check_memory(nbytes, what=what, change=SCENE_SAMPLE_ADVICE)
+    try:
+        a_out = np.zeros((nc, cols(1)), order="F")
+        lam_out = np.zeros((max(m, 1), cols(2)), order="F")
+        iters = np.zeros(nsamp if index3 else 1, np.int32)
+        reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
+        energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
+        resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+    except MemoryError as exc:
+        raise checks.memory_error(exc, nbytes, what=what, change=SCENE_SAMPLE_ADVICE) from None
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
     args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
             plan_["index3"].pack(),
             flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
-    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
-     status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
-                                           plan_["steps"] * y0.size, span=(t0, t_end))
+    try:
+        (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
+         status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
+                                               plan_["steps"] * y0.size, span=(t0, t_end))
+    except MemoryError as exc:   # t and y, allocated by the f2py layer
+        raise checks.memory_error(exc, nbytes, what=what, change=SCENE_SAMPLE_ADVICE) from None
     status = Status(int(status))
     nw = int(nw)
     if bad_joint or bad_force:

@@ -72,7 +72,8 @@ from .methods import method as _method
 from .options import empty
 from .result import Result, Stats
 from .rotations import from_angles, from_quaternion, to_quaternion
-from .checks import NUMBER_MAX, NUMBER_MIN, length_scale, number_problem, show
+from .checks import (NUMBER_MAX, NUMBER_MIN, check_memory, memory_error, number_problem,
+                     show)
 from .scene import GROUND, SceneError, _Reader, section_items
 
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
@@ -839,8 +840,18 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             2 if index3 else IDA_FORMS[formulation] if ida else
             (5 if formulation == "si2" else 1) if dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
-    (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
-        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
+    # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
+    # before they are allocated where the machine has not that much memory
+    from .simulate import SCENE_SAMPLE_ADVICE
+    nbytes = 8.0 * nsamp * (1 + len(y0) + 7 + m1)   # spatial_run's out(7, nsamp)
+    what = f"{method} on spatial scene {sc.name!r} ({nsamp} samples)"
+    advice = SCENE_SAMPLE_ADVICE.split(", or fewer outputs")[0]
+    check_memory(nbytes, what=what, change=advice)
+    try:
+        (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
+            _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
+    except MemoryError as exc:
+        raise memory_error(exc, nbytes, what=what, change=advice) from None
     status = Status(int(status))
     nqb = 7 if sc.rotation == "quaternion" else 6
     nq = nb * nqb
