@@ -400,6 +400,12 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
         # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
         raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else
                                f"{method}: interrupted", status=status, result=result)
+    if status == Status.ERR_NONFINITE and _method(method).adaptive:
+        # error control shrinks a step whose values overflow: at its floor, F itself is not
+        # finite next to the state (mbdk_embedded_rk, mbdk_variable_bdf)
+        failure_note = ((failure_note + "; ") if failure_note else "") + (
+            "the right-hand side returned inf or NaN next to this state, which no step size "
+            "avoids: a singularity of the model or of its parameters there")
     if status.failed and raise_on_failure:
         where = f"at t = {result.t[-1]:.6g}" if nw else "before the first step"
         msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {result.message} ({where})"
