@@ -198,24 +198,26 @@ def memory_error(exc: MemoryError, nbytes: float, *, what: str, change: str) -> 
 def length_scale(sizes, source: str, error) -> float:
     """Checks a scene's geometric sizes against its length scale, the largest of them.
 
-    sizes: (label, field, magnitude, kind) with kind "coordinate" (a position in space: sets
-    the scale only), "offset" (a point on a body: 0 is meaningful, otherwise it must be
-    resolvable) or "length" (a distance, a radius: must be resolvable). A nonzero offset or a
-    length below LENGTH_RESOLUTION of the scale is refused, naming it and the value that sets
+    sizes: (label, field, magnitude, kind[, note]) with kind "coordinate" (a position in space:
+    sets the scale only), "offset" (a point on a body: 0 is meaningful, otherwise it must be
+    resolvable) or "length" (a distance, a radius: must be resolvable; note: what the message
+    says to do). A nonzero offset or a length below LENGTH_RESOLUTION of the scale is refused, naming it and the value that sets
     the scale (one of the two is usually in the wrong units). Returns the scale."""
-    sizes = [s for s in sizes if math.isfinite(s[2])]
+    sizes = [s if len(s) == 5 else (*s, "") for s in sizes if math.isfinite(s[2])]
     if not sizes:
         return 0.0
     top = max(sizes, key=lambda s: abs(s[2]))
     scale = abs(top[2])
-    for label, fld, size, kind in sizes:
+    for label, fld, size, kind, note in sizes:
         if kind == "coordinate" or (kind == "offset" and size == 0):
             continue
-        if abs(size) < LENGTH_RESOLUTION * scale:
-            what = ("a point this close to the body's origin is its origin: write 0"
-                    if kind == "offset" else "it is lost in the roundoff of the positions")
+        if abs(size) < LENGTH_RESOLUTION * scale or (kind == "length" and size == 0):
+            what = note or ("next to that scale it is lost in the roundoff of the positions; "
+                            "one of the two is likely wrong (in other units, or mistyped): "
+                            "give lengths in metres throughout"
+                            + ("; a point meant to be the body's origin is written 0"
+                               if kind == "offset" else ""))
             raise error(f"{source}: {label}: field {fld!r} has size {abs(size):.3g}, below "
-                        f"{LENGTH_RESOLUTION:g} of the scene's length scale {scale:.3g} (the "
-                        f"size of {top[0]}'s field {top[1]!r}); {what}. Give lengths in the "
-                        "same units (SI: metres) throughout")
+                        f"{LENGTH_RESOLUTION:g} of the scene's length scale {scale:.3g} (set by "
+                        f"{top[0]}, field {top[1]!r}): {what}")
     return scale

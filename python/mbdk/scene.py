@@ -312,7 +312,11 @@ class _Reader:
             if required:
                 raise self.err(fld, "is missing")
             return default
-        return self.t[fld]
+        v = self.t[fld]
+        if v is None and (required or default is not None):   # a Scene object's field
+            raise self.err(fld, "= None; give a value (or, in a file, leave the field out for "
+                                "its default)")
+        return v
 
     def num(self, fld, default=None, required=False, positive=False, nonneg=False):
         v = self.get(fld, default, required)
@@ -887,7 +891,10 @@ def check_lengths(sc: Scene) -> None:
                 p1 = _point_at(sc, j.body1, j.point1)
                 p2 = _point_at(sc, j.body2, j.point2)
                 sizes.append((label, "point2 (the points' initial distance, its length)",
-                              math.hypot(p1[0] - p2[0], p1[1] - p2[1]), "length"))
+                              math.hypot(p1[0] - p2[0], p1[1] - p2[1]), "length",
+                              "its points coincide (or nearly) at the initial pose, where a "
+                              "distance has no direction: give the bodies a pose where they "
+                              "are apart, or use a revolute joint where the points coincide"))
     for f in sc.forces:
         label = f"force {f.name!r}"
         if f.type in ("point_force",):

@@ -322,7 +322,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if ida or dae_bdf:
         unused = [name for name, given in (("alpha", alpha is not None),
                                            ("beta", beta is not None),
-                                           ("penalty", tuple(penalty) != (1e7, 10.0, 1.0)),
+                                           ("penalty", not _is_default_penalty(penalty)),
                                            ("projection_tol", projection_tol != 1e-12),
                                            ("startup", startup != "rk4"),
                                            ("newton_rtol", newton_rtol is not None),
@@ -604,10 +604,11 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
                                            and math.isfinite(beta)):
         raise InvalidInputError(f"alpha = {alpha}, beta = {beta}: Baumgarte parameters must be "
                                 "finite and >= 0")
-    if isinstance(penalty, str) or not hasattr(penalty, "__len__") or len(penalty) != 3 or \
-            not all(isinstance(p, (int, float)) and not isinstance(p, bool) and math.isfinite(p)
-                    and p > 0 for p in penalty):
-        raise InvalidInputError(f"penalty = {penalty!r} must be (alpha_p, omega_p, mu_p), all > 0")
+    if isinstance(penalty, (str, bytes, dict)) or not hasattr(penalty, "__len__") or \
+            len(penalty) != 3 or not all(checks.number_problem(p, in_range=False) is None
+                                         and p > 0 for p in penalty):
+        raise InvalidInputError(f"penalty = {show(penalty)} must be (alpha_p, omega_p, mu_p), "
+                                "three finite numbers > 0")
     if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
     if adaptive is not None:
@@ -737,7 +738,7 @@ def _is_default_penalty(penalty) -> bool:
     """penalty is simulate's default (1e7, 10, 1), as a tuple, a list or an array."""
     try:
         return tuple(float(p) for p in penalty) == (1e7, 10.0, 1.0)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return False
 
 
