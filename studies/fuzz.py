@@ -266,6 +266,21 @@ def bad_arguments(seed: int, n: int):
         ("solve_ode(double_pendulum, h=1e-9, t_end=2.0): 2e9 samples",
          lambda: mbdk.solve_ode("double_pendulum", "rk4", h=1e-9, t_end=2.0)),
     ]
+    # the arguments issue 36 found getting through, each once whatever the draw
+    for scene, kw in [("double_pendulum", dict(method="dopri54", t_end=1.0, h_max=1e-300)),
+                      ("heavy_top", dict(method="bdf", t_end=1.0, h_max=1e-9)),
+                      ("heavy_top", dict(method="dopri54", t_end=0.01, atol=[-1.0, 1e-9])),
+                      ("double_pendulum", dict(method="dopri54", t_end=0.01, rtol=10 ** 400)),
+                      ("four_bar", dict(method="rk4", h=1e-3, t_end=0.01,
+                                        formulation=["reduced"])),
+                      ("heavy_top", dict(method="rk4", h=1e-3, t_end=0.01,
+                                         formulation=["reduced"])),
+                      ("four_bar", dict(method={"rk4": 1}, h=1e-3, t_end=0.01)),
+                      ("four_bar", dict(method="rk4", h=1e-3, t_end=0.01, solver=["auto"])),
+                      ("four_bar", dict(method="bdf2", h=1e-3, t_end=0.01, startup={"x": 1}))]:
+        shown = ", ".join(f"{k}={v!r:.60}" for k, v in kw.items() if k != "method")
+        out.append((f"simulate({scene}, {kw['method']!r}, {shown})",
+                    lambda scene=scene, kw=kw: mbdk.simulate(mbdk.scene(scene), **kw)))
     while len(out) < n:
         r = rng.random()
         if r < 0.55:

@@ -31,9 +31,19 @@ def show(v) -> str:
     """A value for a message: a huge integer by its first digits and its length (its full text
     may be thousands of digits, and Python refuses to print more than 4300)."""
     if isinstance(v, Integral) and not isinstance(v, bool) and abs(int(v)) >= 10**20:
-        digits = int(abs(int(v)).bit_length() * math.log10(2)) + 1
+        n = abs(int(v))
+        d = int(n.bit_length() * math.log10(2))      # the digits, or one fewer
+        digits = d + 1 if n >= 10**d else d
         return f"{'-' if v < 0 else ''}an integer of {digits} digits"
-    text = repr(v)
+    if isinstance(v, (list, tuple)) and len(v) <= 20 and any(
+            isinstance(x, Integral) and not isinstance(x, bool) and abs(int(x)) >= 10**20
+            for x in v):
+        inner = ", ".join(show(x) for x in v)
+        return f"[{inner}]" if isinstance(v, list) else f"({inner})"
+    try:
+        text = repr(v)
+    except ValueError:     # a container holding an integer beyond Python's text limit
+        return f"a {type(v).__name__} holding an integer too long to print"
     return text if len(text) <= 200 else text[:200] + "..."
 
 
