@@ -21,6 +21,8 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
     position = [0.0, 0.0, 0.1]     # the centre of mass, space frame
     quaternion = [1.0, 0.0, 0.0, 0.0]   # or euler313 = [phi, theta, psi] (or euler313_deg),
                                         # or cardan123 = [...] (or cardan123_deg); default: none
+                                        # a quaternion's norm is 1 to the digits written (within
+                                        # 1e-6): the rotation of q / |q| is taken
     velocity = [0.0, 0.0, 0.0]     # of the centre, space frame
     omega_body = [0.0, 0.0, 200.0] # angular velocity in the body frame; or omega (space frame)
 
