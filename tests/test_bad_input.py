@@ -4,7 +4,6 @@ in a generic Python exception, a run of minutes, a run on a wrong value, or a re
 import math
 import os
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np

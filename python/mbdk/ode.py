@@ -11,7 +11,7 @@ import platform
 import threading
 from dataclasses import replace
 from functools import lru_cache
-from numbers import Integral, Real
+from numbers import Integral
 
 import numpy as np
 

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from numbers import Integral, Real
+from numbers import Integral
 
 import numpy as np
 
@@ -608,7 +608,7 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
             len(penalty) != 3 or not all(checks.number_problem(p, in_range=False) is None
                                          and p > 0 for p in penalty):
         raise InvalidInputError(f"penalty = {show(penalty)} must be (alpha_p, omega_p, mu_p), "
-                                "three finite numbers > 0")
+                                "finite, all > 0")
     if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
     if adaptive is not None:

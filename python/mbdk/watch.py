@@ -18,7 +18,7 @@ turns the watch off (a study that shows a method's drift does so, and says so);
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from numbers import Integral, Real
+from numbers import Integral
 
 from .checks import number_problem, show
 from .errors import InvalidInputError
