@@ -12,7 +12,10 @@
 !> Wanner, Solving ODEs I, II.4). A stage that is not finite (h far beyond the stability limit)
 !> counts as a rejection with err = infinity, not as a failure. The first step: opt%h, or
 !> mbdk_adaptive_initial_step. h never exceeds opt%h_max or what is left to t_end; the last step
-!> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL.
+!> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL, or
+!> MBDK_ERR_NONFINITE where the rejection that took it there had stages not finite (F is not
+!> finite next to the state: no step is small enough); F not finite at the initial state:
+!> MBDK_ERR_NONFINITE at once.
 !>
 !> Samples inside a step come from the pair's dense output; a sample at the step's end is the
 !> step's state itself. After a projection (has_post_step) F is evaluated again at the
@@ -62,7 +65,7 @@ contains
     integer, intent(out) :: stat
 
     type(mbdk_pair_t) :: pr
-    logical :: found, rejected_last, finite, projected, sample
+    logical :: found, rejected_last, finite, projected, sample, nonfinite_last
     integer :: n, i, j, ns, k, redo
     integer(i8) :: tries, limit
     real(dp) :: t, t_end, h, hmax, err, expo, fac, theta, t_new, root
@@ -86,6 +89,9 @@ contains
     call prob%rhs(t, y, kk(:, 1), stat)
     st%nfev = st%nfev + 1
     if (stat /= MBDK_SUCCESS) return
+    ! F not finite at the initial state: no step size helps
+    stat = MBDK_ERR_NONFINITE
+    if (.not. all(abs(kk(:, 1)) <= huge(1.0_dp))) return
     call mbdk_adaptive_initial_step(prob, opt, atol, pr%est_order, t0, t_end - t0, y, kk(:, 1), &
                                     h, st%nfev, stat)
     if (stat /= MBDK_SUCCESS) return
@@ -96,6 +102,7 @@ contains
     tries = 0
     redo = 0
     rejected_last = .false.
+    nonfinite_last = .false.
     k = nwritten + 1           ! the next sample to write
 
     do while (t < t_end)
@@ -116,7 +123,10 @@ contains
       if (t_new > t_end) t_new = t_end
       h = t_new - t
       if (h < mbdk_adaptive_h_floor(opt, t, landing=t_new == t_end)) then
+        ! a step shrunk to the floor by stages that were not finite: F is not finite next to
+        ! this state (a singularity of the model), which is no step-size problem
         stat = MBDK_ERR_STEP_TOO_SMALL
+        if (nonfinite_last) stat = MBDK_ERR_NONFINITE
         return
       end if
 
@@ -145,6 +155,7 @@ contains
         finite = err <= huge(1.0_dp)
       end if
       if (.not. finite) err = huge(1.0_dp)
+      nonfinite_last = .not. finite
 
       if (err > 1.0_dp) then
         st%rejected_steps = st%rejected_steps + 1

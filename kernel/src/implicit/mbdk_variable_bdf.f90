@@ -34,7 +34,9 @@
 !> mbdk_jacobian; opt%fd_jacobian forces differences). M is factorised again when h/a_q has
 !> moved more than 30 % from the value it was built with (CVODE's rule: a change of order or
 !> step that keeps c within that band keeps the matrix), and after a Newton failure. A Newton
-!> failure with a fresh Jacobian halves h (stats: newton_failures).
+!> failure with a fresh Jacobian halves h (stats: newton_failures). Below mbdk_adaptive_h_floor:
+!> MBDK_ERR_STEP_TOO_SMALL, or MBDK_ERR_NONFINITE where the last failure met F not finite (and at
+!> once where F is not finite at the initial state): no step is small enough for a singularity.
 !>
 !> Start: order 1 (implicit Euler) with the first step of mbdk_adaptive_initial_step, D_1 = h F.
 !> Dense output: the interpolating polynomial of the history, degree q:
@@ -121,7 +123,7 @@ contains
 
     integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
     integer(i8) :: tries, limit
-    logical :: have_lu, jac_current, converged, projected, sample
+    logical :: have_lu, jac_current, converged, projected, sample, nonfinite
     logical :: at_floor   !< a corrector of this step stalled at its roundoff floor (a DAE's)
     real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
     real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
@@ -187,6 +189,9 @@ contains
       call prob%rhs(t, y0, f, stat)
       st%nfev = st%nfev + 1
       if (stat /= MBDK_SUCCESS) return
+      ! F not finite at the initial state: no step size helps
+      stat = MBDK_ERR_NONFINITE
+      if (.not. all(abs(f) <= huge(1.0_dp))) return
       call mbdk_adaptive_initial_step(prob, opt, atol, 1, t0, t_end - t0, y0, f, h, st%nfev, &
                                       stat)
       if (stat /= MBDK_SUCCESS) return
@@ -205,6 +210,7 @@ contains
     limit = mbdk_adaptive_step_limit(opt)
     tries = 0
     k = nwritten + 1
+    nonfinite = .false.
 
     do while (t < t_end)
       if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
@@ -227,10 +233,16 @@ contains
         end if
         tries = tries + 1
         if (h < mbdk_adaptive_h_floor(opt, t, landing=t + h >= t_end)) then
-          ! the step shrank to nothing: because the tolerance lies below the corrector's
-          ! roundoff (its Newton stalled there, or the error estimate, a share of the
-          ! correction, carries a tenth of the tolerance in roundoff), or for another reason
-          if (.not. at_floor .and. have_lu .and. k > 0) then
+          ! the step shrank to nothing: halved by corrector iterates whose F was not finite
+          ! (F is not finite next to this state, a singularity of the model); or because the
+          ! tolerance lies below the corrector's roundoff (its Newton stalled there, or the
+          ! error estimate, a share of the correction, carries a tenth of the tolerance in
+          ! roundoff); or for another reason
+          if (nonfinite) then
+            stat = MBDK_ERR_NONFINITE
+            return
+          end if
+          if (.not. at_floor .and. have_lu) then
             call floor_norm(err, stat)
             if (stat /= MBDK_SUCCESS) return
             at_floor = errc(q) * err >= ERROR_FLOOR_SHARE
@@ -268,6 +280,9 @@ contains
           st%newton_failures = st%newton_failures + 1
           call rescale(0.5_dp)
           have_lu = .false.
+          ! a Jacobian taken where F was not finite is no use at the shorter step: take it
+          ! again there, should the iteration fail once more
+          if (nonfinite) jac_current = .false.
           cycle step
         end if
         safety = 0.9_dp * real(2 * NEWTON_MAX_ITER + 1, dp) / real(2 * NEWTON_MAX_ITER + iters, dp)
@@ -368,6 +383,7 @@ contains
       real(dp) :: dnorm, dnorm_old, rate
       logical :: stop_here
       converged = .false.
+      nonfinite = .false.
       rate = 1.0_dp
       corr = 0.0_dp
       ynew = yp
@@ -378,7 +394,10 @@ contains
         call prob%rhs(t_new, ynew, f, s)
         st%nfev = st%nfev + 1
         if (s /= MBDK_SUCCESS) return
-        if (.not. all(abs(f) <= huge(1.0_dp))) exit
+        if (.not. all(abs(f) <= huge(1.0_dp))) then
+          nonfinite = .true.
+          exit
+        end if
         dy = c * f - em * (psi + corr)
         if (dae) where (alg) dy = f      ! the row divided by c
         call mbdk_lu_solve(nw%lu, nw%ipiv, dy, s)
@@ -387,7 +406,10 @@ contains
         iters = it
         st%newton_iterations = st%newton_iterations + 1
         dnorm = mbdk_adaptive_wrms(dy, w)
-        if (.not. (dnorm <= huge(1.0_dp))) exit
+        if (.not. (dnorm <= huge(1.0_dp))) then
+          nonfinite = .true.      ! F or its Jacobian not finite where the iterates went
+          exit
+        end if
         if (dnorm_old > 0.0_dp) then
           rate = dnorm / dnorm_old
           stop_here = rate >= 1.0_dp
