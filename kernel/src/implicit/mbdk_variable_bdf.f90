@@ -238,7 +238,7 @@ contains
           ! tolerance lies below the corrector's roundoff (its Newton stalled there, or the
           ! error estimate, a share of the correction, carries a tenth of the tolerance in
           ! roundoff); or for another reason
-          if (nonfinite) then
+          if (nonfinite .and. .not. at_floor) then
             stat = MBDK_ERR_NONFINITE
             return
           end if
