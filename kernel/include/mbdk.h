@@ -86,6 +86,7 @@ typedef struct mbdk_stats {
                                    counts orders above 5 in order5_steps) */
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
+    double t_reached;           /* the last accepted step's time (where a failed solve stopped) */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure

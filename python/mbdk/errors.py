@@ -182,6 +182,34 @@ _BY_STATUS = {
 }
 
 
+def stopped_at(stats, t0: float) -> str:
+    """Where a failed solve stopped: after its last accepted step (stats.t_reached; the failure
+    lies in the step after it), not at its last sample, which may lie far before."""
+    if not stats.steps:
+        return f"at t = {t0:.6g}, in the first step"
+    return f"after t = {stats.t_reached:.6g}"
+
+
+def failure_text(status: Status, adaptive: bool, dae: bool = False) -> str:
+    """The kernel's message for a failure status, with the advice that fits the kind of method:
+    an error-controlled method chooses its own steps, so "reduce the step h" would ask for what
+    it already tried."""
+    status = Status(status)
+    if adaptive and status == Status.ERR_NEWTON_DIVERGED:
+        return ("Newton-Raphson iteration did not converge, also at the smallest steps the "
+                "method tried: the tolerances may lie below what the iteration reaches in "
+                "double precision (loosen rtol and atol)"
+                + (", or the DAE's start or the mechanism is singular there" if dae else
+                   ", or the model is singular there"))
+    if adaptive and status == Status.ERR_NONFINITE:
+        return "the solution overflowed to inf or NaN"
+    if adaptive and status == Status.ERR_STEP_TOO_SMALL:
+        return ("the step size became too small: the solution changes faster than the "
+                "tolerances can follow there (a singularity, a discontinuity, or tolerances "
+                "near double precision)")
+    return status_message(status)
+
+
 def exception_for(status: Status) -> type:
     """The exception class that stands for a failure status."""
     return _BY_STATUS.get(Status(status), MbdkError)

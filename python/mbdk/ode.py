@@ -17,7 +17,7 @@ import numpy as np
 
 from . import _compiled, _kernel, checks
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
-                     Status, _decode, exception_for, status_message)
+                     Status, _decode, exception_for, failure_text, status_message, stopped_at)
 from .methods import method as _method, methods
 from .options import ODEOptions, empty
 from .problems import problem as _problem, resolve_params
@@ -407,8 +407,9 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
             "the right-hand side returned inf or NaN next to this state, which no step size "
             "avoids: a singularity of the model or of its parameters there")
     if status.failed and raise_on_failure:
-        where = f"at t = {result.t[-1]:.6g}" if nw else "before the first step"
-        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {result.message} ({where})"
+        where = stopped_at(result.stats, t0)
+        text = failure_text(status, _method(method).adaptive)
+        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {text} ({where})"
         if failure_note:
             msg += f": {failure_note}"
         raise exception_for(status)(msg, status=status, result=result)

@@ -49,8 +49,8 @@ from numbers import Integral
 import numpy as np
 
 from . import _compiled, _kernel, checks
-from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
-                     Status, exception_for, status_message)
+from .errors import (InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
+                     Status, exception_for, failure_text, status_message, stopped_at)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
@@ -527,7 +527,18 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
         _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
                           result, dae=bool(dae_form))
-    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+    unstable = ""
+    if status in _UNSTABLE_ENDS and not info_m.adaptive and not index3 and not dae_form:
+        unstable = _planar_stability_note(scene, method, h, result)
+    if unstable:    # the true cause: the method's step, not the mechanism
+        result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
+                          f"{failure_text(status, False)} ({stopped_at(result.stats, t0)}): "
+                          f"{unstable}")
+        if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+            result.drift = drift_report(watch_report, tab.rows)
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
+    elif status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
         result.drift = drift_report(watch_report, tab.rows)
         advice = _DRIFT_ADVICE[status]
         if index3:   # it is the index-3 form already: the stabilised ODE forms are no remedy
@@ -815,6 +826,52 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
+#: the states whose Jacobian a failure message may form by differences (2 n kernel calls)
+STABILITY_NAMING_MAX = 400
+
+#: failures an explicit step beyond its stability limit ends in: an overflow, drift caught by
+#: the watch, or a constrained solve at a state the growing mode carried far off
+_UNSTABLE_ENDS = (Status.ERR_NONFINITE, Status.ERR_ENERGY_DRIFT, Status.ERR_CONSTRAINT_DRIFT,
+                  Status.ERR_SINGULAR_MATRIX)
+
+
+def _stability_note(method, h, f, y, t) -> str:
+    """Whether the fixed step h of method lies beyond its stability limit for a mode of the
+    scene that does not grow (mbdk.stability.instability_note), from the Jacobian of the reduced
+    ODE y' = f(y) at y by central differences; '' where it does not, or f fails there."""
+    from .stability import instability_note
+    y = np.asarray(y, dtype=float)
+    if y.size > STABILITY_NAMING_MAX or not np.all(np.isfinite(y)):
+        return ""
+    jac = np.empty((y.size, y.size))
+    try:
+        for j in range(y.size):
+            d = np.sqrt(np.finfo(float).eps) * max(abs(y[j]), 1.0)
+            yp, ym = y.copy(), y.copy()
+            yp[j] += d
+            ym[j] -= d
+            jac[:, j] = (f(yp) - f(ym)) / (2.0 * d)
+    except (MbdkError, ValueError, FloatingPointError):
+        return ""
+    return instability_note(method, h, jac)
+
+
+def _planar_stability_note(scene, method, h, r) -> str:
+    """_stability_note at a planar run's last sample, on the reduced ODE [v; a(q, v)]."""
+    if not len(r.t) or h is None:
+        return ""
+    tab = resolved(scene, r)
+    nc = r.q.shape[1]
+
+    def f(y):
+        out = _evaluate(tab, y[:nc], y[nc:], r.t[-1])
+        if out["status"] != Status.SUCCESS:
+            raise MbdkError("no evaluation")
+        return np.concatenate([y[nc:], out["a"]])
+
+    return _stability_note(method, h, f, np.concatenate([r.q[-1], r.v[-1]]), r.t[-1])
+
+
 def _singular_note(scene, tab: Tables, r) -> str:
     """Where D is close to losing a rank at the last sample (the state the failed step started
     from): the smallest / largest singular value of the scaled Jacobian and the joints of the
@@ -840,7 +897,7 @@ def _singular_note(scene, tab: Tables, r) -> str:
 def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) -> str:
     nw = len(r.t)
     if not index3:
-        where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
+        where = stopped_at(r.stats, r.manifest.get("t0", 0.0))
         note = ""
         if r.status == Status.ERR_SINGULAR_MATRIX and nw and not _too_large_to_name(tab):
             tab_r = resolved(scene, r)
@@ -880,8 +937,11 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                         "(baumgarte and projection where no stage lands on the rank loss); a "
                         "driver or load that pushes the mechanism against a dead point has no "
                         "solution there")
-        return f"{method}/{formulation} on scene {scene.name!r}: {r.message} ({where}){note}"
-    where = f"in the step after t = {r.t[-1]:.6g}" if nw else "before the first step"
+        text = failure_text(r.status, _method(method).adaptive,
+                            formulation in ("i3", "si2", "index1", "ggl"))
+        return f"{method}/{formulation} on scene {scene.name!r}: {text} ({where}){note}"
+    where = (f"in the step after t = {r.stats.t_reached:.6g}" if r.stats.steps else
+             "in the first step")
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
             Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
         where += f", also in substeps down to h/{4 ** MAX_CUTS}"
@@ -893,9 +953,19 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                   + (", and steps judged next to a rank loss," if judged else "")
                   + " exhausted the retry budget (more than one attempt in ten failing)")
     note = _singular_note(scene, tab, r)
+    remedy = "A smaller h, or a larger max_iter, may get past it"
+    if note and plan_["adaptive"] and r.status == Status.ERR_STEP_TOO_SMALL and \
+            plan_["index3"].adaptive == ADAPTIVE_MODES["extrapolated"]:
+        # the three solves of a macro step differ by what Newton and the projections leave,
+        # amplified along the vanishing direction: that difference does not fall with H
+        remedy = ("Next to the rank loss the extrapolated control's three solves differ by "
+                  "their own residuals, amplified along the vanishing direction, by more than "
+                  "err_rtol and err_atol ask, whatever the step: its error estimate is noise "
+                  "there. adaptive='estimated' (whose estimate is no difference of solves) "
+                  "passes such poses, or looser err_rtol and err_atol do")
     note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
-            f"{note}. A smaller h, or a larger max_iter, may get past it")
+            f"{note}. {remedy}")
 
 
 def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "reduced",

@@ -68,7 +68,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
-                     status_message)
+                     failure_text, status_message, stopped_at)
 from .methods import method as _method
 from .options import ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
@@ -911,7 +911,25 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         manifest=manifest, bodies=[b.name for b in sc.bodies],
         joints=[j.name for j in sc.joints], rotation=sc.rotation,
         assembly={"moved": float(moved)})
-    if status == Status.ERR_CONSTRAINT_DRIFT and int(report[0]) == 0:
+    unstable = ""
+    if status.failed and nw and not info_m.adaptive and not index3 and not dae and not ida:
+        from .simulate import _UNSTABLE_ENDS, _stability_note
+        if status in _UNSTABLE_ENDS:
+            def f(yy):
+                out = evaluate_spatial(sc, yy, float(result.t[-1]))
+                if out["status"] != Status.SUCCESS:
+                    raise InvalidInputError("no evaluation")
+                return out["ydot"]
+            unstable = _stability_note(method, h, f, np.concatenate([result.q[-1],
+                                                                     result.w[-1]]),
+                                       float(result.t[-1]))
+    if unstable:    # the true cause: the method's step, not the mechanism
+        if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+            result.drift = drift_report(report, joint_rows(sc))
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
+                          f"{failure_text(status, False)} ({stopped_at(result.stats, t0)}): "
+                          f"{unstable}")
+    elif status == Status.ERR_CONSTRAINT_DRIFT and int(report[0]) == 0:
         # not the watch: the kernel found the redundant joints' dependent rows independent
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} stopped at t = "
                           f"{result.t[-1] if nw else t0:.6g}: the state left the joints so far "
@@ -926,7 +944,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                           "projection formulation or watch=False (to study the drift) are "
                           "the remedies")
     elif status == Status.ERR_SINGULAR_MATRIX:
-        where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
+        where = (f"stopped {stopped_at(result.stats, t0)}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")
         lock = _lock_distance(sc, result.q[-1]) if nw else None
         joints = ("the joints' constraint rows lost their rank (a singular pose: rows that "
@@ -941,8 +959,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             why = joints
         result.message = f"{method}/{formulation} on spatial scene {sc.name!r} {where}: {why}"
     elif status.failed:
+        text = failure_text(status, info_m.adaptive, dae or ida)
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
-                          f"{status_message(status)} (t = {result.t[-1] if nw else t0:.6g})")
+                          f"{text} ({stopped_at(result.stats, t0)})")
     if interrupted or status == Status.ERR_INTERRUPTED:
         from .errors import SolveInterrupted
         raise SolveInterrupted(result.message, status=status, result=result)

@@ -621,3 +621,51 @@ def linear_step_limits(method: str, jac: np.ndarray, *, t_span: float = 100.0,
     else:
         horizon = _first_crossing(excess, hs[bad[0] - 1], hs[bad[0]])
     return forever, horizon
+
+
+def unstable_mode(method: str, h: float, jac) -> dict | None:
+    """The mode of a linearised scene that the fixed step h of method amplifies although the
+    scene does not (an eigenvalue lambda of jac, the Jacobian of y' = F(t, y) at a state, with
+    Re lambda <= 0 and spectral radius of the step matrix at h lambda above 1); None if there is
+    none. The worst such mode: lambda, h lambda, the growth per step and h_max, the largest step
+    at which that mode is stable (bisection on the method's own step matrix). A run that fails
+    by overflow or drift with such a mode failed because h lies beyond the method's stability
+    limit, not because of the mechanism."""
+    info = _method(method)
+    if info.family == "euler_cromer" or info.adaptive:
+        return None
+    jac = np.asarray(jac, dtype=float)
+    if jac.ndim != 2 or jac.shape[0] != jac.shape[1] or not np.all(np.isfinite(jac)):
+        return None
+    lam = np.linalg.eigvals(jac)
+    lam = lam[(lam.real <= 1e-9 * np.abs(lam)) & (np.abs(lam) > 0)]
+    if lam.size == 0:
+        return None
+    r = spectral_radius(method, h * lam)
+    bad = np.flatnonzero(r > 1.0 + 1e-6)
+    if bad.size == 0:
+        return None
+    k = bad[np.argmax(np.abs(lam[bad]))]
+    z = h * lam[k]
+    lo, hi = 0.0, 1.0          # the stable fraction of h for this mode
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if spectral_radius(method, mid * z) <= 1.0 + 1e-9:
+            lo = mid
+        else:
+            hi = mid
+    return {"lambda": complex(lam[k]), "z": complex(z), "growth": float(r[k]),
+            "h_max": lo * h}
+
+
+def instability_note(method: str, h: float, jac) -> str:
+    """unstable_mode as a sentence for a failure message ('' if none)."""
+    mode = unstable_mode(method, h, jac)
+    if mode is None:
+        return ""
+    lam = mode["lambda"]
+    return (f"h = {h:g} lies beyond {method}'s stability limit for a mode of the scene that "
+            f"does not grow (lambda = {lam.real:.3g}{lam.imag:+.3g}j 1/s, h lambda = "
+            f"{mode['z'].real:.3g}{mode['z'].imag:+.3g}j: it grows {mode['growth']:.3g}-fold "
+            f"per step); a step below {mode['h_max']:.3g} s keeps it stable, or an implicit or "
+            "error-controlled method (bdf, trapezoidal_index3, dopri54) follows it")

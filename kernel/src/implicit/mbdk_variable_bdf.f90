@@ -168,6 +168,7 @@ contains
     alg = em == 0.0_dp
     call mbdk_newton_work_init(nw, n)
     t = t0
+    st%t_reached = t0
     d = 0.0_dp
     d(:, 0) = y0
     hmax = t_end - t0
@@ -313,6 +314,7 @@ contains
         d(:, i) = d(:, i) + d(:, i + 1)
       end do
       t = t_new
+      st%t_reached = t
       n_equal = n_equal + 1
 
       if (n_equal >= q + 1 .and. t < t_end) then

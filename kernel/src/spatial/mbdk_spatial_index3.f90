@@ -161,6 +161,7 @@ contains
     subroutine run(s)
       integer, intent(out) :: s
       t = t0
+      st%t_reached = t0
       y = y0
       call start_of_step(t, y, f, lam, s)
       if (s /= MBDK_SUCCESS) return
@@ -201,6 +202,7 @@ contains
         call start_of_step(t, y, f, lam, s)
         if (s /= MBDK_SUCCESS) return
         st%steps = st%steps + 1
+        st%t_reached = t
         if (model%has_watch) then
           call model%watch(t, y, sample, s)
           if (s /= MBDK_SUCCESS) return
