@@ -885,12 +885,13 @@ def _stability_note(method, h, f, y, t) -> str:
         return ""
     jac = np.empty((y.size, y.size))
     try:
-        for j in range(y.size):
-            d = np.sqrt(np.finfo(float).eps) * max(abs(y[j]), 1.0)
-            yp, ym = y.copy(), y.copy()
-            yp[j] += d
-            ym[j] -= d
-            jac[:, j] = (f(yp) - f(ym)) / (2.0 * d)
+        with np.errstate(all="ignore"):     # a non-finite column leaves no note (below)
+            for j in range(y.size):
+                d = np.sqrt(np.finfo(float).eps) * max(abs(y[j]), 1.0)
+                yp, ym = y.copy(), y.copy()
+                yp[j] += d
+                ym[j] -= d
+                jac[:, j] = (f(yp) - f(ym)) / (2.0 * d)
     except (MbdkError, ValueError, FloatingPointError):
         return ""
     return instability_note(method, h, jac)
