@@ -86,6 +86,8 @@ typedef struct mbdk_stats {
                                    counts orders above 5 in order5_steps) */
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
+    double alloc_bytes;         /* MBDK_ERR_NO_MEMORY: bytes of the allocation that failed
+                                   (0 where not known); else 0 */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure

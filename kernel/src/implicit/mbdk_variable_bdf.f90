@@ -66,6 +66,7 @@ module mbdk_variable_bdf
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
     mbdk_adaptive_count_order
@@ -115,7 +116,7 @@ contains
     real(dp), allocatable :: em(:)
     logical, allocatable :: alg(:)
     logical :: dae
-    integer :: nt, n2
+    integer :: nt, n2, astat
     real(dp) :: d0, d1
     type(mbdk_newton_work_t) :: nw
 
@@ -135,8 +136,11 @@ contains
       errc(j) = 1.0_dp / real(j + 1, dp)
     end do
 
-    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n))
-    allocate (em(n), alg(n))
+    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n), &
+              em(n), alg(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (MBDK_BDF_MAX_ORDER + 11.0_dp) * n + &
+                           MBDK_INT_BYTES * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     dae = present(mass) .and. present(yp0) .and. present(ntest)
     em = 1.0_dp
     nt = n
@@ -150,7 +154,8 @@ contains
       if (n2 < 0 .or. nt + n2 > n) return
     end if
     alg = em == 0.0_dp
-    call mbdk_newton_work_init(nw, n)
+    call mbdk_newton_work_init(nw, n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     t = t0
     d = 0.0_dp
     d(:, 0) = y0

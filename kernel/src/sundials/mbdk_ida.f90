@@ -133,6 +133,7 @@ module mbdk_ida
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
@@ -256,7 +257,9 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), ctx%phi(m), &
               ctx%d(m, nc), ctx%gam(m), ctx%phit(m), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + nc + real(m, dp) * (nc + 3)), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%model => model
     ctx%nc = nc
     ctx%m = m
@@ -345,7 +348,9 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
               ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 7) + 2.0_dp * ny), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ! the rows after the model's solve at t0, which may move a redundant scene to another set
     if (m > 0) then
       call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
@@ -357,7 +362,8 @@ contains
     if (ggl) n = n + na
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 6.0_dp * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%smodel => model
     ctx%spatial = .true.
     ctx%m = m
@@ -390,8 +396,10 @@ contains
     if (stat /= MBDK_SUCCESS) return
     ! the constraint rows within roundoff of the largest row's terms: a row whose own terms are
     ! all zero (a mechanism at rest) still carries the roundoff of gamma's
+    allocate (sizes(na), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * na, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    allocate (sizes(na))
     do i = 1, na
       k = ctx%rows(i)
       if (ggl) then
