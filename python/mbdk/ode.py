@@ -18,6 +18,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
                      Status, _decode, exception_for, status_message)
+from .errors import no_memory_for_results, no_memory_message
 from .methods import method as _method, methods
 from .options import ODEOptions, empty
 from .problems import problem as _problem, resolve_params
@@ -244,11 +245,15 @@ class ODESolver:
         stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
                 self._nsamp, stats)
-        if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
-            (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
-        else:
-            (t, y, nw, status), interrupted = _compiled.call(
-                _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        try:
+            if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
+                (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
+            else:
+                (t, y, nw, status), interrupted = _compiled.call(
+                    _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        except MemoryError as exc:   # the samples' arrays, which f2py allocates
+            raise no_memory_for_results(exc, f"{self.method} on {self.problem}", self._nsamp,
+                                        self._n + 1) from exc
         manifest = dict(self._manifest)
         manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
         return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
@@ -374,6 +379,11 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
                            status=status, message=status_message(status), manifest=manifest,
                            problem=problem if isinstance(problem, str) else "",
                            method=method, params=params, t0=t0, y0=y0)
+    if status == Status.ERR_NO_MEMORY:
+        n = 0 if y0 is None else len(y0)
+        result.message = no_memory_message(
+            result.stats.alloc_bytes, [(f"the Newton matrix of {method}", n,
+                                        "use an explicit method")], "a smaller system")
     if status == Status.ERR_INTERRUPTED or interrupted:
         # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
         raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else
@@ -451,6 +461,9 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
         try:
             t, y, nw, status = _kernel.solve_callback(cb, cb_jac, int(jac is not None), y0, t0,
                                                       t_end, opt.pack(), atol_v, nsamp, stats)
+        except MemoryError as exc:   # the samples' arrays, which f2py allocates
+            raise no_memory_for_results(exc, f"{info_m.name} on the callback", nsamp,
+                                        n + 1) from exc
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,

@@ -51,6 +51,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, status_message)
+from .errors import no_memory_for_results, no_memory_message
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
@@ -420,20 +421,26 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
         return nsamp if (want & bit) or index3 or (dae_form and bit == 2) else 1
-    a_out = np.zeros((nc, cols(1)), order="F")
-    lam_out = np.zeros((max(m, 1), cols(2)), order="F")
-    iters = np.zeros(nsamp if index3 else 1, np.int32)
-    reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
-    energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
-    resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
-    stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
-    args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
-            plan_["index3"].pack(),
-            flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
-            a_out, lam_out, iters, reac, energy, resid, stats, visits)
-    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
-     status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
-                                           plan_["steps"] * y0.size, span=(t0, t_end))
+    try:   # the samples' arrays: these, and t and y, which f2py allocates
+        a_out = np.zeros((nc, cols(1)), order="F")
+        lam_out = np.zeros((max(m, 1), cols(2)), order="F")
+        iters = np.zeros(nsamp if index3 else 1, np.int32)
+        reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
+        energy = np.zeros((6, nsamp if want & 8 else 1), order="F")
+        resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+        stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
+        args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
+                plan_["index3"].pack(),
+                flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
+                a_out, lam_out, iters, reac, energy, resid, stats, visits)
+        (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
+         status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
+                                               plan_["steps"] * y0.size, span=(t0, t_end))
+    except MemoryError as exc:
+        per = (y0.size + 1 + nc * (cols(1) > 1) + max(m, 1) * (cols(2) > 1) + index3 +
+               3 * max(tab.nj, 1) * bool(want & 4) + 6 * bool(want & 8) + 3 * bool(want & 16))
+        raise no_memory_for_results(exc, f"{method}/{formulation} on scene {scene.name!r}",
+                                    nsamp, per) from exc
     status = Status(int(status))
     nw = int(nw)
     if bad_joint or bad_force:
@@ -516,6 +523,19 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                       "there. watch=False accepts the run as it is.")
         result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
                           f"{drift_message(watch_report, tab.rows)}. " + advice)
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
+    if status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the
+        # penalty formulation's over the coordinates
+        newton = (2 * nc + m * (2 if formulation in ("si2", "ggl") else 1) if dae_form else
+                  nc + m * (formulation == "index3") if index3 else y0.size)
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method, or "
+                  "trapezoidal_index3 (augmented_lagrangian: sparse on large scenes)"),
+                 ("the penalty formulation's M + alpha_p D^T D", nc * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection (sparse on large scenes)")]
+        result.message = (f"{method}/{formulation} on scene {scene.name!r} ({len(scene.bodies)} "
+                          f"bodies): " + no_memory_message(stats.alloc_bytes, dense))
         if raise_on_failure:
             raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:

@@ -68,6 +68,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
                      status_message)
+from .errors import no_memory_for_results, no_memory_message
 from .methods import method as _method
 from .options import empty
 from .result import Result, Stats
@@ -807,8 +808,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             2 if index3 else IDA_FORMS[formulation] if ida else
             (5 if formulation == "si2" else 1) if dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
-    (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
-        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
+    try:
+        (t, y, out, lam, nw, moved, report, status), interrupted = _compiled.call(
+            _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
+    except MemoryError as exc:   # the samples' arrays, which f2py allocates
+        raise no_memory_for_results(exc, f"{method}/{formulation} on spatial scene {sc.name!r}",
+                                    nsamp, len(y0) + 8 + m1) from exc
     status = Status(int(status))
     nqb = 7 if sc.rotation == "quaternion" else 6
     nq = nb * nqb
@@ -875,6 +880,17 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                           ". A smaller step, the "
                           "projection formulation or watch=False (to study the drift) are "
                           "the remedies")
+    elif status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the penalty
+        # formulation's over the velocities
+        newton = (len(y0) + sc.rows * (2 if formulation in ("si2", "ggl") else 1)
+                  if dae or ida or index3 else len(y0))
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method"),
+                 ("the penalty formulation's M + alpha_p C^T C",
+                  6 * nb * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection")]
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} ({nb} bodies): "
+                          + no_memory_message(result.stats.alloc_bytes, dense))
     elif status == Status.ERR_SINGULAR_MATRIX:
         where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")

@@ -231,7 +231,7 @@ contains
 
     type(ida_context_t), target :: ctx
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
-    real(dp), allocatable :: r0(:), a0(:)
+    real(dp), allocatable :: r0(:), a0(:), dtl(:)
     integer :: nc, m, n, ns, ierr, nlam
     real(dp) :: t_end
 
@@ -255,9 +255,9 @@ contains
     if (ggl) n = n + m
 
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), ctx%phi(m), &
+    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), dtl(nc), ctx%phi(m), &
               ctx%d(m, nc), ctx%gam(m), ctx%phit(m), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + nc + real(m, dp) * (nc + 3)), &
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + 2 * nc + real(m, dp) * (nc + 3)), &
                            stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     ctx%model => model
@@ -279,7 +279,7 @@ contains
     call dae_residual(ctx, t0, y, yp, r0, stat)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    if (.not. consistent(ctx, y, yp, a0, r0)) return
+    if (.not. consistent(ctx, y, yp, a0, r0, dtl)) return
     if (nlam >= 1) lam_out(1:m, 1) = y(2 * nc + 1:2 * nc + m)
     id(1:2 * nc) = 1.0_dp
     id(2 * nc + 1:) = 0.0_dp
@@ -681,11 +681,13 @@ contains
   end subroutine put_lam
 
   !> Whether the residual r of the initial values (y, yp) is within roundoff, row by row (see
-  !> the module header); ctx holds the evaluation at those values, a the accelerations.
-  logical function consistent(ctx, y, yp, a, r)
+  !> the module header); ctx holds the evaluation at those values, a the accelerations. dtl(nc):
+  !> work (the caller's: an automatic array would be taken from malloc unchecked).
+  logical function consistent(ctx, y, yp, a, r, dtl)
     type(ida_context_t), intent(in) :: ctx
     real(dp), intent(in) :: y(:), yp(:), a(:), r(:)
-    real(dp) :: s, tol, dtl(ctx%nc)
+    real(dp), intent(out) :: dtl(:)
+    real(dp) :: s, tol
     integer :: nc, m, i, k
     nc = ctx%nc
     m = ctx%m
