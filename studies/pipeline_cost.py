@@ -211,7 +211,7 @@ def call_overhead(out: Path, quick: bool):
     args = (solver._id, solver.y0, 0.0, 10.0, solver._pvec, solver._opt)
 
     def bare():
-        stats = np.zeros(15)
+        stats = np.zeros(ode._STATS_WORDS)   # the kernel's struct, by its size
         _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp, stats)
         return unpack("mbdk_stats", stats)["cpu_time"]
 
@@ -234,7 +234,7 @@ def call_overhead(out: Path, quick: bool):
             round_medians[k].append(float(np.median(g)))
     # Python's share alone: the kernel entry answers at once with a real solve's outputs
     canned = _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp,
-                                   np.zeros(15))
+                                   np.zeros(ode._STATS_WORDS))
 
     class Canned:
         def __getattr__(self, name):

@@ -237,7 +237,9 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
  * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE; the multipliers are those of
  * the last step attempted. The stepper copies the options, tables and y0, except the options'
  * interrupt flag: it keeps that address, which must stay valid until the stepper is destroyed.
- * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop). */
+ * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop).
+ * A stepper whose arrays cannot be allocated is not created: MBDK_ERR_NO_MEMORY, *stepper NULL
+ * (the size asked for is reported by the whole-interval solves only, in mbdk_stats). */
 typedef struct mbdk_stepper mbdk_stepper;
 
 int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,

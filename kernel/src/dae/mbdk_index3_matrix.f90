@@ -102,11 +102,9 @@ contains
                            MBDK_INT_BYTES * (nk + nc + 1.0_dp), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
-    if (mod(nc, 3) == 0) then
-      fa%body_blk = [(3 * k - 2, k = 1, nc / 3 + 1)]
-    else
-      fa%body_blk = [(k, k = 1, nc + 1)]
-    end if
+    do k = 1, size(fa%body_blk)
+      fa%body_blk(k) = merge(3 * k - 2, k, mod(nc, 3) == 0)
+    end do
   end subroutine mbdk_index3_factors_init
 
   !> Builds the Newton matrix at (t, q, v, lam) for step h and factorises it. book: the book

@@ -217,7 +217,9 @@ contains
     end do
     if (.not. (dmax > 0.0_dp)) dmax = 1.0_dp
     cs%beta = AL_KAPPA * maxval(wm) / dmax
-    cs%al = cs%beta * matmul(transpose(cs%ald), cs%ald)
+    ! formed in place: an expression's temporary of nc x nc would be taken without a status
+    cs%al = matmul(transpose(cs%ald), cs%ald)
+    cs%al = cs%beta * cs%al
     do i = 1, nc
       cs%al(i, i) = cs%al(i, i) + wm(i)
     end do

@@ -410,7 +410,9 @@ contains
     end if
     model%blk(1:nj) = model%row0
     model%blk(nj + 1) = m + 1
-    model%row_blk = [(j, j = 1, nc + 1)]
+    do j = 1, nc + 1
+      model%row_blk(j) = j
+    end do
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &

@@ -396,7 +396,9 @@ contains
     allocate (model%all_rows(model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    model%all_rows = [(k, k = 1, model%m)]
+    do k = 1, model%m
+      model%all_rows(k) = k
+    end do
     model%rank0 = model%m
     if (model%m > 0) then
       block
@@ -1154,7 +1156,10 @@ contains
       if (st /= MBDK_SUCCESS) return
       associate (ap => self%opt%pen_alpha, om => self%opt%pen_omega, mu => self%opt%pen_mu)
         r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):)) + phit) + om**2 * phi
-        a = ap * matmul(transpose(c), c)
+        ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
+        ! status
+        a = matmul(transpose(c), c)
+        a = ap * a
         do bb = 1, self%nb
           oo = (bb - 1) * 6
           do kk = 1, 3
