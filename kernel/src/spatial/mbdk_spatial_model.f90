@@ -200,8 +200,8 @@ contains
   !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state (its orientations fix the
   !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
   !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first), or for
-  !> counts whose sizes (13 nb, m x 6 nb) no default integer holds; MBDK_ERR_NO_MEMORY (asked:
-  !> the bytes, mbdk_memory).
+  !> counts whose sizes (13 nb, 5 nj) no default integer holds; MBDK_ERR_NO_MEMORY (asked: the
+  !> bytes, mbdk_memory).
   subroutine mbdk_spatial_init(model, work, opt, mass, inertia, jtype, jbody, jreal, ftype, &
                                fbody, freal, t0, y0, stat, asked)
     type(mbdk_spatial_model_t), intent(out) :: model
@@ -220,10 +220,8 @@ contains
     nb = size(mass)
     nj = size(jtype)
     if (nb < 1 .or. any(shape(inertia) /= [3, 3, nb])) return
-    ! the state (13 nb), the primitives (5 nj) and the dense C (6 rows a joint x 6 nb) are
-    ! indexed by default integers
-    if (.not. (mbdk_count_fits(13.0_dp * nb) .and. mbdk_count_fits(5.0_dp * nj) .and. &
-               mbdk_count_fits(36.0_dp * nj * nb))) return
+    ! the state (13 nb values) and the primitives (5 a joint) are counted in default integers
+    if (.not. (mbdk_count_fits(13.0_dp * nb) .and. mbdk_count_fits(5.0_dp * nj))) return
     if (size(jbody, 1) /= 2 .or. size(jbody, 2) /= nj .or. size(jreal, 1) /= &
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
