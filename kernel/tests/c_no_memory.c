@@ -1,8 +1,9 @@
 /* c_no_memory.c - running out of memory is a status, not the end of the program (issue 36).
  *
- * The program limits its own address space (setrlimit RLIMIT_AS, LIMIT bytes), so that the
- * kernel's large allocations fail the same way on every machine and nothing outside this process
- * feels them; then
+ * The program limits its own address space (setrlimit RLIMIT_AS) to what it has mapped at the
+ * start (the libraries, a threaded BLAS's buffers) and ROOM more, so that the kernel's large
+ * allocations fail the same way on every machine and nothing outside this process feels them;
+ * then
  * 1. mbdk_stepper_create_ode with n = 2^27 states (y0: 1 GiB, which fits): rk4's state, its
  *    copy and its stages, (2 + 4) n doubles = 6 GiB, cannot be had: MBDK_ERR_NO_MEMORY and no
  *    stepper.
@@ -19,9 +20,22 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/resource.h>
+#include <unistd.h>
 #include "mbdk.h"
 
-#define LIMIT (5UL << 29)   /* 2.5 GiB: the program and its inputs, not the kernel's arrays */
+#define ROOM (2UL << 30)   /* 2 GiB: the inputs below (1 GiB at most), not the kernel's arrays */
+
+/* The address space mapped now (Linux: /proc/self/statm, its first field in pages). */
+static unsigned long mapped(void)
+{
+    unsigned long pages = 0;
+    FILE *f = fopen("/proc/self/statm", "r");
+    if (f) {
+        if (fscanf(f, "%lu", &pages) != 1) pages = 0;
+        fclose(f);
+    }
+    return pages * (unsigned long)sysconf(_SC_PAGESIZE);
+}
 
 static int fails = 0;
 static void check(int ok, const char *what)
@@ -132,7 +146,9 @@ static void the_program_goes_on(void)
 
 int main(void)
 {
-    struct rlimit lim = {LIMIT, LIMIT};
+    unsigned long limit = mapped() + ROOM;
+    struct rlimit lim = {limit, limit};
+    printf("      address space limited to %.3g GiB\n", limit / 1073741824.0);
     if (setrlimit(RLIMIT_AS, &lim) != 0) {
         perror("setrlimit");
         return 1;

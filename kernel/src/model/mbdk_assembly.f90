@@ -30,7 +30,7 @@ module mbdk_assembly
   use mbdk_status
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_lapack, only: mbdk_least_squares
-  use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
+  use mbdk_joints, only: mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
@@ -82,7 +82,11 @@ contains
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INVALID_INPUT
     v = 0.0_dp
-    call mbdk_body_rotations(q, rot)
+    ! (mbdk_body_rotations' contiguous q would be a packed copy of the assumed-shape q here, one
+    ! that gfortran takes from malloc without a check)
+    do j = 1, nb
+      rot(:, j) = [cos(q(3 * j)), sin(q(3 * j))]
+    end do
     ! a distance joint needs a direction at the start; a marked one takes L(0) from the pose
     do j = 1, size(jint, 2)
       if (jint(1, j) /= MBDK_JOINT_DISTANCE) cycle
