@@ -68,7 +68,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
                      status_message)
-from .errors import no_memory_for_results, no_memory_message
+from .errors import NoMemoryError, format_bytes, no_memory_for_results, no_memory_message
 from .methods import method as _method
 from .options import empty
 from .result import Result, Stats
@@ -1054,9 +1054,17 @@ def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
                                     f"scene's layout: q then (v, Omega) per body)")
     y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, phit, lam, ydot, rank, status = _kernel.spatial_residuals(
-        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-        float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    run = f"evaluating spatial scene {sc.name!r} ({nb} bodies, {m} constraint rows)"
+    try:
+        out, phi, c, gam, phit, lam, ydot, rank, asked, status = _kernel.spatial_residuals(
+            mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+            float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    except MemoryError as exc:   # the arrays f2py allocates, C (rows x 6 nb) the largest
+        raise NoMemoryError(f"{run}: its arrays ({format_bytes(8.0 * max(m, 1) * 6 * nb)} for C "
+                            f"alone, {m} x {6 * nb}) could not be allocated ({exc}); fewer "
+                            "bodies or joints") from exc
+    if status == Status.ERR_NO_MEMORY:
+        raise NoMemoryError(f"{run}: " + no_memory_message(asked, samples=False))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
             "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "phi_t": phit[:m],
             "multipliers": lam[:m], "ydot": ydot,

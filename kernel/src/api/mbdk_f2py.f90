@@ -1028,12 +1028,13 @@ end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &
-                             phit, lam, ydot, rank, status)
+                             phit, lam, ydot, rank, asked, status)
   ! At the state (t, y) of a spatial scene whose model is built at its initial state y0 (the
   ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
   ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma, the rank of the joints' rows at
   ! y0 (below m: redundant joints), the reduced formulation's multipliers (rows 1..m; lam is 0
   ! where the solve failed, and status then says why) and its y' = F(t, y) (0 likewise).
+  ! asked: MBDK_ERR_NO_MEMORY's bytes (the model's build), else 0.
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_spatial_model
   implicit none
@@ -1042,7 +1043,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)
-  double precision, intent(out) :: ydot(n)
+  double precision, intent(out) :: ydot(n), asked
   integer, intent(out) :: rank, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -1051,6 +1052,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   type(mbdk_spatial_model_t) :: model
   type(mbdk_spatial_work_t), target :: work
   type(mbdk_spatial_options_t) :: so
+  asked = 0.0d0
   out = 0.0d0
   phi = 0.0d0
   c = 0.0d0
@@ -1064,7 +1066,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   so%rotation = nint(rotation)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
-                         y0, status)
+                         y0, status, asked)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return

@@ -571,7 +571,10 @@ contains
 
       stat = MBDK_ERR_NO_MEMORY
       amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-      if (.not. associated(amat)) exit run
+      if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+        st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+        exit run
+      end if
       ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
       if (.not. associated(ls)) exit run
       ! no Jacobian function: IDA's dense difference quotients
