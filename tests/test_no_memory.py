@@ -114,3 +114,29 @@ def test_result_arrays_too_large_for_memory_are_no_memory_error():
     assert "1 000 000 001 samples" in rep["message"]
     assert format_bytes(8.0 * nsamp * 3) in rep["message"]   # t and y (2 states) per sample
     assert rep["after"]
+
+
+def test_a_spatial_model_too_large_to_check_is_no_memory_not_degenerate_joints():
+    """simulate checks a spatial scene's initial state by one evaluation of its model before the
+    run (evaluate_spatial); a model too large for memory there is named as such (it read as
+    degenerate joints, SingularMatrixError, when the failed build left the rank at 0). A chain
+    of 3000 bodies on spherical joints: C alone is 9000 x 18 000 doubles (1.3 GB), the rank
+    test's matrices 3 x 9000^2 (1.9 GB) more."""
+    rep = run_child('''
+        from mbdk.spatial import spatial_scene_from_dict
+        nb = 3000
+        bodies = [{"name": f"b{i}", "kind": "spatial", "mass": 1.0, "inertia": [0.1, 0.2, 0.3],
+                   "position": [i + 0.5, 0.0, 0.0]} for i in range(nb)]
+        joints = [{"name": "j0", "type": "spherical", "body1": "b0", "at": [0.0, 0.0, 0.0]}] + [
+            {"name": f"j{i}", "type": "spherical", "body1": f"b{i}", "body2": f"b{i - 1}",
+             "at": [float(i), 0.0, 0.0]} for i in range(1, nb)]
+        sc = spatial_scene_from_dict({"scene": {"name": "chain"}, "body": bodies,
+                                      "joint": joints}, "chain.toml")
+        try:
+            mbdk.simulate(sc, "rk4", h=1e-3, t_end=1e-3)
+        except Exception as e:
+            err = e
+    ''')
+    assert rep["no_memory"] and rep["status"] == -7, rep["message"]
+    assert "spatial scene 'chain' (3000 bodies, 9000 constraint rows)" in rep["message"]
+    assert rep["after"]
