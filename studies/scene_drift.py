@@ -1,5 +1,5 @@
 """Planar scenes (Fekete 2023, chapters 2-3): constraint drift, energy and cost of the
-formulations, the speed of one reduced rk4 step, and the reaction forces of the pendulum.
+formulations, and the speed of one reduced rk4 step.
 
 1. Drift and energy over 100 s (20 s with --quick) for the double pendulum and the four-bar,
    rk4 at h = 1e-3: no stabilisation (reduced), Baumgarte with the book's (3.34) defaults
@@ -11,7 +11,8 @@ formulations, the speed of one reduced rk4 step, and the reaction forces of the 
    LAPACK dpotrf/dpotrs, and with the KKT LU (LAPACK, dense D), and the share of the step spent
    in assembly, in the linear solve and in the integrator; beside them the same reduction
    written out in C for this one mechanism (scene_yardstick.c), the cost of being table-driven.
-3. The physical pendulum's hinge reaction against time and angle (figures 4.29-4.30).
+The physical pendulum's hinge reaction (figures 4.29-4.30) is in studies/ch3_pendulum.py, beside
+the closed forms (3.49)-(3.50).
 """
 from __future__ import annotations
 
@@ -181,34 +182,14 @@ def yardstick(sc, tab, t_end: float) -> dict:
                 "steps": r.stats.steps, "cpu_s": best})
     return row
 
-def reactions(out: Path, quick: bool):
-    import matplotlib.pyplot as plt
-    r = mbdk.simulate(mbdk.scene("physical_pendulum"), "rk4", h=1e-3, t_end=5.0, every=5)
-    R = r.reaction("hinge")
-    phi = np.degrees(r.q[:, 2] + math.pi / 2)
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
-    axes[0].plot(r.t, R[:, 0], label="Fx on the bar")
-    axes[0].plot(r.t, R[:, 1], label="Fy on the bar")
-    axes[0].set_xlabel("t (s)")
-    axes[1].plot(phi, R[:, 0], label="Fx")
-    axes[1].plot(phi, R[:, 1], label="Fy")
-    axes[1].set_xlabel("phi (deg, from the vertical)")
-    for ax in axes:
-        ax.set_ylabel("hinge reaction (N)")
-        ax.legend()
-    fig.suptitle(f"Physical pendulum, hinge force on the bar (global frame), rk4 h = 1e-3 "
-                 f"({r.cpu_time:.3f} s CPU); cf. figures 4.29-4.30")
-    return plotting.save(fig, out, "pendulum_reactions")
-
 
 def run(out: Path, quick: bool = False) -> dict:
     out = Path(out)
     t1, f1 = drift(out, quick)
     progress("speed of one reduced rk4 step")
     t2 = speed(out, quick)
-    f2 = reactions(out, quick)
-    return {"title": "Planar scenes: drift, energy, cost and reactions", "tables": [t1, t2],
-            "figures": [f1, f2]}
+    return {"title": "Planar scenes: drift, energy and cost", "tables": [t1, t2],
+            "figures": [f1]}
 
 
 if __name__ == "__main__":

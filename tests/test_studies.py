@@ -404,6 +404,88 @@ def test_ch5_formulas_study(tmp_path, root):
         assert data[e]["verdict"] == "correct" and num(data[e]["printed_vs_kernel"]) < 1e-12
 
 
+def _bar_by_newton_euler(m, l, phi, w, g=9.81):
+    """The bar hinged at one end, by Newton-Euler about the hinge (not by the DAE), in (3.49)'s
+    frame (x down, phi from the downward vertical): phi'' = -3 g sin(phi)/(2 l) from the
+    moment about the hinge (J_A = m l^2/3), the centroid's acceleration on its circle, the
+    hinge's force on the bar F = m a - m g, and lambda = -F (M x'' + D^T lambda = f)."""
+    alpha = -1.5 * g * math.sin(phi) / l
+    er, et = np.array([math.cos(phi), math.sin(phi)]), np.array([-math.sin(phi), math.cos(phi)])
+    acc = l / 2 * (alpha * et - w * w * er)
+    force = m * acc - m * np.array([g, 0.0])
+    return {"x''": acc[0], "y''": acc[1], "phi''": alpha, "F_Ax": force[0], "F_Ay": force[1],
+            "lambda_1": -force[0], "lambda_2": -force[1]}
+
+
+def test_ch3_pendulum_study(tmp_path, root):
+    """Chapter 3's physical pendulum: the book's printed forms that differ from SymPy's
+    derivation are exactly the ones found (the l lost from gamma (2.138) and from (3.44), the
+    frame of (3.49)-(3.50), the sign of their F against (3.47)'s lambda, and (3.50)'s two
+    forces); the kernel's accelerations, multipliers and reaction agree with the derived forms
+    to roundoff and with Newton-Euler about the hinge computed here; (3.49) agrees with the
+    kernel in the x-down frame, (3.50)'s forces do not; the chapter 4 forces converge at rk4's
+    order to the exact ones and their extremes are the energy's."""
+    sys.path.insert(0, str(root / "studies"))
+    import ch3_pendulum
+    summary = ch3_pendulum.run(tmp_path, quick=True)
+    assert all(p.exists() for p in summary["figures"])
+    sym = rows(tmp_path / "ch3_pendulum_symbolic.csv")
+    flagged = {(r["equation"], r["item"].split(" (")[0]) for r in sym if r["verdict"] == "FLAG"}
+    results = ("x''", "y''", "phi''", "F_Ax", "F_Ay")
+    assert flagged == (
+        {("(2.138)", "gamma row 1"), ("(2.138)", "gamma row 2"),
+         ("(3.44)", "f = [f; gamma] row 4"), ("(3.44)", "f = [f; gamma] row 5"),
+         ("(3.47)/(3.49)", "sign of F_Ax, F_Ay")}
+        | {("(3.44)", f"M = [M D^T; D 0] [{i}, {j}]") for i, j in ((3, 4), (3, 5), (4, 3), (5, 3))}
+        | {(eq, q) for eq in ("(3.49)", "(3.50)") for q in results})
+    for eq in ("(2.138)", "(3.44)", "(3.49)", "(3.50)"):
+        assert eq in summary["verdict"]
+    # (3.49) is the x-down derivation; (3.50)'s forces are 4 and 2 times it
+    for r in sym:
+        if r["equation"] == "(3.49)" or (r["equation"] == "(3.50)" and r["item"][0] != "F"):
+            assert r["printed_minus_derived_x_down"] == "0", r["item"]
+        elif r["equation"] == "(3.50)":
+            assert r["printed_minus_derived_x_down"] != "0", r["item"]
+    ker = rows(tmp_path / "ch3_pendulum_kernel.csv")
+    assert len(ker) == 7 * len(ch3_pendulum.STATES)
+    for r in ker:
+        m, l, w = num(r["m_kg"]), num(r["l_m"]), num(r["dphi"])
+        phi = math.radians(num(r["phi_deg"]))
+        q = r["quantity"]
+        ref = _bar_by_newton_euler(m, l, phi, w)[q]
+        scale = 9.81 * (1 / l if q == "phi''" else m if q[0] in "Fl" else 1)
+        assert abs(num(r["kernel"]) - ref) < 1e-12 * max(abs(ref), scale), r
+        assert num(r["kernel_vs_derived"]) < 1e-13 and num(r["kernel_vs_derived_y_up"]) < 1e-13
+        assert num(r["book_3_49_vs_kernel"]) < 1e-13 if q[0] != "l" else \
+            num(r["book_3_49_vs_kernel"]) > 0.1          # (3.49)'s F is -lambda
+        if q[0] == "F":
+            assert num(r["book_3_50_vs_kernel"]) > 0.2
+        assert num(r["book_3_49_at_kernel_angle_vs_kernel"]) > 0.05     # the frame
+        # (3.44) as printed solves right at l = 1 only
+        assert (num(r["book_3_44_solved_vs_kernel_y_up"]) < 1e-13) == (l == 1.0)
+        assert num(r["kernel_cpu_us"]) > 0 and num(r["derived_cpu_us"]) > 0
+    err = rows(tmp_path / "ch3_pendulum_ch4_error.csv")
+    for comp in ("F_Ax", "F_Ay"):
+        e = {num(r["h"]): r for r in err if r["component"] == comp}
+        # rk4's order 4: ten times the step, about 1e4 times the error
+        assert num(e[1e-2]["max_kernel_minus_exact_N"]) > \
+            3e3 * num(e[1e-3]["max_kernel_minus_exact_N"])
+        assert num(e[1e-3]["max_kernel_minus_exact_N"]) < 1e-8
+        assert all(num(r["max_kernel_minus_derived_at_its_state_N"]) < 1e-13 for r in e.values())
+        assert all(num(r["max_book_3_50_minus_exact_N"]) > 3 and num(r["cpu_s"]) > 0
+                   for r in e.values())
+    val = {r["value"].split(" (")[0]: r for r in rows(tmp_path / "ch3_pendulum_ch4_values.csv")}
+    c0 = math.cos(math.pi / 6)
+    release = _bar_by_newton_euler(1.0, 1.0, math.pi / 6, 0.0)
+    bottom = _bar_by_newton_euler(1.0, 1.0, 0.0, math.sqrt(3 * 9.81 * (1 - c0)))
+    for key, ref, ratio in (("F_Ax at the release", release["F_Ax"], 4),
+                            ("F_Ay at the release", release["F_Ay"], 2),
+                            ("largest magnitude of F_Ax", abs(bottom["F_Ax"]), 4)):
+        assert num(val[key]["derived_N"]) == pytest.approx(ref, rel=1e-12)
+        assert num(val[key]["kernel_N"]) == pytest.approx(ref, rel=1e-6)
+        assert num(val[key]["book_3_50_over_derived"]) == pytest.approx(ratio, rel=1e-12)
+
+
 def test_gear_wear_study(tmp_path, root):
     """The PLA gears of 6.1: gear 1 turns as the frictionless rigid train would (within the
     friction's loss) and reaches five revolutions; the wear volume converges as the step falls

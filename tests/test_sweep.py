@@ -1,7 +1,9 @@
 """Sweeps on Dask (mbdk.sweep, issue 24): a grid of runs as independent tasks, on a local
 cluster of processes or a scheduler's address, gathered into one table with each run's error
 against its reference, identical bit for bit to the serial loop of the same tasks; bad grids
-named before any task starts."""
+named before any task starts; a case that fails when loaded or run is its rows, with its
+error's class and message (issue 36)."""
+import csv
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +12,7 @@ import numpy as np
 import pytest
 
 from mbdk import InvalidInputError
-from mbdk.sweep import load_grid, same_rows, sweep, tasks_of
+from mbdk.sweep import COLUMNS, load_grid, same_rows, sweep, tasks_of
 
 GRID = {"t_end": 2.0, "scenes": ["double_pendulum"], "problems": ["damped_oscillator"],
         "methods": ["rk4", "dopri54"], "steps": [1e-2, 1e-3], "tolerances": [1e-6, 1e-9]}
@@ -161,3 +163,97 @@ def test_a_failed_reference_is_named_in_every_row_it_leaves_without_an_error():
                   "reference": {"method": "explicit_euler", "step_count": 20}}, workers=0).rows
     assert rows[0]["status"] == "reference NonFiniteSolutionError"
     assert np.isnan(rows[0]["error"]) and rows[0]["steps"] == 100000
+
+
+def _failing_solve_ode(failing):
+    """mbdk.solve_ode, raising ZeroDivisionError (not an mbdk error) for the (problem, method)
+    pairs in failing: a stand-in for a bug inside a run. Built here and pickled by value, so
+    that a Dask worker can install it too."""
+    def install():
+        import mbdk
+        real = getattr(mbdk.solve_ode, "real", mbdk.solve_ode)
+
+        def solve_ode(problem, method, **kw):
+            if (problem, method) in failing:
+                raise ZeroDivisionError(f"boom in {problem}/{method}\nsecond line")
+            return real(problem, method, **kw)
+        solve_ode.real = real
+        mbdk.solve_ode = solve_ode
+        return True
+    return install
+
+
+def _failing_grid(tmp_path):
+    broken = tmp_path / "broken.toml"
+    broken.write_text('[[body]]\nname = "a"\nmass = -1\n')
+    return [{"t_end": 1.0, "scenes": ["double_pendulum", str(tmp_path / "missing.toml"),
+                                      str(broken)], "methods": ["rk4"], "steps": [1e-2]},
+            {"t_end": 1.0, "problems": ["double_pendulum", "trolley_crane"],
+             "methods": ["rk4"], "steps": [1e-2]}]
+
+
+FAILING = {("double_pendulum", "rk4"), ("trolley_crane", "dopri54")}
+
+
+def _check_failing_rows(rows, tmp_path):
+    by_case = {r["case"]: r for r in rows}
+    assert len(rows) == 5      # double_pendulum twice: the scene and the problem
+    scene, problem = [r for r in rows if r["case"] == "double_pendulum"]
+    assert scene["status"] == "SUCCESS" and scene["error"] > 0 and not scene["error_message"]
+    missing = by_case[str(tmp_path / "missing.toml")]
+    assert missing["status"] == "SceneError" and np.isnan(missing["error"])
+    assert "missing.toml: cannot read the scene file" in missing["error_message"]
+    broken = by_case[str(tmp_path / "broken.toml")]
+    assert broken["status"] == "SceneError" and "'mass' = -1" in broken["error_message"]
+    # a non-mbdk exception in the run: its class and its message, on one line
+    assert problem["status"] == "ZeroDivisionError" and problem["steps"] == 0
+    assert problem["error_message"] == "boom in double_pendulum/rk4 second line"
+    # the reference run raised: the run itself gave its counts, but no error
+    crane = by_case["trolley_crane"]
+    assert crane["status"] == "reference ZeroDivisionError" and crane["steps"] == 100
+    assert np.isnan(crane["error"])
+    assert crane["error_message"] == ("the reference run: boom in trolley_crane/dopri54 "
+                                      "second line")
+
+
+def test_a_case_that_fails_is_its_rows_serially_and_on_dask(tmp_path, monkeypatch):
+    """A missing scene file, a scene that does not build (SceneError), a run and a reference
+    run that raise a non-mbdk exception: each case gives its rows, with the exception's class
+    in the status and its message in error_message; the other cases run as usual; a cluster
+    reached by its address gives the same rows (its worker raising the same exception)."""
+    import mbdk
+    from dask.distributed import Client, LocalCluster
+    grid = _failing_grid(tmp_path)
+    monkeypatch.setattr(mbdk, "solve_ode", mbdk.solve_ode)     # restored after the test
+    _failing_solve_ode(FAILING)()
+    serial = sweep(grid, workers=0)
+    _check_failing_rows(serial.rows, tmp_path)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        with Client(cluster) as client:
+            assert all(client.run(_failing_solve_ode(FAILING)).values())
+        on_dask = sweep(grid, scheduler=cluster.scheduler_address)
+    _check_failing_rows(on_dask.rows, tmp_path)
+    assert same_rows(serial, on_dask)
+    # the table keeps its columns, the message last
+    out = tmp_path / "table.csv"
+    serial.to_csv(out)
+    with open(out, newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert list(table[0]) == COLUMNS
+    assert list(table[0])[-1] == "error_message"
+    assert [r["error_message"] for r in table] == [r["error_message"] for r in serial.rows]
+    assert [r["status"] for r in table] == [r["status"] for r in serial.rows]
+
+
+def test_a_bad_scheduler_address_is_named():
+    with pytest.raises(InvalidInputError, match="scheduler = 'not an address': cannot connect"):
+        sweep({**GRID, "problems": [], "methods": ["rk4"]}, scheduler="not an address")
+
+
+def test_a_grid_file_that_is_not_text_is_named(tmp_path):
+    grid = tmp_path / "grid.toml"
+    grid.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(InvalidInputError, match=r"grid.toml: not a TOML text file: byte 0x80 "
+                                                r"at offset 128"):
+        load_grid(grid)

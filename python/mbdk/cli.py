@@ -1,23 +1,57 @@
 """The `mbdk` command: `mbdk report`, `mbdk methods`, `mbdk problems`, `mbdk solve`,
-`mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`, `mbdk plot FILE`.
+`mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`, `mbdk plot FILE`,
+`mbdk sweep GRID --out TABLE.csv`.
 
     mbdk run my_scene.toml --method rk4 --h 1e-3 --t-end 10 --out run.npz
     mbdk plot run.npz                     # run.png: coordinates, energy balance, residuals
 
-Errors print the named message (no traceback; --traceback shows it) and exit with status 2;
-a run that fails writes no result file."""
+Every failure ends the command with one line on standard error that names the command, the
+kind of failure and what it concerns, and a non-zero status; no traceback (--traceback shows
+it):
+  status 2: bad arguments (argparse's usage error, on one line), mbdk's named errors
+         (`mbdk run: SceneError: my.toml: ...`), a file that cannot be read or written, a full
+         disk (`mbdk run: OSError: run.npz: No space left on device; no file written`), and
+         any other exception, by its class name and message;
+  status 130 (128 + SIGINT, the shell's convention): Ctrl-C, `mbdk run: interrupted after
+         t = 1.23 s (Ctrl-C); no file written` (the run's last sample);
+  status 141 (128 + SIGPIPE): standard output closed early (`mbdk methods | head -3`),
+         quietly.
+The commands that write a file (run, sweep, plot) write it under a temporary name and rename
+it when complete, so a failure leaves no file, not even a partial one, and the line says "no
+file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
+"""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from .errors import MbdkError as MbdkErrorBase
 
+#: the commands that write their output file only when they succeed
+WRITERS = ("run", "sweep", "plot")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose usage errors are one line (the usage is behind --help)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
+def _describe(exc: BaseException) -> str:
+    """An exception as 'ClassName: message' on one line; an OSError names its file."""
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f"{exc.filename}: " if exc.filename else ""
+        return f"{type(exc).__name__}: {where}{exc.strerror}"
+    from .sweep import one_line
+    return f"{type(exc).__name__}: {one_line(exc) or '(no message)'}"
+
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="mbdk", description="mbdk: compiled multibody-dynamics "
-                                 "kernel and its integrator studies")
+    ap = _Parser(prog="mbdk", description="mbdk: compiled multibody-dynamics kernel and its "
+                 "integrator studies")
     sub = ap.add_subparsers(dest="cmd", required=True)
     rp = sub.add_parser("report", help="run every study and write one HTML report")
     rp.add_argument("--out", type=Path, default=Path("report"))
@@ -64,65 +98,112 @@ def main(argv=None) -> int:
     pl.add_argument("--out", type=Path, default=None, help="the PNG (default: beside the result)")
     for p in (rp, sp, sc, run, pl, sw):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
-    args = ap.parse_args(argv)
+    args, extra = ap.parse_known_args(argv)
+    if extra:       # named by the command they were given to
+        sub.choices[args.cmd].error(f"unrecognized arguments: {' '.join(extra)}")
 
-    from . import MbdkError
     try:
-        if args.cmd == "report":
-            from .report import build_report
-            build_report(args.out, quick=args.quick, studies=args.studies, only=args.only)
-        elif args.cmd == "methods":
-            from .methods import methods
-            for m in methods().values():
-                print(f"{m.name:16s} order {m.order}  {'implicit' if m.implicit else 'explicit'}"
-                      f"  {m.stability}  [{m.reference}]")
-        elif args.cmd == "problems":
-            from .problems import problems
-            for p in problems().values():
-                print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
-                      f"[{p.reference}]")
-        elif args.cmd in ("scene", "check"):
-            from .scene import scene_or_file
-            from .scene_report import scene_report
-            sc = scene_or_file(args.scene)
-            print(scene_report(sc))
-            if args.symbolic:
-                from .symbolic import cross_check
-                r = cross_check(sc)
-                print("symbolic cross-check (SymPy, max relative difference at 5 random "
-                      "states): " + ", ".join(f"{k} {r[k]:.1e}" for k in
-                                              ("phi", "D", "gamma", "phit", "f", "a", "lam")
-                                              if r[k] is not None)
-                      + (" (f from the kernel: contacts)" if r["f_from_kernel"] else "")
-                      + f"; derivation {r['derive_s']:.2f} s CPU")
-        elif args.cmd == "run":
-            _run(args)
-        elif args.cmd == "sweep":
-            from .results_io import check_writable
-            from .sweep import load_grid, sweep
-            if args.out.suffix.lower() != ".csv":
-                from .errors import InvalidInputError
-                raise InvalidInputError(f"{args.out}: a sweep's table is a CSV file; give a name "
-                                "ending in .csv")
-            check_writable(args.out)
-            table = sweep(load_grid(args.grid), workers=args.workers, scheduler=args.scheduler)
-            table.to_csv(args.out)
-            failed = sum(r["status"] != "SUCCESS" for r in table.rows)
-            print(f"{len(table.rows)} runs on {table.engine} in {table.wall_time:.3g} s "
-                  f"({failed} failed); wrote {args.out}")
-        elif args.cmd == "plot":
-            from .results_io import plot_result
-            print(f"wrote {plot_result(args.result, args.out)}")
-        elif args.cmd == "solve":
-            from .ode import solve_ode
-            r = solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
-            print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  steps = {r.stats.steps}  "
-                  f"cpu = {r.cpu_time:.3g} s  status = {r.status.name}")
-    except (MbdkError, FileNotFoundError) as exc:
-        if getattr(args, "traceback", False):
+        status = _main(args)
+        sys.stdout.flush()      # here, not at exit: a closed pipe is then caught below
+        return status
+    except BrokenPipeError:
+        # the reader of standard output has gone (`mbdk methods | head`): end quietly, and keep
+        # Python's final flush from failing again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except BaseException as exc:
+        if isinstance(exc, SystemExit) or getattr(args, "traceback", False):
             raise
-        print(f"mbdk: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 2
+        if not isinstance(exc, (Exception, KeyboardInterrupt)):
+            raise
+        _fail(args, exc)
+        return 130 if isinstance(exc, KeyboardInterrupt) else 2
+
+
+def _fail(args, exc: BaseException) -> None:
+    """The one line on standard error for a failed command."""
+    cmd = f"mbdk {args.cmd}"
+    if isinstance(exc, KeyboardInterrupt):
+        result = getattr(exc, "result", None)
+        t = getattr(result, "t", None)
+        # a sweep's runs each have their own t; a run's partial result ends at its last
+        # sample, which the solve had passed
+        text = (f"interrupted after t = {float(t[-1]):.6g} s (Ctrl-C)"
+                if t is not None and len(t) and args.cmd != "sweep" else "interrupted (Ctrl-C)")
+    else:
+        text = _describe(exc)
+        if not isinstance(exc, (MbdkErrorBase, OSError)):
+            text += " (an unexpected error: --traceback shows where)"
+    if args.cmd in WRITERS and getattr(args, "written", None) is None:
+        text += "; no file written"
+    try:
+        print(f"{cmd}: {text}", file=sys.stderr, flush=True)
+    except OSError:     # standard error itself is gone: the status still tells
+        pass
+
+
+def _main(args) -> int:
+    if args.cmd == "report":
+        from .report import STUDIES, build_report
+        from .errors import InvalidInputError
+        if args.studies is not None and not args.studies.is_dir():
+            raise InvalidInputError(f"--studies {args.studies}: not a folder")
+        unknown = [n for n in (args.only or []) if n not in STUDIES]
+        if unknown:
+            raise InvalidInputError(f"--only {unknown[0]}: no such study; the studies: "
+                                    f"{', '.join(STUDIES)}")
+        build_report(args.out, quick=args.quick, studies=args.studies, only=args.only)
+    elif args.cmd == "methods":
+        from .methods import methods
+        for m in methods().values():
+            print(f"{m.name:16s} order {m.order}  {'implicit' if m.implicit else 'explicit'}"
+                  f"  {m.stability}  [{m.reference}]")
+    elif args.cmd == "problems":
+        from .problems import problems
+        for p in problems().values():
+            print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
+                  f"[{p.reference}]")
+    elif args.cmd in ("scene", "check"):
+        from .scene import scene_or_file
+        from .scene_report import scene_report
+        sc = scene_or_file(args.scene)
+        print(scene_report(sc))
+        if args.symbolic:
+            from .symbolic import cross_check
+            r = cross_check(sc)
+            print("symbolic cross-check (SymPy, max relative difference at 5 random "
+                  "states): " + ", ".join(f"{k} {r[k]:.1e}" for k in
+                                          ("phi", "D", "gamma", "phit", "f", "a", "lam")
+                                          if r[k] is not None)
+                  + (" (f from the kernel: contacts)" if r["f_from_kernel"] else "")
+                  + f"; derivation {r['derive_s']:.2f} s CPU")
+    elif args.cmd == "run":
+        _run(args)
+    elif args.cmd == "sweep":
+        from .results_io import check_writable
+        from .sweep import load_grid, sweep
+        if args.out.suffix.lower() != ".csv":
+            from .errors import InvalidInputError
+            raise InvalidInputError(f"{args.out}: a sweep's table is a CSV file; give a name "
+                                    "ending in .csv")
+        check_writable(args.out)
+        table = sweep(load_grid(args.grid), workers=args.workers, scheduler=args.scheduler)
+        table.to_csv(args.out)
+        args.written = args.out
+        failed = [r for r in table.rows if r["error_message"]]
+        kinds = sorted({r["status"] for r in failed})
+        print(f"{len(table.rows)} runs on {table.engine} in {table.wall_time:.3g} s "
+              f"({len(failed)} failed{': ' + ', '.join(kinds) if kinds else ''}); "
+              f"wrote {args.out}")
+    elif args.cmd == "plot":
+        from .results_io import plot_result
+        args.written = plot_result(args.result, args.out)
+        print(f"wrote {args.written}")
+    elif args.cmd == "solve":
+        from .ode import solve_ode
+        r = solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
+        print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  steps = {r.stats.steps}  "
+              f"cpu = {r.cpu_time:.3g} s  status = {r.status.name}")
     return 0
 
 
@@ -159,4 +240,5 @@ def _run(args) -> None:
         except MbdkErrorBase:
             pass
     save_result(r, out)
+    args.written = out
     print(f"wrote {out} ({len(r.t)} samples, with the manifest)")

@@ -182,6 +182,32 @@ _BY_STATUS = {
 }
 
 
+def stopped_at(stats, t0: float) -> str:
+    """Where a failed solve stopped: after its last accepted step (stats.t_reached; the failure
+    lies in the step after it), not at its last sample, which may lie far before."""
+    if not stats.steps:
+        return f"at t = {t0:.6g}, in the first step"
+    return f"after t = {stats.t_reached:.6g}"
+
+
+def failure_text(status: Status, adaptive: bool, dae: bool = False) -> str:
+    """The kernel's message for a failure status, with the advice that fits the kind of method:
+    an error-controlled method chooses its own steps, so "reduce the step h" would ask for what
+    it already tried."""
+    status = Status(status)
+    if adaptive and status == Status.ERR_NEWTON_DIVERGED:
+        return ("Newton-Raphson iteration did not converge, also at the smallest steps the "
+                "method tried: the tolerances may lie below what the iteration reaches in "
+                "double precision (loosen rtol and atol)"
+                + (", or the DAE's start or the mechanism is singular there" if dae else
+                   ", or the model is singular there"))
+    if adaptive and status == Status.ERR_NONFINITE:
+        return "the solution overflowed to inf or NaN"
+    if adaptive and status == Status.ERR_STEP_TOO_SMALL:
+        return ("the step size became too small: the solution changes faster than the "
+                "tolerances can follow there (a singularity, a discontinuity, or tolerances "
+                "near double precision)")
+    return status_message(status)
 def format_bytes(n: float) -> str:
     """A size in bytes as people read it: three significant digits, decimal units (48.7 GB)."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
@@ -212,17 +238,6 @@ def no_memory_message(alloc_bytes: float, matrices=(), smaller: str = "fewer bod
     k, n = max(1, round(alloc_bytes / (8.0 * order * order))), _count(order)
     return (text + f" ({'a' if k == 1 else k} dense {n} x {n} matri{'x' if k == 1 else 'ces'}: "
             f"{what}{'' if k == 1 else ' and its factors'}); {advice}, or {smaller}")
-
-
-def no_memory_for_results(exc: MemoryError, run: str, nsamp: int,
-                          per_sample: int) -> NoMemoryError:
-    """The NoMemoryError of result arrays that numpy (or f2py for the kernel) could not
-    allocate: nsamp samples of per_sample doubles each."""
-    size = 8.0 * nsamp * per_sample
-    return NoMemoryError(
-        f"{run}: the result arrays of {_count(nsamp)} samples x {_count(per_sample)} values "
-        f"({format_bytes(size)}) could not be allocated ({type(exc).__name__}: {exc}); fewer "
-        "samples (a larger every or dt_out, a shorter t_end) or fewer outputs")
 
 
 def exception_for(status: Status) -> type:

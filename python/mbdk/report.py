@@ -14,9 +14,9 @@ from .ode import build_info
 
 #: the studies in report order (file names in studies/)
 STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
-           "benchmark_rk4", "stability", "scene_drift", "scene_checks", "index3", "pipeline_cost",
-           "step_control", "ch5_formulas", "ch6_numbers", "gear_wear", "knee_wear",
-           "rigid_body", "spatial_scenes", "symbolic_check", "sweep_scaling", "fuzz"]
+           "benchmark_rk4", "stability", "scene_drift", "scene_checks", "ch3_pendulum", "index3",
+           "pipeline_cost", "step_control", "ch5_formulas", "ch6_numbers", "gear_wear",
+           "knee_wear", "rigid_body", "spatial_scenes", "symbolic_check", "sweep_scaling", "fuzz"]
 
 
 def find_studies(explicit: Path | None = None) -> Path:

@@ -30,6 +30,7 @@ class Stats:
     order5_steps: int = 0          # (cvode_adams: order 5 and above)
     cpu_time: float = 0.0
     wall_time: float = 0.0
+    t_reached: float = 0.0         # the last accepted step's time (where a failed solve stopped)
     alloc_bytes: float = 0.0       # ERR_NO_MEMORY: bytes of the allocation that failed (0: not known)
 
     @classmethod

@@ -17,6 +17,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -99,13 +100,20 @@ def result_arrays(r) -> dict:
 
 
 def _atomic(path: Path, write) -> None:
+    """write(tmp) to a temporary name beside path, then the rename: whatever stops the write
+    (a full disk, Ctrl-C) removes the temporary file and leaves no file named path. An OSError
+    is raised again naming path, not the temporary name."""
     tmp = path.with_name(f".{path.name}.part")
     try:
         write(tmp)
         os.replace(tmp, path)
-    except BaseException:
-        if tmp.exists():
-            tmp.unlink()
+    except BaseException as exc:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        if isinstance(exc, OSError) and exc.errno is not None:
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
         raise
 
 
@@ -172,10 +180,18 @@ def load_result(path) -> dict:
     fmt = _format(path)
     if not path.is_file():
         raise InvalidInputError(f"{path}: no such result file")
+    if path.stat().st_size == 0:
+        raise _not_a_result(path, "an empty file")
     out = {k: None for k in ("energy", "energy_balance", "residuals", "multipliers")}
     try:
         if fmt == "npz":
+            if not zipfile.is_zipfile(path):
+                raise _not_a_result(path, "not a zip archive, or a truncated one")
             with np.load(path, allow_pickle=False) as z:
+                missing = [k for k in _REQUIRED if k not in z.files]
+                if missing:
+                    raise _not_a_result(path, f"no {missing[0]!r} array; it holds "
+                                        f"{', '.join(z.files) or 'nothing'}")
                 for k in z.files:
                     out[k] = z[k]
             out["q_names"] = [str(x) for x in out["q_names"]]
@@ -209,9 +225,55 @@ def load_result(path) -> dict:
             out["residuals"] = np.stack(res, axis=1) if res else None
             lam = [rest[c] for c in rest if c.startswith("lambda")]
             out["multipliers"] = np.stack(lam, axis=1) if lam else None
-    except (OSError, ValueError, KeyError, IndexError, json.JSONDecodeError) as exc:
-        raise InvalidInputError(f"{path}: not a result file mbdk wrote ({exc})") from None
+    except InvalidInputError:
+        raise
+    except zipfile.BadZipFile as exc:
+        raise _not_a_result(path, f"a damaged zip archive: {exc}") from None
+    except EOFError:
+        raise _not_a_result(path, "a truncated file") from None
+    except (OSError, ValueError, KeyError, IndexError, TypeError, json.JSONDecodeError) as exc:
+        raise _not_a_result(path, f"{type(exc).__name__}: {exc}") from None
+    _check_layout(path, out)
     return out
+
+
+#: what every result file holds (save_result)
+_REQUIRED = ("t", "q", "velocities", "q_names", "velocity_names", "status", "manifest")
+
+
+def _not_a_result(path, why: str) -> InvalidInputError:
+    return InvalidInputError(f"{path}: not an mbdk result file ({why}); give a file that "
+                             "`mbdk run` or mbdk.results_io.save_result wrote")
+
+
+def _check_layout(path, d: dict) -> None:
+    """The arrays' shapes agree with each other, as save_result writes them: a file that
+    reads but does not (edited, or another program's) is named rather than plotted wrong."""
+    def bad(why):
+        return _not_a_result(path, why)
+    for k in _REQUIRED:
+        if d.get(k) is None:
+            raise bad(f"no {k!r}")
+    t = d["t"]
+    if not (isinstance(t, np.ndarray) and t.ndim == 1 and t.size
+            and np.issubdtype(t.dtype, np.floating)):
+        raise bad(f"'t' is not a non-empty list of times (shape {np.shape(t)})")
+    n = t.size
+    for k, names in (("q", "q_names"), ("velocities", "velocity_names")):
+        a = d[k]
+        if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.shape == (n, len(d[names]))):
+            raise bad(f"{k!r} has shape {np.shape(a)}, not ({n}, {len(d[names])}): a row per "
+                      f"time and a column per name of {names!r}")
+        if not np.issubdtype(a.dtype, np.number):
+            raise bad(f"{k!r} holds {a.dtype}, not numbers")
+    for k, ndim in (("energy", 1), ("energy_balance", 1), ("residuals", 2),
+                    ("multipliers", 2)):
+        a = d.get(k)
+        if a is not None and not (isinstance(a, np.ndarray) and a.ndim == ndim
+                                  and a.shape[0] == n and np.issubdtype(a.dtype, np.number)):
+            raise bad(f"{k!r} has shape {np.shape(a)}: not {ndim}-D numbers, a row per time")
+    if not isinstance(d["manifest"], dict):
+        raise bad("its manifest is not a table")
 
 
 def plot_result(path, out=None) -> Path:

@@ -28,16 +28,30 @@ interval or steps (studies/grids/work_precision.toml) is one sweep. Its fields:
   min_cpu, max_reps: a run shorter than min_cpu seconds of CPU (default 0) is repeated, at
          most max_reps times (default 20), and its times are the mean per run (the kernel's
          clock ticks in microseconds; every repetition gives the same numbers)
-Each task is one run; its row: case, method, formulation, control (h or rtol), status (the
-method's, or "reference <exception>" where the reference run failed), error
-(max |y - y_ref| over the coordinates, or over the state for a problem), steps, nfev,
-cpu_time (the solving thread's), wall_time, and rejected, njev, nlu, orders (the steps taken
-at each order, "1:12 2:40", for the variable-order methods) and reps. A run is deterministic,
-so a task gives the same bits on any worker as in a serial loop (tests/test_sweep.py). Bad
-grids (an unknown method, case or field) raise InvalidInputError before any task starts.
+Each task is one run; its row (the columns of COLUMNS, in this order in the CSV):
+  case, method, formulation, control (h or rtol);
+  status: the method's status name (SUCCESS, NOTE_LAST_STEP_SHORTENED) for a run that gave a
+         result; the class name of the exception that stopped it otherwise (ConstraintDriftError,
+         SceneError for a scene file that is missing or does not build, or any other
+         exception's class, ZeroDivisionError say); "reference <class name>" where the run
+         gave a result but its case's reference run failed;
+  error: max |y - y_ref| over the coordinates (over the state for a problem) and the samples;
+         NaN where there is no error to give (a failed run or reference);
+  steps, nfev, cpu_time (the solving thread's, per repetition), wall_time, rejected, njev,
+  nlu, orders (the steps taken at each order, "1:12 2:40", for the variable-order methods),
+  reps: the run's counters (0 and "" for a failed run);
+  error_message: empty where the run and its reference gave results; otherwise the message, on
+         one line ("the reference run: ..." for a failed reference).
+Every case gives its rows: a case that fails when loaded or run stops only its own runs, never
+the sweep, serially and on Dask alike. Ctrl-C (KeyboardInterrupt, SolveInterrupted) stops the
+sweep. A run is deterministic, so a task gives the same bits on any worker as in a serial loop
+(tests/test_sweep.py). Bad grid fields (an unknown field, method, problem or built-in scene,
+numbers out of range) raise InvalidInputError before any task starts, and so does a scheduler
+address that is malformed or cannot be reached.
 """
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -45,14 +59,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._compiled import progress_bar
-from .errors import InvalidInputError, MbdkError
+from .errors import InvalidInputError
 
 FIELDS = {"t_end", "t0", "scenes", "problems", "params", "label", "methods", "formulations",
           "steps", "step_counts", "tolerances", "samples", "reference", "atol_ratio", "min_cpu",
           "max_reps"}
 REFERENCE_FIELDS = {"method", "h", "step_count", "rtol"}
 COLUMNS = ["case", "method", "formulation", "control", "status", "error", "steps", "nfev",
-           "cpu_time", "wall_time", "rejected", "njev", "nlu", "orders", "reps"]
+           "cpu_time", "wall_time", "rejected", "njev", "nlu", "orders", "reps",
+           "error_message"]
 
 
 @dataclass
@@ -85,7 +100,7 @@ class SweepResult:
 
 #: the columns that are the same bits on every engine (the times and repetitions are not)
 RESULT_KEYS = ("case", "method", "formulation", "control", "status", "error", "steps", "nfev",
-               "rejected", "njev", "nlu", "orders")
+               "rejected", "njev", "nlu", "orders", "error_message")
 
 
 def same_rows(a: SweepResult, b: SweepResult) -> bool:
@@ -297,9 +312,34 @@ def _compared(task, r):
     return y if task["samples"] else y[-1:]
 
 
+def one_line(text: str) -> str:
+    """A message on one line (a table cell, a command line's error line)."""
+    return " ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
+def _failed(row: dict, status: str, message: str) -> dict:
+    """The row of a run that gave no result: its status and message, no error, no counts."""
+    return {**row, "status": status, "error": math.nan, "steps": 0, "nfev": 0,
+            "cpu_time": 0.0, "wall_time": 0.0, "rejected": 0, "njev": 0, "nlu": 0,
+            "orders": "", "reps": 0, "error_message": message, "states": None}
+
+
 def run_task(task: dict, ref_states=None) -> dict:
     """One run of the grid (a worker's whole task): the row of the table, and under "states"
-    the states its error is taken over (a reference's whole answer)."""
+    the states its error is taken over (a reference's whole answer). A case that fails when it
+    is loaded or run, with an mbdk error or any other Exception, is a row too (status: the
+    exception's class name, error_message: its message); KeyboardInterrupt (SolveInterrupted,
+    Ctrl-C) is not an Exception and stops the sweep."""
+    row = {"case": task["label"], "method": task["method"],
+           "formulation": task["formulation"],
+           "control": task["h"] if task["h"] is not None else task["rtol"]}
+    try:
+        return _run(task, ref_states, row)
+    except Exception as exc:
+        return _failed(row, type(exc).__name__, one_line(exc) or type(exc).__name__)
+
+
+def _run(task: dict, ref_states, row: dict) -> dict:
     import mbdk
     kw = {"t_end": task["t_end"], "t0": task["t0"]}
     span = task["t_end"] - task["t0"]
@@ -311,9 +351,6 @@ def run_task(task: dict, ref_states=None) -> dict:
         kw.update(rtol=task["rtol"], atol=task["rtol"] * task["atol_ratio"])
         if samples:
             kw.update(dt_out=span / samples)
-    row = {"case": task["label"], "method": task["method"],
-           "formulation": task["formulation"],
-           "control": task["h"] if task["h"] is not None else task["rtol"]}
     if task["kind"] == "scene":
         from .scene import scene_or_file
         target = scene_or_file(task["case"])
@@ -324,23 +361,20 @@ def run_task(task: dict, ref_states=None) -> dict:
     else:
         def once():
             return mbdk.solve_ode(task["case"], task["method"], params=task["params"], **kw)
-    try:
-        r = once()
-        cpu, wall, reps = r.stats.cpu_time, r.stats.wall_time, 1
-        while cpu < task["min_cpu"] and reps < task["max_reps"]:
-            again = once()
-            cpu, wall, reps = cpu + again.stats.cpu_time, wall + again.stats.wall_time, reps + 1
-    except MbdkError as exc:
-        return {**row, "status": type(exc).__name__, "error": math.nan, "steps": 0, "nfev": 0,
-                "cpu_time": 0.0, "wall_time": 0.0, "rejected": 0, "njev": 0, "nlu": 0,
-                "orders": "", "reps": 0, "states": None}
+    r = once()
+    cpu, wall, reps = r.stats.cpu_time, r.stats.wall_time, 1
+    while cpu < task["min_cpu"] and reps < task["max_reps"]:
+        again = once()
+        cpu, wall, reps = cpu + again.stats.cpu_time, wall + again.stats.wall_time, reps + 1
     states = _compared(task, r)
-    if isinstance(ref_states, str):       # the reference run failed: no error to give
-        st = r.stats
-        return {**row, "status": f"reference {ref_states}", "error": math.nan,
-                "steps": st.steps, "nfev": st.nfev, "cpu_time": cpu / reps,
-                "wall_time": wall / reps, "rejected": st.rejected_steps, "njev": st.njev,
-                "nlu": st.nlu, "orders": order_histogram(st), "reps": reps, "states": None}
+    st = r.stats
+    counts = {"steps": st.steps, "nfev": st.nfev, "cpu_time": cpu / reps,
+              "wall_time": wall / reps, "rejected": st.rejected_steps, "njev": st.njev,
+              "nlu": st.nlu, "orders": order_histogram(st), "reps": reps}
+    if isinstance(ref_states, tuple):     # the reference run failed: no error to give
+        status, message = ref_states
+        return {**row, "status": f"reference {status}", "error": math.nan, **counts,
+                "error_message": f"the reference run: {message}", "states": None}
     if task.get("exact"):
         ex = r.exact()
         error = float(np.max(np.abs(states - (ex if samples else ex[-1:]))))
@@ -348,22 +382,34 @@ def run_task(task: dict, ref_states=None) -> dict:
         error = float(np.max(np.abs(states - ref_states)))
     else:
         error = math.nan
-    st = r.stats
-    return {**row, "status": r.status.name, "error": error, "steps": st.steps,
-            "nfev": st.nfev, "cpu_time": cpu / reps, "wall_time": wall / reps,
-            "rejected": st.rejected_steps, "njev": st.njev, "nlu": st.nlu,
-            "orders": order_histogram(st), "reps": reps, "states": states}
+    return {**row, "status": r.status.name, "error": error, **counts, "error_message": "",
+            "states": states}
 
 
 def _reference(task: dict):
-    """A case's reference states, or the name of the exception that stopped its run."""
+    """A case's reference states, or (the class name, the message) of the exception that
+    stopped its run."""
     row = run_task(task)
-    return row["states"] if row["states"] is not None else row["status"]
+    return row["states"] if row["states"] is not None else (row["status"],
+                                                             row["error_message"])
 
 
 def _run_batch(batch: list) -> list:
-    """A worker's share: (task, reference states) pairs run one after the other."""
-    return [run_task(t, ref) for t, ref in batch]
+    """A worker's share: (task, reference states) pairs run one after the other. Its solves
+    are interrupted only by the sweep's own Ctrl-C, which abandons the sweep: nothing to
+    return then (a KeyboardInterrupt would end the worker's task loop with a traceback)."""
+    try:
+        return [run_task(t, ref) for t, ref in batch]
+    except KeyboardInterrupt:
+        return None
+
+
+def _reference_on_worker(task: dict):
+    """_reference as a Dask task (see _run_batch)."""
+    try:
+        return _reference(task)
+    except KeyboardInterrupt:
+        return None
 
 
 def _batches(items: list, count: int) -> list:
@@ -378,6 +424,24 @@ def _unbatch(batches: list, n: int) -> list:
     for k, b in enumerate(batches):
         out[k::count] = b
     return out
+
+
+def _worker_ignores_sigint() -> bool:
+    """Run on each worker process of a local cluster: Ctrl-C at the terminal reaches the
+    whole process group, and the sweep's process handles it (it stops the workers' solves and
+    closes the cluster); a worker that raised KeyboardInterrupt itself would only print its
+    traceback."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return True
+
+
+def _interrupt_worker_solves() -> int:
+    from ._compiled import interrupt_all
+    return interrupt_all()
 
 
 def _tick(bar, n: int) -> None:
@@ -420,22 +484,27 @@ def sweep(grid, workers: int = 2, scheduler: str | None = None,
         if scheduler is None:
             if not (isinstance(workers, int) and workers > 0):
                 raise InvalidInputError(f"workers = {workers!r} must be a whole number >= 0")
+            # the workers' and nannies' warnings (a cancelled task, a worker killed when the
+            # cluster closes after Ctrl-C) are not the sweep's output; errors still show
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=None, silence_logs=logging.ERROR)
             engine = f"local cluster of {workers} processes"
         else:
             engine = f"scheduler at {scheduler}"
         try:
             client = Client(cluster if cluster is not None else scheduler, timeout="20s")
-        except OSError as exc:
+        except (OSError, ValueError, TypeError) as exc:    # unreachable; not an address
             if cluster is not None:
                 cluster.close()
-            raise InvalidInputError(f"scheduler = {scheduler!r}: cannot connect ({exc})") \
-                from None
+            raise InvalidInputError(f"scheduler = {scheduler!r}: cannot connect "
+                                    f"({one_line(exc)}); give a Dask scheduler's address, "
+                                    "tcp://host:port") from None
         bar = progress_bar(len(refs) + len(tasks), "sweep", "run")
         try:
+            if cluster is not None:
+                client.run(_worker_ignores_sigint)
             from dask.distributed import as_completed
-            fr = client.map(_reference, refs, pure=False)
+            fr = client.map(_reference_on_worker, refs, pure=False)
             for _ in as_completed(fr):
                 _tick(bar, 1)
             ref_states = dict(zip([r["key"] for r in refs], client.gather(fr)))
@@ -448,12 +517,23 @@ def sweep(grid, workers: int = 2, scheduler: str | None = None,
             for f in as_completed(ft):
                 _tick(bar, size[f.key])
             rows = _unbatch(client.gather(ft), len(tasks))
+        except KeyboardInterrupt:
+            # Ctrl-C: the local workers' solves stop within a step, so that the cluster
+            # closes at once rather than killing them (a remote cluster's other work is left
+            # alone: its tasks are cancelled when the client closes)
+            if cluster is not None:
+                try:
+                    client.run(_interrupt_worker_solves)
+                except Exception:   # noqa: BLE001 - closing goes on regardless
+                    pass
+            raise
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
-    if bar is not None:
-        bar.close()
+            if bar is not None:
+                bar.close()
+        bar = None
     for r in rows:
         r.pop("states", None)
     from .ode import build_info
@@ -468,9 +548,12 @@ def load_grid(path):
     from pathlib import Path
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except OSError as exc:
         raise InvalidInputError(f"{path}: cannot read the grid file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise InvalidInputError(f"{path}: not a TOML text file: byte {exc.object[exc.start]:#04x} "
+                                f"at offset {exc.start} is not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
         raise InvalidInputError(f"{path}: not valid TOML: {exc}") from None
     if "sweep" not in data:

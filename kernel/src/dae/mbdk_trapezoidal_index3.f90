@@ -378,6 +378,7 @@ contains
     s%q = y0(1:nc)
     s%v = y0(nc + 1:)
     s%t = t0
+    s%st%t_reached = t0
     ! consistent a and lambda at t0: the reduced formulation's solve; where D has lost a rank
     ! (redundant joints, or a start at a singular configuration) the augmented form takes the
     ! regular path of its projections instead (lambda is then one of many)
@@ -426,6 +427,7 @@ contains
     s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
+    s%st%t_reached = s%t
     if (s%cool > 0) s%cool = s%cool - 1
     s%retries = min(s%retries + RETRY_REFILL, RETRY_BUDGET)
   end subroutine commit
@@ -724,6 +726,7 @@ contains
       x%a_prev2 = s%a_prev2
     else
       s%t = x%t
+      s%st%t_reached = x%t
       s%h_prev = x%h_prev
       s%h_prev2 = x%h_prev2
       s%retries = x%retries

@@ -111,6 +111,7 @@ contains
     end select
     s%y = y0
     s%t = t0
+    s%st%t_reached = t0
     stat = MBDK_SUCCESS
     if (s%family == MBDK_FAMILY_IMPLICIT_LMM .and. s%lmm%beta1 /= 0.0_dp) then
       call prob%rhs(t0, s%y, s%fn, stat)
@@ -206,6 +207,7 @@ contains
     end if
     s%st%steps = i
     s%t = t_next
+    s%st%t_reached = t_next
   end subroutine mbdk_stepper_step
 
 end module mbdk_stepper

@@ -761,6 +761,13 @@ contains
       if (self%revolute) then   ! rc from mbdk_model_assemble
         call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%cs%s, tol, &
                                  a, lam, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. passes_rank_loss()) then
+          ! the closed form has no D in compact rows: the general joints' evaluation gives it
+          call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, &
+                                w%dz, w%gam, w%phit, w%visits(1:MBDK_JOINT_TYPES))
+          call stabilised_rc()
+          call regular_solve()
+        end if
         return
       end if
       select case (self%formulation)
@@ -801,7 +808,44 @@ contains
         return
       end select
       call solve_constrained(self, w, a, lam, stat, tol)
+      if (stat == MBDK_ERR_SINGULAR_MATRIX .and. passes_rank_loss()) call regular_solve()
     end associate
+
+  contains
+
+    !> Where D has lost a rank (a singular pose, dependent rows) the accelerations are still
+    !> defined when gamma is consistent, the multipliers are not unique: the formulations that
+    !> keep the constraints through such a pose (baumgarte and projection: their stabilisation
+    !> or projection restores what the stage's solve cannot meet) take the regular path of
+    !> mbdk_constrained there, so that an explicit method's stage landing on the rank loss does
+    !> not end the run. The reduced formulation refuses it (MBDK_MODEL_NEAR_PIVOT), as does a
+    !> caller asking for a near-singular test (near).
+    logical function passes_rank_loss()
+      passes_rank_loss = .not. present(near) .and. &
+        (self%formulation == MBDK_FORM_PROJECTION .or. self%formulation == MBDK_FORM_BAUMGARTE)
+    end function passes_rank_loss
+
+    !> rc of the general path (w%dz, w%gam, w%phit, w%phi current): gamma, or Baumgarte's
+    subroutine stabilised_rc()
+      associate (w => self%work)
+        w%rc = w%gam
+        if (self%formulation == MBDK_FORM_BAUMGARTE) then
+          call mbdk_sparse_d_times(self%sp, w%dz, v, w%rc, .false.)
+          w%rc = w%gam - 2.0_dp * self%alpha * (w%rc + w%phit) - self%beta**2 * w%phi
+        end if
+      end associate
+    end subroutine stabilised_rc
+
+    subroutine regular_solve()
+      associate (w => self%work)
+        call mbdk_constrained_factor(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                     stat, regular=.true.)
+        if (stat == MBDK_SUCCESS) &
+          call mbdk_constrained_solve(w%cs, self%sp, w%dz, self%blk, self%winv, w%fq, w%rc, &
+                                      a, lam, stat)
+      end associate
+    end subroutine regular_solve
+
   end subroutine mbdk_model_accelerations
 
   !> M a + D^T lam = fq, D a = rc (from w): the model's constrained solve (mbdk_constrained:

@@ -1057,15 +1057,17 @@ contains
   end subroutine spatial_rhs
 
   !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
-  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), and phi_out receives Phi.
-  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out)
+  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
+  !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
+  !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
+  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: lam(:)
     real(dp), intent(in), optional :: lam_in(:)
-    real(dp), intent(out), optional :: phi_out(:)
+    real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
     type(frames_t) :: fr
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
       l(:), mc(:, :), phit(:)
@@ -1089,6 +1091,7 @@ contains
       gen(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
     end do
     call apply_minv(self, gen, acc)
+    if (present(acc_abs)) acc_abs = abs(acc)
     if (self%m > 0 .and. present(lam_in)) then
       call constraints(self, fr, t, phi, c, gam, phit)
       do k = 1, self%m
@@ -1096,6 +1099,7 @@ contains
       end do
       acc = acc - matmul(mc, lam_in)
       if (present(phi_out)) phi_out = phi
+      if (present(acc_abs)) acc_abs = acc_abs + matmul(abs(mc), abs(lam_in))
     else if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
       call constraints(self, fr, t, phi, c, gam, phit)
       call penalty_solve(stat)
@@ -1182,14 +1186,16 @@ contains
 
   !> The DAE form's right-hand side at (t, y = [q; w]) with the multipliers lam (m; zero on
   !> the rows a redundant scene leaves out): f = [q'; w'], w' = M^-1 (f - C^T lam - W x J W
-  !> terms as Newton-Euler's), and phi = Phi (m) (mbdk_spatial_dae).
-  subroutine mbdk_spatial_dae_rhs(model, t, y, lam, f, phi, stat)
+  !> terms as Newton-Euler's), and phi = Phi (m) (mbdk_spatial_dae); acc_abs (6 nb): the
+  !> magnitudes of w''s terms (spatial_accelerations), for a roundoff estimate.
+  subroutine mbdk_spatial_dae_rhs(model, t, y, lam, f, phi, stat, acc_abs)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: t, y(:), lam(:)
     real(dp), intent(out) :: f(:), phi(:)
     integer, intent(out) :: stat
+    real(dp), intent(out), optional :: acc_abs(:)
     phi = 0.0_dp
-    call spatial_accelerations(model, t, y, f, stat, lam_in=lam, phi_out=phi)
+    call spatial_accelerations(model, t, y, f, stat, lam_in=lam, phi_out=phi, acc_abs=acc_abs)
   end subroutine mbdk_spatial_dae_rhs
 
   !> Phi (m), C (m x 6 nb), gamma (m) and Phi_t (m) at (t, y) (tests check C, gamma and Phi_t

@@ -249,6 +249,7 @@ contains
       limit = mbdk_adaptive_step_limit(opt)
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
+      st%t_reached = t0
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -270,6 +271,7 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
+        st%t_reached = tret(1)
         ! CVODE's own floor is h_min (0 by default): a step that cannot move t would repeat
         flag = FCVodeGetLastStep(mem, hlast)
         if (hlast(1) < mbdk_adaptive_h_floor(opt, tret(1), landing=tret(1) >= t_end)) then

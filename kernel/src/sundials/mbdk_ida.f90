@@ -45,7 +45,9 @@
 !> local error of q and v is kept at WRMS <= 1 with the weights of mbdk_adaptive: rtol and the
 !> scalar opt%atol.
 !> The same weights serve IDA's Newton convergence test, which sees every component: lam with
-!> rtol and opt%atol, so that the sampled multipliers are converged, but mu with the absolute
+!> rtol and opt%atol, so that the sampled multipliers are converged (ggl: with an absolute
+!> tolerance of max(rtol, LAM_RTOL_FLOOR) times the largest initial multiplier, the roundoff
+!> the index-2 iteration leaves in them; ggl_lam_atol), but mu with the absolute
 !> tolerance MU_ATOL = 1 (IDASVtolerances), which takes it out of the test. mu is zero in the
 !> exact solution and has no meaning of its own; its Newton updates carry the roundoff of the
 !> index-2 iteration matrix, whose condition grows like 1/h^2, so tested at opt%atol they stop
@@ -173,6 +175,9 @@ module mbdk_ida
   real(dp), parameter :: ASSEMBLED_PHI = 1.0e-12_dp
   !> ggl: mu's absolute tolerance, which leaves it out of the Newton test (module header)
   real(dp), parameter :: MU_ATOL = 1.0_dp
+  !> ggl: the multipliers' Newton test, relative to the largest initial multiplier, is not
+  !> tighter than this (ggl_lam_atol)
+  real(dp), parameter :: LAM_RTOL_FLOOR = 1.0e-8_dp
   !> spatial ggl: the least first step, as a fraction of the interval (mbdk_ida_solve_spatial)
   real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
 
@@ -285,6 +290,7 @@ contains
     id(2 * nc + 1:) = 0.0_dp
     atol_v(1:2 * nc + m) = opt%atol
     atol_v(2 * nc + m + 1:) = MU_ATOL
+    if (ggl .and. m > 0) atol_v(2 * nc + 1:2 * nc + m) = ggl_lam_atol(opt, y(2 * nc + 1:2 * nc + m))
 
     ctx%ny = 2 * nc
     ctx%nl = m
@@ -422,12 +428,7 @@ contains
     id(ny + 1:) = 0.0_dp
     atol_v(1:ny + na) = opt%atol
     atol_v(ny + na + 1:) = MU_ATOL
-    ! ggl: a multiplier near zero is tested against rtol times the largest one, the size of its
-    ! roundoff in the index-2 iteration; at atol alone, that roundoff would keep Newton from
-    ! converging on a stiff scene at tight tolerances (tests/test_spatial.py: the flyball
-    ! governor)
-    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = max(opt%atol, &
-                                                        opt%rtol * maxval(abs(y(ny + 1:ny + na))))
+    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = ggl_lam_atol(opt, y(ny + 1:ny + na))
     if (ggl) then
       ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
       ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and a fast start
@@ -584,6 +585,7 @@ contains
       limit = mbdk_adaptive_step_limit(opt)
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
+      st%t_reached = t0
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -605,6 +607,7 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
+        st%t_reached = tret(1)
         ! IDA's own floor is h_min (0 by default): a step that cannot move t would repeat. The
         ! step IDA shortened to land on t_end is the last one, whatever its length.
         flag = FIDAGetLastStep(mem, hlast)
@@ -690,7 +693,7 @@ contains
     type(ida_context_t), intent(in) :: ctx
     real(dp), intent(in) :: y(:), yp(:), a(:), r(:)
     real(dp), intent(out) :: dtl(:)
-    real(dp) :: s, tol
+    real(dp) :: s, smax, tol
     integer :: nc, m, i, k
     nc = ctx%nc
     m = ctx%m
@@ -704,12 +707,20 @@ contains
         if (.not. (abs(r(nc + k)) <= tol * (abs(mass(k) * yp(nc + k)) + dtl(k) + abs(fq(k))))) &
           return
       end do
+      ! ggl's velocity rows against the largest row's terms: a row whose own terms are all
+      ! zero (a slider's, while the crank turns) still carries the roundoff of the assembly's
+      ! velocity solve, which is that of the largest
+      smax = 0.0_dp
+      if (ctx%ggl) then
+        do i = 1, m
+          smax = max(smax, sum(abs(d(i, :) * y(nc + 1:2 * nc))) + abs(ctx%phit(i)))
+        end do
+      end if
       do i = 1, m
         if (ctx%ggl) then
           s = sum(abs(d(i, :) * y(1:nc)))
           if (.not. (abs(r(2 * nc + i)) <= max(tol * s, ASSEMBLED_PHI))) return
-          s = sum(abs(d(i, :) * y(nc + 1:2 * nc))) + abs(ctx%phit(i))
-          if (.not. (abs(r(2 * nc + m + i)) <= tol * s)) return
+          if (.not. (abs(r(2 * nc + m + i)) <= tol * smax)) return
         else
           ! D a = gamma with a = M^-1 (f - D^T lam): a's roundoff is that of its terms, which
           ! may nearly cancel (a mechanism at rest under gravity)
@@ -894,5 +905,18 @@ contains
       ierr = 1
     end if
   end function ida_res
+
+  !> ggl's absolute tolerance of the multipliers lam0 (their initial values): max(atol, max(rtol,
+  !> LAM_RTOL_FLOOR) max |lam0|). In the index-2 iteration the multipliers carry roundoff of
+  !> the order of eps times the largest one times the iteration matrix's condition, which grows
+  !> like 1/h^2; tested at atol alone, or at rtol near eps, that roundoff keeps Newton from
+  !> converging (IDA_CONV_FAIL) on stiff scenes at tight tolerances (the flyball governor at
+  !> rtol 1e-10), and whether it does then depends on where the steps fall.
+  pure function ggl_lam_atol(opt, lam0) result(a)
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: lam0(:)
+    real(dp) :: a
+    a = max(opt%atol, max(opt%rtol, LAM_RTOL_FLOOR) * maxval(abs(lam0)))
+  end function ggl_lam_atol
 
 end module mbdk_ida
