@@ -5,7 +5,7 @@
     >>> r.y[-1], r.stats.steps, r.cpu_time
 """
 from . import exact  # noqa: F401
-from .errors import (BackendError, CallbackError, ConstraintDriftError, ContactOverrunError,
+from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError, ContactOverrunError,
                      EnergyDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
                      NonFiniteSolutionError, NotApplicableError,
@@ -35,5 +35,5 @@ __all__ = [
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "ContactOverrunError", "Watch", "SpatialScene",
-    "SpatialResult",
+    "SpatialResult", "AccuracyWarning",
 ]

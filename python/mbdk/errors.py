@@ -147,6 +147,13 @@ class BackendError(MbdkError):
     status = Status.ERR_BACKEND
 
 
+class AccuracyWarning(UserWarning):
+    """A successful run whose result has a part that its method does not compute accurately
+    (the book's index-3 scheme's multipliers and reactions, whose error grows as h shrinks):
+    the run says so in a warning and in its manifest, instead of returning the numbers
+    without a word."""
+
+
 class SolveInterrupted(KeyboardInterrupt):
     """A solve stopped by Ctrl-C (or its interrupt flag): a KeyboardInterrupt, so that code which
     catches Exception does not swallow it, carrying the partial result (the samples up to the

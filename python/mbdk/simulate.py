@@ -49,7 +49,7 @@ from numbers import Integral
 import numpy as np
 
 from . import _compiled, _kernel, checks
-from .errors import (InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
+from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, failure_text, status_message, stopped_at)
 from .errors import no_memory_message
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
@@ -425,6 +425,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             f"{method}/{formulation} on scene {scene.name!r}: the DAE's state [q, v, lambda] has "
             f"no place for the wear states ({', '.join(w.name for w in scene.wear)}); use an ODE "
             "method with formulation reduced, baumgarte or projection")
+    if assemble_initial and any(f.type == "contact" and f.shape1[0] == "gear"
+                                for f in scene.forces):
+        scene = _gears_at_assembled_pose(scene, t0)
     # built once: the kernel fills in the values taken from the pose where it starts the run
     tab = build_tables(scene, resolve=False)
     # the state [q; v; w]: the wear elements' volumes after the bodies' coordinates and rates
@@ -493,6 +496,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 **plan_["manifest"]}
     if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
+    book_lambda = index3 and formulation == "index3" and m > 0
+    if book_lambda:
+        manifest["multipliers"] = BOOK_MULTIPLIERS
     result = SceneResult(
         t=t, q=y[:nc].T, v=y[nc:2 * nc].T,
         a=a_out[:, :nw].T if want & 1 else None,
@@ -575,6 +581,10 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
                                                      plan_, result), status=status,
                                     result=result)
+    if book_lambda and want & (OUTPUTS["multipliers"] | OUTPUTS["reactions"]):
+        import warnings
+        warnings.warn(f"{method}/{formulation} on scene {scene.name!r}: the multipliers and "
+                      f"reactions are {BOOK_MULTIPLIERS}", AccuracyWarning, stacklevel=2)
     return result
 
 
@@ -838,6 +848,36 @@ def _too_large_to_name(tab: Tables) -> bool:
 def resolved(scene: Scene, r: SceneResult) -> Tables:
     """The tables of a run as the kernel used them: pose values taken at its first sample."""
     return build_tables(scene, r.q[0])
+
+
+#: the book scheme's multipliers, as its results and warnings say (studies/index3.py measures it)
+BOOK_MULTIPLIERS = (
+    "not converged: the book's index-3 scheme (formulation 'index3') leaves v and a off the "
+    "derived constraints by a period-2 oscillation amplified by 2/h and 4/h^2, so lambda and the "
+    "reactions carry an error that grows as h shrinks (studies/index3.py measures it); "
+    "formulation 'augmented_lagrangian' gives them at second order")
+
+
+def _gears_at_assembled_pose(scene: Scene, t0: float) -> Scene:
+    """The scene with its bodies at the pose and rates its initial assembly gives. A gear mesh's
+    phases, and its check that the gears mesh, are taken from the bodies' poses: they must be
+    those where the axle joints put the gears, not those the file writes (an axle joint moving a
+    gear out of mesh ran on, or into a non-finite state)."""
+    from dataclasses import replace
+    from .model import assemble
+    joints_only = replace(scene, forces=[], wear=[])
+    q, v, _ = assemble(joints_only, build_tables(joints_only), t0)
+    bodies = [replace(b, x=float(q[3 * i]), y=float(q[3 * i + 1]), angle=float(q[3 * i + 2]),
+                      vx=float(v[3 * i]), vy=float(v[3 * i + 1]), omega=float(v[3 * i + 2]))
+              for i, b in enumerate(scene.bodies)]
+    moved = replace(scene, bodies=bodies)
+    try:
+        build_tables(moved, resolve=False)
+    except SceneError as exc:
+        moved_by = float(np.max(np.abs(q - np.asarray(scene.q0(), float)))) if q.size else 0.0
+        raise SceneError(f"{exc} (at the pose the joints assemble, {moved_by:.3g} m or rad "
+                         "from the one the file writes)") from None
+    return moved
 
 
 #: the states whose Jacobian a failure message may form by differences (2 n kernel calls)
