@@ -87,6 +87,8 @@ typedef struct mbdk_stats {
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
     double t_reached;           /* the last accepted step's time (where a failed solve stopped) */
+    double alloc_bytes;         /* MBDK_ERR_NO_MEMORY: bytes of the allocation that failed
+                                   (0 where not known); else 0 */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure
@@ -236,7 +238,9 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
  * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE; the multipliers are those of
  * the last step attempted. The stepper copies the options, tables and y0, except the options'
  * interrupt flag: it keeps that address, which must stay valid until the stepper is destroyed.
- * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop). */
+ * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop).
+ * A stepper whose arrays cannot be allocated is not created: MBDK_ERR_NO_MEMORY, *stepper NULL
+ * (the size asked for is reported by the whole-interval solves only, in mbdk_stats). */
 typedef struct mbdk_stepper mbdk_stepper;
 
 int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,

@@ -215,6 +215,36 @@ def failure_text(status: Status, adaptive: bool, dae: bool = False) -> str:
                 "tolerances can follow there (a singularity, a discontinuity, or tolerances "
                 "near double precision)")
     return status_message(status)
+def format_bytes(n: float) -> str:
+    """A size in bytes as people read it: three significant digits, decimal units (48.7 GB)."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n:.0f} bytes"
+
+
+def _count(k: int) -> str:
+    return f"{k:,}".replace(",", " ")
+
+
+def no_memory_message(alloc_bytes: float, matrices=(), smaller: str = "fewer bodies",
+                      samples: bool = True) -> str:
+    """What ERR_NO_MEMORY says: the bytes the kernel asked for (Stats.alloc_bytes; 0 where the
+    kernel could not tell), what they were where the size tells it, and what to change.
+    matrices: (what, order, advice) of the run's dense square matrices (the Newton matrix of an
+    implicit method over its unknowns, the penalty formulation's over the coordinates, ...): an
+    allocation of at least one of them is named as the largest such, with its advice. samples:
+    the run has samples, whose number is a remedy too."""
+    text = (f"the kernel could not allocate {format_bytes(alloc_bytes)}" if alloc_bytes > 0 else
+            "the kernel ran out of memory (the size it asked for is not known)")
+    fits = [m for m in matrices if m[1] and alloc_bytes >= 0.99 * 8.0 * m[1] * m[1]]
+    if not fits:
+        return text + f"; {smaller}" + (", or fewer samples (a larger every or dt_out, a shorter "
+                                         "t_end)" if samples else "")
+    what, order, advice = max(fits, key=lambda m: m[1])
+    k, n = max(1, round(alloc_bytes / (8.0 * order * order))), _count(order)
+    return (text + f" ({'a' if k == 1 else k} dense {n} x {n} matri{'x' if k == 1 else 'ces'}: "
+            f"{what}{'' if k == 1 else ' and its factors'}); {advice}, or {smaller}")
 
 
 def exception_for(status: Status) -> type:

@@ -18,6 +18,7 @@ import numpy as np
 from . import _compiled, _kernel, checks
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
                      Status, _decode, exception_for, failure_text, status_message, stopped_at)
+from .errors import no_memory_message
 from .methods import method as _method, methods
 from .options import ODEOptions, empty
 from .problems import problem as _problem, resolve_params
@@ -396,6 +397,11 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
                            status=status, message=status_message(status), manifest=manifest,
                            problem=problem if isinstance(problem, str) else "",
                            method=method, params=params, t0=t0, y0=y0)
+    if status == Status.ERR_NO_MEMORY:
+        n = 0 if y0 is None else len(y0)
+        result.message = no_memory_message(
+            result.stats.alloc_bytes, [(f"the Newton matrix of {method}", n,
+                                        "use an explicit method")], "a smaller system")
     if status == Status.ERR_INTERRUPTED or interrupted:
         # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
         raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else
@@ -408,7 +414,8 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
             "avoids: a singularity of the model or of its parameters there")
     if status.failed and raise_on_failure:
         where = stopped_at(result.stats, t0)
-        text = failure_text(status, _method(method).adaptive)
+        text = (result.message if status == Status.ERR_NO_MEMORY else
+                failure_text(status, _method(method).adaptive))
         msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {text} ({where})"
         if failure_note:
             msg += f": {failure_note}"

@@ -51,6 +51,7 @@ import numpy as np
 from . import _compiled, _kernel, checks
 from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
                      Status, exception_for, failure_text, status_message, stopped_at)
+from .errors import no_memory_message
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
@@ -561,6 +562,19 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                       "there. watch=False accepts the run as it is.")
         result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
                           f"{drift_message(watch_report, tab.rows)}. " + advice)
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
+    if status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the
+        # penalty formulation's over the coordinates
+        newton = (2 * nc + m * (2 if formulation in ("si2", "ggl") else 1) if dae_form else
+                  nc + m * (formulation == "index3") if index3 else y0.size)
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method, or "
+                  "trapezoidal_index3 (augmented_lagrangian: sparse on large scenes)"),
+                 ("the penalty formulation's M + alpha_p D^T D", nc * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection (sparse on large scenes)")]
+        result.message = (f"{method}/{formulation} on scene {scene.name!r} ({len(scene.bodies)} "
+                          f"bodies): " + no_memory_message(stats.alloc_bytes, dense))
         if raise_on_failure:
             raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:

@@ -69,6 +69,7 @@ import numpy as np
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
                      failure_text, status_message, stopped_at)
+from .errors import NoMemoryError, format_bytes, no_memory_message
 from .methods import method as _method
 from .options import ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
@@ -943,6 +944,17 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                           ". A smaller step, the "
                           "projection formulation or watch=False (to study the drift) are "
                           "the remedies")
+    elif status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the penalty
+        # formulation's over the velocities
+        newton = (len(y0) + sc.rows * (2 if formulation in ("si2", "ggl") else 1)
+                  if dae or ida or index3 else len(y0))
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method"),
+                 ("the penalty formulation's M + alpha_p C^T C",
+                  6 * nb * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection")]
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} ({nb} bodies): "
+                          + no_memory_message(result.stats.alloc_bytes, dense))
     elif status == Status.ERR_SINGULAR_MATRIX:
         where = (f"stopped {stopped_at(result.stats, t0)}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")
@@ -1107,9 +1119,17 @@ def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
                                     f"scene's layout: q then (v, Omega) per body)")
     y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, phit, lam, ydot, rank, status = _kernel.spatial_residuals(
-        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-        float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    run = f"evaluating spatial scene {sc.name!r} ({nb} bodies, {m} constraint rows)"
+    try:
+        out, phi, c, gam, phit, lam, ydot, rank, asked, status = _kernel.spatial_residuals(
+            mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+            float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    except MemoryError as exc:   # the arrays f2py allocates, C (rows x 6 nb) the largest
+        raise NoMemoryError(f"{run}: its arrays ({format_bytes(8.0 * max(m, 1) * 6 * nb)} for C "
+                            f"alone, {m} x {6 * nb}) could not be allocated ({exc}); fewer "
+                            "bodies or joints") from exc
+    if status == Status.ERR_NO_MEMORY:
+        raise NoMemoryError(f"{run}: " + no_memory_message(asked, samples=False))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
             "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "phi_t": phit[:m],
             "multipliers": lam[:m], "ydot": ydot,

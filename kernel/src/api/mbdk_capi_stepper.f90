@@ -29,6 +29,7 @@ module mbdk_capi_stepper
     c_associated, c_null_ptr, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted
@@ -92,7 +93,11 @@ contains
     handle = c_null_ptr
     if (.not. (present(y0) .and. present(opt)) .or. .not. c_associated(f) .or. n < 1) return
     if (opt%nq < 0 .or. (opt%nq > 0 .and. 2 * opt%nq /= n)) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_ode = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_ODE
     call mbdk_c_problem_init(b%cprob, f, user_data, int(n), int(opt%nq), jac)
     call start(b, opt, t0, y0(1:n), stat)
@@ -118,7 +123,11 @@ contains
     if (.not. present(handle)) return
     handle = c_null_ptr
     if (.not. (present(mopt) .and. present(opt) .and. present(y0))) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_scene = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_SCENE
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
     if (stat == MBDK_SUCCESS) call check_start(b, t0, y0(1:6 * nb), stat)
@@ -149,7 +158,11 @@ contains
       return
     end if
     if (.not. (opt%h > 0.0_dp .and. opt%h <= huge(1.0_dp))) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_index3 = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_INDEX3
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
@@ -158,7 +171,7 @@ contains
       b%h = opt%h
       b%t0 = t0
       b%t_good = t0
-      b%y_good = y0(1:6 * nb)
+      if (stat == MBDK_SUCCESS) call keep_y0(b, y0(1:6 * nb), stat)
     end if
     mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_index3
@@ -200,7 +213,9 @@ contains
     if (m == 0) return
     stat = MBDK_ERR_NONFINITE
     if (.not. all(abs(y) <= huge(1.0_dp))) return
-    allocate (phi(m), gam(m), phit(m), dv(m), scale_v(m))
+    allocate (phi(m), gam(m), phit(m), dv(m), scale_v(m), stat=k)
+    call mbdk_alloc_status(k, 5 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
     associate (q => y(1:nc), v => y(nc + 1:2 * nc))
       call mbdk_model_constraints(b%model, t0, q, v, phi, gam=gam, phit=phit)
       dv = phit
@@ -240,13 +255,25 @@ contains
     b%h = opt%h
     b%t0 = t0
     b%t_good = t0
-    b%y_good = y0
+    call keep_y0(b, y0, stat)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_method_info(opt%method, name, family, order)
     if (family == MBDK_FAMILY_IMPLICIT_LMM) then
       call mbdk_lmm_table(opt%method, lmm, found)
       b%equal_steps = lmm%k > 1
     end if
   end subroutine start
+
+  !> b%y_good = y0, allocated with its status (MBDK_ERR_NO_MEMORY)
+  subroutine keep_y0(b, y0, stat)
+    type(stepper_box), intent(inout) :: b
+    real(dp), intent(in) :: y0(:)
+    integer, intent(out) :: stat
+    integer :: astat
+    allocate (b%y_good(size(y0)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(y0), stat)
+    if (stat == MBDK_SUCCESS) b%y_good = y0
+  end subroutine keep_y0
 
   integer(c_int) function finish_create(b, stat, handle)
     type(stepper_box), pointer, intent(inout) :: b
@@ -409,7 +436,11 @@ contains
       return
     end if
     nc = b%model%nc
-    allocate (a(nc), l(m))
+    allocate (a(nc), l(m), stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_multipliers = MBDK_ERR_NO_MEMORY
+      return
+    end if
     call mbdk_model_accelerations(b%model, b%t_good, b%y_good(1:nc), b%y_good(nc + 1:2 * nc), a, &
                                   l, stat)
     if (stat == MBDK_SUCCESS .and. m > 0) lam(1:m) = l

@@ -42,6 +42,7 @@ module mbdk_embedded_rk
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_embedded_pairs, only: mbdk_pair_t, mbdk_pair_table
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
@@ -81,8 +82,11 @@ contains
     call mbdk_pair_table(opt%method, pr, found)
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (.not. found) return
-    allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s))
-    allocate (g0(prob%nevents), g1(prob%nevents), gt(prob%nevents), yt(n))
+    allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s), g0(prob%nevents), &
+              g1(prob%nevents), gt(prob%nevents), yt(n), stat=redo)
+    call mbdk_alloc_status(redo, MBDK_REAL_BYTES * (real(n, dp) * (pr%s + 5) + pr%s + &
+                                                    3.0_dp * prob%nevents), stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     y = y0
     t = t0
     st%t_reached = t0

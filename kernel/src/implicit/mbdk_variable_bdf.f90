@@ -78,6 +78,7 @@ module mbdk_variable_bdf
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
   use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
     mbdk_adaptive_count_order
@@ -131,7 +132,7 @@ contains
     real(dp), allocatable :: em(:)
     logical, allocatable :: alg(:)
     logical :: dae
-    integer :: nt, n2
+    integer :: nt, n2, astat
     real(dp) :: d0, d1
     type(mbdk_newton_work_t) :: nw
 
@@ -151,8 +152,11 @@ contains
       errc(j) = 1.0_dp / real(j + 1, dp)
     end do
 
-    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n))
-    allocate (em(n), alg(n))
+    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n), &
+              em(n), alg(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (MBDK_BDF_MAX_ORDER + 11.0_dp) * n + &
+                           MBDK_INT_BYTES * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     dae = present(mass) .and. present(yp0) .and. present(ntest)
     em = 1.0_dp
     nt = n
@@ -166,7 +170,8 @@ contains
       if (n2 < 0 .or. nt + n2 > n) return
     end if
     alg = em == 0.0_dp
-    call mbdk_newton_work_init(nw, n)
+    call mbdk_newton_work_init(nw, n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     t = t0
     st%t_reached = t0
     d = 0.0_dp
@@ -460,7 +465,13 @@ contains
     subroutine floor_norm(fl, s)
       real(dp), intent(out) :: fl
       integer, intent(out) :: s
-      real(dp) :: e(n), b1(n), b2(n), fv(n), ymax
+      real(dp), allocatable :: e(:), b1(:), b2(:), fv(:)
+      real(dp) :: ymax
+      integer :: astat
+      fl = huge(1.0_dp)
+      allocate (e(n), b1(n), b2(n), fv(n), stat=astat)
+      call mbdk_alloc_status(astat, 4 * MBDK_REAL_BYTES * n, s, st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
       ymax = maxval(abs(ynew(1:nt)))
       e = abs(c * f) + em * (abs(psi) + abs(corr))
       if (dae) where (alg) e = abs(f) + ymax

@@ -24,6 +24,7 @@ module mbdk_newton
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_error_norm, only: mbdk_wrms
   use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_newton_solve, mbdk_jacobian
@@ -37,11 +38,18 @@ module mbdk_newton
 
 contains
 
-  subroutine mbdk_newton_work_init(w, n)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes of the two dense n x n
+  !> matrices and the vectors, mbdk_memory)
+  subroutine mbdk_newton_work_init(w, n, stat, asked)
     type(mbdk_newton_work_t), intent(out) :: w
     integer, intent(in) :: n
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: astat
     allocate (w%jac(n, n), w%lu(n, n), w%f(n), w%f0(n), w%r(n), w%ytmp(n), w%ypred(n), w%ipiv(n), &
-              w%floor(n), w%b1(n), w%b2(n))
+              w%floor(n), w%b1(n), w%b2(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * n * n + 8.0_dp * n) + &
+                           MBDK_INT_BYTES * n, stat, asked)
   end subroutine mbdk_newton_work_init
 
   !> J = dF/dy at (t, y): analytic if available (and not overridden), else forward differences.

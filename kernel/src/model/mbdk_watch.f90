@@ -39,6 +39,7 @@
 module mbdk_watch
   use mbdk_kinds, only: dp
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_watch_start, mbdk_watch_due, mbdk_watch_power, mbdk_watch_test
@@ -81,13 +82,14 @@ contains
   !> drivers, and the static part of the energy scale (sum m_b |g| L).
   subroutine mbdk_watch_start(w, tol_position, tol_velocity, tol_energy, every, power, length, &
                               row_angular, t0, kinetic, v_gravity, v_springs, power0, &
-                              gravity_scale, mass)
+                              gravity_scale, mass, stat)
     type(mbdk_watch_t), intent(inout) :: w
     real(dp), intent(in) :: tol_position, tol_velocity, tol_energy, length, t0, kinetic, &
       v_gravity, v_springs, power0, gravity_scale, mass
     integer, intent(in) :: every
     logical, intent(in) :: power, row_angular(:)
-    integer :: m
+    integer, intent(out) :: stat   !< MBDK_SUCCESS, or MBDK_ERR_NO_MEMORY
+    integer :: m, astat
     m = size(row_angular)
     w%tol_position = max(tol_position, 0.0_dp)
     w%tol_velocity = max(tol_velocity, 0.0_dp)
@@ -99,7 +101,9 @@ contains
     w%since = 0
     w%length = length
     if (allocated(w%row_scale)) deallocate (w%row_scale, w%vel_scale)
-    allocate (w%row_scale(m), w%vel_scale(m))
+    allocate (w%row_scale(m), w%vel_scale(m), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
     w%row_scale = merge(1.0_dp, length, row_angular)
     w%mass = mass
     w%e0 = kinetic + v_gravity + v_springs

@@ -75,6 +75,7 @@ module mbdk_spatial_index3
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
@@ -152,7 +153,11 @@ contains
     allocate (y(ny), f(ny), x(nx), r(nx), dx(nx), jac(nx, nx), lam(na), lamfull(model%m), &
               phi(model%m), xp(nx), rp(nx), ipiv(nx), fprev(ny), lamprev(na), floor(ny), &
               floor_probe(ny), wt(ny), wt_strict(ny), e(nx), b1(nx), b2(nx), &
-              dyn(nx), e_state(nx))
+              dyn(nx), e_state(nx), stat=it)
+    call mbdk_alloc_status(it, MBDK_REAL_BYTES * (real(nx, dp) * (nx + 10) + 7.0_dp * ny + &
+                           2.0_dp * na + 2.0_dp * model%m) + MBDK_INT_BYTES * nx, stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
 
     call mbdk_timer_start(timer)
     call run(stat)
@@ -352,7 +357,11 @@ contains
       real(dp), intent(out) :: rs(:)
       integer, intent(out) :: s
       real(dp), intent(out), optional :: noise(:)
-      real(dp) :: g(ny), gabs(6 * model%nb)
+      real(dp), allocatable :: g(:), gabs(:)
+      integer :: astat
+      allocate (g(ny), gabs(6 * model%nb), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (ny + 6.0_dp * model%nb), s)
+      if (s /= MBDK_SUCCESS) return
       lamfull = 0.0_dp
       lamfull(rows) = xs(ny + 1:) / (0.25_dp * h * h)
       call mbdk_spatial_dae_rhs(model, t1, y + xs(1:ny), lamfull, g, phi, s, gabs)
@@ -386,8 +395,12 @@ contains
     subroutine build_matrix(xs, s)
       real(dp), intent(in) :: xs(:)
       integer, intent(out) :: s
-      real(dp) :: r0(nx), xj(nx), del
+      real(dp), allocatable :: r0(:), xj(:)
+      real(dp) :: del
       integer :: j
+      allocate (r0(nx), xj(nx), stat=j)
+      call mbdk_alloc_status(j, 2 * MBDK_REAL_BYTES * nx, s)
+      if (s /= MBDK_SUCCESS) return
       call residual(xs, r0, s)
       if (s /= MBDK_SUCCESS) return
       xj = xs

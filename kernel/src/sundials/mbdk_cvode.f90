@@ -72,6 +72,7 @@ module mbdk_cvode
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_after_step, mbdk_adaptive_step_limit, &
     mbdk_adaptive_h_floor, mbdk_adaptive_count_order
@@ -164,7 +165,9 @@ contains
     if (.not. adams .and. opt%max_order > BDF_MAX_ORDER) return
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), ydky(n), atol_v(size(atol)), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (2.0_dp * n + size(atol)), stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     y = y0
     atol_v = atol
 
@@ -224,7 +227,10 @@ contains
         if (.not. associated(nls)) exit run
       else
         amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-        if (.not. associated(amat)) exit run
+        if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+          st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+          exit run
+        end if
         ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
         if (.not. associated(ls)) exit run
         nls => FSUNNonlinSol_Newton(nv_y, sunctx)

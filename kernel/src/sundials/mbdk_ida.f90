@@ -135,6 +135,7 @@ module mbdk_ida
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
@@ -235,7 +236,7 @@ contains
 
     type(ida_context_t), target :: ctx
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
-    real(dp), allocatable :: r0(:), a0(:)
+    real(dp), allocatable :: r0(:), a0(:), dtl(:)
     integer :: nc, m, n, ns, ierr, nlam
     real(dp) :: t_end
 
@@ -259,9 +260,11 @@ contains
     if (ggl) n = n + m
 
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), ctx%phi(m), &
+    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), dtl(nc), ctx%phi(m), &
               ctx%d(m, nc), ctx%gam(m), ctx%phit(m), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + 2 * nc + real(m, dp) * (nc + 3)), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%model => model
     ctx%nc = nc
     ctx%m = m
@@ -281,7 +284,7 @@ contains
     call dae_residual(ctx, t0, y, yp, r0, stat)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    if (.not. consistent(ctx, y, yp, a0, r0)) return
+    if (.not. consistent(ctx, y, yp, a0, r0, dtl)) return
     if (nlam >= 1) lam_out(1:m, 1) = y(2 * nc + 1:2 * nc + m)
     id(1:2 * nc) = 1.0_dp
     id(2 * nc + 1:) = 0.0_dp
@@ -351,7 +354,9 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
               ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 7) + 2.0_dp * ny), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ! the rows after the model's solve at t0, which may move a redundant scene to another set
     if (m > 0) then
       call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
@@ -363,7 +368,8 @@ contains
     if (ggl) n = n + na
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 6.0_dp * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%smodel => model
     ctx%spatial = .true.
     ctx%m = m
@@ -396,8 +402,10 @@ contains
     if (stat /= MBDK_SUCCESS) return
     ! the constraint rows within roundoff of the largest row's terms: a row whose own terms are
     ! all zero (a mechanism at rest) still carries the roundoff of gamma's
+    allocate (sizes(na), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * na, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    allocate (sizes(na))
     do i = 1, na
       k = ctx%rows(i)
       if (ggl) then
@@ -564,7 +572,10 @@ contains
 
       stat = MBDK_ERR_NO_MEMORY
       amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-      if (.not. associated(amat)) exit run
+      if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+        st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+        exit run
+      end if
       ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
       if (.not. associated(ls)) exit run
       ! no Jacobian function: IDA's dense difference quotients
@@ -676,11 +687,13 @@ contains
   end subroutine put_lam
 
   !> Whether the residual r of the initial values (y, yp) is within roundoff, row by row (see
-  !> the module header); ctx holds the evaluation at those values, a the accelerations.
-  logical function consistent(ctx, y, yp, a, r)
+  !> the module header); ctx holds the evaluation at those values, a the accelerations. dtl(nc):
+  !> work (the caller's: an automatic array would be taken from malloc unchecked).
+  logical function consistent(ctx, y, yp, a, r, dtl)
     type(ida_context_t), intent(in) :: ctx
     real(dp), intent(in) :: y(:), yp(:), a(:), r(:)
-    real(dp) :: s, smax, tol, dtl(ctx%nc)
+    real(dp), intent(out) :: dtl(:)
+    real(dp) :: s, smax, tol
     integer :: nc, m, i, k
     nc = ctx%nc
     m = ctx%m
