@@ -205,13 +205,13 @@ def call_overhead(out: Path, quick: bool):
     import timeit
 
     from mbdk import _kernel, ode
-    from mbdk.options import unpack
+    from mbdk.options import empty, unpack
     progress("call overhead")
     solver = mbdk.ODESolver("double_pendulum", "rk4", h=0.01, t_end=10.0, every=1000)
     args = (solver._id, solver.y0, 0.0, 10.0, solver._pvec, solver._opt)
 
     def bare():
-        stats = np.zeros(15)
+        stats = empty("mbdk_stats")
         _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp, stats)
         return unpack("mbdk_stats", stats)["cpu_time"]
 
@@ -234,7 +234,7 @@ def call_overhead(out: Path, quick: bool):
             round_medians[k].append(float(np.median(g)))
     # Python's share alone: the kernel entry answers at once with a real solve's outputs
     canned = _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp,
-                                   np.zeros(15))
+                                   empty("mbdk_stats"))
 
     class Canned:
         def __getattr__(self, name):

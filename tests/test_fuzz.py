@@ -1,6 +1,6 @@
-"""Bad input from every door gets a named error or a sound result (issue 18): a fixed-seed
-subset of studies/fuzz.py's generator (broken scene files, Scene objects changed in Python, bad
-arguments). A generic Python exception, a success with inf or NaN, or anything printed by the
+"""Bad input from every door gets a named error or a sound result (issues 18 and 36): a
+fixed-seed subset of studies/fuzz.py's generator (broken scene files, Scene objects changed in
+Python, bad arguments, paths that are no scene file, the stability and registry functions). A generic Python exception, a success with inf or NaN, or anything printed by the
 kernel or LAPACK (which would print on an illegal argument) fails the test; a crash or a hang
 fails the whole run."""
 import collections
@@ -28,10 +28,39 @@ def test_every_bad_input_gets_a_named_error_or_a_sound_result(outcomes):
 def test_the_generator_reaches_every_door_and_both_outcomes(outcomes):
     """A generator that only ever produced errors (or only successes) would prove nothing."""
     c = collections.Counter((r["door"], r["outcome"]) for r in outcomes)
-    for door in ("scene file", "scene objects", "arguments"):
+    for door in fuzz.DOORS:
         assert c[(door, "named")] >= 10, c
     assert c[("scene file", "success")] >= 5 and c[("scene objects", "success")] >= 5, c
     assert max(r["seconds"] for r in outcomes) < 30.0   # no case hangs
+
+
+#: the bad inputs of issue 36, by the text of the fuzz cases that carry them
+ISSUE_36 = {
+    "a 400-digit integer in a scene file": ("scene file", "10000000000000000000000000000000000"),
+    "an integer beyond Python's text limit": ("scene file", "<5000-digit integer>"),
+    "a denormal float in a scene file": ("scene file", "5e-324"),
+    "a huge integer argument": ("arguments", "=10000000000000000000000000000000"),
+    "an h_max of 1e-300": ("arguments", "h_max=1e-300"),
+    "a spatial scene's atol list": ("arguments", "atol=[-1.0, 1e-09]"),
+    "samples beyond the memory": ("arguments", "2e9 samples"),
+    "a device as the scene file": ("scene paths", "/dev/zero"),
+    "a named pipe as the scene file": ("scene paths", "pipe.toml"),
+    "a list where a formulation belongs": ("arguments", "formulation=['reduced']"),
+    "a dict where a method belongs": ("arguments", "simulate(four_bar, {'rk4': 1}"),
+    "stability_region's re of a wrong type": ("functions", "stability_region(re)"),
+}
+
+
+def test_the_generator_carries_every_bad_input_of_issue_36(outcomes):
+    """Each kind of input the issue found getting through is among the cases (each case is
+    then held to a named error or a sound result by the test above); a spatial scene takes the
+    tolerance case at least once."""
+    missing = [what for what, (door, text) in ISSUE_36.items()
+               if not any(r["door"] == door and text in r["case"] for r in outcomes)]
+    assert not missing, missing
+    spatial = [r for r in outcomes if r["door"] == "arguments" and "atol=" in r["case"]
+               and ("heavy_top" in r["case"] or "spatial_double_pendulum" in r["case"])]
+    assert spatial and all(r["outcome"] == "named" for r in spatial), spatial
 
 
 def test_nothing_is_printed(tmp_path, capfd):

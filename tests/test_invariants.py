@@ -121,26 +121,26 @@ def test_the_heavy_top_at_2000_rad_per_s_on_implicit_euler_stops_naming_its_vert
 
 
 def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
-    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s and rtol 1e-3
-    the unwatched run ends with |p| 1.85; watched, InvariantDriftError naming the body's
-    quaternion. Watch(quaternion=None) turns that test off (the momentum test then names the
-    vertical spin, later). At 50 rad/s and rtol 1e-6 the norm stays within 1e-2 and the run
-    passes."""
+    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s and rtol 3e-3
+    the unwatched run ends with |p| near 2; watched, it stops by name (the vertical spin
+    first); with the momentum test off, naming the body's quaternion, every sample returned
+    within the tolerance. Watch(quaternion=None) as well turns both off. At 50 rad/s and rtol
+    1e-6 the norm stays within 1e-2 and the run passes."""
     sc = mbdk.scene("heavy_top")
     sc.bodies[0].omega_body = np.array([1.0, 0.0, 2000.0])
-    kw = dict(formulation="i3", rtol=1e-3, atol=1e-6, t_end=10.0, dt_out=0.01)
+    kw = dict(formulation="i3", rtol=3e-3, atol=3e-6, t_end=10.0, dt_out=0.01)
     free = mbdk.simulate(sc, "bdf", watch=False, **kw)
     assert free.success and free.residuals[:, 2].max() > 0.5
-    with pytest.raises(mbdk.InvariantDriftError) as err:
+    with pytest.raises(mbdk.InvariantDriftError):
         mbdk.simulate(sc, "bdf", **kw)
+    with pytest.raises(mbdk.InvariantDriftError) as err:
+        mbdk.simulate(sc, "bdf", watch=mbdk.Watch(momentum=None), **kw)
     d = err.value.result.drift
     assert d["quantity"] == "quaternion" and d["body"] == "top" and d["value"] > 0.1
     assert "quaternion of body 'top'" in str(err.value)
     assert err.value.result.residuals[:, 2].max() <= 0.1
-    with pytest.raises(mbdk.InvariantDriftError) as err:
-        mbdk.simulate(sc, "bdf", watch=mbdk.Watch(quaternion=None), **kw)
-    assert err.value.result.drift["quantity"] == "momentum"
-    assert err.value.result.t[-1] > d["t"]
+    assert mbdk.simulate(sc, "bdf", watch=mbdk.Watch(momentum=None, quaternion=None),
+                         **kw).success
     r = mbdk.simulate(mbdk.scene("heavy_top"), "bdf", formulation="i3", rtol=1e-6, atol=1e-8,
                       t_end=10.0, dt_out=0.01)
     assert r.success and r.residuals[:, 2].max() < 1e-2

@@ -87,6 +87,9 @@ typedef struct mbdk_stats {
                                    counts orders above 5 in order5_steps) */
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
+    double t_reached;           /* the last accepted step's time (where a failed solve stopped) */
+    double alloc_bytes;         /* MBDK_ERR_NO_MEMORY: bytes of the allocation that failed
+                                   (0 where not known); else 0 */
 } mbdk_stats;
 
 /* Right-hand side y' = F(t, y). Return 0 on success, non-zero on failure
@@ -239,13 +242,17 @@ int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *
  * stays readable and further steps return MBDK_ERR_NOT_APPLICABLE; the multipliers are those of
  * the last step attempted. The stepper copies the options, tables and y0, except the options'
  * interrupt flag: it keeps that address, which must stay valid until the stepper is destroyed.
- * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop). */
+ * Its statistics count work; cpu_time and wall_time stay 0 (the caller times its own loop).
+ * A stepper whose arrays cannot be allocated is not created: MBDK_ERR_NO_MEMORY, *stepper NULL
+ * (the size asked for is reported by the whole-interval solves only, in mbdk_stats). */
 typedef struct mbdk_stepper mbdk_stepper;
 
 int mbdk_stepper_create_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, double t0,
                             const double *y0, const mbdk_options *opt, mbdk_stepper **stepper);
 /* y0 = (q, v, w): 6 nb values and then the initial volumes of the scene's wear elements, if
- * any (mbdk_stepper_size gives the state's length) */
+ * any (mbdk_stepper_size gives the state's length). (q, v) must meet the joints, |Phi| and
+ * |D v + Phi_t| within 1e-6 of the scene's size: MBDK_ERR_INCONSISTENT_INITIAL otherwise (the
+ * stepper does not assemble the state) */
 int mbdk_stepper_create_scene(int nb, const double *mass, const double *inertia, int nj,
                               const int *jint, const double *jreal, int nf, const int *fint,
                               const double *freal, const mbdk_model_options *model_opt,
@@ -257,7 +264,8 @@ int mbdk_stepper_create_index3(int nb, const double *mass, const double *inertia
                                const double *freal, const mbdk_index3_options *opt, double t0,
                                const double *y0, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
-int mbdk_stepper_advance(mbdk_stepper *stepper, double t);    /* up to t, landing on it */
+/* up to t, landing on it; t before the stepper's time: MBDK_ERR_INVALID_INPUT */
+int mbdk_stepper_advance(mbdk_stepper *stepper, double t);
 int mbdk_stepper_state(const mbdk_stepper *stepper, double *t, double *y, int n);
 int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
 int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */

@@ -5,8 +5,8 @@
     >>> r.y[-1], r.stats.steps, r.cpu_time
 """
 from . import exact  # noqa: F401
-from .errors import (BackendError, CallbackError, ConstraintDriftError, ContactOverrunError,
-                     EnergyDriftError, InvariantDriftError,
+from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError,
+                     ContactOverrunError, EnergyDriftError, InvariantDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
                      NonFiniteSolutionError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
@@ -35,6 +35,5 @@ __all__ = [
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
-    "Watch", "SpatialScene",
-    "SpatialResult",
+    "Watch", "SpatialScene", "SpatialResult", "AccuracyWarning",
 ]

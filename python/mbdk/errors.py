@@ -156,6 +156,13 @@ class BackendError(MbdkError):
     status = Status.ERR_BACKEND
 
 
+class AccuracyWarning(UserWarning):
+    """A successful run whose result has a part that its method does not compute accurately
+    (the book's index-3 scheme's multipliers and reactions, whose error grows as h shrinks):
+    the run says so in a warning and in its manifest, instead of returning the numbers
+    without a word."""
+
+
 class SolveInterrupted(KeyboardInterrupt):
     """A solve stopped by Ctrl-C (or its interrupt flag): a KeyboardInterrupt, so that code which
     catches Exception does not swallow it, carrying the partial result (the samples up to the
@@ -190,6 +197,64 @@ _BY_STATUS = {
     Status.ERR_BACKEND: BackendError,
     Status.ERR_INTERRUPTED: SolveInterrupted,
 }
+
+
+def stopped_at(stats, t0: float) -> str:
+    """Where a failed solve stopped: after its last accepted step (stats.t_reached; the failure
+    lies in the step after it), not at its last sample, which may lie far before."""
+    if not stats.steps:
+        return f"at t = {t0:.6g}, in the first step"
+    return f"after t = {stats.t_reached:.6g}"
+
+
+def failure_text(status: Status, adaptive: bool, dae: bool = False) -> str:
+    """The kernel's message for a failure status, with the advice that fits the kind of method:
+    an error-controlled method chooses its own steps, so "reduce the step h" would ask for what
+    it already tried."""
+    status = Status(status)
+    if adaptive and status == Status.ERR_NEWTON_DIVERGED:
+        return ("Newton-Raphson iteration did not converge, also at the smallest steps the "
+                "method tried: the tolerances may lie below what the iteration reaches in "
+                "double precision (loosen rtol and atol)"
+                + (", or the DAE's start or the mechanism is singular there" if dae else
+                   ", or the model is singular there"))
+    if adaptive and status == Status.ERR_NONFINITE:
+        return "the solution overflowed to inf or NaN"
+    if adaptive and status == Status.ERR_STEP_TOO_SMALL:
+        return ("the step size became too small: the solution changes faster than the "
+                "tolerances can follow there (a singularity, a discontinuity, or tolerances "
+                "near double precision)")
+    return status_message(status)
+def format_bytes(n: float) -> str:
+    """A size in bytes as people read it: three significant digits, decimal units (48.7 GB)."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n:.0f} bytes"
+
+
+def _count(k: int) -> str:
+    return f"{k:,}".replace(",", " ")
+
+
+def no_memory_message(alloc_bytes: float, matrices=(), smaller: str = "fewer bodies",
+                      samples: bool = True) -> str:
+    """What ERR_NO_MEMORY says: the bytes the kernel asked for (Stats.alloc_bytes; 0 where the
+    kernel could not tell), what they were where the size tells it, and what to change.
+    matrices: (what, order, advice) of the run's dense square matrices (the Newton matrix of an
+    implicit method over its unknowns, the penalty formulation's over the coordinates, ...): an
+    allocation of at least one of them is named as the largest such, with its advice. samples:
+    the run has samples, whose number is a remedy too."""
+    text = (f"the kernel could not allocate {format_bytes(alloc_bytes)}" if alloc_bytes > 0 else
+            "the kernel ran out of memory (the size it asked for is not known)")
+    fits = [m for m in matrices if m[1] and alloc_bytes >= 0.99 * 8.0 * m[1] * m[1]]
+    if not fits:
+        return text + f"; {smaller}" + (", or fewer samples (a larger every or dt_out, a shorter "
+                                         "t_end)" if samples else "")
+    what, order, advice = max(fits, key=lambda m: m[1])
+    k, n = max(1, round(alloc_bytes / (8.0 * order * order))), _count(order)
+    return (text + f" ({'a' if k == 1 else k} dense {n} x {n} matri{'x' if k == 1 else 'ces'}: "
+            f"{what}{'' if k == 1 else ' and its factors'}); {advice}, or {smaller}")
 
 
 def exception_for(status: Status) -> type:

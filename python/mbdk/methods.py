@@ -6,7 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from . import _kernel
-from .errors import UnknownMethodError, _decode
+from .checks import show
+from .errors import InvalidInputError, UnknownMethodError, _decode
 
 
 @dataclass(frozen=True)
@@ -99,10 +100,10 @@ def methods(solves: str | None = None, step: str | None = None) -> dict[str, Met
     """Every method, by name, with its properties; solves='ode' (what solve_ode and the scene
     formulations take) or 'dae' (trapezoidal_index3: scenes only) selects one kind, and
     step='fixed' (a step h) or 'adaptive' (error control by rtol and atol) another."""
-    if solves not in (None, "ode", "dae"):
-        raise ValueError(f"solves = {solves!r} must be None, 'ode' or 'dae'")
-    if step not in (None, "fixed", "adaptive"):
-        raise ValueError(f"step = {step!r} must be None, 'fixed' or 'adaptive'")
+    if solves is not None and (not isinstance(solves, str) or solves not in ("ode", "dae")):
+        raise InvalidInputError(f"solves = {show(solves)} must be None, 'ode' or 'dae'")
+    if step is not None and (not isinstance(step, str) or step not in ("fixed", "adaptive")):
+        raise InvalidInputError(f"step = {show(step)} must be None, 'fixed' or 'adaptive'")
     return {k: m for k, m in _REGISTRY.items()
             if (solves is None or m.solves == solves)
             and (step is None or m.adaptive == (step == "adaptive"))}
@@ -113,4 +114,4 @@ def method(name: str) -> MethodInfo:
         return _REGISTRY[name]
     except (KeyError, TypeError):
         raise UnknownMethodError(
-            f"unknown method {name!r}; known methods: {', '.join(_REGISTRY)}") from None
+            f"unknown method {show(name)}; known methods: {', '.join(_REGISTRY)}") from None

@@ -11,13 +11,14 @@ import platform
 import threading
 from dataclasses import replace
 from functools import lru_cache
-from numbers import Integral, Real
+from numbers import Integral
 
 import numpy as np
 
-from . import _compiled, _kernel
+from . import _compiled, _kernel, checks
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
-                     Status, _decode, exception_for, status_message)
+                     Status, _decode, exception_for, failure_text, status_message, stopped_at)
+from .errors import no_memory_message
 from .methods import method as _method, methods
 from .options import ODEOptions, empty
 from .problems import problem as _problem, resolve_params
@@ -52,12 +53,7 @@ def build_info() -> dict:
 def _real(name: str, value) -> float:
     if type(value) is float and math.isfinite(value):   # the common case, without ABC checks
         return value
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise InvalidInputError(f"{name} = {value!r} is not a real number")
-    v = float(value)
-    if not math.isfinite(v):
-        raise InvalidInputError(f"{name} = {v} is not finite; give a finite number")
-    return v
+    return checks.real(name, value)
 
 
 def plan(t0: float, t_end: float, h: float, every: int = 1) -> tuple[int, int, bool]:
@@ -126,8 +122,7 @@ def _plan_of(method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_
              max_order, fd_jacobian):
     """The checked method and options of a solve: (method info, ODEOptions, steps (inf when
     error-controlled), samples, the manifest's entries, t0, t_end)."""
-    if startup not in STARTUP:
-        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
+    checks.choice("startup", startup, STARTUP, what="a start-up of the multistep methods")
     info_m = _method(method)
     if info_m.solves != "ode":
         kind = "index-3 DAE" if info_m.family == "dae_index3" else "DAE"
@@ -226,6 +221,7 @@ class ODESolver:
         self.params, self.y0 = merged, y0
         self._id, self._opt, self._nsamp = info_p.id, opt.pack(), nsamp
         self._n, self._nsteps, self._raise = len(y0), nsteps, raise_on_failure
+        self._bytes = sample_bytes(nsamp, len(y0), method)
         self._work = nsteps * len(y0)
         self._y0_list = y0.tolist()
         self._manifest = {
@@ -244,15 +240,34 @@ class ODESolver:
         stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
                 self._nsamp, stats)
-        if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
-            (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
-        else:
-            (t, y, nw, status), interrupted = _compiled.call(
-                _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        try:
+            if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
+                (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
+            else:
+                (t, y, nw, status), interrupted = _compiled.call(
+                    _kernel.solve_problem, args, flag, self._work, span=(self.t0, self.t_end))
+        except MemoryError as exc:   # the sample arrays, allocated by the f2py layer
+            raise checks.memory_error(exc, self._bytes[0], what=self._bytes[1],
+                                      change=SAMPLE_ADVICE) from None
         manifest = dict(self._manifest)
         manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
         return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
                        dict(self.params), self.t0, y0, self._raise, None, interrupted)
+
+
+#: what to change when a solve's samples do not fit in memory
+SAMPLE_ADVICE = ("fewer samples: a larger every (fixed step) or dt_out (error control), or a "
+                 "shorter t_end")
+
+
+def sample_bytes(nsamp: int, n: int, method: str) -> tuple[float, str]:
+    """(bytes, a description) of an ODE solve's sample arrays (t and y: n + 1 doubles each),
+    refused with NoMemoryError before they are allocated when the machine has not that much
+    memory available."""
+    nbytes = 8.0 * nsamp * (n + 1)
+    what = f"{method}: {nsamp} samples of {n} states"
+    checks.check_memory(nbytes, what=what, change=SAMPLE_ADVICE)
+    return nbytes, what
 
 
 def _nonneg(name: str, value, default: float = 0.0) -> float:
@@ -268,6 +283,8 @@ def _count(name: str, value, upper: int) -> int:
     return int(value)
 
 
+#: the kernel's max_steps when the options say 0 (mbdk_adaptive)
+DEFAULT_MAX_STEPS = 10**8
 #: the highest order each error-controlled multistep method can select
 MAX_ORDER = {"bdf": 5, "cvode_bdf": 5, "cvode_adams": 12, "ida": 5}
 RTOL_FLOOR = 100 * np.finfo(float).eps   # the kernel's MBDK_RTOL_FLOOR (mbdk_adaptive)
@@ -302,6 +319,11 @@ def _adaptive_options(info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_
     if h_max and h_min > h_max:
         raise InvalidInputError(f"h_min = {h_min} is larger than h_max = {h_max}")
     max_steps = _count("max_steps", max_steps, 2**62)
+    checks.step_bounds(t0, t_end, h_max, max_steps, default_steps=DEFAULT_MAX_STEPS)
+    if h_min and h_min > span:
+        raise InvalidInputError(f"h_min = {h_min:g} is longer than the interval t_end - t0 = "
+                                f"{span:g}: no step of the run could be that long; give a "
+                                "smaller h_min (or 0: none)")
     top = MAX_ORDER.get(method, 0)
     if max_order and not top:
         raise InvalidInputError(f"max_order = {max_order}: {method} has one order "
@@ -330,7 +352,7 @@ def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
         return np.zeros(0)
     try:
         a = np.array(atol, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"atol = {atol!r} is neither a number nor a vector of numbers") \
             from None
     if a.ndim != 1 or a.size != n:
@@ -346,8 +368,9 @@ def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
 def _state(name: str, value, n: int | None) -> np.ndarray:
     try:
         y = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} = {value!r} is not a vector of numbers") from None
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{name} = {checks.show(value)} is not a vector of numbers "
+                                "(finite, in floating-point range)") from None
     if y.ndim > 1:
         raise InvalidInputError(f"{name} must be a flat vector, got an array of shape {y.shape}")
     y = y.ravel()
@@ -374,13 +397,26 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
                            status=status, message=status_message(status), manifest=manifest,
                            problem=problem if isinstance(problem, str) else "",
                            method=method, params=params, t0=t0, y0=y0)
+    if status == Status.ERR_NO_MEMORY:
+        n = 0 if y0 is None else len(y0)
+        result.message = no_memory_message(
+            result.stats.alloc_bytes, [(f"the Newton matrix of {method}", n,
+                                        "use an explicit method")], "a smaller system")
     if status == Status.ERR_INTERRUPTED or interrupted:
         # Ctrl-C is honoured whatever raise_on_failure says; the partial result goes with it
         raise SolveInterrupted(f"{method}: interrupted at t = {result.t[-1]:.6g}" if nw else
                                f"{method}: interrupted", status=status, result=result)
+    if status == Status.ERR_NONFINITE and _method(method).adaptive:
+        # error control shrinks a step whose values overflow: at its floor, F itself is not
+        # finite next to the state (mbdk_embedded_rk, mbdk_variable_bdf)
+        failure_note = ((failure_note + "; ") if failure_note else "") + (
+            "the right-hand side returned inf or NaN next to this state, which no step size "
+            "avoids: a singularity of the model or of its parameters there")
     if status.failed and raise_on_failure:
-        where = f"at t = {result.t[-1]:.6g}" if nw else "before the first step"
-        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {result.message} ({where})"
+        where = stopped_at(result.stats, t0)
+        text = (result.message if status == Status.ERR_NO_MEMORY else
+                failure_text(status, _method(method).adaptive))
+        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {text} ({where})"
         if failure_note:
             msg += f": {failure_note}"
         raise exception_for(status)(msg, status=status, result=result)
@@ -446,11 +482,14 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
 
     opt = replace(opt, nq=int(nq))
     stats = empty("mbdk_stats")
+    nbytes, what = sample_bytes(nsamp, n, info_m.name)
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
             t, y, nw, status = _kernel.solve_callback(cb, cb_jac, int(jac is not None), y0, t0,
                                                       t_end, opt.pack(), atol_v, nsamp, stats)
+        except MemoryError as exc:   # the sample arrays, allocated by the f2py layer
+            raise checks.memory_error(exc, nbytes, what=what, change=SAMPLE_ADVICE) from None
         finally:
             _IN_CALLBACK.active = False
     manifest = {**build_info(), "problem": "python callback (slow path)", "method": info_m.name,

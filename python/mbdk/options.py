@@ -208,6 +208,26 @@ class ModelOptions(_Struct):
     watch_momentum: float = 1e-2   # the momenta the scene conserves (mbdk_watch.f90)
 
 
+#: the share of the smallest atol an error-controlled method's projection leaves in Phi when
+#: projection_tol is not given: a multistep method (bdf) keeps the projection's move in its
+#: history, and a leftover up to atol itself would enter its error estimate as noise of the
+#: size of the tolerance (rejected steps down to StepTooSmallError); the kernel never goes
+#: below its roundoff floor (a few eps times the mechanism's length)
+PROJECTION_ATOL_SHARE = 1e-3
+
+
+def projection_tol_for(given, atol=None) -> float:
+    """The projection's tolerance on |Phi|: the one given; else ModelOptions' default, or for
+    an error-controlled run with absolute tolerance atol (a number or array) a thousandth of
+    its smallest entry where that is tighter."""
+    if given is not None:
+        return given
+    tol = ModelOptions.projection_tol
+    if atol is not None:
+        tol = min(tol, PROJECTION_ATOL_SHARE * float(np.min(atol)))
+    return tol
+
+
 MIRRORS = {"mbdk_options": ODEOptions, "mbdk_index3_options": Index3Options,
            "mbdk_model_options": ModelOptions}
 

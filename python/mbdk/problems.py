@@ -292,7 +292,11 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
                     f"{', '.join(merged)}")
             merged[key] = value
     if info.name == "linear_system":
-        a = np.array(merged["A"], dtype=float)
+        try:
+            a = np.array(merged["A"], dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise InvalidInputError("params['A'] is not a matrix of numbers in floating-point "
+                                    "range") from None
         if a.ndim != 2 or a.shape != (n, n):
             raise InvalidInputError(f"params['A'] must be a {n}x{n} matrix to match y0 of size "
                                     f"{n}, got shape {a.shape}")
@@ -304,8 +308,10 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
     for key, value in merged.items():
         try:
             v = float(value)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"params[{key!r}] = {value!r} is not a number") from None
+        except (TypeError, ValueError, OverflowError):
+            from .checks import show
+            raise InvalidInputError(f"params[{key!r}] = {show(value)} is not a number in "
+                                    "floating-point range") from None
         if not math.isfinite(v):
             raise InvalidInputError(f"params[{key!r}] = {v} is not finite; give a finite number")
         if key in info.positive and not v > 0:

@@ -30,12 +30,14 @@ class Stats:
     order5_steps: int = 0          # (cvode_adams: order 5 and above)
     cpu_time: float = 0.0
     wall_time: float = 0.0
+    t_reached: float = 0.0         # the last accepted step's time (where a failed solve stopped)
+    alloc_bytes: float = 0.0       # ERR_NO_MEMORY: bytes of the allocation that failed (0: not known)
 
     @classmethod
     def from_words(cls, words) -> "Stats":
         """From the kernel's struct bytes (8-byte words), field by field by name."""
         # every field comes from the kernel's struct, so the frozen instance is filled directly:
-        # the generated __init__ sets 15 fields one by one through object.__setattr__, which
+        # the generated __init__ sets each field one by one through object.__setattr__, which
         # cost more than a short solve's kernel call
         stats = object.__new__(cls)
         stats.__dict__.update(_unpack("mbdk_stats", words))

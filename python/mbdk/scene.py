@@ -99,6 +99,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .checks import MAX_SCENE_BYTES, NUMBER_MAX, NUMBER_MIN, length_scale, number_problem, show
 from .errors import InvalidInputError
 
 GROUND = "ground"
@@ -311,17 +312,20 @@ class _Reader:
             if required:
                 raise self.err(fld, "is missing")
             return default
-        return self.t[fld]
+        v = self.t[fld]
+        if v is None and (required or default is not None):   # a Scene object's field
+            raise self.err(fld, "= None; give a value (or, in a file, leave the field out for "
+                                "its default)")
+        return v
 
     def num(self, fld, default=None, required=False, positive=False, nonneg=False):
         v = self.get(fld, default, required)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.err(fld, f"= {v!r} is not a number")
+        problem = number_problem(v)
+        if problem:
+            raise self.err(fld, problem)
         v = float(v)
-        if not math.isfinite(v):
-            raise self.err(fld, f"= {v} is not finite")
         if positive and not v > 0:
             raise self.err(fld, f"= {v} must be positive")
         if nonneg and v < 0:
@@ -340,13 +344,19 @@ class _Reader:
         if v is None:
             return None
         if not isinstance(v, (list, tuple)) or len(v) != 2:
-            raise self.err(fld, f"= {v!r} must be a pair [x, y]")
+            raise self.err(fld, f"= {show(v)} must be a pair [x, y]")
+        return tuple(self.entries(fld, v, "two"))
+
+    def entries(self, fld, v, count: str) -> list:
+        """The numbers of a list field, each finite and in range, or an error naming the entry."""
         out = []
-        for c in v:
-            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
-                raise self.err(fld, f"= {v!r} must hold two finite numbers")
+        for i, c in enumerate(v):
+            problem = number_problem(c)
+            if problem:
+                raise self.err(fld, f"= {show(v)} must hold {count} finite numbers in range; "
+                                    f"entry {i} {problem}")
             out.append(float(c))
-        return tuple(out)
+        return out
 
     def name(self, fld, required=True, default=None):
         v = self.get(fld, default, required)
@@ -367,8 +377,9 @@ class _Reader:
         if v is None:
             return default
         if isinstance(v, (int, float)) and not isinstance(v, bool):
-            if not math.isfinite(v):
-                raise self.err(fld, f"= {v} is not finite")
+            problem = number_problem(v)
+            if problem:
+                raise self.err(fld, problem)
             return (float(v), 0.0, 0.0, 0.0, 0.0)
         if not isinstance(v, dict):
             raise self.err(fld, f"= {v!r} must be a number or a table {{offset, rate, amplitude, "
@@ -380,8 +391,9 @@ class _Reader:
         out = []
         for k in keys:
             c = v.get(k, 0.0)
-            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
-                raise self.err(fld, f"entry {k!r} = {c!r} is not a finite number")
+            problem = number_problem(c)
+            if problem:
+                raise self.err(fld, f"entry {k!r} {problem}")
             out.append(float(c))
         return tuple(out)
 
@@ -420,9 +432,10 @@ def _body(r: _Reader) -> Body:
                 inertia = 0.0
         except OverflowError:
             inertia = math.inf
-        if not math.isfinite(inertia):
-            raise r.err("shape", f"= {shape!r} gives an inertia beyond the largest number; "
-                                 "give the body's size in metres")
+        if not math.isfinite(inertia) or inertia > NUMBER_MAX or 0 < inertia < NUMBER_MIN:
+            raise r.err("shape", f"= {show(shape)} gives an inertia of {inertia:.3g}, out of "
+                                 "range (a nonzero inertia must lie between 1e-150 and 1e150); "
+                                 "give the body's size in metres and its mass in kg")
         sr.done()
     else:
         inertia = r.num("inertia", required=True, nonneg=True)
@@ -643,11 +656,9 @@ def _wear(r: _Reader) -> Wear:
         w.gas_constant = r.num("gas_constant", w.gas_constant, positive=True)
     elif law == "knee":
         c = r.get("slide_roll", required=True)
-        if not isinstance(c, list) or len(c) != 4 or any(
-                isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
-                for x in c):
-            raise r.err("slide_roll", f"= {c!r} must be four finite numbers [c0, c1, c2, c3]")
-        w.slide_roll = tuple(float(x) for x in c)
+        if not isinstance(c, list) or len(c) != 4:
+            raise r.err("slide_roll", f"= {show(c)} must be four finite numbers [c0, c1, c2, c3]")
+        w.slide_roll = tuple(r.entries("slide_roll", c, "four"))
     r.done()
     return w
 
@@ -841,6 +852,68 @@ def _snapshot(sc: Scene):
               for items in (sc.bodies, sc.joints, sc.forces, sc.wear)))
 
 
+def _point_at(sc: Scene, body: str, p) -> tuple:
+    """A body point's global position at the scene's initial pose (a ground point as it is)."""
+    if body == GROUND:
+        return p
+    b = sc.bodies[sc.body_index(body) - 1]
+    c, s = math.cos(b.angle), math.sin(b.angle)
+    return (b.x + c * p[0] - s * p[1], b.y + s * p[0] + c * p[1])
+
+
+def check_lengths(sc: Scene) -> None:
+    """The scene's coordinates, offsets and lengths against its length scale (mbdk.checks.
+    length_scale): a distance, a radius or a point offset too small to be resolved next to the
+    scene's largest coordinate is refused, naming the element and field."""
+    sizes = []
+
+    def put(label, fld, body, p, kind="offset"):
+        sizes.append((label, fld, math.hypot(*p),
+                      "coordinate" if body == GROUND and kind == "offset" else kind))
+    for b in sc.bodies:
+        sizes.append((f"body {b.name!r}", "x", math.hypot(b.x, b.y), "coordinate"))
+    for j in sc.joints:
+        label = f"joint {j.name!r}"
+        if j.type in ("driver", "coupling"):
+            continue
+        if j.type == "rolling":
+            put(label, "point", GROUND, j.point2)
+            sizes.append((label, "radius", j.radius, "length"))
+            continue
+        put(label, "point1", j.body1, j.point1)
+        if j.type not in ("point_curve", "knife_edge"):
+            put(label, "point2", j.body2, j.point2)
+        if j.type == "distance":
+            if j.length is not None:
+                off, _rate, amp, _om, ph = j.length
+                sizes.append((label, "length", off + amp * math.sin(ph), "length"))
+            else:
+                p1 = _point_at(sc, j.body1, j.point1)
+                p2 = _point_at(sc, j.body2, j.point2)
+                sizes.append((label, "point2 (the points' initial distance, its length)",
+                              math.hypot(p1[0] - p2[0], p1[1] - p2[1]), "length",
+                              "its points coincide (or nearly) at the initial pose, where a "
+                              "distance has no direction: give the bodies a pose where they "
+                              "are apart, or use a revolute joint where the points coincide"))
+    for f in sc.forces:
+        label = f"force {f.name!r}"
+        if f.type in ("point_force",):
+            put(label, "point", f.body1, f.point1)
+        elif f.type in ("spring", "damper", "spring_damper"):
+            put(label, "point1", f.body1, f.point1)
+            put(label, "point2", f.body2, f.point2)
+        elif f.type == "contact":
+            for fld, body, sh in (("shape1", f.body1, f.shape1), ("shape2", f.body2, f.shape2)):
+                typ, point, third = sh
+                if typ == "gear":
+                    sizes.append((label, fld + " module", third[1], "length"))
+                    continue
+                put(label, fld, body, point)
+                if typ in ("circle", "ring"):
+                    sizes.append((label, fld + " radius", third, "length"))
+    length_scale(sizes, sc.source, SceneError)
+
+
 def check_scene(sc: Scene) -> None:
     """References, duplicates and counts; raises SceneError naming the element and field."""
     src = sc.source
@@ -899,19 +972,52 @@ def check_scene(sc: Scene) -> None:
             raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
                              f"{c.name!r} has no friction; give it a friction table, or use "
                              f"'{c.name}.normal_force'")
+    check_lengths(sc)
     rows = sum(JOINT_ROW_COUNT[j.type] for j in sc.joints)
     if rows > 3 * len(sc.bodies):
         raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
                          f"({len(sc.bodies)} bodies): more constraints than coordinates")
 
 
-def load_scene(path) -> Scene:
-    """Reads a scene file (TOML)."""
+def read_scene_bytes(path) -> bytes:
+    """A scene file's bytes: a regular file (a device such as /dev/zero, a pipe or a directory
+    is refused before it is opened: reading one may never end) of at most MAX_SCENE_BYTES."""
+    import os
+    import stat
+    if not isinstance(path, (str, os.PathLike)):
+        raise SceneError(f"path = {show(path)} must be a file path (a string or a Path)")
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        st = os.stat(path)
+    except (OSError, ValueError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise SceneError(f"{path}: cannot read the scene file ({why})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
+                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
+                "a pipe" if stat.S_ISFIFO(st.st_mode) else
+                "a socket" if stat.S_ISSOCK(st.st_mode) else "not a file")
+        raise SceneError(f"{path}: is {kind}, not a regular file; give the path of a scene "
+                         "file (TOML)")
+    limit = MAX_SCENE_BYTES
+    if st.st_size > limit:
+        raise SceneError(f"{path}: {st.st_size} bytes, more than a scene file may have "
+                         f"({limit // 2**20} MiB); is this the scene file?")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(limit + 1)   # a file that grew since stat stops at the limit too
     except OSError as exc:
         raise SceneError(f"{path}: cannot read the scene file ({exc.strerror})") from None
+    if len(raw) > limit:
+        raise SceneError(f"{path}: more than {limit // 2**20} MiB, more than a scene file may "
+                         "have; is this the scene file?")
+    return raw
+
+
+def load_scene(path) -> Scene:
+    """Reads a scene file (TOML)."""
+    raw = read_scene_bytes(path)
+    path = Path(path)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -925,6 +1031,9 @@ def load_scene(path) -> Scene:
     except RecursionError:
         raise SceneError(f"{path}: arrays or tables nested too deep to read; a scene file "
                          "needs at most a few levels") from None
+    except ValueError as exc:   # an integer of more digits than Python converts (4300)
+        raise SceneError(f"{path}: a number out of range: {exc}; give numbers in SI units "
+                         "(magnitude below 1e150)") from None
     return scene_from_dict(data, str(path))
 
 
@@ -936,23 +1045,20 @@ def scenes(kind: str = "planar") -> list[str]:
     (python/mbdk/scenes/spatial/*.toml) or "all"."""
     dirs = {"planar": [SCENE_DIR], "spatial": [SCENE_DIR / "spatial"],
             "all": [SCENE_DIR, SCENE_DIR / "spatial"]}
-    if kind not in dirs:
-        raise InvalidInputError(f"kind = {kind!r}; known: {', '.join(dirs)}")
+    if not isinstance(kind, str) or kind not in dirs:
+        raise InvalidInputError(f"kind = {show(kind)}; known: {', '.join(dirs)}")
     return sorted(p.stem for d in dirs[kind] for p in d.glob("*.toml"))
 
 
 def scene_or_file(arg):
     """A built-in scene by name, or a scene file (planar, or a SpatialScene when its bodies are
     spatial): what the command line and sweeps take."""
+    if not isinstance(arg, (str, Path)):
+        raise SceneError(f"scene = {show(arg)} must be a built-in scene's name or a scene "
+                         "file's path")
     path = Path(arg)
     if path.suffix == ".toml" or path.exists():
-        from .spatial import is_spatial, spatial_scene_from_dict
-        try:
-            data = tomllib.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-            data = None     # load_scene names the problem
-        return (spatial_scene_from_dict(data, str(path)) if data and is_spatial(data)
-                else load_scene(path))
+        return load_scene(path)   # spatial or planar, by its bodies' kind
     return scene(arg)
 
 

@@ -47,13 +47,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from numbers import Integral, Real
+from numbers import Integral
 
 import numpy as np
 
-from . import _compiled, _kernel
-from .errors import (InvalidInputError, NotApplicableError, SingularMatrixError, SolveInterrupted,
-                     Status, exception_for, status_message)
+from . import _compiled, _kernel, checks
+from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
+                     Status, exception_for, failure_text, status_message, stopped_at)
+from .errors import no_memory_message
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
@@ -73,9 +74,10 @@ from .model import (DENSE_NAMING_MAX, FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISI
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
                     pose_error, rows_to_joints, scaled_jacobian)
 from .model import evaluate as _evaluate
-from .ode import STARTUP, build_info, plan
-from .options import Index3Options, ODEOptions, empty
+from .ode import DEFAULT_MAX_STEPS, STARTUP, build_info, plan
+from .options import Index3Options, ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
+from .checks import show
 from .scene import GROUND, Scene, SceneError, checked
 
 #: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
@@ -138,14 +140,26 @@ class SceneResult(Result):
 def check_run(h, t_end, t0, every) -> None:
     """The step, interval and sampling of a scene run, as named errors."""
     for name, val in (("h", h), ("t_end", t_end), ("t0", t0)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise InvalidInputError(f"{name} = {val!r} must be a finite number")
+        checks.real(name, val)
     if not h > 0:
         raise InvalidInputError(f"h = {h} is not positive; give a step h > 0")
     if not t_end > t0:
         raise InvalidInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
     if isinstance(every, bool) or not isinstance(every, Integral) or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
+
+
+#: what to change when a scene run's samples do not fit in memory
+SCENE_SAMPLE_ADVICE = ("fewer samples: a larger every (fixed step) or dt_out (error control), a "
+                       "shorter t_end, or fewer outputs (outputs=() keeps t, q and v only)")
+
+
+def scene_tolerances(rtol, atol) -> tuple[float, float]:
+    """The rtol and atol of an error-controlled scene run, planar or spatial (one check, so that
+    both refuse the same values): numbers, rtol in [RTOL_FLOOR, 1) or 0, atol > 0; a per-state
+    atol is solve_ode's."""
+    from .ode import RTOL_FLOOR
+    return checks.tolerances(rtol, atol, where="a scene run", rtol_floor=RTOL_FLOOR)
 
 
 def _want(outputs) -> int:
@@ -156,9 +170,9 @@ def _want(outputs) -> int:
     except TypeError:
         raise InvalidInputError(f"outputs = {outputs!r} must be a list of names from "
                                 f"{', '.join(OUTPUTS)}") from None
-    bad = [o for o in names if o not in OUTPUTS]
+    bad = [o for o in names if not isinstance(o, str) or o not in OUTPUTS]
     if bad:
-        raise InvalidInputError(f"outputs: {', '.join(map(repr, bad))} unknown; known: "
+        raise InvalidInputError(f"outputs: {', '.join(map(show, bad))} unknown; known: "
                                 f"{', '.join(OUTPUTS)}")
     return sum({OUTPUTS[o] for o in names})
 
@@ -169,7 +183,7 @@ _INDEX3_ONLY = ("adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", 
 def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              formulation: str | None = None, t0: float = 0.0, every: int = 1,
              outputs=tuple(OUTPUTS), alpha: float | None = None, beta: float | None = None,
-             penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float = 1e-12,
+             penalty: tuple = (1e7, 10.0, 1.0), projection_tol: float | None = None,
              solver: str = "auto", small_dense: bool = True, assemble_initial: bool = True,
              startup: str = "rk4", newton_rtol: float | None = None,
              newton_atol: float | None = None, max_iter: int | None = None,
@@ -247,6 +261,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if formulation is None:
         formulation = next(iter(own)) if ida else ("augmented_lagrangian" if index3
                                                    else "reduced")
+    if not isinstance(formulation, str):
+        checks.choice("formulation", formulation, own, what=f"a formulation {method} runs")
     if formulation not in own:
         owners = [("the ODE methods run", FORMULATIONS),
                   ("trapezoidal_index3 runs", INDEX3_FORMULATIONS), ("ida runs", IDA_FORMULATIONS),
@@ -277,16 +293,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if given3 and not index3:
         raise InvalidInputError(f"{', '.join(sorted(given3))}: options of trapezoidal_index3 "
                                 f"only ({', '.join(_INDEX3_ONLY)})")
-    if solver not in SOLVERS:
-        raise InvalidInputError(f"solver = {solver!r}; known: {', '.join(SOLVERS)}")
-    if startup not in STARTUP:
-        raise InvalidInputError(f"startup = {startup!r} must be one of {', '.join(STARTUP)}")
+    checks.choice("solver", solver, SOLVERS, what="a linear solve")
+    checks.choice("startup", startup, STARTUP, what="a start-up of the multistep methods")
     want = _want(outputs)
     watch_ = as_watch(watch)
     if info_m.adaptive:
-        if atol is not None and np.ndim(atol) != 0:
-            raise NotApplicableError("atol: a scene run takes one absolute tolerance (a "
-                                     "number); per-state tolerances are solve_ode's")
+        rtol, atol = scene_tolerances(rtol, atol)
         if every != 1:
             raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
                                     "dt_out (the spacing of the samples) instead")
@@ -302,11 +314,14 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     dae_bdf = info_m.family == "variable_bdf" and formulation in BDF_DAE_FORMULATIONS
     dae_form = (IDA_FORMULATIONS.get(formulation, 0) if ida else
                 BDF_DAE_FORMULATIONS.get(formulation, 0) if dae_bdf else 0)
+    projection_given = projection_tol is not None
+    projection_tol = projection_tol_for(
+        projection_tol, (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
     if ida or dae_bdf:
         unused = [name for name, given in (("alpha", alpha is not None),
                                            ("beta", beta is not None),
-                                           ("penalty", tuple(penalty) != (1e7, 10.0, 1.0)),
-                                           ("projection_tol", projection_tol != 1e-12),
+                                           ("penalty", not _is_default_penalty(penalty)),
+                                           ("projection_tol", projection_given),
                                            ("startup", startup != "rk4"),
                                            ("newton_rtol", newton_rtol is not None),
                                            ("newton_atol", newton_atol is not None)) if given]
@@ -404,6 +419,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             f"{method}/{formulation} on scene {scene.name!r}: the DAE's state [q, v, lambda] has "
             f"no place for the wear states ({', '.join(w.name for w in scene.wear)}); use an ODE "
             "method with formulation reduced, baumgarte or projection")
+    if assemble_initial and any(f.type == "contact" and f.shape1[0] == "gear"
+                                for f in scene.forces):
+        scene = _gears_at_assembled_pose(scene, t0)
     # built once: the kernel fills in the values taken from the pose where it starts the run
     tab = build_tables(scene, resolve=False)
     # the state [q; v; w]: the wear elements' volumes after the bodies' coordinates and rates
@@ -414,20 +432,34 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
 
     def cols(bit):   # an output not asked for gets one column the kernel leaves alone
         return nsamp if (want & bit) or index3 or (dae_form and bit == 2) else 1
-    a_out = np.zeros((nc, cols(1)), order="F")
-    lam_out = np.zeros((max(m, 1), cols(2)), order="F")
-    iters = np.zeros(nsamp if index3 else 1, np.int32)
-    reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
-    energy = np.zeros((9, nsamp if want & 8 else 1), order="F")
-    resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+    # the samples: t and y (allocated by the f2py layer), the outputs' arrays here; refused
+    # before they are allocated where the machine has not that much memory
+    nbytes = 8.0 * (nsamp * (1 + y0.size) + nc * cols(1) + max(m, 1) * cols(2)
+                    + 3 * max(tab.nj, 1) * (nsamp if want & 4 else 1)
+                    + 9 * (nsamp if want & 8 else 1) + 3 * (nsamp if want & 16 else 1)
+                    + (nsamp / 2 if index3 else 0))
+    what = f"{method} on scene {scene.name!r} ({nsamp} samples)"
+    checks.check_memory(nbytes, what=what, change=SCENE_SAMPLE_ADVICE)
+    try:
+        a_out = np.zeros((nc, cols(1)), order="F")
+        lam_out = np.zeros((max(m, 1), cols(2)), order="F")
+        iters = np.zeros(nsamp if index3 else 1, np.int32)
+        reac = np.zeros((3, max(tab.nj, 1), nsamp if want & 4 else 1), order="F")
+        energy = np.zeros((9, nsamp if want & 8 else 1), order="F")
+        resid = np.zeros((3, nsamp if want & 16 else 1), order="F")
+    except MemoryError as exc:
+        raise checks.memory_error(exc, nbytes, what=what, change=SCENE_SAMPLE_ADVICE) from None
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
     args = (*tab.args(), mopt.pack(), info_m.id, dae_form, plan_["ode"].pack(),
             plan_["index3"].pack(),
             flag, y0, given, int(bool(assemble_initial)), t0, t_end, want, nsamp,
             a_out, lam_out, iters, reac, energy, resid, stats, visits)
-    (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
-     invariants, ninv, status), interrupted = _compiled.call(_kernel.scene_run, args, flag,
-                                           plan_["steps"] * y0.size, span=(t0, t_end))
+    try:
+        (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
+         invariants, ninv, status), interrupted = _compiled.call(
+             _kernel.scene_run, args, flag, plan_["steps"] * y0.size, span=(t0, t_end))
+    except MemoryError as exc:   # t and y, allocated by the f2py layer
+        raise checks.memory_error(exc, nbytes, what=what, change=SCENE_SAMPLE_ADVICE) from None
     status = Status(int(status))
     nw = int(nw)
     if bad_joint or bad_force:
@@ -459,6 +491,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 **plan_["manifest"]}
     if index3 or info_m.adaptive:
         manifest["steps"] = stats.steps
+    book_lambda = index3 and formulation == "index3" and m > 0
+    if book_lambda:
+        manifest["multipliers"] = BOOK_MULTIPLIERS
     result = SceneResult(
         t=t, q=y[:nc].T, v=y[nc:2 * nc].T,
         a=a_out[:, :nw].T if want & 1 else None,
@@ -494,9 +529,20 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                 q0, v0, _ = assemble(scene, build_tables(scene), t0)
         _refuse_redundant(scene, build_tables(scene, q0), q0, v0, t0, formulation, index3,
                           result, dae=bool(dae_form))
-    if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT,
-                  Status.ERR_INVARIANT_DRIFT):
-        inv = invariants[:, :int(ninv)].T
+    unstable = ""
+    if status in _UNSTABLE_ENDS and not info_m.adaptive and not index3 and not dae_form:
+        unstable = _planar_stability_note(scene, method, h, result)
+    drifts = (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT, Status.ERR_INVARIANT_DRIFT)
+    inv = invariants[:, :int(ninv)].T
+    if unstable:    # the true cause: the method's step, not the mechanism
+        result.message = (f"{method}/{formulation} on scene {scene.name!r}: "
+                          f"{failure_text(status, False)} ({stopped_at(result.stats, t0)}): "
+                          f"{unstable}")
+        if status in drifts:
+            result.drift = drift_report(watch_report, tab.rows, inv)
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
+    elif status in drifts:
         result.drift = drift_report(watch_report, tab.rows, inv)
         advice = _DRIFT_ADVICE[status]
         if index3:   # it is the index-3 form already: the stabilised ODE forms are no remedy
@@ -515,10 +561,27 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                           f"{drift_message(watch_report, tab.rows, inv)}. " + advice)
         if raise_on_failure:
             raise exception_for(status)(result.message, status=status, result=result)
+    if status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the
+        # penalty formulation's over the coordinates
+        newton = (2 * nc + m * (2 if formulation in ("si2", "ggl") else 1) if dae_form else
+                  nc + m * (formulation == "index3") if index3 else y0.size)
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method, or "
+                  "trapezoidal_index3 (augmented_lagrangian: sparse on large scenes)"),
+                 ("the penalty formulation's M + alpha_p D^T D", nc * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection (sparse on large scenes)")]
+        result.message = (f"{method}/{formulation} on scene {scene.name!r} ({len(scene.bodies)} "
+                          f"bodies): " + no_memory_message(stats.alloc_bytes, dense))
+        if raise_on_failure:
+            raise exception_for(status)(result.message, status=status, result=result)
     if status.failed and raise_on_failure:
         raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
                                                      plan_, result), status=status,
                                     result=result)
+    if book_lambda and want & (OUTPUTS["multipliers"] | OUTPUTS["reactions"]):
+        import warnings
+        warnings.warn(f"{method}/{formulation} on scene {scene.name!r}: the multipliers and "
+                      f"reactions are {BOOK_MULTIPLIERS}", AccuracyWarning, stacklevel=2)
     return result
 
 
@@ -567,23 +630,23 @@ def _adaptive_mode(adaptive) -> int:
 
 def _real(name: str, value) -> float:
     """A number argument as float: a real number (not a bool, a string or None), finite."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise InvalidInputError(f"{name} = {value!r} must be a finite number")
-    return float(value)
+    return checks.real(name, value)
 
 
 def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, projection_tol,
               startup, newton_rtol, newton_atol, adaptive: dict | None = None) -> dict:
+    checks.choice("startup", startup, STARTUP, what="a start-up of the multistep methods")
     alpha = 1.0 / h if alpha is None else _real("alpha", alpha)
     beta = math.sqrt(2.0) / h if beta is None else _real("beta", beta)
     if formulation == "baumgarte" and not (alpha >= 0 and beta >= 0 and math.isfinite(alpha)
                                            and math.isfinite(beta)):
         raise InvalidInputError(f"alpha = {alpha}, beta = {beta}: Baumgarte parameters must be "
                                 "finite and >= 0")
-    if isinstance(penalty, str) or not hasattr(penalty, "__len__") or len(penalty) != 3 or \
-            not all(isinstance(p, (int, float)) and not isinstance(p, bool) and math.isfinite(p)
-                    and p > 0 for p in penalty):
-        raise InvalidInputError(f"penalty = {penalty!r} must be (alpha_p, omega_p, mu_p), all > 0")
+    if isinstance(penalty, (str, bytes, dict)) or not hasattr(penalty, "__len__") or \
+            len(penalty) != 3 or not all(checks.number_problem(p, in_range=False) is None
+                                         and p > 0 for p in penalty):
+        raise InvalidInputError(f"penalty = {show(penalty)} must be (alpha_p, omega_p, mu_p), "
+                                "finite, all > 0")
     if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
     if adaptive is not None:
@@ -662,13 +725,16 @@ def _index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_at
         for name, val, low in (("err_rtol", err_rtol, 0.0), ("err_atol", err_atol, None),
                                ("dt_out", dt_out, None), ("h_min", h_min, 0.0),
                                ("h_max", h_max, 0.0)):
-            ok = isinstance(val, (int, float)) and not isinstance(val, bool) and \
-                math.isfinite(val) and (val >= low if low is not None else val > 0)
-            if not ok:
+            val = _real(name, val)
+            if not (val >= low if low is not None else val > 0):
                 raise InvalidInputError(f"{name} = {val!r} must be a finite number "
                                         f"{'>= 0' if low is not None else '> 0'}")
+        err_rtol, err_atol = float(err_rtol), float(err_atol)
+        dt_out, h_min, h_max = float(dt_out), float(h_min), float(h_max)
         if h_max and h_min > h_max:
             raise InvalidInputError(f"h_min = {h_min} exceeds h_max = {h_max}")
+        checks.step_bounds(t0, t_end, h_max, 0, default_steps=DEFAULT_MAX_STEPS,
+                           has_max_steps=False)
     if adaptive:
         # Newton's tolerances follow the error test's (a hundredth of it, SUNDIALS' practice
         # of a tenth with a margin), so that a tight err_rtol is not capped by the default
@@ -710,7 +776,7 @@ def _is_default_penalty(penalty) -> bool:
     """penalty is simulate's default (1e7, 10, 1), as a tuple, a list or an array."""
     try:
         return tuple(float(p) for p in penalty) == (1e7, 10.0, 1.0)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return False
 
 
@@ -784,6 +850,83 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
+#: the book scheme's multipliers, as its results and warnings say (studies/index3.py measures it)
+BOOK_MULTIPLIERS = (
+    "not converged: the book's index-3 scheme (formulation 'index3') leaves v and a off the "
+    "derived constraints by a period-2 oscillation amplified by 2/h and 4/h^2, so lambda and the "
+    "reactions carry an error that grows as h shrinks (studies/index3.py measures it); "
+    "formulation 'augmented_lagrangian' gives them at second order")
+
+
+def _gears_at_assembled_pose(scene: Scene, t0: float) -> Scene:
+    """The scene with its bodies at the pose and rates its initial assembly gives. A gear mesh's
+    phases, and its check that the gears mesh, are taken from the bodies' poses: they must be
+    those where the axle joints put the gears, not those the file writes (an axle joint moving a
+    gear out of mesh ran on, or into a non-finite state)."""
+    from dataclasses import replace
+    from .model import assemble
+    joints_only = replace(scene, forces=[], wear=[])
+    q, v, _ = assemble(joints_only, build_tables(joints_only), t0)
+    bodies = [replace(b, x=float(q[3 * i]), y=float(q[3 * i + 1]), angle=float(q[3 * i + 2]),
+                      vx=float(v[3 * i]), vy=float(v[3 * i + 1]), omega=float(v[3 * i + 2]))
+              for i, b in enumerate(scene.bodies)]
+    moved = replace(scene, bodies=bodies)
+    try:
+        build_tables(moved, resolve=False)
+    except SceneError as exc:
+        moved_by = float(np.max(np.abs(q - np.asarray(scene.q0(), float)))) if q.size else 0.0
+        raise SceneError(f"{exc} (at the pose the joints assemble, {moved_by:.3g} m or rad "
+                         "from the one the file writes)") from None
+    return moved
+
+
+#: the states whose Jacobian a failure message may form by differences (2 n kernel calls)
+STABILITY_NAMING_MAX = 400
+
+#: failures an explicit step beyond its stability limit ends in: an overflow, drift caught by
+#: the watch, or a constrained solve at a state the growing mode carried far off
+_UNSTABLE_ENDS = (Status.ERR_NONFINITE, Status.ERR_ENERGY_DRIFT, Status.ERR_CONSTRAINT_DRIFT,
+                  Status.ERR_INVARIANT_DRIFT, Status.ERR_SINGULAR_MATRIX)
+
+
+def _stability_note(method, h, f, y, t) -> str:
+    """Whether the fixed step h of method lies beyond its stability limit for a mode of the
+    scene that does not grow (mbdk.stability.instability_note), from the Jacobian of the reduced
+    ODE y' = f(y) at y by central differences; '' where it does not, or f fails there."""
+    from .stability import instability_note
+    y = np.asarray(y, dtype=float)
+    if y.size > STABILITY_NAMING_MAX or not np.all(np.isfinite(y)):
+        return ""
+    jac = np.empty((y.size, y.size))
+    try:
+        with np.errstate(all="ignore"):     # a non-finite column leaves no note (below)
+            for j in range(y.size):
+                d = np.sqrt(np.finfo(float).eps) * max(abs(y[j]), 1.0)
+                yp, ym = y.copy(), y.copy()
+                yp[j] += d
+                ym[j] -= d
+                jac[:, j] = (f(yp) - f(ym)) / (2.0 * d)
+    except (MbdkError, ValueError, FloatingPointError):
+        return ""
+    return instability_note(method, h, jac)
+
+
+def _planar_stability_note(scene, method, h, r) -> str:
+    """_stability_note at a planar run's last sample, on the reduced ODE [v; a(q, v)]."""
+    if not len(r.t) or h is None:
+        return ""
+    tab = resolved(scene, r)
+    nc = r.q.shape[1]
+
+    def f(y):
+        out = _evaluate(tab, y[:nc], y[nc:], r.t[-1])
+        if out["status"] != Status.SUCCESS:
+            raise MbdkError("no evaluation")
+        return np.concatenate([y[nc:], out["a"]])
+
+    return _stability_note(method, h, f, np.concatenate([r.q[-1], r.v[-1]]), r.t[-1])
+
+
 def _singular_note(scene, tab: Tables, r) -> str:
     """Where D is close to losing a rank at the last sample (the state the failed step started
     from): the smallest / largest singular value of the scaled Jacobian and the joints of the
@@ -809,7 +952,7 @@ def _singular_note(scene, tab: Tables, r) -> str:
 def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) -> str:
     nw = len(r.t)
     if not index3:
-        where = f"at t = {r.t[-1]:.6g}" if nw else "before the first step"
+        where = stopped_at(r.stats, r.manifest.get("t0", 0.0))
         note = ""
         if r.status == Status.ERR_SINGULAR_MATRIX and nw and not _too_large_to_name(tab):
             tab_r = resolved(scene, r)
@@ -849,8 +992,11 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                         "(baumgarte and projection where no stage lands on the rank loss); a "
                         "driver or load that pushes the mechanism against a dead point has no "
                         "solution there")
-        return f"{method}/{formulation} on scene {scene.name!r}: {r.message} ({where}){note}"
-    where = f"in the step after t = {r.t[-1]:.6g}" if nw else "before the first step"
+        text = failure_text(r.status, _method(method).adaptive,
+                            formulation in ("i3", "si2", "index1", "ggl"))
+        return f"{method}/{formulation} on scene {scene.name!r}: {text} ({where}){note}"
+    where = (f"in the step after t = {r.stats.t_reached:.6g}" if r.stats.steps else
+             "in the first step")
     if nw and not plan_["adaptive"] and formulation == "augmented_lagrangian" and r.status in (
             Status.ERR_NEWTON_DIVERGED, Status.ERR_NONFINITE, Status.ERR_SINGULAR_MATRIX):
         where += f", also in substeps down to h/{4 ** MAX_CUTS}"
@@ -862,9 +1008,19 @@ def _failure_message(scene, tab: Tables, method, formulation, index3, plan_, r) 
                   + (", and steps judged next to a rank loss," if judged else "")
                   + " exhausted the retry budget (more than one attempt in ten failing)")
     note = _singular_note(scene, tab, r)
+    remedy = "A smaller h, or a larger max_iter, may get past it"
+    if note and plan_["adaptive"] and r.status == Status.ERR_STEP_TOO_SMALL and \
+            plan_["index3"].adaptive == ADAPTIVE_MODES["extrapolated"]:
+        # the three solves of a macro step differ by what Newton and the projections leave,
+        # amplified along the vanishing direction: that difference does not fall with H
+        remedy = ("Next to the rank loss the extrapolated control's three solves differ by "
+                  "their own residuals, amplified along the vanishing direction, by more than "
+                  "err_rtol and err_atol ask, whatever the step: its error estimate is noise "
+                  "there. adaptive='estimated' (whose estimate is no difference of solves) "
+                  "passes such poses, or looser err_rtol and err_atol do")
     note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
-            f"{note}. A smaller h, or a larger max_iter, may get past it")
+            f"{note}. {remedy}")
 
 
 def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "reduced",
@@ -877,10 +1033,8 @@ def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "r
     from .model import assemble
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene, got {type(scene).__name__}")
-    if formulation not in FORMULATIONS:
-        raise InvalidInputError(f"formulation = {formulation!r}; known: {', '.join(FORMULATIONS)}")
-    if solver not in SOLVERS:
-        raise InvalidInputError(f"solver = {solver!r}; known: {', '.join(SOLVERS)}")
+    checks.choice("formulation", formulation, FORMULATIONS, what="a formulation")
+    checks.choice("solver", solver, SOLVERS, what="a linear solve")
     unknown = set(params) - {"alpha", "beta", "penalty", "projection_tol", "small_dense"}
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not a parameter of evaluate")

@@ -21,6 +21,8 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
     position = [0.0, 0.0, 0.1]     # the centre of mass, space frame
     quaternion = [1.0, 0.0, 0.0, 0.0]   # or euler313 = [phi, theta, psi] (or euler313_deg),
                                         # or cardan123 = [...] (or cardan123_deg); default: none
+                                        # a quaternion's norm is 1 to the digits written (within
+                                        # 1e-6): the rotation of q / |q| is taken
     velocity = [0.0, 0.0, 0.0]     # of the centre, space frame
     omega_body = [0.0, 0.0, 200.0] # angular velocity in the body frame; or omega (space frame)
 
@@ -61,17 +63,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from numbers import Real
 
 import numpy as np
 
 from . import _compiled, _kernel
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
-                     status_message)
+                     failure_text, status_message, stopped_at)
+from .errors import NoMemoryError, format_bytes, no_memory_message
 from .methods import method as _method
-from .options import empty
+from .options import ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
 from .rotations import from_angles, from_quaternion, to_quaternion
+from .checks import (NUMBER_MAX, NUMBER_MIN, check_memory, memory_error, number_problem,
+                     show)
 from .scene import GROUND, SceneError, _Reader, section_items
 
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
@@ -94,6 +98,10 @@ FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, 
                "damper": 4}
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
 UNIT_TOL = 1e-8
+#: how far from 1 the norm of a quaternion written in a scene file may be: a unit quaternion
+#: written to 6 decimals has each component rounded by up to 5e-7, which moves its norm by up
+#: to 5e-7 (|q|_1 <= 2); the reader takes the rotation of q / |q|
+WRITTEN_UNIT_TOL = 1e-6
 #: how far a given initial state may be off its joints before the run refuses it (a larger
 #: offset is a scene error, not roundoff: the assembly would move the bodies visibly)
 ASSEMBLY_TOL = 1e-6
@@ -205,13 +213,8 @@ class _SpatialReader(_Reader):
         if isinstance(v, np.ndarray):
             v = v.tolist()
         if not isinstance(v, (list, tuple)) or len(v) != n:
-            raise self.err(fld, f"= {v!r} must be a list of {n} numbers")
-        out = []
-        for c in v:
-            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
-                raise self.err(fld, f"= {v!r} must hold {n} finite numbers")
-            out.append(float(c))
-        return np.array(out)
+            raise self.err(fld, f"= {show(v)} must be a list of {n} numbers")
+        return np.array(self.entries(fld, v, str(n)))
 
     def unit3(self, fld, required=False, default=None):
         v = self.vec3(fld, default, required)
@@ -252,31 +255,53 @@ def _inertia(r: _SpatialReader, mass: float) -> np.ndarray:
             jt = mass * ln * ln / 12
             j = np.array([1e-6 * jt, jt, jt])
         sr.done()
-        if not np.all(np.isfinite(j)):
-            raise r.err("shape", f"= {shape!r} gives an inertia beyond the largest number")
+        with np.errstate(all="ignore"):
+            bad = not np.all(np.isfinite(j)) or np.max(j) > NUMBER_MAX or np.min(j) < NUMBER_MIN
+        if bad:
+            raise r.err("shape", f"= {show(shape)} gives principal inertias {j.tolist()}, out of "
+                                 "range (each must lie between 1e-150 and 1e150 kg m^2); give "
+                                 "the size in metres and the mass in kg")
         return np.diag(j)
     v = r.get("inertia", None, required=True)
     if isinstance(v, (list, tuple)) and len(v) == 3 and all(isinstance(x, (list, tuple))
                                                            for x in v):
-        try:
-            j = np.array(v, dtype=float)
-        except (TypeError, ValueError):
-            raise r.err("inertia", f"= {v!r} is not a 3 x 3 matrix of numbers") from None
-        if j.shape != (3, 3) or not np.all(np.isfinite(j)):
-            raise r.err("inertia", f"= {v!r} is not a 3 x 3 matrix of finite numbers")
+        if any(len(x) != 3 for x in v):
+            raise r.err("inertia", f"= {show(v)} is not a 3 x 3 matrix of numbers")
+        j = np.array([r.entries("inertia", x, "3 x 3") for x in v])
     else:
         j = np.diag(r.vec3("inertia"))
-    scale = np.max(np.abs(j))
+    return _checked_inertia(r.err, j)
+
+
+def _checked_inertia(err, j: np.ndarray) -> np.ndarray:
+    """A 3 x 3 inertia: entries in range, symmetric, positive definite with eigenvalues in
+    range, the triangle inequality. err(field, message) makes the error."""
+    with np.errstate(all="ignore"):
+        big = np.max(np.abs(j))
+    if not np.all(np.isfinite(j)) or big > NUMBER_MAX:
+        raise err("inertia", f"= {j.tolist()} is out of range: entries must be finite, of "
+                             "magnitude at most 1e150 (kg m^2); give it in SI units")
+    scale = big
     if not np.allclose(j, j.T, rtol=0, atol=1e-12 * max(scale, 1e-300)):
-        raise r.err("inertia", f"= {j.tolist()} is not symmetric; an inertia matrix is")
-    ev = np.linalg.eigvalsh(j)
+        raise err("inertia", f"= {j.tolist()} is not symmetric; an inertia matrix is")
+    try:
+        ev = np.linalg.eigvalsh(0.5 * (j + j.T))
+    except np.linalg.LinAlgError:
+        ev = np.full(3, np.nan)
+    if not np.all(np.isfinite(ev)):
+        raise err("inertia", f"= {j.tolist()}: its principal inertias cannot be computed; give "
+                             "it in SI units (kg m^2)")
     if not ev[0] > 0:
-        raise r.err("inertia", f"= {j.tolist()} is not positive definite (eigenvalues "
-                               f"{ev.round(12).tolist()}); each principal inertia must be > 0")
+        raise err("inertia", f"= {j.tolist()} is not positive definite (eigenvalues "
+                             f"{ev.round(12).tolist()}); each principal inertia must be > 0")
+    if ev[0] < NUMBER_MIN:
+        raise err("inertia", f"= {j.tolist()}: its smallest principal inertia {ev[0]:.3g} is "
+                             "below 1e-150 kg m^2, whose inverse the equations of motion form; "
+                             "give it in SI units")
     if ev[2] > ev[0] + ev[1] + 1e-12 * ev[2]:
-        raise r.err("inertia", f"= {j.tolist()}: its principal inertias {ev.round(12).tolist()} "
-                               "break the triangle inequality (J3 <= J1 + J2), which every "
-                               "rigid body keeps")
+        raise err("inertia", f"= {j.tolist()}: its principal inertias {ev.round(12).tolist()} "
+                             "break the triangle inequality (J3 <= J1 + J2), which every "
+                             "rigid body keeps")
     return j
 
 
@@ -290,11 +315,14 @@ def _orientation(r: _SpatialReader) -> np.ndarray:
     f = given[0]
     if f == "quaternion":
         q = r.vec3("quaternion", n=4)
-        if not abs(np.linalg.norm(q) - 1) <= UNIT_TOL:
-            raise r.err("quaternion", f"= {q.tolist()} has norm {np.linalg.norm(q):.12g}; a "
-                                      "rotation's quaternion has norm 1 (normalise it: mbdk "
-                                      "changes no given state silently)")
-        return from_quaternion(q)
+        norm = float(np.linalg.norm(q))
+        if not abs(norm - 1) <= WRITTEN_UNIT_TOL:
+            raise r.err("quaternion", f"= {q.tolist()} has norm {norm:.12g}; a rotation's "
+                                      "quaternion has norm 1 (to the precision it is written "
+                                      f"in: within {WRITTEN_UNIT_TOL:g}); give a unit "
+                                      "quaternion, scalar first")
+        # written to 6 or more digits: the rotation it stands for is that of q / |q|
+        return from_quaternion(q / norm)
     if r.has(f + "_deg"):
         if r.has(f):
             raise r.err(f, f"and {f}_deg are both given; give one")
@@ -585,19 +613,19 @@ def _validate(sc: SpatialScene) -> None:
         raise SceneError(f"{sc.source}: scene: rotation = {sc.rotation!r} (known: "
                          f"{', '.join(ROTATIONS)}), quaternion_norm = {sc.quaternion_norm!r} "
                          f"(known: {', '.join(NORMS)})")
-    if isinstance(sc.norm_gain, bool) or not isinstance(sc.norm_gain, Real) or \
-            not (math.isfinite(sc.norm_gain) and sc.norm_gain >= 0):
+    if number_problem(sc.norm_gain) or not sc.norm_gain >= 0:
         raise SceneError(f"{sc.source}: scene: norm_gain = {sc.norm_gain!r} must be a finite "
                          "number >= 0")
 
     def vec(label, fld, v, shape):
         try:
             a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             a = None
-        if a is None or a.shape != shape or not np.all(np.isfinite(a)):
-            raise SceneError(f"{sc.source}: {label}: field {fld!r} = {v!r} must be finite "
-                             f"numbers of shape {shape}")
+        if a is None or a.shape != shape or not np.all(np.isfinite(a)) or \
+                np.any(np.abs(a) > NUMBER_MAX):
+            raise SceneError(f"{sc.source}: {label}: field {fld!r} = {show(v)} must be finite "
+                             f"numbers of shape {shape}, of magnitude at most 1e150")
         return a
     names = set()
     for b in sc.bodies:
@@ -605,20 +633,20 @@ def _validate(sc: SpatialScene) -> None:
         if not isinstance(b, SpatialBody) or not isinstance(b.name, str) or b.name in names:
             raise SceneError(f"{sc.source}: {label} is not a SpatialBody with a name of its own")
         names.add(b.name)
-        if isinstance(b.mass, bool) or not isinstance(b.mass, Real) or \
-                not (math.isfinite(b.mass) and b.mass > 0):
+        problem = number_problem(b.mass)
+        if problem:
+            raise SceneError(f"{sc.source}: {label}: field 'mass' {problem}")
+        if not b.mass > 0:
             raise SceneError(f"{sc.source}: {label}: field 'mass' = {b.mass!r} must be > 0")
-        j = vec(label, "inertia", b.inertia, (3, 3))
-        ev = np.linalg.eigvalsh(0.5 * (j + j.T))
-        if not np.allclose(j, j.T, rtol=0, atol=1e-12 * np.abs(j).max()) or not ev[0] > 0 or \
-                ev[2] > ev[0] + ev[1] + 1e-12 * ev[2]:
-            raise SceneError(f"{sc.source}: {label}: field 'inertia' = {j.tolist()} must be "
-                             "symmetric, positive definite and keep J3 <= J1 + J2")
+        _checked_inertia(lambda fld, msg, label=label: SceneError(
+            f"{sc.source}: {label}: field {fld!r} {msg}"), vec(label, "inertia", b.inertia,
+                                                              (3, 3)))
         rot = vec(label, "rotation", b.rotation, (3, 3))
         if not (np.allclose(rot.T @ rot, np.eye(3), rtol=0, atol=UNIT_TOL)
                 and np.linalg.det(rot) > 0):
-            raise SceneError(f"{sc.source}: {label}: field 'rotation' = {rot.tolist()} is not "
-                             "a rotation matrix (R^T R = I, det R = 1)")
+            raise SceneError(f"{sc.source}: {label}: field 'rotation' (the SpatialBody's "
+                             f"orientation matrix) = {rot.tolist()} is not a rotation matrix "
+                             "(R^T R = I, det R = 1)")
         for fld in ("position", "velocity", "omega_body"):
             vec(label, fld, getattr(b, fld), (3,))
     for j in sc.joints:
@@ -678,7 +706,7 @@ def joint_rows(sc: SpatialScene) -> list:
 
 
 def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulation=None,
-                     t0=0.0, every=1, alpha=None, beta=None, projection_tol=1e-12,
+                     t0=0.0, every=1, alpha=None, beta=None, projection_tol=None,
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
@@ -703,7 +731,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
             newton_atol=newton_atol, outputs=outputs, penalty=penalty, **unsupported))
     from .ode import build_info
-    from .simulate import _ode_plan, check_run
+    from .simulate import _ode_plan, check_run, scene_tolerances
     from .watch import as_watch, drift_message, drift_report, invariant_names
 
     bad = sorted(k for k, v in unsupported.items() if v is not None)
@@ -730,6 +758,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                  "is y = [q, q'], and a spatial body's velocities (v, Omega) are "
                                  "not its coordinates' rates; use symplectic methods on planar "
                                  "scenes, or rk4 here")
+    if formulation is not None and not isinstance(formulation, str):
+        from .checks import choice
+        choice("formulation", formulation,
+               ["projected"] if index3 else list(IDA_FORMS) if ida else
+               list(FORMULATIONS) + (["i3", "si2"] if info_m.family == "variable_bdf" else []),
+               error=NotApplicableError, what=f"a formulation {method} runs on spatial scenes")
     if index3:
         formulation = "projected" if formulation is None else formulation
         if formulation != "projected":
@@ -767,7 +801,12 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         if every != 1:
             raise InvalidInputError(f"every = {every!r}: {method} chooses its own steps; give "
                                     "dt_out (the spacing of the samples) instead")
+        if formulation == "baumgarte" and (alpha is None or beta is None):
+            raise InvalidInputError(f"{method} with formulation 'baumgarte': give alpha and "
+                                    "beta (Baumgarte's defaults 1/h and sqrt(2)/h need a fixed "
+                                    "step; an error-controlled method has none)")
         check_run(1.0 if not h else h, t_end, t0, 1)
+        rtol, atol = scene_tolerances(rtol, atol)
         adaptive = dict(h=h, rtol=rtol, atol=atol, dt_out=dt_out or 0.0, h_min=h_min or 0.0,
                         h_max=h_max or 0.0, max_steps=max_steps or 0, max_order=max_order or 0)
         href = 1e-3 * (t_end - t0)
@@ -782,6 +821,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         check_run(h, t_end, t0, every)
         adaptive = None
         href = h
+    projection_tol = projection_tol_for(
+        projection_tol, (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
     plan_ = _ode_plan(info_m, formulation, href, t_end, t0, int(every), alpha, beta,
                       penalty, projection_tol, startup, newton_rtol, newton_atol, adaptive)
     opt = plan_["ode"]
@@ -806,8 +847,19 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             2 if index3 else IDA_FORMS[formulation] if ida else
             (5 if formulation == "si2" else 1) if dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
-    (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = _compiled.call(
-        _kernel.spatial_run, args, flag, plan_["steps"] * len(y0), span=(t0, t_end))
+    # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
+    # before they are allocated where the machine has not that much memory
+    from .simulate import SCENE_SAMPLE_ADVICE
+    nbytes = 8.0 * nsamp * (1 + len(y0) + 8 + m1)   # spatial_run's out(8, nsamp)
+    what = f"{method} on spatial scene {sc.name!r} ({nsamp} samples)"
+    advice = SCENE_SAMPLE_ADVICE.split(", or fewer outputs")[0]
+    check_memory(nbytes, what=what, change=advice)
+    try:
+        (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = \
+            _compiled.call(_kernel.spatial_run, args, flag, plan_["steps"] * len(y0),
+                           span=(t0, t_end))
+    except MemoryError as exc:
+        raise memory_error(exc, nbytes, what=what, change=advice) from None
     status = Status(int(status))
     nqb = 7 if sc.rotation == "quaternion" else 6
     nq = nb * nqb
@@ -862,7 +914,25 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         manifest=manifest, bodies=[b.name for b in sc.bodies],
         joints=[j.name for j in sc.joints], rotation=sc.rotation,
         assembly={"moved": float(moved)})
-    if status == Status.ERR_CONSTRAINT_DRIFT and int(report[0]) == 0:
+    unstable = ""
+    if status.failed and nw and not info_m.adaptive and not index3 and not dae and not ida:
+        from .simulate import _UNSTABLE_ENDS, _stability_note
+        if status in _UNSTABLE_ENDS:
+            def f(yy):
+                out = evaluate_spatial(sc, yy, float(result.t[-1]))
+                if out["status"] != Status.SUCCESS:
+                    raise InvalidInputError("no evaluation")
+                return out["ydot"]
+            unstable = _stability_note(method, h, f, np.concatenate([result.q[-1],
+                                                                     result.w[-1]]),
+                                       float(result.t[-1]))
+    if unstable:    # the true cause: the method's step, not the mechanism
+        if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
+            result.drift = drift_report(report, joint_rows(sc))
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
+                          f"{failure_text(status, False)} ({stopped_at(result.stats, t0)}): "
+                          f"{unstable}")
+    elif status == Status.ERR_CONSTRAINT_DRIFT and int(report[0]) == 0:
         # not the watch: the kernel found the redundant joints' dependent rows independent
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} stopped at t = "
                           f"{result.t[-1] if nw else t0:.6g}: the state left the joints so far "
@@ -882,8 +952,19 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                   "drift) are the remedies")
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: {said}. "
                           + remedy)
+    elif status == Status.ERR_NO_MEMORY:
+        # the run's dense matrices: the Newton matrix over the method's unknowns, the penalty
+        # formulation's over the velocities
+        newton = (len(y0) + sc.rows * (2 if formulation in ("si2", "ggl") else 1)
+                  if dae or ida or index3 else len(y0))
+        dense = [(f"the Newton matrix of {method}", newton, "use an explicit method"),
+                 ("the penalty formulation's M + alpha_p C^T C",
+                  6 * nb * (formulation == "penalty"),
+                  "use formulation reduced, baumgarte or projection")]
+        result.message = (f"{method}/{formulation} on spatial scene {sc.name!r} ({nb} bodies): "
+                          + no_memory_message(result.stats.alloc_bytes, dense))
     elif status == Status.ERR_SINGULAR_MATRIX:
-        where = (f"stopped at t = {result.t[-1]:.6g}" if nw else
+        where = (f"stopped {stopped_at(result.stats, t0)}" if nw else
                  "could not start (the initial state's assembly or first evaluation)")
         lock = _lock_distance(sc, result.q[-1]) if nw else None
         joints = ("the joints' constraint rows lost their rank (a singular pose: rows that "
@@ -898,8 +979,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             why = joints
         result.message = f"{method}/{formulation} on spatial scene {sc.name!r} {where}: {why}"
     elif status.failed:
+        text = failure_text(status, info_m.adaptive, dae or ida)
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
-                          f"{status_message(status)} (t = {result.t[-1] if nw else t0:.6g})")
+                          f"{text} ({stopped_at(result.stats, t0)})")
     if interrupted or status == Status.ERR_INTERRUPTED:
         from .errors import SolveInterrupted
         raise SolveInterrupted(result.message, status=status, result=result)
@@ -1054,9 +1136,17 @@ def evaluate_spatial(sc: SpatialScene, y=None, t: float = 0.0) -> dict:
                                     f"scene's layout: q then (v, Omega) per body)")
     y = y0 if y is None else y
     m = sc.rows
-    out, phi, c, gam, phit, lam, ydot, rank, status = _kernel.spatial_residuals(
-        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-        float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    run = f"evaluating spatial scene {sc.name!r} ({nb} bodies, {m} constraint rows)"
+    try:
+        out, phi, c, gam, phit, lam, ydot, rank, asked, status = _kernel.spatial_residuals(
+            mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+            float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+    except MemoryError as exc:   # the arrays f2py allocates, C (rows x 6 nb) the largest
+        raise NoMemoryError(f"{run}: its arrays ({format_bytes(8.0 * max(m, 1) * 6 * nb)} for C "
+                            f"alone, {m} x {6 * nb}) could not be allocated ({exc}); fewer "
+                            "bodies or joints") from exc
+    if status == Status.ERR_NO_MEMORY:
+        raise NoMemoryError(f"{run}: " + no_memory_message(asked, samples=False))
     return {"kinetic": out[0], "gravity": out[1], "springs": out[2], "power": out[3],
             "phi": phi[:m], "C": c[:m], "gamma": gam[:m], "phi_t": phit[:m],
             "multipliers": lam[:m], "ydot": ydot,

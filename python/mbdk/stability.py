@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _kernel
+from . import _kernel, checks
+from .checks import show
 from .errors import InvalidInputError, NotApplicableError, Status, exception_for
 from .methods import method as _any_method
 
@@ -51,6 +52,28 @@ def _method(method: str):
     return info
 
 
+def _array(name: str, value, dtype=float, *, positive: bool = False) -> np.ndarray:
+    """An array argument of numbers (dtype float or complex), finite (and > 0 if positive),
+    or a named error."""
+    try:
+        a = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError, OverflowError):
+        a = None
+    if a is None or (a.dtype == object):
+        raise InvalidInputError(f"{name} = {show(value)} is not an array of numbers")
+    if a.size == 0:
+        raise InvalidInputError(f"{name} is empty; give at least one value")
+    bad = np.flatnonzero(~np.isfinite(a).ravel() | ((a.ravel().real <= 0) if positive else False))
+    if bad.size:
+        raise InvalidInputError(f"{name}: entry {bad[0]} = {a.ravel()[bad[0]]} must be "
+                                f"{'positive and ' if positive else ''}finite")
+    return a
+
+
+def _positive(name: str, value) -> float:
+    return checks.real(name, value, positive=True)
+
+
 def history_length(method: str) -> int:
     """Past states one step reads: k for bdfk (k >= 2), 1 for one-step methods."""
     return int(_kernel.step_history_length(_method(method).id))
@@ -63,7 +86,10 @@ def step_matrices(method: str, a, h) -> np.ndarray:
     Where I - h*beta0*A is singular the amplification factor has a pole: those matrices are
     returned as inf. Any other kernel failure raises its named exception."""
     info = _method(method)
-    a = np.asarray(a, dtype=float)
+    try:
+        a = np.asarray(a, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"A = {show(a)} is not a square matrix of numbers") from None
     single = a.ndim == 2
     if single:
         a = a[None]
@@ -72,7 +98,11 @@ def step_matrices(method: str, a, h) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise InvalidInputError("A has entries that are not finite")
     npts, n = a.shape[0], a.shape[1]
-    h = np.broadcast_to(np.asarray(h, dtype=float), (npts,))
+    try:
+        h = np.broadcast_to(np.asarray(h, dtype=float), (npts,))
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"h = {show(h)} must be a step (a number) or one step per "
+                                f"matrix ({npts})") from None
     bad = np.flatnonzero(~(np.isfinite(h) & (h > 0)))
     if bad.size:
         raise InvalidInputError(f"h[{bad[0]}] = {h[bad[0]]} must be positive and finite")
@@ -128,7 +158,7 @@ def _test_matrices(method: str, z: np.ndarray) -> np.ndarray:
 
 def spectral_radius(method: str, z) -> np.ndarray:
     """Spectral radius of the step matrix at z = h*lambda (array-like, complex)."""
-    z = np.asarray(z, dtype=complex)
+    z = _array("z", z, complex)
     m = step_matrices(method, _test_matrices(method, z.ravel()).reshape(-1, 2, 2), 1.0)
     return _radius(m).reshape(z.shape)
 
@@ -149,7 +179,7 @@ def amplification_factor(method: str, z) -> np.ndarray:
             f"{method} has no scalar amplification factor: "
             + ("it is defined on second-order systems only" if info.family == "euler_cromer"
                else "it is a multistep method") + "; use spectral_radius()")
-    z = np.asarray(z, dtype=complex)
+    z = _array("z", z, complex)
     m = step_matrices(method, _realified(z.ravel()).reshape(-1, 2, 2), 1.0)
     return (m[:, 0, 0] + 1j * m[:, 1, 0]).reshape(z.shape)
 
@@ -170,6 +200,10 @@ def _first_crossing(f, lo: float, hi: float, iters: int = 80) -> float:
 def real_interval(method: str, reach: float = 1e8) -> tuple[float, float]:
     """(a, 0): the stability interval on the negative real axis that contains 0-, to about 13
     digits; a = -inf when the whole axis up to -reach is stable."""
+    _method(method)
+    reach = _positive("reach", reach)
+    if reach <= 1e-6:
+        raise InvalidInputError(f"reach = {reach:g} must exceed 1e-6 (the search starts there)")
     x = -np.logspace(-6, math.log10(reach), 1401)
     r = spectral_radius(method, x)
     bad = np.flatnonzero(r > 1 + STABLE_TOL)
@@ -202,6 +236,10 @@ def a_alpha(method: str, r_min: float = 1e-4, r_max: float = 1e4) -> float:
     """The A(alpha) angle in degrees: the largest alpha such that the sector |arg(-z)| < alpha
     is stable (90 = A-stable). Found by bisection on the ray angle; each ray is searched for its
     most unstable point on a log grid from r_min to r_max with three refinements."""
+    _method(method)
+    r_min, r_max = _positive("r_min", r_min), _positive("r_max", r_max)
+    if not r_min < r_max:
+        raise InvalidInputError(f"r_min = {r_min:g} must be below r_max = {r_max:g}")
     rs = np.geomspace(r_min, r_max, 801)
     if _ray_excess(method, 0.0, rs) > STABLE_TOL:
         return 0.0
@@ -258,12 +296,10 @@ def stability_region(method: str, re: tuple[float, float] | None = None,
     its real-axis interval and, for implicit methods, the A(alpha) angle."""
     info = _method(method)
     wre, wim = default_window(method)
-    re, im = re or wre, im or wim
-    if not (isinstance(n, int) and 3 <= n <= 4001):
-        raise InvalidInputError(f"n = {n!r} must be a whole number from 3 to 4001")
-    for name, w in (("re", re), ("im", im)):
-        if len(w) != 2 or not (math.isfinite(w[0]) and math.isfinite(w[1]) and w[0] < w[1]):
-            raise InvalidInputError(f"{name} = {w!r} must be a pair (lo, hi) of finite numbers, lo < hi")
+    re = wre if re is None else _window("re", re)
+    im = wim if im is None else _window("im", im)
+    if isinstance(n, bool) or not isinstance(n, int) or not 3 <= n <= 4001:
+        raise InvalidInputError(f"n = {show(n)} must be a whole number from 3 to 4001")
     t0 = time.process_time()
     x = np.linspace(re[0], re[1], n)
     y = np.linspace(im[0], im[1], n)
@@ -282,6 +318,18 @@ def stability_region(method: str, re: tuple[float, float] | None = None,
                       if history_length(method) > 1 else ""))
     return StabilityRegion(method, x, y, rho, boundary, interval, a_st, alpha, definition,
                            time.process_time() - t0)
+
+
+def _window(name: str, w) -> tuple[float, float]:
+    """A window side (lo, hi): two finite numbers, lo < hi, or a named error."""
+    if isinstance(w, (str, bytes, dict)) or not hasattr(w, "__len__") or len(w) != 2:
+        raise InvalidInputError(f"{name} = {show(w)} must be a pair (lo, hi) of finite numbers, "
+                                "lo < hi")
+    lo, hi = (checks.real(f"{name}[{i}]", x) for i, x in enumerate(w))
+    if not lo < hi:
+        raise InvalidInputError(f"{name} = {show(w)} must be a pair (lo, hi) of finite numbers, "
+                                "lo < hi")
+    return lo, hi
 
 
 def _level_curves(x, y, values, level):
@@ -316,9 +364,10 @@ class OscillatorResponse:
 def oscillator_response(method: str, h_over_T, zeta: float = 0.0) -> OscillatorResponse:
     """Spectral radius, numerical damping and period error of `method` on the damped oscillator
     (omega = 1), from the kernel's step matrices."""
-    if not (math.isfinite(zeta) and 0 <= zeta < 1):
+    zeta = checks.real("zeta", zeta)
+    if not 0 <= zeta < 1:
         raise InvalidInputError(f"zeta = {zeta} must be in [0, 1) (an oscillating system)")
-    hT = np.atleast_1d(np.asarray(h_over_T, dtype=float))
+    hT = np.atleast_1d(_array("h_over_T", h_over_T, positive=True))
     h = 2 * math.pi * hT
     m = step_matrices(method, oscillator_matrix(np.ones_like(h), zeta), h)
     lam = complex(-zeta, math.sqrt(1 - zeta ** 2))
@@ -342,7 +391,7 @@ def oscillator_response(method: str, h_over_T, zeta: float = 0.0) -> OscillatorR
 
 def oscillator_map(method: str, h_omega, zeta) -> np.ndarray:
     """Spectral radius on the grid (zeta[j], h_omega[i]) of the damped oscillator."""
-    hw, zz = np.meshgrid(np.asarray(h_omega, float), np.asarray(zeta, float))
+    hw, zz = np.meshgrid(_array("h_omega", h_omega, positive=True), _array("zeta", zeta))
     m = step_matrices(method, oscillator_matrix(np.ones(hw.size), zz.ravel()), hw.ravel())
     return _radius(m).reshape(hw.shape)
 
@@ -352,6 +401,11 @@ def oscillator_limit(method: str, zeta: float = 0.0, reach: float = 1e4) -> floa
     stable up to `reach`). 0.0 when the method is unstable for every h > 0: a weak instability
     (rho - 1 = O((h omega)^(p+1)), heun on the undamped oscillator) hides below STABLE_TOL at
     small h, so a limit is only accepted if rho <= 1 + 1e-13 at half of it."""
+    _method(method)
+    zeta = checks.real("zeta", zeta)
+    reach = _positive("reach", reach)
+    if reach <= 1e-4:
+        raise InvalidInputError(f"reach = {reach:g} must exceed 1e-4 (the search starts there)")
     hw = np.logspace(-4, math.log10(reach), 1201)
     r = oscillator_map(method, hw, [zeta])[0]
     bad = np.flatnonzero(r > 1 + STABLE_TOL)
@@ -431,6 +485,11 @@ def largest_stable_step(problem: str, method: str, *, t_span: float = 100.0,
     Scanning upwards matters: stability regions need not be connected along a ray (bdf4 on the
     damped oscillator is unstable at h = 0.3 and stable again at h = 1), and a step that only
     works beyond an unstable band is no step a user can rely on."""
+    _method(method)
+    t_span, growth, h_cap, rtol, h_start = (
+        checks.real(name, v) for name, v in (("t_span", t_span), ("growth", growth),
+                                             ("h_cap", h_cap), ("rtol", rtol),
+                                             ("h_start", h_start)))
     if not (t_span > 0 and growth > 1 and h_cap > 0 and 0 < rtol < 1 and 0 < h_start <= h_cap):
         raise InvalidInputError(f"need t_span > 0, growth > 1, h_cap > 0, 0 < rtol < 1, "
                                 f"0 < h_start <= h_cap; got t_span = {t_span}, growth = {growth}, "
@@ -479,8 +538,9 @@ def equilibrium(problem: str, params: dict | None = None, y0=None) -> np.ndarray
     from scipy.optimize import root
     from .ode import evaluate_rhs
     from .problems import problem as _problem
+    from .ode import _state
     info = _problem(problem)
-    y = np.asarray(y0 if y0 is not None else info.y0, dtype=float).copy()
+    y = _state("y0", y0 if y0 is not None else info.y0, info.n if info.n > 0 else None).copy()
     nq = y.size // 2 if info.second_order else 0
     if nq:
         y[nq:] = 0.0
@@ -519,6 +579,16 @@ def linear_step_limits(method: str, jac: np.ndarray, *, t_span: float = 100.0,
     (largest h with spectral radius <= 1, i.e. bounded for ever; largest h with
     rho(h)^ceil(t_span/h) <= growth, i.e. bounded by `growth` over t_span). h_cap when stable
     up to h_cap; 0.0 when unstable for every h > 0 (see oscillator_limit)."""
+    _method(method)
+    jac = _array("jac", jac)
+    if jac.ndim != 2 or jac.shape[0] != jac.shape[1]:
+        raise InvalidInputError(f"jac has shape {jac.shape}; give a square matrix (n, n)")
+    t_span, growth, h_cap = (_positive(name, v) for name, v in (
+        ("t_span", t_span), ("growth", growth), ("h_cap", h_cap)))
+    if not growth > 1:
+        raise InvalidInputError(f"growth = {growth:g} must exceed 1")
+    if not h_cap > 1e-5:
+        raise InvalidInputError(f"h_cap = {h_cap:g} must exceed 1e-5 (the search starts there)")
     hs = np.logspace(-5, math.log10(h_cap), 1001)
     rho = _radius(step_matrices(method, np.broadcast_to(jac, (hs.size,) + jac.shape), hs))
 
@@ -551,3 +621,58 @@ def linear_step_limits(method: str, jac: np.ndarray, *, t_span: float = 100.0,
     else:
         horizon = _first_crossing(excess, hs[bad[0] - 1], hs[bad[0]])
     return forever, horizon
+
+
+def unstable_mode(method: str, h: float, jac, min_growth: float = 1.0 + 1e-6) -> dict | None:
+    """The mode of a linearised scene that the fixed step h of method amplifies although the
+    scene does not (an eigenvalue lambda of jac, the Jacobian of y' = F(t, y) at a state, with
+    Re lambda <= 0 and spectral radius of the step matrix at h lambda above 1); None if there is
+    none. The worst such mode: lambda, h lambda, the growth per step and h_max, the largest step
+    at which that mode is stable (bisection on the method's own step matrix). A run that fails
+    by overflow or drift with such a mode failed because h lies beyond the method's stability
+    limit, not because of the mechanism. min_growth: the growth per step above which a mode
+    counts."""
+    info = _method(method)
+    if info.family == "euler_cromer" or info.adaptive:
+        return None
+    jac = np.asarray(jac, dtype=float)
+    if jac.ndim != 2 or jac.shape[0] != jac.shape[1] or not np.all(np.isfinite(jac)):
+        return None
+    lam = np.linalg.eigvals(jac)
+    lam = lam[(lam.real <= 1e-9 * np.abs(lam)) & (np.abs(lam) > 0)]
+    if lam.size == 0:
+        return None
+    r = spectral_radius(method, h * lam)
+    bad = np.flatnonzero(r > min_growth)
+    if bad.size == 0:
+        return None
+    k = bad[np.argmax(np.abs(lam[bad]))]
+    z = h * lam[k]
+    lo, hi = 0.0, 1.0          # the stable fraction of h for this mode
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if spectral_radius(method, mid * z) <= 1.0 + 1e-9:
+            lo = mid
+        else:
+            hi = mid
+    return {"lambda": complex(lam[k]), "z": complex(z), "growth": float(r[k]),
+            "h_max": lo * h}
+
+
+#: a failure is blamed on the step only where a mode grows this much per step: a slower growth
+#: (explicit Euler on an undamped oscillation, 1.003 per step) is the method's accuracy, which
+#: the drift the watch names already says
+BLAME_GROWTH = 1.5
+
+
+def instability_note(method: str, h: float, jac) -> str:
+    """unstable_mode as a sentence for a failure message ('' if none)."""
+    mode = unstable_mode(method, h, jac, BLAME_GROWTH)
+    if mode is None:
+        return ""
+    lam = mode["lambda"]
+    return (f"h = {h:g} lies beyond {method}'s stability limit for a mode of the scene that "
+            f"does not grow (lambda = {lam.real:.3g}{lam.imag:+.3g}j 1/s, h lambda = "
+            f"{mode['z'].real:.3g}{mode['z'].imag:+.3g}j: it grows {mode['growth']:.3g}-fold "
+            f"per step); a step below {mode['h_max']:.3g} s keeps it stable, or an implicit or "
+            "error-controlled method (bdf, trapezoidal_index3, dopri54) follows it")

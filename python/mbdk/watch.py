@@ -31,8 +31,9 @@ a method's drift does so, and says so); ``watch=mbdk.Watch(position=1e-6)`` tigh
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from numbers import Integral, Real
+from numbers import Integral
 
+from .checks import number_problem, show
 from .errors import InvalidInputError
 from .options import ModelOptions
 
@@ -75,7 +76,8 @@ def as_watch(watch) -> Watch:
     if watch is False or watch is None:
         return OFF
     if isinstance(watch, dict):
-        bad = set(watch) - {f.name for f in fields(Watch)}
+        bad = {k for k in watch if not isinstance(k, str)} or \
+            set(watch) - {f.name for f in fields(Watch)}
         if bad:
             raise InvalidInputError(f"watch: {', '.join(sorted(map(repr, bad)))} unknown; known: "
                                     f"{', '.join(f.name for f in fields(Watch))}")
@@ -85,10 +87,9 @@ def as_watch(watch) -> Watch:
                                 "of its fields")
     for name in ("position", "velocity", "energy", "momentum", "quaternion"):
         v = getattr(watch, name)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, Real) or not v > 0
-                              or v == float("inf")):
-            raise InvalidInputError(f"watch.{name} = {v!r} must be a finite number > 0, or None "
-                                    "to turn that test off")
+        if v is not None and (number_problem(v, in_range=False) or not v > 0):
+            raise InvalidInputError(f"watch.{name} = {show(v)} must be a finite number > 0, or "
+                                    "None to turn that test off")
     if isinstance(watch.every, bool) or not isinstance(watch.every, Integral) or \
             not 1 <= watch.every <= 2**31 - 1:
         raise InvalidInputError(f"watch.every = {watch.every!r} must be a whole number >= 1")

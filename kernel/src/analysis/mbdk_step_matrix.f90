@@ -30,6 +30,7 @@ module mbdk_step_matrix
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_EXPLICIT_RK, MBDK_FAMILY_EULER_CROMER, &
     MBDK_FAMILY_IMPLICIT_LMM, MBDK_FAMILY_DAE_INDEX3, MBDK_METHOD_NAME_LEN
   use mbdk_butcher, only: mbdk_butcher_t, mbdk_butcher_table, MBDK_MAX_STAGES
@@ -75,7 +76,7 @@ contains
     integer, intent(out) :: stat
 
     character(len=MBDK_METHOD_NAME_LEN) :: name
-    integer :: family, order, n, k, j, l
+    integer :: family, order, n, k, j, l, astat
     logical :: ok
     type(mbdk_textbook_t) :: prob
     type(mbdk_butcher_t) :: rk
@@ -94,6 +95,8 @@ contains
     k = mbdk_step_history_length(method)
     stat = MBDK_ERR_INVALID_INPUT
     if (n < 1 .or. size(a, 2) /= n) return
+    ! the state of k steps (n k) and A's entries (n^2) are indexed by default integers
+    if (.not. (mbdk_count_fits(real(n, dp) * k) .and. mbdk_count_fits(real(n, dp) * n))) return
     if (size(m, 1) /= n * k .or. size(m, 2) /= n * k) return
     if (.not. (h > 0.0_dp .and. h <= huge(1.0_dp))) return
     if (.not. all(abs(a) <= huge(1.0_dp))) return
@@ -102,16 +105,22 @@ contains
     if (stat /= MBDK_SUCCESS) return
     if (family == MBDK_FAMILY_EULER_CROMER) prob%nq = n / 2
 
-    allocate (y(n), ytmp(n), s(n * k))
+    allocate (y(n), ytmp(n), s(n * k), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(n, dp) * (k + 2), stat)
+    if (stat /= MBDK_SUCCESS) return
     select case (family)
     case (MBDK_FAMILY_EXPLICIT_RK)
       call mbdk_butcher_table(method, rk, ok)
-      allocate (kst(n, MBDK_MAX_STAGES))
+      allocate (kst(n, MBDK_MAX_STAGES), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(n, dp) * MBDK_MAX_STAGES, stat)
     case (MBDK_FAMILY_IMPLICIT_LMM)
       call mbdk_lmm_table(method, lmm, ok)
-      call mbdk_newton_work_init(nw, n)
-      allocate (hist(n, k), fn(n), c(n))
+      call mbdk_newton_work_init(nw, n, stat)
+      if (stat /= MBDK_SUCCESS) return
+      allocate (hist(n, k), fn(n), c(n), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(n, dp) * (k + 2), stat)
     end select
+    if (stat /= MBDK_SUCCESS) return
 
     do j = 1, n * k
       s = 0.0_dp

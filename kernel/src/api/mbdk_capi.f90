@@ -10,6 +10,7 @@ module mbdk_capi
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_methods, only: mbdk_method_id
   use mbdk_fixed_step, only: mbdk_step_plan
   use mbdk_solve, only: mbdk_solve_ode, mbdk_sample_plan
@@ -81,14 +82,17 @@ contains
     if (.not. (present(opt) .and. present(t_out) .and. present(y_out) .and. present(a_out) .and. &
                present(iters_out)) .or. nsamp < 1) return
     call mbdk_c_tables_read(nb, mass, inertia, nj, jint, jreal, nf, fint, freal, y0, ji, jr, fi, &
-                            fr, stat)
+                            fr, stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) then
+      stats = st
       mbdk_c_index3_solve = int(stat, c_int)
       return
     end if
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
-    call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, work, stat)
+    call mbdk_model_init(model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, work, stat, &
+                         asked=st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) then
+      stats = st
       mbdk_c_index3_solve = int(stat, c_int)
       return
     end if
@@ -103,8 +107,11 @@ contains
       return
     end if
     allocate (lam(max(m, 1), nsamp), it(nsamp), stat=nw)
-    if (nw /= 0) then
-      mbdk_c_index3_solve = int(MBDK_ERR_NO_MEMORY, c_int)
+    call mbdk_alloc_status(nw, (MBDK_REAL_BYTES * max(m, 1) + MBDK_INT_BYTES) * nsamp, stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) then
+      stats = st
+      mbdk_c_index3_solve = int(stat, c_int)
       return
     end if
     call solve(y_out(1:2 * nc * nsamp), a_out(1:nc * nsamp))
@@ -342,16 +349,15 @@ contains
     buf(m + 1) = c_null_char
   end subroutine to_c
 
+  !> A C string (its first 256 characters), blank-padded: a fixed length needs no allocation
   function from_c(s) result(r)
     character(kind=c_char), intent(in) :: s(*)
-    character(len=:), allocatable :: r
+    character(len=256) :: r
     integer :: i
+    r = ''
     i = 0
     do while (s(i + 1) /= c_null_char .and. i < 256)
       i = i + 1
-    end do
-    allocate (character(len=i) :: r)
-    do i = 1, len(r)
       r(i:i) = s(i)
     end do
   end function from_c

@@ -29,6 +29,7 @@ module mbdk_capi_stepper
     c_associated, c_null_ptr, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_interrupt, only: mbdk_interrupted
@@ -36,7 +37,7 @@ module mbdk_capi_stepper
   use mbdk_fixed_step, only: mbdk_on_grid
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
-    mbdk_model_accelerations
+    mbdk_model_accelerations, mbdk_model_constraints
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_IMPLICIT_LMM, MBDK_METHOD_NAME_LEN
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
   use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
@@ -92,7 +93,11 @@ contains
     handle = c_null_ptr
     if (.not. (present(y0) .and. present(opt)) .or. .not. c_associated(f) .or. n < 1) return
     if (opt%nq < 0 .or. (opt%nq > 0 .and. 2 * opt%nq /= n)) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_ode = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_ODE
     call mbdk_c_problem_init(b%cprob, f, user_data, int(n), int(opt%nq), jac)
     call start(b, opt, t0, y0(1:n), stat)
@@ -118,9 +123,14 @@ contains
     if (.not. present(handle)) return
     handle = c_null_ptr
     if (.not. (present(mopt) .and. present(opt) .and. present(y0))) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_scene = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_SCENE
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
+    if (stat == MBDK_SUCCESS) call check_start(b, t0, y0(1:6 * nb), stat)
     if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:6 * nb + b%model%ns), stat)
     mbdk_c_stepper_create_scene = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_scene
@@ -148,7 +158,11 @@ contains
       return
     end if
     if (.not. (opt%h > 0.0_dp .and. opt%h <= huge(1.0_dp))) return
-    allocate (b)
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_index3 = MBDK_ERR_NO_MEMORY
+      return
+    end if
     b%kind = KIND_INDEX3
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
@@ -157,7 +171,7 @@ contains
       b%h = opt%h
       b%t0 = t0
       b%t_good = t0
-      b%y_good = y0(1:6 * nb)
+      if (stat == MBDK_SUCCESS) call keep_y0(b, y0(1:6 * nb), stat)
     end if
     mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_index3
@@ -178,6 +192,50 @@ contains
     call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
   end subroutine build_model
 
+  !> A scene stepper's initial state (q, v) against its joints: |Phi| within START_TOL of the
+  !> scene's size (the largest |q| or joint point, at least 1), |D v + Phi_t| within START_TOL
+  !> of the terms that must cancel (|D| |v| + |Phi_t|, at least the size per second).
+  !> MBDK_ERR_INCONSISTENT_INITIAL otherwise: the stepper does not assemble the state (Python's
+  !> simulate does), and a start off the joints would only fail later, at the watch. Non-finite
+  !> values: MBDK_ERR_NONFINITE.
+  subroutine check_start(b, t0, y, stat)
+    type(stepper_box), intent(inout) :: b
+    real(dp), intent(in) :: t0, y(:)
+    integer, intent(out) :: stat
+    !> a larger offset is a wrong state, not the roundoff of a consistent one
+    real(dp), parameter :: START_TOL = 1.0e-6_dp
+    real(dp), allocatable :: phi(:), gam(:), phit(:), dv(:), scale_v(:)
+    real(dp) :: size_
+    integer :: nc, m, r, k, c
+    stat = MBDK_SUCCESS
+    nc = b%model%nc
+    m = b%model%m
+    if (m == 0) return
+    stat = MBDK_ERR_NONFINITE
+    if (.not. all(abs(y) <= huge(1.0_dp))) return
+    allocate (phi(m), gam(m), phit(m), dv(m), scale_v(m), stat=k)
+    call mbdk_alloc_status(k, 5 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
+    associate (q => y(1:nc), v => y(nc + 1:2 * nc))
+      call mbdk_model_constraints(b%model, t0, q, v, phi, gam=gam, phit=phit)
+      dv = phit
+      scale_v = abs(phit)
+      do r = 1, m
+        do k = 1, size(b%model%col, 1)
+          c = b%model%col(k, r)
+          if (c <= 0) cycle
+          dv(r) = dv(r) + b%model%work%dz(k, r) * v(c)
+          scale_v(r) = scale_v(r) + abs(b%model%work%dz(k, r) * v(c))
+        end do
+      end do
+      size_ = max(1.0_dp, maxval(abs(q)), maxval(abs(b%model%jreal(1:4, :))))
+    end associate
+    stat = MBDK_ERR_INCONSISTENT_INITIAL
+    if (.not. all(abs(phi) <= START_TOL * size_)) return
+    if (.not. all(abs(dv) <= START_TOL * max(scale_v, size_))) return
+    stat = MBDK_SUCCESS
+  end subroutine check_start
+
   subroutine start(b, opt, t0, y0, stat)
     type(stepper_box), intent(inout) :: b
     type(mbdk_options_t), intent(in) :: opt
@@ -197,13 +255,25 @@ contains
     b%h = opt%h
     b%t0 = t0
     b%t_good = t0
-    b%y_good = y0
+    call keep_y0(b, y0, stat)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_method_info(opt%method, name, family, order)
     if (family == MBDK_FAMILY_IMPLICIT_LMM) then
       call mbdk_lmm_table(opt%method, lmm, found)
       b%equal_steps = lmm%k > 1
     end if
   end subroutine start
+
+  !> b%y_good = y0, allocated with its status (MBDK_ERR_NO_MEMORY)
+  subroutine keep_y0(b, y0, stat)
+    type(stepper_box), intent(inout) :: b
+    real(dp), intent(in) :: y0(:)
+    integer, intent(out) :: stat
+    integer :: astat
+    allocate (b%y_good(size(y0)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(y0), stat)
+    if (stat == MBDK_SUCCESS) b%y_good = y0
+  end subroutine keep_y0
 
   integer(c_int) function finish_create(b, stat, handle)
     type(stepper_box), pointer, intent(inout) :: b
@@ -262,8 +332,9 @@ contains
 
   !> Steps of opt.h up to t (the grid t0 + k h), the last one shortened to land on t when t is
   !> not on the grid (one-step methods only: a k-step method needs t on the grid,
-  !> MBDK_ERR_INVALID_INPUT otherwise). t at or before the current time: nothing to do. The
-  !> options' interrupt flag is polled before every step.
+  !> MBDK_ERR_INVALID_INPUT otherwise). t at the current time: nothing to do; before it:
+  !> MBDK_ERR_INVALID_INPUT (a stepper does not go back). The options' interrupt flag is polled
+  !> before every step.
   integer(c_int) function mbdk_c_stepper_advance(handle, t) bind(C, name='mbdk_stepper_advance')
     type(c_ptr), value :: handle
     real(c_double), value :: t
@@ -274,6 +345,7 @@ contains
     b => box_of(handle)
     if (.not. associated(b)) return
     if (.not. abs(t) <= huge(1.0_dp)) return
+    if (t < b%t_good) return
     h = b%h
     if (b%equal_steps .and. .not. mbdk_on_grid(b%t0, t, h)) return
     stat = MBDK_SUCCESS
@@ -364,7 +436,11 @@ contains
       return
     end if
     nc = b%model%nc
-    allocate (a(nc), l(m))
+    allocate (a(nc), l(m), stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_multipliers = MBDK_ERR_NO_MEMORY
+      return
+    end if
     call mbdk_model_accelerations(b%model, b%t_good, b%y_good(1:nc), b%y_good(nc + 1:2 * nc), a, &
                                   l, stat)
     if (stat == MBDK_SUCCESS .and. m > 0) lam(1:m) = l

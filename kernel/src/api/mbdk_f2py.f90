@@ -304,9 +304,11 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_scene_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE, &
+    MBDK_ERR_NO_MEMORY, mbdk_is_failure
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_assembly, only: mbdk_model_start
-  use mbdk_watch, only: mbdk_watch_work_at
+  use mbdk_watch, only: mbdk_watch_work_at, mbdk_watch_reserve
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want
   integer, intent(in) :: nsamp
@@ -351,7 +353,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   type(mbdk_index3_options_t) :: i3
   type(mbdk_stats_t) :: st
   character(len=MBDK_METHOD_NAME_LEN) :: name
-  integer :: family, order, m, k, ostat, krec
+  integer :: family, order, m, k, ostat, astat, krec
   logical :: index3, dae
   double precision :: nan
   double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
@@ -383,13 +385,23 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   if (dae .and. dae_form /= 1 .and. dae_form /= 2) return
   if (family == MBDK_FAMILY_IDA .and. dae_form == 0) return
   mopt = transfer(mobuf, mopt)
+  ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
+  allocate (ys(n), stat=astat)
+  call mbdk_alloc_status(astat, MBDK_REAL_BYTES * n, status, st%alloc_bytes)
+  if (status /= MBDK_SUCCESS) then
+    statbuf = transfer(st, statbuf, nstatw)
+    return
+  end if
   ys = y0
   call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
                         fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys(1:2 * nc), given(1:nc) /= 0, &
                         given(nc + 1:2 * nc) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
-                        bad_joint, bad_force, status, bkind)
+                        bad_joint, bad_force, status, bkind, st%alloc_bytes)
   asm_velocity = merge(1, 0, vel)
-  if (status /= MBDK_SUCCESS) return
+  if (status /= MBDK_SUCCESS) then
+    statbuf = transfer(st, statbuf, nstatw)
+    return
+  end if
   status = MBDK_ERR_INVALID_INPUT
   if (n /= model%n) return
   m = model%m
@@ -401,6 +413,14 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   ! the energy asked for: the watch integrates the work at every step, and the samples take it
   model%record_work = iand(want, MBDK_OUT_ENERGY) /= 0
   model%has_watch = model%has_watch .or. model%record_work
+  if (model%record_work) then
+    call mbdk_watch_reserve(work%watch, nsamp, status)
+    if (status /= MBDK_SUCCESS) then
+      statbuf = transfer(st, statbuf, nstatw)
+      return
+    end if
+    status = MBDK_ERR_OUTPUT_SIZE
+  end if
   if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
   if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
   if (index3 .and. ni < nsamp) return
@@ -432,7 +452,13 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
 
   if (want /= 0 .and. nwritten > 0) then
     nan = ieee_value(nan, ieee_quiet_nan)
-    allocate (a_s(nc), lam_s(m), reac_s(3, max(nj, 1)), en_s(6), res_s(3))
+    allocate (a_s(nc), lam_s(m), reac_s(3, max(nj, 1)), en_s(6), res_s(3), stat=astat)
+    ! the run's own status first: the outputs are missing only where it succeeded
+    if (astat /= 0 .and. .not. mbdk_is_failure(status)) &
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (nc + m + 3.0d0 * max(nj, 1) + 9), &
+                             status, st%alloc_bytes)
+  end if
+  if (want /= 0 .and. nwritten > 0 .and. astat == 0) then
     krec = 0
     do k = 1, nwritten
       if (index3) then
@@ -443,6 +469,8 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
                               reac_s(:, 1:nj), en_s, res_s, ostat)
       if (ostat /= MBDK_SUCCESS) then
         a_s = nan; lam_s = nan; reac_s = nan; en_s = nan; res_s = nan
+        ! NaN stands for a state that has no outputs, not for memory that was not there
+        if (ostat == MBDK_ERR_NO_MEMORY .and. .not. mbdk_is_failure(status)) status = ostat
       end if
       if (.not. index3 .and. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) a_out(:, k) = a_s
       ! a DAE integrator's multipliers are its own (like trapezoidal_index3's); the reactions
@@ -457,6 +485,8 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
       if (iand(want, MBDK_OUT_RESIDUALS) /= 0) resid(:, k) = res_s
     end do
   end if
+  ! a record of the work that could not be allocated: the samples' W is incomplete
+  if (work%watch%rec_lost .and. .not. mbdk_is_failure(status)) status = MBDK_ERR_NO_MEMORY
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
   associate (w => work%watch)
@@ -638,7 +668,7 @@ subroutine model_profile(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1
   use mbdk_clock, only: mbdk_thread_cpu_seconds
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_assemble, &
     mbdk_model_accelerations, mbdk_model_work_t, mbdk_model_options_t
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, nrep
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1), mobuf(nmow)
@@ -655,8 +685,8 @@ subroutine model_profile(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
   type(mbdk_model_options_t) :: mopt
-  double precision :: c0, c1, acc(nc)
-  double precision, allocatable :: lam(:)
+  double precision :: c0, c1
+  double precision, allocatable :: lam(:), acc(:)
   integer :: k
 
   seconds = 0.0d0
@@ -667,7 +697,11 @@ subroutine model_profile(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1
   call mbdk_model_init(model, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), fint(:, 1:nf), &
                        freal(:, 1:nf), mopt, work, status, bkind)
   if (status /= MBDK_SUCCESS) return
-  allocate (lam(model%m))
+  allocate (lam(model%m), acc(nc), stat=k)
+  if (k /= 0) then
+    status = MBDK_ERR_NO_MEMORY
+    return
+  end if
   c0 = mbdk_thread_cpu_seconds()
   do k = 1, nrep
     call mbdk_model_assemble(model, t, y(1:nc), y(nc + 1:), status)
@@ -887,8 +921,9 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
-  use mbdk_watch, only: mbdk_watch_work_at
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
+  use mbdk_watch, only: mbdk_watch_work_at, mbdk_watch_reserve
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
@@ -919,7 +954,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   type(mbdk_spatial_options_t) :: so
   type(mbdk_options_t) :: opt
   type(mbdk_stats_t) :: st
-  double precision :: y(n), nan, parts(3)
+  double precision :: nan, parts(3)
+  double precision, allocatable :: y(:)
   integer :: k, s, krec
 
   nwritten = 0
@@ -955,17 +991,32 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%lock_guard = sopt(15)
   so%watch_momentum = sopt(16)
   so%watch_quaternion = sopt(17)
+  ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
-                         y0, status)
-  if (status /= MBDK_SUCCESS) return
+                         y0, status, st%alloc_bytes)
+  if (status /= MBDK_SUCCESS) then
+    statbuf = transfer(st, statbuf, nstatw)
+    return
+  end if
   ninv = model%ninv
   invariants = model%inv
   ! a spatial run samples its energy: the watch integrates the work at every step
   model%record_work = .true.
   model%has_watch = .true.
+  call mbdk_watch_reserve(work%watch, nsamp, status)
+  if (status /= MBDK_SUCCESS) then
+    statbuf = transfer(st, statbuf, nstatw)
+    return
+  end if
   if (m1 < max(model%m, 1)) then
     status = MBDK_ERR_INVALID_INPUT
+    return
+  end if
+  allocate (y(n), stat=k)
+  call mbdk_alloc_status(k, MBDK_REAL_BYTES * n, status, st%alloc_bytes)
+  if (status /= MBDK_SUCCESS) then
+    statbuf = transfer(st, statbuf, nstatw)
     return
   end if
   y = y0
@@ -1004,6 +1055,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     if (dae_form == 0 .or. dae_form == 2) call spatial_lambda(y_out(:, k))
   end do
   status = s
+  ! a record of the work that could not be allocated: the samples' W is incomplete
+  if (work%watch%rec_lost .and. status >= 0) status = MBDK_ERR_NO_MEMORY
   statbuf = transfer(st, statbuf, nstatw)
   associate (w => work%watch)
     watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
@@ -1024,12 +1077,13 @@ end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &
-                             phit, lam, ydot, rank, status)
+                             phit, lam, ydot, rank, asked, status)
   ! At the state (t, y) of a spatial scene whose model is built at its initial state y0 (the
   ! reference of prismatic and fixed joints; rotation: 1 quaternion, 2 euler313, 3 cardan123):
   ! the outputs (MBDK_SPATIAL_NOUT), Phi, C (m1 x 6 nb), gamma, the rank of the joints' rows at
   ! y0 (below m: redundant joints), the reduced formulation's multipliers (rows 1..m; lam is 0
   ! where the solve failed, and status then says why) and its y' = F(t, y) (0 likewise).
+  ! asked: MBDK_ERR_NO_MEMORY's bytes (the model's build), else 0.
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_spatial_model
   implicit none
@@ -1038,7 +1092,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)
-  double precision, intent(out) :: ydot(n)
+  double precision, intent(out) :: ydot(n), asked
   integer, intent(out) :: rank, status
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -1047,6 +1101,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   type(mbdk_spatial_model_t) :: model
   type(mbdk_spatial_work_t), target :: work
   type(mbdk_spatial_options_t) :: so
+  asked = 0.0d0
   out = 0.0d0
   phi = 0.0d0
   c = 0.0d0
@@ -1060,7 +1115,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   so%rotation = nint(rotation)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
-                         y0, status)
+                         y0, status, asked)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return

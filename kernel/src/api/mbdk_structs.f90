@@ -112,6 +112,8 @@ contains
       call add('order5_steps', transfer(c_loc(st%order5_steps), base), MBDK_FIELD_INT64)
       call add('cpu_time', transfer(c_loc(st%cpu_time), base), MBDK_FIELD_DOUBLE)
       call add('wall_time', transfer(c_loc(st%wall_time), base), MBDK_FIELD_DOUBLE)
+      call add('t_reached', transfer(c_loc(st%t_reached), base), MBDK_FIELD_DOUBLE)
+      call add('alloc_bytes', transfer(c_loc(st%alloc_bytes), base), MBDK_FIELD_DOUBLE)
     case (MBDK_STRUCT_OPTIONS)
       cname = 'mbdk_options'
       nbytes = int(c_sizeof(op))

@@ -7,10 +7,16 @@ module mbdk_error_norm
 
 contains
 
-  !> sqrt(mean((v_i / (atol + rtol*|y_i|))**2))
-  pure real(dp) function mbdk_wrms(v, y, rtol, atol)
+  !> sqrt(mean((v_i / (atol + rtol*|y_i|))**2)); with floor, the weights are never below it
+  !> (a Newton iteration's roundoff floor, mbdk_newton_floor)
+  pure real(dp) function mbdk_wrms(v, y, rtol, atol, floor)
     real(dp), intent(in) :: v(:), y(:), rtol, atol
-    mbdk_wrms = sqrt(sum((v / (atol + rtol * abs(y)))**2) / real(max(size(v), 1), dp))
+    real(dp), intent(in), optional :: floor(:)
+    if (present(floor)) then
+      mbdk_wrms = sqrt(sum((v / max(atol + rtol * abs(y), floor))**2) / real(max(size(v), 1), dp))
+    else
+      mbdk_wrms = sqrt(sum((v / (atol + rtol * abs(y)))**2) / real(max(size(v), 1), dp))
+    end if
   end function mbdk_wrms
 
 end module mbdk_error_norm

@@ -21,6 +21,12 @@ module mbdk_stats
                           order4_steps = 0, order5_steps = 0
     real(c_double) :: cpu_time = 0.0_c_double   !< CPU seconds of the solving thread in the time loop
     real(c_double) :: wall_time = 0.0_c_double  !< wall-clock seconds of the time loop
+    !> the time the solve reached: its last accepted step (a failed solve: where it stopped,
+    !> the failure lies in the step after), t0 before the first
+    real(c_double) :: t_reached = 0.0_c_double
+    !> MBDK_ERR_NO_MEMORY: the bytes of the allocation that failed (0 where it was not known),
+    !> else 0 (mbdk_memory)
+    real(c_double) :: alloc_bytes = 0.0_c_double
   end type mbdk_stats_t
 
 end module mbdk_stats

@@ -21,6 +21,7 @@
 module mbdk_index3_matrix
   use mbdk_kinds, only: dp
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints
   use mbdk_joints, only: mbdk_joints_tangent, mbdk_joints_scatter, mbdk_joint_rows, &
     MBDK_JOINT_TYPES
@@ -71,12 +72,13 @@ contains
 
   !> Factors for a Newton matrix of order nk of a model with nc coordinates (nk = nc: the
   !> augmented matrix, sparse on a large scene). MBDK_ERR_INVALID_INPUT when AMD refuses the
-  !> pattern.
-  subroutine mbdk_index3_factors_init(fa, model, nk, stat)
+  !> pattern; MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
+  subroutine mbdk_index3_factors_init(fa, model, nk, stat, asked)
     type(mbdk_index3_factors_t), intent(out) :: fa
     type(mbdk_model_t), intent(in) :: model
     integer, intent(in) :: nk
     integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
     integer :: k, nc, choice
     nc = model%nc
     fa%nk = nk
@@ -87,23 +89,22 @@ contains
     stat = MBDK_SUCCESS
     if (fa%sparse) then
       fa%small = .false.
-      call sparse_init(fa, model, stat)
-      allocate (fa%lu(0, 0), fa%ipiv(0), fa%ainv(0, 0), fa%inv_work(0, 0), fa%rinv(0))
-      allocate (fa%body_blk(0))
+      call sparse_init(fa, model, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      allocate (fa%lu(0, 0), fa%ipiv(0), fa%ainv(0, 0), fa%inv_work(0, 0), fa%rinv(0), &
+                fa%body_blk(0), stat=k)
+      call mbdk_alloc_status(k, 0.0_dp, stat, asked)
       return
     end if
     allocate (fa%lu(nk, nk), fa%ipiv(nk), fa%ainv(nk, nk), fa%inv_work(nk, nk), fa%rinv(nk), &
-              stat=k)
-    if (k /= 0) then
-      stat = MBDK_ERR_NO_MEMORY
-      return
-    end if
+              fa%body_blk(merge(nc / 3 + 1, nc + 1, mod(nc, 3) == 0)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (3.0_dp * nk * nk + nk) + &
+                           MBDK_INT_BYTES * (nk + nc + 1.0_dp), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     ! the augmented matrix's LDL^T pivot blocks: the bodies (x, y, theta)
-    if (mod(nc, 3) == 0) then
-      fa%body_blk = [(3 * k - 2, k = 1, nc / 3 + 1)]
-    else
-      fa%body_blk = [(k, k = 1, nc + 1)]
-    end if
+    do k = 1, size(fa%body_blk)
+      fa%body_blk(k) = merge(3 * k - 2, k, mod(nc, 3) == 0)
+    end do
   end subroutine mbdk_index3_factors_init
 
   !> Builds the Newton matrix at (t, q, v, lam) for step h and factorises it. book: the book
@@ -186,10 +187,15 @@ contains
     integer, intent(in) :: scaling
     real(dp), intent(out) :: jac(:, :)
     integer, intent(out) :: stat
-    real(dp) :: s, phi(model%m), d(model%m, model%nc), gam(model%m), phit(model%m)
-    real(dp) :: lw(model%m), a(model%nc + model%m, model%nc + model%m)
-    integer :: nc
+    real(dp) :: s
+    real(dp), allocatable :: phi(:), d(:, :), gam(:), phit(:), lw(:), a(:, :)
+    integer :: nc, m, astat
     nc = model%nc
+    m = model%m
+    allocate (phi(m), d(m, nc), gam(m), phit(m), lw(m), a(nc + m, nc + m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (nc + 4) + &
+                                                    (real(nc, dp) + m)**2), stat)
+    if (stat /= MBDK_SUCCESS) return
     s = 0.25_dp * h * h
     ! a knife edge's velocity row is no Phi to differentiate (mbdk_index3_init refuses it too)
     if (model%has_pfaffian) then
@@ -274,24 +280,30 @@ contains
   end subroutine al_matrix
 
   !> The sparse path's pattern (bodies coupled by a joint or a force element) and its ordering.
-  subroutine sparse_init(fa, model, stat)
+  subroutine sparse_init(fa, model, stat, asked)
     type(mbdk_index3_factors_t), intent(inout) :: fa
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: stat
-    integer :: nj, nf, r, i, j, n
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, nf, r, i, j, n, astat
     integer, allocatable :: pairs(:, :)
     nj = size(model%jint, 2)
     nf = size(model%fint, 2)
-    allocate (pairs(2, nj + nf))
+    allocate (pairs(2, nj + nf), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_INT_BYTES * (nj + nf), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     pairs(:, 1:nj) = model%jint(2:3, :)
     pairs(:, nj + 1:) = model%fint(2:3, :)
-    call mbdk_body_pattern_init(fa%bp, model%nb, pairs)
+    call mbdk_body_pattern_init(fa%bp, model%nb, pairs, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     associate (sp => model%sp)
       n = 0
       do r = 1, sp%m
         n = n + (sp%rptr(r + 1) - sp%rptr(r))**2
       end do
-      allocate (fa%dtd_pos(n))
+      allocate (fa%dtd_pos(n), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_INT_BYTES * n, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
       n = 0
       do r = 1, sp%m
         do j = sp%rptr(r), sp%rptr(r + 1) - 1
@@ -302,7 +314,7 @@ contains
         end do
       end do
     end associate
-    call mbdk_sparse_ldlt_analyze(fa%ldl, model%nc, fa%bp%ap, fa%bp%ai, stat)
+    call mbdk_sparse_ldlt_analyze(fa%ldl, model%nc, fa%bp%ap, fa%bp%ai, stat, asked)
   end subroutine sparse_init
 
   !> The augmented matrix into fa%ldl%ax, element by element (see the module header), then

@@ -19,6 +19,7 @@ module mbdk_scene_dae
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
     mbdk_model_watch, mbdk_model_watch_start, mbdk_model_watch_nodes
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_scene_dae_init
@@ -46,14 +47,15 @@ module mbdk_scene_dae
 contains
 
   !> The DAE of model in form (MBDK_DAE_*); mass(N) receives the diagonal of E. The model must
-  !> outlive the problem.
-  subroutine mbdk_scene_dae_init(self, model, form, mass, stat)
+  !> outlive the problem. MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
+  subroutine mbdk_scene_dae_init(self, model, form, mass, stat, asked)
     type(mbdk_scene_dae_t), intent(out) :: self
     type(mbdk_model_t), intent(in), target :: model
     integer, intent(in) :: form
     real(dp), allocatable, intent(out) :: mass(:)
     integer, intent(out) :: stat
-    integer :: nc, m
+    real(dp), intent(inout), optional :: asked
+    integer :: nc, m, astat
     stat = MBDK_ERR_INVALID_INPUT
     if (form /= MBDK_DAE_I3 .and. form /= MBDK_DAE_SI2) return
     ! the DAE's state is [q; v; lambda]: a scene with effect states (wear) is not one. The
@@ -71,9 +73,13 @@ contains
     self%n = 2 * nc + m
     if (form == MBDK_DAE_SI2) self%n = self%n + m
     self%has_watch = model%has_watch
-    allocate (self%work)
-    allocate (self%work%phi(m), self%work%d(m, nc), self%work%gam(m), self%work%phit(m))
-    allocate (mass(self%n))
+    allocate (self%work, stat=astat)
+    if (astat == 0) allocate (self%work%phi(m), self%work%d(m, nc), self%work%gam(m), &
+                              self%work%phit(m), mass(self%n), stat=astat)
+    ! (self%work, if allocated, is freed by the finaliser)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (nc + 3) + self%n), stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
     mass = 0.0_dp
     mass(1:nc) = 1.0_dp
     mass(nc + 1:2 * nc) = model%mass

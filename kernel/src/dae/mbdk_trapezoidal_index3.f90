@@ -176,6 +176,7 @@ module mbdk_trapezoidal_index3
   use mbdk_status
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_intptr_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, mbdk_model_sparse, &
@@ -349,32 +350,35 @@ contains
     s%nk = nk
     call mbdk_constrained_init(s%cs, nc, m, model%m_positive, &
                                model%solver == MBDK_SOLVER_KKT, model%small_dense, model%sp, &
-                               mbdk_model_sparse(model), stat)
+                               mbdk_model_sparse(model), stat, s%st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_index3_factors_init(s%fa, model, nk, stat)
+    call mbdk_index3_factors_init(s%fa, model, nk, stat, s%st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
     allocate (s%q(nc), s%v(nc), s%a(nc), s%lam(m), s%lam_old(m), s%a_prev(nc), s%a_prev2(nc), &
               s%qn(nc), s%vn(nc), s%an(nc), s%ln(m), s%lst(m), s%lstn(m), s%lst_old(m), &
               s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%gam(m), &
               s%phit(m), s%lw(m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), s%zero_nc(nc), &
-              s%zero_m(m), s%one_nc(nc))
+              s%zero_m(m), s%one_nc(nc), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (14.0_dp * nc + 15.0_dp * m + nk), stat, &
+                           s%st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ! the dense D serves the book scheme's matrix only
     if (s%book) then
       allocate (s%d(m, nc), stat=astat)
-      if (astat /= 0) then
-        stat = MBDK_ERR_NO_MEMORY
-        return
-      end if
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * nc, stat, s%st%alloc_bytes)
     else
-      allocate (s%d(0, 0))
+      allocate (s%d(0, 0), stat=astat)
+      call mbdk_alloc_status(astat, 0.0_dp, stat, s%st%alloc_bytes)
     end if
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     s%zero_nc = 0.0_dp
     s%zero_m = 0.0_dp
     s%one_nc = 1.0_dp
     s%q = y0(1:nc)
     s%v = y0(nc + 1:)
     s%t = t0
+    s%st%t_reached = t0
     ! consistent a and lambda at t0: the reduced formulation's solve; where D has lost a rank
     ! (redundant joints, or a start at a singular configuration) the augmented form takes the
     ! regular path of its projections instead (lambda is then one of many)
@@ -423,6 +427,7 @@ contains
     s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
+    s%st%t_reached = s%t
     if (s%cool > 0) s%cool = s%cool - 1
     s%retries = min(s%retries + RETRY_REFILL, RETRY_BUDGET)
   end subroutine commit
@@ -545,7 +550,10 @@ contains
     end if
     call mbdk_timer_start(timer)
     call mbdk_index3_init(s, model, opt, t0, y0, stat)
-    if (stat /= MBDK_SUCCESS) return
+    if (stat /= MBDK_SUCCESS) then
+      st = s%st
+      return
+    end if
     call write_sample()
     if (opt%adaptive /= 0) then
       call adaptive_loop(stat)
@@ -614,7 +622,10 @@ contains
         ctl%ki = 0.7_dp
         ctl%kp = 0.4_dp
       end if
-      if (extrapolated) call snapshot_init(x0, s%nc, s%m)
+      if (extrapolated) then
+        call snapshot_init(x0, s%nc, s%m, ierr, s%st%alloc_bytes)
+        if (ierr /= MBDK_SUCCESS) return
+      end if
       ierr = MBDK_SUCCESS
       do k = 1, nsamp - 1
         t_s = t0 + real(k, dp) * opt%dt_out
@@ -679,11 +690,15 @@ contains
 
   end subroutine mbdk_index3_solve
 
-  subroutine snapshot_init(x, nc, m)
+  subroutine snapshot_init(x, nc, m, stat, asked)
     type(mbdk_index3_snapshot_t), intent(out) :: x
     integer, intent(in) :: nc, m
+    integer, intent(out) :: stat
+    real(dp), intent(inout) :: asked
+    integer :: astat
     allocate (x%q(nc), x%v(nc), x%a(nc), x%lam(m), x%lst(m), x%lam_old(m), x%lst_old(m), &
-              x%a_prev(nc), x%a_prev2(nc), x%qf(nc), x%vf(nc))
+              x%a_prev(nc), x%a_prev2(nc), x%qf(nc), x%vf(nc), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (7.0_dp * nc + 4.0_dp * m), stat, asked)
   end subroutine snapshot_init
 
   !> The accepted state and everything commit moves into x (save) or back from x (restore).
@@ -711,6 +726,7 @@ contains
       x%a_prev2 = s%a_prev2
     else
       s%t = x%t
+      s%st%t_reached = x%t
       s%h_prev = x%h_prev
       s%h_prev2 = x%h_prev2
       s%retries = x%retries

@@ -142,7 +142,11 @@ contains
       h = min(opt%h, hmax)
       return
     end if
-    allocate (w(size(y0)), y1(size(y0)), f1(size(y0)))
+    allocate (w(size(y0)), y1(size(y0)), f1(size(y0)), stat=stat)
+    if (stat /= 0) then
+      stat = MBDK_ERR_NO_MEMORY
+      return
+    end if
     call mbdk_adaptive_weights(opt, atol, y0, w)
     d0 = mbdk_adaptive_wrms(y0, w)
     d1 = mbdk_adaptive_wrms(f0, w)

@@ -32,6 +32,7 @@ module mbdk_solve
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_multipliers, &
     mbdk_spatial_constraints, MBDK_SPATIAL_REDUCED
   use mbdk_spatial_dae, only: mbdk_spatial_dae_t, mbdk_spatial_dae_init
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae, mbdk_solve_spatial_dae
@@ -74,7 +75,7 @@ contains
     real(dp), intent(in), optional :: atol(:)
 
     character(len=MBDK_METHOD_NAME_LEN) :: name
-    integer :: family, order, nsamp
+    integer :: family, order, nsamp, astat
     real(dp), allocatable :: atol_v(:)
     type(mbdk_timer_t) :: timer
 
@@ -95,10 +96,13 @@ contains
     stat = MBDK_ERR_INVALID_INPUT    ! a one-order method has no max_order to cap
     if (opt%max_order > max_order_of(family, order)) return
     if (present(atol)) then
-      atol_v = atol
+      allocate (atol_v(size(atol)), stat=astat)
     else
-      allocate (atol_v(0))
+      allocate (atol_v(0), stat=astat)
     end if
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(atol_v), stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
+    if (present(atol)) atol_v = atol
     call prologue(prob, opt, t0, t_end, y0, atol_v, t_out, y_out, nwritten, nsamp, timer, stat)
     if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
     select case (family)
@@ -163,17 +167,20 @@ contains
       type(mbdk_scene_dae_t) :: dae
       real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), a0(:), lam0(:), ypd_check(:)
       real(dp), allocatable :: phi0(:), d0(:, :), gam0(:), phit0(:)
-      integer :: nc, m, k
+      integer :: nc, m, k, astat
       nc = model%nc
       m = model%m
       if (model%formulation /= MBDK_FORM_REDUCED) then
         s = MBDK_ERR_NOT_APPLICABLE
         return
       end if
-      call mbdk_scene_dae_init(dae, model, form, mass, s)
+      call mbdk_scene_dae_init(dae, model, form, mass, s, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m), ypd_check(dae%n))
-      allocate (phi0(m), d0(m, nc), gam0(m), phit0(m))
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m), ypd_check(dae%n), &
+                phi0(m), d0(m, nc), gam0(m), phit0(m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(dae%n, dp) * (nsamp + 3) + &
+                             real(m, dp) * (nc + 4) + nc), s, st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
       call mbdk_model_accelerations(model, t0, y0(1:nc), y0(nc + 1:), a0, lam0, s)
       if (s /= MBDK_SUCCESS) return
       yd = 0.0_dp
@@ -267,7 +274,11 @@ contains
     !> the DAE from the consistent start, and its samples copied out
     subroutine solve(s)
       integer, intent(out) :: s
-      allocate (lam0(m), f0(ny), phi(m), c(m, ny - nq), gam(m), phit(m))
+      integer :: astat
+      allocate (lam0(m), f0(ny), phi(m), c(m, ny - nq), gam(m), phit(m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 4) + ny), s, &
+                             st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
       if (m > 0) then
         call mbdk_spatial_constraints(model, t0, y0, phi, c, gam, phit, s)
         if (s /= MBDK_SUCCESS) return
@@ -281,9 +292,12 @@ contains
       if (s /= MBDK_SUCCESS) return
       ! the DAE's rows after the model's solve at t0, which may move a redundant scene to
       ! another set of independent rows
-      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form)
+      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp))
+      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(dae%n, dp) * (nsamp + 2), s, &
+                             st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
       yd = 0.0_dp
       yd(1:ny) = y0
       yd(ny + 1:ny + dae%na) = lam0(dae%rows)

@@ -32,6 +32,7 @@ module mbdk_stepper
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
   use mbdk_implicit_lmm, only: mbdk_implicit_lmm_step
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_stepper_init, mbdk_stepper_step
@@ -55,8 +56,9 @@ contains
   !> A stepper for prob with opt%method at (t0, y0). MBDK_ERR_UNKNOWN_METHOD, MBDK_ERR_NOT_APPLICABLE
   !> (trapezoidal_index3, which steps scenes itself; an error-controlled method, which runs whole
   !> intervals through mbdk_solve; euler_cromer on a first-order problem),
-  !> MBDK_ERR_INVALID_INPUT (sizes, a non-finite y0, h, Newton options, startup), or a failure of
-  !> the first evaluation of F that a multistep method needs.
+  !> MBDK_ERR_INVALID_INPUT (sizes, a non-finite y0, h, Newton options, startup),
+  !> MBDK_ERR_NO_MEMORY (s%st%alloc_bytes: what was asked for), or a failure of the first
+  !> evaluation of F that a multistep method needs.
   subroutine mbdk_stepper_init(s, prob, opt, t0, y0, stat)
     type(mbdk_stepper_t), intent(out) :: s
     class(mbdk_problem_t), intent(in) :: prob
@@ -64,7 +66,7 @@ contains
     real(dp), intent(in) :: t0, y0(:)
     integer, intent(out) :: stat
     character(len=MBDK_METHOD_NAME_LEN) :: name
-    integer :: order, n
+    integer :: order, n, astat
     logical :: ok
 
     s%failed = .true.
@@ -81,7 +83,11 @@ contains
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (.not. (opt%h > 0.0_dp .and. opt%h <= huge(1.0_dp)) .or. opt%every < 1) return
     s%opt = opt
-    allocate (s%y(n), s%ytmp(n), s%k(n, MBDK_MAX_STAGES))
+    allocate (s%y(n), s%ytmp(n), s%k(n, MBDK_MAX_STAGES), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (MBDK_MAX_STAGES + 2.0_dp) * n, stat, &
+                           s%st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     select case (s%family)
     case (MBDK_FAMILY_EXPLICIT_RK)
       call mbdk_butcher_table(opt%method, s%rk, ok)
@@ -95,12 +101,17 @@ contains
           .not. (opt%newton_atol > 0.0_dp)) return
       s%nstart = s%lmm%k - 1
       call mbdk_butcher_table(MBDK_RK4, s%rk_start, ok)
-      call mbdk_newton_work_init(s%nw, n)
-      allocate (s%hist(n, s%lmm%k), s%fn(n), s%c(n), s%yfull(n))
+      call mbdk_newton_work_init(s%nw, n, stat, s%st%alloc_bytes)
+      if (stat /= MBDK_SUCCESS) return
+      allocate (s%hist(n, s%lmm%k), s%fn(n), s%c(n), s%yfull(n), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (s%lmm%k + 3.0_dp) * n, stat, &
+                             s%st%alloc_bytes)
+      if (stat /= MBDK_SUCCESS) return
       s%hist(:, 1) = y0
     end select
     s%y = y0
     s%t = t0
+    s%st%t_reached = t0
     stat = MBDK_SUCCESS
     if (s%family == MBDK_FAMILY_IMPLICIT_LMM .and. s%lmm%beta1 /= 0.0_dp) then
       call prob%rhs(t0, s%y, s%fn, stat)
@@ -196,6 +207,7 @@ contains
     end if
     s%st%steps = i
     s%t = t_next
+    s%st%t_reached = t_next
   end subroutine mbdk_stepper_step
 
 end module mbdk_stepper

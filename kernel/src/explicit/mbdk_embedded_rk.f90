@@ -9,10 +9,16 @@
 !>   err > 1:  rejected; h = h max(fac_min, 0.9 err^(-1/(q+1))), and the next accepted step may
 !>             not grow h (fac_max = 1 once)
 !> with q the order of the embedded solution, fac_min = 0.2, fac_max = 10 (Hairer, Norsett and
-!> Wanner, Solving ODEs I, II.4). A stage that is not finite (h far beyond the stability limit)
-!> counts as a rejection with err = infinity, not as a failure. The first step: opt%h, or
+!> Wanner, Solving ODEs I, II.4). A stage that is not finite (h far beyond the stability limit),
+!> or at which a contact overruns its model (MBDK_ERR_CONTACT_OVERRUN: a trial point a step
+!> too long carried across an impact; the gear pair pla_gears met one at any rtol), counts as a
+!> rejection with err = infinity, not as a failure. The first step: opt%h, or
 !> mbdk_adaptive_initial_step. h never exceeds opt%h_max or what is left to t_end; the last step
-!> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL.
+!> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL, or
+!> MBDK_ERR_NONFINITE where the rejection that took it there had stages not finite (F is not
+!> finite next to the state: no step is small enough), MBDK_ERR_CONTACT_OVERRUN where it had
+!> a stage overrun; F not finite at the initial state:
+!> MBDK_ERR_NONFINITE at once.
 !>
 !> Samples inside a step come from the pair's dense output; a sample at the step's end is the
 !> step's state itself. A watching problem that integrates a work gets the dense output at the
@@ -37,6 +43,7 @@ module mbdk_embedded_rk
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_embedded_pairs, only: mbdk_pair_t, mbdk_pair_table
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
@@ -63,7 +70,7 @@ contains
     integer, intent(out) :: stat
 
     type(mbdk_pair_t) :: pr
-    logical :: found, rejected_last, finite, projected, sample
+    logical :: found, rejected_last, finite, projected, sample, nonfinite_last, overrun_last
     integer :: n, i, j, ns, k, redo
     integer(i8) :: tries, limit
     real(dp) :: t, t_end, h, hmax, err, expo, fac, theta, t_new, root
@@ -76,10 +83,14 @@ contains
     call mbdk_pair_table(opt%method, pr, found)
     stat = MBDK_ERR_UNKNOWN_METHOD
     if (.not. found) return
-    allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s))
-    allocate (g0(prob%nevents), g1(prob%nevents), gt(prob%nevents), yt(n), yn(n, 3))
+    allocate (y(n), ynew(n), kk(n, pr%s), w(n), e(n), bth(pr%s), g0(prob%nevents), &
+              g1(prob%nevents), gt(prob%nevents), yt(n), yn(n, 3), stat=redo)
+    call mbdk_alloc_status(redo, MBDK_REAL_BYTES * (real(n, dp) * (pr%s + 8) + pr%s + &
+                                                    3.0_dp * prob%nevents), stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     y = y0
     t = t0
+    st%t_reached = t0
     if (prob%nevents > 0) then
       call prob%events(t, y, g0, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -87,6 +98,9 @@ contains
     call prob%rhs(t, y, kk(:, 1), stat)
     st%nfev = st%nfev + 1
     if (stat /= MBDK_SUCCESS) return
+    ! F not finite at the initial state: no step size helps
+    stat = MBDK_ERR_NONFINITE
+    if (.not. all(abs(kk(:, 1)) <= huge(1.0_dp))) return
     call mbdk_adaptive_initial_step(prob, opt, atol, pr%est_order, t0, t_end - t0, y, kk(:, 1), &
                                     h, st%nfev, stat)
     if (stat /= MBDK_SUCCESS) return
@@ -97,6 +111,8 @@ contains
     tries = 0
     redo = 0
     rejected_last = .false.
+    nonfinite_last = .false.
+    overrun_last = .false.
     k = nwritten + 1           ! the next sample to write
 
     do while (t < t_end)
@@ -117,11 +133,16 @@ contains
       if (t_new > t_end) t_new = t_end
       h = t_new - t
       if (h < mbdk_adaptive_h_floor(opt, t, landing=t_new == t_end)) then
+        ! a step shrunk to the floor by stages that were not finite: F is not finite next to
+        ! this state (a singularity of the model), which is no step-size problem
         stat = MBDK_ERR_STEP_TOO_SMALL
+        if (nonfinite_last) stat = MBDK_ERR_NONFINITE
+        if (overrun_last) stat = MBDK_ERR_CONTACT_OVERRUN
         return
       end if
 
       finite = .true.
+      overrun_last = .false.
       do i = 2, pr%s
         ynew = y
         do j = 1, i - 1
@@ -129,6 +150,15 @@ contains
         end do
         call prob%rhs(t + pr%c(i) * h, ynew, kk(:, i), stat)
         st%nfev = st%nfev + 1
+        ! a stage is a trial point, not the solution: one a contact overruns at (a step too
+        ! long across an impact) is a rejected step, as one whose F is not finite; only at the
+        ! floor of the step is it the run's failure
+        if (stat == MBDK_ERR_CONTACT_OVERRUN) then
+          overrun_last = .true.
+          finite = .false.
+          stat = MBDK_SUCCESS
+          exit
+        end if
         if (stat /= MBDK_SUCCESS) return
         if (.not. all(abs(kk(:, i)) <= huge(1.0_dp))) then
           finite = .false.
@@ -146,6 +176,7 @@ contains
         finite = err <= huge(1.0_dp)
       end if
       if (.not. finite) err = huge(1.0_dp)
+      nonfinite_last = .not. finite .and. .not. overrun_last
 
       if (err > 1.0_dp) then
         st%rejected_steps = st%rejected_steps + 1
@@ -207,6 +238,7 @@ contains
       if (stat /= MBDK_SUCCESS) return
       st%steps = st%steps + 1
       t = t_new
+      st%t_reached = t
       y = ynew
       if (projected) then
         call prob%rhs(t, y, kk(:, 1), stat)

@@ -34,7 +34,9 @@
 !> mbdk_jacobian; opt%fd_jacobian forces differences). M is factorised again when h/a_q has
 !> moved more than 30 % from the value it was built with (CVODE's rule: a change of order or
 !> step that keeps c within that band keeps the matrix), and after a Newton failure. A Newton
-!> failure with a fresh Jacobian halves h (stats: newton_failures).
+!> failure with a fresh Jacobian halves h (stats: newton_failures). Below mbdk_adaptive_h_floor:
+!> MBDK_ERR_STEP_TOO_SMALL, or MBDK_ERR_NONFINITE where the last failure met F not finite (and at
+!> once where F is not finite at the initial state): no step is small enough for a singularity.
 !>
 !> Start: order 1 (implicit Euler) with the first step of mbdk_adaptive_initial_step, D_1 = h F.
 !> Dense output: the interpolating polynomial of the history, degree q:
@@ -58,6 +60,15 @@
 !> predictor as a correction that no smaller step removes, so that the error test would reject
 !> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
 !> differences (N + 1 evaluations of F).
+!> Roundoff floor. A corrector that stalls or runs out of iterations is tested against the
+!> floor of its update (mbdk_newton_floor, with the current matrix, in the error test's
+!> norm): an ODE's iterate at that floor is accepted (it is as good as double precision makes
+!> it); a DAE's is not (its Newton tolerance is a thousandth of the error test's, and its
+!> matrix worsens as h shrinks), and if the steps then shrink below mbdk_adaptive_h_floor the
+!> solve ends with MBDK_ERR_TOO_MUCH_ACCURACY instead of MBDK_ERR_STEP_TOO_SMALL, as it does
+!> where the roundoff of the error estimate is a tenth of the error test or more
+!> (ERROR_FLOOR_SHARE): the tolerances lie below what the formulation reaches in double
+!> precision (bdf i3 at rtol 1e-13, atol 1e-15 on the built-in mechanisms).
 module mbdk_variable_bdf
   use mbdk_kinds, only: dp, i8
   use mbdk_status
@@ -67,6 +78,8 @@ module mbdk_variable_bdf
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
+  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
     mbdk_adaptive_count_order
@@ -87,6 +100,9 @@ module mbdk_variable_bdf
   !> a DAE's: its constraints hold only as far as Newton converged, and what is left over is in
   !> the next step's predictor, a correction that does not shrink with h (the module header)
   real(dp), parameter :: NEWTON_SHARE_DAE = 1.0e-3_dp
+  !> a step size gone to nothing is named MBDK_ERR_TOO_MUCH_ACCURACY where the error estimate's
+  !> roundoff is this share of the error test or more
+  real(dp), parameter :: ERROR_FLOOR_SHARE = 0.1_dp
 
 contains
 
@@ -109,14 +125,15 @@ contains
 
     integer :: n, ns, k, q, qmax, n_equal, iters, i, j, best
     integer(i8) :: tries, limit
-    logical :: have_lu, jac_current, converged, projected, sample
+    logical :: have_lu, jac_current, converged, projected, sample, nonfinite
+    logical :: at_floor   !< a corrector of this step stalled at its roundoff floor (a DAE's)
     real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
     real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
     real(dp), allocatable :: d(:, :), yp(:), psi(:), ynew(:), corr(:), w(:), f(:), dy(:)
     real(dp), allocatable :: em(:)
     logical, allocatable :: alg(:)
     logical :: dae
-    integer :: nt, n2
+    integer :: nt, n2, astat
     real(dp) :: d0, d1
     type(mbdk_newton_work_t) :: nw
 
@@ -136,8 +153,11 @@ contains
       errc(j) = 1.0_dp / real(j + 1, dp)
     end do
 
-    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n))
-    allocate (em(n), alg(n))
+    allocate (d(n, 0:MBDK_BDF_MAX_ORDER + 2), yp(n), psi(n), ynew(n), corr(n), w(n), f(n), dy(n), &
+              em(n), alg(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (MBDK_BDF_MAX_ORDER + 11.0_dp) * n + &
+                           MBDK_INT_BYTES * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     dae = present(mass) .and. present(yp0) .and. present(ntest)
     em = 1.0_dp
     nt = n
@@ -151,8 +171,10 @@ contains
       if (n2 < 0 .or. nt + n2 > n) return
     end if
     alg = em == 0.0_dp
-    call mbdk_newton_work_init(nw, n)
+    call mbdk_newton_work_init(nw, n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     t = t0
+    st%t_reached = t0
     d = 0.0_dp
     d(:, 0) = y0
     hmax = t_end - t0
@@ -174,6 +196,9 @@ contains
       call prob%rhs(t, y0, f, stat)
       st%nfev = st%nfev + 1
       if (stat /= MBDK_SUCCESS) return
+      ! F not finite at the initial state: no step size helps
+      stat = MBDK_ERR_NONFINITE
+      if (.not. all(abs(f) <= huge(1.0_dp))) return
       call mbdk_adaptive_initial_step(prob, opt, atol, 1, t0, t_end - t0, y0, f, h, st%nfev, &
                                       stat)
       if (stat /= MBDK_SUCCESS) return
@@ -183,6 +208,7 @@ contains
     q = 1
     n_equal = 0
     have_lu = .false.
+    at_floor = .false.
     c_lu = 0.0_dp
     crate = 1.0_dp
     call mbdk_jacobian(prob, opt, t, y0, nw, st, stat)
@@ -191,6 +217,7 @@ contains
     limit = mbdk_adaptive_step_limit(opt)
     tries = 0
     k = nwritten + 1
+    nonfinite = .false.
 
     do while (t < t_end)
       if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
@@ -213,7 +240,22 @@ contains
         end if
         tries = tries + 1
         if (h < mbdk_adaptive_h_floor(opt, t, landing=t + h >= t_end)) then
+          ! the step shrank to nothing: halved by corrector iterates whose F was not finite
+          ! (F is not finite next to this state, a singularity of the model); or because the
+          ! tolerance lies below the corrector's roundoff (its Newton stalled there, or the
+          ! error estimate, a share of the correction, carries a tenth of the tolerance in
+          ! roundoff); or for another reason
+          if (nonfinite .and. .not. at_floor) then
+            stat = MBDK_ERR_NONFINITE
+            return
+          end if
+          if (.not. at_floor .and. have_lu) then
+            call floor_norm(err, stat)
+            if (stat /= MBDK_SUCCESS) return
+            at_floor = errc(q) * err >= ERROR_FLOOR_SHARE
+          end if
           stat = MBDK_ERR_STEP_TOO_SMALL
+          if (at_floor) stat = MBDK_ERR_TOO_MUCH_ACCURACY
           return
         end if
         t_new = t + h
@@ -245,6 +287,9 @@ contains
           st%newton_failures = st%newton_failures + 1
           call rescale(0.5_dp)
           have_lu = .false.
+          ! a Jacobian taken where F was not finite is no use at the shorter step: take it
+          ! again there, should the iteration fail once more
+          if (nonfinite) jac_current = .false.
           cycle step
         end if
         safety = 0.9_dp * real(2 * NEWTON_MAX_ITER + 1, dp) / real(2 * NEWTON_MAX_ITER + iters, dp)
@@ -259,6 +304,7 @@ contains
       end do step
 
       ! accepted. A projection moves y_{n+1}; the history takes the move as part of d.
+      at_floor = .false.
       sample = .false.
       if (k <= ns) sample = t_out(k) <= t_new
       if (prob%has_watch) then
@@ -280,6 +326,7 @@ contains
         d(:, i) = d(:, i) + d(:, i + 1)
       end do
       t = t_new
+      st%t_reached = t
       n_equal = n_equal + 1
 
       if (n_equal >= q + 1 .and. t < t_end) then
@@ -348,7 +395,9 @@ contains
       integer, intent(out) :: s
       integer :: it
       real(dp) :: dnorm, dnorm_old, rate
+      logical :: stop_here
       converged = .false.
+      nonfinite = .false.
       rate = 1.0_dp
       corr = 0.0_dp
       ynew = yp
@@ -359,7 +408,10 @@ contains
         call prob%rhs(t_new, ynew, f, s)
         st%nfev = st%nfev + 1
         if (s /= MBDK_SUCCESS) return
-        if (.not. all(abs(f) <= huge(1.0_dp))) exit
+        if (.not. all(abs(f) <= huge(1.0_dp))) then
+          nonfinite = .true.
+          exit
+        end if
         dy = c * f - em * (psi + corr)
         if (dae) where (alg) dy = f      ! the row divided by c
         call mbdk_lu_solve(nw%lu, nw%ipiv, dy, s)
@@ -368,11 +420,35 @@ contains
         iters = it
         st%newton_iterations = st%newton_iterations + 1
         dnorm = mbdk_adaptive_wrms(dy, w)
-        if (.not. (dnorm <= huge(1.0_dp))) exit
+        if (.not. (dnorm <= huge(1.0_dp))) then
+          nonfinite = .true.      ! F or its Jacobian not finite where the iterates went
+          exit
+        end if
         if (dnorm_old > 0.0_dp) then
           rate = dnorm / dnorm_old
-          if (rate >= 1.0_dp) exit
-          if (rate**(NEWTON_MAX_ITER - it + 1) / (1.0_dp - rate) * dnorm > tol) exit
+          stop_here = rate >= 1.0_dp
+          if (.not. stop_here) stop_here = &
+            rate**(NEWTON_MAX_ITER - it + 1) / (1.0_dp - rate) * dnorm > tol
+          if (stop_here .or. it == NEWTON_MAX_ITER) then
+            ! stalled, or out of iterations, with the update at its roundoff floor: an ODE's
+            ! iterate is then as good as double precision makes it. A DAE's (whose tolerance
+            ! is a thousandth of the error test's) is noted: the step is retried smaller as
+            ! after any failure, and if the steps shrink to the floor that way, the cause is
+            ! named (MBDK_ERR_TOO_MUCH_ACCURACY): a smaller step's matrix is worse conditioned
+            call floor_norm(dnorm_old, s)
+            if (s /= MBDK_SUCCESS) return
+            if (dnorm <= dnorm_old) then
+              if (dae) then
+                at_floor = .true.
+                exit
+              end if
+              ynew = ynew + dy
+              corr = corr + dy
+              converged = .true.
+              exit
+            end if
+          end if
+          if (stop_here) exit
           crate = max(CRATE_DOWN * crate, rate)
         end if
         ynew = ynew + dy
@@ -387,6 +463,41 @@ contains
         dnorm_old = dnorm
       end do
     end subroutine corrector
+
+    !> fl: the weighted norm of the Newton update's roundoff floor (mbdk_newton_floor) with the
+    !> current matrix, from the corrector's terms at the iterate (f, psi, corr, ynew of the
+    !> host): the residual's rows (an algebraic row, divided by c, carries eps times the largest
+    !> tested component: its terms are positions) through the matrix, plus the rounding of the
+    !> iterate itself. Uses dy's space for the probes only after dy has been tested.
+    subroutine floor_norm(fl, s)
+      real(dp), intent(out) :: fl
+      integer, intent(out) :: s
+      real(dp), allocatable :: e(:), b1(:), b2(:), fv(:)
+      real(dp) :: ymax
+      integer :: astat
+      fl = huge(1.0_dp)
+      allocate (e(n), b1(n), b2(n), fv(n), stat=astat)
+      call mbdk_alloc_status(astat, 4 * MBDK_REAL_BYTES * n, s, st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
+      ymax = maxval(abs(ynew(1:nt)))
+      e = abs(c * f) + em * (abs(psi) + abs(corr))
+      if (dae) where (alg) e = abs(f) + ymax
+      e = epsilon(1.0_dp) * e
+      call mbdk_floor_probes(e, b1, b2)
+      call mbdk_lu_solve(nw%lu, nw%ipiv, b1, s)
+      if (s /= MBDK_SUCCESS) return
+      call mbdk_lu_solve(nw%lu, nw%ipiv, b2, s)
+      if (s /= MBDK_SUCCESS) return
+      if (dae) then
+        where (alg)
+          b1 = b1 / c
+          b2 = b2 / c
+        end where
+      end if
+      call mbdk_floor_from_probes(b1, b2, fv)
+      fv = fv + MBDK_FLOOR_FACTOR * epsilon(1.0_dp) * abs(ynew)
+      fl = mbdk_adaptive_wrms(fv, w)
+    end subroutine floor_norm
 
     !> The error weights at yy; a DAE's index-2 components (after the ntest tested ones) are
     !> weighted by h, as Radau5 and DASSL's index-2 practice do: their correction after a step
@@ -420,24 +531,28 @@ contains
     end subroutine rescale
 
     !> The watch's work over the accepted step (t, t_new]: the states at its Gauss nodes
-    !> (MBDK_GAUSS3) from the polynomial of the history with the new point (the differences
-    !> the update below makes, on a copy).
+    !> (MBDK_GAUSS3) from the polynomial of the history with the new point. The update below
+    !> makes its differences D'_i = sum_{l >= i} D_l + corr; so its polynomial at tt, sum_j
+    !> c_j D'_j, is sum_l (c_0 + .. + c_l) D_l + (c_0 + .. + c_q) corr, with no copy of D.
     subroutine watch_nodes(s)
       integer, intent(out) :: s
-      real(dp) :: dn(n, 0:q + 1), yn(n, 3), p, tt
-      integer :: ii, jj
-      dn(:, q + 1) = corr
-      do ii = q, 0, -1
-        dn(:, ii) = d(:, ii) + dn(:, ii + 1)
-      end do
+      real(dp), allocatable :: yn(:, :)
+      real(dp) :: c, csum
+      integer :: ii, jj, astat
+      allocate (yn(n, 3), stat=astat)
+      call mbdk_alloc_status(astat, 3.0_dp * MBDK_REAL_BYTES * n, s, st%alloc_bytes)
+      if (s /= MBDK_SUCCESS) return
       do ii = 1, 3
-        tt = t + MBDK_GAUSS3(ii) * (t_new - t)
-        yn(:, ii) = dn(:, 0)
-        p = 1.0_dp
+        c = 1.0_dp
+        csum = 1.0_dp
+        yn(:, ii) = d(:, 0)
         do jj = 1, q
-          p = p * (tt - (t_new - real(jj - 1, dp) * h)) / (real(jj, dp) * h)
-          yn(:, ii) = yn(:, ii) + p * dn(:, jj)
+          c = c * (t + MBDK_GAUSS3(ii) * (t_new - t) - (t_new - real(jj - 1, dp) * h)) / &
+            (real(jj, dp) * h)
+          csum = csum + c
+          yn(:, ii) = yn(:, ii) + csum * d(:, jj)
         end do
+        yn(:, ii) = yn(:, ii) + csum * corr
       end do
       call prob%watch_nodes(t, t_new, yn, s)
     end subroutine watch_nodes

@@ -4,8 +4,9 @@
 !> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
 module mbdk_lapack
   use mbdk_kinds, only: dp
+  use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT, &
-    MBDK_ERR_NONFINITE
+    MBDK_ERR_NONFINITE, MBDK_ERR_NO_MEMORY
   implicit none
   private
   public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
@@ -66,11 +67,12 @@ contains
   !> The minimum-norm x minimising |A x - b| (A m x n, any rank): b(1:m) on entry, x = b(1:n)
   !> on exit (b has max(m, n) entries); singular values below rcond times the largest count as
   !> zero (rcond < 0: machine precision), rank is the effective rank. A is overwritten.
+  !> MBDK_ERR_NO_MEMORY when dgelsd's workspace cannot be had.
   subroutine mbdk_least_squares(a, b, rcond, rank, stat)
     real(dp), intent(inout) :: a(:, :), b(:)
     real(dp), intent(in) :: rcond
     integer, intent(out) :: rank, stat
-    integer :: m, n, info, lwork, liwork
+    integer :: m, n, info, lwork, liwork, astat
     real(dp) :: wq(1)
     integer :: iq(1)
     real(dp), allocatable :: sv(:), work(:)
@@ -91,11 +93,18 @@ contains
       stat = MBDK_ERR_NONFINITE
       return
     end if
-    allocate (sv(min(m, n)))
+    allocate (sv(min(m, n)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * min(m, n), stat)
+    if (stat /= MBDK_SUCCESS) return
     call dgelsd(m, n, 1, a, m, b, size(b), sv, rcond, rank, wq, -1, iq, info)
+    ! a workspace LAPACK's default integers cannot index is refused as such
+    stat = MBDK_ERR_NO_MEMORY
+    if (.not. mbdk_count_fits(wq(1))) return
     lwork = max(1, int(wq(1)))
     liwork = max(1, iq(1))
-    allocate (work(lwork), iwork(liwork))
+    allocate (work(lwork), iwork(liwork), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * lwork + MBDK_INT_BYTES * liwork, stat)
+    if (stat /= MBDK_SUCCESS) return
     call dgelsd(m, n, 1, a, m, b, size(b), sv, rcond, rank, work, lwork, iwork, info)
     if (info /= 0) stat = MBDK_ERR_SINGULAR_MATRIX   ! the SVD did not converge
   end subroutine mbdk_least_squares
@@ -146,15 +155,22 @@ contains
     real(dp), intent(inout) :: a(:, :)
     integer, intent(out) :: piv(:), rank, stat
     real(dp), intent(in) :: rtol
-    real(dp) :: work(2 * size(a, 1)), big
+    real(dp), allocatable :: work(:)
+    real(dp) :: big
     integer :: info, n, k
     n = size(a, 1)
     rank = 0
     stat = MBDK_SUCCESS
     if (n == 0) return
+    allocate (work(2 * n), stat=k)
+    call mbdk_alloc_status(k, 2 * MBDK_REAL_BYTES * n, stat)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_NONFINITE
     if (.not. all(abs(a) <= huge(1.0_dp))) return
-    big = maxval([(a(k, k), k = 1, n)])
+    big = a(1, 1)
+    do k = 2, n
+      big = max(big, a(k, k))
+    end do
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (.not. (big > 0.0_dp)) return
     call dpstrf('L', n, a, n, piv, rank, rtol * big, work, info)

@@ -6,7 +6,11 @@
 !> differences) and I - h*gamma*J factorised with LAPACK once per step at the predictor. If the
 !> iteration stalls or diverges, J is re-evaluated at the current iterate and the iteration
 !> restarted once (full Newton from then on). Converged when the weighted RMS norm of the update
-!> is below 1 (weights atol + rtol*|y|).
+!> is below 1 (weights atol + rtol*|y|). An iteration that stalls is tested once more with the
+!> weights never below the update's roundoff floor (mbdk_newton_floor, from the residual's
+!> terms eps (|y| + |c| + |h gamma F|) and the matrix), so that a tolerance asked below what
+!> double precision reaches stops at that floor instead of failing on one CPU and not on
+!> another; the floor costs two solves, and only where an iteration stalls.
 !>
 !> Statuses: MBDK_SUCCESS, MBDK_ERR_NEWTON_DIVERGED, MBDK_ERR_SINGULAR_MATRIX, or the
 !> right-hand side's failure. Reference: Hairer & Wanner, Solving ODE II, IV.8.
@@ -19,6 +23,8 @@ module mbdk_newton
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_error_norm, only: mbdk_wrms
+  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_newton_solve, mbdk_jacobian
@@ -26,15 +32,24 @@ module mbdk_newton
   !> Work arrays of the Newton solver, allocated once per solve.
   type :: mbdk_newton_work_t
     real(dp), allocatable :: jac(:, :), lu(:, :), f(:), f0(:), r(:), ytmp(:), ypred(:)
+    real(dp), allocatable :: floor(:), b1(:), b2(:)   !< the update's roundoff floor, probes
     integer, allocatable :: ipiv(:)
   end type mbdk_newton_work_t
 
 contains
 
-  subroutine mbdk_newton_work_init(w, n)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes of the two dense n x n
+  !> matrices and the vectors, mbdk_memory)
+  subroutine mbdk_newton_work_init(w, n, stat, asked)
     type(mbdk_newton_work_t), intent(out) :: w
     integer, intent(in) :: n
-    allocate (w%jac(n, n), w%lu(n, n), w%f(n), w%f0(n), w%r(n), w%ytmp(n), w%ypred(n), w%ipiv(n))
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: astat
+    allocate (w%jac(n, n), w%lu(n, n), w%f(n), w%f0(n), w%r(n), w%ytmp(n), w%ypred(n), w%ipiv(n), &
+              w%floor(n), w%b1(n), w%b2(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * n * n + 8.0_dp * n) + &
+                           MBDK_INT_BYTES * n, stat, asked)
   end subroutine mbdk_newton_work_init
 
   !> J = dF/dy at (t, y): analytic if available (and not overridden), else forward differences.
@@ -104,7 +119,12 @@ contains
           stat = MBDK_SUCCESS
           return
         end if
-        if (it >= 2 .and. dnorm > 0.9_dp * dnorm_old) exit   ! stalled or diverging
+        if (it >= 2 .and. dnorm > 0.9_dp * dnorm_old) then   ! stalled or diverging
+          call floor_at(stat)                                ! or at the roundoff floor
+          if (stat /= MBDK_SUCCESS) return
+          if (mbdk_wrms(w%r, y, opt%newton_rtol, opt%newton_atol, w%floor) <= 1.0_dp) return
+          exit
+        end if
         dnorm_old = dnorm
         if (full) then
           call factor_at(y, stat)
@@ -130,6 +150,19 @@ contains
       call mbdk_lu_factor(w%lu, w%ipiv, s)
       st%nlu = st%nlu + 1
     end subroutine factor_at
+
+    !> the update's roundoff floor with the current matrix, from the residual's terms at the
+    !> last iterate (w%f: F there)
+    subroutine floor_at(s)
+      integer, intent(out) :: s
+      w%ytmp = epsilon(1.0_dp) * (abs(y) + abs(c) + abs(hg * w%f))
+      call mbdk_floor_probes(w%ytmp, w%b1, w%b2)
+      call mbdk_lu_solve(w%lu, w%ipiv, w%b1, s)
+      if (s /= MBDK_SUCCESS) return
+      call mbdk_lu_solve(w%lu, w%ipiv, w%b2, s)
+      if (s /= MBDK_SUCCESS) return
+      call mbdk_floor_from_probes(w%b1, w%b2, w%floor)
+    end subroutine floor_at
 
   end subroutine mbdk_newton_solve
 

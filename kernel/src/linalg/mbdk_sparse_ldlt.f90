@@ -23,7 +23,9 @@
 module mbdk_sparse_ldlt
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_null_ptr
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT, &
+    MBDK_ERR_NO_MEMORY
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
@@ -103,21 +105,29 @@ contains
 
   !> The ordering and the pattern of L for the n x n matrix of pattern ap(n+1), ai(nnz) (1-based
   !> CSC, both triangles, each column's rows in any order, no duplicates). The values go into
-  !> f%ax in the same order. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses.
-  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat)
+  !> f%ax in the same order. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses;
+  !> MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory; AMD's own workspace: 0, not known).
+  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat, asked)
     type(mbdk_sparse_ldlt_t), intent(out) :: f
     integer, intent(in) :: n, ap(:), ai(:)
     integer, intent(out) :: stat
-    integer :: nnz, j, k
+    real(dp), intent(inout), optional :: asked
+    integer :: nnz, j, k, astat
+    !> amd_order's status when its workspace could not be had (amd.h)
+    integer, parameter :: AMD_OUT_OF_MEMORY = -1
     stat = MBDK_ERR_INVALID_INPUT
     if (n < 1 .or. size(ap) /= n + 1) return
     nnz = ap(n + 1) - 1
     if (size(ai) < nnz) return
     f%n = n
+    allocate (f%ap(n + 1), f%ai(nnz), f%ax(nnz), f%p(n), f%pinv(n), f%lp(n + 1), f%parent(n), &
+              f%lnz(n), f%flag(n), f%pattern(n), f%d(n), f%y(n), f%dpos(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (9.0_dp * n + 2 + nnz) + &
+                           MBDK_REAL_BYTES * (nnz + 2.0_dp * n), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     f%ap = ap - 1
     f%ai = ai(1:nnz) - 1
-    allocate (f%ax(nnz), f%p(n), f%pinv(n), f%lp(n + 1), f%parent(n), f%lnz(n), f%flag(n), &
-              f%pattern(n), f%d(n), f%y(n), f%dpos(n))
     f%dpos = 0
     do j = 1, n
       do k = ap(j), ap(j + 1) - 1
@@ -125,9 +135,14 @@ contains
       end do
     end do
     ! AMD_OK 0, AMD_OK_BUT_JUMBLED 1 (unsorted rows in a column: allowed)
-    if (amd_order(n, f%ap, f%ai, f%p, c_null_ptr, c_null_ptr) < 0) return
+    k = amd_order(n, f%ap, f%ai, f%p, c_null_ptr, c_null_ptr)
+    if (k == AMD_OUT_OF_MEMORY) stat = MBDK_ERR_NO_MEMORY
+    if (k < 0) return
     call ldl_symbolic(n, f%ap, f%ai, f%lp, f%parent, f%lnz, f%flag, f%p, f%pinv)
-    allocate (f%li(max(1, f%lp(n + 1))), f%lx(max(1, f%lp(n + 1))))
+    allocate (f%li(max(1, f%lp(n + 1))), f%lx(max(1, f%lp(n + 1))), stat=astat)
+    call mbdk_alloc_status(astat, (MBDK_INT_BYTES + MBDK_REAL_BYTES) * max(1, f%lp(n + 1)), &
+                           stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     f%ax = 0.0_dp
     stat = MBDK_SUCCESS
   end subroutine mbdk_sparse_ldlt_analyze

@@ -12,7 +12,9 @@
 !> then costs a few dozen multiply-adds whatever the number of bodies not involved.
 !> Two slots of one row in the same column (a joint between a body and itself) add up, as D.
 module mbdk_sparse_schur
-  use mbdk_kinds, only: dp
+  use mbdk_kinds, only: dp, i8
+  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_sparse_schur_init, mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
@@ -37,17 +39,25 @@ module mbdk_sparse_schur
 contains
 
   !> The lists from the pattern col(6, m), nz(6, m) of mbdk_joints_pattern and the weight w(nc).
-  subroutine mbdk_sparse_schur_init(sp, col, nz, w)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
+  subroutine mbdk_sparse_schur_init(sp, col, nz, w, stat, asked)
     type(mbdk_sparse_schur_t), intent(out) :: sp
     integer, intent(in) :: col(:, :)
     logical, intent(in) :: nz(:, :)
     real(dp), intent(in) :: w(:)
-    integer :: m, r, k, i, j, a, b, ne, nt, pass, c, nc, nl
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: m, r, k, i, j, a, b, ne, nt, pass, c, nc, nl, astat
     integer, allocatable :: next(:), mark(:), first(:)
     m = size(col, 2)
     sp%m = m
     sp%nnz = count(nz)
-    allocate (sp%rptr(m + 1), sp%rz(sp%nnz), sp%rcol(sp%nnz), sp%rw(sp%nnz))
+    nc = size(w)
+    allocate (sp%rptr(m + 1), sp%rz(sp%nnz), sp%rcol(sp%nnz), sp%rw(sp%nnz), sp%cptr(nc + 1), &
+              sp%cz(sp%nnz), sp%crow(sp%nnz), next(nc + 1), mark(m), first(m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * m + 2.0_dp * nc + 5.0_dp * sp%nnz &
+                                                    + 3) + MBDK_REAL_BYTES * sp%nnz, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     a = 0
     do r = 1, m
       sp%rptr(r) = a + 1
@@ -61,8 +71,6 @@ contains
     end do
     sp%rptr(m + 1) = a + 1
     ! the nonzeros by column: a counting sort of the row lists (rows ascending in a column)
-    nc = size(w)
-    allocate (sp%cptr(nc + 1), sp%cz(sp%nnz), sp%crow(sp%nnz), next(nc + 1))
     sp%cptr = 0
     do a = 1, sp%nnz
       sp%cptr(sp%rcol(a) + 1) = sp%cptr(sp%rcol(a) + 1) + 1
@@ -84,7 +92,6 @@ contains
     ! with row j, each once (mark(i) = j), with the terms of every shared column. Two passes:
     ! count, then fill. The cost is the sum over the columns of D of their nonzeros squared,
     ! O(nnz) for a mechanism (a column of D has as many nonzeros as joints on its body).
-    allocate (mark(m), first(m))
     do pass = 1, 2
       mark = 0
       ne = 0
@@ -126,7 +133,11 @@ contains
       end do
       if (pass == 1) then
         sp%nent = ne
-        allocate (sp%eptr(ne + 1), sp%ei(ne), sp%ej(ne), sp%ta(nt), sp%tb(nt), sp%tw(nt))
+        allocate (sp%eptr(ne + 1), sp%ei(ne), sp%ej(ne), sp%ta(nt), sp%tb(nt), sp%tw(nt), &
+                  stat=astat)
+        call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * ne + 2.0_dp * nt + 1) + &
+                               MBDK_REAL_BYTES * nt, stat, asked)
+        if (stat /= MBDK_SUCCESS) return
       end if
     end do
     sp%eptr(ne + 1) = nt + 1
@@ -139,25 +150,31 @@ contains
     real(dp), intent(out) :: s(*)
     integer :: e, t
     real(dp) :: x
-    s(1:sp%m * sp%m) = 0.0_dp
+    s(1:int(sp%m, i8) * sp%m) = 0.0_dp
     do e = 1, sp%nent
       x = 0.0_dp
       do t = sp%eptr(e), sp%eptr(e + 1) - 1
         x = x + dz(sp%ta(t)) * dz(sp%tb(t)) * sp%tw(t)
       end do
-      s(sp%ei(e) + (sp%ej(e) - 1) * sp%m) = x
+      s(sp%ei(e) + (sp%ej(e) - 1) * int(sp%m, i8)) = x
     end do
   end subroutine mbdk_sparse_schur_assemble
 
   !> The pattern of S, both triangles, as CSC (ap(m+1), ai) for mbdk_sparse_ldlt, and where
   !> each entry e goes in its values: lo(e) for S(ei, ej), up(e) for S(ej, ei) (the same slot on
   !> the diagonal).
-  subroutine mbdk_sparse_schur_csc(sp, ap, ai, lo, up)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
+  subroutine mbdk_sparse_schur_csc(sp, ap, ai, lo, up, stat, asked)
     type(mbdk_sparse_schur_t), intent(in) :: sp
     integer, allocatable, intent(out) :: ap(:), ai(:), lo(:), up(:)
-    integer :: e, i, j, k
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: e, i, j, k, astat
     integer, allocatable :: next(:)
-    allocate (ap(sp%m + 1), lo(sp%nent), up(sp%nent), next(sp%m + 1))
+    allocate (ap(sp%m + 1), lo(sp%nent), up(sp%nent), next(sp%m + 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * sp%m + 2.0_dp * sp%nent + 2), stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
     ap = 0
     do e = 1, sp%nent
       ap(sp%ej(e) + 1) = ap(sp%ej(e) + 1) + 1
@@ -167,7 +184,9 @@ contains
     do k = 1, sp%m
       ap(k + 1) = ap(k + 1) + ap(k)
     end do
-    allocate (ai(ap(sp%m + 1) - 1))
+    allocate (ai(ap(sp%m + 1) - 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ap(sp%m + 1) - 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     next = ap
     do e = 1, sp%nent
       i = sp%ei(e)

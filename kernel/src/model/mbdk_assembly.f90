@@ -28,8 +28,9 @@
 module mbdk_assembly
   use mbdk_kinds, only: dp
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_lapack, only: mbdk_least_squares
-  use mbdk_joints, only: mbdk_body_rotations, mbdk_body_point, MBDK_JOINT_PRISMATIC, &
+  use mbdk_joints, only: mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
   use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
@@ -59,21 +60,33 @@ module mbdk_assembly
 contains
 
   !> Fills in the pose defaults of the tables at q (nc = 3 nb coordinates). bad_joint, bad_force:
-  !> the element (1-based) that made it fail, else 0.
-  subroutine mbdk_tables_resolve(nb, jint, jreal, fint, freal, q, bad_joint, bad_force, stat)
+  !> the element (1-based) that made it fail, else 0. MBDK_ERR_NO_MEMORY: asked gets the bytes
+  !> (mbdk_memory).
+  subroutine mbdk_tables_resolve(nb, jint, jreal, fint, freal, q, bad_joint, bad_force, stat, &
+                                 asked)
     integer, intent(in) :: nb
     integer, intent(in) :: jint(:, :), fint(:, :)
     real(dp), intent(inout) :: jreal(:, :), freal(:, :)
     real(dp), intent(in) :: q(:)
     integer, intent(out) :: bad_joint, bad_force, stat
-    real(dp) :: rot(2, nb), v(size(q)), p1(2), p2(2), rho(2), pv(2), w, th1, th2, len
+    real(dp), intent(inout), optional :: asked
+    real(dp), allocatable :: rot(:, :), v(:)
+    real(dp) :: p1(2), p2(2), rho(2), pv(2), w, th1, th2, len
     integer :: j, b1, b2
     bad_joint = 0
     bad_force = 0
     stat = MBDK_ERR_INVALID_INPUT
     if (size(q) /= 3 * nb .or. .not. all(abs(q) <= huge(1.0_dp))) return
+    allocate (rot(2, nb), v(size(q)), stat=j)
+    call mbdk_alloc_status(j, MBDK_REAL_BYTES * (2.0_dp * nb + size(q)), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     v = 0.0_dp
-    call mbdk_body_rotations(q, rot)
+    ! (mbdk_body_rotations' contiguous q would be a packed copy of the assumed-shape q here, one
+    ! that gfortran takes from malloc without a check)
+    do j = 1, nb
+      rot(:, j) = [cos(q(3 * j)), sin(q(3 * j))]
+    end do
     ! a distance joint needs a direction at the start; a marked one takes L(0) from the pose
     do j = 1, size(jint, 2)
       if (jint(1, j) /= MBDK_JOINT_DISTANCE) cycle
@@ -176,8 +189,14 @@ contains
     ! dense least squares (which passes redundant joints) where its matrix is affordable
     sparse = model%work%proj%path == MBDK_SOLVE_SCHUR_SPARSE
     if (model%has_pfaffian .and. dense_affordable()) sparse = .false.
-    allocate (phi(m), gam(m), phit(m), dx(nc))
-    if (.not. sparse) allocate (d(m, nc))
+    allocate (phi(m), gam(m), phit(m), dx(nc), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (3.0_dp * m + nc), stat)
+    if (stat /= MBDK_SUCCESS) return
+    if (.not. sparse) then
+      allocate (d(m, nc), stat=k)
+      call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * nc, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     free = pack([(k, k = 1, nc)], .not. given_q)
     do it = 0, max_iter
       if (sparse) then
@@ -240,12 +259,18 @@ contains
         if (st /= MBDK_ERR_SINGULAR_MATRIX .or. .not. dense_affordable()) return
         ! dependent free columns: this and the next corrections by the dense least squares
         sparse = .false.
-        allocate (d(m, nc))
+        allocate (d(m, nc), stat=rk)
+        call mbdk_alloc_status(rk, MBDK_REAL_BYTES * real(m, dp) * nc, st)
+        if (st /= MBDK_SUCCESS) return
         call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
       end if
       fr = pack([(k, k = 1, nc)], .not. given)
+      if (allocated(a)) deallocate (a)
+      allocate (a(m, size(fr)), b(max(m, size(fr))), stat=rk)
+      call mbdk_alloc_status(rk, MBDK_REAL_BYTES * (real(m, dp) * size(fr) + max(m, size(fr))), &
+                             st)
+      if (st /= MBDK_SUCCESS) return
       a = d(:, fr)
-      allocate (b(max(m, size(fr))))
       b(1:m) = c
       call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(fr)), rk, st)
       dx = 0.0_dp
@@ -277,18 +302,24 @@ contains
       real(dp), intent(out) :: dx(:)
       integer, intent(out) :: st
       if (.not. allocated(mn%w)) then
-        allocate (mn%w(nc), mn%zero(nc), mn%ones(nc), mn%mu(m))
-        mn%w = merge(0.0_dp, 1.0_dp, given)
-        mn%zero = 0.0_dp
-        mn%ones = 1.0_dp
         block
-          logical :: nz(MBDK_JOINT_SLOTS, m)
-          integer :: col(MBDK_JOINT_SLOTS, m)
+          logical, allocatable :: nz(:, :)
+          integer, allocatable :: col(:, :)
+          integer :: astat
+          allocate (mn%w(nc), mn%zero(nc), mn%ones(nc), mn%mu(m), nz(MBDK_JOINT_SLOTS, m), &
+                    col(MBDK_JOINT_SLOTS, m), stat=astat)
+          call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (3.0_dp * nc + m) + &
+                                 2 * MBDK_INT_BYTES * MBDK_JOINT_SLOTS * m, st)
+          if (st /= MBDK_SUCCESS) return   ! (the assembly fails: nothing is retried)
+          mn%w = merge(0.0_dp, 1.0_dp, given)
+          mn%zero = 0.0_dp
+          mn%ones = 1.0_dp
           call mbdk_joints_pattern(model%jint, model%jreal, model%row0, col, nz)
-          call mbdk_sparse_schur_init(mn%sp, col, nz, mn%w)
+          call mbdk_sparse_schur_init(mn%sp, col, nz, mn%w, st)
+          if (st == MBDK_SUCCESS) &
+            call mbdk_constrained_init(mn%cs, nc, m, .true., .false., .false., mn%sp, 1, st)
+          if (st /= MBDK_SUCCESS) return
         end block
-        call mbdk_constrained_init(mn%cs, nc, m, .true., .false., .false., mn%sp, 1, st)
-        if (st /= MBDK_SUCCESS) return
       end if
       call mbdk_constrained_solve_once(mn%cs, mn%sp, model%work%dz, model%col, model%blk, &
                                        mn%ones, mn%w, mn%zero, c, dx, mn%mu, st)
@@ -300,9 +331,10 @@ contains
   !> assembled first (on a model of its own, resolved at the given y: asm_iters, asm_resid,
   !> velocity as mbdk_assembly_run's), then the tables' pose values are taken at y and the run's
   !> model built once there. bad_joint, bad_force: the element a pose value failed on.
+  !> MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
   subroutine mbdk_model_start(model, work, mass, inertia, jint, jreal, fint, freal, opt, t0, y, &
                               given_q, given_v, assemble, asm_iters, asm_resid, velocity, &
-                              bad_joint, bad_force, stat, kinds)
+                              bad_joint, bad_force, stat, kinds, asked)
     type(mbdk_model_t), intent(out) :: model
     type(mbdk_model_work_t), target, intent(inout) :: work
     real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :), t0
@@ -314,6 +346,7 @@ contains
     real(dp), intent(out) :: asm_resid(:)
     logical, intent(out) :: velocity
     integer, intent(in), optional :: kinds(:)   !< the bodies' kinds (absent: all planar)
+    real(dp), intent(inout), optional :: asked
     real(dp), allocatable :: jr(:, :), fr(:, :)
     integer :: nb, nc, b, code, coords, vels
     character(len=MBDK_ELEMENT_NAME_LEN) :: kname
@@ -358,11 +391,19 @@ contains
     subroutine build(mdl, wrk)
       type(mbdk_model_t), intent(out) :: mdl
       type(mbdk_model_work_t), target, intent(inout) :: wrk
+      integer :: astat
+      if (.not. allocated(jr)) then
+        allocate (jr(size(jreal, 1), size(jreal, 2)), fr(size(freal, 1), size(freal, 2)), &
+                  stat=astat)
+        call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (size(jreal) + size(freal)), stat, asked)
+        if (stat /= MBDK_SUCCESS) return
+      end if
       jr = jreal
       fr = freal
-      call mbdk_tables_resolve(nb, jint, jr, fint, fr, y(1:nc), bad_joint, bad_force, stat)
+      call mbdk_tables_resolve(nb, jint, jr, fint, fr, y(1:nc), bad_joint, bad_force, stat, &
+                               asked)
       if (stat /= MBDK_SUCCESS) return
-      call mbdk_model_init(mdl, mass, inertia, jint, jr, fint, fr, opt, wrk, stat, kinds)
+      call mbdk_model_init(mdl, mass, inertia, jint, jr, fint, fr, opt, wrk, stat, kinds, asked)
     end subroutine build
 
   end subroutine mbdk_model_start

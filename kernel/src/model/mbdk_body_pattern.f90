@@ -11,6 +11,8 @@
 module mbdk_body_pattern
   use mbdk_kinds, only: dp
   use mbdk_sparse_schur, only: mbdk_sort_ints
+  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter
@@ -26,15 +28,20 @@ module mbdk_body_pattern
 contains
 
   !> The pattern of nb bodies coupled by the pairs pairs(2, k) (0: the ground, no coupling).
-  subroutine mbdk_body_pattern_init(bp, nb, pairs)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
+  subroutine mbdk_body_pattern_init(bp, nb, pairs, stat, asked)
     type(mbdk_body_pattern_t), intent(out) :: bp
     integer, intent(in) :: nb, pairs(:, :)
-    integer :: k, a, b, n, j, c, i, p
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: k, a, b, n, j, c, i, p, astat
     integer, allocatable :: cnt(:), fill(:)
     bp%nb = nb
     bp%nc = 3 * nb
     ! adjacency, both directions, then sorted and made unique per body
-    allocate (cnt(nb + 1))
+    allocate (cnt(nb + 1), bp%bptr(nb + 1), fill(nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 2), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     cnt = 1     ! the body itself
     do k = 1, size(pairs, 2)
       a = pairs(1, k)
@@ -43,12 +50,13 @@ contains
       cnt(a) = cnt(a) + 1
       cnt(b) = cnt(b) + 1
     end do
-    allocate (bp%bptr(nb + 1))
     bp%bptr(1) = 1
     do b = 1, nb
       bp%bptr(b + 1) = bp%bptr(b) + cnt(b)
     end do
-    allocate (bp%nbr(bp%bptr(nb + 1) - 1), fill(nb))
+    allocate (bp%nbr(bp%bptr(nb + 1) - 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (bp%bptr(nb + 1) - 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     fill = bp%bptr(1:nb)
     do b = 1, nb
       bp%nbr(fill(b)) = b
@@ -82,7 +90,9 @@ contains
     bp%nbr = bp%nbr(1:n)
     ! the scalar CSC: 3 columns per body, 3 rows per neighbour
     bp%nnz = 9 * n
-    allocate (bp%ap(bp%nc + 1), bp%ai(bp%nnz), bp%tpos(bp%nnz))
+    allocate (bp%ap(bp%nc + 1), bp%ai(bp%nnz), bp%tpos(bp%nnz), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (bp%nc + 1.0_dp + 2.0_dp * bp%nnz), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     p = 1
     do b = 1, nb
       do c = 1, 3

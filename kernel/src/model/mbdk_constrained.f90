@@ -46,6 +46,7 @@
 module mbdk_constrained
   use mbdk_kinds, only: dp
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_joints, only: mbdk_joints_scatter
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve
   use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, &
@@ -128,33 +129,40 @@ contains
   !> The object for nc coordinates and m rows on the path of mbdk_constrained_path; sp is the
   !> pattern of D (the sparse path's S is analysed from it here, once).
   !> MBDK_ERR_INVALID_INPUT when AMD refuses the pattern, MBDK_ERR_NO_MEMORY when a dense path
-  !> cannot have its matrix.
-  subroutine mbdk_constrained_init(cs, nc, m, w_positive, kkt, small_dense, sp, sparse, stat)
+  !> cannot have its matrix (asked: the bytes, mbdk_memory).
+  subroutine mbdk_constrained_init(cs, nc, m, w_positive, kkt, small_dense, sp, sparse, stat, &
+                                   asked)
     type(mbdk_constrained_t), intent(out) :: cs
     integer, intent(in) :: nc, m, sparse
     logical, intent(in) :: w_positive, kkt, small_dense
     type(mbdk_sparse_schur_t), intent(in) :: sp
     integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
     integer :: astat
     integer, allocatable :: ap(:), ai(:)
+    real(dp) :: nk
     cs%nc = nc
     cs%m = m
     cs%path = mbdk_constrained_path(m, w_positive, kkt, small_dense, sparse)
     stat = MBDK_SUCCESS
     select case (cs%path)
     case (MBDK_SOLVE_KKT)
+      nk = real(nc, dp) + m
       allocate (cs%kkt(nc + m, nc + m), cs%rhs(nc + m), cs%ipiv(nc + m), cs%d(m, nc), &
-                stat=astat)
-      allocate (cs%s(0, 0))
+                cs%s(0, 0), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (nk * nk + nk + real(m, dp) * nc) + &
+                             MBDK_INT_BYTES * nk, stat, asked)
     case (MBDK_SOLVE_SCHUR_SPARSE)
       allocate (cs%s(0, 0), cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0), stat=astat)
-      call mbdk_sparse_schur_csc(sp, ap, ai, cs%slo, cs%sup)
-      call mbdk_sparse_ldlt_analyze(cs%ldl, m, ap, ai, stat)
+      call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_sparse_schur_csc(sp, ap, ai, cs%slo, cs%sup, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_sparse_ldlt_analyze(cs%ldl, m, ap, ai, stat, asked)
     case default
-      allocate (cs%s(m, m), stat=astat)
-      allocate (cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0))
+      allocate (cs%s(m, m), cs%kkt(0, 0), cs%rhs(0), cs%ipiv(0), cs%d(0, 0), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * m, stat, asked)
     end select
-    if (astat /= 0) stat = MBDK_ERR_NO_MEMORY
   end subroutine mbdk_constrained_init
 
   !> Factorises the system at D (compact rows dz; col their columns, blk the pivot blocks, wm the
@@ -195,8 +203,10 @@ contains
     if (cs%path == MBDK_SOLVE_SCHUR_SPARSE .and. nc > REGULAR_DENSE_MAX) return
     if (.not. allocated(cs%al)) then
       allocate (cs%al(nc, nc), cs%ald(m, nc), cs%alx(nc), cs%alr(m), stat=astat)
-      if (astat /= 0) then
-        stat = MBDK_ERR_NO_MEMORY
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nc + m, dp) * nc + nc + m), stat)
+      if (stat /= MBDK_SUCCESS) then
+        ! (a half-made set would pass the allocated test next time)
+        if (allocated(cs%al)) deallocate (cs%al)
         return
       end if
     end if
@@ -207,7 +217,9 @@ contains
     end do
     if (.not. (dmax > 0.0_dp)) dmax = 1.0_dp
     cs%beta = AL_KAPPA * maxval(wm) / dmax
-    cs%al = cs%beta * matmul(transpose(cs%ald), cs%ald)
+    ! formed in place: an expression's temporary of nc x nc would be taken without a status
+    cs%al = matmul(transpose(cs%ald), cs%ald)
+    cs%al = cs%beta * cs%al
     do i = 1, nc
       cs%al(i, i) = cs%al(i, i) + wm(i)
     end do
@@ -228,7 +240,11 @@ contains
     real(dp), intent(out), contiguous :: x(:), mu(:)
     integer, intent(out) :: stat
     integer :: k
-    real(dp) :: r, r_best, mu_k(size(mu))
+    real(dp) :: r, r_best
+    real(dp), allocatable :: mu_k(:)
+    allocate (mu_k(size(mu)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * size(mu), stat)
+    if (stat /= MBDK_SUCCESS) return
     mu_k = 0.0_dp
     mu = 0.0_dp
     x = 0.0_dp
@@ -272,7 +288,10 @@ contains
       ! each pivot L_ii^2 against its row's own diagonal S_ii (as the in-house LDL^T): the part
       ! of row i independent of the rows before it, whatever the rows' mass scales
       block
-        real(dp) :: d0(m)
+        real(dp), allocatable :: d0(:)
+        allocate (d0(m), stat=i)
+        call mbdk_alloc_status(i, MBDK_REAL_BYTES * m, stat)
+        if (stat /= MBDK_SUCCESS) return
         do i = 1, m
           d0(i) = cs%s(i, i)
         end do
@@ -342,10 +361,8 @@ contains
     integer :: i, j, astat
     ! allocated, not automatic: S of a large scene does not belong on a thread's stack
     allocate (s(size(d, 1), size(d, 1)), d0(size(d, 1)), stat=astat)
-    if (astat /= 0) then
-      stat = MBDK_ERR_NO_MEMORY
-      return
-    end if
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(size(d, 1), dp) * (size(d, 1) + 1), stat)
+    if (stat /= MBDK_SUCCESS) return
     do j = 1, size(d, 1)
       do i = j, size(d, 1)
         s(i, j) = sum(d(i, :) * d(j, :) / wm)

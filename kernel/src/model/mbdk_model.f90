@@ -71,6 +71,7 @@ module mbdk_model
   use mbdk_wear, only: mbdk_wear_rates, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
+  use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
     mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, mbdk_inv_gravity, &
@@ -236,10 +237,11 @@ contains
   !> Builds the model from its tables (see mbdk_joints and mbdk_force_elements for the layouts).
   !> kinds: each body's kind (mbdk_elements; absent: all planar). opt: formulation, solver and
   !> their parameters. work must outlive the model.
-  !> MBDK_ERR_INVALID_INPUT for inconsistent tables, MBDK_ERR_NOT_APPLICABLE for a body kind the
-  !> kernel declares but cannot simulate yet; the Python layer names the element.
+  !> MBDK_ERR_INVALID_INPUT for inconsistent tables (or counts whose sizes no default integer
+  !> holds), MBDK_ERR_NOT_APPLICABLE for a body kind the kernel declares but cannot simulate yet;
+  !> the Python layer names the element. MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
   subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, opt, work, stat, &
-                             kinds)
+                             kinds, asked)
     type(mbdk_model_t), intent(out) :: model
     real(dp), intent(in) :: mass(:), inertia(:), jreal(:, :), freal(:, :)
     integer, intent(in) :: jint(:, :), fint(:, :)
@@ -247,17 +249,27 @@ contains
     type(mbdk_model_work_t), target, intent(inout) :: work
     integer, intent(out) :: stat
     integer, intent(in), optional :: kinds(:)
-    integer :: b, j, rows, nc, m, formulation, code, coords, vels, astat
+    real(dp), intent(inout), optional :: asked
+    integer :: b, j, rows, nc, m, formulation, code, coords, vels, astat, nj, nf
     character(len=MBDK_ELEMENT_NAME_LEN) :: kname
     logical :: available
 
     stat = MBDK_ERR_INVALID_INPUT
     formulation = opt%formulation
     model%nb = size(mass)
+    nj = size(jint, 2)
+    nf = size(fint, 2)
     if (model%nb < 1 .or. size(inertia) /= model%nb) return
+    ! the state [q; v; w] (6 nb + nf values) and the tables' entries are indexed by default
+    ! integers
+    if (.not. (mbdk_count_fits(6.0_dp * model%nb + nf) .and. mbdk_count_fits(12.0_dp * nj) .and. &
+               mbdk_count_fits(12.0_dp * nf))) return
     if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
     if (formulation < MBDK_FORM_REDUCED .or. formulation > MBDK_FORM_PROJECTION) return
-    allocate (model%body_kind(model%nb), model%qoff(model%nb))
+    allocate (model%body_kind(model%nb), model%qoff(model%nb), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_INT_BYTES * model%nb, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     model%body_kind = MBDK_BODY_PLANAR
     if (present(kinds)) then
       if (size(kinds) /= model%nb) return
@@ -280,7 +292,11 @@ contains
     model%n = 2 * model%nc + model%ns
     model%nq = model%nc
     model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
-    allocate (model%mass(model%nc), model%winv(model%nc))
+    allocate (model%mass(model%nc), model%winv(model%nc), model%row0(nj), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * model%nc + MBDK_INT_BYTES * nj, stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     do b = 1, model%nb
       model%mass(model%qoff(b):model%qoff(b) + 1) = mass(b)
       model%mass(model%qoff(b) + 2) = inertia(b)
@@ -291,7 +307,6 @@ contains
     else
       model%winv = 1.0_dp
     end if
-    allocate (model%row0(size(jint, 2)))
     rows = 0
     do j = 1, size(jint, 2)
       if (mbdk_joint_rows(jint(1, j)) == 0) return
@@ -338,6 +353,12 @@ contains
                abs(opt%penalty_omega) <= huge(1.0_dp) .and. abs(opt%penalty_mu) <= &
                huge(1.0_dp) .and. abs(opt%projection_tol) <= huge(1.0_dp))) return
     if (opt%projection_max_iter < 1) return
+    allocate (model%jint(4, nj), model%jreal(12, nj), model%fint(4, nf), model%freal(12, nf), &
+              stat=astat)
+    call mbdk_alloc_status(astat, (4 * MBDK_INT_BYTES + 12 * MBDK_REAL_BYTES) * (nj + nf), stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     model%jint = jint
     model%jreal = jreal
     model%fint = fint
@@ -362,7 +383,10 @@ contains
     model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. ((jint(1, :) == &
                             MBDK_JOINT_DISTANCE .or. jint(1, :) == MBDK_JOINT_COUPLING) .and. &
                             (jreal(9, :) /= 0.0_dp .or. jreal(10, :) /= 0.0_dp)))
-    allocate (model%pfaffian(model%m))
+    allocate (model%pfaffian(model%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     call mbdk_joints_pfaffian(jint, model%row0, model%pfaffian)
     model%has_pfaffian = any(model%pfaffian)
     do j = 1, size(fint, 2)
@@ -383,19 +407,30 @@ contains
     nc = model%nc
     m = model%m
     block
-      logical :: nz(MBDK_JOINT_SLOTS, m)
-      allocate (model%col(MBDK_JOINT_SLOTS, m))
+      logical, allocatable :: nz(:, :)
+      allocate (model%col(MBDK_JOINT_SLOTS, m), nz(MBDK_JOINT_SLOTS, m), model%blk(nj + 1), &
+                model%row_blk(nc + 1), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * MBDK_JOINT_SLOTS * m + nj + nc + &
+                                                      2), stat, asked)
+      if (stat /= MBDK_SUCCESS) return
       call mbdk_joints_pattern(jint, jreal, model%row0, model%col, nz)
-      call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv)
+      call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     end block
+    stat = MBDK_ERR_INVALID_INPUT
     if (model%m > 0 .and. formulation /= MBDK_FORM_PENALTY .and. &
         (model%solver == MBDK_SOLVER_REVOLUTE .or. (model%solver == MBDK_SOLVER_AUTO .and. &
          model%m_positive .and. model%small_dense .and. model%m <= MBDK_SMALL_DENSE_MAX))) then
-      call mbdk_revolute_schur_init(model%rs, jint, jreal, model%winv, model%revolute)
+      call mbdk_revolute_schur_init(model%rs, jint, jreal, model%winv, model%revolute, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      stat = MBDK_ERR_INVALID_INPUT
       if (model%solver == MBDK_SOLVER_REVOLUTE .and. .not. model%revolute) return
     end if
-    model%blk = [model%row0, m + 1]
-    model%row_blk = [(j, j = 1, nc + 1)]
+    model%blk(1:nj) = model%row0
+    model%blk(nj + 1) = m + 1
+    do j = 1, nc + 1
+      model%row_blk(j) = j
+    end do
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
@@ -405,41 +440,45 @@ contains
     ! keeps its own copy): a large scene has none
     if (formulation == MBDK_FORM_PENALTY) then
       allocate (work%d(m, nc), stat=astat)
-      if (astat /= 0) then
-        stat = MBDK_ERR_NO_MEMORY
-        return
-      end if
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * nc, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     else
-      allocate (work%d(0, 0))
+      allocate (work%d(0, 0), stat=astat)
+      call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     end if
     allocate (work%fq(nc), work%phi(m), work%gam(m), work%phit(m), work%rc(m), &
               work%rot(2, model%nb), work%dz(MBDK_JOINT_SLOTS, m), work%lam_rhs(m), &
-              work%xc(nc), work%y_post(model%n), work%pp(2, 2 * size(jint, 2)), work%zero_nc(nc), &
-              work%wres(m), work%wterm(m), work%wa(nc), work%wlam(m))
+              work%xc(nc), work%y_post(model%n), work%pp(2, 2 * nj), work%zero_nc(nc), &
+              work%wres(m), work%wterm(m), work%wa(nc), work%wlam(m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * nc + real(m, dp) * &
+                           (MBDK_JOINT_SLOTS + 9) + 2.0_dp * model%nb + model%n + 4.0_dp * nj), &
+                           stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
     if (formulation == MBDK_FORM_PENALTY) then
       ! the penalty matrix M + ap D^T D is dense: a scene too large for it is refused by status
       allocate (work%pm(nc, nc), stat=astat)
-      if (astat /= 0) then
-        stat = MBDK_ERR_NO_MEMORY
-        return
-      end if
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(nc, dp) * nc, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     else
-      allocate (work%pm(0, 0))
+      allocate (work%pm(0, 0), stat=astat)
+      call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     end if
     call mbdk_constrained_init(work%cs, nc, m, model%m_positive, &
                                model%solver == MBDK_SOLVER_KKT, model%small_dense, model%sp, &
-                               sparse_choice(model%solver), stat)
+                               sparse_choice(model%solver), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! the projections' weight winv is positive (M^-1, or the identity): always a Schur path;
     ! the same pattern, and its weights are the model's when M is (else the identity's)
     call mbdk_constrained_init(work%proj, nc, m, .true., .false., model%small_dense, model%sp, &
-                               sparse_choice(model%solver), stat)
+                               sparse_choice(model%solver), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     model%work => work
     model%has_jac = .false.
-    call split_forces(model, stat)
+    call split_forces(model, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! events: every contact but the gear meshes (whose penetration wraps around the base
     ! pitch; their pairs take up their load smoothly): model_events
@@ -507,17 +546,23 @@ contains
   !> own (fint_c, freal_c; mbdk_contact_forces_all), wear to eint, ereal: a scene without them
   !> visits none of their code. Friction and wear refer to columns, which are renumbered to
   !> fint_c's.
-  subroutine split_forces(model, stat)
+  subroutine split_forces(model, stat, asked)
     type(mbdk_model_t), intent(inout) :: model
     integer, intent(out) :: stat
-    integer :: e, nf
+    real(dp), intent(inout), optional :: asked
+    integer :: e, nf, astat
     integer(i8) :: unused(MBDK_FORCE_TYPES)
     logical, allocatable :: grav(:)
     integer, allocatable :: idx(:)
-    real(dp) :: rot(2, model%nb), y0(model%nc)
-    integer :: newcol(size(model%fint, 2))
-    logical :: visit(size(model%fint, 2)), wear(size(model%fint, 2)), cont(size(model%fint, 2))
+    real(dp), allocatable :: rot(:, :), y0(:)
+    integer, allocatable :: newcol(:)
+    logical, allocatable :: visit(:), wear(:), cont(:)
     nf = size(model%fint, 2)
+    allocate (rot(2, model%nb), y0(model%nc), newcol(nf), visit(nf), wear(nf), cont(nf), &
+              model%fconst(model%nc), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * model%nb + 2.0_dp * model%nc) + &
+                           4 * MBDK_INT_BYTES * nf, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     grav = model%fint(1, :) == MBDK_FORCE_GRAVITY
     wear = model%fint(1, :) == MBDK_EFFECT_WEAR
     cont = model%fint(1, :) == MBDK_FORCE_CONTACT .or. model%fint(1, :) == MBDK_FORCE_FRICTION
@@ -539,7 +584,6 @@ contains
     do e = 1, model%ns
       model%eint(4, e) = newcol(model%eint(4, e))
     end do
-    allocate (model%fconst(model%nc))
     model%fconst = 0.0_dp
     rot = 0.0_dp
     y0 = 0.0_dp
@@ -735,6 +779,13 @@ contains
       if (self%revolute) then   ! rc from mbdk_model_assemble
         call mbdk_revolute_solve(self%rs, nc, w%pp, w%fq, self%winv, w%rc, w%cs%s, tol, &
                                  a, lam, stat)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. passes_rank_loss()) then
+          ! the closed form has no D in compact rows: the general joints' evaluation gives it
+          call mbdk_joints_eval(self%jint, self%jreal, self%row0, w%rot, q, v, t, w%phi, &
+                                w%dz, w%gam, w%phit, w%visits(1:MBDK_JOINT_TYPES))
+          call stabilised_rc()
+          call regular_solve()
+        end if
         return
       end if
       select case (self%formulation)
@@ -775,7 +826,44 @@ contains
         return
       end select
       call solve_constrained(self, w, a, lam, stat, tol)
+      if (stat == MBDK_ERR_SINGULAR_MATRIX .and. passes_rank_loss()) call regular_solve()
     end associate
+
+  contains
+
+    !> Where D has lost a rank (a singular pose, dependent rows) the accelerations are still
+    !> defined when gamma is consistent, the multipliers are not unique: the formulations that
+    !> keep the constraints through such a pose (baumgarte and projection: their stabilisation
+    !> or projection restores what the stage's solve cannot meet) take the regular path of
+    !> mbdk_constrained there, so that an explicit method's stage landing on the rank loss does
+    !> not end the run. The reduced formulation refuses it (MBDK_MODEL_NEAR_PIVOT), as does a
+    !> caller asking for a near-singular test (near).
+    logical function passes_rank_loss()
+      passes_rank_loss = .not. present(near) .and. &
+        (self%formulation == MBDK_FORM_PROJECTION .or. self%formulation == MBDK_FORM_BAUMGARTE)
+    end function passes_rank_loss
+
+    !> rc of the general path (w%dz, w%gam, w%phit, w%phi current): gamma, or Baumgarte's
+    subroutine stabilised_rc()
+      associate (w => self%work)
+        w%rc = w%gam
+        if (self%formulation == MBDK_FORM_BAUMGARTE) then
+          call mbdk_sparse_d_times(self%sp, w%dz, v, w%rc, .false.)
+          w%rc = w%gam - 2.0_dp * self%alpha * (w%rc + w%phit) - self%beta**2 * w%phi
+        end if
+      end associate
+    end subroutine stabilised_rc
+
+    subroutine regular_solve()
+      associate (w => self%work)
+        call mbdk_constrained_factor(w%cs, self%sp, w%dz, self%col, self%blk, self%mass, &
+                                     stat, regular=.true.)
+        if (stat == MBDK_SUCCESS) &
+          call mbdk_constrained_solve(w%cs, self%sp, w%dz, self%blk, self%winv, w%fq, w%rc, &
+                                      a, lam, stat)
+      end associate
+    end subroutine regular_solve
+
   end subroutine mbdk_model_accelerations
 
   !> M a + D^T lam = fq, D a = rc (from w): the model's constrained solve (mbdk_constrained:
@@ -883,7 +971,9 @@ contains
     end if
     ! D stays in its compact rows (work%dz): products with it cost O(nnz), whatever the size
     need_d = m > 0 .and. iand(want, MBDK_OUT_REACTIONS + MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS) /= 0
-    allocate (phi(m), gam(m), phit(m), dx(m))
+    allocate (phi(m), gam(m), phit(m), dx(m), stat=i)
+    call mbdk_alloc_status(i, 4 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
     if (need_d) call mbdk_model_constraints(self, t, q, v, phi, gam=gam, phit=phit)
     if (iand(want, MBDK_OUT_ENERGY) /= 0) then
       energy(1) = 0.5_dp * sum(self%mass * v**2)
@@ -1039,13 +1129,17 @@ contains
     real(dp), intent(in) :: t, q(:), v(:)
     integer, intent(out) :: stat
     logical, intent(in), optional :: velocity
-    logical :: angular(self%m), power, ok
+    logical, allocatable :: angular(:)
+    logical :: power, ok
     real(dp) :: length, reach, kin, vg, vs, p(MBDK_WORK_PARTS), gscale, rmean(2), tol_v, &
       mom(6), msc(2)
-    integer :: j, e, r, typ, b, nb
+    integer :: j, e, r, typ, b, nb, astat
     type(mbdk_contact_t) :: ct
     stat = MBDK_SUCCESS
     if (.not. self%has_watch) return
+    allocate (angular(self%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * self%m, stat)
+    if (stat /= MBDK_SUCCESS) return
     nb = self%nb
     length = 0.0_dp
     power = .false.
@@ -1133,7 +1227,8 @@ contains
     end if
     call mbdk_watch_start(self%work%watch, self%watch_tol(1), tol_v, self%watch_tol(3), &
                           self%watch_every, power, length, angular, t, kin, vg, vs, p, gscale, &
-                          sum(self%mass(self%qoff(:))), self%record_work)
+                          sum(self%mass(self%qoff(:))), stat, self%record_work)
+    if (stat /= MBDK_SUCCESS) return
     if (self%ninv > 0 .and. self%watch_tol(4) > 0.0_dp) then
       call planar_momenta(self, q, v, mom, msc)
       call mbdk_watch_start_invariants(self%work%watch, self%watch_tol(4), self%inv, self%ninv, &

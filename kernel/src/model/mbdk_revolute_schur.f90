@@ -28,6 +28,7 @@
 module mbdk_revolute_schur
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_joints, only: MBDK_JOINT_REVOLUTE
   implicit none
   private
@@ -50,18 +51,25 @@ contains
 
   !> The lists of a model with joint table jint(4, nj), jreal(12, nj) (layout of mbdk_joints)
   !> and weights winv(3 nb). ok = .false. when a joint is not revolute or joins a body to
-  !> itself (the caller then takes the general path).
-  subroutine mbdk_revolute_schur_init(rs, jint, jreal, winv, ok)
+  !> itself (the caller then takes the general path). stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY
+  !> (asked: the bytes, mbdk_memory).
+  subroutine mbdk_revolute_schur_init(rs, jint, jreal, winv, ok, stat, asked)
     type(mbdk_revolute_schur_t), intent(out) :: rs
     integer, intent(in) :: jint(:, :)
     real(dp), intent(in) :: jreal(:, :), winv(:)
     logical, intent(out) :: ok
-    integer :: nj, j, k, e, f, bj, pass, np
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, j, k, e, f, bj, pass, np, astat
     real(dp) :: sg
     nj = size(jint, 2)
+    stat = MBDK_SUCCESS
     ok = all(jint(1, :) == MBDK_JOINT_REVOLUTE .and. jint(2, :) /= jint(3, :))
     if (.not. ok) return
     rs%nj = nj
+    allocate (rs%b(2, nj), rs%pt(4, nj), stat=astat)
+    call mbdk_alloc_status(astat, (2 * MBDK_INT_BYTES + 4 * MBDK_REAL_BYTES) * nj, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     rs%b = jint(2:3, :)
     rs%pt = jreal(1:4, :)
     ! two passes: count, then fill
@@ -86,7 +94,12 @@ contains
           end do
         end do
       end do
-      if (pass == 1) allocate (rs%ppos(np), rs%pe(np), rs%pf(np), rs%pwm(np), rs%pwi(np))
+      if (pass == 1) then
+        allocate (rs%ppos(np), rs%pe(np), rs%pf(np), rs%pwm(np), rs%pwi(np), stat=astat)
+        call mbdk_alloc_status(astat, (3 * MBDK_INT_BYTES + 2 * MBDK_REAL_BYTES) * np, stat, &
+                               asked)
+        if (stat /= MBDK_SUCCESS) return
+      end if
     end do
     rs%npair = np
   end subroutine mbdk_revolute_schur_init

@@ -106,10 +106,11 @@
 module mbdk_watch
   use mbdk_kinds, only: dp
   use mbdk_status
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_watch_start, mbdk_watch_start_invariants, mbdk_watch_due, mbdk_watch_power, &
-    mbdk_watch_test, mbdk_watch_work_at, mbdk_watch_nodes
+    mbdk_watch_test, mbdk_watch_work_at, mbdk_watch_nodes, mbdk_watch_reserve
   public :: mbdk_inv_external, mbdk_inv_gravity, mbdk_inv_force, mbdk_inv_moment, &
     mbdk_inv_pivot, mbdk_inv_result
 
@@ -184,9 +185,11 @@ module mbdk_watch
     real(dp) :: inv(MBDK_INV_WORDS, MBDK_INV_MAX) = 0.0_dp, inv0(MBDK_INV_MAX) = 0.0_dp
     real(dp) :: mom_scale(2) = 0.0_dp
     integer :: nquat = 0            !< bodies whose orientation is a quaternion
-    !> the records of the work (REC_WORDS each), nrec of them
+    !> the records of the work (REC_WORDS each), nrec of them; rec_lost: one could not be
+    !> allocated (the caller reports MBDK_ERR_NO_MEMORY: the samples' work is incomplete)
     real(dp), allocatable :: rec(:, :)
     integer :: nrec = 0
+    logical :: rec_lost = .false.
     real(dp) :: t_good = 0.0_dp     !< the time of the last check passed
     !> the failure: quantity (MBDK_WATCH_*), worst row (1-based: the constraint row, the
     !> invariant, the body; 0 for energy), value relative to its scale, tolerance, time, the
@@ -203,14 +206,15 @@ contains
   !> balance has power terms; record: the run samples its work (mbdk_watch_work_at).
   subroutine mbdk_watch_start(w, tol_position, tol_velocity, tol_energy, every, power, length, &
                               row_angular, t0, kinetic, v_gravity, v_springs, power0, &
-                              gravity_scale, mass, record)
+                              gravity_scale, mass, stat, record)
     type(mbdk_watch_t), intent(inout) :: w
     real(dp), intent(in) :: tol_position, tol_velocity, tol_energy, length, t0, kinetic, &
       v_gravity, v_springs, power0(MBDK_WORK_PARTS), gravity_scale, mass
     integer, intent(in) :: every
     logical, intent(in) :: power, row_angular(:)
+    integer, intent(out) :: stat   !< MBDK_SUCCESS, or MBDK_ERR_NO_MEMORY
     logical, intent(in), optional :: record
-    integer :: m
+    integer :: m, astat
     m = size(row_angular)
     w%tol_position = max(tol_position, 0.0_dp)
     w%tol_velocity = max(tol_velocity, 0.0_dp)
@@ -229,7 +233,9 @@ contains
     w%forced = .false.
     w%length = length
     if (allocated(w%row_scale)) deallocate (w%row_scale, w%vel_scale)
-    allocate (w%row_scale(m), w%vel_scale(m))
+    allocate (w%row_scale(m), w%vel_scale(m), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
     w%row_scale = merge(1.0_dp, length, row_angular)
     w%mass = mass
     w%e0 = kinetic + v_gravity + v_springs
@@ -241,6 +247,7 @@ contains
     w%t_prev = t0
     w%t0 = t0
     w%nrec = 0
+    w%rec_lost = .false.
     w%pending = .false.
     w%e_scale = kinetic + abs(v_springs) + gravity_scale
     if (.not. (w%e_scale > 0.0_dp)) w%e_scale = tiny(1.0_dp)
@@ -358,9 +365,16 @@ contains
 
     subroutine add_record()
       real(dp), allocatable :: grown(:, :)
-      if (.not. allocated(w%rec)) allocate (w%rec(REC_WORDS, 64))
+      integer :: astat
+      if (.not. allocated(w%rec)) then
+        allocate (w%rec(REC_WORDS, 64), stat=astat)
+        if (astat /= 0) w%rec_lost = .true.
+        if (astat /= 0) return
+      end if
       if (w%nrec >= size(w%rec, 2)) then
-        allocate (grown(REC_WORDS, 2 * size(w%rec, 2)))
+        allocate (grown(REC_WORDS, 2 * size(w%rec, 2)), stat=astat)
+        if (astat /= 0) w%rec_lost = .true.
+        if (astat /= 0) return
         grown(:, 1:w%nrec) = w%rec(:, 1:w%nrec)
         call move_alloc(grown, w%rec)
       end if
@@ -369,6 +383,19 @@ contains
     end subroutine add_record
 
   end subroutine mbdk_watch_power
+
+  !> Room for the records of n steps that hold samples, before the run (mbdk_watch_start keeps
+  !> it): MBDK_SUCCESS or MBDK_ERR_NO_MEMORY. More records grow it as they come.
+  subroutine mbdk_watch_reserve(w, n, stat)
+    type(mbdk_watch_t), intent(inout) :: w
+    integer, intent(in) :: n
+    integer, intent(out) :: stat
+    integer :: astat
+    stat = MBDK_SUCCESS
+    if (allocated(w%rec)) deallocate (w%rec)
+    allocate (w%rec(REC_WORDS, max(n, 1)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * REC_WORDS * max(n, 1), stat)
+  end subroutine mbdk_watch_reserve
 
   !> The work parts at a sample time t of the run (after it, samples in increasing t): at t0
   !> zero; in a recorded step [t_a, t_b] (one that held a sample) W_a plus the integral of the

@@ -54,8 +54,9 @@
 !>
 !> Analytic Jacobians for ids 1-8 and 11; finite differences for 9, 10 and 12-16.
 module mbdk_textbook
-  use mbdk_kinds, only: dp
+  use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_UNKNOWN_PROBLEM
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_four_bar_forms, only: mbdk_four_bar_relative_rhs, mbdk_four_bar_natural_rhs, &
     mbdk_four_bar_params_ok
@@ -124,16 +125,18 @@ contains
   end subroutine mbdk_problem_info
 
   !> Builds problem id with state size n and parameters p; checks sizes and physical ranges.
+  !> MBDK_ERR_NO_MEMORY where the copies of p (linear_system: n^2) cannot be had.
   subroutine mbdk_textbook_init(prob, id, n, p, stat)
     type(mbdk_textbook_t), intent(out) :: prob
     integer, intent(in) :: id, n
     real(dp), intent(in) :: p(:)
     integer, intent(out) :: stat
+    integer :: astat, j
     stat = MBDK_ERR_UNKNOWN_PROBLEM
     if (id < 1 .or. id > MBDK_PROBLEM_COUNT) return
     stat = MBDK_ERR_INVALID_INPUT
     if (id == LINEAR_SYSTEM) then
-      if (n < 1 .or. size(p) /= n * n) return
+      if (n < 1 .or. size(p, kind=i8) /= int(n, i8) * n) return   ! (n^2 in 64 bits)
     else
       if (n /= dims(id) .or. size(p) /= nparams(id)) return
     end if
@@ -164,8 +167,18 @@ contains
     end select
     prob%id = id
     prob%n = n
+    allocate (prob%p(size(p)), prob%a(merge(n, 0, id == LINEAR_SYSTEM), &
+              merge(n, 0, id == LINEAR_SYSTEM)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(p, kind=i8) * merge(2, 1, &
+                           id == LINEAR_SYSTEM), stat)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     prob%p = p
-    if (id == LINEAR_SYSTEM) prob%a = reshape(p, [n, n])
+    if (id == LINEAR_SYSTEM) then
+      do j = 1, n   ! column by column: no temporary of n^2
+        prob%a(:, j) = p((j - 1) * int(n, i8) + 1:j * int(n, i8))
+      end do
+    end if
     if (id == DOUBLE_PENDULUM) prob%c = [(p(1) / 3.0_dp + p(2)) * p(3)**2, &
                                          p(2) * p(4)**2 / 3.0_dp, 0.5_dp * p(2) * p(3) * p(4), &
                                          (0.5_dp * p(1) + p(2)) * p(5) * p(3), &

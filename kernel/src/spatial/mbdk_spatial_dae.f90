@@ -27,6 +27,7 @@ module mbdk_spatial_dae
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
     mbdk_spatial_constraints, mbdk_spatial_watch_nodes
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_spatial_dae_init, mbdk_spatial_ggl_rates
@@ -49,27 +50,33 @@ module mbdk_spatial_dae
 contains
 
   !> The DAE of model; mass(N) receives the diagonal of E. The model must outlive the problem.
-  subroutine mbdk_spatial_dae_init(self, model, ny, mass, stat, form)
+  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
+  subroutine mbdk_spatial_dae_init(self, model, ny, mass, stat, form, asked)
     type(mbdk_spatial_dae_t), intent(out) :: self
     type(mbdk_spatial_model_t), intent(in), target :: model
     integer, intent(in) :: ny
     integer, intent(in), optional :: form
     real(dp), allocatable, intent(out) :: mass(:)
     integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: astat, na
     self%model => model
     self%ny = ny
     ! the rows the model solves now (the initial set, or the one its assembly moved to), which
     ! its multipliers at the start are given on; kept for the run (the DAE does not switch
     ! sets: one nearing a rank loss of its own makes Newton's matrix singular, and the run
     ! stops by name)
-    self%rows = model%work%active
-    self%na = size(self%rows)
+    na = size(model%work%active)
+    self%na = na
     self%npos = ny - 6 * model%nb
     if (present(form)) self%form = form
-    self%n = ny + self%na
-    if (self%form == 2) self%n = ny + 2 * self%na
+    self%n = ny + na
+    if (self%form == 2) self%n = ny + 2 * na
     self%has_watch = model%has_watch
-    allocate (mass(self%n))
+    allocate (self%rows(na), mass(self%n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * na + MBDK_REAL_BYTES * self%n, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    self%rows = model%work%active
     mass = 0.0_dp
     mass(1:ny) = 1.0_dp
     stat = MBDK_SUCCESS
@@ -81,12 +88,15 @@ contains
     real(dp), intent(in), contiguous :: y(:)
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
-    real(dp) :: lam(self%model%m), phi(self%model%m), &
-      c(self%model%m, self%ny - self%npos), gam(self%model%m), phit(self%model%m)
-    integer :: ny, nq, na, i
+    real(dp), allocatable :: lam(:), phi(:), c(:, :), gam(:), phit(:)
+    integer :: ny, nq, na, i, m, astat
     ny = self%ny
     nq = self%npos
     na = self%na
+    m = self%model%m
+    allocate (lam(m), phi(m), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * m, stat)
+    if (stat /= MBDK_SUCCESS) return
     lam = 0.0_dp
     lam(self%rows) = y(ny + 1:ny + na)
     call mbdk_spatial_dae_rhs(self%model, t, y(1:ny), lam, f(1:ny), phi, stat)
@@ -95,6 +105,9 @@ contains
     if (self%form /= 2) return
     lam(self%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
     call mbdk_spatial_ggl_rates(self%model, t, y(1:ny), nq, lam, f(nq + 1:ny), f(1:nq), stat)
+    if (stat /= MBDK_SUCCESS) return
+    allocate (c(m, ny - nq), gam(m), phit(m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * (ny - nq + 2), stat)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_spatial_constraints(self%model, t, y(1:ny), phi, c, gam, phit, stat)
     if (stat /= MBDK_SUCCESS) return
@@ -114,7 +127,11 @@ contains
     integer, intent(in) :: nq
     real(dp), intent(out) :: qdot(:)
     integer, intent(out) :: stat
-    real(dp) :: g(size(y)), ys(size(y)), phi(model%m), zero(model%m)
+    real(dp), allocatable :: g(:), ys(:), phi(:), zero(:)
+    integer :: astat
+    allocate (g(size(y)), ys(size(y)), phi(model%m), zero(model%m), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * (size(y) + model%m), stat)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_spatial_dae_rhs(model, t, y, lam_mu, g, phi, stat)
     if (stat /= MBDK_SUCCESS) return
     ys(1:nq) = y(1:nq)
@@ -137,7 +154,11 @@ contains
     real(dp), intent(in) :: t, y(:)
     logical, intent(in) :: force
     integer, intent(out) :: stat
-    real(dp) :: lam(self%model%m)
+    real(dp), allocatable :: lam(:)
+    integer :: astat
+    allocate (lam(self%model%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * self%model%m, stat)
+    if (stat /= MBDK_SUCCESS) return
     ! the drivers' power with the DAE's own multipliers
     lam = 0.0_dp
     lam(self%rows) = y(self%ny + 1:self%ny + self%na)
@@ -154,7 +175,11 @@ contains
     class(mbdk_spatial_dae_t), intent(in) :: self
     real(dp), intent(in) :: t_a, t_b, y(:, :)
     integer, intent(out) :: stat
-    real(dp) :: lam(self%model%m, size(y, 2))
+    real(dp), allocatable :: lam(:, :)
+    integer :: astat
+    allocate (lam(self%model%m, size(y, 2)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * self%model%m * size(y, 2), stat)
+    if (stat /= MBDK_SUCCESS) return
     lam = 0.0_dp
     lam(self%rows, :) = y(self%ny + 1:self%ny + self%na, :)
     call mbdk_spatial_watch_nodes(self%model, t_a, t_b, y(1:self%ny, :), stat, lam)

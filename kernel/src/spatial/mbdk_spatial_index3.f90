@@ -43,7 +43,8 @@
 !> The stopping test. A step converges when max |Phi_a| <= newton_atol at the iterate (not
 !> below 64 eps times the model's length) and the update computed there, that last update
 !> applied, is small in the norm max |dx_i| / (tau (newton_atol + newton_rtol |y+_i|)) over q
-!> and w, where tau = min(1, CORRECTION_SHARE c), c the largest correction of the positions
+!> and w (not below CORRECTION_SHARE newton_atol: a state at zero by symmetry has no scale of
+!> its own), where tau = min(1, CORRECTION_SHARE c), c the largest correction of the positions
 !> from their predictor in the same weights: below what the options ask, Newton's error is
 !> held to a thousandth of the step's own correction (an estimate of its local error), so
 !> that what Newton leaves per step, which adds up over the 1/h steps, stays below the
@@ -53,7 +54,8 @@
 !> constraint rows' roundoff eps L moves the velocities across the constraints by (2/h) eps L,
 !> and the velocity projection after the step takes that away), against a tolerance never
 !> below that part's floor (mbdk_newton_floor, from the roundoff of the rows' terms, the
-!> model's acc_abs, and of y + dy, estimated once per try with the current matrix). An
+!> model's acc_abs, and of y + dy, estimated once per try with the current matrix; and a few
+!> ulps of y + dy itself, which the state cannot resolve below). An
 !> iteration that stops contracting within the options' tolerance has met roundoff the
 !> floor's estimate misses: it is accepted when the matrix is fresh, and when old if the
 !> stall lies within STALL_ACCEPT times the tolerance or the level a fresh matrix last
@@ -73,10 +75,11 @@ module mbdk_spatial_index3
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
-  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes
+  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
   use mbdk_fixed_step, only: mbdk_step_plan
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
     mbdk_spatial_multipliers, MBDK_SPATIAL_PROJECTION
@@ -98,7 +101,7 @@ module mbdk_spatial_index3
   !> an iteration whose updates stop contracting within this many times its tolerance has
   !> met roundoff the floor's estimate missed, not a matrix too old (at least: the level
   !> is learnt from stalls with fresh matrices, and decays back by STALL_DECAY per step)
-  real(dp), parameter :: STALL_ACCEPT = 16.0_dp, STALL_DECAY = 0.99_dp
+  real(dp), parameter :: STALL_ACCEPT = 16.0_dp, STALL_DECAY = 0.999_dp
 
 contains
 
@@ -120,7 +123,8 @@ contains
     logical :: shortened, sample, fresh, have_lu, done, have_prev, phi_ok, phi_was_ok, have_floor
     real(dp) :: t, t1, h, rtol, atol, phi_tol, dnorm, dprev, hprev, dtol, stall_level
     real(dp), allocatable :: y(:), f(:), x(:), r(:), dx(:), jac(:, :), lam(:), lamfull(:), &
-      phi(:), xp(:), rp(:), fprev(:), lamprev(:), floor(:), wt(:), e(:), b1(:), b2(:), dyn(:), e_state(:)
+      phi(:), xp(:), rp(:), fprev(:), lamprev(:), floor(:), floor_probe(:), wt(:), wt_strict(:), &
+      e(:), b1(:), b2(:), dyn(:), e_state(:)
     integer, allocatable :: ipiv(:), rows(:)
     type(mbdk_timer_t) :: timer
 
@@ -148,7 +152,12 @@ contains
     phi_tol = max(atol, 64.0_dp * epsilon(1.0_dp) * model%length)
     allocate (y(ny), f(ny), x(nx), r(nx), dx(nx), jac(nx, nx), lam(na), lamfull(model%m), &
               phi(model%m), xp(nx), rp(nx), ipiv(nx), fprev(ny), lamprev(na), floor(ny), &
-              wt(ny), e(nx), b1(nx), b2(nx), dyn(nx), e_state(nx))
+              floor_probe(ny), wt(ny), wt_strict(ny), e(nx), b1(nx), b2(nx), &
+              dyn(nx), e_state(nx), stat=it)
+    call mbdk_alloc_status(it, MBDK_REAL_BYTES * (real(nx, dp) * (nx + 10) + 7.0_dp * ny + &
+                           2.0_dp * na + 2.0_dp * model%m) + MBDK_INT_BYTES * nx, stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
 
     call mbdk_timer_start(timer)
     call run(stat)
@@ -161,6 +170,7 @@ contains
     subroutine run(s)
       integer, intent(out) :: s
       t = t0
+      st%t_reached = t0
       y = y0
       call start_of_step(t, y, f, lam, s)
       if (s /= MBDK_SUCCESS) return
@@ -201,6 +211,7 @@ contains
         call start_of_step(t, y, f, lam, s)
         if (s /= MBDK_SUCCESS) return
         st%steps = st%steps + 1
+        st%t_reached = t
         if (model%has_watch) then
           call model%watch(t, y, sample, s)
           if (s /= MBDK_SUCCESS) return
@@ -255,7 +266,8 @@ contains
           ! smaller (module header)
           wt = atol + rtol * abs(y + x(1:ny))
           tau = min(1.0_dp, CORRECTION_SHARE * maxval(abs(x(1:nq) - xp(1:nq)) / wt(1:nq)))
-          dnorm = maxval(abs(dx(1:ny)) / (tau * wt))
+          wt_strict = max(tau * wt, CORRECTION_SHARE * atol)
+          dnorm = maxval(abs(dx(1:ny)) / wt_strict)
           dtol = huge(1.0_dp)
           phi_ok = maxval(abs(r(ny + 1:))) <= phi_tol
           if (phi_ok .and. dnorm > 1.0_dp) then
@@ -273,8 +285,11 @@ contains
               if (s /= MBDK_SUCCESS) return
               have_floor = .true.
             end if
+            ! the floor: the update's roundoff (the probes), and the state's own: y + dy is not
+            ! resolved below a few ulps of it
+            floor = max(floor_probe, MBDK_FLOOR_FACTOR * epsilon(1.0_dp) * abs(y + x(1:ny)))
             dtol = maxval(abs(dyn(1:ny)) / max(wt, floor))
-            dnorm = maxval(abs(dyn(1:ny)) / max(tau * wt, floor))
+            dnorm = maxval(abs(dyn(1:ny)) / max(wt_strict, floor))
           end if
           if (dnorm <= 1.0_dp .and. phi_ok) then
             converged = .true.
@@ -342,7 +357,11 @@ contains
       real(dp), intent(out) :: rs(:)
       integer, intent(out) :: s
       real(dp), intent(out), optional :: noise(:)
-      real(dp) :: g(ny), gabs(6 * model%nb)
+      real(dp), allocatable :: g(:), gabs(:)
+      integer :: astat
+      allocate (g(ny), gabs(6 * model%nb), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (ny + 6.0_dp * model%nb), s)
+      if (s /= MBDK_SUCCESS) return
       lamfull = 0.0_dp
       lamfull(rows) = xs(ny + 1:) / (0.25_dp * h * h)
       call mbdk_spatial_dae_rhs(model, t1, y + xs(1:ny), lamfull, g, phi, s, gabs)
@@ -369,15 +388,19 @@ contains
       if (s /= MBDK_SUCCESS) return
       call mbdk_lu_solve(jac, ipiv, b2, s)
       if (s /= MBDK_SUCCESS) return
-      call mbdk_floor_from_probes(b1(1:ny), b2(1:ny), floor)
+      call mbdk_floor_from_probes(b1(1:ny), b2(1:ny), floor_probe)
     end subroutine update_floor
 
     !> the residual's Jacobian at xs by forward differences, factorised
     subroutine build_matrix(xs, s)
       real(dp), intent(in) :: xs(:)
       integer, intent(out) :: s
-      real(dp) :: r0(nx), xj(nx), del
+      real(dp), allocatable :: r0(:), xj(:)
+      real(dp) :: del
       integer :: j
+      allocate (r0(nx), xj(nx), stat=j)
+      call mbdk_alloc_status(j, 2 * MBDK_REAL_BYTES * nx, s)
+      if (s /= MBDK_SUCCESS) return
       call residual(xs, r0, s)
       if (s /= MBDK_SUCCESS) return
       xj = xs

@@ -82,8 +82,10 @@ module mbdk_spatial_model
   use mbdk_time_function, only: mbdk_time_fn
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
-    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, mbdk_inv_gravity, &
-    mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT
+    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, &
+    mbdk_inv_gravity, mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, &
+    MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT
+  use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
@@ -209,16 +211,19 @@ contains
   !> jtype(nj), jbody(2, nj), jreal(MBDK_SPATIAL_JOINT_REALS, nj); forces: ftype(nf), fbody(2,
   !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state (its orientations fix the
   !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
-  !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first).
+  !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first), or for
+  !> counts whose sizes (13 nb, 5 nj) no default integer holds; MBDK_ERR_NO_MEMORY (asked: the
+  !> bytes, mbdk_memory).
   subroutine mbdk_spatial_init(model, work, opt, mass, inertia, jtype, jbody, jreal, ftype, &
-                               fbody, freal, t0, y0, stat)
+                               fbody, freal, t0, y0, stat, asked)
     type(mbdk_spatial_model_t), intent(out) :: model
     type(mbdk_spatial_work_t), intent(inout), target :: work
     type(mbdk_spatial_options_t), intent(in) :: opt
     real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), t0, y0(:)
     integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
     integer, intent(out) :: stat
-    integer :: nb, nj, b, j, row, info, k
+    real(dp), intent(inout), optional :: asked
+    integer :: nb, nj, b, j, row, info, k, astat
     real(dp) :: jb(3, 3), ai(3), aj(3), b1(3), b2(3), e(3, 3), reach
     real(dp), parameter :: zero3(3) = 0.0_dp
     type(frames_t) :: fr
@@ -227,6 +232,8 @@ contains
     nb = size(mass)
     nj = size(jtype)
     if (nb < 1 .or. any(shape(inertia) /= [3, 3, nb])) return
+    ! the state (13 nb values) and the primitives (5 a joint) are counted in default integers
+    if (.not. (mbdk_count_fits(13.0_dp * nb) .and. mbdk_count_fits(5.0_dp * nj))) return
     if (size(jbody, 1) /= 2 .or. size(jbody, 2) /= nj .or. size(jreal, 1) /= &
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
@@ -249,7 +256,10 @@ contains
     if (opt%rotation == MBDK_ROT_CARDAN123) model%seq = MBDK_SEQ_CARDAN123
     model%n = nb * (model%nqb + 6)
     if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
-    allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb))
+    allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 19.0_dp * nb, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     do b = 1, nb
       if (.not. (mass(b) > 0.0_dp .and. mass(b) <= huge(1.0_dp))) return
       if (.not. all(abs(inertia(:, :, b)) <= huge(1.0_dp))) return
@@ -269,7 +279,8 @@ contains
         if (.not. (abs(norm2(y0(qi(model, b) + 3:qi(model, b) + 6)) - 1.0_dp) <= 1.0e-8_dp)) return
       end if
     end do
-    call frames(model, y0, fr, stat)
+    call frames(model, y0, fr, stat, asked)
+    if (stat == MBDK_ERR_NO_MEMORY) return
     if (stat /= MBDK_SUCCESS) then
       stat = MBDK_ERR_INVALID_INPUT
       return
@@ -285,7 +296,12 @@ contains
       if (jbody(1, j) == jbody(2, j)) return
       model%m = model%m + MBDK_SPATIAL_JOINT_ROWS(jtype(j))
     end do
-    allocate (model%prim(5 * nj), model%row_angular(model%m))   ! prismatic: 5 primitives
+    ! prismatic: 5 primitives
+    allocate (model%prim(5 * nj), model%row_angular(model%m), stat=astat)
+    call mbdk_alloc_status(astat, real(storage_size(model%prim), dp) / 8.0_dp * 5.0_dp * nj + &
+                           MBDK_INT_BYTES * model%m, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     model%row_angular = .false.
     row = 1
     do j = 1, nj
@@ -346,7 +362,11 @@ contains
     ! forces
     model%nf = size(ftype)
     allocate (model%ftype(model%nf), model%fbody(2, model%nf), &
-              model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf))
+              model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf), stat=astat)
+    call mbdk_alloc_status(astat, (3.0_dp * MBDK_INT_BYTES + MBDK_SPATIAL_FORCE_REALS * &
+                                   MBDK_REAL_BYTES) * model%nf, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
     do k = 1, model%nf
       if (ftype(k) < 1 .or. ftype(k) > MBDK_SPATIAL_FORCE_TYPES) return
       select case (ftype(k))
@@ -391,23 +411,37 @@ contains
     model%gscale = model%gscale * sum(model%mass) * reach
     call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
 
-    model%all_rows = [(k, k = 1, model%m)]
+    allocate (model%all_rows(model%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    do k = 1, model%m
+      model%all_rows(k) = k
+    end do
     model%rank0 = model%m
     if (model%m > 0) then
       block
         integer, allocatable :: rows(:)
         real(dp), allocatable :: phi(:), c(:, :), gam(:)
-        allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m))
+        allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m), stat=astat)
+        call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%m, dp) * (6.0_dp * nb + 2), &
+                               stat, asked)
+        if (stat /= MBDK_SUCCESS) return
         call constraints(model, fr, t0, phi, c, gam)
         model%rank0 = 0                     ! any rank is accepted at the start
-        call select_rows(model, c, rows, stat)
+        call select_rows(model, c, rows, stat, asked)
         if (stat /= MBDK_SUCCESS) return
         call move_alloc(rows, model%active)
       end block
       model%rank0 = size(model%active)
     else
-      allocate (model%active(0))
+      allocate (model%active(0), stat=astat)
+      call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
     end if
+    if (allocated(work%active)) deallocate (work%active)
+    allocate (work%active(size(model%active)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * size(model%active), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     work%active = model%active
     work%switches = 0
     model%nq = 0
@@ -576,16 +610,21 @@ contains
   end subroutine orientation
 
   !> Positions, rotations and velocities of every body at y (column 0: the ground).
-  pure subroutine frames(model, y, fr, stat)
+  !> MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
+  pure subroutine frames(model, y, fr, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: y(:)
     type(frames_t), intent(out) :: fr
     integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
     integer :: b, k
     allocate (fr%r(3, 0:model%nb), fr%rot(3, 3, 0:model%nb), fr%v(3, 0:model%nb), &
               fr%om(3, 0:model%nb), stat=k)
     stat = MBDK_ERR_NO_MEMORY
-    if (k /= 0) return
+    if (k /= 0) then
+      if (present(asked)) asked = MBDK_REAL_BYTES * 18.0_dp * (model%nb + 1)
+      return
+    end if
     fr%r(:, 0) = 0.0_dp
     fr%rot(:, :, 0) = 0.0_dp
     do k = 1, 3
@@ -841,10 +880,14 @@ contains
     real(dp), intent(out) :: lam(:)
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: near
-    real(dp) :: s(size(rows), size(rows)), x(size(rows)), diag(size(rows))
+    real(dp), allocatable :: s(:, :), x(:), diag(:)
     integer :: k, info, r
     r = size(rows)
-    call gram(model, c, mc, rows, s)
+    allocate (s(r, r), x(r), diag(r), stat=info)
+    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
+    if (stat /= MBDK_SUCCESS) return
+    call gram(model, c, mc, rows, s, stat)
+    if (stat /= MBDK_SUCCESS) return
     x = rhs(rows)
     lam = 0.0_dp
     diag = [(s(k, k), k = 1, r)]
@@ -877,12 +920,17 @@ contains
   !> body), body block by body block: a row of C touches at most two bodies, so only rows that
   !> share a body meet (a quarter of the dense product's work on the flyball governor, less on
   !> longer chains). The upper triangle is left zero (the Cholesky factorisations read the lower).
-  pure subroutine gram(model, c, xc, rows, s)
+  pure subroutine gram(model, c, xc, rows, s, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), xc(:, :)
     integer, intent(in) :: rows(:)
     real(dp), intent(out) :: s(:, :)
-    integer :: b, o, i, j, ii, jj, n, list(size(rows))
+    integer, intent(out) :: stat
+    integer :: b, o, i, j, ii, jj, n
+    integer, allocatable :: list(:)
+    allocate (list(size(rows)), stat=i)
+    call mbdk_alloc_status(i, MBDK_INT_BYTES * size(rows), stat)
+    if (stat /= MBDK_SUCCESS) return
     s = 0.0_dp
     do b = 1, model%nb
       o = 6 * (b - 1)
@@ -916,21 +964,29 @@ contains
   !> motion (on Bricard's linkage it did, once per swing). With rank0 set: a rank above it is MBDK_ERR_CONSTRAINT_DRIFT (the state left the
   !> joints far enough that their dependent rows disagree), one below MBDK_ERR_SINGULAR_MATRIX (a
   !> singular pose); a vanishing row is MBDK_ERR_SINGULAR_MATRIX too.
-  subroutine select_rows(model, c, rows, stat)
+  !> MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
+  subroutine select_rows(model, c, rows, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :)
     integer, allocatable, intent(out) :: rows(:)
     integer, intent(out) :: stat
-    real(dp) :: g(size(c, 1), size(c, 1)), wc(size(c, 2), size(c, 1)), d(size(c, 1)), &
-      y(size(c, 1), size(c, 1)), l11(size(c, 1), size(c, 1)), big
-    integer :: k, j, l, m, r, nd, b, piv(size(c, 1)), best, col
-    logical :: keep(size(c, 1))
+    real(dp), intent(inout), optional :: asked
+    real(dp), allocatable :: g(:, :), wc(:, :), d(:), y(:, :), l11(:, :)
+    real(dp) :: big
+    integer :: k, j, l, m, r, nd, b, best, col
+    integer, allocatable :: piv(:)
+    logical, allocatable :: keep(:)
     m = size(c, 1)
+    allocate (g(m, m), wc(size(c, 2), m), d(m), y(m, m), l11(m, m), piv(m), keep(m), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * (3.0_dp * m + size(c, 2) + 1) + &
+                           2 * MBDK_INT_BYTES * m, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     wc = transpose(c)
     do b = 1, model%nb
       wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / model%length**2
     end do
-    call gram(model, c, wc, [(k, k = 1, m)], g)
+    call gram(model, c, wc, [(k, k = 1, m)], g, stat)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_SINGULAR_MATRIX
     do k = 1, m
       if (.not. (g(k, k) > 0.0_dp)) return
@@ -1011,14 +1067,20 @@ contains
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), near     !< the rows to test
     integer, intent(out) :: stat
-    real(dp) :: g(size(c, 1), size(c, 1)), wc(size(c, 2), size(c, 1)), diag(size(c, 1)), l2
-    integer :: k, b, info
+    real(dp), allocatable :: g(:, :), wc(:, :), diag(:)
+    real(dp) :: l2
+    integer :: k, b, info, m
+    m = size(c, 1)
+    allocate (g(m, m), wc(size(c, 2), m), diag(m), stat=info)
+    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(m, dp) * (m + size(c, 2) + 1), stat)
+    if (stat /= MBDK_SUCCESS) return
     l2 = model%length**2
     wc = transpose(c)
     do b = 1, model%nb
       wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / l2
     end do
-    call gram(model, c, wc, [(k, k = 1, size(c, 1))], g)
+    call gram(model, c, wc, [(k, k = 1, m)], g, stat)
+    if (stat /= MBDK_SUCCESS) return
     diag = [(g(k, k), k = 1, size(c, 1))]
     call mbdk_chol_factor(g, info)
     stat = MBDK_ERR_SINGULAR_MATRIX
@@ -1115,11 +1177,18 @@ contains
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
     type(frames_t) :: fr
-    real(dp) :: fw(3, self%nb), nbd(3, self%nb), vg, vs, power, acc(6 * self%nb), &
-      gen(6 * self%nb), phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
-      mc(6 * self%nb, self%m), p(4), jw(3), phit(self%m)
-    integer :: b, k, o
+    real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
+      l(:), mc(:, :), phit(:)
+    real(dp) :: vg, vs, power, p(4), jw(3)
+    integer :: b, k, o, nb, m
     f = 0.0_dp
+    nb = self%nb
+    m = self%m
+    allocate (fw(3, nb), nbd(3, nb), acc(6 * nb), gen(6 * nb), phi(m), c(m, 6 * nb), gam(m), &
+              l(m), mc(6 * nb, m), phit(m), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (18.0_dp * nb + real(m, dp) * (12.0_dp * nb + 4)), &
+                           stat)
+    if (stat /= MBDK_SUCCESS) return
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power)
@@ -1190,11 +1259,17 @@ contains
     !> is definite whatever the rank of C, so redundant joints need no choice of rows
     subroutine penalty_solve(st)
       integer, intent(out) :: st
-      real(dp) :: a(6 * self%nb, 6 * self%nb), r(self%m)
+      real(dp), allocatable :: a(:, :), r(:)
       integer :: bb, oo, kk
+      allocate (a(6 * nb, 6 * nb), r(m), stat=kk)
+      call mbdk_alloc_status(kk, MBDK_REAL_BYTES * (36.0_dp * nb * nb + m), st)
+      if (st /= MBDK_SUCCESS) return
       associate (ap => self%opt%pen_alpha, om => self%opt%pen_omega, mu => self%opt%pen_mu)
         r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):)) + phit) + om**2 * phi
-        a = ap * matmul(transpose(c), c)
+        ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
+        ! status
+        a = matmul(transpose(c), c)
+        a = ap * a
         do bb = 1, self%nb
           oo = (bb - 1) * 6
           do kk = 1, 3
@@ -1254,7 +1329,11 @@ contains
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: lam(:)
     integer, intent(out) :: stat
-    real(dp) :: f(size(y))
+    real(dp), allocatable :: f(:)
+    integer :: astat
+    allocate (f(size(y)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(y), stat)
+    if (stat /= MBDK_SUCCESS) return
     call spatial_accelerations(model, t, y, f, stat, lam)
   end subroutine mbdk_spatial_multipliers
 
@@ -1279,13 +1358,19 @@ contains
     logical, intent(in) :: constrained
     integer, intent(out) :: stat
     type(frames_t) :: fr
-    real(dp) :: phi(self%m), c(self%m, 6 * self%nb), gam(self%m), l(self%m), &
-      mc(6 * self%nb, self%m), d(6 * self%nb), tol, phit(self%m)
-    integer :: it, b, k
+    real(dp), allocatable :: phi(:), c(:, :), gam(:), l(:), mc(:, :), d(:), phit(:)
+    real(dp) :: tol
+    integer :: it, b, k, m, nb
     stat = MBDK_SUCCESS
     if (self%opt%rotation == MBDK_ROT_QUATERNION .and. self%opt%norm == MBDK_NORM_PROJECT) &
       call normalise(self, y)
     if (.not. constrained .or. self%m == 0) return
+    m = self%m
+    nb = self%nb
+    allocate (phi(m), c(m, 6 * nb), gam(m), l(m), mc(6 * nb, m), d(6 * nb), phit(m), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (12.0_dp * nb + 4) + 6.0_dp * nb), &
+                           stat)
+    if (stat /= MBDK_SUCCESS) return
     tol = max(self%opt%projection_tol, 16.0_dp * epsilon(1.0_dp) * self%length)
     do it = 1, PROJECTION_MAX_ITER + 1
       call frames(self, y, fr, stat)
@@ -1350,7 +1435,12 @@ contains
     real(dp), intent(inout) :: y(:)
     real(dp), intent(out) :: moved
     integer, intent(out) :: stat
-    real(dp) :: y0(size(y))
+    real(dp), allocatable :: y0(:)
+    integer :: astat
+    moved = 0.0_dp
+    allocate (y0(size(y)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(y), stat)
+    if (stat /= MBDK_SUCCESS) return
     y0 = y
     call spatial_project(model, t, y, .true., stat)
     moved = maxval(abs(y - y0))
@@ -1372,10 +1462,18 @@ contains
     !> the momenta and their scales (spatial_momenta), for the watch
     real(dp), intent(out), optional :: mom(6), msc(2)
     type(frames_t) :: fr
-    real(dp) :: fw(3, model%nb), nbd(3, model%nb), phi(model%m), c(model%m, 6 * model%nb), &
-      gam(model%m), w(6 * model%nb), kin, qn, phit(model%m), lam(model%m), f(size(y))
-    integer :: b, k
+    real(dp), allocatable :: fw(:, :), nbd(:, :), phi(:), c(:, :), gam(:), w(:), phit(:), &
+      lam(:), f(:)
+    real(dp) :: kin, qn
+    integer :: b, k, m, nb
     out = 0.0_dp
+    m = model%m
+    nb = model%nb
+    allocate (fw(3, nb), nbd(3, nb), phi(m), c(m, 6 * nb), gam(m), w(6 * nb), phit(m), lam(m), &
+              f(size(y)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (12.0_dp * nb + real(m, dp) * (6.0_dp * nb + 4) &
+                                                 + size(y)), stat)
+    if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call forces(model, fr, fw, nbd, out(2), out(3), out(4))
@@ -1422,8 +1520,9 @@ contains
     call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
                           self%opt%watch_energy, self%opt%watch_every, self%has_power, &
                           self%length, self%row_angular, t, out(1), out(2), out(3), &
-                          [0.0_dp, 0.0_dp, out(4)], self%gscale, sum(self%mass), &
+                          [0.0_dp, 0.0_dp, out(4)], self%gscale, sum(self%mass), stat, &
                           self%record_work)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_watch_start_invariants(self%work%watch, self%opt%watch_momentum, self%inv, &
                                      self%ninv, mom, msc, self%opt%watch_quaternion, &
                                      merge(self%nb, 0, self%opt%rotation == MBDK_ROT_QUATERNION))
@@ -1486,12 +1585,15 @@ contains
     logical, intent(in) :: force
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: lam(:)
-    real(dp) :: out(MBDK_SPATIAL_NOUT), phi(self%m), vres(self%m), vterm(self%m), mom(6), &
-      msc(2), qdev(self%nb)
-    integer :: due, b, k
+    real(dp) :: out(MBDK_SPATIAL_NOUT), mom(6), msc(2)
+    real(dp), allocatable :: phi(:), vres(:), vterm(:), qdev(:)
+    integer :: due, astat, b, k
     stat = MBDK_SUCCESS
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
+    allocate (phi(self%m), vres(self%m), vterm(self%m), qdev(self%nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (3.0_dp * self%m + self%nb), stat)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm, lam, mom, msc)
     if (stat /= MBDK_SUCCESS) return
     if (due == MBDK_WATCH_POWER_ONLY) then

@@ -73,6 +73,7 @@ module mbdk_cvode
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_after_step, mbdk_adaptive_step_limit, &
     mbdk_adaptive_h_floor, mbdk_adaptive_count_order
@@ -166,7 +167,9 @@ contains
     if (.not. adams .and. opt%max_order > BDF_MAX_ORDER) return
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), ydky(n), atol_v(size(atol)), yn(n, 3), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (5.0_dp * n + size(atol)), stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     y = y0
     atol_v = atol
 
@@ -226,7 +229,10 @@ contains
         if (.not. associated(nls)) exit run
       else
         amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-        if (.not. associated(amat)) exit run
+        if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+          st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+          exit run
+        end if
         ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
         if (.not. associated(ls)) exit run
         nls => FSUNNonlinSol_Newton(nv_y, sunctx)
@@ -246,6 +252,7 @@ contains
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
       told = t0
+      st%t_reached = t0
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -267,6 +274,7 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
+        st%t_reached = tret(1)
         ! CVODE's own floor is h_min (0 by default): a step that cannot move t would repeat
         flag = FCVodeGetLastStep(mem, hlast)
         if (hlast(1) < mbdk_adaptive_h_floor(opt, tret(1), landing=tret(1) >= t_end)) then

@@ -45,7 +45,9 @@
 !> local error of q and v is kept at WRMS <= 1 with the weights of mbdk_adaptive: rtol and the
 !> scalar opt%atol.
 !> The same weights serve IDA's Newton convergence test, which sees every component: lam with
-!> rtol and opt%atol, so that the sampled multipliers are converged, but mu with the absolute
+!> rtol and opt%atol, so that the sampled multipliers are converged (ggl: with an absolute
+!> tolerance of max(rtol, LAM_RTOL_FLOOR) times the largest initial multiplier, the roundoff
+!> the index-2 iteration leaves in them; ggl_lam_atol), but mu with the absolute
 !> tolerance MU_ATOL = 1 (IDASVtolerances), which takes it out of the test. mu is zero in the
 !> exact solution and has no meaning of its own; its Newton updates carry the roundoff of the
 !> index-2 iteration matrix, whose condition grows like 1/h^2, so tested at opt%atol they stop
@@ -135,6 +137,7 @@ module mbdk_ida
   use mbdk_problem, only: MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
   use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
@@ -174,6 +177,9 @@ module mbdk_ida
   real(dp), parameter :: ASSEMBLED_PHI = 1.0e-12_dp
   !> ggl: mu's absolute tolerance, which leaves it out of the Newton test (module header)
   real(dp), parameter :: MU_ATOL = 1.0_dp
+  !> ggl: the multipliers' Newton test, relative to the largest initial multiplier, is not
+  !> tighter than this (ggl_lam_atol)
+  real(dp), parameter :: LAM_RTOL_FLOOR = 1.0e-8_dp
   !> spatial ggl: the least first step, as a fraction of the interval (mbdk_ida_solve_spatial)
   real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
 
@@ -232,7 +238,7 @@ contains
 
     type(ida_context_t), target :: ctx
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
-    real(dp), allocatable :: r0(:), a0(:)
+    real(dp), allocatable :: r0(:), a0(:), dtl(:)
     integer :: nc, m, n, ns, ierr, nlam
     real(dp) :: t_end
 
@@ -256,9 +262,11 @@ contains
     if (ggl) n = n + m
 
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), ctx%phi(m), &
+    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), dtl(nc), ctx%phi(m), &
               ctx%d(m, nc), ctx%gam(m), ctx%phit(m), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + 2 * nc + real(m, dp) * (nc + 3)), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%model => model
     ctx%nc = nc
     ctx%m = m
@@ -278,12 +286,13 @@ contains
     call dae_residual(ctx, t0, y, yp, r0, stat)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    if (.not. consistent(ctx, y, yp, a0, r0)) return
+    if (.not. consistent(ctx, y, yp, a0, r0, dtl)) return
     if (nlam >= 1) lam_out(1:m, 1) = y(2 * nc + 1:2 * nc + m)
     id(1:2 * nc) = 1.0_dp
     id(2 * nc + 1:) = 0.0_dp
     atol_v(1:2 * nc + m) = opt%atol
     atol_v(2 * nc + m + 1:) = MU_ATOL
+    if (ggl .and. m > 0) atol_v(2 * nc + 1:2 * nc + m) = ggl_lam_atol(opt, y(2 * nc + 1:2 * nc + m))
 
     ctx%ny = 2 * nc
     ctx%nl = m
@@ -347,7 +356,9 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
               ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 7) + 2.0_dp * ny), &
+                           stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ! the rows after the model's solve at t0, which may move a redundant scene to another set
     if (m > 0) then
       call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
@@ -359,7 +370,8 @@ contains
     if (ggl) n = n + na
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
-    if (ierr /= 0) return
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 6.0_dp * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     ctx%smodel => model
     ctx%spatial = .true.
     ctx%m = m
@@ -392,8 +404,10 @@ contains
     if (stat /= MBDK_SUCCESS) return
     ! the constraint rows within roundoff of the largest row's terms: a row whose own terms are
     ! all zero (a mechanism at rest) still carries the roundoff of gamma's
+    allocate (sizes(na), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * na, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    allocate (sizes(na))
     do i = 1, na
       k = ctx%rows(i)
       if (ggl) then
@@ -416,12 +430,7 @@ contains
     id(ny + 1:) = 0.0_dp
     atol_v(1:ny + na) = opt%atol
     atol_v(ny + na + 1:) = MU_ATOL
-    ! ggl: a multiplier near zero is tested against rtol times the largest one, the size of its
-    ! roundoff in the index-2 iteration; at atol alone, that roundoff would keep Newton from
-    ! converging on a stiff scene at tight tolerances (tests/test_spatial.py: the flyball
-    ! governor)
-    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = max(opt%atol, &
-                                                        opt%rtol * maxval(abs(y(ny + 1:ny + na))))
+    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = ggl_lam_atol(opt, y(ny + 1:ny + na))
     if (ggl) then
       ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
       ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and a fast start
@@ -566,7 +575,10 @@ contains
 
       stat = MBDK_ERR_NO_MEMORY
       amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-      if (.not. associated(amat)) exit run
+      if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+        st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+        exit run
+      end if
       ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
       if (.not. associated(ls)) exit run
       ! no Jacobian function: IDA's dense difference quotients
@@ -577,7 +589,11 @@ contains
       k = nwritten + 1           ! the next sample to write
       tret(1) = t0
       told = t0
-      allocate (yn(ny, 3), lamn(ctx%m, 3))
+      st%t_reached = t0
+      allocate (yn(ny, 3), lamn(ctx%m, 3), stat=ierr)
+      call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 3.0_dp * (ny + ctx%m), stat, &
+                             st%alloc_bytes)
+      if (stat /= MBDK_SUCCESS) exit run
       do while (tret(1) < t_end)
         if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
           stat = MBDK_ERR_INTERRUPTED
@@ -599,6 +615,7 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
+        st%t_reached = tret(1)
         ! IDA's own floor is h_min (0 by default): a step that cannot move t would repeat. The
         ! step IDA shortened to land on t_end is the last one, whatever its length.
         flag = FIDAGetLastStep(mem, hlast)
@@ -703,11 +720,13 @@ contains
   end subroutine put_lam
 
   !> Whether the residual r of the initial values (y, yp) is within roundoff, row by row (see
-  !> the module header); ctx holds the evaluation at those values, a the accelerations.
-  logical function consistent(ctx, y, yp, a, r)
+  !> the module header); ctx holds the evaluation at those values, a the accelerations. dtl(nc):
+  !> work (the caller's: an automatic array would be taken from malloc unchecked).
+  logical function consistent(ctx, y, yp, a, r, dtl)
     type(ida_context_t), intent(in) :: ctx
     real(dp), intent(in) :: y(:), yp(:), a(:), r(:)
-    real(dp) :: s, tol, dtl(ctx%nc)
+    real(dp), intent(out) :: dtl(:)
+    real(dp) :: s, smax, tol
     integer :: nc, m, i, k
     nc = ctx%nc
     m = ctx%m
@@ -721,12 +740,20 @@ contains
         if (.not. (abs(r(nc + k)) <= tol * (abs(mass(k) * yp(nc + k)) + dtl(k) + abs(fq(k))))) &
           return
       end do
+      ! ggl's velocity rows against the largest row's terms: a row whose own terms are all
+      ! zero (a slider's, while the crank turns) still carries the roundoff of the assembly's
+      ! velocity solve, which is that of the largest
+      smax = 0.0_dp
+      if (ctx%ggl) then
+        do i = 1, m
+          smax = max(smax, sum(abs(d(i, :) * y(nc + 1:2 * nc))) + abs(ctx%phit(i)))
+        end do
+      end if
       do i = 1, m
         if (ctx%ggl) then
           s = sum(abs(d(i, :) * y(1:nc)))
           if (.not. (abs(r(2 * nc + i)) <= max(tol * s, ASSEMBLED_PHI))) return
-          s = sum(abs(d(i, :) * y(nc + 1:2 * nc))) + abs(ctx%phit(i))
-          if (.not. (abs(r(2 * nc + m + i)) <= tol * s)) return
+          if (.not. (abs(r(2 * nc + m + i)) <= tol * smax)) return
         else
           ! D a = gamma with a = M^-1 (f - D^T lam): a's roundoff is that of its terms, which
           ! may nearly cancel (a mechanism at rest under gravity)
@@ -911,5 +938,18 @@ contains
       ierr = 1
     end if
   end function ida_res
+
+  !> ggl's absolute tolerance of the multipliers lam0 (their initial values): max(atol, max(rtol,
+  !> LAM_RTOL_FLOOR) max |lam0|). In the index-2 iteration the multipliers carry roundoff of
+  !> the order of eps times the largest one times the iteration matrix's condition, which grows
+  !> like 1/h^2; tested at atol alone, or at rtol near eps, that roundoff keeps Newton from
+  !> converging (IDA_CONV_FAIL) on stiff scenes at tight tolerances (the flyball governor at
+  !> rtol 1e-10), and whether it does then depends on where the steps fall.
+  pure function ggl_lam_atol(opt, lam0) result(a)
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: lam0(:)
+    real(dp) :: a
+    a = max(opt%atol, max(opt%rtol, LAM_RTOL_FLOOR) * maxval(abs(lam0)))
+  end function ggl_lam_atol
 
 end module mbdk_ida
