@@ -98,15 +98,14 @@ def as_watch(watch) -> Watch:
 
 def invariant_names(invariants) -> list[str]:
     """The kernel's conserved components (rows of kind, direction (3), point (3)) in words."""
-    def vec(x):
-        return "(" + ", ".join(f"{c:.6g}" + "" for c in (0.0 if abs(c) < 1e-15 else c
-                                                           for c in x)) + ")"
+    def vec(x):   # (a -0 or a roundoff-sized entry printed as 0)
+        return "(" + ", ".join(f"{0.0 if abs(c) < 1e-15 else c:.6g}" for c in x) + ")"
     names = []
     for row in invariants:
         kind, e, p = int(round(row[0])), row[1:4], row[4:7]
-        axis = {(1, 0, 0): "x", (0, 1, 0): "y", (0, 0, 1): "z"}.get(
-            tuple(int(round(c)) if abs(abs(c) - 1) < 1e-12 or abs(c) < 1e-12 else 9 for c in e),
-            None)
+        unit = tuple(int(round(c)) if abs(abs(c) - 1) < 1e-12 or abs(c) < 1e-12 else 9
+                     for c in e)
+        axis = {(1, 0, 0): "x", (0, 1, 0): "y", (0, 0, 1): "z"}.get(unit)
         along = f"along {axis}" if axis else f"along {vec(e)}"
         if kind == _MOMENTUM:
             names.append(f"momentum {along}")
