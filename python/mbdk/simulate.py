@@ -36,8 +36,8 @@ Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing 
   (kinetic + potential, its parts, and the work of dampers, constraints and loads as the run
   integrated it, at every step whatever the samples (the watch's quadrature,
   kernel/src/model/mbdk_watch.f90); "work" their sum W, which energy_balance() takes),
-  "residuals" (max |Phi|,
-  max |Phi'|, max |D a - gamma|). An output not asked for is None in the result.
+  "residuals" (max |Phi|, max |Phi'|, max |D a - gamma|). An output not asked for is None in
+  the result.
 
 What a run must keep (watch=, mbdk.watch): the constraint residuals, the energy balance and the
 momenta the scene conserves are checked while it runs; leaving them ends the run with
