@@ -1510,6 +1510,45 @@ contains
     end if
   end subroutine mbdk_spatial_outputs
 
+  !> The power of dampers, loads and drivers alone at (t, y), for the watch's work between its
+  !> checks and at a step's Gauss nodes: the forces' power, and a driven scene's lambda . Phi_t
+  !> (lam_in: the caller's multipliers, else the model's constrained solve), as in
+  !> mbdk_spatial_outputs, without the rest of its outputs.
+  subroutine spatial_power(model, t, y, power, stat, lam_in)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: power
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: lam_in(:)
+    type(frames_t) :: fr
+    real(dp), allocatable :: fw(:, :), nbd(:, :), phi(:), c(:, :), gam(:), phit(:), lam(:), &
+      f(:)
+    real(dp) :: vg, vs
+    integer :: m, nb, k
+    power = 0.0_dp
+    m = model%m
+    nb = model%nb
+    allocate (fw(3, nb), nbd(3, nb), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * 6.0_dp * nb, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call frames(model, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(model, fr, fw, nbd, vg, vs, power)
+    if (.not. (model%has_drivers .and. m > 0)) return
+    allocate (phi(m), c(m, 6 * nb), gam(m), phit(m), lam(m), f(size(y)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (6.0_dp * nb + 4) + size(y)), &
+                           stat)
+    if (stat /= MBDK_SUCCESS) return
+    call constraints(model, fr, t, phi, c, gam, phit)
+    if (present(lam_in)) then
+      lam = lam_in
+    else
+      call spatial_accelerations(model, t, y, f, stat, lam)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    power = power + dot_product(lam, phit)
+  end subroutine spatial_power
+
   subroutine spatial_watch_start(self, t, y, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
@@ -1550,20 +1589,20 @@ contains
     real(dp), intent(in) :: t_a, t_b, y(:, :)
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: lam(:, :)
-    real(dp) :: out(MBDK_SPATIAL_NOUT), p(3, 3), tn(3)
+    real(dp) :: p(3, 3), tn(3)
     integer :: k
     stat = MBDK_SUCCESS
     if (.not. self%has_watch) return
     if (.not. self%work%watch%power) return
     tn = t_a + MBDK_GAUSS3 * (t_b - t_a)
+    p = 0.0_dp
     do k = 1, 3
       if (present(lam)) then
-        call mbdk_spatial_outputs(self, tn(k), y(:, k), out, stat, lam_in=lam(:, k))
+        call spatial_power(self, tn(k), y(:, k), p(3, k), stat, lam(:, k))
       else
-        call mbdk_spatial_outputs(self, tn(k), y(:, k), out, stat)
+        call spatial_power(self, tn(k), y(:, k), p(3, k), stat)
       end if
       if (stat /= MBDK_SUCCESS) return
-      p(:, k) = [0.0_dp, 0.0_dp, out(4)]
     end do
     call mbdk_watch_nodes(self%work%watch, t_a, t_b, tn, p)
   end subroutine mbdk_spatial_watch_nodes
@@ -1587,28 +1626,30 @@ contains
     real(dp), intent(in), optional :: lam(:)
     real(dp) :: out(MBDK_SPATIAL_NOUT), mom(6), msc(2)
     real(dp), allocatable :: phi(:), vres(:), vterm(:), qdev(:)
+    real(dp) :: p
     integer :: due, astat, b, k
     stat = MBDK_SUCCESS
     due = mbdk_watch_due(self%work%watch, force)
     if (due == MBDK_WATCH_NOTHING) return
+    if (due == MBDK_WATCH_POWER_ONLY) then
+      call spatial_power(self, t, y, p, stat, lam)
+      if (stat == MBDK_SUCCESS) call mbdk_watch_power(self%work%watch, t, [0.0_dp, 0.0_dp, p])
+      return
+    end if
     allocate (phi(self%m), vres(self%m), vterm(self%m), qdev(self%nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (3.0_dp * self%m + self%nb), stat)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_spatial_outputs(self, t, y, out, stat, phi, vres, vterm, lam, mom, msc)
     if (stat /= MBDK_SUCCESS) return
-    if (due == MBDK_WATCH_POWER_ONLY) then
-      call mbdk_watch_power(self%work%watch, t, [0.0_dp, 0.0_dp, out(4)])
-    else
-      qdev = 0.0_dp
-      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
-        do b = 1, self%nb
-          k = qi(self, b) + 3
-          qdev(b) = abs(norm2(y(k:k + 3)) - 1.0_dp)
-        end do
-      end if
-      call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
-                           [0.0_dp, 0.0_dp, out(4)], stat, mom=mom, mom_scale=msc, qdev=qdev)
+    qdev = 0.0_dp
+    if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+      do b = 1, self%nb
+        k = qi(self, b) + 3
+        qdev(b) = abs(norm2(y(k:k + 3)) - 1.0_dp)
+      end do
     end if
+    call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
+                         [0.0_dp, 0.0_dp, out(4)], stat, mom=mom, mom_scale=msc, qdev=qdev)
   end subroutine mbdk_spatial_watch
 
 end module mbdk_spatial_model
