@@ -1,7 +1,8 @@
 """Bad input from every door gets a named error or a sound result (issues 18 and 36): a
 fixed-seed subset of studies/fuzz.py's generator (broken scene files, Scene objects changed in
-Python, bad arguments, paths that are no scene file, the stability and registry functions). A generic Python exception, a success with inf or NaN, or anything printed by the
-kernel or LAPACK (which would print on an illegal argument) fails the test; a crash or a hang
+Python, bad arguments, paths that are no scene file, the stability and registry functions).
+A generic Python exception, a success with inf or NaN, or anything printed by the kernel or
+LAPACK (which would print on an illegal argument) fails the test; a crash or a hang
 fails the whole run."""
 import collections
 import sys

@@ -284,7 +284,9 @@ def test_the_watched_components_are_the_scenes_and_they_are_conserved(name):
                                                                               else r.w).max()
         else:
             c = h[:, k] if spatial else h
-            size = np.abs(h).max() + 1.0
+            # the component's scale: the largest angular momentum of the run (at least
+            # 1 kg m^2/s, as the scenes here carry about that or more)
+            size = max(np.abs(h).max(), 1.0)
         assert np.abs(c - c[0]).max() < 1e-6 * size, (label, np.abs(c - c[0]).max())
 
 
@@ -315,7 +317,7 @@ def test_a_planar_momentum_failure_is_named_too():
     free = mbdk.simulate(sc, "explicit_euler", watch=False, **kw)
     _, h = planar_momenta(free, sc)
     assert np.abs(h - h[0]).max() > 0.05 * abs(h[0])
-    with pytest.raises((mbdk.InvariantDriftError, mbdk.EnergyDriftError)) as err:
+    with pytest.raises(mbdk.InvariantDriftError) as err:
         mbdk.simulate(sc, "explicit_euler", watch=mbdk.Watch(energy=None), **kw)
     assert err.value.result.drift["invariant"] == \
         "angular momentum along z about the centre of mass"

@@ -8,9 +8,9 @@ that the error was NoMemoryError with ERR_NO_MEMORY, and that the size it names 
 what the run had to hold, counted here from the run's dimensions (not from the kernel's
 arithmetic): bdf's Newton matrix and its LU factors, 2 n^2 doubles over its n unknowns (13 per
 free spatial body: 7 coordinates, 6 velocities; si2 adds none without joints); the penalty
-formulation's M + alpha_p D^T D, nc^2 doubles over the nc = 3 nb coordinates. The C side (mbdk_stepper_create_ode with 2^27 states, a
-scene stepper of 2^24 bodies, bdf's Newton matrix through mbdk_solve_ode) is
-kernel/tests/c_no_memory.c."""
+formulation's M + alpha_p D^T D, nc^2 doubles over the nc = 3 nb coordinates. The C side
+(mbdk_stepper_create_ode with 2^27 states, a scene stepper of 2^24 bodies, bdf's Newton matrix
+through mbdk_solve_ode) is kernel/tests/c_no_memory.c."""
 import json
 import os
 import resource

@@ -34,8 +34,9 @@ KeyboardInterrupt as before (held back while a progress bar draws, until it is d
 _Drawing). Setting the flag of a solve that has ended does nothing; a solve whose flag is made
 after the Ctrl-C runs normally. A handler that was not the default (one's own, or SIG_IGN) is
 left alone, and so is a process that imports mbdk first from another thread: such code can
-call interrupt_all() itself (or install_sigint_handler() later, from the main thread). asyncio.run installs its own Ctrl-C handling only over the default handler, so
-under it Ctrl-C raises KeyboardInterrupt in the running code, as before Python 3.11.
+call interrupt_all() itself (or install_sigint_handler() later, from the main thread).
+asyncio.run installs its own Ctrl-C handling only over the default handler, so under it Ctrl-C
+raises KeyboardInterrupt in the running code, as before Python 3.11.
 """
 from __future__ import annotations
 

@@ -211,8 +211,9 @@ def length_scale(sizes, source: str, error) -> float:
     sizes: (label, field, magnitude, kind[, note]) with kind "coordinate" (a position in space:
     sets the scale only), "offset" (a point on a body: 0 is meaningful, otherwise it must be
     resolvable) or "length" (a distance, a radius: must be resolvable; note: what the message
-    says to do). A nonzero offset or a length below LENGTH_RESOLUTION of the scale is refused, naming it and the value that sets
-    the scale (one of the two is usually in the wrong units). Returns the scale."""
+    says to do). A nonzero offset or a length below LENGTH_RESOLUTION of the scale is refused,
+    naming it and the value that sets the scale (one of the two is usually in the wrong units).
+    Returns the scale."""
     sizes = [s if len(s) == 5 else (*s, "") for s in sizes if math.isfinite(s[2])]
     if not sizes:
         return 0.0

@@ -225,6 +225,8 @@ def failure_text(status: Status, adaptive: bool, dae: bool = False) -> str:
                 "tolerances can follow there (a singularity, a discontinuity, or tolerances "
                 "near double precision)")
     return status_message(status)
+
+
 def format_bytes(n: float) -> str:
     """A size in bytes as people read it: three significant digits, decimal units (48.7 GB)."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):

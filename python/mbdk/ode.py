@@ -416,7 +416,8 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
         where = stopped_at(result.stats, t0)
         text = (result.message if status == Status.ERR_NO_MEMORY else
                 failure_text(status, _method(method).adaptive))
-        msg = f"{method} on {problem if isinstance(problem, str) else 'the callback'}: {text} ({where})"
+        on = problem if isinstance(problem, str) else "the callback"
+        msg = f"{method} on {on}: {text} ({where})"
         if failure_note:
             msg += f": {failure_note}"
         raise exception_for(status)(msg, status=status, result=result)

@@ -31,7 +31,7 @@ class Stats:
     cpu_time: float = 0.0
     wall_time: float = 0.0
     t_reached: float = 0.0         # the last accepted step's time (where a failed solve stopped)
-    alloc_bytes: float = 0.0       # ERR_NO_MEMORY: bytes of the allocation that failed (0: not known)
+    alloc_bytes: float = 0.0       # ERR_NO_MEMORY: the failed allocation's bytes (0: not known)
 
     @classmethod
     def from_words(cls, words) -> "Stats":

@@ -46,15 +46,16 @@ ConstraintDriftError, EnergyDriftError or InvariantDriftError.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass, field, replace
 from numbers import Integral
 
 import numpy as np
 
 from . import _compiled, _kernel, checks
-from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError, SingularMatrixError, SolveInterrupted,
-                     Status, exception_for, failure_text, status_message, stopped_at)
-from .errors import no_memory_message
+from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError,
+                     SingularMatrixError, SolveInterrupted, Status, exception_for, failure_text,
+                     no_memory_message, status_message, stopped_at)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
@@ -494,6 +495,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     book_lambda = index3 and formulation == "index3" and m > 0
     if book_lambda:
         manifest["multipliers"] = BOOK_MULTIPLIERS
+    loose_lambda = ggl_multipliers(method, formulation, rtol) if m > 0 else None
+    if loose_lambda:
+        manifest["multipliers"] = loose_lambda
     result = SceneResult(
         t=t, q=y[:nc].T, v=y[nc:2 * nc].T,
         a=a_out[:, :nw].T if want & 1 else None,
@@ -578,10 +582,10 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         raise exception_for(status)(_failure_message(scene, tab, method, formulation, index3,
                                                      plan_, result), status=status,
                                     result=result)
-    if book_lambda and want & (OUTPUTS["multipliers"] | OUTPUTS["reactions"]):
-        import warnings
+    if (book_lambda or loose_lambda) and want & (OUTPUTS["multipliers"] | OUTPUTS["reactions"]):
         warnings.warn(f"{method}/{formulation} on scene {scene.name!r}: the multipliers and "
-                      f"reactions are {BOOK_MULTIPLIERS}", AccuracyWarning, stacklevel=2)
+                      f"reactions are {loose_lambda or BOOK_MULTIPLIERS}", AccuracyWarning,
+                      stacklevel=2)
     return result
 
 
@@ -858,12 +862,26 @@ BOOK_MULTIPLIERS = (
     "formulation 'augmented_lagrangian' gives them at second order")
 
 
+#: ida's GGL form tests its multipliers no tighter than this relative to the largest (the
+#: kernel's LAM_RTOL_FLOOR, kernel/src/sundials/mbdk_ida.f90: the index-2 iteration's roundoff)
+GGL_LAMBDA_RTOL = 1e-8
+
+
+def ggl_multipliers(method: str, formulation: str, rtol) -> str | None:
+    """What a run's manifest and warning say of its multipliers where ida's GGL form gives them
+    less accurately than rtol asks (rtol below GGL_LAMBDA_RTOL); None elsewhere."""
+    if method != "ida" or formulation != "ggl" or rtol is None or not rtol < GGL_LAMBDA_RTOL:
+        return None
+    return (f"converged to about {GGL_LAMBDA_RTOL:g} of the largest multiplier, not to rtol = "
+            f"{rtol:g}: ida's GGL form tests them no tighter, the roundoff of its index-2 "
+            "iteration; the index1 form, or bdf's si2 form, gives them to the tolerance")
+
+
 def _gears_at_assembled_pose(scene: Scene, t0: float) -> Scene:
     """The scene with its bodies at the pose and rates its initial assembly gives. A gear mesh's
     phases, and its check that the gears mesh, are taken from the bodies' poses: they must be
     those where the axle joints put the gears, not those the file writes (an axle joint moving a
     gear out of mesh ran on, or into a non-finite state)."""
-    from dataclasses import replace
     from .model import assemble
     joints_only = replace(scene, forces=[], wear=[])
     q, v, _ = assemble(joints_only, build_tables(joints_only), t0)

@@ -731,7 +731,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
             newton_atol=newton_atol, outputs=outputs, penalty=penalty, **unsupported))
     from .ode import build_info
-    from .simulate import _ode_plan, check_run, scene_tolerances
+    from .simulate import _ode_plan, check_run, ggl_multipliers, scene_tolerances
     from .watch import as_watch, drift_message, drift_report, invariant_names
 
     bad = sorted(k for k, v in unsupported.items() if v is not None)
@@ -881,6 +881,9 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                 "invariants": invariant_names(invariants[:, :int(ninv)].T)}
     if formulation in ("projection", "projected"):
         manifest["projection_tol"] = projection_tol
+    loose_lambda = ggl_multipliers(method, formulation, rtol) if sc.rows else None
+    if loose_lambda:
+        manifest["multipliers"] = loose_lambda
     if index3:
         manifest["form"] = ("trapezoidal rule on the index-3 DAE, Newton on (q+, w+, lam+) "
                             "with the equations of motion at t+, then the projections of "
@@ -927,8 +930,10 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                                                                      result.w[-1]]),
                                        float(result.t[-1]))
     if unstable:    # the true cause: the method's step, not the mechanism
-        if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT):
-            result.drift = drift_report(report, joint_rows(sc))
+        if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT,
+                      Status.ERR_INVARIANT_DRIFT):
+            result.drift = drift_report(report, joint_rows(sc), invariants[:, :int(ninv)].T,
+                                        [b.name for b in sc.bodies])
         result.message = (f"{method}/{formulation} on spatial scene {sc.name!r}: "
                           f"{failure_text(status, False)} ({stopped_at(result.stats, t0)}): "
                           f"{unstable}")
@@ -987,6 +992,11 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
         raise SolveInterrupted(result.message, status=status, result=result)
     if status.failed and raise_on_failure:
         raise exception_for(status)(result.message, status=status, result=result)
+    if loose_lambda:
+        import warnings
+        from .errors import AccuracyWarning
+        warnings.warn(f"{method}/{formulation} on spatial scene {sc.name!r}: the multipliers "
+                      f"are {loose_lambda}", AccuracyWarning, stacklevel=3)
     return result
 
 

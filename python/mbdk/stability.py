@@ -648,15 +648,21 @@ def unstable_mode(method: str, h: float, jac, min_growth: float = 1.0 + 1e-6) ->
         return None
     k = bad[np.argmax(np.abs(lam[bad]))]
     z = h * lam[k]
-    lo, hi = 0.0, 1.0          # the stable fraction of h for this mode
+    # the fraction s of h below which every step is stable for this mode: the first unstable
+    # point of a fine scan (a multistep method's region need not hold a whole segment of the
+    # ray: bdf4's is not star-shaped), then bisection within that bracket
+    s = np.geomspace(1e-8, 1.0, 400)
+    unstable = np.flatnonzero(spectral_radius(method, s * z) > 1.0 + 1e-9)
+    first = unstable[0] if unstable.size else s.size - 1
+    lo, hi = (s[first - 1] if first > 0 else 0.0), s[first]
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if spectral_radius(method, mid * z) <= 1.0 + 1e-9:
+        if spectral_radius(method, [mid * z])[0] <= 1.0 + 1e-9:
             lo = mid
         else:
             hi = mid
     return {"lambda": complex(lam[k]), "z": complex(z), "growth": float(r[k]),
-            "h_max": lo * h}
+            "h_max": float(lo * h)}
 
 
 #: a failure is blamed on the step only where a mode grows this much per step: a slower growth

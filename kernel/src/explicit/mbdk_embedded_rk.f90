@@ -10,9 +10,9 @@
 !>             not grow h (fac_max = 1 once)
 !> with q the order of the embedded solution, fac_min = 0.2, fac_max = 10 (Hairer, Norsett and
 !> Wanner, Solving ODEs I, II.4). A stage that is not finite (h far beyond the stability limit),
-!> or at which a contact overruns its model (MBDK_ERR_CONTACT_OVERRUN: a trial point a step
-!> too long carried across an impact; the gear pair pla_gears met one at any rtol), counts as a
-!> rejection with err = infinity, not as a failure. The first step: opt%h, or
+!> or at which a contact overruns its model (MBDK_ERR_CONTACT_OVERRUN: a trial point that a step
+!> too long carried across an impact), counts as a rejection with err = infinity, not as a
+!> failure. The first step: opt%h, or
 !> mbdk_adaptive_initial_step. h never exceeds opt%h_max or what is left to t_end; the last step
 !> lands on t_end exactly. Below mbdk_adaptive_h_floor: MBDK_ERR_STEP_TOO_SMALL, or
 !> MBDK_ERR_NONFINITE where the rejection that took it there had stages not finite (F is not
@@ -22,8 +22,8 @@
 !>
 !> Samples inside a step come from the pair's dense output; a sample at the step's end is the
 !> step's state itself. A watching problem that integrates a work gets the dense output at the
-!> step's three Gauss nodes too (watch_nodes, mbdk_problem). After a projection (has_post_step) F is evaluated again at the
-!> projected state, as the next step's first stage.
+!> step's three Gauss nodes too (watch_nodes, mbdk_problem). After a projection
+!> (has_post_step) F is evaluated again at the projected state, as the next step's first stage.
 !>
 !> Events (prob%nevents > 0: a contact's penetration, mbdk_problem). F is not smooth where an
 !> event function changes sign (a contact closes or opens), and a step across that point

@@ -42,8 +42,9 @@
 !> Dense output: the interpolating polynomial of the history, degree q:
 !>   y(t) = D_0 + sum_{j=1..q} D_j prod_{m=0..j-1} (t - (t_n - m h)) / ((m + 1) h).
 !> A watching problem that integrates a work gets it at the accepted step's three Gauss nodes
-!> (watch_nodes, mbdk_problem) before its watch. opt%max_order (1..5; 0 = 5) caps the order. Statistics: steps at each order
-!> (order1_steps .. order5_steps), rejected steps, Newton failures and iterations, nfev, njev, nlu.
+!> (watch_nodes, mbdk_problem) before its watch. opt%max_order (1..5; 0 = 5) caps the order.
+!> Statistics: steps at each order (order1_steps .. order5_steps), rejected steps, Newton
+!> failures and iterations, nfev, njev, nlu.
 !> A projection (has_post_step) after a step enters the history as part of the correction d.
 !>
 !> DAE. Given mass (the diagonal of E), yp0 and ntest, bdf integrates E y' = F(t, y), a scene's
@@ -78,7 +79,8 @@ module mbdk_variable_bdf
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
-  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
+  use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_from_probes, mbdk_floor_cap, &
+    MBDK_FLOOR_FACTOR
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
@@ -103,6 +105,9 @@ module mbdk_variable_bdf
   !> a step size gone to nothing is named MBDK_ERR_TOO_MUCH_ACCURACY where the error estimate's
   !> roundoff is this share of the error test or more
   real(dp), parameter :: ERROR_FLOOR_SHARE = 0.1_dp
+  !> a DAE step whose corrector stalled at its roundoff floor this often, each time retried at
+  !> half the step, ends the solve by name (a smaller step's matrix is worse conditioned)
+  integer, parameter :: MAX_FLOOR_STALLS = 6
 
 contains
 
@@ -127,6 +132,7 @@ contains
     integer(i8) :: tries, limit
     logical :: have_lu, jac_current, converged, projected, sample, nonfinite
     logical :: at_floor   !< a corrector of this step stalled at its roundoff floor (a DAE's)
+    integer :: floor_stalls   !< how often, in this step
     real(dp) :: t, t_end, h, hmax, t_new, c, c_lu, tol, err, safety, factor, crate
     real(dp) :: gam(0:MBDK_BDF_MAX_ORDER), errc(0:MBDK_BDF_MAX_ORDER + 1), norms(3), facs(3)
     real(dp), allocatable :: d(:, :), yp(:), psi(:), ynew(:), corr(:), w(:), f(:), dy(:)
@@ -209,6 +215,7 @@ contains
     n_equal = 0
     have_lu = .false.
     at_floor = .false.
+    floor_stalls = 0
     c_lu = 0.0_dp
     crate = 1.0_dp
     call mbdk_jacobian(prob, opt, t, y0, nw, st, stat)
@@ -239,6 +246,10 @@ contains
           return
         end if
         tries = tries + 1
+        if (floor_stalls >= MAX_FLOOR_STALLS) then
+          stat = MBDK_ERR_TOO_MUCH_ACCURACY
+          return
+        end if
         if (h < mbdk_adaptive_h_floor(opt, t, landing=t + h >= t_end)) then
           ! the step shrank to nothing: halved by corrector iterates whose F was not finite
           ! (F is not finite next to this state, a singularity of the model); or because the
@@ -305,6 +316,7 @@ contains
 
       ! accepted. A projection moves y_{n+1}; the history takes the move as part of d.
       at_floor = .false.
+      floor_stalls = 0
       sample = .false.
       if (k <= ns) sample = t_out(k) <= t_new
       if (prob%has_watch) then
@@ -396,6 +408,7 @@ contains
       integer :: it
       real(dp) :: dnorm, dnorm_old, rate
       logical :: stop_here
+      real(dp) :: fl
       converged = .false.
       nonfinite = .false.
       rate = 1.0_dp
@@ -433,13 +446,15 @@ contains
             ! stalled, or out of iterations, with the update at its roundoff floor: an ODE's
             ! iterate is then as good as double precision makes it. A DAE's (whose tolerance
             ! is a thousandth of the error test's) is noted: the step is retried smaller as
-            ! after any failure, and if the steps shrink to the floor that way, the cause is
-            ! named (MBDK_ERR_TOO_MUCH_ACCURACY): a smaller step's matrix is worse conditioned
-            call floor_norm(dnorm_old, s)
+            ! after any failure, and after MAX_FLOOR_STALLS such stalls in one step, or if the
+            ! steps shrink to the floor, the cause is named (MBDK_ERR_TOO_MUCH_ACCURACY): a
+            ! smaller step's matrix is worse conditioned
+            call floor_norm(fl, s)
             if (s /= MBDK_SUCCESS) return
-            if (dnorm <= dnorm_old) then
+            if (dnorm <= fl) then
               if (dae) then
                 at_floor = .true.
+                floor_stalls = floor_stalls + 1
                 exit
               end if
               ynew = ynew + dy
@@ -468,35 +483,28 @@ contains
     !> current matrix, from the corrector's terms at the iterate (f, psi, corr, ynew of the
     !> host): the residual's rows (an algebraic row, divided by c, carries eps times the largest
     !> tested component: its terms are positions) through the matrix, plus the rounding of the
-    !> iterate itself. Uses dy's space for the probes only after dy has been tested.
+    !> iterate itself, capped (mbdk_floor_cap). The Newton work's vectors hold the probes.
     subroutine floor_norm(fl, s)
       real(dp), intent(out) :: fl
       integer, intent(out) :: s
-      real(dp), allocatable :: e(:), b1(:), b2(:), fv(:)
       real(dp) :: ymax
-      integer :: astat
       fl = huge(1.0_dp)
-      allocate (e(n), b1(n), b2(n), fv(n), stat=astat)
-      call mbdk_alloc_status(astat, 4 * MBDK_REAL_BYTES * n, s, st%alloc_bytes)
-      if (s /= MBDK_SUCCESS) return
       ymax = maxval(abs(ynew(1:nt)))
-      e = abs(c * f) + em * (abs(psi) + abs(corr))
-      if (dae) where (alg) e = abs(f) + ymax
-      e = epsilon(1.0_dp) * e
-      call mbdk_floor_probes(e, b1, b2)
-      call mbdk_lu_solve(nw%lu, nw%ipiv, b1, s)
-      if (s /= MBDK_SUCCESS) return
-      call mbdk_lu_solve(nw%lu, nw%ipiv, b2, s)
+      nw%ytmp = abs(c * f) + em * (abs(psi) + abs(corr))
+      if (dae) where (alg) nw%ytmp = abs(f) + ymax
+      nw%ytmp = epsilon(1.0_dp) * nw%ytmp
+      call mbdk_floor_solve(nw%ytmp, nw%lu, nw%ipiv, nw%b1, nw%b2, s)
       if (s /= MBDK_SUCCESS) return
       if (dae) then
         where (alg)
-          b1 = b1 / c
-          b2 = b2 / c
+          nw%b1 = nw%b1 / c
+          nw%b2 = nw%b2 / c
         end where
       end if
-      call mbdk_floor_from_probes(b1, b2, fv)
-      fv = fv + MBDK_FLOOR_FACTOR * epsilon(1.0_dp) * abs(ynew)
-      fl = mbdk_adaptive_wrms(fv, w)
+      call mbdk_floor_from_probes(nw%b1, nw%b2, nw%floor)
+      nw%floor = nw%floor + MBDK_FLOOR_FACTOR * epsilon(1.0_dp) * abs(ynew)
+      call mbdk_floor_cap(ynew, nw%floor)
+      fl = mbdk_adaptive_wrms(nw%floor, w)
     end subroutine floor_norm
 
     !> The error weights at yy; a DAE's index-2 components (after the ntest tested ones) are
@@ -537,19 +545,19 @@ contains
     subroutine watch_nodes(s)
       integer, intent(out) :: s
       real(dp), allocatable :: yn(:, :)
-      real(dp) :: c, csum
+      real(dp) :: lag, csum
       integer :: ii, jj, astat
       allocate (yn(n, 3), stat=astat)
       call mbdk_alloc_status(astat, 3.0_dp * MBDK_REAL_BYTES * n, s, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
       do ii = 1, 3
-        c = 1.0_dp
+        lag = 1.0_dp
         csum = 1.0_dp
         yn(:, ii) = d(:, 0)
         do jj = 1, q
-          c = c * (t + MBDK_GAUSS3(ii) * (t_new - t) - (t_new - real(jj - 1, dp) * h)) / &
+          lag = lag * (t + MBDK_GAUSS3(ii) * (t_new - t) - (t_new - real(jj - 1, dp) * h)) / &
             (real(jj, dp) * h)
-          csum = csum + c
+          csum = csum + lag
           yn(:, ii) = yn(:, ii) + csum * d(:, jj)
         end do
         yn(:, ii) = yn(:, ii) + csum * corr

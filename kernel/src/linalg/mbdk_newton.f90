@@ -23,7 +23,7 @@ module mbdk_newton
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_error_norm, only: mbdk_wrms
-  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes
+  use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_from_probes, mbdk_floor_cap
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
@@ -156,12 +156,10 @@ contains
     subroutine floor_at(s)
       integer, intent(out) :: s
       w%ytmp = epsilon(1.0_dp) * (abs(y) + abs(c) + abs(hg * w%f))
-      call mbdk_floor_probes(w%ytmp, w%b1, w%b2)
-      call mbdk_lu_solve(w%lu, w%ipiv, w%b1, s)
-      if (s /= MBDK_SUCCESS) return
-      call mbdk_lu_solve(w%lu, w%ipiv, w%b2, s)
+      call mbdk_floor_solve(w%ytmp, w%lu, w%ipiv, w%b1, w%b2, s)
       if (s /= MBDK_SUCCESS) return
       call mbdk_floor_from_probes(w%b1, w%b2, w%floor)
+      call mbdk_floor_cap(y, w%floor)
     end subroutine floor_at
 
   end subroutine mbdk_newton_solve

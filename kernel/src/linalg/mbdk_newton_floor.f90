@@ -20,18 +20,22 @@
 !> factorisation: far less than the factorisation. The factor leaves room for the iteration's
 !> own roundoff beyond the evaluation's (a few ulps per update). Hairer and Wanner (Solving
 !> ODE II, IV.8) bound their Newton tolerance below by 10 eps / rtol for the same reason.
-!> The floor is not capped: where J^-1 amplifies the residual's roundoff the solution itself is
-!> known only to that floor (near a singular matrix), and the caller's other tests (its
-!> constraint residuals, its contraction test) still apply there.
+!> The floor is capped at sqrt(eps) times the size of the state (mbdk_floor_cap): a larger one
+!> is no roundoff but a nearly singular matrix, and an iteration stalled there fails as before
+!> instead of being accepted.
 !>
-!> Usage: fill e with the residual's roundoff (mbdk_floor_noise helps with sums of terms), take
-!> the probes b1, b2 from mbdk_floor_probes, solve J z = b for each in place with the caller's
-!> factorisation, and mbdk_floor_from_probes gives the floor; mbdk_floor_weights the weights.
+!> Usage: fill e with the residual's roundoff, solve the probes (mbdk_floor_solve, with the
+!> caller's LU factorisation, or mbdk_floor_probes and the caller's own solves), then
+!> mbdk_floor_from_probes gives the floor and mbdk_floor_cap limits it; mbdk_floor_weights the
+!> weights.
 module mbdk_newton_floor
   use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_lapack, only: mbdk_lu_solve
   implicit none
   private
-  public :: mbdk_floor_probes, mbdk_floor_from_probes, mbdk_floor_weights, MBDK_FLOOR_FACTOR
+  public :: mbdk_floor_probes, mbdk_floor_solve, mbdk_floor_from_probes, mbdk_floor_cap, &
+    mbdk_floor_weights, MBDK_FLOOR_FACTOR
 
   !> the floor is this many times the estimated roundoff of one update
   real(dp), parameter :: MBDK_FLOOR_FACTOR = 16.0_dp
@@ -48,6 +52,26 @@ contains
       b2(i) = merge(b1(i), -b1(i), mod(i, 2) == 1)
     end do
   end subroutine mbdk_floor_probes
+
+  !> The probes of e solved with an LU factorisation (mbdk_lapack's): z1, z2 for
+  !> mbdk_floor_from_probes.
+  subroutine mbdk_floor_solve(e, lu, ipiv, z1, z2, stat)
+    real(dp), intent(in) :: e(:), lu(:, :)
+    integer, intent(in) :: ipiv(:)
+    real(dp), intent(out) :: z1(:), z2(:)
+    integer, intent(out) :: stat
+    call mbdk_floor_probes(e, z1, z2)
+    call mbdk_lu_solve(lu, ipiv, z1, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_lu_solve(lu, ipiv, z2, stat)
+  end subroutine mbdk_floor_solve
+
+  !> floor limited to sqrt(eps) max |x|, x the iteration's state (the module header)
+  pure subroutine mbdk_floor_cap(x, floor)
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(inout) :: floor(:)
+    floor = min(floor, sqrt(epsilon(1.0_dp)) * maxval(abs(x)))
+  end subroutine mbdk_floor_cap
 
   !> floor = MBDK_FLOOR_FACTOR max(|z1|, |z2|), z1 and z2 the probes solved with the Newton
   !> matrix; a non-finite solve (a nearly singular matrix) gives no floor (zero): the test then

@@ -74,9 +74,10 @@ module mbdk_model
   use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
-    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, mbdk_inv_gravity, &
-    mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT, &
-    MBDK_INV_ANGULAR_CENTRE, MBDK_WORK_PARTS
+    mbdk_watch_start_invariants, mbdk_watch_nodes, mbdk_inv_rule_t, mbdk_inv_external, &
+    mbdk_inv_gravity, mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, &
+    MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT, MBDK_INV_ANGULAR_CENTRE, &
+    MBDK_WORK_PARTS
   use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_revolute_schur, only: mbdk_revolute_schur_t, mbdk_revolute_schur_init, &
@@ -1357,8 +1358,13 @@ contains
       case (MBDK_FORCE_GRAVITY)
         call mbdk_inv_gravity(rule, [freal(1:2, e), 0.0_dp])
       case (MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_SPRING_DAMPER)
-        ! along the line of its points: to the ground, through the ground point
-        if (fint(3, e) == 0) call mbdk_inv_pivot(rule, [freal(3:4, e), 0.0_dp])
+        ! along the line of its points: to the ground, through the ground point (the table
+        ! allows the ground as either body: point2, or point1, is then global)
+        if (fint(3, e) == 0) then
+          call mbdk_inv_pivot(rule, [freal(3:4, e), 0.0_dp])
+        else if (fint(2, e) == 0) then
+          call mbdk_inv_pivot(rule, [freal(1:2, e), 0.0_dp])
+        end if
       case (MBDK_FORCE_POINT)
         call mbdk_inv_force(rule, [freal(3:4, e), 0.0_dp])
       case (MBDK_FORCE_TORQUE)

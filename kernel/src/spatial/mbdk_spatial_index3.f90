@@ -61,7 +61,8 @@
 !> stall lies within STALL_ACCEPT times the tolerance or the level a fresh matrix last
 !> stalled at (decaying back by STALL_DECAY per step), so that old matrices are not rebuilt
 !> in vain. So each h from 1e-2 to 1e-6 converges at second order down to the roundoff
-!> plateau on the built-in scenes (tests/test_spatial.py), on any BLAS kernel.
+!> plateau on the built-in scenes (tests/test_floor.py, from 1e-3; studies/spatial_scenes.py,
+!> table spatial_index3_small_steps), on any BLAS kernel.
 !> Each try takes
 !> at most max(newton_max_iter, 20) updates (the simplified iteration converges linearly); two
 !> failed tries: MBDK_ERR_NEWTON_DIVERGED; a singular matrix (rows lost their rank):
@@ -79,7 +80,8 @@ module mbdk_spatial_index3
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
-  use mbdk_newton_floor, only: mbdk_floor_probes, mbdk_floor_from_probes, MBDK_FLOOR_FACTOR
+  use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_from_probes, mbdk_floor_cap, &
+    MBDK_FLOOR_FACTOR
   use mbdk_fixed_step, only: mbdk_step_plan
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
     mbdk_spatial_multipliers, MBDK_SPATIAL_PROJECTION
@@ -124,7 +126,7 @@ contains
     real(dp) :: t, t1, h, rtol, atol, phi_tol, dnorm, dprev, hprev, dtol, stall_level
     real(dp), allocatable :: y(:), f(:), x(:), r(:), dx(:), jac(:, :), lam(:), lamfull(:), &
       phi(:), xp(:), rp(:), fprev(:), lamprev(:), floor(:), floor_probe(:), wt(:), wt_strict(:), &
-      e(:), b1(:), b2(:), dyn(:), e_state(:)
+      e(:), b1(:), b2(:), dyn(:), e_state(:), g(:), gabs(:)
     integer, allocatable :: ipiv(:), rows(:)
     type(mbdk_timer_t) :: timer
 
@@ -153,10 +155,10 @@ contains
     allocate (y(ny), f(ny), x(nx), r(nx), dx(nx), jac(nx, nx), lam(na), lamfull(model%m), &
               phi(model%m), xp(nx), rp(nx), ipiv(nx), fprev(ny), lamprev(na), floor(ny), &
               floor_probe(ny), wt(ny), wt_strict(ny), e(nx), b1(nx), b2(nx), &
-              dyn(nx), e_state(nx), stat=it)
-    call mbdk_alloc_status(it, MBDK_REAL_BYTES * (real(nx, dp) * (nx + 10) + 7.0_dp * ny + &
-                           2.0_dp * na + 2.0_dp * model%m) + MBDK_INT_BYTES * nx, stat, &
-                           st%alloc_bytes)
+              dyn(nx), e_state(nx), g(ny), gabs(6 * model%nb), stat=it)
+    call mbdk_alloc_status(it, MBDK_REAL_BYTES * (real(nx, dp) * (nx + 10) + 8.0_dp * ny + &
+                           2.0_dp * na + 2.0_dp * model%m + 6.0_dp * model%nb) + &
+                           MBDK_INT_BYTES * nx, stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
 
     call mbdk_timer_start(timer)
@@ -211,11 +213,11 @@ contains
         call start_of_step(t, y, f, lam, s)
         if (s /= MBDK_SUCCESS) return
         st%steps = st%steps + 1
-        st%t_reached = t
         if (model%has_watch) then
           call model%watch(t, y, sample, s)
           if (s /= MBDK_SUCCESS) return
         end if
+        st%t_reached = t            ! the step passed its checks
         if (sample) then
           nwritten = nwritten + 1
           t_out(nwritten) = t
@@ -357,11 +359,6 @@ contains
       real(dp), intent(out) :: rs(:)
       integer, intent(out) :: s
       real(dp), intent(out), optional :: noise(:)
-      real(dp), allocatable :: g(:), gabs(:)
-      integer :: astat
-      allocate (g(ny), gabs(6 * model%nb), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (ny + 6.0_dp * model%nb), s)
-      if (s /= MBDK_SUCCESS) return
       lamfull = 0.0_dp
       lamfull(rows) = xs(ny + 1:) / (0.25_dp * h * h)
       call mbdk_spatial_dae_rhs(model, t1, y + xs(1:ny), lamfull, g, phi, s, gabs)
@@ -383,12 +380,10 @@ contains
     subroutine update_floor(s)
       integer, intent(out) :: s
       e(ny + 1:) = 0.0_dp
-      call mbdk_floor_probes(e, b1, b2)
-      call mbdk_lu_solve(jac, ipiv, b1, s)
-      if (s /= MBDK_SUCCESS) return
-      call mbdk_lu_solve(jac, ipiv, b2, s)
+      call mbdk_floor_solve(e, jac, ipiv, b1, b2, s)
       if (s /= MBDK_SUCCESS) return
       call mbdk_floor_from_probes(b1(1:ny), b2(1:ny), floor_probe)
+      call mbdk_floor_cap(y + x(1:ny), floor_probe)
     end subroutine update_floor
 
     !> the residual's Jacobian at xs by forward differences, factorised

@@ -274,7 +274,6 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
-        st%t_reached = tret(1)
         ! CVODE's own floor is h_min (0 by default): a step that cannot move t would repeat
         flag = FCVodeGetLastStep(mem, hlast)
         if (hlast(1) < mbdk_adaptive_h_floor(opt, tret(1), landing=tret(1) >= t_end)) then
@@ -317,6 +316,7 @@ contains
         ! has_post_step was refused: this is the finite check and the watch
         call mbdk_adaptive_after_step(prob, tret(1), y, sample, projected, stat)
         if (stat /= MBDK_SUCCESS) exit run
+        st%t_reached = tret(1)      ! the step passed its checks
         do while (k <= ns)
           if (t_out(k) > tret(1)) exit
           y_out(:, k) = y

@@ -84,7 +84,8 @@
 !> step's own state, Y is checked (finite: else MBDK_ERR_NONFINITE) and the scene's watch runs
 !> (force = a sample fell in the step) with the step's own multipliers for the drivers' power:
 !> no model evaluation of IDA's leaves work%lam_rhs current (a watch that integrates a work gets
-!> the interpolant at the step's Gauss nodes first, mbdk_model_watch_nodes). The step's order is counted.
+!> the interpolant at the step's Gauss nodes first, mbdk_model_watch_nodes). The step's order
+!> is counted.
 !> max_steps bounds the accepted steps plus the steps retried after an error-test or a
 !> convergence failure (IDAGetNumErrTestFails + IDAGetNumStepSolveFails), counted here (IDA's
 !> own limit is off): MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor
@@ -203,6 +204,8 @@ module mbdk_ida
     !> the first step where the caller gave none (0: IDA's own estimate)
     real(dp) :: h0 = 0.0_dp
     logical :: ggl = .false.
+    !> ggl: the largest multiplier its tolerance was set from (ggl_lam_atol)
+    real(dp) :: lam_scale = 0.0_dp
     logical :: spatial = .false.
     type(mbdk_spatial_model_t), pointer :: smodel => null()
     integer :: nq = 0
@@ -292,7 +295,10 @@ contains
     id(2 * nc + 1:) = 0.0_dp
     atol_v(1:2 * nc + m) = opt%atol
     atol_v(2 * nc + m + 1:) = MU_ATOL
-    if (ggl .and. m > 0) atol_v(2 * nc + 1:2 * nc + m) = ggl_lam_atol(opt, y(2 * nc + 1:2 * nc + m))
+    if (ggl .and. m > 0) then
+      atol_v(2 * nc + 1:2 * nc + m) = ggl_lam_atol(opt, y(2 * nc + 1:2 * nc + m))
+      ctx%lam_scale = maxval(abs(y(2 * nc + 1:2 * nc + m)))
+    end if
 
     ctx%ny = 2 * nc
     ctx%nl = m
@@ -430,7 +436,10 @@ contains
     id(ny + 1:) = 0.0_dp
     atol_v(1:ny + na) = opt%atol
     atol_v(ny + na + 1:) = MU_ATOL
-    if (ggl .and. na > 0) atol_v(ny + 1:ny + na) = ggl_lam_atol(opt, y(ny + 1:ny + na))
+    if (ggl .and. na > 0) then
+      atol_v(ny + 1:ny + na) = ggl_lam_atol(opt, y(ny + 1:ny + na))
+      ctx%lam_scale = maxval(abs(y(ny + 1:ny + na)))
+    end if
     if (ggl) then
       ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
       ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and a fast start
@@ -615,7 +624,6 @@ contains
         end if
         stat = ctx%stat
         if (stat /= MBDK_SUCCESS) exit run
-        st%t_reached = tret(1)
         ! IDA's own floor is h_min (0 by default): a step that cannot move t would repeat. The
         ! step IDA shortened to land on t_end is the last one, whatever its length.
         flag = FIDAGetLastStep(mem, hlast)
@@ -681,6 +689,19 @@ contains
           call mbdk_model_watch(ctx%model, tret(1), y(1:ny / 2), y(ny / 2 + 1:ny), sample, &
                                 stat, lam=y(ny + 1:ny + nl))
           if (stat /= MBDK_SUCCESS) exit run
+        end if
+        st%t_reached = tret(1)      ! the step passed its checks
+        if (ctx%ggl .and. ctx%nl > 0) then
+          ! multipliers that grew (from rest, or a load ramped up) raise their tolerance
+          if (maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl))) > 2.0_dp * ctx%lam_scale) then
+            ctx%lam_scale = maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl)))
+            atol_v(ctx%ny + 1:ctx%ny + ctx%nl) = ggl_lam_atol(opt, y(ctx%ny + 1:ctx%ny + ctx%nl))
+            flag = FIDASVtolerances(mem, opt%rtol, nv_atol)
+            if (flag < 0) then
+              stat = MBDK_ERR_BACKEND
+              exit run
+            end if
+          end if
         end if
         do while (k <= ns)
           if (t_out(k) > tret(1)) exit
@@ -939,12 +960,12 @@ contains
     end if
   end function ida_res
 
-  !> ggl's absolute tolerance of the multipliers lam0 (their initial values): max(atol, max(rtol,
-  !> LAM_RTOL_FLOOR) max |lam0|). In the index-2 iteration the multipliers carry roundoff of
-  !> the order of eps times the largest one times the iteration matrix's condition, which grows
-  !> like 1/h^2; tested at atol alone, or at rtol near eps, that roundoff keeps Newton from
-  !> converging (IDA_CONV_FAIL) on stiff scenes at tight tolerances (the flyball governor at
-  !> rtol 1e-10), and whether it does then depends on where the steps fall.
+  !> ggl's absolute tolerance of the multipliers lam (their values at the start, and again after
+  !> a step where the largest has doubled): max(atol, max(rtol, LAM_RTOL_FLOOR) max |lam|). In
+  !> the index-2 iteration the multipliers carry roundoff of the order of eps times the largest
+  !> one times the iteration matrix's condition, which grows like 1/h^2; tested at atol alone,
+  !> or at rtol near eps, that roundoff keeps Newton from converging (IDA_CONV_FAIL) on stiff
+  !> scenes at tight tolerances, and whether it does then depends on where the steps fall.
   pure function ggl_lam_atol(opt, lam0) result(a)
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: lam0(:)
