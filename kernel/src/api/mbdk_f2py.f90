@@ -916,8 +916,9 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! none), the last row the work of dampers, loads and drivers as the run integrated it at every
   ! step (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae;
   ! the multipliers are the DAE's own); 2: trapezoidal_index3's projected form
-  ! (mbdk_spatial_index3; the model is built with the projection formulation); 3, 4: ida in its index1 and GGL forms
-  ! (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
+  ! (mbdk_spatial_index3; the model is built with the projection formulation); 3, 4: ida in
+  ! its index1 and GGL forms (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the
+  ! stabilised index-2 form (SI2).
   ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
