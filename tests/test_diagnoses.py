@@ -193,3 +193,35 @@ def test_book_scheme_multipliers_are_flagged():
         mbdk.simulate(sc, "trapezoidal_index3", formulation="index3", h=1e-3, t_end=0.1,
                       outputs=("energy",))
     assert "multipliers" not in r.manifest
+
+
+def test_ggl_multipliers_below_their_floor_are_flagged():
+    """ida's GGL form tests its multipliers no tighter than 1e-8 of the largest (the index-2
+    iteration's roundoff): a run at rtol 1e-10 that returns them warns and says so in its
+    manifest, and its multipliers agree with the index1 form's (tested to the tolerance) to
+    that floor, not to rtol; at rtol 1e-7 nothing is said."""
+    sc = mbdk.scene("double_pendulum")
+    kw = dict(rtol=1e-10, atol=1e-12, t_end=0.3, dt_out=0.3)
+    with pytest.warns(mbdk.AccuracyWarning, match="1e-08 of the largest multiplier"):
+        ggl = mbdk.simulate(sc, "ida", formulation="ggl", **kw)
+    assert "rtol = 1e-10" in ggl.manifest["multipliers"]
+    ind = mbdk.simulate(sc, "ida", formulation="index1", **kw)
+    scale = np.abs(ind.multipliers[-1]).max()
+    assert np.abs(ggl.multipliers[-1] - ind.multipliers[-1]).max() < 1e-6 * scale
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = mbdk.simulate(sc, "ida", formulation="ggl", rtol=1e-7, atol=1e-9, t_end=0.3)
+    assert "multipliers" not in r.manifest
+
+
+def test_the_largest_stable_step_along_a_mode():
+    """unstable_mode's largest stable step is the first loss of stability along the mode's
+    ray from h = 0, found by a scan and bisection on the method's own step matrix. bdf2 is
+    A-stable: no damped mode is unstable at any h. rk4 on an undamped oscillation (omega =
+    10 1/s) at h omega = 2.9 lies beyond its imaginary-axis limit 2 sqrt(2) (the root of
+    |R(i y)| = 1 for rk4's polynomial R), so h_max = 2 sqrt(2) / 10."""
+    osc = np.array([[0.0, 1.0], [-100.0, -0.2]])
+    assert unstable_mode("bdf2", 0.5, osc) is None
+    m = unstable_mode("rk4", 0.29, np.array([[0.0, 1.0], [-100.0, 0.0]]))
+    assert m is not None
+    assert m["h_max"] * 10.0 == pytest.approx(2.0 * np.sqrt(2.0), rel=1e-6)

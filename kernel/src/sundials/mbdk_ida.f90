@@ -46,9 +46,10 @@
 !> scalar opt%atol.
 !> The same weights serve IDA's Newton convergence test, which sees every component: lam with
 !> rtol and opt%atol, so that the sampled multipliers are converged (ggl: with an absolute
-!> tolerance of max(rtol, LAM_RTOL_FLOOR) times the largest initial multiplier, the roundoff
-!> the index-2 iteration leaves in them; ggl_lam_atol), but mu with the absolute
-!> tolerance MU_ATOL = 1 (IDASVtolerances), which takes it out of the test. mu is zero in the
+!> tolerance of max(rtol, LAM_RTOL_FLOOR) times the largest multiplier so far, the roundoff
+!> the index-2 iteration leaves in them; ggl_lam_atol), but mu with the absolute tolerance
+!> MU_ATOL = 1 (ggl's weights are ida_ewt's, IDAWFtolerances), which takes it out of the
+!> test. mu is zero in the
 !> exact solution and has no meaning of its own; its Newton updates carry the roundoff of the
 !> index-2 iteration matrix, whose condition grows like 1/h^2, so tested at opt%atol they stop
 !> converging at small steps (IDA's own first step, 0.5 / |Y'(0)| in the error weights, is
@@ -164,7 +165,7 @@ module mbdk_ida
     FIDAGetLastStep, FIDAGetNumSteps, FIDAGetNumResEvals, FIDAGetNumLinResEvals, &
     FIDAGetNumJacEvals, FIDAGetNumLinSolvSetups, FIDAGetNumNonlinSolvIters, &
     FIDAGetNumErrTestFails, FIDAGetNumNonlinSolvConvFails, FIDAGetNumStepSolveFails, &
-    FIDASVtolerances
+    FIDAWFtolerances
   implicit none
   private
   public :: mbdk_ida_solve, mbdk_ida_solve_spatial
@@ -204,8 +205,11 @@ module mbdk_ida
     !> the first step where the caller gave none (0: IDA's own estimate)
     real(dp) :: h0 = 0.0_dp
     logical :: ggl = .false.
-    !> ggl: the largest multiplier its tolerance was set from (ggl_lam_atol)
-    real(dp) :: lam_scale = 0.0_dp
+    !> ggl: the largest multiplier its tolerance was set from (ggl_lam_atol), and the error
+    !> weights' tolerances, which ida_ewt reads (IDA's own IDASVtolerances cannot be called
+    !> again once the solve has started: IDA 6.4 leaves its weight function without its data)
+    real(dp) :: lam_scale = 0.0_dp, rtol = 0.0_dp
+    real(dp), pointer, contiguous :: atol(:) => null()
     logical :: spatial = .false.
     type(mbdk_spatial_model_t), pointer :: smodel => null()
     integer :: nq = 0
@@ -511,7 +515,7 @@ contains
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
     type(c_ptr) :: sunctx, mem
-    type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id, nv_atol
+    type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id
     type(SUNMatrix), pointer :: amat
     type(SUNLinearSolver), pointer :: ls
     real(c_double) :: tret(1), hlast(1), told
@@ -529,7 +533,7 @@ contains
     ! every handle starts empty so that the release below frees what exists on any path
     sunctx = c_null_ptr
     mem = c_null_ptr
-    nullify (nv_y, nv_yp, nv_dky, nv_id, nv_atol, amat, ls)
+    nullify (nv_y, nv_yp, nv_dky, nv_id, amat, ls)
 
     run: block
       stat = MBDK_ERR_BACKEND
@@ -543,10 +547,6 @@ contains
       if (.not. associated(nv_dky)) exit run
       nv_id => FN_VMake_Serial(int(n, c_int64_t), id, sunctx)
       if (.not. associated(nv_id)) exit run
-      if (ctx%ggl) then
-        nv_atol => FN_VMake_Serial(int(n, c_int64_t), atol_v, sunctx)
-        if (.not. associated(nv_atol)) exit run
-      end if
       mem = FIDACreate(sunctx)
       if (.not. c_associated(mem)) exit run
       ! before anything else can fail: the kernel never prints
@@ -556,13 +556,15 @@ contains
       flag = FIDAInit(mem, c_funloc(ida_res), t0, nv_y, nv_yp)
       if (flag == 0) then
         if (ctx%ggl) then
-          flag = FIDASVtolerances(mem, opt%rtol, nv_atol)
+          ctx%rtol = opt%rtol
+          ctx%atol => atol_v
+          flag = FIDAWFtolerances(mem, c_funloc(ida_ewt))
         else
           flag = FIDASStolerances(mem, opt%rtol, opt%atol)
         end if
       end if
       if (flag == 0) flag = FIDASetUserData(mem, c_loc(ctx))
-      ! the error test sees q and v only (module header); IDA copies id and atol
+      ! the error test sees q and v only (module header); IDA copies id
       if (flag == 0) flag = FIDASetId(mem, nv_id)
       if (flag == 0) flag = FIDASetSuppressAlg(mem, 1_c_int)
       ! the step count is ours (max_steps counts failures too); IDA's per-call limit is off
@@ -696,11 +698,6 @@ contains
           if (maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl))) > 2.0_dp * ctx%lam_scale) then
             ctx%lam_scale = maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl)))
             atol_v(ctx%ny + 1:ctx%ny + ctx%nl) = ggl_lam_atol(opt, y(ctx%ny + 1:ctx%ny + ctx%nl))
-            flag = FIDASVtolerances(mem, opt%rtol, nv_atol)
-            if (flag < 0) then
-              stat = MBDK_ERR_BACKEND
-              exit run
-            end if
           end if
         end if
         do while (k <= ns)
@@ -715,10 +712,9 @@ contains
     end block run
 
     if (c_associated(mem)) call add_stats(mem, st)
-    call FIDAFree(mem)   ! NULL-safe; also frees IDA's copies of id and atol
+    call FIDAFree(mem)   ! NULL-safe; also frees IDA's copy of id
     if (associated(ls)) ierr = FSUNLinSolFree(ls)
     if (associated(amat)) call FSUNMatDestroy(amat)
-    if (associated(nv_atol)) call FN_VDestroy(nv_atol)
     if (associated(nv_id)) call FN_VDestroy(nv_id)
     if (associated(nv_dky)) call FN_VDestroy(nv_dky)
     if (associated(nv_yp)) call FN_VDestroy(nv_yp)
@@ -921,6 +917,28 @@ contains
 
   !> IDAResFn: r = F(t, Y, Y') on the vectors' own storage. 0: done; 1: Y or r not finite (IDA
   !> cuts the step); -1: the model failed or the solve was interrupted (ctx%stat says which).
+  !> The error weights of the ggl form (IDAWFtolerances): 1 / (rtol |y_i| + atol_i), atol from
+  !> ctx%atol, whose multipliers' entries the loop raises as they grow (ggl_lam_atol). -1
+  !> (IDA stops) where a weight would not be positive and finite.
+  integer(c_int) function ida_ewt(nv_y, nv_ewt, user_data) bind(C, name='') result(ierr)
+    type(N_Vector), target :: nv_y, nv_ewt
+    type(c_ptr), value :: user_data
+    type(ida_context_t), pointer :: ctx
+    real(c_double), pointer, contiguous :: y(:), ewt(:)
+    real(dp) :: tol
+    integer :: i
+    call c_f_pointer(user_data, ctx)
+    call c_f_pointer(n_vgetarraypointer(c_loc(nv_y)), y, [ctx%n])
+    call c_f_pointer(n_vgetarraypointer(c_loc(nv_ewt)), ewt, [ctx%n])
+    ierr = -1
+    do i = 1, ctx%n
+      tol = ctx%rtol * abs(y(i)) + ctx%atol(i)
+      if (.not. (tol > 0.0_dp .and. tol <= huge(1.0_dp))) return
+      ewt(i) = 1.0_dp / tol
+    end do
+    ierr = 0
+  end function ida_ewt
+
   integer(c_int) function ida_res(t, nv_y, nv_yp, nv_r, user_data) bind(C, name='') result(ierr)
     real(c_double), value :: t
     type(N_Vector), target :: nv_y, nv_yp, nv_r
