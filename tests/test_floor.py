@@ -213,3 +213,54 @@ def test_ida_ggl_starts_a_slider_crank_turning_at_10_rad_s():
     q = {k: r.q[-1] for k, r in runs.items()}
     assert np.abs(q[("ida", "ggl")] - q[("bdf", "si2")]).max() < 1e-6
     assert np.abs(q[("ida", "ggl")] - q[("ida", "index1")]).max() < 1e-6
+
+
+def _rssr():
+    """A spatial RSSR four-bar (crank about z at the origin, coupler on two spherical joints,
+    rocker about x), its coupler's frame along the line of its joints, released from rest."""
+    a, p = np.array([0.1, 0.0, 0.0]), np.array([0.25, 0.15, 0.05])
+    b = p + np.array([0.0, 0.0, 0.12])
+    ex = (b - a) / np.linalg.norm(b - a)
+    ez = np.cross(ex, [0.0, 1.0, 0.0])
+    ez /= np.linalg.norm(ez)
+    rot = np.column_stack([ex, np.cross(ez, ex), ez])
+    from mbdk.rotations import to_quaternion
+    quat = [float(c) for c in to_quaternion(rot)]
+    length2 = float(np.sum((b - a) ** 2))
+    return scene_from_dict({
+        "scene": {"name": "rssr", "rotation": "quaternion",
+                  "description": "a spatial RSSR four-bar released from rest"},
+        "body": [
+            {"name": "crank", "kind": "spatial", "mass": 0.5, "inertia": [1e-5, 5e-4, 5e-4],
+             "position": [0.05, 0.0, 0.0], "quaternion": [1.0, 0.0, 0.0, 0.0]},
+            {"name": "coupler", "kind": "spatial", "mass": 1.0,
+             "inertia": [2e-4, length2 / 12, length2 / 12],
+             "position": [float(c) for c in (a + b) / 2], "quaternion": quat},
+            {"name": "rocker", "kind": "spatial", "mass": 0.8, "inertia": [1e-3, 1e-3, 1e-5],
+             "position": [0.25, 0.15, 0.11], "quaternion": [1.0, 0.0, 0.0, 0.0]}],
+        "joint": [
+            {"name": "R1", "type": "revolute", "body1": "crank", "at": [0.0, 0.0, 0.0],
+             "axis": [0.0, 0.0, 1.0]},
+            {"name": "S1", "type": "spherical", "body1": "coupler", "body2": "crank",
+             "at": [float(c) for c in a]},
+            {"name": "S2", "type": "spherical", "body1": "coupler", "body2": "rocker",
+             "at": [float(c) for c in b]},
+            {"name": "R2", "type": "revolute", "body1": "rocker", "at": [float(c) for c in p],
+             "axis": [1.0, 0.0, 0.0]}],
+        "force": [{"type": "gravity", "g": [0.0, -9.81, -3.0]}]})
+
+
+def test_spatial_index3_on_an_rssr_loop():
+    """The issue's closed loop: trapezoidal_index3 on a spatial RSSR four-bar failed near
+    0.67 s at h = 1e-3 and at 0.05 s at h = 5e-4 (a smaller step failed sooner). It runs 1 s
+    at h = 1e-3, 5e-4 and 2.5e-4, second order against dopri54 (rtol 1e-12, projection)."""
+    sc = _rssr()
+    ref = mbdk.simulate(sc, "dopri54", formulation="projection", rtol=1e-12, atol=1e-14,
+                        t_end=1.0, dt_out=1.0)
+    errs = []
+    for h in (1e-3, 5e-4, 2.5e-4):
+        r = mbdk.simulate(sc, "trapezoidal_index3", h=h, t_end=1.0, every=round(1.0 / h),
+                          outputs=("residuals",))
+        assert r.success and r.residuals[:, 0].max() < 1e-12
+        errs.append(_state_error(r, ref))
+    assert 3.5 < errs[0] / errs[1] < 4.5 and 3.5 < errs[1] / errs[2] < 4.5, errs
