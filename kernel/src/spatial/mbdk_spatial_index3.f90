@@ -91,6 +91,8 @@ module mbdk_spatial_index3
 
   !> an update larger than this fraction of the previous one rebuilds the Newton matrix
   real(dp), parameter :: CONTRACTION_MAX = 0.5_dp
+  !> steps between estimates of the update's floor (and at every new matrix)
+  integer, parameter :: FLOOR_REFRESH = 16
   !> Newton updates per try at least (the options' newton_max_iter where larger): the simplified
   !> iteration with an old matrix converges linearly
   integer, parameter :: MAXIT_LEAST = 20
@@ -121,7 +123,7 @@ contains
     integer, intent(out) :: stat
 
     integer :: ny, nq, na, nx, nsamp, plan_stat, maxit, it, tries
-    integer(i8) :: nsteps, i
+    integer(i8) :: nsteps, i, floor_step
     logical :: shortened, sample, fresh, have_lu, done, have_prev, phi_ok, phi_was_ok, have_floor
     real(dp) :: t, t1, h, rtol, atol, phi_tol, dnorm, dprev, hprev, dtol, stall_level
     real(dp), allocatable :: y(:), f(:), x(:), r(:), dx(:), jac(:, :), lam(:), lamfull(:), &
@@ -151,6 +153,8 @@ contains
     atol = opt%newton_atol
     maxit = max(opt%newton_max_iter, MAXIT_LEAST)
     stall_level = STALL_ACCEPT
+    have_floor = .false.
+    floor_step = 0
     phi_tol = max(atol, 64.0_dp * epsilon(1.0_dp) * model%length)
     allocate (y(ny), f(ny), x(nx), r(nx), dx(nx), jac(nx, nx), lam(na), lamfull(model%m), &
               phi(model%m), xp(nx), rp(nx), ipiv(nx), fprev(ny), lamprev(na), floor(ny), &
@@ -255,7 +259,9 @@ contains
         end if
         dprev = huge(1.0_dp)
         phi_was_ok = .false.
-        have_floor = .false.
+        ! the floor, estimated once per matrix and FLOOR_REFRESH steps (the residual's terms
+        ! change little from step to step; two solves each time)
+        if (i - floor_step >= FLOOR_REFRESH) have_floor = .false.
         do it = 1, maxit
           call residual(x, r, s, e)
           if (s /= MBDK_SUCCESS) return
@@ -286,6 +292,7 @@ contains
               call update_floor(s)
               if (s /= MBDK_SUCCESS) return
               have_floor = .true.
+              floor_step = i
             end if
             ! the floor: the update's roundoff (the probes), and the state's own: y + dy is not
             ! resolved below a few ulps of it
