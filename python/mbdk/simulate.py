@@ -862,19 +862,20 @@ BOOK_MULTIPLIERS = (
     "formulation 'augmented_lagrangian' gives them at second order")
 
 
-#: ida's GGL form tests its multipliers no tighter than this relative to the largest (the
-#: kernel's LAM_RTOL_FLOOR, kernel/src/sundials/mbdk_ida.f90: the index-2 iteration's roundoff)
+#: ida tests its multipliers no tighter than this relative to the largest, in both its forms
+#: (the kernel's LAM_RTOL_FLOOR, kernel/src/sundials/mbdk_ida.f90: its iteration's roundoff)
 GGL_LAMBDA_RTOL = 1e-8
 
 
 def ggl_multipliers(method: str, formulation: str, rtol) -> str | None:
-    """What a run's manifest and warning say of its multipliers where ida's GGL form gives them
-    less accurately than rtol asks (rtol below GGL_LAMBDA_RTOL); None elsewhere."""
-    if method != "ida" or formulation != "ggl" or rtol is None or not rtol < GGL_LAMBDA_RTOL:
+    """What a run's manifest and warning say of its multipliers where ida gives them less
+    accurately than rtol asks (rtol below GGL_LAMBDA_RTOL, either form); None elsewhere."""
+    if method != "ida" or rtol is None or not rtol < GGL_LAMBDA_RTOL:
         return None
     return (f"converged to about {GGL_LAMBDA_RTOL:g} of the largest multiplier, not to rtol = "
-            f"{rtol:g}: ida's GGL form tests them no tighter, the roundoff of its index-2 "
-            "iteration; the index1 form, or bdf's si2 form, gives them to the tolerance")
+            f"{rtol:g}: ida tests them no tighter, the roundoff of its iteration (in its "
+            f"{formulation} form as in the other); bdf on the DAE (formulation 'si2') gives them "
+            "to the tolerance")
 
 
 def _gears_at_assembled_pose(scene: Scene, t0: float) -> Scene:

@@ -302,7 +302,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_scene_dae
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE, &
     MBDK_ERR_NO_MEMORY, mbdk_is_failure
@@ -440,7 +440,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-    call mbdk_solve_scene_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
+    call mbdk_solve_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
                               lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
@@ -927,7 +927,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
   use mbdk_spatial_index3, only: mbdk_spatial_index3_solve
   use mbdk_spatial_model
   implicit none
@@ -1027,7 +1027,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   if (dae_form == 1 .or. (dae_form >= 3 .and. dae_form <= 5)) then
     ! bdf in its I3 (1) or SI2 (5) form, ida in its index1 (3) or GGL (4) form
-    call mbdk_solve_spatial_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
+    call mbdk_solve_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
                                 t_end, y, t_out, y_out, lam_out, nwritten, st, status)
     lam_out(:, nwritten + 1:) = nan
   else if (dae_form == 0) then

@@ -84,7 +84,8 @@ module mbdk_spatial_index3
     MBDK_FLOOR_FACTOR
   use mbdk_fixed_step, only: mbdk_step_plan
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
-    mbdk_spatial_multipliers, MBDK_SPATIAL_PROJECTION
+    mbdk_spatial_multipliers
+  use mbdk_mechanism, only: MBDK_FORM_PROJECTION
   implicit none
   private
   public :: mbdk_spatial_index3_solve
@@ -136,7 +137,7 @@ contains
     ny = size(y0)
     nq = ny - 6 * model%nb
     stat = MBDK_ERR_NOT_APPLICABLE
-    if (model%opt%formulation /= MBDK_SPATIAL_PROJECTION) return
+    if (model%opt%formulation /= MBDK_FORM_PROJECTION) return
     stat = MBDK_ERR_INVALID_INPUT
     if (ny /= model%n .or. nq < 1) return
     call mbdk_step_plan(t0, t_end, opt%h, opt%every, nsteps, nsamp, shortened, plan_stat)

@@ -76,6 +76,8 @@ module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
+  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED, MBDK_FORM_BAUMGARTE, &
+    MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
@@ -105,9 +107,6 @@ module mbdk_spatial_model
     MBDK_ROT_CARDAN123 = 3
   integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
     MBDK_NORM_NONE = 3
-  !> the formulations, with the codes of the planar model's (mbdk_model)
-  integer, parameter, public :: MBDK_SPATIAL_REDUCED = 1, MBDK_SPATIAL_BAUMGARTE = 2, &
-    MBDK_SPATIAL_PENALTY = 3, MBDK_SPATIAL_PROJECTION = 4
   !> outputs per sample (mbdk_spatial_outputs)
   integer, parameter, public :: MBDK_SPATIAL_NOUT = 7
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
@@ -131,7 +130,7 @@ module mbdk_spatial_model
     PRIM_SLIDE = 5
 
   type, public :: mbdk_spatial_options_t
-    integer :: formulation = MBDK_SPATIAL_REDUCED
+    integer :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
     integer :: rotation = MBDK_ROT_QUATERNION
     integer :: norm = MBDK_NORM_PROJECT
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
@@ -167,9 +166,11 @@ module mbdk_spatial_model
     integer :: switches = 0
   end type mbdk_spatial_work_t
 
-  type, extends(mbdk_problem_t), public :: mbdk_spatial_model_t
+  !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
+  !> per body], ncoord = nqb nb, nvel = 6 nb, M block diagonal (not diagonal: J).
+  type, extends(mbdk_mechanism_t), public :: mbdk_spatial_model_t
     type(mbdk_spatial_options_t) :: opt
-    integer :: nb = 0, m = 0, nqb = 7, nprim = 0, nf = 0
+    integer :: nqb = 7, nprim = 0, nf = 0
     integer :: seq(3) = 0
     real(dp), allocatable :: mass(:), inertia(:, :, :), inv_inertia(:, :, :)
     type(prim_t), allocatable :: prim(:)
@@ -198,6 +199,15 @@ module mbdk_spatial_model
     procedure :: watch => spatial_watch
     procedure :: watch_wants_nodes => spatial_wants_nodes
     procedure :: watch_nodes => spatial_watch_nodes
+    procedure :: evaluate => spatial_evaluate
+    procedure :: mass_times => spatial_mass_times
+    procedure :: minv_times => spatial_minv_times
+    procedure :: mass_diagonal => spatial_mass_diagonal
+    procedure :: rates => spatial_rates
+    procedure :: accelerations => spatial_accelerations_of
+    procedure :: active_rows => spatial_active_rows
+    procedure :: watch_lam => spatial_watch_lam
+    procedure :: watch_nodes_lam => spatial_watch_nodes_lam
   end type mbdk_spatial_model_t
 
   !> the kinematics of every body at one state (index 0: the ground)
@@ -238,9 +248,9 @@ contains
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
         MBDK_SPATIAL_FORCE_REALS .or. size(freal, 2) /= size(ftype)) return
-    if (opt%formulation < MBDK_SPATIAL_REDUCED .or. opt%formulation > &
-        MBDK_SPATIAL_PROJECTION) return
-    if (opt%formulation == MBDK_SPATIAL_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
+    if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > &
+        MBDK_FORM_PROJECTION) return
+    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
         opt%pen_omega > 0.0_dp .and. opt%pen_mu > 0.0_dp .and. opt%pen_alpha <= huge(1.0_dp) &
         .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
@@ -255,6 +265,9 @@ contains
     if (opt%rotation == MBDK_ROT_EULER313) model%seq = MBDK_SEQ_EULER313
     if (opt%rotation == MBDK_ROT_CARDAN123) model%seq = MBDK_SEQ_CARDAN123
     model%n = nb * (model%nqb + 6)
+    model%ncoord = nb * model%nqb
+    model%nvel = 6 * nb
+    model%formulation = opt%formulation
     if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
     allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 19.0_dp * nb, stat, asked)
@@ -445,7 +458,7 @@ contains
     work%active = model%active
     work%switches = 0
     model%nq = 0
-    model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
+    model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
     model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
       opt%watch_energy > 0.0_dp .or. (model%ninv > 0 .and. opt%watch_momentum > 0.0_dp) .or. &
@@ -1179,7 +1192,7 @@ contains
     type(frames_t) :: fr
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
       l(:), mc(:, :), phit(:)
-    real(dp) :: vg, vs, power, p(4), jw(3)
+    real(dp) :: vg, vs, power, jw(3)
     integer :: b, k, o, nb, m
     f = 0.0_dp
     nb = self%nb
@@ -1208,17 +1221,17 @@ contains
       acc = acc - matmul(mc, lam_in)
       if (present(phi_out)) phi_out = phi
       if (present(acc_abs)) acc_abs = acc_abs + matmul(abs(mc), abs(lam_in))
-    else if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
+    else if (self%m > 0 .and. self%opt%formulation == MBDK_FORM_PENALTY) then
       call constraints(self, fr, t, phi, c, gam, phit)
       call penalty_solve(stat)
       if (stat /= MBDK_SUCCESS) return
       if (present(lam)) lam = l
     else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
-      if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
+      if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
         gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
               self%opt%beta**2 * phi
-      if (self%opt%formulation == MBDK_SPATIAL_REDUCED) then
+      if (self%opt%formulation == MBDK_FORM_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
@@ -1228,27 +1241,8 @@ contains
       if (present(lam)) lam = l
     end if
     ! the kinematic equations
-    do b = 1, self%nb
-      k = qi(self, b)
-      f(k:k + 2) = fr%v(:, b)
-      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
-        p = y(k + 3:k + 6)
-        f(k + 3:k + 6) = mbdk_quat_rates(p, fr%om(:, b), .true.)
-        if (self%opt%norm == MBDK_NORM_STABILISE) f(k + 3:k + 6) = f(k + 3:k + 6) + &
-          0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
-      else
-        if (self%opt%lock_guard > 0.0_dp) then
-          if (merge(abs(sin(y(k + 4))), abs(cos(y(k + 4))), &
-                    self%opt%rotation == MBDK_ROT_EULER313) < self%opt%lock_guard) then
-            stat = MBDK_ERR_SINGULAR_MATRIX
-            return
-          end if
-        end if
-        call mbdk_angles_rates(self%seq, y(k + 3:k + 5), fr%om(:, b), .true., f(k + 3:k + 5), &
-                               stat)
-        if (stat /= MBDK_SUCCESS) return
-      end if
-    end do
+    call body_rates(self, y(1:self%ncoord), y(self%ncoord + 1:), f(1:self%ncoord), stat)
+    if (stat /= MBDK_SUCCESS) return
     f(wi(self, 1):) = acc
     stat = MBDK_SUCCESS
 
@@ -1344,7 +1338,7 @@ contains
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     integer, intent(out) :: stat
-    call spatial_project(self, t, y, self%opt%formulation == MBDK_SPATIAL_PROJECTION, stat)
+    call spatial_project(self, t, y, self%opt%formulation == MBDK_FORM_PROJECTION, stat)
   end subroutine spatial_post_step
 
   !> Normalises the quaternions, and with constrained: the least mass-weighted change of
@@ -1651,5 +1645,170 @@ contains
     call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
                          [0.0_dp, 0.0_dp, out(4)], stat, mom=mom, mom_scale=msc, qdev=qdev)
   end subroutine mbdk_spatial_watch
+
+  !> q' = T(q) v body by body: r' = v, and the orientation's rates from Omega (5.43), (5.95),
+  !> with a quaternion's norm stabilisation where the scene asks for it (norm = stabilise);
+  !> an angle set within lock_guard of its gimbal lock, or at it: MBDK_ERR_SINGULAR_MATRIX.
+  subroutine body_rates(self, q, v, qdot, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    real(dp) :: p(4)
+    integer :: b, k, o
+    stat = MBDK_SUCCESS
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      qdot(k:k + 2) = v(o + 1:o + 3)
+      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+        p = q(k + 3:k + 6)
+        qdot(k + 3:k + 6) = mbdk_quat_rates(p, v(o + 4:o + 6), .true.)
+        if (self%opt%norm == MBDK_NORM_STABILISE) qdot(k + 3:k + 6) = qdot(k + 3:k + 6) + &
+          0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
+      else
+        if (self%opt%lock_guard > 0.0_dp) then
+          if (merge(abs(sin(q(k + 4))), abs(cos(q(k + 4))), &
+                    self%opt%rotation == MBDK_ROT_EULER313) < self%opt%lock_guard) then
+            stat = MBDK_ERR_SINGULAR_MATRIX
+            return
+          end if
+        end if
+        call mbdk_angles_rates(self%seq, q(k + 3:k + 5), v(o + 4:o + 6), .true., &
+                               qdot(k + 3:k + 5), stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+    end do
+  end subroutine body_rates
+
+  ! ----- the mechanism interface (mbdk_mechanism) -----
+
+  !> f = (force, moment - Omega x J Omega) per body, and Phi, C, gamma, Phi_t at (t, q, v).
+  subroutine spatial_evaluate(self, t, q, v, f, phi, c, gam, phit, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: f(:), phi(:), c(:, :), gam(:), phit(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    real(dp), allocatable :: y(:), fw(:, :), nbd(:, :)
+    real(dp) :: vg, vs, power, jw(3)
+    integer :: b, o, astat
+    stat = MBDK_ERR_NONFINITE
+    if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) return
+    allocate (y(self%n), fw(3, self%nb), nbd(3, self%nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (self%n + 6.0_dp * self%nb), stat)
+    if (stat /= MBDK_SUCCESS) return
+    y(1:self%ncoord) = q
+    y(self%ncoord + 1:) = v
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(self, fr, fw, nbd, vg, vs, power)
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
+      f(o + 1:o + 3) = fw(:, b)
+      f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
+    end do
+    if (self%m == 0) return
+    phi = 0.0_dp
+    c = 0.0_dp
+    gam = 0.0_dp
+    phit = 0.0_dp
+    call constraints(self, fr, t, phi, c, gam, phit)
+  end subroutine spatial_evaluate
+
+  !> M x body by body: m x_r, J x_Omega
+  subroutine spatial_mass_times(self, x, y)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    integer :: b, o
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      y(o + 1:o + 3) = self%mass(b) * x(o + 1:o + 3)
+      y(o + 4:o + 6) = matmul(self%inertia(:, :, b), x(o + 4:o + 6))
+    end do
+  end subroutine spatial_mass_times
+
+  subroutine spatial_minv_times(self, x, y)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    call apply_minv(self, x, y)
+  end subroutine spatial_minv_times
+
+  !> M's diagonal (M itself is not diagonal where an inertia tensor is not: diag_mass is off)
+  subroutine spatial_mass_diagonal(self, dm)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(out) :: dm(:)
+    integer :: b, o, k
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      dm(o + 1:o + 3) = self%mass(b)
+      do k = 1, 3
+        dm(o + 3 + k) = self%inertia(k, k, b)
+      end do
+    end do
+  end subroutine spatial_mass_diagonal
+
+  subroutine spatial_rates(self, q, v, qdot, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    call body_rates(self, q, v, qdot, stat)
+  end subroutine spatial_rates
+
+  !> the formulation's accelerations and multipliers (a redundant scene's solve may move it to
+  !> another set of independent rows: active_rows after this)
+  subroutine spatial_accelerations_of(self, t, q, v, a, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: a(:), lam(:)
+    integer, intent(out) :: stat
+    real(dp), allocatable :: y(:), f(:)
+    integer :: astat
+    allocate (y(self%n), f(self%n), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * self%n, stat)
+    if (stat /= MBDK_SUCCESS) return
+    y(1:self%ncoord) = q
+    y(self%ncoord + 1:) = v
+    if (self%m > 0) then
+      call spatial_accelerations(self, t, y, f, stat, lam)
+    else
+      call spatial_accelerations(self, t, y, f, stat)
+    end if
+    if (stat /= MBDK_SUCCESS) return
+    a = f(self%ncoord + 1:)
+  end subroutine spatial_accelerations_of
+
+  !> the independent rows the model solves now (work%active)
+  subroutine spatial_active_rows(self, rows, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    integer, allocatable, intent(out) :: rows(:)
+    integer, intent(out) :: stat
+    integer :: astat
+    allocate (rows(size(self%work%active)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * size(self%work%active), stat)
+    if (stat /= MBDK_SUCCESS) return
+    rows = self%work%active
+  end subroutine spatial_active_rows
+
+  subroutine spatial_watch_lam(self, t, y, force, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:), lam(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch(self, t, y, force, stat, lam)
+  end subroutine spatial_watch_lam
+
+  subroutine spatial_watch_nodes_lam(self, t_a, t_b, y, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :), lam(:, :)
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch_nodes(self, t_a, t_b, y, stat, lam)
+  end subroutine spatial_watch_nodes_lam
 
 end module mbdk_spatial_model
