@@ -18,14 +18,19 @@
 !> (Adams' friction law with its stiction and friction transition speeds); the friction force
 !> is -mu F along the slip, its dissipated power |mu| F |u| >= 0.
 !>
-!> Event function (mbdk_contact_event): continuous across the contact's closing and letting go,
-!> it changes sign at both; the error-controlled pairs end a step there (mbdk_embedded_rk).
+!> Event functions, whose sign changes the error-controlled pairs end a step on
+!> (mbdk_embedded_rk): mbdk_contact_event, continuous across the contact's closing and letting
+!> go, changes sign at both; mbdk_contact_parting where the surfaces of a contact that let go
+!> part (delta = 0 on the way out). Between the two a damped contact that let go holds no force
+!> but a potential k delta^(e+1)/(e+1), dissipated at the rate -k delta^e delta' until delta = 0,
+!> where that power has a kink a long step of the free flight would otherwise hold: the watch's
+!> quadrature of the work then misses a part in a thousand of a bounce's loss.
 module mbdk_contact_law
   use mbdk_kinds, only: dp
   implicit none
   private
   public :: mbdk_step3, mbdk_contact_normal, mbdk_contact_potential, mbdk_friction_mu, &
-    mbdk_contact_event
+    mbdk_contact_event, mbdk_contact_parting
 
 contains
 
@@ -90,5 +95,20 @@ contains
       g = delta
     end if
   end function mbdk_contact_event
+
+  !> The parting event at penetration delta and rate delta': delta while the surfaces separate
+  !> (delta' <= 0), |delta| while they approach, so that its sign changes where they part
+  !> (delta = 0, delta' < 0) and not where they meet (where mbdk_contact_event's does, and a
+  !> second root there, at the normal force's jump, could end the step on the wrong side of it).
+  !> Continuous but at the turning point of a flight apart (delta < 0, delta' = 0: a ball's
+  !> apex), where its spurious sign change only ends a step.
+  pure real(dp) function mbdk_contact_parting(delta, rate) result(g)
+    real(dp), intent(in) :: delta, rate
+    if (rate <= 0.0_dp) then
+      g = delta
+    else
+      g = abs(delta)
+    end if
+  end function mbdk_contact_parting
 
 end module mbdk_contact_law
