@@ -46,6 +46,25 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
                                    # body2, point2 or at1/at2, stiffness, damping, rest_length:
                                    # default the initial length)
 
+    [[force]]
+    type = "contact"               # compliant contact (kernel/src/spatial/mbdk_contact3d.f90)
+    name = "floor"
+    body1 = "top"
+    shape1 = { type = "sphere", radius = 0.001, centre = [0.0, 0.0, -0.1] }   # body1 frame;
+                                   # or { type = "point", point = [...] } (radius 0)
+    body2 = "ground"               # the default; or a body
+    shape2 = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+                                   # body2's frame (global on the ground), the normal pointing
+                                   # to body1's side; or { type = "sphere", radius, centre }
+    stiffness = 1e6                # F = k delta^exponent + damping step(delta) delta', >= 0
+    exponent = 1.0                 # >= 1 (1.5: Hertz)
+    damping = 1000.0               # default 0; never pulls
+    damping_depth = 0.0            # the damping is fully in at this depth (0: at once)
+    friction = { static = 0.5, dynamic = 0.5, stiction_speed = 1e-4, transition_speed = 2e-4 }
+                                   # optional: regularised Coulomb friction on the slip at the
+                                   # contact point (dynamic defaults to static, the speeds to
+                                   # 1e-3 and 2e-3 m/s)
+
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
@@ -56,6 +75,16 @@ T(q) M^-1 C^T, as in ida's ggl). Drivers: angle_driver and slide_driver. Every O
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
+
+Contacts use the planar contacts' laws (kernel/src/model/mbdk_contact_law.f90): the normal force
+acts along the normal through the sphere's centre, friction at the contact point against the
+slip of the two bodies' material points there. Their potential is part of the energy's
+"springs", their damping and friction part of "power"; with locate_events (the default) dopri54
+and bs32 end a step where a contact closes, where it lets go and where the surfaces of a contact
+that let go part. A contact is stored as a SpatialForce of type sphere_plane or sphere_sphere
+with the kernel's 19 reals (centre 1, radius 1, point or centre 2, normal, radius 2, stiffness,
+exponent, damping, damping_depth, static, dynamic, stiction_speed, transition_speed). Wear of
+spatial contacts is not there yet.
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
