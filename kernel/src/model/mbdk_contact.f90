@@ -73,7 +73,8 @@ module mbdk_contact
     mbdk_friction_mu
   implicit none
   private
-  public :: mbdk_contact_t, mbdk_contact_eval, mbdk_contact_apply, mbdk_contact_forces, mbdk_contact_forces_all
+  public :: mbdk_contact_t, mbdk_contact_eval, mbdk_contact_apply, mbdk_contact_forces, &
+    mbdk_contact_forces_all
 
   integer, parameter, public :: MBDK_CONTACT_LINE = 1, MBDK_CONTACT_CIRCLES = 2, &
     MBDK_CONTACT_INSIDE = 3, MBDK_CONTACT_GEAR = 4
