@@ -567,7 +567,7 @@ def _force(r: _Reader) -> Force:
             raise r.err("shape2", f"= ring of radius {f.shape2[2]} must be larger than body1's "
                                   f"circle (radius {f.shape1[2]}) to hold it")
         if r.has("friction"):
-            f.friction = _friction(r)
+            f.friction = read_friction(r)
     else:
         f.body1 = r.name("body")
         f.coordinate = r.coordinate("coordinate", "x")
@@ -617,7 +617,9 @@ def _shape(r: _Reader, fld: str, kinds: tuple) -> tuple:
     return out
 
 
-def _friction(r: _Reader) -> tuple:
+def read_friction(r: _Reader) -> tuple:
+    """A contact's friction table (static, dynamic, stiction_speed, transition_speed), as the
+    planar and the spatial readers take it."""
     v = r.get("friction")
     if not isinstance(v, dict):
         raise r.err("friction", f"= {v!r} must be a table {{static, dynamic, stiction_speed, "

@@ -241,7 +241,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
             newton_atol=newton_atol, solver=None if solver == "auto" else solver,
             small_dense=None if small_dense else small_dense,
             penalty=None if _is_default_penalty(penalty) else penalty,
-            switch_angles=switch_angles,
+            switch_angles=switch_angles, locate_events=locate_events,
             adaptive=adaptive, err_rtol=err_rtol, err_atol=err_atol, max_iter=max_iter,
             outputs=outputs)
     if switch_angles is not None:

@@ -46,6 +46,25 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
                                    # body2, point2 or at1/at2, stiffness, damping, rest_length:
                                    # default the initial length)
 
+    [[force]]
+    type = "contact"               # compliant contact (kernel/src/spatial/mbdk_contact3d.f90)
+    name = "floor"
+    body1 = "top"
+    shape1 = { type = "sphere", radius = 0.001, centre = [0.0, 0.0, -0.1] }   # body1 frame;
+                                   # or { type = "point", point = [...] } (radius 0)
+    body2 = "ground"               # the default; or a body
+    shape2 = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+                                   # body2's frame (global on the ground), the normal pointing
+                                   # to body1's side; or { type = "sphere", radius, centre }
+    stiffness = 1e6                # F = k delta^exponent + damping step(delta) delta', >= 0
+    exponent = 1.0                 # >= 1 (1.5: Hertz)
+    damping = 1000.0               # default 0; never pulls
+    damping_depth = 0.0            # the damping is fully in at this depth (0: at once)
+    friction = { static = 0.5, dynamic = 0.5, stiction_speed = 1e-4, transition_speed = 2e-4 }
+                                   # optional: regularised Coulomb friction on the slip at the
+                                   # contact point (dynamic defaults to static, the speeds to
+                                   # 1e-3 and 2e-3 m/s)
+
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
 (kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
@@ -56,6 +75,16 @@ T(q) M^-1 C^T, as in ida's ggl). Drivers: angle_driver and slide_driver. Every O
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles (simulate_spatial).
+
+Contacts use the planar contacts' laws (kernel/src/model/mbdk_contact_law.f90): the normal force
+acts along the normal through the sphere's centre, friction at the contact point against the
+slip of the two bodies' material points there. Their potential is part of the energy's
+"springs", their damping and friction part of "power"; with locate_events (the default) dopri54
+and bs32 end a step where a contact closes, where it lets go and where the surfaces of a contact
+that let go part. A contact is stored as a SpatialForce of type sphere_plane or sphere_sphere
+with the kernel's 19 reals (centre 1, radius 1, point or centre 2, normal, radius 2, stiffness,
+exponent, damping, damping_depth, static, dynamic, stiction_speed, transition_speed). Wear of
+spatial contacts is not there yet.
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
@@ -76,7 +105,7 @@ from .result import Result, Stats
 from .rotations import from_angles, from_quaternion, to_quaternion
 from .checks import (NUMBER_MAX, NUMBER_MIN, check_memory, memory_error, number_problem,
                      show)
-from .scene import GROUND, SceneError, _Reader, section_items
+from .scene import GROUND, SceneError, _Reader, read_friction, section_items
 
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
@@ -95,7 +124,18 @@ JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "
 #: the drivers: rows that follow a time function, f(t0) = 0
 DRIVERS = {"angle_driver": "turns body1", "slide_driver": "slides body1's point"}
 FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, "spring": 4,
-               "damper": 4}
+               "damper": 4, "sphere_plane": 5, "sphere_sphere": 6}
+#: the force types a scene file writes (a contact is stored as sphere_plane or sphere_sphere,
+#: by its second shape)
+READ_FORCE_TYPES = ("gravity", "point_force", "torque", "spring_damper", "spring", "damper",
+                    "contact")
+#: the kernel's reals per force type (MBDK_SPATIAL_FORCE_REALS rows; a contact's layout is
+#: mbdk_contact3d's)
+FORCE_REALS = 19
+#: the force types between two bodies (body2 may be the ground)
+TWO_BODY_FORCES = ("spring_damper", "sphere_plane", "sphere_sphere")
+#: the friction law of a contact without friction (mus = mud = 0; the speeds only valid)
+NO_FRICTION = (0.0, 0.0, 1e-3, 2e-3)
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
 UNIT_TOL = 1e-8
 #: how far from 1 the norm of a quaternion written in a scene file may be: a unit quaternion
@@ -412,9 +452,9 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
 
 def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
     typ = r.name("type")
-    if typ not in FORCE_TYPES:
+    if typ not in READ_FORCE_TYPES:
         raise r.err("type", f"= {typ!r} is not a spatial force type; known: "
-                            f"{', '.join(FORCE_TYPES)}")
+                            f"{', '.join(READ_FORCE_TYPES)}")
     name = r.name("name", required=False, default=f"force{r.index + 1}")
 
     def body(fld, ground_ok=False, default=None):
@@ -436,6 +476,8 @@ def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
         b = body("body")
         return _done(r, SpatialForce(typ, name, b, reals=tuple(r.vec3("torque", required=True))))
     b1, b2 = body("body1"), body("body2", ground_ok=True, default=GROUND)
+    if typ == "contact":
+        return _done(r, _spatial_contact(r, name, b1, b2))
     if b1 == b2:
         raise r.err("body2", f"= {b2!r} is body1 too; a spring joins two bodies")
     (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
@@ -453,6 +495,54 @@ def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
 def _done(r, x):
     r.done()
     return x
+
+
+def _spatial_contact(r: _SpatialReader, name: str, b1: str, b2: str) -> SpatialForce:
+    """A contact (the module docstring): sphere_plane or sphere_sphere, with the reals of
+    kernel/src/spatial/mbdk_contact3d.f90."""
+    if b1 == b2:
+        raise r.err("body2", f"= {b2!r} is body1 too; a contact is between two bodies (or a "
+                             "body and the ground)")
+    c1, r1 = _contact_shape(r, "shape1", ("sphere", "point"))
+    kind2 = _contact_shape(r, "shape2", ("plane", "sphere"))
+    if len(kind2) == 3:               # a plane: point, normal
+        p2, n2, r2, typ = kind2[0], kind2[1], 0.0, "sphere_plane"
+    else:
+        p2, r2 = kind2
+        n2, typ = np.zeros(3), "sphere_sphere"
+        if not r1 + r2 > 0:
+            raise r.err("shape2", "is a sphere of radius 0 against a point: two points never "
+                                  "touch; give one of them a radius")
+    k = r.num("stiffness", required=True, nonneg=True)
+    e = r.num("exponent", 1.0)
+    if e < 1:
+        raise r.err("exponent", f"= {e} must be at least 1 (below 1 the force's slope is "
+                                "infinite where the contact closes)")
+    c = r.num("damping", 0.0, nonneg=True)
+    depth = r.num("damping_depth", 0.0, nonneg=True)
+    fric = read_friction(r) if r.has("friction") else NO_FRICTION
+    return SpatialForce(typ, name, b1, b2, reals=(*c1, r1, *p2, *n2, r2, k, e, c, depth, *fric))
+
+
+def _contact_shape(r: _SpatialReader, fld: str, kinds: tuple):
+    """A contact's shape in its body's frame (global on the ground): a sphere or a point as
+    (centre, radius), a plane as (point, unit normal, "plane")."""
+    v = r.get(fld, required=True)
+    if not isinstance(v, dict) or v.get("type") not in kinds:
+        raise r.err(fld, f"= {show(v)} must be a table {{type = {' | '.join(kinds)}, ...}}")
+    sr = _SpatialReader(r.source, f"{r.label} {fld}", 0, v)
+    typ = sr.get("type")
+    if typ == "plane":
+        out = (sr.vec3("point", np.zeros(3)), sr.unit3("normal", required=True), "plane")
+    elif typ == "point":
+        out = (sr.vec3("point", np.zeros(3)), 0.0)
+    else:
+        out = (sr.vec3("centre", np.zeros(3)), sr.num("radius", required=True, positive=True))
+    extra = [k for k in v if k not in sr.used]
+    if extra:
+        raise r.err(fld, f"entry {extra[0]!r} is not a field of a {typ} (a {typ} has "
+                         f"{', '.join(sorted(sr.used))})")
+    return out
 
 
 def is_spatial(data: dict) -> bool:
@@ -590,11 +680,11 @@ def _tables(sc: SpatialScene):
         jreal[:, k] = np.concatenate([j.point1, j.point2, j.axis1, j.axis2, j.function])
     ftype = np.zeros(max(nf, 1), dtype=np.int32)
     fbody = np.zeros((2, max(nf, 1)), dtype=np.int32, order="F")
-    freal = np.zeros((9, max(nf, 1)), order="F")
+    freal = np.zeros((FORCE_REALS, max(nf, 1)), order="F")
     for k, f in enumerate(sc.forces):
         ftype[k] = FORCE_TYPES[f.type]
         fbody[:, k] = (sc.body_index(f.body1) if f.body1 else 0,
-                       sc.body_index(f.body2) if f.type == "spring_damper" else 0)
+                       sc.body_index(f.body2) if f.type in TWO_BODY_FORCES else 0)
         freal[:len(f.reals), k] = f.reals
     return nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal
 
@@ -683,17 +773,40 @@ def _validate(sc: SpatialScene) -> None:
             if not isinstance(getattr(f, fld), str):
                 raise SceneError(f"{sc.source}: {label}: field {fld!r} = {getattr(f, fld)!r} "
                                  "must be a body's name")
-        want = {"gravity": 3, "point_force": 6, "torque": 3}.get(f.type, 9)
+        want = {"gravity": 3, "point_force": 6, "torque": 3, "sphere_plane": FORCE_REALS,
+                "sphere_sphere": FORCE_REALS}.get(f.type, 9)
         r = vec(label, "reals", f.reals, (want,))
         if f.type == "spring_damper" and not (r[6] >= 0 and r[7] >= 0 and r[8] >= 0):
             raise SceneError(f"{sc.source}: {label}: stiffness, damping and rest_length "
                              f"{r[6:].tolist()} must be >= 0")
-        ends = [f.body1] + ([f.body2] if f.type == "spring_damper" else [])
+        if f.type in ("sphere_plane", "sphere_sphere"):
+            _validate_contact(sc, label, f.type, r)
+        ends = [f.body1] + ([f.body2] if f.type in TWO_BODY_FORCES else [])
         if f.type != "gravity" and (f.body1 not in names or any(
                 e != GROUND and e not in names for e in ends) or
                 (len(ends) == 2 and ends[0] == ends[1])):
             raise SceneError(f"{sc.source}: {label}: its bodies {ends} are not two (or one) "
                              "distinct bodies of this scene")
+
+
+def _validate_contact(sc: SpatialScene, label: str, typ: str, r: np.ndarray) -> None:
+    """A contact's reals (mbdk_contact3d's layout), each wrong one named."""
+    def bad(what, msg):
+        return SceneError(f"{sc.source}: {label}: {what} {msg}")
+    if not (r[3] >= 0 and r[10] >= 0):
+        raise bad("the radii", f"{r[3]}, {r[10]} must be >= 0")
+    if typ == "sphere_plane" and not np.linalg.norm(r[7:10]) > 0:
+        raise bad("the plane's normal", f"{r[7:10].tolist()} has no direction")
+    if typ == "sphere_sphere" and not r[3] + r[10] > 0:
+        raise bad("the radii", "are both 0: two points never touch")
+    for i, fld, low in ((11, "stiffness", 0.0), (12, "exponent", 1.0), (13, "damping", 0.0),
+                        (14, "damping_depth", 0.0), (15, "friction static", 0.0),
+                        (16, "friction dynamic", 0.0)):
+        if not r[i] >= low:
+            raise bad(f"field {fld!r}", f"= {r[i]} must be at least {low:g}")
+    if not 0 < r[17] < r[18]:
+        raise bad("the friction's speeds", f"stiction_speed = {r[17]}, transition_speed = "
+                                           f"{r[18]} must satisfy 0 < stiction < transition")
 
 
 def joint_rows(sc: SpatialScene) -> list:
@@ -710,8 +823,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      assemble_initial=True, startup="rk4", rtol=None, atol=None, dt_out=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
-                     outputs=None, penalty=None, switch_angles=None, _lock_guard=0.0,
-                     **unsupported) -> SpatialResult:
+                     outputs=None, penalty=None, switch_angles=None, locate_events=True,
+                     _lock_guard=0.0, **unsupported) -> SpatialResult:
     """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
     docstring). Options of the planar path that do not apply are refused by name; outputs is
     checked and otherwise moot: a spatial run computes every output at its samples.
@@ -729,7 +842,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
             startup=startup, rtol=rtol, atol=atol, dt_out=dt_out, h_min=h_min, h_max=h_max,
             max_steps=max_steps, max_order=max_order, watch=watch,
             raise_on_failure=raise_on_failure, newton_rtol=newton_rtol,
-            newton_atol=newton_atol, outputs=outputs, penalty=penalty, **unsupported))
+            newton_atol=newton_atol, outputs=outputs, penalty=penalty,
+            locate_events=locate_events, **unsupported))
     from .ode import build_info
     from .simulate import _ode_plan, check_run, ggl_multipliers, scene_tolerances
     from .watch import as_watch, drift_message, drift_report, invariant_names
@@ -834,8 +948,8 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                      NORMS[sc.quaternion_norm],
                      plan_["alpha"], plan_["beta"], sc.norm_gain, projection_tol,
                      w.position or 0.0, w.velocity or 0.0, w.energy or 0.0, w.every,
-                     *penalty, float(_lock_guard), w.momentum or 0.0, w.quaternion or 0.0],
-                    dtype=float)
+                     *penalty, float(_lock_guard), w.momentum or 0.0, w.quaternion or 0.0,
+                     float(bool(locate_events))], dtype=float)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
     y0 = sc.state0()
     _check_initial(sc, y0, assemble_initial, float(t0))
@@ -875,6 +989,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
                 "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
                                  if formulation == "penalty" else
                                  "dense Schur complement (LAPACK dpotrf)"),
+                "locate_events": bool(locate_events) and method in ("dopri54", "bs32"),
                 "watch": {"position": w.position, "velocity": w.velocity,
                           "energy": w.energy, "every": w.every, "momentum": w.momentum,
                           "quaternion": w.quaternion},

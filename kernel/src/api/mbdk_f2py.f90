@@ -909,12 +909,13 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
   ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
   ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard,
-  ! watch_momentum, watch_quaternion. The tables have nj1 = max(nj, 1) columns (nf1
-  ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
-  ! (moved: the largest change of a state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1,
-  ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
-  ! none), the last row the work of dampers, loads and drivers as the run integrated it at every
-  ! step (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae;
+  ! watch_momentum, watch_quaternion, locate_events (the contacts' events, for dopri54 and
+  ! bs32). The tables have nj1 = max(nj, 1) columns (nf1 likewise). With assemble /= 0 the
+  ! initial state is projected onto the constraints first (moved: the largest change of a
+  ! state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
+  ! multipliers at the samples (NaN where a failed run's last state has none), the last row
+  ! the work of dampers, loads and drivers as the run integrated it at every step
+  ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae;
   ! the multipliers are the DAE's own); 2: trapezoidal_index3's projected form
   ! (mbdk_spatial_index3; the model is built with the projection formulation); 3, 4: ida in
   ! its index1 and GGL forms (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the
@@ -933,7 +934,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
   integer, intent(in) :: dae_form
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
   integer, intent(in), target :: interrupt(4)
@@ -970,7 +971,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   invariants = 0.0d0
   ninv = 0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 17) return
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 18) return
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
@@ -992,6 +993,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%lock_guard = sopt(15)
   so%watch_momentum = sopt(16)
   so%watch_quaternion = sopt(17)
+  so%locate_events = nint(sopt(18))
   ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
@@ -1089,7 +1091,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)

@@ -70,6 +70,7 @@ module mbdk_model
     MBDK_EFFECT_WEAR
   use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR, &
     mbdk_contact_forces_all, mbdk_contact_t, mbdk_contact_eval
+  use mbdk_contact_law, only: mbdk_contact_event
   use mbdk_wear, only: mbdk_wear_rates, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
@@ -1039,11 +1040,10 @@ contains
     end associate
   end subroutine mbdk_model_outputs
 
-  !> The events of a scene, one per contact (not gear meshes) in table order: the normal force
-  !> before its clip at zero, k delta^e + c step(delta) delta' while it touches, extended by
-  !> -k |delta|^e where it does not (delta itself for k = 0). Continuous, it changes sign where
-  !> the contact closes and where it lets go: at delta = 0, or, damped, where the force would
-  !> turn into a pull and the clip cuts it (the kink the ball's exit has, delta still > 0).
+  !> The events of a scene, one per contact (not gear meshes) in table order: the law's event
+  !> function (mbdk_contact_event), the normal force before its clip while the contact touches,
+  !> extended continuously where it does not: it changes sign where the contact closes and where
+  !> it lets go.
   subroutine model_events(self, t, y, g, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
@@ -1064,12 +1064,8 @@ contains
                              y(nc + 1:2 * nc), ct, ok)
       if (.not. ok) then     ! no normal: the evaluation itself reports it
         g(k) = ct%delta
-      else if (ct%touching) then
-        g(k) = ct%unclipped
-      else if (self%freal_c(7, e) > 0.0_dp) then
-        g(k) = -self%freal_c(7, e) * abs(ct%delta)**self%freal_c(8, e)
       else
-        g(k) = ct%delta
+        g(k) = mbdk_contact_event(ct%delta, ct%unclipped, self%freal_c(7:10, e))
       end if
     end do
   end subroutine model_events

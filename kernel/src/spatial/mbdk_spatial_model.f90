@@ -65,7 +65,13 @@
 !>   point_force    s (3, body frame), f (3, space)  a constant force at a body point
 !>   torque         n (3, space)                     a constant moment
 !>   spring_damper  s_i (3), s_j (3), k, c, l0       along the line of the two points
-!> Only the elements a scene declares are visited.
+!>   sphere_plane,  compliant contact with friction between a sphere on body i and a plane or
+!>   sphere_sphere  a sphere on body j (the ground or a body): mbdk_contact3d (geometry, reals)
+!>                  over mbdk_contact_law (the IMPACT normal force, regularised Coulomb friction)
+!> Only the elements a scene declares are visited. A contact's potential is part of the spring
+!> energy, the power its damping and friction dissipate part of the dampers' power; with
+!> locate_events, dopri54 and bs32 end a step where a contact closes or lets go (spatial_events:
+!> the law's event function and the penetration per contact, in table order).
 !>
 !> The watch (mbdk_watch) checks Phi, C w + Phi_t and the energy balance as on planar scenes
 !> (a driven scene pays a constrained solve per step for its drivers' power); rows of
@@ -88,6 +94,9 @@ module mbdk_spatial_model
     mbdk_inv_gravity, mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, &
     MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT
   use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
+  use mbdk_contact3d, only: mbdk_contact3d_t, mbdk_contact3d_eval, mbdk_contact3d_loads, &
+    mbdk_contact3d_events, mbdk_contact3d_rough, MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
+    MBDK_CONTACT3D_REALS
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
@@ -101,8 +110,11 @@ module mbdk_spatial_model
   integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
     [3, 5, 4, 4, 5, 6, 1, 1]
   integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
-    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_FORCE_TYPES = 4
-  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 9
+    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_SPHERE_PLANE = 5, &
+    MBDK_SPATIAL_SPHERE_SPHERE = 6, MBDK_SPATIAL_FORCE_TYPES = 6
+  !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
+  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
+    MBDK_SPATIAL_FORCE_REALS = MBDK_CONTACT3D_REALS
   integer, parameter, public :: MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, &
     MBDK_ROT_CARDAN123 = 3
   integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
@@ -145,6 +157,8 @@ module mbdk_spatial_model
     real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
       watch_energy = 1.0e-1_dp, watch_momentum = 1.0e-2_dp, watch_quaternion = 1.0e-1_dp
     integer :: watch_every = MBDK_WATCH_EVERY
+    !> /= 0: the contacts' events, for the error-controlled Runge-Kutta pairs (mbdk_problem)
+    integer :: locate_events = 1
   end type mbdk_spatial_options_t
 
   !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
@@ -171,6 +185,7 @@ module mbdk_spatial_model
   type, extends(mbdk_mechanism_t), public :: mbdk_spatial_model_t
     type(mbdk_spatial_options_t) :: opt
     integer :: nqb = 7, nprim = 0, nf = 0
+    integer :: ncontacts = 0   !< contact elements (the events, in table order)
     integer :: seq(3) = 0
     real(dp), allocatable :: mass(:), inertia(:, :, :), inv_inertia(:, :, :)
     type(prim_t), allocatable :: prim(:)
@@ -199,6 +214,7 @@ module mbdk_spatial_model
     procedure :: watch => spatial_watch
     procedure :: watch_wants_nodes => spatial_wants_nodes
     procedure :: watch_nodes => spatial_watch_nodes
+    procedure :: events => spatial_events
     procedure :: evaluate => spatial_evaluate
     procedure :: mass_times => spatial_mass_times
     procedure :: minv_times => spatial_minv_times
@@ -389,13 +405,27 @@ contains
         if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
             fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
         if (.not. all(freal(7:9, k) >= 0.0_dp)) return
+      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        if (.not. contact_entry_ok(k)) return
       end select
-      if (ftype(k) /= MBDK_SPATIAL_GRAVITY) model%has_power = .true.
+    end do
+    ! loads and springs; of the contacts, those with damping or friction (an undamped,
+    ! frictionless contact does no net work)
+    model%has_power = any(ftype /= MBDK_SPATIAL_GRAVITY .and. ftype < MBDK_SPATIAL_SPHERE_PLANE)
+    do k = 1, model%nf
+      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE .and. (freal(14, k) /= 0.0_dp .or. &
+          mbdk_contact3d_rough(freal(:, k)))) model%has_power = .true.
     end do
     if (model%has_drivers) model%has_power = .true.
     model%ftype = ftype
     model%fbody = fbody
     model%freal = freal
+    do k = 1, model%nf
+      if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) &
+        model%freal(8:10, k) = freal(8:10, k) / norm2(freal(8:10, k))
+    end do
+    model%ncontacts = count(ftype >= MBDK_SPATIAL_SPHERE_PLANE)
+    if (opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
 
     ! the length scale of the watch: joint and spring points, and the bodies' spread
     model%length = 0.0_dp
@@ -405,6 +435,8 @@ contains
     do k = 1, model%nf
       if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
         norm2(freal(1:3, k)), norm2(freal(4:6, k)))
+      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE) model%length = max(model%length, &
+        norm2(freal(1:3, k)) + freal(4, k))
     end do
     do b = 1, nb
       model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
@@ -468,6 +500,25 @@ contains
 
   contains
 
+    !> A contact: body1 a body, body2 the ground or another body; radii >= 0 (two spheres: not
+    !> both 0), a plane's normal of nonzero length, k >= 0, e >= 1, cmax, dmax >= 0; mus,
+    !> mud >= 0 and 0 < vs < vd.
+    logical function contact_entry_ok(e) result(ok)
+      integer, intent(in) :: e
+      ok = .false.
+      associate (r => freal(:, e))
+        if (fbody(1, e) < 1 .or. fbody(1, e) > nb .or. fbody(2, e) < 0 .or. &
+            fbody(2, e) > nb .or. fbody(1, e) == fbody(2, e)) return
+        if (.not. (r(4) >= 0.0_dp .and. r(11) >= 0.0_dp .and. r(12) >= 0.0_dp .and. &
+                   r(13) >= 1.0_dp .and. r(14) >= 0.0_dp .and. r(15) >= 0.0_dp .and. &
+                   r(16) >= 0.0_dp .and. r(17) >= 0.0_dp .and. r(18) > 0.0_dp .and. &
+                   r(19) > r(18))) return
+        if (ftype(e) == MBDK_SPATIAL_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
+        if (ftype(e) == MBDK_SPATIAL_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
+      end associate
+      ok = .true.
+    end function contact_entry_ok
+
     subroutine add(kind, si, sj, ui, uj)
       integer, intent(in) :: kind
       real(dp), intent(in) :: si(3), sj(3), ui(3), uj(3)
@@ -524,6 +575,17 @@ contains
         call mbdk_inv_force(rule, freal(4:6, k))
       case (MBDK_SPATIAL_TORQUE)
         call mbdk_inv_moment(rule)
+      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        ! between two bodies: equal and opposite at one point, internal; to the ground without
+        ! friction: along the ground plane's normal, or through the ground sphere's centre
+        if (fbody(2, k) /= 0) cycle
+        if (mbdk_contact3d_rough(freal(:, k))) then
+          call mbdk_inv_external(rule)
+        else if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) then
+          call mbdk_inv_force(rule, freal(8:10, k))
+        else
+          call mbdk_inv_pivot(rule, freal(5:7, k))
+        end if
       case default
         call mbdk_inv_external(rule)
       end select
@@ -1109,18 +1171,23 @@ contains
   ! ---- forces --------------------------------------------------------------------------------
 
   !> Applied forces (space frame) and moments (body frame) on every body, with the energy parts:
-  !> gravity's potential vg, the springs' vs, and the power of dampers and loads.
-  pure subroutine forces(model, fr, fw, nb_, vg, vs, power)
+  !> gravity's potential vg, the springs' and contacts' vs, and the power of dampers, contacts
+  !> and loads. MBDK_ERR_NONFINITE where two penetrating spheres have no normal.
+  pure subroutine forces(model, fr, fw, nb_, vg, vs, power, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(out) :: fw(:, :), nb_(:, :), vg, vs, power
+    integer, intent(out) :: stat
     integer :: k, b, i, j
-    real(dp) :: pi(3), pj(3), d(3), len, e(3), ldot, f, fv(3), vi(3), vj(3)
+    real(dp) :: pi(3), pj(3), d(3), len, e(3), ldot, f, fv(3), vi(3), vj(3), m1(3), f2(3), m2(3)
+    type(mbdk_contact3d_t) :: ct
+    logical :: ok
     fw = 0.0_dp
     nb_ = 0.0_dp
     vg = 0.0_dp
     vs = 0.0_dp
     power = 0.0_dp
+    stat = MBDK_SUCCESS
     do k = 1, model%nf
       associate (r => model%freal(:, k))
         select case (model%ftype(k))
@@ -1161,10 +1228,71 @@ contains
             fw(:, j) = fw(:, j) - fv
             nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
           end if
+        case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+          i = model%fbody(1, k)
+          j = model%fbody(2, k)
+          call contact_at(model, fr, k, ct, ok)
+          if (.not. ok) then
+            stat = MBDK_ERR_NONFINITE
+            return
+          end if
+          if (.not. ct%touching) cycle
+          vs = vs + ct%potential
+          power = power - ct%dissipation
+          call mbdk_contact3d_loads(ct, fr%r(:, i), fr%rot(:, :, i), fr%r(:, j), &
+                                    fr%rot(:, :, j), fv, m1, f2, m2)
+          fw(:, i) = fw(:, i) + fv
+          nb_(:, i) = nb_(:, i) + m1
+          if (j > 0) then
+            fw(:, j) = fw(:, j) + f2
+            nb_(:, j) = nb_(:, j) + m2
+          end if
         end select
       end associate
     end do
   end subroutine forces
+
+  !> Contact k of the force table at the frames fr (mbdk_contact3d_eval).
+  pure subroutine contact_at(model, fr, k, ct, ok)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: k
+    type(mbdk_contact3d_t), intent(out) :: ct
+    logical, intent(out) :: ok
+    integer :: i, j
+    i = model%fbody(1, k)
+    j = model%fbody(2, k)
+    call mbdk_contact3d_eval(merge(MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
+                                   model%ftype(k) == MBDK_SPATIAL_SPHERE_PLANE), &
+                             model%freal(:, k), fr%r(:, i), fr%rot(:, :, i), fr%v(:, i), &
+                             fr%om(:, i), fr%r(:, j), fr%rot(:, :, j), fr%v(:, j), &
+                             fr%om(:, j), ct, ok)
+  end subroutine contact_at
+
+  !> The events of a scene with contacts (nevents = 2 ncontacts with locate_events), two per
+  !> contact in table order (mbdk_contact3d_events): the law's, where the contact closes and
+  !> where its force would turn into a pull and the clip lets it go, and the parting one, where
+  !> the surfaces of a contact that let go part (mbdk_contact_law says why that point too).
+  subroutine spatial_events(self, t, y, g, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: g(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    type(mbdk_contact3d_t) :: ct
+    logical :: ok
+    integer :: k, e
+    g = 0.0_dp
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    e = 0
+    do k = 1, self%nf
+      if (self%ftype(k) < MBDK_SPATIAL_SPHERE_PLANE) cycle
+      e = e + 2
+      call contact_at(self, fr, k, ct, ok)
+      g(e - 1:e) = mbdk_contact3d_events(ct, ok, self%freal(:, k))
+    end do
+  end subroutine spatial_events
 
   ! ---- the problem ---------------------------------------------------------------------------
 
@@ -1204,7 +1332,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(self, fr, fw, nbd, vg, vs, power)
+    call forces(self, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
     do b = 1, self%nb
       o = (b - 1) * 6
       jw = matmul(self%inertia(:, :, b), fr%om(:, b))
@@ -1470,7 +1599,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(model, fr, fw, nbd, out(2), out(3), out(4))
+    call forces(model, fr, fw, nbd, out(2), out(3), out(4), stat)
+    if (stat /= MBDK_SUCCESS) return
     kin = 0.0_dp
     qn = 0.0_dp
     do b = 1, model%nb
@@ -1527,7 +1657,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(model, fr, fw, nbd, vg, vs, power)
+    call forces(model, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
     if (.not. (model%has_drivers .and. m > 0)) return
     allocate (phi(m), c(m, 6 * nb), gam(m), phit(m), lam(m), f(size(y)), stat=k)
     call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (6.0_dp * nb + 4) + size(y)), &
@@ -1703,7 +1834,8 @@ contains
     y(self%ncoord + 1:) = v
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(self, fr, fw, nbd, vg, vs, power)
+    call forces(self, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
     do b = 1, self%nb
       o = (b - 1) * 6
       jw = matmul(self%inertia(:, :, b), fr%om(:, b))
