@@ -722,7 +722,7 @@ subroutine model_index3_matrix(nb, mass, inertia, bkind, nj, nj1, jint, jreal, n
   ! book's (3.15)-(3.16), 2 the solver's (dynamic rows times h^2/4, unknown h^2/4 lambda).
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
-  use mbdk_trapezoidal_index3, only: mbdk_index3_newton_matrix
+  use mbdk_index3_matrix, only: mbdk_index3_newton_matrix
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, m, scaling
@@ -915,11 +915,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
   ! multipliers at the samples (NaN where a failed run's last state has none), the last row
   ! the work of dampers, loads and drivers as the run integrated it at every step
-  ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae;
-  ! the multipliers are the DAE's own); 2: trapezoidal_index3's projected form
-  ! (mbdk_spatial_index3; the model is built with the projection formulation); 3, 4: ida in
-  ! its index1 and GGL forms (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the
-  ! stabilised index-2 form (SI2).
+  ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_mechanism_dae;
+  ! the multipliers are the DAE's own); 2: trapezoidal_index3's augmented, projected form
+  ! (mbdk_trapezoidal_index3, fixed step opt%h; multipliers its own); 3, 4: ida in its index1
+  ! and GGL forms (mbdk_ida; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
   ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -929,7 +928,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
-  use mbdk_spatial_index3, only: mbdk_spatial_index3_solve
+  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
+    MBDK_INDEX3_AUGMENTED
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
@@ -1035,7 +1035,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   else if (dae_form == 0) then
     call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
   else if (dae_form == 2) then
-    call mbdk_spatial_index3_solve(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status)
+    call index3_run(status)
   else
     status = MBDK_ERR_INVALID_INPUT
     return
@@ -1045,7 +1045,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   do k = 1, nwritten
     call mbdk_watch_work_at(work%watch, t_out(k), krec, parts)
     out(8, k) = parts(3)
-    if (dae_form == 1 .or. dae_form >= 3) then   ! the drivers' power with the DAE's own
+    if (dae_form >= 1) then   ! the drivers' power with the integrator's own multipliers
       call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status, &
                                 lam_in=lam_out(1:model%m, k))
     else
@@ -1055,7 +1055,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
       out(1:7, k) = nan
       cycle
     end if
-    if (dae_form == 0 .or. dae_form == 2) call spatial_lambda(y_out(:, k))
+    if (dae_form == 0) call spatial_lambda(y_out(:, k))
   end do
   status = s
   ! a record of the work that could not be allocated: the samples' W is incomplete
@@ -1067,6 +1067,32 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end associate
 
 contains
+
+  !> trapezoidal_index3, augmented and projected, at the fixed step of opt (its Newton
+  !> tolerances; at least 20 iterations, the simplified iteration with an old matrix
+  !> converging linearly); the multipliers are its own
+  subroutine index3_run(stat_r)
+    integer, intent(out) :: stat_r
+    type(mbdk_index3_options_t) :: i3
+    double precision, allocatable :: a_out(:, :)
+    integer, allocatable :: iters(:)
+    integer :: astat
+    i3%formulation = MBDK_INDEX3_AUGMENTED
+    i3%h = opt%h
+    i3%every = opt%every
+    i3%newton_rtol = opt%newton_rtol
+    i3%newton_atol = opt%newton_atol
+    i3%newton_max_iter = max(opt%newton_max_iter, 20)
+    i3%interrupt = opt%interrupt
+    i3%progress = opt%progress
+    allocate (a_out(model%nvel, nsamp), iters(nsamp), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%nvel + 1, kind(1.0d0)) * nsamp, &
+                           stat_r, st%alloc_bytes)
+    if (stat_r /= MBDK_SUCCESS) return
+    call mbdk_index3_solve(model, i3, t0, t_end, y, t_out, y_out, a_out, lam_out, iters, &
+                           nwritten, st, stat_r)
+    if (nwritten < nsamp) lam_out(:, nwritten + 1:) = nan
+  end subroutine index3_run
 
   subroutine spatial_lambda(ys)
     double precision, intent(in) :: ys(:)

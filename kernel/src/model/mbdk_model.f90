@@ -54,8 +54,8 @@ module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
-  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED, MBDK_FORM_BAUMGARTE, &
-    MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
@@ -242,7 +242,91 @@ module mbdk_model
     procedure :: active_rows => model_active_rows
     procedure :: watch_lam => model_watch_lam
     procedure :: watch_nodes_lam => model_watch_nodes_lam
+    procedure :: watch_begin => model_watch_begin
+    procedure :: watch_solve => model_watch_solve
+    procedure :: retract => model_retract
+    procedure :: normalise => model_normalise
+    procedure :: coord_weights => model_coord_weights
+    ! trapezoidal_index3's part (the submodule mbdk_model_i3)
+    procedure :: i3_create => model_i3_create
+    procedure :: i3_evaluate => model_i3_evaluate
+    procedure :: i3_residual => model_i3_residual
+    procedure :: i3_c_times => model_i3_c_times
+    procedure :: i3_ct_times => model_i3_ct_times
+    procedure :: i3_cs_factor => model_i3_cs_factor
+    procedure :: i3_cs_solve => model_i3_cs_solve
+    procedure :: i3_matrix => model_i3_matrix
+    procedure :: i3_matrix_solve => model_i3_matrix_solve
   end type mbdk_model_t
+
+  interface
+    module subroutine model_i3_create(self, aux, book, stat, asked)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), allocatable, intent(out) :: aux
+      logical, intent(in) :: book
+      integer, intent(out) :: stat
+      real(dp), intent(inout), optional :: asked
+    end subroutine model_i3_create
+    module subroutine model_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
+                                        stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: t
+      real(dp), intent(in), contiguous :: q(:), v(:)
+      real(dp), intent(inout), contiguous :: f(:)
+      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      logical, intent(in) :: forces, same_q
+      integer, intent(out) :: stat
+    end subroutine model_i3_evaluate
+    module subroutine model_i3_residual(self, aux, f, lt, s, dd, r)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      real(dp), intent(in) :: s
+      real(dp), intent(out), contiguous :: r(:)
+    end subroutine model_i3_residual
+    module subroutine model_i3_c_times(self, aux, x, y)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine model_i3_c_times
+    module subroutine model_i3_ct_times(self, aux, x, y)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine model_i3_ct_times
+    module subroutine model_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: near
+      logical, intent(in) :: regular_ok
+      logical, intent(out) :: regular
+      integer, intent(out) :: stat
+    end subroutine model_i3_cs_factor
+    module subroutine model_i3_cs_solve(self, aux, b, c, x, mu, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: b(:), c(:)
+      real(dp), intent(out), contiguous :: x(:), mu(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_cs_solve
+    module subroutine model_i3_matrix(self, aux, book, t, q, v, lam, h, alpha, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      logical, intent(in) :: book
+      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_matrix
+    module subroutine model_i3_matrix_solve(self, aux, r, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(inout), contiguous :: r(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_matrix_solve
+  end interface
 
 contains
 
@@ -306,7 +390,12 @@ contains
     model%ncoord = model%nc
     model%nvel = model%nc
     model%diag_mass = .true.
+    model%identity_kinematics = .true.
+    model%has_i3_matrix = .true.
     model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
+    model%velocity_forces = any(fint(1, :) == MBDK_FORCE_SPRING_DAMPER .or. &
+                                fint(1, :) == MBDK_FORCE_COORDINATE .or. &
+                                fint(1, :) >= MBDK_FORCE_DAMPER)
     allocate (model%mass(model%nc), model%winv(model%nc), model%row0(nj), stat=astat)
     call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * model%nc + MBDK_INT_BYTES * nj, stat, &
                            asked)
@@ -1589,5 +1678,45 @@ contains
     call mbdk_model_watch_nodes(self, t_a, t_b, y(1:self%nc, :), y(self%nc + 1:2 * self%nc, :), &
                                 stat, lam=lam)
   end subroutine model_watch_nodes_lam
+
+  subroutine model_watch_begin(self, t, y, velocity, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: velocity
+    integer, intent(out) :: stat
+    call mbdk_model_watch_start(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), stat, &
+                                velocity=velocity)
+  end subroutine model_watch_begin
+
+  subroutine model_watch_solve(self, t, y, force, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat, &
+                          solve_lam=.true.)
+  end subroutine model_watch_solve
+
+  subroutine model_retract(self, q, dq, qn, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), dq(:)
+    real(dp), intent(out) :: qn(:)
+    integer, intent(out) :: stat
+    qn = q + dq
+    stat = MBDK_SUCCESS
+  end subroutine model_retract
+
+  !> nothing to keep: planar coordinates are free
+  subroutine model_normalise(self, q)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(inout) :: q(:)
+  end subroutine model_normalise
+
+  subroutine model_coord_weights(self, q, w)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: w(:)
+    w = abs(q)
+  end subroutine model_coord_weights
 
 end module mbdk_model

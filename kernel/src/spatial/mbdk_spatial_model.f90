@@ -82,8 +82,8 @@ module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
-  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED, MBDK_FORM_BAUMGARTE, &
-    MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
@@ -102,6 +102,9 @@ module mbdk_spatial_model
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
     mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
     mbdk_spatial_watch_nodes
+  ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
+  ! (and clones it), so that a submodule compiled on its own cannot link to it
+  public :: frames, forces, constraints, apply_minv, gram, near_test
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
@@ -224,7 +227,91 @@ module mbdk_spatial_model
     procedure :: active_rows => spatial_active_rows
     procedure :: watch_lam => spatial_watch_lam
     procedure :: watch_nodes_lam => spatial_watch_nodes_lam
+    procedure :: watch_begin => spatial_watch_begin
+    procedure :: watch_solve => spatial_watch_solve
+    procedure :: retract => spatial_retract
+    procedure :: normalise => spatial_normalise
+    procedure :: coord_weights => spatial_coord_weights
+    ! trapezoidal_index3's part (the submodule mbdk_spatial_i3)
+    procedure :: i3_create => spatial_i3_create
+    procedure :: i3_evaluate => spatial_i3_evaluate
+    procedure :: i3_residual => spatial_i3_residual
+    procedure :: i3_c_times => spatial_i3_c_times
+    procedure :: i3_ct_times => spatial_i3_ct_times
+    procedure :: i3_cs_factor => spatial_i3_cs_factor
+    procedure :: i3_cs_solve => spatial_i3_cs_solve
+    procedure :: i3_matrix => spatial_i3_matrix
+    procedure :: i3_matrix_solve => spatial_i3_matrix_solve
   end type mbdk_spatial_model_t
+
+  interface
+    module subroutine spatial_i3_create(self, aux, book, stat, asked)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), allocatable, intent(out) :: aux
+      logical, intent(in) :: book
+      integer, intent(out) :: stat
+      real(dp), intent(inout), optional :: asked
+    end subroutine spatial_i3_create
+    module subroutine spatial_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
+                                          stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: t
+      real(dp), intent(in), contiguous :: q(:), v(:)
+      real(dp), intent(inout), contiguous :: f(:)
+      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      logical, intent(in) :: forces, same_q
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_evaluate
+    module subroutine spatial_i3_residual(self, aux, f, lt, s, dd, r)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      real(dp), intent(in) :: s
+      real(dp), intent(out), contiguous :: r(:)
+    end subroutine spatial_i3_residual
+    module subroutine spatial_i3_c_times(self, aux, x, y)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine spatial_i3_c_times
+    module subroutine spatial_i3_ct_times(self, aux, x, y)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine spatial_i3_ct_times
+    module subroutine spatial_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: near
+      logical, intent(in) :: regular_ok
+      logical, intent(out) :: regular
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_cs_factor
+    module subroutine spatial_i3_cs_solve(self, aux, b, c, x, mu, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: b(:), c(:)
+      real(dp), intent(out), contiguous :: x(:), mu(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_cs_solve
+    module subroutine spatial_i3_matrix(self, aux, book, t, q, v, lam, h, alpha, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      logical, intent(in) :: book
+      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_matrix
+    module subroutine spatial_i3_matrix_solve(self, aux, r, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(inout), contiguous :: r(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_matrix_solve
+  end interface
 
   !> the kinematics of every body at one state (index 0: the ground)
   type :: frames_t
@@ -1678,10 +1765,21 @@ contains
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     integer, intent(out) :: stat
+    call spatial_watch_begin(self, t, y, .true., stat)
+  end subroutine spatial_watch_start
+
+  !> The watch started at (t, y); velocity = .false.: the integrator does not promise the
+  !> velocity constraints (the book's index-3 scheme), so they are not tested.
+  subroutine spatial_watch_begin(self, t, y, velocity, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: velocity
+    integer, intent(out) :: stat
     real(dp) :: out(MBDK_SPATIAL_NOUT), mom(6), msc(2)
     call mbdk_spatial_outputs(self, t, y, out, stat, mom=mom, msc=msc)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
+    call mbdk_watch_start(self%work%watch, self%opt%watch_position, &
+                          merge(self%opt%watch_velocity, 0.0_dp, velocity), &
                           self%opt%watch_energy, self%opt%watch_every, self%has_power, &
                           self%length, self%row_angular, t, out(1), out(2), out(3), &
                           [0.0_dp, 0.0_dp, out(4)], self%gscale, sum(self%mass), stat, &
@@ -1690,7 +1788,84 @@ contains
     call mbdk_watch_start_invariants(self%work%watch, self%opt%watch_momentum, self%inv, &
                                      self%ninv, mom, msc, self%opt%watch_quaternion, &
                                      merge(self%nb, 0, self%opt%rotation == MBDK_ROT_QUATERNION))
-  end subroutine spatial_watch_start
+  end subroutine spatial_watch_begin
+
+  !> The watch with the multipliers of the drivers' power solved for at (t, y).
+  subroutine spatial_watch_solve(self, t, y, force, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch(self, t, y, force, stat)
+  end subroutine spatial_watch_solve
+
+  !> q (+) dq body by body: r + dr, and the orientation turned by the body-frame rotation
+  !> dtheta, R+ = R exp(skew(dtheta)): a quaternion multiplied by exp(dtheta / 2) (its norm
+  !> kept), an angle set moved along its rates by the midpoint rule (exact to O(|dtheta|^3),
+  !> the order of a trapezoidal step's own error; at the set's gimbal lock
+  !> MBDK_ERR_SINGULAR_MATRIX).
+  subroutine spatial_retract(self, q, dq, qn, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), dq(:)
+    real(dp), intent(out) :: qn(:)
+    integer, intent(out) :: stat
+    real(dp) :: th, e(4), da(3), am(3)
+    integer :: b, k, o
+    stat = MBDK_SUCCESS
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      qn(k:k + 2) = q(k:k + 2) + dq(o + 1:o + 3)
+      associate (dth => dq(o + 4:o + 6))
+        if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+          th = norm2(dth)
+          e(1) = cos(0.5_dp * th)
+          if (th > 0.0_dp) then
+            e(2:4) = (sin(0.5_dp * th) / th) * dth
+          else
+            e(2:4) = 0.0_dp
+          end if
+          qn(k + 3:k + 6) = mbdk_quat_mul(q(k + 3:k + 6), e)
+        else
+          call mbdk_angles_rates(self%seq, q(k + 3:k + 5), dth, .true., da, stat)
+          if (stat /= MBDK_SUCCESS) return
+          am = q(k + 3:k + 5) + 0.5_dp * da
+          call mbdk_angles_rates(self%seq, am, dth, .true., da, stat)
+          if (stat /= MBDK_SUCCESS) return
+          qn(k + 3:k + 5) = q(k + 3:k + 5) + da
+        end if
+      end associate
+    end do
+  end subroutine spatial_retract
+
+  !> the quaternions to unit norm (angle sets have nothing to keep)
+  subroutine spatial_normalise(self, q)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(inout) :: q(:)
+    integer :: b, k
+    real(dp) :: n
+    if (self%opt%rotation /= MBDK_ROT_QUATERNION) return
+    do b = 1, self%nb
+      k = qi(self, b) + 3
+      n = norm2(q(k:k + 3))
+      if (n > 0.0_dp) q(k:k + 3) = q(k:k + 3) / n
+    end do
+  end subroutine spatial_normalise
+
+  !> |r| component by component for the translations, 1 (a rotation of the body's unit frame)
+  !> for the rotations
+  subroutine spatial_coord_weights(self, q, w)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: w(:)
+    integer :: b, k, o
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      w(o + 1:o + 3) = abs(q(k:k + 2))
+      w(o + 4:o + 6) = 1.0_dp
+    end do
+  end subroutine spatial_coord_weights
 
   !> Whether the watch integrates a work the run reports (the states inside a step serve it).
   logical function spatial_wants_nodes(self)
