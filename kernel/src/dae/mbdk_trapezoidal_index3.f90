@@ -225,6 +225,9 @@ module mbdk_trapezoidal_index3
   real(dp), parameter :: LOCAL_SHARE = 1.0e-2_dp
   !> and not below this share of the options' tolerance (a state at rest has no local error)
   real(dp), parameter :: TAU_MIN = 1.0e-3_dp
+  !> an old matrix's stall within STALL_ACCEPT times the last roundoff stall is accepted; that
+  !> level decays by NOISE_DECAY per step
+  real(dp), parameter :: STALL_ACCEPT = 2.0_dp, NOISE_DECAY = 0.9_dp
   !> augmented form, near a rank loss of C (see "Singular configurations" in the header): an
   !> iteration whose progress, computed with a matrix built at the iterate before, falls by less
   !> than STALL_RATE has stalled; the first stall multiplies alpha by BOOST, the second freezes
@@ -297,6 +300,8 @@ module mbdk_trapezoidal_index3
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
     !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
     real(dp) :: tau = 1.0_dp
+    !> the update's norm where a matrix built in its step last stalled (roundoff), decaying
+    real(dp) :: noise = 0.0_dp
     !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
     logical :: lu_boosted = .false.
     !> the projection of the accepted state (regular) and of the attempted one (regular_n) took
@@ -1045,7 +1050,9 @@ contains
     end if
     if (s%book) s%lp = s%lam
     if (s%book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
-    if (s%have_lu .and. (abs(h - s%h_lu) > 1.0e-12_dp * h .or. s%cool > 0 .or. &
+    ! a new h takes a new matrix; h = tn - t jitters by the rounding of t (ulp(t) / h: 2e-9 at
+    ! t = 10 s, h = 1e-6), which does not make one
+    if (s%have_lu .and. (abs(h - s%h_lu) > sqrt(epsilon(1.0_dp)) * h .or. s%cool > 0 .or. &
                          s%lu_boosted)) s%have_lu = .false.
     if (.not. s%identity .or. s%fd_matrix) call mech%coord_weights(s%q, s%w)
     ! the augmented form's target for Newton's update: LOCAL_SHARE times the step's local error,
@@ -1056,6 +1063,7 @@ contains
     ! velocity error fell 6-fold, not 100-fold, from h = 1e-4 to 1e-5); the share keeps it a
     ! hundredth of the truncation error. The first step has no estimate: the options' alone.
     s%tau = 1.0_dp
+    s%noise = NOISE_DECAY * s%noise
     if (.not. s%book .and. s%h_prev > 0.0_dp) then
       if (s%identity) then
         s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(sh * (h / s%h_prev) * (s%a - s%a_prev)) / &
@@ -1079,7 +1087,7 @@ contains
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old, alpha0
-    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted, own
+    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted, own, stall_own
     integer :: k, nv, m, stalls
 
     nv = s%nv
@@ -1180,7 +1188,9 @@ contains
       ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
+      stall_own = .false.
       if (converged()) then
+        if (stall_own) s%noise = dnorm
         s%dq(:) = s%dq + s%r(1:nv)
         if (book) s%ln = s%ln + s%r(nv + 1:) / sh
         exit
@@ -1247,9 +1257,11 @@ contains
         ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
         ! (the update itself where no rate is known); or an update from a matrix built in this
         ! step that no longer halves (the roundoff of the increment: an old matrix contracting
-        ! slowly is rebuilt instead); or the last iteration allowed; or an update within the
-        ! roundoff of the coordinates (16 eps of their size: what Phi's roundoff
-        ! moves them by, which no matrix removes)
+        ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
+        ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
+        ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
+        ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
+        ! of their size: what Phi's roundoff moves them by, which no matrix removes)
         if (s%identity) then
           qsize = max(1.0_dp, maxval(abs(s%qn)))
         else
@@ -1260,8 +1272,9 @@ contains
           left = huge(1.0_dp)
           if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
         end if
-        converged = left <= max(s%tau, TAU_MIN) .or. &
-                    (own .and. dnorm > REBUILD_RATE * dnorm_old) .or. &
+        stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
+        converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
+                    (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
                     s%iters >= s%opt%newton_max_iter .or. &
                     maxval(abs(s%r(1:nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
       end if
