@@ -1183,25 +1183,11 @@ contains
       if (m > 0) phin = maxval(abs(s%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
       phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
-      ! a stall (measured below, after the solve) stiffens the penalty, then freezes lam*. The
-      ! multiplier update takes the alpha that produced this Phi: with the new one it would
-      ! overshoot BOOST-fold and leave Phi where it was.
+      ! the multiplier update takes the alpha that produced this Phi: with a stiffened one it
+      ! would overshoot BOOST-fold and leave Phi where it was
       alpha_upd = s%alpha
-      if (stalls > 0 .and. .not. frozen) then
-        stalls = 0
-        if (.not. boosted) then
-          boosted = .true.
-          s%alpha = s%alpha * BOOST
-          s%have_lu = .false.
-          upd_fresh = .false.
-        else
-          ! freeze only what a frozen step may accept: a larger Phi stalls for another reason
-          ! (a stiff force's nonlinearity) and the multipliers go on
-          frozen = phin <= FROZEN_PHI * phi_tol
-          ! the noise test of a frozen step compares frozen updates only
-          if (frozen) dnorm_old = huge(1.0_dp)
-        end if
-      end if
+      if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
+                                                             frozen, upd_fresh, dnorm_old)
       if (.not. book) then
         if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
         s%lt(:) = s%ln + s%alpha * s%phi
@@ -1250,8 +1236,7 @@ contains
       ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
-      stall_own = .false.
-      if (converged()) then
+      if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, stall_own)) then
         if (stall_own) s%noise = dnorm
         s%dq(:) = s%dq + s%r(1:nv)
         if (book) s%ln = s%ln + s%r(nv + 1:) / sh
@@ -1306,43 +1291,77 @@ contains
 
   contains
 
-    logical function converged()
-      real(dp) :: left, qsize
-      converged = .false.
-      if (k < 2) return
-      if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
-        converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
-      else if (m == 0 .or. phin <= phi_tol) then
-        converged = dnorm <= 1.0_dp
-        if (.not. converged .or. s%tau >= 1.0_dp) return
-        ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
-        ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
-        ! (the update itself where no rate is known); or an update from a matrix built in this
-        ! step that no longer halves (the roundoff of the increment: an old matrix contracting
-        ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
-        ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
-        ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
-        ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
-        ! of their size: what Phi's roundoff moves them by, which no matrix removes)
-        if (s%identity) then
-          qsize = max(1.0_dp, maxval(abs(s%qn)))
-        else
-          qsize = max(1.0_dp, maxval(s%w))
-        end if
-        left = dnorm
-        if (dnorm_old < huge(1.0_dp)) then
-          left = huge(1.0_dp)
-          if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
-        end if
-        stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
-        converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
-                    (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
-                    s%iters >= s%opt%newton_max_iter .or. &
-                    maxval(abs(s%r(1:nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
-      end if
-    end function converged
 
   end subroutine newton
+
+  !> A stall (measured after the solve) stiffens the penalty BOOST-fold (a new matrix), and at
+  !> the next one freezes lam* where |Phi| is within what a frozen step may accept (a larger
+  !> Phi stalls for another reason, a stiff force's nonlinearity, and the multipliers go on);
+  !> the noise test of a frozen step compares frozen updates only.
+  subroutine stall_response(s, phin, phi_tol, stalls, boosted, frozen, upd_fresh, dnorm_old)
+    type(mbdk_index3_t), intent(inout) :: s
+    real(dp), intent(in) :: phin, phi_tol
+    integer, intent(inout) :: stalls
+    logical, intent(inout) :: boosted, frozen, upd_fresh
+    real(dp), intent(inout) :: dnorm_old
+    stalls = 0
+    if (.not. boosted) then
+      boosted = .true.
+      s%alpha = s%alpha * BOOST
+      s%have_lu = .false.
+      upd_fresh = .false.
+    else
+      frozen = phin <= FROZEN_PHI * phi_tol
+      if (frozen) dnorm_old = huge(1.0_dp)
+    end if
+  end subroutine stall_response
+
+  !> Newton's stopping test after the update r computed at iterate k (the step's test, in the
+  !> module header): the update's norm dnorm (the last one's dnorm_old) and |Phi| (phin against
+  !> phi_tol) there. own: the matrix was built in this step; stall_own: set when a stall of such
+  !> a matrix is what passes (its level is then the step's roundoff, s%noise).
+  logical function newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, &
+                                  stall_own) result(converged)
+    type(mbdk_index3_t), intent(in) :: s
+    integer, intent(in) :: k
+    logical, intent(in) :: frozen, own
+    real(dp), intent(in) :: phin, phi_tol, dnorm, dnorm_old
+    logical, intent(out) :: stall_own
+    real(dp) :: left, qsize
+    converged = .false.
+    stall_own = .false.
+    if (k < 2) return
+    if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
+      converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
+    else if (s%m == 0 .or. phin <= phi_tol) then
+      converged = dnorm <= 1.0_dp
+      if (.not. converged .or. s%tau >= 1.0_dp) return
+      ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
+      ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
+      ! (the update itself where no rate is known); or an update from a matrix built in this
+      ! step that no longer halves (the roundoff of the increment: an old matrix contracting
+      ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
+      ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
+      ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
+      ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
+      ! of their size: what Phi's roundoff moves them by, which no matrix removes)
+      if (s%identity) then
+        qsize = max(1.0_dp, maxval(abs(s%qn)))
+      else
+        qsize = max(1.0_dp, maxval(s%w))
+      end if
+      left = dnorm
+      if (dnorm_old < huge(1.0_dp)) then
+        left = huge(1.0_dp)
+        if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
+      end if
+      stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
+      converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
+                  (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
+                  s%iters >= s%opt%newton_max_iter .or. &
+                  maxval(abs(s%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
+    end if
+  end function newton_converged
 
   !> qn = q (+) dq
   subroutine move_to(s, mech, ierr)
