@@ -1,0 +1,177 @@
+"""The generalized-alpha family of index-3 integrators: parameters from a method's name and
+options, and the family's closed-form amplification on the undamped oscillator.
+
+One stepping routine integrates every member (kernel/src/dae/mbdk_trapezoidal_index3.f90, whose
+header is the manual: Chung and Hulbert (1993) in the form of Arnold and Bruls (2007), with a
+pseudo-acceleration ap):
+
+    dq  = h v + h^2 (1/2 - beta) ap + h^2 beta ap+
+    v+  = v + h (1 - gamma) ap + h gamma ap+
+    (1 - alpha_m) ap+ + alpha_m ap = (1 - alpha_f) a+ + alpha_f a
+
+and the members differ only in (beta, gamma, alpha_m, alpha_f):
+
+    trapezoidal_index3   1/4, 1/2, 0, 0
+    newmark              beta, gamma (default 1/4, 1/2), 0, 0
+    hht                  alpha in [-1/3, 0]: (1 - alpha)^2 / 4, 1/2 - alpha, 0, -alpha
+    generalized_alpha    rho_inf in [0, 1]: alpha_m = (2 rho - 1) / (rho + 1),
+                         alpha_f = rho / (rho + 1), gamma = 1/2 - alpha_m + alpha_f,
+                         beta = (1 - alpha_m + alpha_f)^2 / 4; or the four given directly
+
+`amplification(params, omega_h)` is the one-step map of (q, h v, h^2 ap) on q'' = -omega^2 q,
+solved from the three relations above with a = -omega^2 q (the equations of motion at each
+step's end): an independent computation of what the compiled step does, against which
+mbdk.spectral measures the kernel's steps. Its eigenvalues give the spectral radius, the
+numerical damping ratio and the relative period error (Hughes, "The Finite Element Method",
+9.3; Chung and Hulbert 1993, section 3).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+#: the members and the options each takes (besides trapezoidal_index3's own)
+MEMBERS = {"trapezoidal_index3": (), "newmark": ("beta", "gamma"), "hht": ("alpha_hht",),
+           "generalized_alpha": ("rho_inf", "beta", "gamma", "alpha_m", "alpha_f")}
+
+
+@dataclass(frozen=True)
+class AlphaParameters:
+    """(beta, gamma, alpha_m, alpha_f) of one member, and how they were asked for."""
+
+    beta: float = 0.25
+    gamma: float = 0.5
+    alpha_m: float = 0.0
+    alpha_f: float = 0.0
+    spec: str = "trapezoidal rule"
+
+    def as_options(self) -> dict:
+        """The fields of mbdk_index3_options."""
+        return {"beta": self.beta, "gamma": self.gamma, "alpha_m": self.alpha_m,
+                "alpha_f": self.alpha_f}
+
+    @property
+    def second_order(self) -> bool:
+        """gamma = 1/2 - alpha_m + alpha_f (to roundoff): second order in q and v."""
+        return abs(self.gamma - (0.5 - self.alpha_m + self.alpha_f)) <= 1e-12
+
+
+def _real(name: str, value, method: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise InvalidInputError(f"{name} = {value!r}: {method} takes a real number")
+    x = float(value)
+    if not math.isfinite(x):
+        raise InvalidInputError(f"{name} = {value!r}: {method} takes a finite number")
+    return x
+
+
+def generalized_alpha_from_rho(rho_inf: float) -> AlphaParameters:
+    """Chung and Hulbert's optimal parameters for a spectral radius rho_inf at Omega -> inf."""
+    rho = rho_inf
+    am = (2.0 * rho - 1.0) / (rho + 1.0)
+    af = rho / (rho + 1.0)
+    return AlphaParameters(beta=0.25 * (1.0 - am + af) ** 2, gamma=0.5 - am + af, alpha_m=am,
+                           alpha_f=af, spec=f"rho_inf = {rho_inf:g}")
+
+
+def parameters(method: str, rho_inf=None, alpha_hht=None, beta=None, gamma=None, alpha_m=None,
+               alpha_f=None) -> AlphaParameters:
+    """The member's parameters from its options (None: not given), checked; a bad value or an
+    option the member does not take is an InvalidInputError naming it and what to give."""
+    given = {k: v for k, v in dict(rho_inf=rho_inf, alpha_hht=alpha_hht, beta=beta, gamma=gamma,
+                                   alpha_m=alpha_m, alpha_f=alpha_f).items() if v is not None}
+    if method not in MEMBERS:
+        raise InvalidInputError(f"{method!r} is not a method of the generalized-alpha family "
+                                f"({', '.join(MEMBERS)})")
+    extra = sorted(set(given) - set(MEMBERS[method]))
+    if extra:
+        takes = ", ".join(MEMBERS[method]) or "none of these"
+        raise InvalidInputError(f"{', '.join(extra)}: not options of {method} (it takes "
+                                f"{takes})")
+    vals = {k: _real(k, v, method) for k, v in given.items()}
+    if method == "trapezoidal_index3":
+        return AlphaParameters()
+    if method == "newmark":
+        b = vals.get("beta", 0.25)
+        g = vals.get("gamma", 0.5)
+        if not (b > 0 and g >= 0.5):
+            raise InvalidInputError(f"newmark with beta = {b:g}, gamma = {g:g}: give beta > 0 "
+                                    "and gamma >= 1/2 (gamma < 1/2 amplifies every mode)")
+        return AlphaParameters(beta=b, gamma=g, spec=f"beta = {b:g}, gamma = {g:g}")
+    if method == "hht":
+        a = vals.get("alpha_hht", -0.05)
+        if not -1.0 / 3.0 <= a <= 0.0:
+            raise InvalidInputError(f"hht with alpha_hht = {a:g}: give alpha_hht in [-1/3, 0] "
+                                    "(0 is the trapezoidal rule, -1/3 the most damping)")
+        return AlphaParameters(beta=0.25 * (1.0 - a) ** 2, gamma=0.5 - a, alpha_m=0.0,
+                               alpha_f=-a, spec=f"alpha = {a:g}")
+    direct = [k for k in ("beta", "gamma", "alpha_m", "alpha_f") if k in vals]
+    if "rho_inf" in vals and direct:
+        raise InvalidInputError(f"generalized_alpha: give rho_inf or {', '.join(direct)}, not "
+                                "both")
+    if direct:
+        if len(direct) != 4:
+            missing = sorted({"beta", "gamma", "alpha_m", "alpha_f"} - set(direct))
+            raise InvalidInputError(f"generalized_alpha given {', '.join(direct)}: give all "
+                                    f"four parameters (missing {', '.join(missing)}), or "
+                                    "rho_inf alone")
+        p = AlphaParameters(beta=vals["beta"], gamma=vals["gamma"], alpha_m=vals["alpha_m"],
+                            alpha_f=vals["alpha_f"], spec="given")
+        if not (p.beta > 0 and p.gamma > 0 and p.alpha_m < 1 and p.alpha_f < 1):
+            raise InvalidInputError(f"generalized_alpha with beta = {p.beta:g}, gamma = "
+                                    f"{p.gamma:g}, alpha_m = {p.alpha_m:g}, alpha_f = "
+                                    f"{p.alpha_f:g}: give beta > 0, gamma > 0, alpha_m < 1 and "
+                                    "alpha_f < 1")
+        return p
+    rho = vals.get("rho_inf", 0.8)
+    if not 0.0 <= rho <= 1.0:
+        raise InvalidInputError(f"generalized_alpha with rho_inf = {rho:g}: give rho_inf in "
+                                "[0, 1] (1: no numerical damping, 0: the most)")
+    return generalized_alpha_from_rho(rho)
+
+
+def amplification(p: AlphaParameters, omega_h: float) -> np.ndarray:
+    """The one-step map of x = (q, h v, h^2 ap) on q'' = -omega^2 q at Omega = omega h (3 x 3),
+    from the family's relations with a = -Omega^2 q / h^2 at both ends of the step."""
+    w2 = omega_h * omega_h
+    b, g, am, af = p.beta, p.gamma, p.alpha_m, p.alpha_f
+    # unknowns (q+, hv+, h2ap+); the relations, all times h^0 after scaling by powers of h:
+    #   q+ - b h2ap+                               = q + hv + (1/2 - b) h2ap
+    #   hv+ - g h2ap+                              = hv + (1 - g) h2ap
+    #   (1 - am) h2ap+ + (1 - af) w2 q+            = -am h2ap - af w2 q
+    lhs = np.array([[1.0, 0.0, -b], [0.0, 1.0, -g], [(1.0 - af) * w2, 0.0, 1.0 - am]])
+    rhs = np.array([[1.0, 1.0, 0.5 - b], [0.0, 1.0, 1.0 - g], [-af * w2, 0.0, -am]])
+    return np.linalg.solve(lhs, rhs)
+
+
+def properties_from_roots(roots, omega_h: float) -> tuple[float, float, float]:
+    """(spectral radius, damping ratio, relative period error) from a step's eigenvalues:
+    the principal root is the one nearest exp(i Omega) in the upper half plane, lambda =
+    exp(Omega_bar (-xi_bar + i)); xi_bar = -ln|lambda| / arg(lambda), period error
+    Omega / arg(lambda) - 1 (NaN where no root is complex: the method has lost the
+    oscillation)."""
+    roots = np.asarray(roots, dtype=complex)
+    rho = float(np.abs(roots).max())
+    upper = roots[roots.imag > 1e-14 * np.abs(roots).clip(min=1e-300)]
+    if upper.size == 0:
+        return rho, math.nan, math.nan
+    lam = upper[np.argmin(np.abs(upper - np.exp(1j * omega_h)))]
+    arg = math.atan2(lam.imag, lam.real)
+    xi = -math.log(abs(lam)) / arg
+    return rho, xi, omega_h / arg - 1.0
+
+
+def closed_form_properties(p: AlphaParameters, omega_h: float) -> tuple[float, float, float]:
+    """Spectral radius, damping ratio and period error of the member at Omega = omega h, from
+    the eigenvalues of `amplification` (for ap = a members the third eigenvalue is the
+    spurious 0 of a state that does not exist)."""
+    a = amplification(p, omega_h)
+    roots = np.linalg.eigvals(a)
+    if p.alpha_m == 0.0 and p.alpha_f == 0.0:
+        # ap = a = -Omega^2 q / h^2: the map on (q, hv) alone; its third root is 0
+        roots = roots[np.argsort(-np.abs(roots))][:2]
+    return properties_from_roots(roots, omega_h)
