@@ -939,171 +939,221 @@ contains
   ! ---- the constraints ---------------------------------------------------------------------
 
   !> Phi (m), C (m x 6 nb), gamma (the terms of Phi'' other than C w': -(C' w), and for a driver
-  !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames.
+  !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames: primitive by primitive,
+  !> each kind's rows by a routine of its own.
   pure subroutine constraints(model, fr, t, phi, c, gam, phit)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(in) :: t
     real(dp), intent(out) :: phi(:), c(:, :), gam(:)
     real(dp), intent(out), optional :: phit(:)
-    integer :: k, i, j, r
-    real(dp) :: pi(3), pj(3), di(3), dj(3), ddi(3), ddj(3), h(3), hd(3), dv(3), dw(3), f, fd, &
-      fdd, cf, sf, a, b, qa, qb, da, db
+    integer :: k, r
+    real(dp) :: f, fd, fdd, pt
     phi = 0.0_dp
     c = 0.0_dp
     gam = 0.0_dp
     if (present(phit)) phit = 0.0_dp
     do k = 1, model%nprim
       associate (pr => model%prim(k))
-        i = pr%bi
-        j = pr%bj
         r = pr%row
         select case (pr%kind)
         case (PRIM_SPH)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          phi(r:r + 2) = pi - pj
-          call point_cols(c(r:r + 2, :), i, pr%si, 1.0_dp)
-          call point_cols(c(r:r + 2, :), j, pr%sj, -1.0_dp)
-          gam(r:r + 2) = -(pquad(i, pr%si) - pquad(j, pr%sj))
+          call sph_rows(pr, fr, phi(r:r + 2), c(r:r + 2, :), gam(r:r + 2))
         case (PRIM_DOT1)
-          di = matmul(fr%rot(:, :, i), pr%ui)
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          phi(r) = dot_product(di, dj)
-          call vec_cols(c(r, :), i, pr%ui, dj)
-          call vec_cols(c(r, :), j, pr%uj, di)
-          ddi = vvel(i, pr%ui)
-          ddj = vvel(j, pr%uj)
-          gam(r) = -(dot_product(dj, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
-                     2.0_dp * dot_product(ddi, ddj))
+          call dot1_row(pr, fr, phi(r), c(r, :), gam(r))
         case (PRIM_DOT2)
-          ! d = R_j u_j on body j, h = P_i - P_j
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          h = pi - pj
-          phi(r) = dot_product(dj, h)
-          call point_row(c(r, :), i, pr%si, dj)
-          call point_row(c(r, :), j, pr%sj, -dj)
-          call vec_cols(c(r, :), j, pr%uj, h)
-          hd = pvel(i, pr%si) - pvel(j, pr%sj)
-          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
-                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj)))
+          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
         case (PRIM_SLIDE)
           ! Phi = d . h - f(t), d = R_j u_j, h = P_i - P_j: PRIM_DOT2 less the slide f(t)
           call mbdk_time_fn(pr%fn, t, f, fd, fdd)
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          h = pi - pj
-          phi(r) = dot_product(dj, h) - f
-          call point_row(c(r, :), i, pr%si, dj)
-          call point_row(c(r, :), j, pr%sj, -dj)
-          call vec_cols(c(r, :), j, pr%uj, h)
-          hd = pvel(i, pr%si) - pvel(j, pr%sj)
+          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
+          phi(r) = phi(r) - f
           if (present(phit)) phit(r) = -fd
-          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
-                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj))) + fdd
+          gam(r) = gam(r) + fdd
         case (PRIM_ANGLE)
-          ! Phi = cos f (u . w) - sin f (u . v) = sin(theta - f): u = R_i ui, v = R_j uj,
-          ! w = R_j wj; A = u . w = sin theta, B = u . v = cos theta
-          call mbdk_time_fn(pr%fn, t, f, fd, fdd)
-          cf = cos(f)
-          sf = sin(f)
-          di = matmul(fr%rot(:, :, i), pr%ui)
-          dv = matmul(fr%rot(:, :, j), pr%uj)
-          dw = matmul(fr%rot(:, :, j), pr%wj)
-          a = dot_product(di, dw)
-          b = dot_product(di, dv)
-          phi(r) = cf * a - sf * b
-          call vec_cols(c(r, :), i, pr%ui, cf * dw - sf * dv)
-          call vec_cols(c(r, :), j, pr%wj, cf * di)
-          call vec_cols(c(r, :), j, pr%uj, -sf * di)
-          ddi = vvel(i, pr%ui)
-          qa = dot_product(dw, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%wj)) + &
-            2.0_dp * dot_product(ddi, vvel(j, pr%wj))
-          qb = dot_product(dv, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
-            2.0_dp * dot_product(ddi, vvel(j, pr%uj))
-          da = dot_product(ddi, dw) + dot_product(di, vvel(j, pr%wj))
-          db = dot_product(ddi, dv) + dot_product(di, vvel(j, pr%uj))
-          ! Phi_t = -f' (sin f A + cos f B); C_t w = -f' (sin f A' + cos f B');
-          ! Phi_tt = -f'' (sin f A + cos f B) - f'^2 (cos f A - sin f B)
-          if (present(phit)) phit(r) = -fd * (sf * a + cf * b)
-          gam(r) = -(cf * qa - sf * qb - 2.0_dp * fd * (sf * da + cf * db) &
-                     - fdd * (sf * a + cf * b) - fd**2 * (cf * a - sf * b))
+          call angle_row(pr, fr, t, phi(r), c(r, :), gam(r), pt)
+          if (present(phit)) phit(r) = pt
         end select
       end associate
     end do
-
-  contains
-
-    ! rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
-    pure subroutine point_cols(cc, b, s, sgn)
-      real(dp), intent(inout) :: cc(:, :)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3), sgn
-      integer :: o, d
-      if (b == 0) return
-      o = (b - 1) * 6
-      do d = 1, 3
-        cc(d, o + d) = cc(d, o + d) + sgn
-      end do
-      cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
-    end subroutine point_cols
-
-    ! the row x . (point velocity)
-    pure subroutine point_row(cr, b, s, x)
-      real(dp), intent(inout) :: cr(:)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3), x(3)
-      integer :: o
-      if (b == 0) return
-      o = (b - 1) * 6
-      cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
-      ! -x^T R skew(s) W = W . (s x R^T x)
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
-    end subroutine point_row
-
-    ! the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
-    pure subroutine vec_cols(cr, b, u, x)
-      real(dp), intent(inout) :: cr(:)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3), x(3)
-      integer :: o
-      if (b == 0) return
-      o = (b - 1) * 6
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
-    end subroutine vec_cols
-
-    pure function pvel(b, s) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3)
-      real(dp) :: x(3)
-      x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
-    end function pvel
-
-    pure function pquad(b, s) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3)
-      real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
-    end function pquad
-
-    pure function vvel(b, u) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3)
-      real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
-    end function vvel
-
-    pure function vquad(b, u) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3)
-      real(dp) :: x(3)
-      x = pquad(b, u)
-    end function vquad
-
   end subroutine constraints
+
+  !> A point on a point (PRIM_SPH), three rows: Phi = P_i - P_j with P = r + R s.
+  pure subroutine sph_rows(pr, fr, phi, c, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi(3), gam(3)
+    real(dp), intent(inout) :: c(:, :)
+    real(dp) :: pi(3), pj(3)
+    associate (i => pr%bi, j => pr%bj)
+      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      phi = pi - pj
+      call point_cols(fr, c, i, pr%si, 1.0_dp)
+      call point_cols(fr, c, j, pr%sj, -1.0_dp)
+      gam = -(pquad(fr, i, pr%si) - pquad(fr, j, pr%sj))
+    end associate
+  end subroutine sph_rows
+
+  !> Two body vectors normal (PRIM_DOT1), one row: Phi = (R_i u_i) . (R_j u_j).
+  pure subroutine dot1_row(pr, fr, phi, cr, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi, gam
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: di(3), dj(3), ddi(3), ddj(3)
+    associate (i => pr%bi, j => pr%bj)
+      di = matmul(fr%rot(:, :, i), pr%ui)
+      dj = matmul(fr%rot(:, :, j), pr%uj)
+      phi = dot_product(di, dj)
+      call vec_cols(fr, cr, i, pr%ui, dj)
+      call vec_cols(fr, cr, j, pr%uj, di)
+      ddi = vvel(fr, i, pr%ui)
+      ddj = vvel(fr, j, pr%uj)
+      gam = -(dot_product(dj, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%uj)) + &
+              2.0_dp * dot_product(ddi, ddj))
+    end associate
+  end subroutine dot1_row
+
+  !> A vector of body j normal to the joint points' offset (PRIM_DOT2), one row:
+  !> Phi = d . h, d = R_j u_j, h = P_i - P_j.
+  pure subroutine dot2_row(pr, fr, phi, cr, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi, gam
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: pi(3), pj(3), dj(3), h(3), hd(3)
+    associate (i => pr%bi, j => pr%bj)
+      dj = matmul(fr%rot(:, :, j), pr%uj)
+      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      h = pi - pj
+      phi = dot_product(dj, h)
+      call point_row(fr, cr, i, pr%si, dj)
+      call point_row(fr, cr, j, pr%sj, -dj)
+      call vec_cols(fr, cr, j, pr%uj, h)
+      hd = pvel(fr, i, pr%si) - pvel(fr, j, pr%sj)
+      gam = -(dot_product(vquad(fr, j, pr%uj), h) + 2.0_dp * dot_product(vvel(fr, j, pr%uj), hd) &
+              + dot_product(dj, pquad(fr, i, pr%si) - pquad(fr, j, pr%sj)))
+    end associate
+  end subroutine dot2_row
+
+  !> The driven angle (PRIM_ANGLE), one row: Phi = cos f (u . w) - sin f (u . v) =
+  !> sin(theta - f), u = R_i ui, v = R_j uj, w = R_j wj; A = u . w = sin theta,
+  !> B = u . v = cos theta. phit: its Phi_t.
+  pure subroutine angle_row(pr, fr, t, phi, cr, gam, phit)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: phi, gam, phit
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: di(3), ddi(3), dv(3), dw(3), f, fd, fdd, cf, sf, a, b, qa, qb, da, db
+    associate (i => pr%bi, j => pr%bj)
+      call mbdk_time_fn(pr%fn, t, f, fd, fdd)
+      cf = cos(f)
+      sf = sin(f)
+      di = matmul(fr%rot(:, :, i), pr%ui)
+      dv = matmul(fr%rot(:, :, j), pr%uj)
+      dw = matmul(fr%rot(:, :, j), pr%wj)
+      a = dot_product(di, dw)
+      b = dot_product(di, dv)
+      phi = cf * a - sf * b
+      call vec_cols(fr, cr, i, pr%ui, cf * dw - sf * dv)
+      call vec_cols(fr, cr, j, pr%wj, cf * di)
+      call vec_cols(fr, cr, j, pr%uj, -sf * di)
+      ddi = vvel(fr, i, pr%ui)
+      qa = dot_product(dw, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%wj)) + &
+        2.0_dp * dot_product(ddi, vvel(fr, j, pr%wj))
+      qb = dot_product(dv, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%uj)) + &
+        2.0_dp * dot_product(ddi, vvel(fr, j, pr%uj))
+      da = dot_product(ddi, dw) + dot_product(di, vvel(fr, j, pr%wj))
+      db = dot_product(ddi, dv) + dot_product(di, vvel(fr, j, pr%uj))
+      ! Phi_t = -f' (sin f A + cos f B); C_t w = -f' (sin f A' + cos f B');
+      ! Phi_tt = -f'' (sin f A + cos f B) - f'^2 (cos f A - sin f B)
+      phit = -fd * (sf * a + cf * b)
+      gam = -(cf * qa - sf * qb - 2.0_dp * fd * (sf * da + cf * db) &
+              - fdd * (sf * a + cf * b) - fd**2 * (cf * a - sf * b))
+    end associate
+  end subroutine angle_row
+
+  ! ---- body points and vectors in the frames fr (body 0, the ground, has no columns in C) ----
+
+  !> rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
+  pure subroutine point_cols(fr, cc, b, s, sgn)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cc(:, :)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3), sgn
+    integer :: o, d
+    if (b == 0) return
+    o = (b - 1) * 6
+    do d = 1, 3
+      cc(d, o + d) = cc(d, o + d) + sgn
+    end do
+    cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
+  end subroutine point_cols
+
+  !> the row x . (point velocity)
+  pure subroutine point_row(fr, cr, b, s, x)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cr(:)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3), x(3)
+    integer :: o
+    if (b == 0) return
+    o = (b - 1) * 6
+    cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
+    ! -x^T R skew(s) W = W . (s x R^T x)
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
+  end subroutine point_row
+
+  !> the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
+  pure subroutine vec_cols(fr, cr, b, u, x)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cr(:)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3), x(3)
+    integer :: o
+    if (b == 0) return
+    o = (b - 1) * 6
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
+  end subroutine vec_cols
+
+  !> the velocity of body b's point s
+  pure function pvel(fr, b, s) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3)
+    real(dp) :: x(3)
+    x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
+  end function pvel
+
+  !> the acceleration of body b's point s quadratic in its angular velocity, R (W x (W x s))
+  pure function pquad(fr, b, s) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3)
+    real(dp) :: x(3)
+    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
+  end function pquad
+
+  !> the rate of body b's vector R u
+  pure function vvel(fr, b, u) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3)
+    real(dp) :: x(3)
+    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
+  end function vvel
+
+  !> the terms of the second derivative of body b's vector R u quadratic in W: a point's (pquad)
+  pure function vquad(fr, b, u) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3)
+    real(dp) :: x(3)
+    x = pquad(fr, b, u)
+  end function vquad
 
   !> M^-1 x for x in the velocity layout (6 per body).
   pure subroutine apply_minv(model, x, y)
