@@ -57,9 +57,8 @@ module mbdk_assembly
     type(mbdk_constrained_t) :: cs
   end type minnorm_t
 
-  !> the buffers of one assembly: Phi, gamma, Phi_t at the current state, the correction dx,
-  !> the dense D (while the least squares take the dense path: sparse false) and the dense
-  !> least squares' matrix a and right-hand side b
+  !> one assembly's buffers: Phi, gamma, Phi_t, the correction dx, and while the dense path
+  !> is taken (sparse false) D and the least squares' a and b
   type :: assembly_t
     logical :: sparse = .false.
     real(dp), allocatable :: phi(:), gam(:), phit(:), dx(:), d(:, :), a(:, :), b(:)
@@ -207,10 +206,8 @@ contains
     velocity = .false.
   end subroutine mbdk_assembly_run
 
-  !> The assembly's buffers, and its path: a large model (its projections sparse) assembles
-  !> through the sparse Schur complement of the free columns; a small one, and a large one
-  !> whose free columns are dependent, by the dense least squares (which passes redundant
-  !> joints) where its matrix is affordable.
+  !> The buffers and the path: sparse (the Schur complement of the free columns) where the
+  !> model's projections are; dense least squares (passes redundant joints) where affordable.
   subroutine assembly_start(model, as, stat)
     type(mbdk_model_t), intent(in) :: model
     type(assembly_t), intent(inout) :: as

@@ -384,9 +384,8 @@ contains
                             model%fint_c(4, :) /= MBDK_CONTACT_GEAR)
   end subroutine mbdk_model_init
 
-  !> The body table: at least one body, an inertia per body, masses positive and inertias not
-  !> negative, and counts whose state [q; v; w] (6 nb + nf values) and table entries (12 per
-  !> joint or force) default integers index.
+  !> The body table (masses > 0, inertias >= 0) and counts that default integers index: the
+  !> state [q; v; w] (6 nb + nf values) and the tables (12 entries per joint or force).
   pure logical function body_table_ok(mass, inertia, nj, nf) result(ok)
     real(dp), intent(in) :: mass(:), inertia(:)
     integer, intent(in) :: nj, nf
@@ -398,10 +397,9 @@ contains
     ok = .true.
   end function body_table_ok
 
-  !> The state's layout y = [q; v; w]: each body's kind and first coordinate (qoff), nc, the
-  !> ns effect states, the diagonal of M and the projections' weight winv. row0 (the joints'
-  !> first rows, filled by validate_joint_table) is allocated in the same statement as M, whose
-  !> bytes a failure reports. MBDK_ERR_NOT_APPLICABLE for a body kind the model cannot lay out.
+  !> The state's layout y = [q; v; w] by body kind (qoff, nc, ns), M's diagonal and winv;
+  !> MBDK_ERR_NOT_APPLICABLE for a kind it cannot lay out. row0 is allocated with M (one
+  !> statement, whose bytes a failure reports).
   subroutine lay_out_state(model, mass, inertia, ns, nj, stat, asked, kinds)
     type(mbdk_model_t), intent(inout) :: model
     real(dp), intent(in) :: mass(:), inertia(:)
@@ -574,9 +572,8 @@ contains
     ok = .true.
   end function contact_entry_ok
 
-  !> The formulations' parameters finite and the projection given an iteration. The watch's
-  !> (take_options) and the solver's (solver_ok) are checked where the model has what they are
-  !> checked against.
+  !> The formulations' parameters finite, projection_max_iter >= 1; the watch's and the
+  !> solver's options are checked later (take_options, solver_ok), where they always were.
   pure logical function parameters_ok(opt) result(ok)
     type(mbdk_model_options_t), intent(in) :: opt
     ok = abs(opt%baumgarte_alpha) <= huge(1.0_dp) .and. abs(opt%baumgarte_beta) <= &
@@ -606,9 +603,7 @@ contains
     model%freal = freal
   end subroutine copy_tables
 
-  !> The options into the model: the formulation and its parameters, the solver, and the
-  !> watch's tolerances (checked here: MBDK_ERR_INVALID_INPUT for one not finite or a negative
-  !> watch_every).
+  !> The options into the model; the watch's checked here (finite tolerances, watch_every >= 0).
   subroutine take_options(model, opt, stat)
     type(mbdk_model_t), intent(inout) :: model
     type(mbdk_model_options_t), intent(in) :: opt
@@ -634,10 +629,8 @@ contains
     stat = MBDK_SUCCESS
   end subroutine take_options
 
-  !> What the elements imply for the algorithms above the model: the momenta they conserve
-  !> (the watch), rheonomic rows (the drivers' power), the rows that constrain velocities only
-  !> (pfaffian), forces whose power needs the bodies' rotations, contacts (no tangent for
-  !> trapezoidal_index3) and forces that depend on velocities.
+  !> What the elements imply for the algorithms: conserved momenta, rheonomic and pfaffian
+  !> rows, power terms that need rotations, contacts, velocity-dependent forces.
   subroutine classify_elements(model, stat, asked)
     type(mbdk_model_t), intent(inout) :: model
     integer, intent(out) :: stat
@@ -683,10 +676,8 @@ contains
     ok = .true.
   end function solver_ok
 
-  !> The structures of the constrained solves: the pattern of D and of S = D M^-1 D^T, the
-  !> closed-form revolute Schur complement where the solver takes it (solver revolute on a
-  !> scene with another joint type: MBDK_ERR_INVALID_INPUT), and the pivot blocks (joints'
-  !> rows; single rows).
+  !> The constrained solves' structures: the patterns of D and S = D M^-1 D^T, the revolute
+  !> closed form where the solver takes it (refused for other joints), the pivot blocks.
   subroutine choose_solver_path(model, stat, asked)
     type(mbdk_model_t), intent(inout) :: model
     integer, intent(out) :: stat
@@ -722,9 +713,8 @@ contains
     stat = MBDK_SUCCESS
   end subroutine choose_solver_path
 
-  !> The evaluations' buffers in work, sized for the model (a dense D and the penalty matrix
-  !> only for the penalty formulation), and the constrained solves' objects: the evaluations'
-  !> (weight M^-1) and the projections' (weight winv).
+  !> The evaluations' buffers in work (dense D and M + ap D^T D for penalty only) and the
+  !> constrained solves' objects: the evaluations' (weight M^-1), the projections' (winv).
   subroutine allocate_work(model, work, stat, asked)
     type(mbdk_model_t), intent(in) :: model
     type(mbdk_model_work_t), intent(inout) :: work

@@ -381,9 +381,8 @@ contains
     stat = MBDK_SUCCESS
   end subroutine mbdk_spatial_init
 
-  !> The tables' shapes (an inertia per body, (2, nj) joint bodies, (2, nf) force bodies, reals
-  !> of their kernel sizes), at least one body, counts whose state (13 nb values) and
-  !> primitives (5 a joint) default integers count, and finite reals.
+  !> The tables' shapes and finite reals, at least one body, and counts that default integers
+  !> hold (the state: 13 nb values; the primitives: 5 a joint).
   pure logical function spatial_tables_ok(mass, inertia, jtype, jbody, jreal, ftype, fbody, &
                                           freal) result(ok)
     real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :)
@@ -594,9 +593,8 @@ contains
 
   end subroutine add_joint_primitives
 
-  !> The force table, checked, into the model (a plane's normal made a unit vector); whether
-  !> the scene has power to integrate (loads, springs, dissipating contacts, drivers), and its
-  !> contacts (their events, with locate_events).
+  !> The force table, checked, into the model (planes' normals made unit), whether the scene
+  !> has power to integrate, and its contacts (events with locate_events).
   subroutine take_forces(model, ftype, fbody, freal, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
     integer, intent(in) :: ftype(:), fbody(:, :)
@@ -673,10 +671,8 @@ contains
     ok = .true.
   end function spatial_contact_ok
 
-  !> The watch's scales: the length scale (joint and spring points, contact spheres, and the
-  !> bodies' spread; 1 where the scene has none) and gscale, the energy gravity can move the
-  !> bodies by (over the mechanism's length and each body's radius of gyration, not the
-  !> fallback length, which the scene may not have).
+  !> The watch's scales: the length (joint and spring points, spheres, the bodies' spread; else
+  !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1).
   subroutine watch_scales(model, fr)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(frames_t), intent(in) :: fr
@@ -711,9 +707,8 @@ contains
     end associate
   end subroutine watch_scales
 
-  !> The rows solved (active) and the rank of C at the initial state (rank0): every row, or
-  !> with redundant joints the independent rows the rank-revealing Cholesky picks at t0 (any
-  !> rank is accepted there).
+  !> The rows solved (active) and rank0: with redundant joints the independent rows the
+  !> rank-revealing Cholesky picks at t0 (any rank accepted there), else every row.
   subroutine choose_active_rows(model, fr, t0, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(frames_t), intent(in) :: fr
@@ -1038,9 +1033,8 @@ contains
     end associate
   end subroutine dot2_row
 
-  !> The driven angle (PRIM_ANGLE), one row: Phi = cos f (u . w) - sin f (u . v) =
-  !> sin(theta - f), u = R_i ui, v = R_j uj, w = R_j wj; A = u . w = sin theta,
-  !> B = u . v = cos theta. phit: its Phi_t.
+  !> The driven angle (PRIM_ANGLE), one row: Phi = cos f A - sin f B = sin(theta - f), with
+  !> A = u . w = sin theta, B = u . v = cos theta (u = R_i ui, v = R_j uj, w = R_j wj); phit.
   pure subroutine angle_row(pr, fr, t, phi, cr, gam, phit)
     type(prim_t), intent(in) :: pr
     type(frames_t), intent(in) :: fr
