@@ -24,15 +24,12 @@ SOURCES = ROOT / "kernel" / "src"
 MAX_LINES = 150
 
 #: Procedures still longer than MAX_LINES, outside the directories that have been split
-#: (drivers/, sundials/, explicit/, implicit/): (file under kernel/src, name) -> length in lines.
+#: (drivers/, sundials/, explicit/, implicit/, model/, spatial/): (file under kernel/src, name)
+#: -> length in lines.
 STILL_LONG = {
-    ("model/mbdk_model.f90", "mbdk_model_init"): 307,
-    ("spatial/mbdk_spatial_model.f90", "mbdk_spatial_init"): 289,
     ("api/mbdk_f2py.f90", "scene_run"): 229,
     ("api/mbdk_f2py.f90", "spatial_run"): 201,
     ("dae/mbdk_trapezoidal_index3.f90", "mbdk_index3_solve"): 174,
-    ("model/mbdk_assembly.f90", "mbdk_assembly_run"): 165,
-    ("spatial/mbdk_spatial_model.f90", "constraints"): 164,
 }
 
 _PREFIX = (r"(?:(?:pure|impure|elemental|recursive|non_recursive|module)\s+"
@@ -173,9 +170,12 @@ def test_every_kernel_file_parses_into_its_procedures():
         rel = path.relative_to(SOURCES).as_posix()
         assert sum(f == rel for f, _ in found) == _end_statements(path), rel
     assert len(found) > 400
-    # the SUNDIALS drivers' entries are there (a parser that missed them would pass)
+    # the SUNDIALS drivers' and the models' entries are there (a parser that missed them would
+    # pass)
     assert ("sundials/mbdk_cvode.f90", "mbdk_cvode_solve") in found
     assert ("sundials/mbdk_ida.f90", "mbdk_ida_solve") in found
+    assert ("model/mbdk_model.f90", "mbdk_model_init") in found
+    assert ("spatial/mbdk_spatial_model.f90", "mbdk_spatial_init") in found
 
 
 def test_no_procedure_is_longer_than_150_lines_but_the_listed_ones():

@@ -57,6 +57,13 @@ module mbdk_assembly
     type(mbdk_constrained_t) :: cs
   end type minnorm_t
 
+  !> one assembly's buffers: Phi, gamma, Phi_t, the correction dx, and while the dense path
+  !> is taken (sparse false) D and the least squares' a and b
+  type :: assembly_t
+    logical :: sparse = .false.
+    real(dp), allocatable :: phi(:), gam(:), phit(:), dx(:), d(:, :), a(:, :), b(:)
+  end type assembly_t
+
 contains
 
   !> Fills in the pose defaults of the tables at q (nc = 3 nb coordinates). bad_joint, bad_force:
@@ -171,68 +178,25 @@ contains
     integer, intent(out) :: iterations, stat
     real(dp), intent(out) :: resid(:)
     logical, intent(out) :: velocity
-    real(dp), allocatable :: phi(:), d(:, :), gam(:), phit(:), dx(:), a(:, :), b(:)
-    integer, allocatable :: free(:)
-    integer :: nc, m, it, k
-    logical :: sparse
+    type(assembly_t) :: as
     type(minnorm_t) :: mq, mv
 
-    nc = model%nc
-    m = model%m
     iterations = 0
     resid = 0.0_dp
     velocity = .false.
     stat = MBDK_SUCCESS
-    if (m == 0) return
-    ! a large model (its projections sparse) assembles through the sparse Schur complement of
-    ! the free columns; a small one, and a large one whose free columns are dependent, by the
-    ! dense least squares (which passes redundant joints) where its matrix is affordable
-    sparse = model%work%proj%path == MBDK_SOLVE_SCHUR_SPARSE
-    if (model%has_pfaffian .and. dense_affordable()) sparse = .false.
-    allocate (phi(m), gam(m), phit(m), dx(nc), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (3.0_dp * m + nc), stat)
+    if (model%m == 0) return
+    call assembly_start(model, as, stat)
     if (stat /= MBDK_SUCCESS) return
-    if (.not. sparse) then
-      allocate (d(m, nc), stat=k)
-      call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * nc, stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    free = pack([(k, k = 1, nc)], .not. given_q)
-    do it = 0, max_iter
-      if (sparse) then
-        call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
-      else
-        call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-        ! a knife edge's row holds no position (its phi is 0): out of the corrections
-        if (model%has_pfaffian) call drop_velocity_rows()
-      end if
-      if (maxval(abs(phi)) <= mbdk_phi_floor(tol, q) .or. it == max_iter .or. size(free) == 0) &
-        exit
-      call least_change(mq, given_q, -phi, dx, stat)
-      if (stat /= MBDK_SUCCESS) return
-      q = q + dx
-      iterations = it + 1
-    end do
-    resid = phi
-    if (.not. (maxval(abs(phi)) <= mbdk_phi_floor(ASSEMBLED_TOL, q))) then
+    call assemble_positions(model, as, mq, t0, q, v, given_q, tol, max_iter, iterations, stat)
+    if (stat /= MBDK_SUCCESS) return
+    resid = as%phi
+    if (.not. (maxval(abs(as%phi)) <= mbdk_phi_floor(ASSEMBLED_TOL, q))) then
       stat = MBDK_ERR_INCONSISTENT_INITIAL
       return
     end if
-    if (model%has_pfaffian .and. .not. sparse) &
-      call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-    if (.not. all(given_v)) then
-      if (sparse) then
-        call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
-      else
-        resid = matmul(d, v)
-      end if
-      call least_change(mv, given_v, -phit - resid, dx, stat)
-      if (stat /= MBDK_SUCCESS) return
-      v = v + dx
-    end if
-    call mbdk_model_constraints(model, t0, q, v, phi, gam=gam, phit=phit)
-    call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
-    resid = resid + phit
+    call assemble_velocities(model, as, mv, t0, q, v, given_v, resid, stat)
+    if (stat /= MBDK_SUCCESS) return
     velocity = .true.
     if (.not. (maxval(abs(resid)) <= mbdk_phi_floor(ASSEMBLED_TOL, v))) then
       stat = MBDK_ERR_INCONSISTENT_INITIAL
@@ -240,92 +204,186 @@ contains
     end if
     resid = 0.0_dp
     velocity = .false.
-
-  contains
-
-    !> dx = the least change of the coordinates not given with D dx = c at (q, v): through the
-    !> sparse Schur complement while the free columns allow it, else (and from then on) by the
-    !> dense least squares, which passes dependent columns, while D is affordable.
-    subroutine least_change(mn, given, c, dx, st)
-      type(minnorm_t), intent(inout) :: mn
-      logical, intent(in) :: given(:)
-      real(dp), intent(in) :: c(:)
-      real(dp), intent(out) :: dx(:)
-      integer, intent(out) :: st
-      integer :: rk
-      integer, allocatable :: fr(:)
-      if (sparse) then
-        call minnorm(mn, given, c, dx, st)
-        if (st /= MBDK_ERR_SINGULAR_MATRIX .or. .not. dense_affordable()) return
-        ! dependent free columns: this and the next corrections by the dense least squares
-        sparse = .false.
-        allocate (d(m, nc), stat=rk)
-        call mbdk_alloc_status(rk, MBDK_REAL_BYTES * real(m, dp) * nc, st)
-        if (st /= MBDK_SUCCESS) return
-        call mbdk_model_constraints(model, t0, q, v, phi, d, gam, phit)
-      end if
-      fr = pack([(k, k = 1, nc)], .not. given)
-      if (allocated(a)) deallocate (a)
-      allocate (a(m, size(fr)), b(max(m, size(fr))), stat=rk)
-      call mbdk_alloc_status(rk, MBDK_REAL_BYTES * (real(m, dp) * size(fr) + max(m, size(fr))), &
-                             st)
-      if (st /= MBDK_SUCCESS) return
-      a = d(:, fr)
-      b(1:m) = c
-      call mbdk_least_squares(a, b, epsilon(1.0_dp) * max(m, size(fr)), rk, st)
-      dx = 0.0_dp
-      if (st == MBDK_SUCCESS) dx(fr) = b(1:size(fr))
-      deallocate (b)
-    end subroutine least_change
-
-    !> the knife edges' rows of the dense D zeroed, for the positions' least squares
-    subroutine drop_velocity_rows()
-      integer :: r
-      do r = 1, m
-        if (model%pfaffian(r)) d(r, :) = 0.0_dp
-      end do
-    end subroutine drop_velocity_rows
-
-    !> the dense D of the model and its least squares fit in memory (at most 10^7 entries)
-    logical function dense_affordable()
-      dense_affordable = real(m, dp) * real(nc, dp) <= 1.0e7_dp
-    end function dense_affordable
-
-    !> dx = the least change (Euclidean, in the columns not given) with D dx = c at the compact
-    !> rows model%work%dz: -W D^T (D W D^T)^-1 (-c) with W the mask of free columns, through
-    !> the sparse Schur path (built on first use, for this mask). MBDK_ERR_SINGULAR_MATRIX when
-    !> the free columns of D are dependent.
-    subroutine minnorm(mn, given, c, dx, st)
-      type(minnorm_t), intent(inout) :: mn
-      logical, intent(in) :: given(:)
-      real(dp), intent(in) :: c(:)
-      real(dp), intent(out) :: dx(:)
-      integer, intent(out) :: st
-      if (.not. allocated(mn%w)) then
-        block
-          logical, allocatable :: nz(:, :)
-          integer, allocatable :: col(:, :)
-          integer :: astat
-          allocate (mn%w(nc), mn%zero(nc), mn%ones(nc), mn%mu(m), nz(MBDK_JOINT_SLOTS, m), &
-                    col(MBDK_JOINT_SLOTS, m), stat=astat)
-          call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (3.0_dp * nc + m) + &
-                                 2 * MBDK_INT_BYTES * MBDK_JOINT_SLOTS * m, st)
-          if (st /= MBDK_SUCCESS) return   ! (the assembly fails: nothing is retried)
-          mn%w = merge(0.0_dp, 1.0_dp, given)
-          mn%zero = 0.0_dp
-          mn%ones = 1.0_dp
-          call mbdk_joints_pattern(model%jint, model%jreal, model%row0, col, nz)
-          call mbdk_sparse_schur_init(mn%sp, col, nz, mn%w, st)
-          if (st == MBDK_SUCCESS) &
-            call mbdk_constrained_init(mn%cs, nc, m, .true., .false., .false., mn%sp, 1, st)
-          if (st /= MBDK_SUCCESS) return
-        end block
-      end if
-      call mbdk_constrained_solve_once(mn%cs, mn%sp, model%work%dz, model%col, model%blk, &
-                                       mn%ones, mn%w, mn%zero, c, dx, mn%mu, st)
-    end subroutine minnorm
-
   end subroutine mbdk_assembly_run
+
+  !> The buffers and the path: sparse (the Schur complement of the free columns) where the
+  !> model's projections are; dense least squares (passes redundant joints) where affordable.
+  subroutine assembly_start(model, as, stat)
+    type(mbdk_model_t), intent(in) :: model
+    type(assembly_t), intent(inout) :: as
+    integer, intent(out) :: stat
+    integer :: m, nc, k
+    m = model%m
+    nc = model%nc
+    as%sparse = model%work%proj%path == MBDK_SOLVE_SCHUR_SPARSE
+    if (model%has_pfaffian .and. dense_affordable(model)) as%sparse = .false.
+    allocate (as%phi(m), as%gam(m), as%phit(m), as%dx(nc), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (3.0_dp * m + nc), stat)
+    if (stat /= MBDK_SUCCESS) return
+    if (.not. as%sparse) then
+      allocate (as%d(m, nc), stat=k)
+      call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * nc, stat)
+    end if
+  end subroutine assembly_start
+
+  !> Gauss-Newton on Phi(q, t0) = 0 in the coordinates not given, up to max_iter corrections
+  !> or until max |Phi| <= tol (or Phi's roundoff at q); as%phi is Phi at the q it leaves.
+  subroutine assemble_positions(model, as, mn, t0, q, v, given_q, tol, max_iter, iterations, &
+                                stat)
+    type(mbdk_model_t), intent(in) :: model
+    type(assembly_t), intent(inout) :: as
+    type(minnorm_t), intent(inout) :: mn
+    real(dp), intent(in) :: t0, tol
+    real(dp), intent(inout) :: q(:)
+    real(dp), intent(in) :: v(:)
+    logical, intent(in) :: given_q(:)
+    integer, intent(in) :: max_iter
+    integer, intent(inout) :: iterations
+    integer, intent(out) :: stat
+    integer :: it, nfree
+    stat = MBDK_SUCCESS
+    nfree = count(.not. given_q)
+    do it = 0, max_iter
+      if (as%sparse) then
+        call mbdk_model_constraints(model, t0, q, v, as%phi, gam=as%gam, phit=as%phit)
+      else
+        call mbdk_model_constraints(model, t0, q, v, as%phi, as%d, as%gam, as%phit)
+        ! a knife edge's row holds no position (its phi is 0): out of the corrections
+        if (model%has_pfaffian) call drop_velocity_rows(model, as%d)
+      end if
+      if (maxval(abs(as%phi)) <= mbdk_phi_floor(tol, q) .or. it == max_iter .or. nfree == 0) &
+        exit
+      call least_change(model, as, mn, t0, q, v, given_q, -as%phi, stat)
+      if (stat /= MBDK_SUCCESS) return
+      q = q + as%dx
+      iterations = it + 1
+    end do
+  end subroutine assemble_positions
+
+  !> The velocities not given, at the assembled q: the least change with D v + Phi_t = 0;
+  !> resid = D v + Phi_t at the v it leaves (on failure, D v before the change).
+  subroutine assemble_velocities(model, as, mn, t0, q, v, given_v, resid, stat)
+    type(mbdk_model_t), intent(in) :: model
+    type(assembly_t), intent(inout) :: as
+    type(minnorm_t), intent(inout) :: mn
+    real(dp), intent(in) :: t0
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(inout) :: v(:)
+    logical, intent(in) :: given_v(:)
+    real(dp), intent(inout) :: resid(:)
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    ! the knife edges' rows, left out of the positions' D, constrain the velocities
+    if (model%has_pfaffian .and. .not. as%sparse) &
+      call mbdk_model_constraints(model, t0, q, v, as%phi, as%d, as%gam, as%phit)
+    if (.not. all(given_v)) then
+      if (as%sparse) then
+        call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
+      else
+        resid = matmul(as%d, v)
+      end if
+      call least_change(model, as, mn, t0, q, v, given_v, -as%phit - resid, stat)
+      if (stat /= MBDK_SUCCESS) return
+      v = v + as%dx
+    end if
+    call mbdk_model_constraints(model, t0, q, v, as%phi, gam=as%gam, phit=as%phit)
+    call mbdk_sparse_d_times(model%sp, model%work%dz, v, resid, .false.)
+    resid = resid + as%phit
+  end subroutine assemble_velocities
+
+  !> as%dx = the least change of the coordinates not given with D dx = c at (q, v): through
+  !> the sparse Schur complement while the free columns allow it, else (and from then on) by
+  !> the dense least squares, which passes dependent columns, while D is affordable.
+  subroutine least_change(model, as, mn, t0, q, v, given, c, st)
+    type(mbdk_model_t), intent(in) :: model
+    type(assembly_t), intent(inout) :: as
+    type(minnorm_t), intent(inout) :: mn
+    real(dp), intent(in) :: t0
+    real(dp), intent(in) :: q(:), v(:)
+    logical, intent(in) :: given(:)
+    real(dp), intent(in) :: c(:)
+    integer, intent(out) :: st
+    integer :: m, nc, k, rk
+    integer, allocatable :: fr(:)
+    m = model%m
+    nc = model%nc
+    if (as%sparse) then
+      call minnorm(model, mn, given, c, as%dx, st)
+      if (st /= MBDK_ERR_SINGULAR_MATRIX .or. .not. dense_affordable(model)) return
+      ! dependent free columns: this and the next corrections by the dense least squares
+      as%sparse = .false.
+      allocate (as%d(m, nc), stat=rk)
+      call mbdk_alloc_status(rk, MBDK_REAL_BYTES * real(m, dp) * nc, st)
+      if (st /= MBDK_SUCCESS) return
+      call mbdk_model_constraints(model, t0, q, v, as%phi, as%d, as%gam, as%phit)
+    end if
+    fr = pack([(k, k = 1, nc)], .not. given)
+    if (allocated(as%a)) deallocate (as%a)
+    allocate (as%a(m, size(fr)), as%b(max(m, size(fr))), stat=rk)
+    call mbdk_alloc_status(rk, MBDK_REAL_BYTES * (real(m, dp) * size(fr) + max(m, size(fr))), &
+                           st)
+    if (st /= MBDK_SUCCESS) return
+    as%a = as%d(:, fr)
+    as%b(1:m) = c
+    call mbdk_least_squares(as%a, as%b, epsilon(1.0_dp) * max(m, size(fr)), rk, st)
+    as%dx = 0.0_dp
+    if (st == MBDK_SUCCESS) as%dx(fr) = as%b(1:size(fr))
+    deallocate (as%b)
+  end subroutine least_change
+
+  !> The knife edges' rows of the dense D zeroed, for the positions' least squares.
+  pure subroutine drop_velocity_rows(model, d)
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(inout) :: d(:, :)
+    integer :: r
+    do r = 1, model%m
+      if (model%pfaffian(r)) d(r, :) = 0.0_dp
+    end do
+  end subroutine drop_velocity_rows
+
+  !> The dense D of the model and its least squares fit in memory (at most 10^7 entries).
+  pure logical function dense_affordable(model)
+    type(mbdk_model_t), intent(in) :: model
+    dense_affordable = real(model%m, dp) * real(model%nc, dp) <= 1.0e7_dp
+  end function dense_affordable
+
+  !> dx = the least change (Euclidean, in the columns not given) with D dx = c at the compact
+  !> rows model%work%dz: -W D^T (D W D^T)^-1 (-c) with W the mask of free columns, through
+  !> the sparse Schur path (built on first use, for this mask). MBDK_ERR_SINGULAR_MATRIX when
+  !> the free columns of D are dependent.
+  subroutine minnorm(model, mn, given, c, dx, st)
+    type(mbdk_model_t), intent(in) :: model
+    type(minnorm_t), intent(inout) :: mn
+    logical, intent(in) :: given(:)
+    real(dp), intent(in) :: c(:)
+    real(dp), intent(out) :: dx(:)
+    integer, intent(out) :: st
+    integer :: m, nc
+    m = model%m
+    nc = model%nc
+    if (.not. allocated(mn%w)) then
+      block
+        logical, allocatable :: nz(:, :)
+        integer, allocatable :: col(:, :)
+        integer :: astat
+        allocate (mn%w(nc), mn%zero(nc), mn%ones(nc), mn%mu(m), nz(MBDK_JOINT_SLOTS, m), &
+                  col(MBDK_JOINT_SLOTS, m), stat=astat)
+        call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (3.0_dp * nc + m) + &
+                               2 * MBDK_INT_BYTES * MBDK_JOINT_SLOTS * m, st)
+        if (st /= MBDK_SUCCESS) return   ! (the assembly fails: nothing is retried)
+        mn%w = merge(0.0_dp, 1.0_dp, given)
+        mn%zero = 0.0_dp
+        mn%ones = 1.0_dp
+        call mbdk_joints_pattern(model%jint, model%jreal, model%row0, col, nz)
+        call mbdk_sparse_schur_init(mn%sp, col, nz, mn%w, st)
+        if (st == MBDK_SUCCESS) &
+          call mbdk_constrained_init(mn%cs, nc, m, .true., .false., .false., mn%sp, 1, st)
+        if (st /= MBDK_SUCCESS) return
+      end block
+    end if
+    call mbdk_constrained_solve_once(mn%cs, mn%sp, model%work%dz, model%col, model%blk, &
+                                     mn%ones, mn%w, mn%zero, c, dx, mn%mu, st)
+  end subroutine minnorm
 
   !> A run's model at its initial state y = [q; v] (updated in place): with assemble, y is
   !> assembled first (on a model of its own, resolved at the given y: asm_iters, asm_resid,

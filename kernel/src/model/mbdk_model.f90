@@ -336,6 +336,8 @@ contains
   !> MBDK_ERR_INVALID_INPUT for inconsistent tables (or counts whose sizes no default integer
   !> holds), MBDK_ERR_NOT_APPLICABLE for a body kind the kernel declares but cannot simulate yet;
   !> the Python layer names the element. MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
+  !> The steps below check and allocate in one fixed order, so that an input with more than one
+  !> fault always gets the same status (and a failed allocation the same bytes).
   subroutine mbdk_model_init(model, mass, inertia, jint, jreal, fint, freal, opt, work, stat, &
                              kinds, asked)
     type(mbdk_model_t), intent(out) :: model
@@ -346,22 +348,68 @@ contains
     integer, intent(out) :: stat
     integer, intent(in), optional :: kinds(:)
     real(dp), intent(inout), optional :: asked
-    integer :: b, j, rows, nc, m, formulation, code, coords, vels, astat, nj, nf
-    character(len=MBDK_ELEMENT_NAME_LEN) :: kname
-    logical :: available
 
     stat = MBDK_ERR_INVALID_INPUT
-    formulation = opt%formulation
     model%nb = size(mass)
-    nj = size(jint, 2)
-    nf = size(fint, 2)
-    if (model%nb < 1 .or. size(inertia) /= model%nb) return
-    ! the state [q; v; w] (6 nb + nf values) and the tables' entries are indexed by default
-    ! integers
-    if (.not. (mbdk_count_fits(6.0_dp * model%nb + nf) .and. mbdk_count_fits(12.0_dp * nj) .and. &
-               mbdk_count_fits(12.0_dp * nf))) return
+    if (.not. body_table_ok(mass, inertia, size(jint, 2), size(fint, 2))) return
+    if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > MBDK_FORM_PROJECTION) return
+    call lay_out_state(model, mass, inertia, count(fint(1, :) == MBDK_EFFECT_WEAR), &
+                       size(jint, 2), stat, asked, kinds)
+    if (stat /= MBDK_SUCCESS) return
+    call validate_joint_table(model, jint, jreal, stat)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (.not. force_table_ok(model%nb, fint, freal)) return
+    if (.not. parameters_ok(opt)) return
+    call copy_tables(model, jint, jreal, fint, freal, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call take_options(model, opt, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call classify_elements(model, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    stat = MBDK_ERR_INVALID_INPUT
+    if (.not. solver_ok(model)) return
+    call choose_solver_path(model, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call allocate_work(model, work, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    model%work => work
+    model%has_jac = .false.
+    call split_forces(model, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ! events: every contact but the gear meshes (whose penetration wraps around the base
+    ! pitch; their pairs take up their load smoothly): model_events
+    if (opt%locate_events /= 0 .and. model%has_contacts) &
+      model%nevents = count(model%fint_c(1, :) == MBDK_FORCE_CONTACT .and. &
+                            model%fint_c(4, :) /= MBDK_CONTACT_GEAR)
+  end subroutine mbdk_model_init
+
+  !> The body table (masses > 0, inertias >= 0) and counts that default integers index: the
+  !> state [q; v; w] (6 nb + nf values) and the tables (12 entries per joint or force).
+  pure logical function body_table_ok(mass, inertia, nj, nf) result(ok)
+    real(dp), intent(in) :: mass(:), inertia(:)
+    integer, intent(in) :: nj, nf
+    ok = .false.
+    if (size(mass) < 1 .or. size(inertia) /= size(mass)) return
+    if (.not. (mbdk_count_fits(6.0_dp * size(mass) + nf) .and. mbdk_count_fits(12.0_dp * nj) &
+               .and. mbdk_count_fits(12.0_dp * nf))) return
     if (any(.not. (mass > 0.0_dp)) .or. any(.not. (inertia >= 0.0_dp))) return
-    if (formulation < MBDK_FORM_REDUCED .or. formulation > MBDK_FORM_PROJECTION) return
+    ok = .true.
+  end function body_table_ok
+
+  !> The state's layout y = [q; v; w] by body kind (qoff, nc, ns), M's diagonal and winv;
+  !> MBDK_ERR_NOT_APPLICABLE for a kind it cannot lay out. row0 is allocated with M (one
+  !> statement, whose bytes a failure reports).
+  subroutine lay_out_state(model, mass, inertia, ns, nj, stat, asked, kinds)
+    type(mbdk_model_t), intent(inout) :: model
+    real(dp), intent(in) :: mass(:), inertia(:)
+    integer, intent(in) :: ns, nj
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, intent(in), optional :: kinds(:)
+    integer :: b, code, coords, vels, astat
+    character(len=MBDK_ELEMENT_NAME_LEN) :: kname
+    logical :: available
     allocate (model%body_kind(model%nb), model%qoff(model%nb), stat=astat)
     call mbdk_alloc_status(astat, 2 * MBDK_INT_BYTES * model%nb, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -384,7 +432,7 @@ contains
       model%qoff(b) = model%nc + 1
       model%nc = model%nc + coords
     end do
-    model%ns = count(fint(1, :) == MBDK_EFFECT_WEAR)
+    model%ns = ns
     model%n = 2 * model%nc + model%ns
     model%nq = model%nc
     model%ncoord = model%nc
@@ -392,15 +440,10 @@ contains
     model%diag_mass = .true.
     model%identity_kinematics = .true.
     model%has_i3_matrix = .true.
-    model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
-    model%velocity_forces = any(fint(1, :) == MBDK_FORCE_SPRING_DAMPER .or. &
-                                fint(1, :) == MBDK_FORCE_COORDINATE .or. &
-                                fint(1, :) >= MBDK_FORCE_DAMPER)
     allocate (model%mass(model%nc), model%winv(model%nc), model%row0(nj), stat=astat)
     call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * model%nc + MBDK_INT_BYTES * nj, stat, &
                            asked)
     if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
     do b = 1, model%nb
       model%mass(model%qoff(b):model%qoff(b) + 1) = mass(b)
       model%mass(model%qoff(b) + 2) = inertia(b)
@@ -411,6 +454,19 @@ contains
     else
       model%winv = 1.0_dp
     end if
+  end subroutine lay_out_state
+
+  !> The joint table: its shape, finite reals, each joint's type, bodies and coordinate, the
+  !> geometry its kind needs; numbers the rows (row0, m: no more rows than coordinates).
+  subroutine validate_joint_table(model, jint, jreal, stat)
+    type(mbdk_model_t), intent(inout) :: model
+    integer, intent(in) :: jint(:, :)
+    real(dp), intent(in) :: jreal(:, :)
+    integer, intent(out) :: stat
+    integer :: j, rows
+    stat = MBDK_ERR_INVALID_INPUT
+    if (size(jreal, 1) /= 12 .or. size(jreal, 2) /= size(jint, 2)) return
+    if (.not. all(abs(jreal) <= huge(1.0_dp))) return
     rows = 0
     do j = 1, size(jint, 2)
       if (mbdk_joint_rows(jint(1, j)) == 0) return
@@ -432,10 +488,23 @@ contains
     end do
     model%m = rows
     if (model%m > model%nc) return
+    stat = MBDK_SUCCESS
+  end subroutine validate_joint_table
+
+  !> The force table (forces and effects) of a scene of nb bodies: its shape, finite reals, each
+  !> entry's kind, bodies and coordinate, and the parameters its kind restricts.
+  pure logical function force_table_ok(nb, fint, freal) result(ok)
+    integer, intent(in) :: nb
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :)
+    integer :: j
+    ok = .false.
+    if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
+    if (.not. all(abs(freal) <= huge(1.0_dp))) return
     do j = 1, size(fint, 2)
       if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES + 1) return
       if (fint(1, j) >= MBDK_FORCE_CONTACT) then
-        if (.not. contact_entry_ok(j)) return
+        if (.not. contact_entry_ok(nb, fint, freal, j)) return
         cycle
       end if
       ! a spring has no damping, a damper no stiffness (their own kinds: mbdk_elements)
@@ -446,28 +515,101 @@ contains
       if ((fint(1, j) == MBDK_FORCE_POINT .or. fint(1, j) == MBDK_FORCE_TORQUE .or. &
            fint(1, j) == MBDK_FORCE_COORDINATE) .and. fint(2, j) < 1) return
       if (fint(1, j) == MBDK_FORCE_COORDINATE .and. fint(4, j) < 1) return
-      if (fint(2, j) < 0 .or. fint(2, j) > model%nb .or. fint(3, j) < 0 .or. &
-          fint(3, j) > model%nb .or. fint(4, j) < 0 .or. fint(4, j) > 3) return
+      if (fint(2, j) < 0 .or. fint(2, j) > nb .or. fint(3, j) < 0 .or. &
+          fint(3, j) > nb .or. fint(4, j) < 0 .or. fint(4, j) > 3) return
     end do
-    if (size(jreal, 1) /= 12 .or. size(jreal, 2) /= size(jint, 2)) return
-    if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
-    if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
-    if (.not. (abs(opt%baumgarte_alpha) <= huge(1.0_dp) .and. abs(opt%baumgarte_beta) <= &
-               huge(1.0_dp) .and. abs(opt%penalty_alpha) <= huge(1.0_dp) .and. &
-               abs(opt%penalty_omega) <= huge(1.0_dp) .and. abs(opt%penalty_mu) <= &
-               huge(1.0_dp) .and. abs(opt%projection_tol) <= huge(1.0_dp))) return
-    if (opt%projection_max_iter < 1) return
+    ok = .true.
+  end function force_table_ok
+
+  !> Entry e of the force table, a contact (geometry 1..3, two distinct bodies, radii >= 0 with
+  !> the ring larger than its circle, k >= 0, exponent >= 1, damping >= 0), friction (refers to
+  !> a contact; mus, mud >= 0, 0 < vs < vd) or wear entry (law, load, and a column of the right
+  !> kind; k >= 0).
+  pure logical function contact_entry_ok(nb, fint, freal, e) result(ok)
+    integer, intent(in) :: nb, e
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :)
+    integer :: c
+    ok = .false.
+    select case (fint(1, e))
+    case (MBDK_FORCE_CONTACT)
+      if (fint(2, e) < 1 .or. fint(2, e) > nb .or. fint(3, e) < 0 .or. &
+          fint(3, e) > nb .or. fint(2, e) == fint(3, e)) return
+      if (fint(4, e) < MBDK_CONTACT_LINE .or. fint(4, e) > MBDK_CONTACT_GEAR) return
+      if (freal(3, e) < 0.0_dp .or. freal(7, e) < 0.0_dp .or. freal(8, e) < 1.0_dp .or. &
+          freal(9, e) < 0.0_dp .or. freal(10, e) < 0.0_dp) return
+      if (fint(4, e) == MBDK_CONTACT_GEAR) then
+        ! two gears (no ground), base radii below the tip radii, a base pitch, a hand
+        if (fint(3, e) < 1 .or. .not. (freal(1, e) > 0.0_dp .and. freal(2, e) > 0.0_dp .and. &
+            freal(3, e) > freal(1, e) .and. freal(4, e) > freal(2, e) .and. &
+            freal(5, e) > 0.0_dp .and. abs(freal(12, e)) == 1.0_dp)) return
+      else if (fint(4, e) /= MBDK_CONTACT_LINE .and. freal(6, e) < 0.0_dp) then
+        return
+      end if
+      if (fint(4, e) == MBDK_CONTACT_INSIDE .and. .not. (freal(6, e) > freal(3, e))) return
+    case (MBDK_FORCE_FRICTION)
+      c = fint(4, e)
+      if (fint(2, e) /= 0 .or. fint(3, e) /= 0) return
+      if (c < 1 .or. c > size(fint, 2)) return
+      if (fint(1, c) /= MBDK_FORCE_CONTACT) return
+      if (freal(1, e) < 0.0_dp .or. freal(2, e) < 0.0_dp .or. .not. (freal(3, e) > 0.0_dp) &
+          .or. .not. (freal(4, e) > freal(3, e))) return
+    case (MBDK_EFFECT_WEAR)
+      c = fint(4, e)
+      if (fint(2, e) < 1 .or. fint(2, e) > MBDK_WEAR_LAWS) return
+      if (c < 1 .or. c > size(fint, 2)) return
+      if (fint(3, e) == MBDK_WEAR_LOAD_NORMAL) then
+        if (fint(1, c) /= MBDK_FORCE_CONTACT) return
+      else if (fint(3, e) == MBDK_WEAR_LOAD_FRICTION) then
+        if (fint(1, c) /= MBDK_FORCE_FRICTION) return
+      else
+        return
+      end if
+      if (freal(1, e) < 0.0_dp) return
+      if (fint(2, e) == MBDK_WEAR_GEAR .and. .not. (freal(2, e) >= 0.0_dp .and. &
+          freal(3, e) > 0.0_dp .and. freal(5, e) > 0.0_dp .and. freal(7, e) > 0.0_dp)) return
+    end select
+    ok = .true.
+  end function contact_entry_ok
+
+  !> The formulations' parameters finite, projection_max_iter >= 1; the watch's and the
+  !> solver's options are checked later (take_options, solver_ok), where they always were.
+  pure logical function parameters_ok(opt) result(ok)
+    type(mbdk_model_options_t), intent(in) :: opt
+    ok = abs(opt%baumgarte_alpha) <= huge(1.0_dp) .and. abs(opt%baumgarte_beta) <= &
+         huge(1.0_dp) .and. abs(opt%penalty_alpha) <= huge(1.0_dp) .and. &
+         abs(opt%penalty_omega) <= huge(1.0_dp) .and. abs(opt%penalty_mu) <= huge(1.0_dp) &
+         .and. abs(opt%projection_tol) <= huge(1.0_dp) .and. opt%projection_max_iter >= 1
+  end function parameters_ok
+
+  !> The model's own copy of the joint and force tables (checked).
+  subroutine copy_tables(model, jint, jreal, fint, freal, stat, asked)
+    type(mbdk_model_t), intent(inout) :: model
+    integer, intent(in) :: jint(:, :), fint(:, :)
+    real(dp), intent(in) :: jreal(:, :), freal(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, nf, astat
+    nj = size(jint, 2)
+    nf = size(fint, 2)
     allocate (model%jint(4, nj), model%jreal(12, nj), model%fint(4, nf), model%freal(12, nf), &
               stat=astat)
     call mbdk_alloc_status(astat, (4 * MBDK_INT_BYTES + 12 * MBDK_REAL_BYTES) * (nj + nf), stat, &
                            asked)
     if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
     model%jint = jint
     model%jreal = jreal
     model%fint = fint
     model%freal = freal
-    model%formulation = formulation
+  end subroutine copy_tables
+
+  !> The options into the model; the watch's checked here (finite tolerances, watch_every >= 0).
+  subroutine take_options(model, opt, stat)
+    type(mbdk_model_t), intent(inout) :: model
+    type(mbdk_model_options_t), intent(in) :: opt
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_INVALID_INPUT
+    model%formulation = opt%formulation
     model%alpha = opt%baumgarte_alpha
     model%beta = opt%baumgarte_beta
     model%pen_alpha = opt%penalty_alpha
@@ -475,57 +617,90 @@ contains
     model%pen_mu = opt%penalty_mu
     model%proj_tol = opt%projection_tol
     model%proj_max_iter = opt%projection_max_iter
+    model%solver = opt%solver
+    model%small_dense = opt%small_dense /= 0
+    model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .and. model%m > 0
     model%watch_tol = [opt%watch_position, opt%watch_velocity, opt%watch_energy, &
                        opt%watch_momentum]
     model%watch_every = opt%watch_every
     if (opt%watch_every == 0) model%watch_every = MBDK_WATCH_EVERY
     if (.not. all(abs(model%watch_tol) <= huge(1.0_dp)) .or. opt%watch_every < 0) return
     model%has_watch = any(model%watch_tol > 0.0_dp)
+    stat = MBDK_SUCCESS
+  end subroutine take_options
+
+  !> What the elements imply for the algorithms: conserved momenta, rheonomic and pfaffian
+  !> rows, power terms that need rotations, contacts, velocity-dependent forces.
+  subroutine classify_elements(model, stat, asked)
+    type(mbdk_model_t), intent(inout) :: model
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: j, astat
     call planar_invariants(model%jint, model%jreal, model%fint, model%freal, model%inv, &
                            model%ninv)
-    ! rheonomic rows: drivers, and distances and couplings that change in time
-    model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. ((jint(1, :) == &
-                            MBDK_JOINT_DISTANCE .or. jint(1, :) == MBDK_JOINT_COUPLING) .and. &
-                            (jreal(9, :) /= 0.0_dp .or. jreal(10, :) /= 0.0_dp)))
-    allocate (model%pfaffian(model%m), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
-    call mbdk_joints_pfaffian(jint, model%row0, model%pfaffian)
-    model%has_pfaffian = any(model%pfaffian)
-    do j = 1, size(fint, 2)
-      if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
-          fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp) .or. &
-          (fint(1, j) == MBDK_FORCE_CONTACT .and. freal(9, j) /= 0.0_dp) .or. &
-          fint(1, j) == MBDK_FORCE_FRICTION) &
-        model%power_rot = .true.
-    end do
-    model%solver = opt%solver
-    model%small_dense = opt%small_dense /= 0
+    associate (jint => model%jint, jreal => model%jreal, fint => model%fint, &
+               freal => model%freal)
+      model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
+      model%velocity_forces = any(fint(1, :) == MBDK_FORCE_SPRING_DAMPER .or. &
+                                  fint(1, :) == MBDK_FORCE_COORDINATE .or. &
+                                  fint(1, :) >= MBDK_FORCE_DAMPER)
+      ! rheonomic rows: drivers, and distances and couplings that change in time
+      model%has_drivers = any(jint(1, :) == MBDK_JOINT_DRIVER .or. ((jint(1, :) == &
+                              MBDK_JOINT_DISTANCE .or. jint(1, :) == MBDK_JOINT_COUPLING) .and. &
+                              (jreal(9, :) /= 0.0_dp .or. jreal(10, :) /= 0.0_dp)))
+      allocate (model%pfaffian(model%m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_joints_pfaffian(jint, model%row0, model%pfaffian)
+      model%has_pfaffian = any(model%pfaffian)
+      do j = 1, size(fint, 2)
+        if (fint(1, j) == MBDK_FORCE_POINT .or. ((fint(1, j) == MBDK_FORCE_DAMPER .or. &
+            fint(1, j) == MBDK_FORCE_SPRING_DAMPER) .and. freal(7, j) /= 0.0_dp) .or. &
+            (fint(1, j) == MBDK_FORCE_CONTACT .and. freal(9, j) /= 0.0_dp) .or. &
+            fint(1, j) == MBDK_FORCE_FRICTION) &
+          model%power_rot = .true.
+      end do
+    end associate
+  end subroutine classify_elements
+
+  !> The solver option against the model (schur, revolute and sparse need M positive) and the
+  !> parameters the formulation divides by or iterates to (penalty alpha, projection tol).
+  pure logical function solver_ok(model) result(ok)
+    type(mbdk_model_t), intent(in) :: model
+    ok = .false.
     if (model%solver < MBDK_SOLVER_AUTO .or. model%solver > MBDK_SOLVER_SPARSE) return
     if ((model%solver == MBDK_SOLVER_SCHUR .or. model%solver == MBDK_SOLVER_REVOLUTE .or. &
          model%solver == MBDK_SOLVER_SPARSE) .and. .not. model%m_positive) return
-    if (formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
-    if (formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
-    model%has_post_step = formulation == MBDK_FORM_PROJECTION .and. model%m > 0
+    if (model%formulation == MBDK_FORM_PENALTY .and. .not. (model%pen_alpha > 0.0_dp)) return
+    if (model%formulation == MBDK_FORM_PROJECTION .and. .not. (model%proj_tol > 0.0_dp)) return
+    ok = .true.
+  end function solver_ok
+
+  !> The constrained solves' structures: the patterns of D and S = D M^-1 D^T, the revolute
+  !> closed form where the solver takes it (refused for other joints), the pivot blocks.
+  subroutine choose_solver_path(model, stat, asked)
+    type(mbdk_model_t), intent(inout) :: model
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: j, nj, nc, m, astat
+    logical, allocatable :: nz(:, :)
+    nj = size(model%jint, 2)
     nc = model%nc
     m = model%m
-    block
-      logical, allocatable :: nz(:, :)
-      allocate (model%col(MBDK_JOINT_SLOTS, m), nz(MBDK_JOINT_SLOTS, m), model%blk(nj + 1), &
-                model%row_blk(nc + 1), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * MBDK_JOINT_SLOTS * m + nj + nc + &
-                                                      2), stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      call mbdk_joints_pattern(jint, jreal, model%row0, model%col, nz)
-      call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-    end block
+    allocate (model%col(MBDK_JOINT_SLOTS, m), nz(MBDK_JOINT_SLOTS, m), model%blk(nj + 1), &
+              model%row_blk(nc + 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * MBDK_JOINT_SLOTS * m + nj + nc + &
+                                                    2), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_joints_pattern(model%jint, model%jreal, model%row0, model%col, nz)
+    call mbdk_sparse_schur_init(model%sp, model%col, nz, model%winv, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INVALID_INPUT
-    if (model%m > 0 .and. formulation /= MBDK_FORM_PENALTY .and. &
+    if (model%m > 0 .and. model%formulation /= MBDK_FORM_PENALTY .and. &
         (model%solver == MBDK_SOLVER_REVOLUTE .or. (model%solver == MBDK_SOLVER_AUTO .and. &
          model%m_positive .and. model%small_dense .and. model%m <= MBDK_SMALL_DENSE_MAX))) then
-      call mbdk_revolute_schur_init(model%rs, jint, jreal, model%winv, model%revolute, stat, asked)
+      call mbdk_revolute_schur_init(model%rs, model%jint, model%jreal, model%winv, &
+                                    model%revolute, stat, asked)
       if (stat /= MBDK_SUCCESS) return
       stat = MBDK_ERR_INVALID_INPUT
       if (model%solver == MBDK_SOLVER_REVOLUTE .and. .not. model%revolute) return
@@ -535,6 +710,20 @@ contains
     do j = 1, nc + 1
       model%row_blk(j) = j
     end do
+    stat = MBDK_SUCCESS
+  end subroutine choose_solver_path
+
+  !> The evaluations' buffers in work (dense D and M + ap D^T D for penalty only) and the
+  !> constrained solves' objects: the evaluations' (weight M^-1), the projections' (winv).
+  subroutine allocate_work(model, work, stat, asked)
+    type(mbdk_model_t), intent(in) :: model
+    type(mbdk_model_work_t), intent(inout) :: work
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, nc, m, astat
+    nj = size(model%jint, 2)
+    nc = model%nc
+    m = model%m
     work%visits = 0
     if (allocated(work%fq)) deallocate (work%fq, work%phi, work%d, work%gam, work%phit, &
                                         work%rc, work%rot, work%dz, work%lam_rhs, work%xc, &
@@ -542,7 +731,7 @@ contains
                                         work%wres, work%wterm, work%wa, work%wlam)
     ! the dense D only where the penalty formulation builds its matrix from it (the KKT path
     ! keeps its own copy): a large scene has none
-    if (formulation == MBDK_FORM_PENALTY) then
+    if (model%formulation == MBDK_FORM_PENALTY) then
       allocate (work%d(m, nc), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * nc, stat, asked)
       if (stat /= MBDK_SUCCESS) return
@@ -561,7 +750,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     work%zero_nc = 0.0_dp
     work%phit = 0.0_dp
-    if (formulation == MBDK_FORM_PENALTY) then
+    if (model%formulation == MBDK_FORM_PENALTY) then
       ! the penalty matrix M + ap D^T D is dense: a scene too large for it is refused by status
       allocate (work%pm(nc, nc), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(nc, dp) * nc, stat, asked)
@@ -579,70 +768,7 @@ contains
     ! the same pattern, and its weights are the model's when M is (else the identity's)
     call mbdk_constrained_init(work%proj, nc, m, .true., .false., model%small_dense, model%sp, &
                                sparse_choice(model%solver), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    model%work => work
-    model%has_jac = .false.
-    call split_forces(model, stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    ! events: every contact but the gear meshes (whose penetration wraps around the base
-    ! pitch; their pairs take up their load smoothly): model_events
-    if (opt%locate_events /= 0 .and. model%has_contacts) &
-      model%nevents = count(model%fint_c(1, :) == MBDK_FORCE_CONTACT .and. &
-                            model%fint_c(4, :) /= MBDK_CONTACT_GEAR)
-
-  contains
-
-    !> A contact (geometry 1..3, two distinct bodies, radii >= 0 with the ring larger than its
-    !> circle, k >= 0, exponent >= 1, damping >= 0), friction (refers to a contact; mus, mud >= 0,
-    !> 0 < vs < vd) or wear entry (law, load, and a column of the right kind; k >= 0).
-    logical function contact_entry_ok(e) result(ok)
-      integer, intent(in) :: e
-      integer :: c
-      ok = .false.
-      if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
-      if (.not. all(abs(freal(:, e)) <= huge(1.0_dp))) return
-      select case (fint(1, e))
-      case (MBDK_FORCE_CONTACT)
-        if (fint(2, e) < 1 .or. fint(2, e) > model%nb .or. fint(3, e) < 0 .or. &
-            fint(3, e) > model%nb .or. fint(2, e) == fint(3, e)) return
-        if (fint(4, e) < MBDK_CONTACT_LINE .or. fint(4, e) > MBDK_CONTACT_GEAR) return
-        if (freal(3, e) < 0.0_dp .or. freal(7, e) < 0.0_dp .or. freal(8, e) < 1.0_dp .or. &
-            freal(9, e) < 0.0_dp .or. freal(10, e) < 0.0_dp) return
-        if (fint(4, e) == MBDK_CONTACT_GEAR) then
-          ! two gears (no ground), base radii below the tip radii, a base pitch, a hand
-          if (fint(3, e) < 1 .or. .not. (freal(1, e) > 0.0_dp .and. freal(2, e) > 0.0_dp .and. &
-              freal(3, e) > freal(1, e) .and. freal(4, e) > freal(2, e) .and. &
-              freal(5, e) > 0.0_dp .and. abs(freal(12, e)) == 1.0_dp)) return
-        else if (fint(4, e) /= MBDK_CONTACT_LINE .and. freal(6, e) < 0.0_dp) then
-          return
-        end if
-        if (fint(4, e) == MBDK_CONTACT_INSIDE .and. .not. (freal(6, e) > freal(3, e))) return
-      case (MBDK_FORCE_FRICTION)
-        c = fint(4, e)
-        if (fint(2, e) /= 0 .or. fint(3, e) /= 0) return
-        if (c < 1 .or. c > size(fint, 2)) return
-        if (fint(1, c) /= MBDK_FORCE_CONTACT) return
-        if (freal(1, e) < 0.0_dp .or. freal(2, e) < 0.0_dp .or. .not. (freal(3, e) > 0.0_dp) &
-            .or. .not. (freal(4, e) > freal(3, e))) return
-      case (MBDK_EFFECT_WEAR)
-        c = fint(4, e)
-        if (fint(2, e) < 1 .or. fint(2, e) > MBDK_WEAR_LAWS) return
-        if (c < 1 .or. c > size(fint, 2)) return
-        if (fint(3, e) == MBDK_WEAR_LOAD_NORMAL) then
-          if (fint(1, c) /= MBDK_FORCE_CONTACT) return
-        else if (fint(3, e) == MBDK_WEAR_LOAD_FRICTION) then
-          if (fint(1, c) /= MBDK_FORCE_FRICTION) return
-        else
-          return
-        end if
-        if (freal(1, e) < 0.0_dp) return
-        if (fint(2, e) == MBDK_WEAR_GEAR .and. .not. (freal(2, e) >= 0.0_dp .and. &
-            freal(3, e) > 0.0_dp .and. freal(5, e) > 0.0_dp .and. freal(7, e) > 0.0_dp)) return
-      end select
-      ok = .true.
-    end function contact_entry_ok
-
-  end subroutine mbdk_model_init
+  end subroutine allocate_work
 
   !> Gravity does not depend on (q, v, t): its generalised force is summed once (fconst, by
   !> mbdk_forces_eval itself) and an evaluation starts from it, visiting only the other

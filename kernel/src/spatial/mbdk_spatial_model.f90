@@ -326,7 +326,9 @@ contains
   !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
   !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first), or for
   !> counts whose sizes (13 nb, 5 nj) no default integer holds; MBDK_ERR_NO_MEMORY (asked: the
-  !> bytes, mbdk_memory).
+  !> bytes, mbdk_memory). The steps check and allocate in one fixed order, so that an input
+  !> with more than one fault always gets the same status (and a failed allocation the same
+  !> bytes).
   subroutine mbdk_spatial_init(model, work, opt, mass, inertia, jtype, jbody, jreal, ftype, &
                                fbody, freal, t0, y0, stat, asked)
     type(mbdk_spatial_model_t), intent(out) :: model
@@ -336,21 +338,73 @@ contains
     integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nb, nj, b, j, row, info, k, astat
-    real(dp) :: jb(3, 3), ai(3), aj(3), b1(3), b2(3), e(3, 3), reach
-    real(dp), parameter :: zero3(3) = 0.0_dp
+    integer :: astat
     type(frames_t) :: fr
 
     stat = MBDK_ERR_INVALID_INPUT
+    if (.not. spatial_tables_ok(mass, inertia, jtype, jbody, jreal, ftype, fbody, freal)) return
+    if (.not. spatial_options_ok(opt)) return
+    call lay_out_spatial_state(model, opt, size(mass))
+    if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
+    call take_bodies(model, mass, inertia, y0, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ! the frames at y0: the reference orientations of prismatic, fixed and driven joints
+    call frames(model, y0, fr, stat, asked)
+    if (stat == MBDK_ERR_NO_MEMORY) return
+    if (stat /= MBDK_SUCCESS) then
+      stat = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    call count_joint_rows(model, jtype, jbody, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call build_primitives(model, jtype, jbody, jreal, fr, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call take_forces(model, ftype, fbody, freal, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call watch_scales(model, fr)
+    call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
+    call choose_active_rows(model, fr, t0, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    if (allocated(work%active)) deallocate (work%active)
+    allocate (work%active(size(model%active)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * size(model%active), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    work%active = model%active
+    work%switches = 0
+    model%nq = 0
+    model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .or. &
+      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
+    model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
+      opt%watch_energy > 0.0_dp .or. (model%ninv > 0 .and. opt%watch_momentum > 0.0_dp) .or. &
+      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%watch_quaternion > 0.0_dp)
+    model%work => work
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_spatial_init
+
+  !> The tables' shapes and finite reals, at least one body, and counts that default integers
+  !> hold (the state: 13 nb values; the primitives: 5 a joint).
+  pure logical function spatial_tables_ok(mass, inertia, jtype, jbody, jreal, ftype, fbody, &
+                                          freal) result(ok)
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :)
+    integer, intent(in) :: jtype(:), jbody(:, :), ftype(:), fbody(:, :)
+    integer :: nb, nj
+    ok = .false.
     nb = size(mass)
     nj = size(jtype)
     if (nb < 1 .or. any(shape(inertia) /= [3, 3, nb])) return
-    ! the state (13 nb values) and the primitives (5 a joint) are counted in default integers
     if (.not. (mbdk_count_fits(13.0_dp * nb) .and. mbdk_count_fits(5.0_dp * nj))) return
     if (size(jbody, 1) /= 2 .or. size(jbody, 2) /= nj .or. size(jreal, 1) /= &
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
         MBDK_SPATIAL_FORCE_REALS .or. size(freal, 2) /= size(ftype)) return
+    ok = all(abs(jreal) <= huge(1.0_dp)) .and. all(abs(freal) <= huge(1.0_dp))
+  end function spatial_tables_ok
+
+  !> The options: known codes of the formulation, rotation and norm, penalty parameters
+  !> positive and finite (when the formulation is penalty), the other parameters in range.
+  pure logical function spatial_options_ok(opt) result(ok)
+    type(mbdk_spatial_options_t), intent(in) :: opt
+    ok = .false.
     if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > &
         MBDK_FORM_PROJECTION) return
     if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
@@ -358,10 +412,17 @@ contains
         .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
-    if (.not. (opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp &
-               .and. opt%projection_tol > 0.0_dp .and. opt%lock_guard >= 0.0_dp .and. &
-               opt%lock_guard < 1.0_dp)) return
-    if (.not. all(abs(jreal) <= huge(1.0_dp)) .or. .not. all(abs(freal) <= huge(1.0_dp))) return
+    ok = opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp .and. &
+         opt%projection_tol > 0.0_dp .and. opt%lock_guard >= 0.0_dp .and. &
+         opt%lock_guard < 1.0_dp
+  end function spatial_options_ok
+
+  !> The options into the model and the state's layout: nqb coordinates per body (7 for a
+  !> quaternion, 6 for angles; seq the angle sequence), 6 velocities.
+  subroutine lay_out_spatial_state(model, opt, nb)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    type(mbdk_spatial_options_t), intent(in) :: opt
+    integer, intent(in) :: nb
     model%opt = opt
     model%nb = nb
     model%nqb = merge(7, 6, opt%rotation == MBDK_ROT_QUATERNION)
@@ -371,7 +432,18 @@ contains
     model%ncoord = nb * model%nqb
     model%nvel = 6 * nb
     model%formulation = opt%formulation
-    if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
+  end subroutine lay_out_spatial_state
+
+  !> The bodies' masses (positive, finite) and inertias (symmetric to roundoff, symmetrised,
+  !> positive definite) and the inverse inertias; with quaternions, y0's of unit norm.
+  subroutine take_bodies(model, mass, inertia, y0, stat, asked)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), y0(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nb, b, k, info, astat
+    real(dp) :: jb(3, 3)
+    nb = model%nb
     allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 19.0_dp * nb, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -391,91 +463,145 @@ contains
         call mbdk_chol_solve(jb, model%inv_inertia(:, k, b), info)
         if (info /= MBDK_SUCCESS) return
       end do
-      if (opt%rotation == MBDK_ROT_QUATERNION) then
+      if (model%opt%rotation == MBDK_ROT_QUATERNION) then
         if (.not. (abs(norm2(y0(qi(model, b) + 3:qi(model, b) + 6)) - 1.0_dp) <= 1.0e-8_dp)) return
       end if
     end do
-    call frames(model, y0, fr, stat, asked)
-    if (stat == MBDK_ERR_NO_MEMORY) return
-    if (stat /= MBDK_SUCCESS) then
-      stat = MBDK_ERR_INVALID_INPUT
-      return
-    end if
-    stat = MBDK_ERR_INVALID_INPUT
+    stat = MBDK_SUCCESS
+  end subroutine take_bodies
 
-    ! joints as primitives
+  !> The joint table's types and bodies (body 1 a body, body 2 another or the ground), and m,
+  !> the rows of the joints.
+  subroutine count_joint_rows(model, jtype, jbody, stat)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    integer, intent(in) :: jtype(:), jbody(:, :)
+    integer, intent(out) :: stat
+    integer :: j
+    stat = MBDK_ERR_INVALID_INPUT
     model%m = 0
     model%nprim = 0
-    do j = 1, nj
+    do j = 1, size(jtype)
       if (jtype(j) < 1 .or. jtype(j) > MBDK_SPATIAL_JOINT_TYPES) return
-      if (jbody(1, j) < 1 .or. jbody(1, j) > nb .or. jbody(2, j) < 0 .or. jbody(2, j) > nb) return
+      if (jbody(1, j) < 1 .or. jbody(1, j) > model%nb .or. jbody(2, j) < 0 .or. &
+          jbody(2, j) > model%nb) return
       if (jbody(1, j) == jbody(2, j)) return
       model%m = model%m + MBDK_SPATIAL_JOINT_ROWS(jtype(j))
     end do
+    stat = MBDK_SUCCESS
+  end subroutine count_joint_rows
+
+  !> The joints as primitive constraints (prim, and which rows are angles: row_angular), in
+  !> table order, their rows in sequence. MBDK_ERR_INVALID_INPUT for an axis of zero length.
+  subroutine build_primitives(model, jtype, jbody, jreal, fr, stat, asked)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    integer, intent(in) :: jtype(:), jbody(:, :)
+    real(dp), intent(in) :: jreal(:, :)
+    type(frames_t), intent(in) :: fr
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, j, row, astat
+    nj = size(jtype)
     ! prismatic: 5 primitives
     allocate (model%prim(5 * nj), model%row_angular(model%m), stat=astat)
     call mbdk_alloc_status(astat, real(storage_size(model%prim), dp) / 8.0_dp * 5.0_dp * nj + &
                            MBDK_INT_BYTES * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
     model%row_angular = .false.
     row = 1
     do j = 1, nj
-      associate (bi => jbody(1, j), bj => jbody(2, j), r => jreal(:, j))
-        ai = r(7:9)
-        aj = r(10:12)
-        if (any(jtype(j) == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, &
-                             MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC, &
-                             MBDK_SPATIAL_ANGLE_DRIVER, MBDK_SPATIAL_SLIDE_DRIVER])) then
-          if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
-          ai = ai / norm2(ai)
-          aj = aj / norm2(aj)
-        end if
-        call normals(aj, b1, b2)
-        select case (jtype(j))
-        case (MBDK_SPATIAL_SPHERICAL)
-          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
-        case (MBDK_SPATIAL_REVOLUTE)
-          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
-          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
-          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
-        case (MBDK_SPATIAL_UNIVERSAL)
-          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
-          call add(PRIM_DOT1, r(1:3), r(4:6), ai, aj)
-        case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
-          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
-          call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
-          call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b1)
-          call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b2)
-          ! the rotation about the axis: body i's image of b2 stays normal to b1
-          if (jtype(j) == MBDK_SPATIAL_PRISMATIC) &
-            call add(PRIM_DOT1, r(1:3), r(4:6), &
-                     matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
-        case (MBDK_SPATIAL_ANGLE_DRIVER)
-          ! u on body i: body j's b1 as body i sees it at the start; v = b1, w = a_j x b1 on j
-          call add(PRIM_ANGLE, zero3, zero3, &
-                   matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
-          model%prim(model%nprim)%wj = b2
-          model%prim(model%nprim)%fn = r(13:17)
-          model%has_drivers = .true.
-        case (MBDK_SPATIAL_SLIDE_DRIVER)
-          ! the offset of the joint points along a_j (on body j) follows f(t)
-          call add(PRIM_SLIDE, r(1:3), r(4:6), zero3, aj)
-          model%prim(model%nprim)%fn = r(13:17)
-          model%has_drivers = .true.
-        case (MBDK_SPATIAL_FIXED)
-          call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
-          ! body i's images of body j's axes e_k at the start: e1'.e2 = e2'.e3 = e3'.e1 = 0
-          ! lock the three relative rotations
-          e = matmul(transpose(fr%rot(:, :, bi)), fr%rot(:, :, bj))
-          do k = 1, 3
-            call add(PRIM_DOT1, r(1:3), r(4:6), e(:, k), unit(mod(k, 3) + 1))
-          end do
-        end select
-      end associate
+      call add_joint_primitives(model, jtype(j), jbody(1, j), jbody(2, j), jreal(:, j), fr, &
+                                row, stat)
+      if (stat /= MBDK_SUCCESS) return
     end do
+  end subroutine build_primitives
 
-    ! forces
+  !> Adds the primitives of one joint (type jt between bodies bi and bj, reals r) from row on.
+  !> MBDK_ERR_INVALID_INPUT for an axis of zero length where the type needs one.
+  subroutine add_joint_primitives(model, jt, bi, bj, r, fr, row, stat)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    integer, intent(in) :: jt, bi, bj
+    real(dp), intent(in) :: r(:)
+    type(frames_t), intent(in) :: fr
+    integer, intent(inout) :: row
+    integer, intent(out) :: stat
+    real(dp) :: ai(3), aj(3), b1(3), b2(3), e(3, 3)
+    real(dp), parameter :: zero3(3) = 0.0_dp
+    integer :: k
+    stat = MBDK_ERR_INVALID_INPUT
+    ai = r(7:9)
+    aj = r(10:12)
+    if (any(jt == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, MBDK_SPATIAL_CYLINDRICAL, &
+                   MBDK_SPATIAL_PRISMATIC, MBDK_SPATIAL_ANGLE_DRIVER, &
+                   MBDK_SPATIAL_SLIDE_DRIVER])) then
+      if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
+      ai = ai / norm2(ai)
+      aj = aj / norm2(aj)
+    end if
+    call normals(aj, b1, b2)
+    select case (jt)
+    case (MBDK_SPATIAL_SPHERICAL)
+      call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+    case (MBDK_SPATIAL_REVOLUTE)
+      call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+      call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
+      call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
+    case (MBDK_SPATIAL_UNIVERSAL)
+      call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+      call add(PRIM_DOT1, r(1:3), r(4:6), ai, aj)
+    case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
+      call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
+      call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
+      call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b1)
+      call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b2)
+      ! the rotation about the axis: body i's image of b2 stays normal to b1
+      if (jt == MBDK_SPATIAL_PRISMATIC) &
+        call add(PRIM_DOT1, r(1:3), r(4:6), &
+                 matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
+    case (MBDK_SPATIAL_ANGLE_DRIVER)
+      ! u on body i: body j's b1 as body i sees it at the start; v = b1, w = a_j x b1 on j
+      call add(PRIM_ANGLE, zero3, zero3, &
+               matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
+      model%prim(model%nprim)%wj = b2
+      model%prim(model%nprim)%fn = r(13:17)
+      model%has_drivers = .true.
+    case (MBDK_SPATIAL_SLIDE_DRIVER)
+      ! the offset of the joint points along a_j (on body j) follows f(t)
+      call add(PRIM_SLIDE, r(1:3), r(4:6), zero3, aj)
+      model%prim(model%nprim)%fn = r(13:17)
+      model%has_drivers = .true.
+    case (MBDK_SPATIAL_FIXED)
+      call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
+      ! body i's images of body j's axes e_k at the start: e1'.e2 = e2'.e3 = e3'.e1 = 0
+      ! lock the three relative rotations
+      e = matmul(transpose(fr%rot(:, :, bi)), fr%rot(:, :, bj))
+      do k = 1, 3
+        call add(PRIM_DOT1, r(1:3), r(4:6), e(:, k), unit(mod(k, 3) + 1))
+      end do
+    end select
+    stat = MBDK_SUCCESS
+
+  contains
+
+    subroutine add(kind, si, sj, ui, uj)
+      integer, intent(in) :: kind
+      real(dp), intent(in) :: si(3), sj(3), ui(3), uj(3)
+      model%nprim = model%nprim + 1
+      model%prim(model%nprim) = prim_t(kind, bi, bj, row, si, sj, ui, uj)
+      if (kind == PRIM_DOT1 .or. kind == PRIM_ANGLE) model%row_angular(row) = .true.
+      row = row + merge(3, 1, kind == PRIM_SPH)
+    end subroutine add
+
+  end subroutine add_joint_primitives
+
+  !> The force table, checked, into the model (planes' normals made unit), whether the scene
+  !> has power to integrate, and its contacts (events with locate_events).
+  subroutine take_forces(model, ftype, fbody, freal, stat, asked)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    integer, intent(in) :: ftype(:), fbody(:, :)
+    real(dp), intent(in) :: freal(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: k, astat
     model%nf = size(ftype)
     allocate (model%ftype(model%nf), model%fbody(2, model%nf), &
               model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf), stat=astat)
@@ -483,19 +609,7 @@ contains
                                    MBDK_REAL_BYTES) * model%nf, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INVALID_INPUT
-    do k = 1, model%nf
-      if (ftype(k) < 1 .or. ftype(k) > MBDK_SPATIAL_FORCE_TYPES) return
-      select case (ftype(k))
-      case (MBDK_SPATIAL_POINT_FORCE, MBDK_SPATIAL_TORQUE)
-        if (fbody(1, k) < 1 .or. fbody(1, k) > nb) return
-      case (MBDK_SPATIAL_SPRING_DAMPER)
-        if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
-            fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
-        if (.not. all(freal(7:9, k) >= 0.0_dp)) return
-      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
-        if (.not. contact_entry_ok(k)) return
-      end select
-    end do
+    if (.not. spatial_forces_ok(model%nb, ftype, fbody, freal)) return
     ! loads and springs; of the contacts, those with damping or friction (an undamped,
     ! frictionless contact does no net work)
     model%has_power = any(ftype /= MBDK_SPATIAL_GRAVITY .and. ftype < MBDK_SPATIAL_SPHERE_PLANE)
@@ -512,37 +626,98 @@ contains
         model%freal(8:10, k) = freal(8:10, k) / norm2(freal(8:10, k))
     end do
     model%ncontacts = count(ftype >= MBDK_SPATIAL_SPHERE_PLANE)
-    if (opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
+    if (model%opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
+    stat = MBDK_SUCCESS
+  end subroutine take_forces
 
-    ! the length scale of the watch: joint and spring points, and the bodies' spread
+  !> Each force's type and bodies (a point force or torque on a body; a spring-damper between
+  !> two, one of them possibly the ground, with k, c, l0 >= 0; contacts: spatial_contact_ok).
+  pure logical function spatial_forces_ok(nb, ftype, fbody, freal) result(ok)
+    integer, intent(in) :: nb
+    integer, intent(in) :: ftype(:), fbody(:, :)
+    real(dp), intent(in) :: freal(:, :)
+    integer :: k
+    ok = .false.
+    do k = 1, size(ftype)
+      if (ftype(k) < 1 .or. ftype(k) > MBDK_SPATIAL_FORCE_TYPES) return
+      select case (ftype(k))
+      case (MBDK_SPATIAL_POINT_FORCE, MBDK_SPATIAL_TORQUE)
+        if (fbody(1, k) < 1 .or. fbody(1, k) > nb) return
+      case (MBDK_SPATIAL_SPRING_DAMPER)
+        if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
+            fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
+        if (.not. all(freal(7:9, k) >= 0.0_dp)) return
+      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        if (.not. spatial_contact_ok(nb, ftype(k), fbody(:, k), freal(:, k))) return
+      end select
+    end do
+    ok = .true.
+  end function spatial_forces_ok
+
+  !> A contact of type ft (sphere_plane, sphere_sphere) between bodies fb, reals r: body1 a
+  !> body, body2 the ground or another body; radii >= 0 (two spheres: not both 0), a plane's
+  !> normal of nonzero length, k >= 0, e >= 1, cmax, dmax >= 0; mus, mud >= 0 and 0 < vs < vd.
+  pure logical function spatial_contact_ok(nb, ft, fb, r) result(ok)
+    integer, intent(in) :: nb, ft, fb(2)
+    real(dp), intent(in) :: r(:)
+    ok = .false.
+    if (fb(1) < 1 .or. fb(1) > nb .or. fb(2) < 0 .or. fb(2) > nb .or. fb(1) == fb(2)) return
+    if (.not. (r(4) >= 0.0_dp .and. r(11) >= 0.0_dp .and. r(12) >= 0.0_dp .and. &
+               r(13) >= 1.0_dp .and. r(14) >= 0.0_dp .and. r(15) >= 0.0_dp .and. &
+               r(16) >= 0.0_dp .and. r(17) >= 0.0_dp .and. r(18) > 0.0_dp .and. &
+               r(19) > r(18))) return
+    if (ft == MBDK_SPATIAL_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
+    if (ft == MBDK_SPATIAL_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
+    ok = .true.
+  end function spatial_contact_ok
+
+  !> The watch's scales: the length (joint and spring points, spheres, the bodies' spread; else
+  !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1).
+  subroutine watch_scales(model, fr)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    type(frames_t), intent(in) :: fr
+    integer :: k, b, nb
+    real(dp) :: reach
+    nb = model%nb
     model%length = 0.0_dp
     do k = 1, model%nprim
       model%length = max(model%length, norm2(model%prim(k)%si), norm2(model%prim(k)%sj))
     end do
-    do k = 1, model%nf
-      if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
-        norm2(freal(1:3, k)), norm2(freal(4:6, k)))
-      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE) model%length = max(model%length, &
-        norm2(freal(1:3, k)) + freal(4, k))
-    end do
-    do b = 1, nb
-      model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
-    end do
-    ! what gravity can move the bodies by (mbdk_watch): the mechanism's length and each body's
-    ! radius of gyration, not the fallback below (a length the scene may not have)
-    reach = model%length
-    do b = 1, nb
-      reach = max(reach, sqrt((model%inertia(1, 1, b) + model%inertia(2, 2, b) + &
-                               model%inertia(3, 3, b)) / (2.0_dp * model%mass(b))))
-    end do
-    if (.not. (model%length > 0.0_dp)) model%length = 1.0_dp
-    model%gscale = 0.0_dp
-    do k = 1, model%nf
-      if (ftype(k) == MBDK_SPATIAL_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
-    end do
-    model%gscale = model%gscale * sum(model%mass) * reach
-    call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
+    associate (ftype => model%ftype, freal => model%freal)
+      do k = 1, model%nf
+        if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
+          norm2(freal(1:3, k)), norm2(freal(4:6, k)))
+        if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE) model%length = max(model%length, &
+          norm2(freal(1:3, k)) + freal(4, k))
+      end do
+      do b = 1, nb
+        model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
+      end do
+      reach = model%length
+      do b = 1, nb
+        reach = max(reach, sqrt((model%inertia(1, 1, b) + model%inertia(2, 2, b) + &
+                                 model%inertia(3, 3, b)) / (2.0_dp * model%mass(b))))
+      end do
+      if (.not. (model%length > 0.0_dp)) model%length = 1.0_dp
+      model%gscale = 0.0_dp
+      do k = 1, model%nf
+        if (ftype(k) == MBDK_SPATIAL_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
+      end do
+      model%gscale = model%gscale * sum(model%mass) * reach
+    end associate
+  end subroutine watch_scales
 
+  !> The rows solved (active) and rank0: with redundant joints the independent rows the
+  !> rank-revealing Cholesky picks at t0 (any rank accepted there), else every row.
+  subroutine choose_active_rows(model, fr, t0, stat, asked)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: t0
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: k, astat
+    integer, allocatable :: rows(:)
+    real(dp), allocatable :: phi(:), c(:, :), gam(:)
     allocate (model%all_rows(model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -551,71 +726,21 @@ contains
     end do
     model%rank0 = model%m
     if (model%m > 0) then
-      block
-        integer, allocatable :: rows(:)
-        real(dp), allocatable :: phi(:), c(:, :), gam(:)
-        allocate (phi(model%m), c(model%m, 6 * nb), gam(model%m), stat=astat)
-        call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%m, dp) * (6.0_dp * nb + 2), &
-                               stat, asked)
-        if (stat /= MBDK_SUCCESS) return
-        call constraints(model, fr, t0, phi, c, gam)
-        model%rank0 = 0                     ! any rank is accepted at the start
-        call select_rows(model, c, rows, stat, asked)
-        if (stat /= MBDK_SUCCESS) return
-        call move_alloc(rows, model%active)
-      end block
+      allocate (phi(model%m), c(model%m, 6 * model%nb), gam(model%m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%m, dp) * &
+                             (6.0_dp * model%nb + 2), stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call constraints(model, fr, t0, phi, c, gam)
+      model%rank0 = 0                     ! any rank is accepted at the start
+      call select_rows(model, c, rows, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call move_alloc(rows, model%active)
       model%rank0 = size(model%active)
     else
       allocate (model%active(0), stat=astat)
       call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
     end if
-    if (allocated(work%active)) deallocate (work%active)
-    allocate (work%active(size(model%active)), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * size(model%active), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    work%active = model%active
-    work%switches = 0
-    model%nq = 0
-    model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .or. &
-      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
-    model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
-      opt%watch_energy > 0.0_dp .or. (model%ninv > 0 .and. opt%watch_momentum > 0.0_dp) .or. &
-      (opt%rotation == MBDK_ROT_QUATERNION .and. opt%watch_quaternion > 0.0_dp)
-    model%work => work
-    stat = MBDK_SUCCESS
-
-  contains
-
-    !> A contact: body1 a body, body2 the ground or another body; radii >= 0 (two spheres: not
-    !> both 0), a plane's normal of nonzero length, k >= 0, e >= 1, cmax, dmax >= 0; mus,
-    !> mud >= 0 and 0 < vs < vd.
-    logical function contact_entry_ok(e) result(ok)
-      integer, intent(in) :: e
-      ok = .false.
-      associate (r => freal(:, e))
-        if (fbody(1, e) < 1 .or. fbody(1, e) > nb .or. fbody(2, e) < 0 .or. &
-            fbody(2, e) > nb .or. fbody(1, e) == fbody(2, e)) return
-        if (.not. (r(4) >= 0.0_dp .and. r(11) >= 0.0_dp .and. r(12) >= 0.0_dp .and. &
-                   r(13) >= 1.0_dp .and. r(14) >= 0.0_dp .and. r(15) >= 0.0_dp .and. &
-                   r(16) >= 0.0_dp .and. r(17) >= 0.0_dp .and. r(18) > 0.0_dp .and. &
-                   r(19) > r(18))) return
-        if (ftype(e) == MBDK_SPATIAL_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
-        if (ftype(e) == MBDK_SPATIAL_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
-      end associate
-      ok = .true.
-    end function contact_entry_ok
-
-    subroutine add(kind, si, sj, ui, uj)
-      integer, intent(in) :: kind
-      real(dp), intent(in) :: si(3), sj(3), ui(3), uj(3)
-      model%nprim = model%nprim + 1
-      model%prim(model%nprim) = prim_t(kind, jbody(1, j), jbody(2, j), row, si, sj, ui, uj)
-      if (kind == PRIM_DOT1 .or. kind == PRIM_ANGLE) model%row_angular(row) = .true.
-      row = row + merge(3, 1, kind == PRIM_SPH)
-    end subroutine add
-
-  end subroutine mbdk_spatial_init
+  end subroutine choose_active_rows
 
   !> The components of the momentum and angular momentum a spatial scene conserves, from its
   !> elements alone (mbdk_watch's rule): inv(:, 1:ninv).
@@ -809,171 +934,220 @@ contains
   ! ---- the constraints ---------------------------------------------------------------------
 
   !> Phi (m), C (m x 6 nb), gamma (the terms of Phi'' other than C w': -(C' w), and for a driver
-  !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames.
+  !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames: primitive by primitive,
+  !> each kind's rows by a routine of its own.
   pure subroutine constraints(model, fr, t, phi, c, gam, phit)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(in) :: t
     real(dp), intent(out) :: phi(:), c(:, :), gam(:)
     real(dp), intent(out), optional :: phit(:)
-    integer :: k, i, j, r
-    real(dp) :: pi(3), pj(3), di(3), dj(3), ddi(3), ddj(3), h(3), hd(3), dv(3), dw(3), f, fd, &
-      fdd, cf, sf, a, b, qa, qb, da, db
+    integer :: k, r
+    real(dp) :: f, fd, fdd, pt
     phi = 0.0_dp
     c = 0.0_dp
     gam = 0.0_dp
     if (present(phit)) phit = 0.0_dp
     do k = 1, model%nprim
       associate (pr => model%prim(k))
-        i = pr%bi
-        j = pr%bj
         r = pr%row
         select case (pr%kind)
         case (PRIM_SPH)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          phi(r:r + 2) = pi - pj
-          call point_cols(c(r:r + 2, :), i, pr%si, 1.0_dp)
-          call point_cols(c(r:r + 2, :), j, pr%sj, -1.0_dp)
-          gam(r:r + 2) = -(pquad(i, pr%si) - pquad(j, pr%sj))
+          call sph_rows(pr, fr, phi(r:r + 2), c(r:r + 2, :), gam(r:r + 2))
         case (PRIM_DOT1)
-          di = matmul(fr%rot(:, :, i), pr%ui)
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          phi(r) = dot_product(di, dj)
-          call vec_cols(c(r, :), i, pr%ui, dj)
-          call vec_cols(c(r, :), j, pr%uj, di)
-          ddi = vvel(i, pr%ui)
-          ddj = vvel(j, pr%uj)
-          gam(r) = -(dot_product(dj, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
-                     2.0_dp * dot_product(ddi, ddj))
+          call dot1_row(pr, fr, phi(r), c(r, :), gam(r))
         case (PRIM_DOT2)
-          ! d = R_j u_j on body j, h = P_i - P_j
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          h = pi - pj
-          phi(r) = dot_product(dj, h)
-          call point_row(c(r, :), i, pr%si, dj)
-          call point_row(c(r, :), j, pr%sj, -dj)
-          call vec_cols(c(r, :), j, pr%uj, h)
-          hd = pvel(i, pr%si) - pvel(j, pr%sj)
-          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
-                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj)))
+          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
         case (PRIM_SLIDE)
           ! Phi = d . h - f(t), d = R_j u_j, h = P_i - P_j: PRIM_DOT2 less the slide f(t)
           call mbdk_time_fn(pr%fn, t, f, fd, fdd)
-          dj = matmul(fr%rot(:, :, j), pr%uj)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
-          h = pi - pj
-          phi(r) = dot_product(dj, h) - f
-          call point_row(c(r, :), i, pr%si, dj)
-          call point_row(c(r, :), j, pr%sj, -dj)
-          call vec_cols(c(r, :), j, pr%uj, h)
-          hd = pvel(i, pr%si) - pvel(j, pr%sj)
+          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
+          phi(r) = phi(r) - f
           if (present(phit)) phit(r) = -fd
-          gam(r) = -(dot_product(vquad(j, pr%uj), h) + 2.0_dp * dot_product(vvel(j, pr%uj), hd) &
-                     + dot_product(dj, pquad(i, pr%si) - pquad(j, pr%sj))) + fdd
+          gam(r) = gam(r) + fdd
         case (PRIM_ANGLE)
-          ! Phi = cos f (u . w) - sin f (u . v) = sin(theta - f): u = R_i ui, v = R_j uj,
-          ! w = R_j wj; A = u . w = sin theta, B = u . v = cos theta
-          call mbdk_time_fn(pr%fn, t, f, fd, fdd)
-          cf = cos(f)
-          sf = sin(f)
-          di = matmul(fr%rot(:, :, i), pr%ui)
-          dv = matmul(fr%rot(:, :, j), pr%uj)
-          dw = matmul(fr%rot(:, :, j), pr%wj)
-          a = dot_product(di, dw)
-          b = dot_product(di, dv)
-          phi(r) = cf * a - sf * b
-          call vec_cols(c(r, :), i, pr%ui, cf * dw - sf * dv)
-          call vec_cols(c(r, :), j, pr%wj, cf * di)
-          call vec_cols(c(r, :), j, pr%uj, -sf * di)
-          ddi = vvel(i, pr%ui)
-          qa = dot_product(dw, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%wj)) + &
-            2.0_dp * dot_product(ddi, vvel(j, pr%wj))
-          qb = dot_product(dv, vquad(i, pr%ui)) + dot_product(di, vquad(j, pr%uj)) + &
-            2.0_dp * dot_product(ddi, vvel(j, pr%uj))
-          da = dot_product(ddi, dw) + dot_product(di, vvel(j, pr%wj))
-          db = dot_product(ddi, dv) + dot_product(di, vvel(j, pr%uj))
-          ! Phi_t = -f' (sin f A + cos f B); C_t w = -f' (sin f A' + cos f B');
-          ! Phi_tt = -f'' (sin f A + cos f B) - f'^2 (cos f A - sin f B)
-          if (present(phit)) phit(r) = -fd * (sf * a + cf * b)
-          gam(r) = -(cf * qa - sf * qb - 2.0_dp * fd * (sf * da + cf * db) &
-                     - fdd * (sf * a + cf * b) - fd**2 * (cf * a - sf * b))
+          call angle_row(pr, fr, t, phi(r), c(r, :), gam(r), pt)
+          if (present(phit)) phit(r) = pt
         end select
       end associate
     end do
-
-  contains
-
-    ! rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
-    pure subroutine point_cols(cc, b, s, sgn)
-      real(dp), intent(inout) :: cc(:, :)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3), sgn
-      integer :: o, d
-      if (b == 0) return
-      o = (b - 1) * 6
-      do d = 1, 3
-        cc(d, o + d) = cc(d, o + d) + sgn
-      end do
-      cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
-    end subroutine point_cols
-
-    ! the row x . (point velocity)
-    pure subroutine point_row(cr, b, s, x)
-      real(dp), intent(inout) :: cr(:)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3), x(3)
-      integer :: o
-      if (b == 0) return
-      o = (b - 1) * 6
-      cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
-      ! -x^T R skew(s) W = W . (s x R^T x)
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
-    end subroutine point_row
-
-    ! the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
-    pure subroutine vec_cols(cr, b, u, x)
-      real(dp), intent(inout) :: cr(:)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3), x(3)
-      integer :: o
-      if (b == 0) return
-      o = (b - 1) * 6
-      cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
-    end subroutine vec_cols
-
-    pure function pvel(b, s) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3)
-      real(dp) :: x(3)
-      x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
-    end function pvel
-
-    pure function pquad(b, s) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: s(3)
-      real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
-    end function pquad
-
-    pure function vvel(b, u) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3)
-      real(dp) :: x(3)
-      x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
-    end function vvel
-
-    pure function vquad(b, u) result(x)
-      integer, intent(in) :: b
-      real(dp), intent(in) :: u(3)
-      real(dp) :: x(3)
-      x = pquad(b, u)
-    end function vquad
-
   end subroutine constraints
+
+  !> A point on a point (PRIM_SPH), three rows: Phi = P_i - P_j with P = r + R s.
+  pure subroutine sph_rows(pr, fr, phi, c, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi(3), gam(3)
+    real(dp), intent(inout) :: c(:, :)
+    real(dp) :: pi(3), pj(3)
+    associate (i => pr%bi, j => pr%bj)
+      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      phi = pi - pj
+      call point_cols(fr, c, i, pr%si, 1.0_dp)
+      call point_cols(fr, c, j, pr%sj, -1.0_dp)
+      gam = -(pquad(fr, i, pr%si) - pquad(fr, j, pr%sj))
+    end associate
+  end subroutine sph_rows
+
+  !> Two body vectors normal (PRIM_DOT1), one row: Phi = (R_i u_i) . (R_j u_j).
+  pure subroutine dot1_row(pr, fr, phi, cr, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi, gam
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: di(3), dj(3), ddi(3), ddj(3)
+    associate (i => pr%bi, j => pr%bj)
+      di = matmul(fr%rot(:, :, i), pr%ui)
+      dj = matmul(fr%rot(:, :, j), pr%uj)
+      phi = dot_product(di, dj)
+      call vec_cols(fr, cr, i, pr%ui, dj)
+      call vec_cols(fr, cr, j, pr%uj, di)
+      ddi = vvel(fr, i, pr%ui)
+      ddj = vvel(fr, j, pr%uj)
+      gam = -(dot_product(dj, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%uj)) + &
+              2.0_dp * dot_product(ddi, ddj))
+    end associate
+  end subroutine dot1_row
+
+  !> A vector of body j normal to the joint points' offset (PRIM_DOT2), one row:
+  !> Phi = d . h, d = R_j u_j, h = P_i - P_j.
+  pure subroutine dot2_row(pr, fr, phi, cr, gam)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(out) :: phi, gam
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: pi(3), pj(3), dj(3), h(3), hd(3)
+    associate (i => pr%bi, j => pr%bj)
+      dj = matmul(fr%rot(:, :, j), pr%uj)
+      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      h = pi - pj
+      phi = dot_product(dj, h)
+      call point_row(fr, cr, i, pr%si, dj)
+      call point_row(fr, cr, j, pr%sj, -dj)
+      call vec_cols(fr, cr, j, pr%uj, h)
+      hd = pvel(fr, i, pr%si) - pvel(fr, j, pr%sj)
+      gam = -(dot_product(vquad(fr, j, pr%uj), h) + 2.0_dp * dot_product(vvel(fr, j, pr%uj), hd) &
+              + dot_product(dj, pquad(fr, i, pr%si) - pquad(fr, j, pr%sj)))
+    end associate
+  end subroutine dot2_row
+
+  !> The driven angle (PRIM_ANGLE), one row: Phi = cos f A - sin f B = sin(theta - f), with
+  !> A = u . w = sin theta, B = u . v = cos theta (u = R_i ui, v = R_j uj, w = R_j wj); phit.
+  pure subroutine angle_row(pr, fr, t, phi, cr, gam, phit)
+    type(prim_t), intent(in) :: pr
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: phi, gam, phit
+    real(dp), intent(inout) :: cr(:)
+    real(dp) :: di(3), ddi(3), dv(3), dw(3), f, fd, fdd, cf, sf, a, b, qa, qb, da, db
+    associate (i => pr%bi, j => pr%bj)
+      call mbdk_time_fn(pr%fn, t, f, fd, fdd)
+      cf = cos(f)
+      sf = sin(f)
+      di = matmul(fr%rot(:, :, i), pr%ui)
+      dv = matmul(fr%rot(:, :, j), pr%uj)
+      dw = matmul(fr%rot(:, :, j), pr%wj)
+      a = dot_product(di, dw)
+      b = dot_product(di, dv)
+      phi = cf * a - sf * b
+      call vec_cols(fr, cr, i, pr%ui, cf * dw - sf * dv)
+      call vec_cols(fr, cr, j, pr%wj, cf * di)
+      call vec_cols(fr, cr, j, pr%uj, -sf * di)
+      ddi = vvel(fr, i, pr%ui)
+      qa = dot_product(dw, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%wj)) + &
+        2.0_dp * dot_product(ddi, vvel(fr, j, pr%wj))
+      qb = dot_product(dv, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%uj)) + &
+        2.0_dp * dot_product(ddi, vvel(fr, j, pr%uj))
+      da = dot_product(ddi, dw) + dot_product(di, vvel(fr, j, pr%wj))
+      db = dot_product(ddi, dv) + dot_product(di, vvel(fr, j, pr%uj))
+      ! Phi_t = -f' (sin f A + cos f B); C_t w = -f' (sin f A' + cos f B');
+      ! Phi_tt = -f'' (sin f A + cos f B) - f'^2 (cos f A - sin f B)
+      phit = -fd * (sf * a + cf * b)
+      gam = -(cf * qa - sf * qb - 2.0_dp * fd * (sf * da + cf * db) &
+              - fdd * (sf * a + cf * b) - fd**2 * (cf * a - sf * b))
+    end associate
+  end subroutine angle_row
+
+  ! ---- body points and vectors in the frames fr (body 0, the ground, has no columns in C) ----
+
+  !> rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
+  pure subroutine point_cols(fr, cc, b, s, sgn)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cc(:, :)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3), sgn
+    integer :: o, d
+    if (b == 0) return
+    o = (b - 1) * 6
+    do d = 1, 3
+      cc(d, o + d) = cc(d, o + d) + sgn
+    end do
+    cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
+  end subroutine point_cols
+
+  !> the row x . (point velocity)
+  pure subroutine point_row(fr, cr, b, s, x)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cr(:)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3), x(3)
+    integer :: o
+    if (b == 0) return
+    o = (b - 1) * 6
+    cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
+    ! -x^T R skew(s) W = W . (s x R^T x)
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
+  end subroutine point_row
+
+  !> the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
+  pure subroutine vec_cols(fr, cr, b, u, x)
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(inout) :: cr(:)
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3), x(3)
+    integer :: o
+    if (b == 0) return
+    o = (b - 1) * 6
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
+  end subroutine vec_cols
+
+  !> the velocity of body b's point s
+  pure function pvel(fr, b, s) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3)
+    real(dp) :: x(3)
+    x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
+  end function pvel
+
+  !> the acceleration of body b's point s quadratic in its angular velocity, R (W x (W x s))
+  pure function pquad(fr, b, s) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: s(3)
+    real(dp) :: x(3)
+    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
+  end function pquad
+
+  !> the rate of body b's vector R u
+  pure function vvel(fr, b, u) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3)
+    real(dp) :: x(3)
+    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
+  end function vvel
+
+  !> the terms of the second derivative of body b's vector R u quadratic in W: a point's (pquad)
+  pure function vquad(fr, b, u) result(x)
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: b
+    real(dp), intent(in) :: u(3)
+    real(dp) :: x(3)
+    x = pquad(fr, b, u)
+  end function vquad
 
   !> M^-1 x for x in the velocity layout (6 per body).
   pure subroutine apply_minv(model, x, y)
