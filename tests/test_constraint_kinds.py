@@ -403,11 +403,6 @@ def test_rolling_disc_down_an_incline(method):
     assert np.abs(-lam[1:, 1] + m * G * math.sin(al) / 3).max() < 1e-6
 
 
-def test_scene_row_counts_are_the_kernels():
-    from mbdk.scene import JOINT_ROW_COUNT
-    assert JOINT_ROW_COUNT == M.JOINT_ROWS
-
-
 def test_a_time_dependent_coupling_row():
     """The kernel's coupling with c(t) (Python writes a constant offset): coefficients on x and
     theta of body 1 and on y of body 2, c = c0 + 0.3 t + 0.2 sin(2 t); D, Phi_t and gamma

@@ -240,7 +240,7 @@ def test_bodies_and_coordinates_outside_q_are_refused_not_written():
     tab = mbdk.model.build_tables(sc)
     y = np.concatenate([sc.q0(), sc.v0()])
     fint, freal = np.zeros((4, 1), np.int32, order="F"), np.zeros((12, 1), order="F")
-    fint[:, 0] = [mbdk.model.FORCE_CODES["torque"], 0, 0, 0]
+    fint[:, 0] = [mbdk.codes.FORCE_CODES["torque"], 0, 0, 0]
     *_, status = mbdk._kernel.model_eval(tab.mass, tab.inertia, tab.kind, tab.nj, tab.jint, tab.jreal, 1,
                                          fint, freal, mbdk.ModelOptions().pack(), tab.m, 0.0, y)
     assert status == mbdk.Status.ERR_INVALID_INPUT

@@ -277,11 +277,12 @@ def _kernel_messages() -> dict:
     table = {}
     for i in range(1, len(Status) + 1):
         code, _name, msg = _kernel.status_entry(i)
-        table[int(code)] = _decode(msg)
+        table[int(code)] = decode_text(msg)
     return table
 
 
-def _decode(b) -> str:
+def decode_text(b) -> str:
+    """A name or message from the kernel (a Fortran character array, padded) as a str."""
     if isinstance(b, bytes):
         return b.decode("ascii", "replace").strip()
     if hasattr(b, "tobytes"):

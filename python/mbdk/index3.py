@@ -41,10 +41,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernel
+from .codes import INDEX3_FORMULATIONS  # noqa: F401  (simulate's and the tests' name)
 from .errors import Status, exception_for
 from .options import ModelOptions
 
-INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
 SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 # a failed step's report calls D near-singular where its smallest singular value is below this
 # fraction of its largest (the collinear four-bar fails within about 1e-3 of its rank loss)

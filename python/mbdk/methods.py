@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from . import _kernel
 from .checks import show
-from .errors import InvalidInputError, UnknownMethodError, _decode
+from .errors import InvalidInputError, UnknownMethodError, decode_text
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ def _load() -> dict[str, MethodInfo]:
         name, family, order = _kernel.method_info(i)
         if family == 0:
             break
-        name = _decode(name)
+        name = decode_text(name)
         fam = _FAMILIES[int(family)]
         steps = int(name[3:]) if name[:3] == "bdf" and name[3:].isdigit() else 1
         stability, ref = _ABOUT[name]

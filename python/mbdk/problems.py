@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 
 from . import _kernel
-from .errors import InvalidInputError, UnknownParameterError, UnknownProblemError, _decode
+from .errors import InvalidInputError, UnknownParameterError, UnknownProblemError, decode_text
 
 
 @dataclass(frozen=True)
@@ -247,7 +247,7 @@ def _load() -> dict[str, ProblemInfo]:
         name, n, np_ = _kernel.problem_info(i)
         if n < 0:
             break
-        name = _decode(name)
+        name = decode_text(name)
         spec = dict(_SPECS[name])
         if name != "linear_system" and len(spec["params"]) != np_:
             raise RuntimeError(f"problem {name}: kernel has {np_} parameters, registry "

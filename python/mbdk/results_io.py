@@ -101,7 +101,7 @@ def result_arrays(r) -> dict:
             "status": r.status.name, "manifest": r.manifest}
 
 
-def _atomic(path: Path, write) -> None:
+def write_atomic(path: Path, write) -> None:
     """write(tmp) to a temporary name beside path, then the rename: whatever stops the write
     (a full disk, Ctrl-C) removes the temporary file and leaves no file named path. An OSError
     is raised again naming path, not the temporary name."""
@@ -171,7 +171,7 @@ def save_result(r, path) -> Path:
                 w.writerow(cols)
                 for row in data:
                     w.writerow([repr(float(x)) for x in row])
-    _atomic(path, write)
+    write_atomic(path, write)
     return path
 
 
@@ -326,6 +326,6 @@ def plot_result(path, out=None) -> Path:
 
     def write(tmp):
         fig.savefig(tmp, dpi=110, format="png")
-    _atomic(out, write)
+    write_atomic(out, write)
     plt.close(fig)
     return out

@@ -100,10 +100,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .checks import MAX_SCENE_BYTES, NUMBER_MAX, NUMBER_MIN, length_scale, number_problem, show
+from .codes import BODY_KINDS, COORDS, JOINT_ROWS, WEAR_LAWS, WEAR_LOADS
 from .errors import InvalidInputError
 
 GROUND = "ground"
-COORDS = {"x": 1, "y": 2, "angle": 3}
 
 
 class SceneError(InvalidInputError):
@@ -201,10 +201,6 @@ class Wear:
         return self.load.rpartition(".")[2]
 
 
-WEAR_LAWS = {"archard": 1, "gear": 2, "knee": 3}
-WEAR_LOADS = {"normal_force": 1, "friction_force": 2}
-
-
 @dataclass
 class Scene:
     name: str
@@ -247,22 +243,6 @@ class Scene:
         return out
 
 
-def _body_kinds() -> dict:
-    """The kernel's body kinds: name -> (code, coordinates, velocities, available)."""
-    from . import _kernel
-    from .errors import _decode
-    out, i = {}, 1
-    while True:
-        code, name, coords, vels, available = _kernel.body_kind(i)
-        if code == 0:
-            return out
-        out[_decode(name)] = (int(code), int(coords), int(vels), bool(available))
-        i += 1
-
-
-BODY_KINDS = _body_kinds()
-
-
 def body_kind_problem(kind) -> str | None:
     """Why a body of this kind cannot be simulated (the end of an error message), or None."""
     if not isinstance(kind, str) or kind not in BODY_KINDS:
@@ -276,12 +256,10 @@ def body_kind_problem(kind) -> str | None:
         return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
                 "velocities) but the planar model cannot simulate it; use 'planar'")
     return None
+
+
 JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver", "distance", "point_line",
                "point_curve", "coupling", "rolling", "knife_edge"}
-#: constraint rows per joint type (the kernel's table, mbdk_elements; tests/test_elements.py)
-JOINT_ROW_COUNT = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1, "distance": 1,
-                   "point_line": 1, "point_curve": 1, "coupling": 1, "rolling": 2,
-                   "knife_edge": 1}
 #: joints fixed to the ground by their nature (no body2)
 GROUND_JOINTS = {"driver", "point_curve", "rolling", "knife_edge"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
@@ -973,7 +951,7 @@ def check_scene(sc: Scene) -> None:
                              f"{c.name!r} has no friction; give it a friction table, or use "
                              f"'{c.name}.normal_force'")
     check_lengths(sc)
-    rows = sum(JOINT_ROW_COUNT[j.type] for j in sc.joints)
+    rows = sum(JOINT_ROWS[j.type] for j in sc.joints)
     if rows > 3 * len(sc.bodies):
         raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
                          f"({len(sc.bodies)} bodies): more constraints than coordinates")

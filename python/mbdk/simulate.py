@@ -53,15 +53,16 @@ from numbers import Integral
 import numpy as np
 
 from . import _compiled, _kernel, checks
+from .codes import ADAPTIVE_MODES, OUTPUTS, SCENE_DAE_FORMS
 from .errors import (AccuracyWarning, InvalidInputError, MbdkError, NotApplicableError,
                      SingularMatrixError, SolveInterrupted, Status, exception_for, failure_text,
                      no_memory_message, status_message, stopped_at)
 from .index3 import INDEX3_FORMULATIONS, MAX_CUTS, NEAR_SINGULAR, factorisation
 
 #: ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90): the code it passes
-IDA_FORMULATIONS = {"index1": 1, "ggl": 2}
+IDA_FORMULATIONS = SCENE_DAE_FORMS["ida"]
 #: bdf on the scene's DAE (kernel/src/dae/mbdk_scene_dae.f90), as MSC Adams' GSTIFF I3 and SI2
-BDF_DAE_FORMULATIONS = {"i3": 1, "si2": 2}
+BDF_DAE_FORMULATIONS = SCENE_DAE_FORMS["bdf"]
 BDF_DAE_FORMS = {"i3": "index 3 (GSTIFF I3): q' = v, M v' = f - D^T lam, 0 = Phi, index-scaled "
                        "Newton, error test on q and on h times v (index 2)",
                  "si2": "stabilised index 2 (GSTIFF SI2, GGL): q' = v - D^T mu, "
@@ -71,7 +72,8 @@ IDA_FORMS = {"index1": "index 1: M v' + D^T lam = f, D v' = gamma (Phi, Phi' not
                     "M v' + D^T lam = f, Phi = 0, D v + Phi_t = 0"}
 from .watch import as_watch, drift_message, drift_report, invariant_names
 from .methods import method as _method
-from .model import (DENSE_NAMING_MAX, FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES, Tables, assembly_error,
+from .codes import FORMULATIONS, LINEAR_SOLVES, SOLVERS, VISIT_NAMES
+from .model import (DENSE_NAMING_MAX, Tables, assembly_error,
                     assembly_report, build_tables, dependent_rows, given_mask, model_options,
                     pose_error, rows_to_joints, scaled_jacobian)
 from .model import evaluate as _evaluate
@@ -81,8 +83,6 @@ from .result import Result, Stats
 from .checks import show
 from .scene import GROUND, Scene, SceneError, checked
 
-#: outputs simulate can compute, with the kernel's bits (mbdk_model: MBDK_OUT_*)
-OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
 _INT_MAX = 2**31 - 1
 
 
@@ -609,11 +609,6 @@ _DRIFT_ADVICE = {
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
 #: (at most the fixed-step defaults), not below NEWTON_FLOOR
 NEWTON_SHARE, NEWTON_FLOOR = 0.01, 64 * float(np.finfo(float).eps)
-#: trapezoidal_index3's adaptive= values and the kernel's opt%adaptive codes: local Richardson
-#: extrapolation of two half-steps against the full step (True; order 3), or the step's error
-#: estimated from differences of the accelerations (order 2: on P1 no distribution of its steps
-#: saves more than 8 %, studies/step_control.py); kernel/src/dae/mbdk_trapezoidal_index3.f90
-ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
 
 
 EXTRAPOLATED_TEXT = ("local Richardson extrapolation: two steps of H/2 against one of H, "
@@ -654,8 +649,8 @@ def _ode_plan(info_m, formulation, h, t_end, t0, every, alpha, beta, penalty, pr
     if not (_real("projection_tol", projection_tol) > 0):
         raise InvalidInputError(f"projection_tol = {projection_tol} must be > 0")
     if adaptive is not None:
-        from .ode import _adaptive_options
-        ode, nsteps, nsamp, control = _adaptive_options(
+        from .ode import adaptive_options
+        ode, nsteps, nsamp, control = adaptive_options(
             info_m, adaptive["h"], t0, t_end, 1, adaptive["rtol"], adaptive["atol"],
             adaptive["dt_out"], adaptive["h_min"], adaptive["h_max"], adaptive["max_steps"],
             adaptive["max_order"], False)

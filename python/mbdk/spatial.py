@@ -67,6 +67,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _compiled, _kernel
+from .codes import (NORMS, ROTATIONS, SPATIAL_DAE_FORMS, SPATIAL_FORCE_CODES, SPATIAL_FORMULATIONS,
+                    SPATIAL_JOINT_CODES, SPATIAL_JOINT_ROWS)
 from .errors import (InvalidInputError, NotApplicableError, Status, exception_for,
                      failure_text, status_message, stopped_at)
 from .errors import NoMemoryError, format_bytes, no_memory_message
@@ -78,24 +80,18 @@ from .checks import (NUMBER_MAX, NUMBER_MIN, check_memory, memory_error, number_
                      show)
 from .scene import GROUND, SceneError, _Reader, section_items
 
-ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
-NORMS = {"project": 1, "stabilise": 2, "none": 3}
-FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+FORMULATIONS = SPATIAL_FORMULATIONS
 #: ida's forms on spatial scenes (the spatial_run's dae_form codes; mbdk_ida_solve_spatial)
-IDA_FORMS = {"index1": 3, "ggl": 4}
+IDA_FORMS = {form: code for (family, form), code in SPATIAL_DAE_FORMS.items() if family == "ida"}
 IDA_FORM_TEXT = {
     "index1": "index 1: q' = T(q) w, w' = M^-1 (f - C^T lam), C w' = gamma on the independent "
               "rows; Phi and C w + Phi_t drift as in the reduced ODE (the watch names it)",
     "ggl": "stabilised index 2 (Gear-Gupta-Leimkuhler): q' = T(q) (w - M^-1 C^T mu), "
            "w' = M^-1 (f - C^T lam), Phi = 0, C w + Phi_t = 0 on the independent rows"}
-JOINT_TYPES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4, "prismatic": 5,
-               "fixed": 6, "angle_driver": 7, "slide_driver": 8}
-JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5,
-              "fixed": 6, "angle_driver": 1, "slide_driver": 1}
+JOINT_TYPES, JOINT_ROWS = SPATIAL_JOINT_CODES, SPATIAL_JOINT_ROWS
 #: the drivers: rows that follow a time function, f(t0) = 0
 DRIVERS = {"angle_driver": "turns body1", "slide_driver": "slides body1's point"}
-FORCE_TYPES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4, "spring": 4,
-               "damper": 4}
+FORCE_TYPES = SPATIAL_FORCE_CODES
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
 UNIT_TOL = 1e-8
 #: how far from 1 the norm of a quaternion written in a scene file may be: a unit quaternion
@@ -844,8 +840,7 @@ def simulate_spatial(sc: SpatialScene, method: str, *, h=None, t_end, formulatio
     nsamp = plan_["nsamp"]
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, sopt, opt.pack(),
             flag, np.zeros(0), y0, int(bool(assemble_initial)),
-            2 if index3 else IDA_FORMS[formulation] if ida else
-            (5 if formulation == "si2" else 1) if dae else 0, float(t0),
+            SPATIAL_DAE_FORMS[(method, formulation)] if index3 or ida or dae else 0, float(t0),
             float(t_end), nsamp, m1, stats)
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
     # before they are allocated where the machine has not that much memory

@@ -538,9 +538,9 @@ def equilibrium(problem: str, params: dict | None = None, y0=None) -> np.ndarray
     from scipy.optimize import root
     from .ode import evaluate_rhs
     from .problems import problem as _problem
-    from .ode import _state
+    from .ode import state_vector
     info = _problem(problem)
-    y = _state("y0", y0 if y0 is not None else info.y0, info.n if info.n > 0 else None).copy()
+    y = state_vector("y0", y0 if y0 is not None else info.y0, info.n if info.n > 0 else None).copy()
     nq = y.size // 2 if info.second_order else 0
     if nq:
         y[nq:] = 0.0

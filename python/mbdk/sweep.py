@@ -85,7 +85,7 @@ class SweepResult:
         import csv
         from pathlib import Path
 
-        from .results_io import _atomic
+        from .results_io import write_atomic
         path = Path(path)
 
         def write(tmp):
@@ -95,7 +95,7 @@ class SweepResult:
                 for r in self.rows:
                     w.writerow({k: (repr(r[k]) if isinstance(r[k], float) else r[k])
                                 for k in COLUMNS})
-        _atomic(path, write)
+        write_atomic(path, write)
 
 
 #: the columns that are the same bits on every engine (the times and repetitions are not)

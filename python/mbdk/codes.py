@@ -1,0 +1,136 @@
+"""The codes Python passes to the kernel, in one module.
+
+Where the kernel exports a table, the codes are read from it: the element kinds (joints, forces
+and effects of planar scenes, kernel/src/model/mbdk_elements.f90, with their constraint rows and
+visit counters) and the body kinds. tests/test_elements.py checks the scene format against them.
+
+The kernel has no exported table of the others yet: they are kept here, each beside the name of
+the kernel constants it mirrors, and tests/test_codes.py compares each table with what the
+kernel does with the code (a scene of each spatial joint type evaluated, a run in each form).
+Nothing else in the package writes a code the kernel reads.
+"""
+from __future__ import annotations
+
+from . import _kernel
+from .errors import decode_text
+
+# ---- read from the kernel's registries -------------------------------------------------------
+
+
+def _element_kinds() -> list[tuple[int, int, str, int, int]]:
+    """The kernel's element registry: (class, code, name, rows, states) per kind, in the order
+    of the visit counters."""
+    out, i = [], 1
+    while True:
+        cls, code, name, rows, states = _kernel.element_kind(i)
+        if cls == 0:
+            return out
+        out.append((int(cls), int(code), decode_text(name), int(rows), int(states)))
+        i += 1
+
+
+def _body_kinds() -> dict:
+    """The kernel's body kinds: name -> (code, coordinates, velocities, available in the planar
+    model)."""
+    out, i = {}, 1
+    while True:
+        code, name, coords, vels, available = _kernel.body_kind(i)
+        if code == 0:
+            return out
+        out[decode_text(name)] = (int(code), int(coords), int(vels), bool(available))
+        i += 1
+
+
+ELEMENT_KINDS = _element_kinds()
+JOINT_CLASS, FORCE_CLASS, EFFECT_CLASS = 1, 2, 3
+#: planar joint types -> the kernel's codes, and their constraint rows
+JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS_BY_CODE = {code: rows for cls, code, _n, rows, _s in ELEMENT_KINDS
+                      if cls == JOINT_CLASS}
+_FORCE_KINDS = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
+#: planar force types -> the kernel's codes; the coordinate spring and damper are one kernel kind
+FORCE_CODES = {**_FORCE_KINDS, "coordinate_spring": _FORCE_KINDS["coordinate_spring_damper"],
+               "coordinate_damper": _FORCE_KINDS["coordinate_spring_damper"]}
+EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
+#: the kernel's visit counters, in its order: one per element kind
+VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
+BODY_KINDS = _body_kinds()
+
+# ---- the planar model (kernel/src/model), no exported table yet ------------------------------
+
+#: MBDK_FORM_* of mbdk_model.f90 (the spatial model uses the same codes, MBDK_SPATIAL_*)
+FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+#: MBDK_SOLVER_* of mbdk_model.f90. solver="auto" takes revolute_schur when every joint is
+#: revolute (and M is positive, up to 12 constraint rows), else schur when M is positive (sparse
+#: above 12 constraint rows), else kkt; "schur" is the dense Schur complement at any size,
+#: "sparse" the sparse one at any size
+SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
+#: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
+SPARSE_MIN_ROWS = 12
+#: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (mbdk_constrained)
+LINEAR_SOLVES = {0: "none (no constraints)",
+                 1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
+                 2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",
+                 3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
+                 4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
+                 5: "penalty: M + ap D^T D, in-house LDL^T",
+                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs",
+                 7: "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"}
+#: the outputs a planar run computes at its samples, the bits of scene_run's want
+#: (MBDK_OUT_* of mbdk_model.f90)
+OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
+#: a planar body's coordinates, as a driver, a coupling or a coordinate spring names them
+COORDS = {"x": 1, "y": 2, "angle": 3}
+#: a contact's body2 shape -> the kernel's geometry code (MBDK_CONTACT_* of mbdk_contact.f90)
+CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3, "gear": 4}
+#: wear laws and the contact quantity they take (MBDK_WEAR_* of mbdk_wear.f90)
+WEAR_LAWS = {"archard": 1, "gear": 2, "knee": 3}
+WEAR_LOADS = {"normal_force": 1, "friction_force": 2}
+#: the 4th integer of a two-point force or a prismatic, fixed, distance, coupling or rolling
+#: joint: take the value (rest length, relative angle, length, offset) from the initial pose
+#: (MBDK_FROM_POSE of mbdk_assembly.f90)
+FROM_POSE = 1
+#: trapezoidal_index3's forms (MBDK_INDEX3_BOOK, MBDK_INDEX3_AUGMENTED of
+#: kernel/src/dae/mbdk_trapezoidal_index3.f90)
+INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
+#: trapezoidal_index3's adaptive= values and the kernel's opt%adaptive codes: local Richardson
+#: extrapolation of two half-steps against the full step (True; order 3), or the step's error
+#: estimated from differences of the accelerations (order 2: on P1 no distribution of its steps
+#: saves more than 8 %, studies/step_control.py) (MBDK_INDEX3_EXTRAPOLATED, _ESTIMATED)
+ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
+#: the multistep methods' start-up (mbdk_options' startup)
+STARTUP = {"rk4": 0, "bdf": 1}
+#: scene_run's dae_form by method: ida's forms of the scene's DAE (kernel/src/sundials/
+#: mbdk_ida.f90) and bdf's (kernel/src/dae/mbdk_scene_dae.f90, as MSC Adams' GSTIFF I3 and SI2);
+#: 0 for every other run
+SCENE_DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
+
+# ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
+
+#: MBDK_SPATIAL_SPHERICAL .. MBDK_SPATIAL_SLIDE_DRIVER, and MBDK_SPATIAL_JOINT_ROWS
+SPATIAL_JOINT_CODES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4,
+                       "prismatic": 5, "fixed": 6, "angle_driver": 7, "slide_driver": 8}
+SPATIAL_JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4,
+                      "prismatic": 5, "fixed": 6, "angle_driver": 1, "slide_driver": 1}
+#: MBDK_SPATIAL_GRAVITY .. MBDK_SPATIAL_SPRING_DAMPER (a spring and a damper are spring_dampers)
+SPATIAL_FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4,
+                       "spring": 4, "damper": 4}
+#: the reals per joint and per force (MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS)
+SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 9
+#: the orientation coordinates (MBDK_ROT_*) and how |p| = 1 is kept (MBDK_NORM_*)
+ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
+NORMS = {"project": 1, "stabilise": 2, "none": 3}
+#: MBDK_SPATIAL_REDUCED .. MBDK_SPATIAL_PROJECTION
+SPATIAL_FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+#: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the
+#: index-3 DAE (mbdk_spatial_dae); 2 trapezoidal_index3's projected form (mbdk_spatial_index3);
+#: 3, 4 ida in its index1 and GGL forms (mbdk_ida_solve_spatial); 5 bdf on the stabilised
+#: index-2 form
+SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "projected"): 2,
+                     ("ida", "index1"): 3, ("ida", "ggl"): 4, ("bdf", "si2"): 5}
+#: the length of spatial_run's sopt, and each entry's position (the f2py entry's argument)
+SPATIAL_OPTIONS = ("formulation", "rotation", "norm", "alpha", "beta", "norm_gain",
+                   "projection_tol", "watch_position", "watch_velocity", "watch_energy",
+                   "watch_every", "pen_alpha", "pen_omega", "pen_mu", "lock_guard",
+                   "watch_momentum", "watch_quaternion")
