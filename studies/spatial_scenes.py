@@ -189,7 +189,7 @@ def cost_rows(quick: bool) -> list[dict]:
 
 
 def benchmark_rows(quick: bool) -> list[dict]:
-    from mbdk.spatial import evaluate_spatial
+    from mbdk.spatial_model import evaluate_spatial
     rows = []
     sc = mbdk.scene("bricard")
     rank = evaluate_spatial(sc)["rank"]

@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 
 import mbdk
 from mbdk import model as M
-from mbdk.scene import SceneError, scene_from_dict
+from mbdk.scene import SceneError
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 

@@ -13,8 +13,8 @@ import pytest
 
 import mbdk
 from mbdk.benchmarks import a02_chain, a02_crank
-from mbdk.scene import scene_from_dict
-from mbdk.spatial import evaluate_spatial
+from mbdk.scene_file import scene_from_dict
+from mbdk.spatial_model import evaluate_spatial
 from mbdk.stability import spectral_radius, unstable_mode
 
 

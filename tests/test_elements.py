@@ -10,7 +10,8 @@ import pytest
 
 import mbdk
 from mbdk import _kernel, codes as C, model as M
-from mbdk.scene import FORCE_TYPES, JOINT_TYPES, WEAR_LAWS
+from mbdk.codes import WEAR_LAWS
+from mbdk.scene import FORCE_TYPES, JOINT_TYPES
 
 
 def header_kinds(root):
@@ -70,7 +71,7 @@ def test_a_spring_with_damping_is_refused_by_the_kernel():
 def test_body_kinds_are_the_kernels_and_the_headers(root):
     """The body kinds: the kernel's table (mbdk_elements), mbdk.h's enum and the scene format
     read the same names and codes; planar bodies carry (x, y, theta)."""
-    from mbdk.scene import BODY_KINDS
+    from mbdk.codes import BODY_KINDS
     text = (root / "kernel" / "include" / "mbdk.h").read_text()
     body = re.search(r"enum mbdk_body_kind \{(.*?)\};", text, re.S).group(1)
     header = {m.group(1).lower(): int(m.group(2))

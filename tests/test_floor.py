@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.scene import scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 SPATIAL = ["heavy_top", "spatial_double_pendulum", "bricard", "flyball_governor"]
 PLANAR = [n for n in mbdk.scenes() if n not in ("particle_in_ring", "pla_gears")]

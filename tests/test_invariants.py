@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.scene import scene_from_dict
-from mbdk.spatial import spatial_scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 BOX = (1.0, 0.5, 0.25)          # a box of 1 kg, its three principal moments all different
@@ -23,7 +22,7 @@ def box_inertia(size=BOX, m=1.0):
 
 
 def free_box(omega_body):
-    return spatial_scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
+    return scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
         {"name": "box", "kind": "spatial", "mass": 1.0,
          "shape": {"type": "box", "size": list(BOX)}, "omega_body": list(omega_body)}]},
         "box.toml")
@@ -250,7 +249,7 @@ def ball_on_floor(friction):
 def rotor(g):
     """A spatial body on a revolute joint to the ground about z through (0, 0, 0.5), its
     centre off the axis."""
-    return spatial_scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
+    return scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
         {"name": "rotor", "kind": "spatial", "mass": 2.0, "inertia": [0.02, 0.03, 0.04],
          "position": [0.2, 0.0, 0.5], "velocity": [0.0, 0.6, 0.0],
          "omega_body": [0.0, 0.0, 3.0]}],

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError
-from .scene import scene_from_dict
+from .scene_file import scene_from_dict
 
 G = 9.81
 

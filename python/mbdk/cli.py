@@ -164,7 +164,7 @@ def _main(args) -> int:
             print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
                   f"[{p.reference}]")
     elif args.cmd in ("scene", "check"):
-        from .scene import scene_or_file
+        from .scene_file import scene_or_file
         from .scene_report import scene_report
         sc = scene_or_file(args.scene)
         print(scene_report(sc))
@@ -213,7 +213,7 @@ def _run(args) -> None:
     import numpy as np
 
     from .results_io import check_writable, save_result
-    from .scene import scene_or_file
+    from .scene_file import scene_or_file
     from .simulate import simulate
     out = check_writable(args.out)
     sc = scene_or_file(args.scene)

@@ -81,7 +81,8 @@ from .ode import DEFAULT_MAX_STEPS, STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty, projection_tol_for
 from .result import Result, Stats
 from .checks import show
-from .scene import GROUND, Scene, SceneError, checked
+from .scene import GROUND, Scene, SceneError
+from .scene_file import checked
 
 _INT_MAX = 2**31 - 1
 
@@ -230,9 +231,15 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(_INDEX3_ONLY)}")
-    from .spatial import SpatialScene, simulate_spatial
-    if isinstance(scene, SpatialScene):   # the spatial model (mbdk.spatial); planar-only options
-        return simulate_spatial(          # given a value are refused there by name
+    if not isinstance(scene, Scene):
+        raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
+                                f"mbdk.load_scene(path)), got {type(scene).__name__}")
+    # re-read through the scene reader's checks, before anything reads its fields: fields
+    # changed in Python after loading get the errors a file would (element, field, value)
+    scene = checked(scene)
+    from .spatial import simulate_spatial
+    if scene.kind == "spatial":       # planar-only options given a value are refused there
+        return simulate_spatial(
             scene, method, h=h, t_end=t_end, formulation=formulation, t0=t0, every=every,
             alpha=alpha, beta=beta, projection_tol=projection_tol,
             assemble_initial=assemble_initial, startup=startup, rtol=rtol, atol=atol,
@@ -247,12 +254,6 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if switch_angles is not None:
         raise NotApplicableError(f"switch_angles = {switch_angles!r}: an option of spatial "
                                  "scenes in angle coordinates; planar scenes have no gimbal lock")
-    if not isinstance(scene, Scene):
-        raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
-                                f"mbdk.load_scene(path)), got {type(scene).__name__}")
-    # re-read through the scene reader's checks, before anything reads its fields: fields
-    # changed in Python after loading get the errors a file would (element, field, value)
-    scene = checked(scene)
     info_m = _method(method)
     index3 = info_m.family == "dae_index3"
     ida = info_m.family == "ida"

@@ -165,7 +165,7 @@ def _span_steps(span, h, key, where, samples, compared):
 def _one(grid, where: str, gi: int) -> tuple[list, list]:
     from .methods import methods
     from .problems import problems
-    from .scene import scenes as builtin_scenes
+    from .scene_file import scenes as builtin_scenes
     if not isinstance(grid, dict):
         raise InvalidInputError(f"{where} must be a table of fields, got "
                                 f"{type(grid).__name__}")
@@ -352,7 +352,7 @@ def _run(task: dict, ref_states, row: dict) -> dict:
         if samples:
             kw.update(dt_out=span / samples)
     if task["kind"] == "scene":
-        from .scene import scene_or_file
+        from .scene_file import scene_or_file
         target = scene_or_file(task["case"])
 
         def once():

@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InvalidInputError, MbdkError
-from .scene import COORDS, GROUND, Scene
+from .codes import COORDS
+from .scene import GROUND, Scene
 
 
 def _sympy():
@@ -249,13 +250,12 @@ def cross_check(sc, states: int = 5, seed: int = 0, spread: float = 0.1) -> dict
     lambdification, CPU seconds), "kernel_ns" (the kernel's assembly of Phi, D, gamma and f,
     timed inside it; None where no state evaluates) and "symbolic_ns" (the lambdified
     expressions, one state)."""
-    from .spatial import SpatialScene
-    if isinstance(sc, SpatialScene):
+    if isinstance(sc, Scene) and sc.kind == "spatial":
         from .symbolic_spatial import cross_check_spatial
         return cross_check_spatial(sc, states, seed, spread)
     sp = _sympy()
     from . import model as M
-    from .scene import checked
+    from .scene_file import checked
     sc = checked(sc)
     tab = M.build_tables(sc)
     q0 = M.assemble(sc, tab)[0]

@@ -55,11 +55,11 @@ def derive_spatial(sc):
     generalised forces, for a quaternion scene. symbols: per body r (3), R (3 x 3 entries), v,
     W (3 each); and t, s."""
     import sympy as sp
-    from .spatial import _tables
+    from .spatial_model import spatial_tables
     if sc.rotation != "quaternion":
         raise InvalidInputError(f"{sc.source}: the symbolic check takes quaternion scenes "
                                 f"(rotation = {sc.rotation!r})")
-    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
     y0 = sc.state0()
     rot0 = [_quat_matrix(y0[7 * b + 3:7 * b + 7]) for b in range(nb)]
     t, s = sp.symbols("t s", real=True)
@@ -169,7 +169,7 @@ def cross_check_spatial(sc, states: int = 5, seed: int = 0, spread: float = 0.1)
     a = (v', W') at admissible states, compared as M a; lam is not compared (not unique with
     redundant joints), f enters through a."""
     import sympy as sp
-    from .spatial import evaluate_spatial
+    from .spatial_model import evaluate_spatial
     c0 = time.process_time()
     syms, phi_s, f_s = derive_spatial(sc)
     nb = len(sc.bodies)
