@@ -326,7 +326,7 @@ def bad_arguments(seed: int, n: int):
 
 
 def _finite(r) -> bool:
-    arrays = [getattr(r, name, None) for name in ("y", "q", "v", "w", "energy")]
+    arrays = [getattr(r, name, None) for name in ("y", "q", "v", "energy")]
     return all(a is None or callable(a) or np.all(np.isfinite(np.asarray(a, float)))
                for a in arrays)
 

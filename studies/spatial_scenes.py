@@ -76,7 +76,7 @@ def top_reference(sc):
 
 def top_error(r, ref):
     return float(max(np.abs(r.q[:, 3:7] - ref[:, :4]).max(),
-                     np.abs(r.w[:, 3:6] - ref[:, 4:]).max()))
+                     np.abs(r.v[:, 3:6] - ref[:, 4:]).max()))
 
 
 def pendulum_setup():
@@ -277,7 +277,7 @@ def small_step_rows(quick: bool) -> tuple[list[dict], float]:
                 prev = None
                 continue
             err = float(max(np.abs(r.q[-1] - ref.q[-1]).max(),
-                            np.abs(r.w[-1] - ref.w[-1]).max()))
+                            np.abs(r.v[-1] - ref.v[-1]).max()))
             rows.append({**row, "status": "ok", "error": err,
                          "ratio": prev[1] / err if prev else None,
                          "order": (float(np.log(prev[1] / err) / np.log(prev[0] / row["h"]))

@@ -31,8 +31,6 @@ def _reference(sc, t_end):
 
 
 def _state_error(r, ref):
-    if hasattr(r, "w"):
-        return max(np.abs(r.q[-1] - ref.q[-1]).max(), np.abs(r.w[-1] - ref.w[-1]).max())
     return max(np.abs(r.q[-1] - ref.q[-1]).max(), np.abs(r.v[-1] - ref.v[-1]).max())
 
 

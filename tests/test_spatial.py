@@ -102,7 +102,7 @@ def test_the_free_body_scene_follows_the_compiled_free_rigid_body():
     ref = mbdk.solve_ode("free_rigid_body", "rk4", h=1e-3, t_end=4.0, every=50,
                          y0=[1, 0, 0, 0, *om0], params=dict(J1=j[0], J2=j[1], J3=j[2]))
     assert np.max(np.abs(r.q[:, 3:7] - ref.y[:, :4])) < 1e-10
-    assert np.max(np.abs(r.w[:, 3:6] - ref.y[:, 4:])) < 1e-10
+    assert np.max(np.abs(r.v[:, 3:6] - ref.y[:, 4:])) < 1e-10
     # the invariants: kinetic energy, and the angular momentum in space R J Omega
     assert np.max(np.abs(r.energy - r.energy[0])) < 1e-9 * r.energy[0]
     lw = np.array([rr @ (j * om) for rr, om in zip(r.orientation("box"), r.omega_body("box"))])
@@ -121,7 +121,7 @@ def test_the_heavy_top_scene_follows_the_compiled_heavy_top(formulation, tol):
     ref = mbdk.solve_ode("heavy_top", "rk4", h=2e-4, t_end=1.0, every=50, y0=[*q0, *b.omega_body],
                          params=dict(J1=0.015, J2=0.015, J3=0.01, m=1.0, g=G, l=0.1))
     assert np.max(np.abs(r.q[:, 3:7] - ref.y[:, :4])) < tol
-    assert np.max(np.abs(r.w[:, 3:6] - ref.y[:, 4:])) < tol * 50
+    assert np.max(np.abs(r.v[:, 3:6] - ref.y[:, 4:])) < tol * 50
     assert np.max(np.abs(r.energy_balance())) < 1e-6
     # the tip stays at the origin; the multipliers are the tip's force: on average the weight
     assert np.max(r.residuals[:, 0]) < (1e-9 if formulation != "baumgarte" else 1e-6)
@@ -765,7 +765,7 @@ def test_bdf_on_the_spatial_index3_dae(name):
         assert r.residuals[:, 0].max() < 1e2 * tol
     assert err[1] < 1e-6 and err[1] < err[0] / 10
     if name != "bricard":
-        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), 1.0)["multipliers"]
+        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), 1.0)["multipliers"]
         assert np.abs(r.multipliers[-1] - red).max() < 1e-4 * max(1.0, np.abs(red).max())
 
 
@@ -897,7 +897,7 @@ def test_trapezoidal_index3_on_spatial_scenes_is_second_order_and_keeps_the_join
     for h in (5e-3, 2.5e-3, 1.25e-3):
         r = mbdk.simulate(sc, "trapezoidal_index3", h=h, t_end=t_end, every=round(0.05 / h))
         assert r.manifest["formulation"] == "projected" and "trapezoidal" in r.manifest["form"]
-        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
+        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
         drifts.append(np.ptp(r.energy))
         assert r.residuals[:, 0].max() < 1e-13 and r.residuals[:, 1].max() < 1e-12
         assert r.residuals[:, 2].max() < 1e-14           # |p| - 1
@@ -979,8 +979,8 @@ def test_ida_on_spatial_scenes(name, t_end, tols):
             r = mbdk.simulate(sc, "ida", formulation=form, rtol=tol, atol=tol * 1e-2,
                               t_end=t_end, dt_out=0.1)
             assert r.manifest["formulation"] == form and "IDA" in r.manifest["linear_solve"]
-            errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
-            red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), t_end)["multipliers"]
+            errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
+            red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), t_end)["multipliers"]
             scale = max(1.0, np.abs(red).max())
             assert np.abs(r.multipliers[-1] - red).max() < 1e3 * tol * scale, (form, tol)
             if form == "ggl":
@@ -1024,8 +1024,8 @@ def test_bdf_on_the_spatial_stabilised_index2_dae(name, t_end, tols):
         r = mbdk.simulate(sc, "bdf", formulation="si2", rtol=tol, atol=tol * 1e-2, t_end=t_end,
                           dt_out=0.1)
         assert "SI2" in r.manifest["form"]
-        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
+        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
         assert r.residuals[:, 0].max() < 100 * tol and r.residuals[:, 1].max() < 100 * tol
-        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), t_end)["multipliers"]
+        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), t_end)["multipliers"]
         assert np.abs(r.multipliers[-1] - red).max() < 1e3 * tol * max(1.0, np.abs(red).max())
     assert errs[1] < errs[0] / 10

@@ -233,7 +233,7 @@ def _run(args) -> None:
     if r.residuals is not None and len(r.residuals):
         res = np.max(np.abs(r.residuals), axis=0)
         print(f"residuals (max over the samples): |Phi| {res[0]:.2e}, |Phi'| {res[1]:.2e}")
-    if getattr(r, "energy", None) is not None:
+    if r.energy is not None:
         try:
             bal = float(np.max(np.abs(r.energy_balance())))
             work = float(r.energy_parts["work"][-1])

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from numbers import Integral
 
 import numpy as np
@@ -79,7 +79,7 @@ from .model import (DENSE_NAMING_MAX, Tables, assembly_error,
 from .model import evaluate as _evaluate
 from .ode import DEFAULT_MAX_STEPS, STARTUP, build_info, plan
 from .options import Index3Options, ODEOptions, empty, projection_tol_for
-from .result import Result, Stats
+from .result import SceneResult, Stats
 from .checks import show
 from .scene import GROUND, Scene, SceneError
 from .scene_file import checked
@@ -91,52 +91,6 @@ class RedundantConstraintsError(SingularMatrixError):
     """The constraint Jacobian has dependent rows: the reduced forms have no unique multipliers."""
 
 
-@dataclass
-class SceneResult(Result):
-    """A scene run (see Result): q, v (and y = [q, v]) per sample, and the outputs asked for."""
-
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    a: np.ndarray | None
-    multipliers: np.ndarray | None
-    reactions: np.ndarray | None   # (nsamp, njoints, 3)
-    energy: np.ndarray | None      # kinetic + potential, one per sample
-    energy_parts: dict | None
-    residuals: np.ndarray | None   # (nsamp, 3): position, velocity, acceleration
-    stats: Stats
-    status: Status
-    message: str
-    visits: dict
-    manifest: dict = field(default_factory=dict)
-    assembly: dict = field(default_factory=dict)
-    joints: list = field(default_factory=list)
-    bodies: list = field(default_factory=list)
-    iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
-    #: a run the watch stopped: what left its tolerance, where and when (mbdk.watch.drift_report)
-    drift: dict | None = None
-    #: each wear element's worn volume per sample, by name (integrated with the motion)
-    wear: dict = field(default_factory=dict)
-
-    @property
-    def y(self) -> np.ndarray:
-        """The state [q, v] per sample, as an ODE result has it."""
-        return np.hstack([self.q, self.v])
-
-    def reaction(self, joint: str) -> np.ndarray:
-        """(nsamp, 3): Fx, Fy, moment of the named joint on its body1."""
-        if self.reactions is None:
-            raise NotApplicableError("this run did not compute reactions: pass outputs "
-                                     "including 'reactions' to simulate")
-        return self.reactions[:, self.joints.index(joint), :]
-
-    def energy_balance(self) -> np.ndarray:
-        """E(t) - E(0) - W(t), W = load work + constraint work - damper work as the run
-        integrated it at every step: zero for an exact solution."""
-        if self.energy is None:
-            raise NotApplicableError("this run did not compute the energy: pass outputs "
-                                     "including 'energy' to simulate")
-        return self.energy - self.energy[0] - self.energy_parts["work"]
 
 
 def check_run(h, t_end, t0, every) -> None:
@@ -511,15 +465,15 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         assembly=report, joints=[j.name for j in scene.joints],
         bodies=[b.name for b in scene.bodies],
         iterations=np.array(iters[:nw]) if index3 else None,
-        wear={w.name: y[2 * nc + k] for k, w in enumerate(scene.wear)})
+        wear={w.name: y[2 * nc + k] for k, w in enumerate(scene.wear)}, kind="planar")
     if want & 8:
         kin, vg, vs, pd, pc, pl, wd, wc, wl = energy[:, :nw]
         result.energy = kin + vg + vs
         result.energy_parts = {
             "kinetic": kin, "potential_gravity": vg, "potential_springs": vs,
+            "power": pl + pc - pd, "work": wl + wc - wd,
             "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
-            "dissipated_dampers": wd, "work_constraints": wc, "work_loads": wl,
-            "work": wl + wc - wd}
+            "dissipated_dampers": wd, "work_constraints": wc, "work_loads": wl}
     if status == Status.ERR_INTERRUPTED or interrupted:
         raise SolveInterrupted(f"{method}/{formulation} on scene {scene.name!r}: interrupted"
                                + (f" at t = {t[-1]:.6g}" if nw else ""), status=status,

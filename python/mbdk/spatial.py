@@ -4,7 +4,6 @@ of spatial bodies to. The file format: python/mbdk/spatial_file.py.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -15,8 +14,7 @@ from .errors import (InvalidInputError, NotApplicableError, Status, exception_fo
 from .errors import no_memory_message
 from .methods import method as _method
 from .options import ODEOptions, empty, projection_tol_for
-from .result import Result, Stats
-from .rotations import from_angles, from_quaternion
+from .result import SceneResult, Stats
 from .checks import check_memory, memory_error
 from .codes import NORMS, ROTATIONS
 from .scene import DRIVERS, Scene
@@ -39,58 +37,6 @@ IDA_FORM_TEXT = {
            "w' = M^-1 (f - C^T lam), Phi = 0, C w + Phi_t = 0 on the independent rows"}
 
 
-@dataclass
-class SpatialResult(Result):
-    """A spatial scene run: t, q (orientation coordinates per the scene's rotation), w = (v,
-    Omega) per body, the energy parts, residuals and multipliers at the samples."""
-
-    t: np.ndarray
-    q: np.ndarray
-    w: np.ndarray
-    energy: np.ndarray               # kinetic + gravity + spring potential
-    energy_parts: dict
-    residuals: np.ndarray            # (nsamp, 3): max |Phi|, max |C w|, max ||p| - 1|
-    multipliers: np.ndarray | None
-    stats: Stats
-    status: Status
-    message: str
-    manifest: dict = field(default_factory=dict)
-    bodies: list = field(default_factory=list)
-    joints: list = field(default_factory=list)
-    rotation: str = "quaternion"
-    assembly: dict = field(default_factory=dict)
-    drift: dict | None = None
-    #: each sample's angle set, where a run switched sets near a lock (switch_angles)
-    rotations: list | None = None
-
-    @property
-    def y(self) -> np.ndarray:
-        return np.hstack([self.q, self.w])
-
-    def position(self, body: str) -> np.ndarray:
-        """(nsamp, 3): the body's centre of mass."""
-        k = self.bodies.index(body)
-        nqb = 7 if self.rotation == "quaternion" else 6
-        return self.q[:, k * nqb:k * nqb + 3]
-
-    def orientation(self, body: str) -> np.ndarray:
-        """(nsamp, 3, 3): the body's rotation matrix (body to space)."""
-        k = self.bodies.index(body)
-        nqb = 7 if self.rotation == "quaternion" else 6
-        p = self.q[:, k * nqb + 3:(k + 1) * nqb]
-        if self.rotation == "quaternion":
-            return np.array([from_quaternion(x / np.linalg.norm(x)) for x in p])
-        sets = self.rotations or [self.rotation] * len(p)
-        return np.array([from_angles(x, s[-3:]) for x, s in zip(p, sets)])
-
-    def omega_body(self, body: str) -> np.ndarray:
-        k = self.bodies.index(body)
-        return self.w[:, 6 * k + 3:6 * k + 6]
-
-    def energy_balance(self) -> np.ndarray:
-        """E(t) - E(0) - W(t), W the work of dampers, loads and drivers as the run integrated it
-        at every step (energy_parts["work"]): zero for an exact solution."""
-        return self.energy - self.energy[0] - self.energy_parts["work"]
 
 
 def simulate_spatial(sc: Scene, method: str, *, h=None, t_end, formulation=None,
@@ -99,7 +45,7 @@ def simulate_spatial(sc: Scene, method: str, *, h=None, t_end, formulation=None,
                      h_min=None, h_max=None, max_steps=None, max_order=None, watch=True,
                      raise_on_failure=True, newton_rtol=None, newton_atol=None,
                      outputs=None, penalty=None, switch_angles=None, _lock_guard=0.0,
-                     **unsupported) -> SpatialResult:
+                     **unsupported) -> SceneResult:
     """Runs a spatial scene (mbdk.simulate sends spatial scenes here; see the module
     docstring). Options of the planar path that do not apply are refused by name; outputs is
     checked and otherwise moot: a spatial run computes every output at its samples.
@@ -295,15 +241,16 @@ def simulate_spatial(sc: Scene, method: str, *, h=None, t_end, formulation=None,
                             "0 = Phi on the independent rows; error test on q and h times w; "
                             "no projection between steps")
         manifest["linear_solve"] = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
-    result = SpatialResult(
-        t=t[:nw], q=ys[:, :nq], w=ys[:, nq:], energy=o[:, 0] + o[:, 1] + o[:, 2],
-        energy_parts={"kinetic": o[:, 0], "gravity": o[:, 1], "springs": o[:, 2],
-                      "power": o[:, 3], "work": o[:, 7]},
-        residuals=o[:, 4:7], multipliers=lam[:sc.rows, :nw].T if sc.rows else None,
-        stats=Stats.from_words(stats), status=status, message=status_message(status),
-        manifest=manifest, bodies=[b.name for b in sc.bodies],
-        joints=[j.name for j in sc.joints], rotation=sc.rotation,
-        assembly={"moved": float(moved)})
+    result = SceneResult(
+        t=t[:nw], q=ys[:, :nq], v=ys[:, nq:], a=None,
+        multipliers=lam[:sc.rows, :nw].T if sc.rows else None, reactions=None,
+        energy=o[:, 0] + o[:, 1] + o[:, 2],
+        energy_parts={"kinetic": o[:, 0], "potential_gravity": o[:, 1],
+                      "potential_springs": o[:, 2], "power": o[:, 3], "work": o[:, 7]},
+        residuals=o[:, 4:7], stats=Stats.from_words(stats), status=status,
+        message=status_message(status), manifest=manifest, bodies=[b.name for b in sc.bodies],
+        joints=[j.name for j in sc.joints], assembly={"moved": float(moved)}, kind="spatial",
+        rotation=sc.rotation)
     unstable = ""
     if status.failed and nw and not info_m.adaptive and not index3 and not dae and not ida:
         from .simulate import _UNSTABLE_ENDS, _stability_note
@@ -314,7 +261,7 @@ def simulate_spatial(sc: Scene, method: str, *, h=None, t_end, formulation=None,
                     raise InvalidInputError("no evaluation")
                 return out["ydot"]
             unstable = _stability_note(method, h, f, np.concatenate([result.q[-1],
-                                                                     result.w[-1]]),
+                                                                     result.v[-1]]),
                                        float(result.t[-1]))
     if unstable:    # the true cause: the method's step, not the mechanism
         if status in (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT,
@@ -396,19 +343,19 @@ _OTHER_SET = {"euler313": "cardan123", "cardan123": "euler313"}
 MAX_SWITCHES = 1000
 
 
-def _restarted(sc: Scene, r: SpatialResult, k: int, rotation: str) -> Scene:
+def _restarted(sc: Scene, r: SceneResult, k: int, rotation: str) -> Scene:
     """sc with its bodies at sample k of r (position, orientation, velocity, body-frame
     angular velocity), in the angle set rotation."""
     from dataclasses import replace
     bodies = [replace(b, position=r.position(b.name)[k].copy(),
                       rotation=r.orientation(b.name)[k].copy(),
-                      velocity=r.w[k, 6 * i:6 * i + 3].copy(),
-                      omega_body=r.w[k, 6 * i + 3:6 * i + 6].copy())
+                      velocity=r.v[k, 6 * i:6 * i + 3].copy(),
+                      omega_body=r.v[k, 6 * i + 3:6 * i + 6].copy())
               for i, b in enumerate(sc.bodies)]
     return replace(sc, bodies=bodies, rotation=rotation)
 
 
-def _switching_run(sc: Scene, method: str, guard, kw: dict) -> SpatialResult:
+def _switching_run(sc: Scene, method: str, guard, kw: dict) -> SceneResult:
     """simulate_spatial with switch_angles (its docstring): segments in alternating angle
     sets, joined into one result."""
     if sc.rotation not in _OTHER_SET:
@@ -470,17 +417,17 @@ def _switching_run(sc: Scene, method: str, guard, kw: dict) -> SpatialResult:
     raise exception_for(result.status)(result.message, status=result.status, result=result)
 
 
-def _subsampled(r: SpatialResult, idx) -> SpatialResult:
+def _subsampled(r: SceneResult, idx) -> SceneResult:
     """r at the samples idx."""
     from dataclasses import replace
-    return replace(r, t=r.t[idx], q=r.q[idx], w=r.w[idx], energy=r.energy[idx],
+    return replace(r, t=r.t[idx], q=r.q[idx], v=r.v[idx], energy=r.energy[idx],
                    energy_parts={k: v[idx] for k, v in r.energy_parts.items()},
                    residuals=r.residuals[idx],
                    multipliers=None if r.multipliers is None else r.multipliers[idx],
                    rotations=[r.rotations[i] for i in idx])
 
 
-def _joined(segs, switches) -> SpatialResult:
+def _joined(segs, switches) -> SceneResult:
     """One result from the segments of a switching run: each segment's last sample is the
     next one's first, kept once."""
     first, last = segs[0][1], segs[-1][1]
@@ -505,12 +452,13 @@ def _joined(segs, switches) -> SpatialResult:
                 "switches": [float(x) for x in switches],
                 "segments": [{"rotation": rot, "t0": float(r.t[0]) if len(r.t) else None,
                               "steps": r.stats.steps} for rot, r, _s in keep]}
-    return SpatialResult(
-        t=cat(lambda r: r.t), q=cat(lambda r: r.q), w=cat(lambda r: r.w),
+    return SceneResult(
+        t=cat(lambda r: r.t), q=cat(lambda r: r.q), v=cat(lambda r: r.v), a=None,
+        multipliers=cat(lambda r: r.multipliers), reactions=None,
         energy=cat(lambda r: r.energy),
         energy_parts={k: work() if k == "work" else cat(lambda r, k=k: r.energy_parts[k])
                       for k in first.energy_parts},
-        residuals=cat(lambda r: r.residuals), multipliers=cat(lambda r: r.multipliers),
-        stats=stats, status=last.status, message=last.message, manifest=manifest,
-        bodies=first.bodies, joints=first.joints, rotation=first.rotation,
-        assembly=first.assembly, drift=last.drift, rotations=rotations)
+        residuals=cat(lambda r: r.residuals), stats=stats, status=last.status,
+        message=last.message, manifest=manifest, bodies=first.bodies, joints=first.joints,
+        assembly=first.assembly, drift=last.drift, kind="spatial", rotation=first.rotation,
+        rotations=rotations)
