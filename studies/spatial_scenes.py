@@ -1,4 +1,4 @@
-"""Spatial scenes (mbdk.spatial; Fekete (2023) chapter 5): accuracy and CPU time of each
+"""Spatial scenes (Fekete (2023) chapter 5): accuracy and CPU time of each
 formulation and method on the heavy top and on the double pendulum built from spatial bodies,
 the quaternion norm by the user's choice, and what a spatial body costs beside a planar one.
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.simulate import RedundantConstraintsError
+from mbdk.errors import RedundantConstraintsError
 from mbdk.benchmarks import a02_chain, a02_crank, bar_chain
 from mbdk.scene_file import scene_from_dict
 

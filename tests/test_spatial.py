@@ -1,4 +1,4 @@
-"""Spatial scenes (mbdk.spatial, kernel/src/spatial/mbdk_spatial_model.f90): the kinematics of
+"""Spatial scenes (kernel/src/spatial/mbdk_spatial_model.f90): the kinematics of
 every joint against differences of Phi, the scenes against the compiled chapter-5 problems and
 the planar model, closed forms for the joints, the quaternion norm, gimbal lock and bad input.
 

@@ -8,7 +8,7 @@ from . import exact  # noqa: F401
 from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError,
                      ContactOverrunError, EnergyDriftError, InvariantDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
-                     NonFiniteSolutionError, NotApplicableError,
+                     NonFiniteSolutionError, NotApplicableError, RedundantConstraintsError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
                      TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
@@ -22,7 +22,7 @@ from .stability import StabilityRegion, stability_region
 from .scene import Scene, SceneError
 from .scene_file import load_scene, scene, scenes
 from .scene_report import SceneReport, scene_report
-from .simulate import RedundantConstraintsError, evaluate, simulate
+from .simulate import evaluate, simulate
 from .watch import Watch
 
 __all__ = [

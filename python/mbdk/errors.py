@@ -106,6 +106,10 @@ class SingularMatrixError(MbdkError, ArithmeticError):
     status = Status.ERR_SINGULAR_MATRIX
 
 
+class RedundantConstraintsError(SingularMatrixError):
+    """The constraint Jacobian has dependent rows: the reduced forms have no unique multipliers."""
+
+
 class NonFiniteSolutionError(MbdkError, FloatingPointError):
     """The solution overflowed to inf or NaN: the method is unstable at this step."""
 

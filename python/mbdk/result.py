@@ -218,3 +218,18 @@ class SceneResult(Result):
         if self.kind == "spatial":
             return self.v[:, v0 + 3:v0 + 6]
         return np.column_stack([np.zeros((len(self.t), 2)), self.v[:, v0 + 2]])
+
+
+@dataclass
+class KernelRun:
+    """A scene run as the kernel's entry returned it, before its diagnosis (mbdk.diagnosis):
+    the result, whether an interrupt stopped it, the watch's report and the invariants it
+    watched (mbdk.watch reads both), the initial state given, and a planar run's tables (as
+    built, the values taken from the pose left to the kernel)."""
+
+    result: SceneResult
+    interrupted: bool
+    watch_report: np.ndarray
+    invariants: np.ndarray          # (ninv, 7)
+    y0: np.ndarray
+    tables: object = None
