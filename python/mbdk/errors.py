@@ -6,9 +6,10 @@ as a status and are raised by :func:`raise_for_status`.
 """
 from __future__ import annotations
 
+from enum import IntEnum
 from functools import lru_cache
 
-from enum import IntEnum
+from . import _kernel
 
 
 class Status(IntEnum):
@@ -276,8 +277,6 @@ def status_message(status: int) -> str:
 
 @lru_cache(maxsize=1)
 def _kernel_messages() -> dict:
-    from . import _kernel
-
     table = {}
     for i in range(1, len(Status) + 1):
         code, _name, msg = _kernel.status_entry(i)

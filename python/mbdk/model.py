@@ -11,7 +11,7 @@ pose (rest lengths, relative angles) and the assembly are computed in the kernel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -266,7 +266,6 @@ def model_options(formulation: str = "reduced", alpha: float = 0.0, beta: float 
 
 
 def _options(formulation: str, options: ModelOptions | None) -> ModelOptions:
-    from dataclasses import replace
     return replace(options or ModelOptions(), formulation=FORMULATIONS[formulation])
 
 

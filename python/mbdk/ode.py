@@ -41,6 +41,7 @@ _STATS_WORDS = empty("mbdk_stats").size
 def build_info() -> dict:
     compiler, options = _kernel.build_info()
     try:
+        # importlib.metadata is slow to import, and only the manifest's version needs it
         from importlib.metadata import version
         ver = version("mbdk")
     except Exception:  # pragma: no cover - running from a source tree without metadata

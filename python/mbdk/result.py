@@ -6,7 +6,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import NotApplicableError, Status
+from .exact import exact_solution
 from .options import unpack
+from .problems import problems
 from .rotations import from_angles, from_quaternion
 
 
@@ -83,7 +85,6 @@ class ODEResult(Result):
 
     def exact(self) -> np.ndarray | None:
         """The exact solution at the sample times, or None where the problem has none."""
-        from .exact import exact_solution
         return exact_solution(self.problem, self.t, self.t0, self.y0, self.params)
 
     def max_error(self, component: int | None = None) -> float | None:
@@ -99,7 +100,6 @@ class ODEResult(Result):
         return None if ex is None else float(abs(self.y[-1, component] - ex[-1, component]))
 
     def energy(self) -> np.ndarray | None:
-        from .problems import problems
         info = problems().get(self.problem)
         if info is None or info.energy is None:
             return None

@@ -59,6 +59,7 @@ def check_writable(path) -> Path:
 
 def _h5py():
     try:
+        # h5py is optional: only .h5 results need it
         import h5py
     except ImportError:
         raise InvalidInputError("HDF5 results need h5py: pip install h5py (or write .npz or "
@@ -289,9 +290,10 @@ def plot_result(path, out=None) -> Path:
     check_folder = out.parent if str(out.parent) else Path(".")
     if not check_folder.is_dir() or not os.access(check_folder, os.W_OK):
         raise InvalidInputError(f"{out}: the folder {str(check_folder)!r} cannot be written")
+    # matplotlib: optional (the studies' extra), slow to import, only plots need it
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg"): plots without a screen
     panels = 1 + (data["energy_balance"] is not None) + (data["residuals"] is not None)
     fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels + 0.6), sharex=True,
                              squeeze=False)

@@ -28,7 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InvalidInputError
+from .model import (assemble, build_tables, dependent_rows, evaluate, rows_to_joints,
+                    scaled_jacobian)
 from .scene import Scene
+from .scene_file import checked
+from .spatial_model import evaluate_spatial
 
 
 @dataclass
@@ -115,9 +119,6 @@ def scene_report(sc) -> SceneReport:
         raise InvalidInputError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
     if sc.kind == "spatial":
         return _spatial_report(sc)
-    from .model import (assemble, build_tables, dependent_rows, evaluate, rows_to_joints,
-                        scaled_jacobian)
-    from .scene_file import checked
     sc = checked(sc)
     tab = build_tables(sc)
     q, v, _ = assemble(sc, tab)
@@ -168,8 +169,6 @@ def _spatial_report(sc) -> SceneReport:
     """The spatial model's own rank (its geometric test at the initial state); the redundant
     joints from the left null space of C with the rotation columns weighted by the bodies'
     spread (a rotation as the displacement it gives there)."""
-    from .model import dependent_rows
-    from .spatial_model import evaluate_spatial
     e = evaluate_spatial(sc)
     nb = len(sc.bodies)
     rows = int(sc.rows)
