@@ -2,14 +2,19 @@
 
 Where the kernel exports a table, the codes are read from it: the element kinds (joints, forces
 and effects of planar scenes, kernel/src/model/mbdk_elements.f90, with their constraint rows and
-visit counters) and the body kinds. tests/test_elements.py checks the scene format against them.
+visit counters) and the body kinds here, the methods' names and ids in mbdk.methods, the status
+codes' names and messages in mbdk.errors (whose Status mirrors them).
 
 The kernel has no exported table of the others yet: they are kept here, each beside the name of
-the kernel constants it mirrors, and tests/test_codes.py compares each table with what the
-kernel does with the code (a scene of each spatial joint type evaluated, a run in each form).
-Nothing else in the package writes a code the kernel reads.
+the kernel constants it mirrors. tests/test_codes.py compares each table with the kernel's
+named constants (its Fortran parameter definitions, read from kernel/src) and, where the f2py
+entry takes a bare number, with what the kernel does with the code (a run in each form, a scene
+of each spatial joint type evaluated). Nothing else in the package writes a code the kernel
+reads.
 """
 from __future__ import annotations
+
+import numpy as np
 
 from . import _kernel
 from .errors import decode_text
@@ -57,6 +62,20 @@ EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls =
 VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
 BODY_KINDS = _body_kinds()
 
+# ---- the kernel's structs (kernel/src/api/mbdk_structs.f90), laid out by mbdk.options ---------
+
+#: the structs' ids (MBDK_STRUCT_*); the kernel names each, and mbdk.options checks the name
+STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
+              "mbdk_model_options": 4}
+#: a field's type code (MBDK_FIELD_INT, _INT64, _DOUBLE, _POINTER) -> its numpy type
+FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
+
+# ---- the methods (kernel/src/core/mbdk_methods.f90), names and ids read by mbdk.methods -------
+
+#: the kernel's method families (MBDK_FAMILY_*), as its method_info returns them
+METHOD_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3",
+                   5: "embedded_rk", 6: "variable_bdf", 7: "cvode", 8: "ida"}
+
 # ---- the planar model (kernel/src/model), no exported table yet ------------------------------
 
 #: MBDK_FORM_* of mbdk_model.f90 (the spatial model uses the same codes, MBDK_SPATIAL_*)
@@ -99,6 +118,9 @@ INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
 #: estimated from differences of the accelerations (order 2: on P1 no distribution of its steps
 #: saves more than 8 %, studies/step_control.py) (MBDK_INDEX3_EXTRAPOLATED, _ESTIMATED)
 ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
+#: the Newton matrix's scaling of mbdk.index3.newton_matrix (MBDK_INDEX3_UNSCALED,
+#: MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED of kernel/src/dae/mbdk_index3_matrix.f90)
+INDEX3_SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 #: the multistep methods' start-up (mbdk_options' startup)
 STARTUP = {"rk4": 0, "bdf": 1}
 #: scene_run's dae_form by method: ida's forms of the scene's DAE (kernel/src/sundials/
@@ -121,6 +143,11 @@ SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 9
 #: the orientation coordinates (MBDK_ROT_*) and how |p| = 1 is kept (MBDK_NORM_*)
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
+#: the parametrisation rotation_matrix (the f2py entry) takes, its kind argument (mbdk.rotations)
+ROTATION_PARAMETRISATIONS = {"angles": 1, "quaternion": 2, "axis_angle": 3}
+#: the frame of an angular velocity, the body argument of the f2py entries angle_rates,
+#: quaternion_ops and quaternion_omega
+FRAMES = {"space": 0, "body": 1}
 #: MBDK_SPATIAL_REDUCED .. MBDK_SPATIAL_PROJECTION
 SPATIAL_FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the

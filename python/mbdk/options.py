@@ -19,12 +19,9 @@ from functools import lru_cache
 import numpy as np
 
 from . import _kernel
+from .codes import FIELD_TYPES, STRUCT_IDS
 from .errors import decode_text
 
-#: struct ids of kernel/src/api/mbdk_structs.f90 (MBDK_STRUCT_*)
-STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
-              "mbdk_model_options": 4}
-_FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
 _F64 = np.dtype(np.float64)
 
 
@@ -39,7 +36,7 @@ def layout(cname: str) -> np.dtype:
     for i in range(1, int(nfields) + 1):
         fname, offset, ftype = _kernel.struct_field(sid, i)
         names.append(decode_text(fname))
-        formats.append(_FIELD_TYPES[int(ftype)])
+        formats.append(FIELD_TYPES[int(ftype)])
         offsets.append(int(offset))
     return np.dtype({"names": names, "formats": formats, "offsets": offsets,
                      "itemsize": int(nbytes)})

@@ -20,10 +20,9 @@ import numpy as np
 
 from . import _kernel, checks
 from .checks import show
-from .codes import (FORMULATIONS, INDEX3_FORMULATIONS, NORMS, OUTPUTS, ROTATIONS,
-                    SCENE_DAE_FORMS, SOLVERS, SPATIAL_DAE_FORMS, SPATIAL_FORMULATIONS,
-                    SPATIAL_OPTIONS, STARTUP)
-from .codes import ADAPTIVE_MODES
+from .codes import (ADAPTIVE_MODES, FORMULATIONS, INDEX3_FORMULATIONS, NORMS, OUTPUTS,
+                    ROTATIONS, SCENE_DAE_FORMS, SOLVERS, SPATIAL_DAE_FORMS,
+                    SPATIAL_FORMULATIONS, SPATIAL_OPTIONS, STARTUP)
 from .errors import InvalidInputError, NotApplicableError
 from .index3 import factorisation
 from .methods import MethodInfo, method as method_info
@@ -713,11 +712,12 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
     if formulation == "augmented_lagrangian":
         manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
     if adaptive:
+        estimated = mode == ADAPTIVE_MODES["estimated"]
         manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
                                     "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
-                                    "mode": "estimated" if mode == 1 else "extrapolated",
+                                    "mode": "estimated" if estimated else "extrapolated",
                                     "estimate": ("h^2/12 |a+ - a| on q, h^3/12 |a''| on v"
-                                                 if mode == 1 else EXTRAPOLATED_TEXT)}
+                                                 if estimated else EXTRAPOLATED_TEXT)}
     return {"ode": ODEOptions(), "index3": opt, "nsamp": int(nsamp),
             # adaptive: the steps are not known in advance, the run always counts as long
             # (a worker thread, interruptible)
