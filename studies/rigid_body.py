@@ -99,7 +99,8 @@ def gimbal_rows(quick: bool) -> list[dict]:
                              "orientation_error": float(np.abs(rr - r_end).max())
                              if done else None})
         # the same body as a spatial scene in 3-1-3 angles that switches to 1-2-3 within 0.1
-        # of the lock and back (simulate's switch_angles, mbdk.angle_switch): what passing the lock costs
+        # of the lock and back (simulate's switch_angles, mbdk.angle_switch): what passing the
+        # lock costs
         sc = scene_from_dict({
             "scene": {"name": "spin", "rotation": "euler313"},
             "body": [{"name": "b", "kind": "spatial", "mass": 1.0, "inertia": [1.0, 2.0, 3.0],

@@ -481,7 +481,7 @@ def test_the_quaternion_norm_codes_are_the_kernels_treatments():
     follows its gain (the intermediate-axis flip at h = 0.05 s: rk4 drifts |p| by 1e-5)."""
     assert set(codes.NORMS) == {"project", "stabilise", "none"}
     assert _tumbling("project")[0] < 1e-14
-    (drift, q), (drift2, q2) = _tumbling("none"), _tumbling("none", 20.0)
+    (drift, q), (_, q2) = _tumbling("none"), _tumbling("none", 20.0)
     assert drift > 1e-8 and np.array_equal(q, q2)
     (_, q), (_, q2) = _tumbling("stabilise"), _tumbling("stabilise", 20.0)
     assert np.abs(q - q2).max() > 1e-9

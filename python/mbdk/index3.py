@@ -41,7 +41,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernel
-from .codes import INDEX3_FORMULATIONS  # noqa: F401  (simulate's and the tests' name)
 from .codes import INDEX3_SCALINGS
 from .errors import Status, exception_for
 from .options import ModelOptions
@@ -71,7 +70,8 @@ def newton_matrix(tab, q, v, lam, h: float, scaling: str = "scaled", t: float = 
     'book' ((3.15)-(3.16): both rows times h^2/4) or 'scaled' (the solver's)."""
     y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
     jac, status = _kernel.model_index3_matrix(*tab.args(), ModelOptions().pack(), float(t), y,
-                                              np.asarray(lam, float), float(h), INDEX3_SCALINGS[scaling])
+                                              np.asarray(lam, float), float(h),
+                                              INDEX3_SCALINGS[scaling])
     if status != 0:
         raise exception_for(Status(int(status)))(f"Newton matrix: {Status(int(status)).name}")
     return jac

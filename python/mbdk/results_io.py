@@ -6,10 +6,10 @@ the leading comment lines) or .h5 / .hdf5 (h5py, where it is installed).
     >>> d = mbdk.results_io.load_result("run.npz")     # d["t"], d["q"], d["manifest"], ...
 
 What is written: t; the coordinates q and the velocities v (of a spatial body the centre's
-velocity and the body-frame angular velocity) with their column names; where the run computed them, the energy, the work W
-of dampers, loads and drivers as the run integrated it at every step (not a quadrature over
-the samples), the energy balance E - E0 - W and the residuals; the
-multipliers; the status and the manifest (version, method, formulation, step or tolerances,
+velocity and the body-frame angular velocity) with their column names; where the run computed
+them, the energy, the work W of dampers, loads and drivers as the run integrated it at every
+step (not a quadrature over the samples), the energy balance E - E0 - W and the residuals
+(residual_names says which); the multipliers; the status and the manifest (version, method, formulation, step or tolerances,
 compiler flags). A file is written under a temporary name beside the target and renamed
 when complete, so a failed or interrupted write leaves no partial file with the target's name.
 """
