@@ -9,8 +9,8 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    defaults alpha_p = 1e7, omega_p = 10, mu_p = 1) and projection formulations, and bdf also
    on the DAE itself (formulation i3, as GSTIFF I3, and si2, the stabilised index-2 form);
    trapezoidal_index3 at the rk4
-   steps, in its projected form (Newton with a Jacobian by differences, then the projections;
-   second order); ida (SUNDIALS) on the DAE itself in its index1 and GGL forms.
+   steps (the one integrator of planar and spatial scenes, augmented Lagrangian with the
+   projections of v and a, its Jacobian by differences here; second order); ida (SUNDIALS) on the DAE itself in its index1 and GGL forms.
    Baumgarte's gains of order 1/h make the constraint's own error dynamics as fast as the step,
    which rk4 then does not resolve: its forces of beta^2 Phi perturb the motion far more than
    the reduced form's drift does (the same holds on planar scenes, studies/scene_drift.py).
@@ -43,10 +43,11 @@ the quaternion norm by the user's choice, and what a spatial body costs beside a
    with the spatial model but the integrators: a planar scene does not pay for 3D.
 5. trapezoidal_index3 down to h = 1e-6 on the four built-in mechanisms: the error at t = 5 ms
    (20 ms in the full run) against dopri54 (rtol 1e-13, projection), its ratio to the next
-   larger h's (4 for second order), Newton iterations per step and the CPU time. Newton stops
-   at its roundoff floor (kernel/src/spatial/mbdk_spatial_index3.f90): the order holds until
-   the roundoff plateau, where it used to stop with NewtonDivergedError below h = 2e-4 (on some
-   BLAS kernels at 3.125e-4). Also as a figure, error against h and against CPU time.
+   larger h's (16 for second order at a quarter of h), Newton iterations per step and the CPU
+   time. Newton stops at a hundredth of each step's local error estimate, or at its roundoff
+   floor (kernel/src/dae/mbdk_trapezoidal_index3.f90): the order holds until the roundoff
+   plateau, where it used to stop with NewtonDivergedError below h = 2e-4 (on some BLAS
+   kernels at 3.125e-4). Also as a figure, error against h and against CPU time.
 """
 from __future__ import annotations
 

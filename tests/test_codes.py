@@ -171,14 +171,15 @@ TABLES = {
     "SPATIAL_JOINT_CODES": (_named("MBDK_SPATIAL_", codes.SPATIAL_JOINT_CODES),
                             "MBDK_SPATIAL_JOINT_TYPES"),
     "SPATIAL_FORCE_CODES": ({**_named("MBDK_SPATIAL_", ["gravity", "point_force", "torque",
-                                                         "spring_damper"]),
+                                                         "spring_damper", "sphere_plane",
+                                                         "sphere_sphere"]),
                              "spring": "MBDK_SPATIAL_SPRING_DAMPER",
                              "damper": "MBDK_SPATIAL_SPRING_DAMPER"},
                             "MBDK_SPATIAL_FORCE_TYPES"),
     "ROTATIONS": (_named("MBDK_ROT_", ["quaternion", "euler313", "cardan123"]), ("MBDK_ROT_",)),
     "NORMS": (_named("MBDK_NORM_", ["project", "stabilise", "none"]), ("MBDK_NORM_",)),
-    "SPATIAL_FORMULATIONS": (_named("MBDK_SPATIAL_", ["reduced", "baumgarte", "penalty",
-                                                      "projection"]), None),
+    "SPATIAL_FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty",
+                                                   "projection"]), ("MBDK_FORM_",)),
 }
 
 #: Python's single codes and sizes -> the kernel constant each mirrors
@@ -512,16 +513,16 @@ def test_the_formulation_codes_are_the_kernels_formulations(name):
                                          ("bdf", "si2")])
 def test_the_dae_form_codes_are_the_kernels_forms(name, method, form):
     """Each form of the DAE by its signature, planar (scene_run) and spatial (spatial_run):
-    index1 (acceleration level) lets Phi drift; GGL holds Phi and D v + Phi_t at roundoff; I3
-    holds Phi, not the velocity rows; SI2 holds both to the tolerance (rtol 1e-6, 5 s: the
-    margins are two orders of magnitude or more)."""
+    index1 (acceleration level) lets Phi drift; GGL holds Phi and D v + Phi_t (to its Newton
+    tolerance); I3 holds Phi, not the velocity rows; SI2 holds both to the tolerance (rtol
+    1e-6, 5 s: the margins are more than an order of magnitude)."""
     r = mbdk.simulate(mbdk.scene(name), method, formulation=form, rtol=1e-6, atol=1e-8,
                       t_end=5.0, watch=False)
     pos, vel = np.abs(r.residuals[:, :2]).max(axis=0)
     if form == "index1":
         assert pos > 1e-7
     elif form == "ggl":
-        assert pos < 1e-12 and vel < 1e-12
+        assert pos < 1e-8 and vel < 1e-8
     elif form == "i3":
         assert pos < 1e-8 and vel > 1e-7
     else:

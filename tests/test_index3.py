@@ -676,11 +676,13 @@ def test_adaptive_retries_have_a_budget():
 @pytest.mark.parametrize("mode", ["estimated", "extrapolated"])
 def test_newton_follows_the_requested_error_tolerance(mode):
     """Adaptive, without Newton tolerances given, Newton's follow the error test's (a hundredth
-    of it, not looser than the fixed-step defaults): at err_rtol = err_atol = 1e-12 the fixed
-    defaults (1e-10, 1e-12) would leave Newton errors above the local error asked for. Reference:
-    rk4 at h = 2e-5 on the four-bar (its own error far below these). Measured: 3.5e-7 with the
-    fixed defaults, 1.6e-7 following the tolerance (estimated); 4.8e-12 and 3.0e-12
-    (extrapolated)."""
+    of it, not looser than the fixed-step defaults). With the fixed defaults (1e-10, 1e-12)
+    given at err_rtol = err_atol = 1e-12 the iteration still stops at a hundredth of each
+    step's local error estimate (the target below the options' tolerance), so the result is as
+    accurate: before that target, 3.5e-7 with the fixed defaults against 1.6e-7 following the
+    tolerance (estimated), 4.8e-12 against 3.0e-12 (extrapolated); now 1.57e-7 and 1.53e-7,
+    2.48e-12 and 2.53e-12. Reference: rk4 at h = 2e-5 on the four-bar (its own error far below
+    these)."""
     sc = mbdk.scene("four_bar")
     ref = mbdk.simulate(sc, "rk4", h=2e-5, t_end=2.0, every=500, outputs=())
     kw = dict(h=1e-3, t_end=2.0, adaptive=mode, err_rtol=1e-12, err_atol=1e-12, dt_out=0.01,
@@ -692,7 +694,7 @@ def test_newton_follows_the_requested_error_tolerance(mode):
     assert follow.manifest["newton"]["atol"] == pytest.approx(max(1e-14, floor))
     err_follow = np.abs(follow.q - ref.q).max()
     err_fixed = np.abs(fixed.q - ref.q).max()
-    assert err_follow < 0.7 * err_fixed
+    assert err_fixed < 1.2 * err_follow
 
 
 def test_multipliers_converge_at_second_order_in_the_projected_form_only():

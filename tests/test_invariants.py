@@ -121,13 +121,12 @@ def test_the_heavy_top_at_2000_rad_per_s_on_implicit_euler_stops_naming_its_vert
     assert r.success and np.abs(h[:, 2] - h[0, 2]).max() < 1e-8 * abs(h[0, 2])
 
 
-def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
-    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s and rtol 3e-3
-    the unwatched run lets |p| drift by more than twice the watch's tolerance (by how much
-    depends on the BLAS kernel at so loose a tolerance: 0.3 to 1); watched, it stops by name;
-    with the momentum and energy tests off (which goes first varies with the kernel), it names
-    the body's quaternion and every sample returned is within the tolerance. At 50 rad/s and
-    rtol 1e-6 the norm stays within 1e-2 and the run passes."""
+def test_implicit_euler_on_the_fast_top_names_the_angular_momentum_it_loses():
+    """implicit_euler at h = 5e-3 on the top spinning at 2000 rad/s about its axis, projected
+    onto its joint after every step, keeps the energy within the watch's tolerance but loses
+    more than a tenth of the angular momentum about the vertical through the fixed point,
+    which gravity's moment leaves conserved: unwatched it runs, watched it stops by naming that
+    component. rk4 at h = 1e-4 keeps it to 1e-8."""
     sc = mbdk.scene("heavy_top")
     sc.bodies[0].omega_body = np.array([1.0, 0.0, 2000.0])
     kw = dict(formulation="projection", h=5e-3, t_end=2.0)
@@ -145,17 +144,16 @@ def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
 
 
 def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
-    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s and rtol 3e-3
-    the unwatched run lets |p| drift by more than twice the watch's tolerance (by how much
-    depends on the BLAS kernel at so loose a tolerance: 0.3 to 1); watched, it stops by name
-    (the vertical spin
-    first); with the momentum and energy tests off, naming the body's quaternion, every sample
-    returned
-    within the tolerance. Watch(quaternion=None) as well turns both off. At 50 rad/s and rtol
-    1e-6 the norm stays within 1e-2 and the run passes."""
+    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s, rtol 5e-3 and
+    1 s the unwatched run lets |p| drift by more than twice the watch's tolerance (by how much
+    varies with roundoff at so loose a tolerance: 0.46 to 0.65 between rtol 4e-3 and 6e-3,
+    t_end 0.8 and 1.2 s; at rtol 3e-3 over 10 s the run itself succeeded or stopped with its
+    step too small depending on the last bits); watched, it stops by name; with the momentum
+    and energy tests off, naming the body's quaternion, every sample returned within the
+    tolerance. At 50 rad/s and rtol 1e-6 the norm stays within 1e-2 and the run passes."""
     sc = mbdk.scene("heavy_top")
     sc.bodies[0].omega_body = np.array([1.0, 0.0, 2000.0])
-    kw = dict(formulation="i3", rtol=3e-3, atol=3e-6, t_end=10.0, dt_out=0.01)
+    kw = dict(formulation="i3", rtol=5e-3, atol=5e-6, t_end=1.0, dt_out=0.01)
     free = mbdk.simulate(sc, "bdf", watch=False, **kw)
     assert free.success and free.residuals[:, 2].max() > 0.2
     with pytest.raises(mbdk.InvariantDriftError):

@@ -37,18 +37,27 @@ def test_a_pendulum_spun_to_1e6_rad_per_s_is_not_a_success():
 
 def test_the_book_index3_scheme_blowing_up_is_named_where_it_starts():
     """The book's scheme on the double pendulum at h = 10/2000 keeps Phi = 0 while its energy
-    grows without bound (unwatched: SUCCESS at t = 10 s with |E| above 1e6 J from 43 J); the
-    energy watch stops it. Its velocities are the trapezoidal rule's and do not satisfy Phi' = 0
-    (its formulation does not promise them), so the velocity test is not what stops it."""
+    grows without bound (unwatched: |E| above 1e6 J from 43 J, until at about 9 s its Newton
+    iteration diverges, or it reaches 10 s: which one depends on the roundoff of the blown-up
+    iterates); the energy watch stops it. Its velocities are the trapezoidal rule's and do not
+    satisfy Phi' = 0 (its formulation does not promise them), so the velocity test is not what
+    stops it."""
     sc = mbdk.scene("double_pendulum")
     kw = dict(formulation="index3", h=10 / 2000, t_end=10.0, every=10)
-    free = mbdk.simulate(sc, "trapezoidal_index3", watch=False, **kw)
-    assert free.success and np.abs(free.energy).max() > 1e6
-    with pytest.raises(mbdk.EnergyDriftError) as err:
+    free = mbdk.simulate(sc, "trapezoidal_index3", watch=False, raise_on_failure=False, **kw)
+    assert free.t[-1] > 8.0 and np.abs(free.energy).max() > 1e6
+    assert free.success or free.status.name == "ERR_NEWTON_DIVERGED"
+    # the energy jumps from within its tolerance to 1e7 J in one step near 9 s: either the
+    # watch names it there, or Newton diverges in that step (before the watch sees it)
+    with pytest.raises((mbdk.EnergyDriftError, mbdk.NewtonDivergedError)) as err:
         mbdk.simulate(sc, "trapezoidal_index3", **kw)
     kept = err.value.result
     assert 0 < kept.t[-1] < 10.0
     assert np.abs(kept.energy - kept.energy[0]).max() < 0.1 * 2 * 43.3   # every sample sound
+    if isinstance(err.value, mbdk.NewtonDivergedError):
+        jump = free.t[np.argmax(np.abs(free.energy - free.energy[0]) > 0.1 * 43.3)]
+        assert jump - 0.1 <= kept.t[-1] <= jump
+        return
     # the unwatched run's balance at the failure time is past the tolerance already
     drift = kept.drift
     assert drift["quantity"] == "energy" and drift["t_good"] < drift["t"] <= drift["t_good"] + 0.1

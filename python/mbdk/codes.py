@@ -78,7 +78,7 @@ METHOD_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "d
 
 # ---- the planar model (kernel/src/model), no exported table yet ------------------------------
 
-#: MBDK_FORM_* of mbdk_model.f90 (the spatial model uses the same codes, MBDK_SPATIAL_*)
+#: MBDK_FORM_* of kernel/src/core/mbdk_mechanism.f90, the codes of both models
 FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 #: MBDK_SOLVER_* of mbdk_model.f90. solver="auto" takes revolute_schur when every joint is
 #: revolute (and M is positive, up to 12 constraint rows), else schur when M is positive (sparse
@@ -124,8 +124,8 @@ INDEX3_SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 #: the multistep methods' start-up (mbdk_options' startup)
 STARTUP = {"rk4": 0, "bdf": 1}
 #: scene_run's dae_form by method: ida's forms of the scene's DAE (kernel/src/sundials/
-#: mbdk_ida.f90) and bdf's (kernel/src/dae/mbdk_scene_dae.f90, as MSC Adams' GSTIFF I3 and SI2);
-#: 0 for every other run
+#: mbdk_ida.f90) and bdf's (MBDK_DAE_I3, MBDK_DAE_SI2 of kernel/src/dae/mbdk_mechanism_dae.f90,
+#: as MSC Adams' GSTIFF I3 and SI2); 0 for every other run
 SCENE_DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
 
 # ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
@@ -135,11 +135,13 @@ SPATIAL_JOINT_CODES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindric
                        "prismatic": 5, "fixed": 6, "angle_driver": 7, "slide_driver": 8}
 SPATIAL_JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4,
                       "prismatic": 5, "fixed": 6, "angle_driver": 1, "slide_driver": 1}
-#: MBDK_SPATIAL_GRAVITY .. MBDK_SPATIAL_SPRING_DAMPER (a spring and a damper are spring_dampers)
+#: MBDK_SPATIAL_GRAVITY .. MBDK_SPATIAL_SPHERE_SPHERE (a spring and a damper are
+#: spring_dampers; a file's contact is sphere_plane or sphere_sphere by its second shape)
 SPATIAL_FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4,
-                       "spring": 4, "damper": 4}
-#: the reals per joint and per force (MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS)
-SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 9
+                       "spring": 4, "damper": 4, "sphere_plane": 5, "sphere_sphere": 6}
+#: the reals per joint and per force (MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS: as
+#: many as a contact has, kernel/src/spatial/mbdk_contact3d.f90; the other kinds use the first)
+SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 19
 #: the orientation coordinates (MBDK_ROT_*) and how |p| = 1 is kept (MBDK_NORM_*)
 ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
 NORMS = {"project": 1, "stabilise": 2, "none": 3}
@@ -148,16 +150,16 @@ ROTATION_PARAMETRISATIONS = {"angles": 1, "quaternion": 2, "axis_angle": 3}
 #: the frame of an angular velocity, the body argument of the f2py entries angle_rates,
 #: quaternion_ops and quaternion_omega
 FRAMES = {"space": 0, "body": 1}
-#: MBDK_SPATIAL_REDUCED .. MBDK_SPATIAL_PROJECTION
-SPATIAL_FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+#: the spatial model's formulations: the planar model's codes (MBDK_FORM_* of mbdk_mechanism)
+SPATIAL_FORMULATIONS = FORMULATIONS
 #: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the
-#: index-3 DAE (mbdk_spatial_dae); 2 trapezoidal_index3's projected form (mbdk_spatial_index3);
-#: 3, 4 ida in its index1 and GGL forms (mbdk_ida_solve_spatial); 5 bdf on the stabilised
-#: index-2 form
+#: index-3 DAE (mbdk_mechanism_dae); 2 trapezoidal_index3's augmented, projected form
+#: (mbdk_trapezoidal_index3); 3, 4 ida in its index1 and GGL forms (mbdk_ida); 5 bdf on the
+#: stabilised index-2 form
 SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "projected"): 2,
                      ("ida", "index1"): 3, ("ida", "ggl"): 4, ("bdf", "si2"): 5}
 #: the length of spatial_run's sopt, and each entry's position (the f2py entry's argument)
 SPATIAL_OPTIONS = ("formulation", "rotation", "norm", "alpha", "beta", "norm_gain",
                    "projection_tol", "watch_position", "watch_velocity", "watch_energy",
                    "watch_every", "pen_alpha", "pen_omega", "pen_mu", "lock_guard",
-                   "watch_momentum", "watch_quaternion")
+                   "watch_momentum", "watch_quaternion", "locate_events")

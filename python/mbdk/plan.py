@@ -65,8 +65,8 @@ BOOK_MULTIPLIERS = (
     "derived constraints by a period-2 oscillation amplified by 2/h and 4/h^2, so lambda and the "
     "reactions carry an error that grows as h shrinks (studies/index3.py measures it); "
     "formulation 'augmented_lagrangian' gives them at second order")
-#: ida's GGL form tests its multipliers no tighter than this relative to the largest (the
-#: kernel's LAM_RTOL_FLOOR, kernel/src/sundials/mbdk_ida.f90: the index-2 iteration's roundoff)
+#: ida tests its multipliers no tighter than this relative to the largest, in both its forms
+#: (the kernel's LAM_RTOL_FLOOR, kernel/src/sundials/mbdk_ida.f90: its iteration's roundoff)
 GGL_LAMBDA_RTOL = 1e-8
 
 
@@ -201,13 +201,14 @@ def is_default_penalty(penalty) -> bool:
 
 
 def ggl_multipliers(method: str, formulation: str, rtol) -> str | None:
-    """What a run's manifest and warning say of its multipliers where ida's GGL form gives them
-    less accurately than rtol asks (rtol below GGL_LAMBDA_RTOL); None elsewhere."""
-    if method != "ida" or formulation != "ggl" or rtol is None or not rtol < GGL_LAMBDA_RTOL:
+    """What a run's manifest and warning say of its multipliers where ida gives them less
+    accurately than rtol asks (rtol below GGL_LAMBDA_RTOL, either form); None elsewhere."""
+    if method != "ida" or rtol is None or not rtol < GGL_LAMBDA_RTOL:
         return None
     return (f"converged to about {GGL_LAMBDA_RTOL:g} of the largest multiplier, not to rtol = "
-            f"{rtol:g}: ida's GGL form tests them no tighter, the roundoff of its index-2 "
-            "iteration; the index1 form, or bdf's si2 form, gives them to the tolerance")
+            f"{rtol:g}: ida tests them no tighter, the roundoff of its iteration (in its "
+            f"{formulation} form as in the other); bdf on the DAE (formulation 'si2') gives them "
+            "to the tolerance")
 
 
 def make_plan(scene: Scene, req: Request) -> RunPlan:
@@ -521,7 +522,8 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
               "watch_velocity": w.velocity or 0.0, "watch_energy": w.energy or 0.0,
               "watch_every": w.every, "pen_alpha": penalty[0], "pen_omega": penalty[1],
               "pen_mu": penalty[2], "lock_guard": float(req.lock_guard),
-              "watch_momentum": w.momentum or 0.0, "watch_quaternion": w.quaternion or 0.0}
+              "watch_momentum": w.momentum or 0.0, "watch_quaternion": w.quaternion or 0.0,
+              "locate_events": float(bool(req.locate_events))}
     sopt = np.array([values[k] for k in SPATIAL_OPTIONS], dtype=float)
     return RunPlan(kind="spatial", method=method, info=info_m, formulation=formulation,
                    request=req, h=req.h, rtol=rtol, every=int(req.every), index3=index3,

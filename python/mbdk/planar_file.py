@@ -101,7 +101,7 @@ from .checks import NUMBER_MAX, NUMBER_MIN, length_scale, show
 from .codes import JOINT_ROWS, WEAR_LAWS, WEAR_LOADS
 from .scene import (FORCE_TYPES, GROUND, GROUND_JOINTS, JOINT_TYPES, Body, Force, Joint, Scene,
                     SceneError, Wear, body_kind_problem)
-from .scene_fields import FieldReader, section_items
+from .scene_fields import FieldReader, read_friction, section_items
 
 
 def _body(r: FieldReader) -> Body:
@@ -268,7 +268,7 @@ def _force(r: FieldReader) -> Force:
             raise r.err("shape2", f"= ring of radius {f.shape2[2]} must be larger than body1's "
                                   f"circle (radius {f.shape1[2]}) to hold it")
         if r.has("friction"):
-            f.friction = _friction(r)
+            f.friction = read_friction(r)
     else:
         f.body1 = r.name("body")
         f.coordinate = r.coordinate("coordinate", "x")
@@ -316,25 +316,6 @@ def _shape(r: FieldReader, fld: str, kinds: tuple) -> tuple:
         raise r.err(fld, f"entry {extra[0]!r} is not a field of a {typ} "
                          f"(a {typ} has {', '.join(sorted(sr.used))})") from None
     return out
-
-
-def _friction(r: FieldReader) -> tuple:
-    v = r.get("friction")
-    if not isinstance(v, dict):
-        raise r.err("friction", f"= {v!r} must be a table {{static, dynamic, stiction_speed, "
-                                "transition_speed}")
-    fr = FieldReader(r.source, f"{r.label} friction", 0, v)
-    st = fr.num("static", required=True, nonneg=True)
-    dy = fr.num("dynamic", st, nonneg=True)
-    vs = fr.num("stiction_speed", 1e-3, positive=True)
-    vd = fr.num("transition_speed", 2 * vs, positive=True)
-    if not vd > vs:
-        raise r.err("friction", f"transition_speed = {vd} must exceed stiction_speed = {vs}")
-    extra = [k for k in v if k not in fr.used]
-    if extra:
-        raise r.err("friction", f"entry {extra[0]!r} is not known; known: static, dynamic, "
-                                "stiction_speed, transition_speed")
-    return (st, dy, vs, vd)
 
 
 def _wear(r: FieldReader) -> Wear:

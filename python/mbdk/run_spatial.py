@@ -84,6 +84,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
                 "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
                                  if formulation == "penalty" else
                                  "dense Schur complement (LAPACK dpotrf)"),
+                "locate_events": bool(req.locate_events) and plan.method in ("dopri54", "bs32"),
                 "watch": {"position": w.position, "velocity": w.velocity,
                           "energy": w.energy, "every": w.every, "momentum": w.momentum,
                           "quaternion": w.quaternion},

@@ -302,6 +302,11 @@ FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_d
 
 #: the spatial joint and force types (their codes: mbdk.codes)
 SPATIAL_JOINT_TYPES = set(SPATIAL_JOINT_CODES)
-SPATIAL_FORCE_TYPES = {"gravity", "point_force", "torque", "spring_damper", "spring", "damper"}
+#: the spatial force types a scene file writes (a contact is stored as sphere_plane or
+#: sphere_sphere, by its second shape)
+SPATIAL_FORCE_TYPES = ("gravity", "point_force", "torque", "spring_damper", "spring", "damper",
+                       "contact")
+#: the spatial force types between two bodies (body2 may be the ground)
+SPATIAL_TWO_BODY_FORCES = ("spring_damper", "sphere_plane", "sphere_sphere")
 #: the drivers: rows that follow a time function, f(t0) = 0
 DRIVERS = {"angle_driver": "turns body1", "slide_driver": "slides body1's point"}

@@ -131,3 +131,24 @@ def section_items(data: dict, key: str, source: str) -> list:
     if not isinstance(v, list):
         raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
     return v
+
+
+def read_friction(r: FieldReader) -> tuple:
+    """A contact's friction table (static, dynamic, stiction_speed, transition_speed), as the
+    planar and the spatial readers take it."""
+    v = r.get("friction")
+    if not isinstance(v, dict):
+        raise r.err("friction", f"= {v!r} must be a table {{static, dynamic, stiction_speed, "
+                                "transition_speed}")
+    fr = FieldReader(r.source, f"{r.label} friction", 0, v)
+    st = fr.num("static", required=True, nonneg=True)
+    dy = fr.num("dynamic", st, nonneg=True)
+    vs = fr.num("stiction_speed", 1e-3, positive=True)
+    vd = fr.num("transition_speed", 2 * vs, positive=True)
+    if not vd > vs:
+        raise r.err("friction", f"transition_speed = {vd} must exceed stiction_speed = {vs}")
+    extra = [k for k in v if k not in fr.used]
+    if extra:
+        raise r.err("friction", f"entry {extra[0]!r} is not known; known: static, dynamic, "
+                                "stiction_speed, transition_speed")
+    return (st, dy, vs, vd)

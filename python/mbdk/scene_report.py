@@ -188,4 +188,6 @@ def _spatial_report(sc) -> SceneReport:
                    for (name, _r0, n), j in zip(table, sc.joints)]
     index, reason = _index(rows, True)
     return SceneReport(sc.name, "spatial", nb, coords, 6 * nb, rows, rank, 6 * nb - rank,
-                       redundant, constraints, [], [], index, reason, 6 * nb - rank)
+                       redundant, constraints,
+                       [f.name for f in sc.forces if f.type in ("sphere_plane", "sphere_sphere")],
+                       [], index, reason, 6 * nb - rank)

@@ -46,17 +46,45 @@ A spatial scene is a scene file whose bodies say ``kind = "spatial"`` (SI units)
                                    # body2, point2 or at1/at2, stiffness, damping, rest_length:
                                    # default the initial length)
 
+    [[force]]
+    type = "contact"               # compliant contact (kernel/src/spatial/mbdk_contact3d.f90)
+    name = "floor"
+    body1 = "top"
+    shape1 = { type = "sphere", radius = 0.001, centre = [0.0, 0.0, -0.1] }   # body1 frame;
+                                   # or { type = "point", point = [...] } (radius 0)
+    body2 = "ground"               # the default; or a body
+    shape2 = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+                                   # body2's frame (global on the ground), the normal pointing
+                                   # to body1's side; or { type = "sphere", radius, centre }
+    stiffness = 1e6                # F = k delta^exponent + damping step(delta) delta', >= 0
+    exponent = 1.0                 # >= 1 (1.5: Hertz)
+    damping = 1000.0               # default 0; never pulls
+    damping_depth = 0.0            # the damping is fully in at this depth (0: at once)
+    friction = { static = 0.5, dynamic = 0.5, stiction_speed = 1e-4, transition_speed = 2e-4 }
+                                   # optional: regularised Coulomb friction on the slip at the
+                                   # contact point (dynamic defaults to static, the speeds to
+                                   # 1e-3 and 2e-3 m/s)
+
 Formulations: reduced, baumgarte, penalty (Jalon-Bayo, penalty = (alpha_p, omega_p, mu_p),
 default (1e7, 10, 1)), projection; bdf also i3, the index-3 DAE itself
-(kernel/src/spatial/mbdk_spatial_dae.f90); trapezoidal_index3 in its projected form
-(formulation "projected", the default: kernel/src/spatial/mbdk_spatial_index3.f90, fixed step);
-ida in the forms index1 (the default) and ggl (kernel/src/sundials/mbdk_ida.f90,
-mbdk_ida_solve_spatial); bdf also on the stabilised index-2 form, "si2" (GGL's mu through
-T(q) M^-1 C^T, as in ida's ggl). Drivers: angle_driver and slide_driver. Every ODE method
+(kernel/src/dae/mbdk_mechanism_dae.f90); trapezoidal_index3 in its augmented, projected form
+(formulation "projected", the default: kernel/src/dae/mbdk_trapezoidal_index3.f90, fixed step);
+ida in the forms index1 (the default) and ggl (kernel/src/sundials/mbdk_ida.f90); bdf also on
+the stabilised index-2 form, "si2" (GGL's mu through T(q) M^-1 C^T, as in ida's ggl). Drivers: angle_driver and slide_driver. Every ODE method
 runs: fixed step and error-controlled (dopri54, bs32, bdf; cvode_* on all but projection);
 euler_cromer does not (its layout is y = [q, q'], and a spatial body's velocities are not its
 coordinates' rates). Angle sets pass their gimbal lock with switch_angles
 (python/mbdk/angle_switch.py).
+
+Contacts use the planar contacts' laws (kernel/src/model/mbdk_contact_law.f90): the normal force
+acts along the normal through the sphere's centre, friction at the contact point against the
+slip of the two bodies' material points there. Their potential is part of the energy's
+"springs", their damping and friction part of "power"; with locate_events (the default) dopri54
+and bs32 end a step where a contact closes, where it lets go and where the surfaces of a contact
+that let go part. A contact is stored as a SpatialForce of type sphere_plane or sphere_sphere
+with the kernel's 19 reals (centre 1, radius 1, point or centre 2, normal, radius 2, stiffness,
+exponent, damping, damping_depth, static, dynamic, stiction_speed, transition_speed). Wear of
+spatial contacts is not there yet.
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
@@ -65,11 +93,12 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import NUMBER_MAX, NUMBER_MIN, number_problem, show
-from .codes import NORMS, ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_JOINT_CODES
+from .codes import (NORMS, ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS,
+                    SPATIAL_JOINT_CODES)
 from .rotations import from_angles, from_quaternion
-from .scene import (DRIVERS, GROUND, Body, Scene, SceneError, SpatialBody, SpatialForce,
-                    SpatialJoint)
-from .scene_fields import FieldReader, section_items
+from .scene import (DRIVERS, GROUND, SPATIAL_FORCE_TYPES, SPATIAL_TWO_BODY_FORCES, Body, Scene,
+                    SceneError, SpatialBody, SpatialForce, SpatialJoint)
+from .scene_fields import FieldReader, read_friction, section_items
 
 
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
@@ -80,6 +109,10 @@ UNIT_TOL = 1e-8
 #: written to 6 decimals has each component rounded by up to 5e-7, which moves its norm by up
 #: to 5e-7 (|q|_1 <= 2); the reader takes the rotation of q / |q|
 WRITTEN_UNIT_TOL = 1e-6
+
+
+#: the friction law of a contact without friction (mus = mud = 0; the speeds only valid)
+NO_FRICTION = (0.0, 0.0, 1e-3, 2e-3)
 
 
 class _SpatialReader(FieldReader):
@@ -289,9 +322,9 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
 
 def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
     typ = r.name("type")
-    if typ not in SPATIAL_FORCE_CODES:
+    if typ not in SPATIAL_FORCE_TYPES:
         raise r.err("type", f"= {typ!r} is not a spatial force type; known: "
-                            f"{', '.join(SPATIAL_FORCE_CODES)}")
+                            f"{', '.join(SPATIAL_FORCE_TYPES)}")
     name = r.name("name", required=False, default=f"force{r.index + 1}")
 
     def body(fld, ground_ok=False, default=None):
@@ -313,6 +346,8 @@ def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
         b = body("body")
         return _done(r, SpatialForce(typ, name, b, reals=tuple(r.vec3("torque", required=True))))
     b1, b2 = body("body1"), body("body2", ground_ok=True, default=GROUND)
+    if typ == "contact":
+        return _done(r, _spatial_contact(r, name, b1, b2))
     if b1 == b2:
         raise r.err("body2", f"= {b2!r} is body1 too; a spring joins two bodies")
     (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
@@ -330,6 +365,54 @@ def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
 def _done(r, x):
     r.done()
     return x
+
+
+def _spatial_contact(r: _SpatialReader, name: str, b1: str, b2: str) -> SpatialForce:
+    """A contact (the module docstring): sphere_plane or sphere_sphere, with the reals of
+    kernel/src/spatial/mbdk_contact3d.f90."""
+    if b1 == b2:
+        raise r.err("body2", f"= {b2!r} is body1 too; a contact is between two bodies (or a "
+                             "body and the ground)")
+    c1, r1 = _contact_shape(r, "shape1", ("sphere", "point"))
+    kind2 = _contact_shape(r, "shape2", ("plane", "sphere"))
+    if len(kind2) == 3:               # a plane: point, normal
+        p2, n2, r2, typ = kind2[0], kind2[1], 0.0, "sphere_plane"
+    else:
+        p2, r2 = kind2
+        n2, typ = np.zeros(3), "sphere_sphere"
+        if not r1 + r2 > 0:
+            raise r.err("shape2", "is a sphere of radius 0 against a point: two points never "
+                                  "touch; give one of them a radius")
+    k = r.num("stiffness", required=True, nonneg=True)
+    e = r.num("exponent", 1.0)
+    if e < 1:
+        raise r.err("exponent", f"= {e} must be at least 1 (below 1 the force's slope is "
+                                "infinite where the contact closes)")
+    c = r.num("damping", 0.0, nonneg=True)
+    depth = r.num("damping_depth", 0.0, nonneg=True)
+    fric = read_friction(r) if r.has("friction") else NO_FRICTION
+    return SpatialForce(typ, name, b1, b2, reals=(*c1, r1, *p2, *n2, r2, k, e, c, depth, *fric))
+
+
+def _contact_shape(r: _SpatialReader, fld: str, kinds: tuple):
+    """A contact's shape in its body's frame (global on the ground): a sphere or a point as
+    (centre, radius), a plane as (point, unit normal, "plane")."""
+    v = r.get(fld, required=True)
+    if not isinstance(v, dict) or v.get("type") not in kinds:
+        raise r.err(fld, f"= {show(v)} must be a table {{type = {' | '.join(kinds)}, ...}}")
+    sr = _SpatialReader(r.source, f"{r.label} {fld}", 0, v)
+    typ = sr.get("type")
+    if typ == "plane":
+        out = (sr.vec3("point", np.zeros(3)), sr.unit3("normal", required=True), "plane")
+    elif typ == "point":
+        out = (sr.vec3("point", np.zeros(3)), 0.0)
+    else:
+        out = (sr.vec3("centre", np.zeros(3)), sr.num("radius", required=True, positive=True))
+    extra = [k for k in v if k not in sr.used]
+    if extra:
+        raise r.err(fld, f"entry {extra[0]!r} is not a field of a {typ} (a {typ} has "
+                         f"{', '.join(sorted(sr.used))})")
+    return out
 
 
 def is_spatial(data: dict) -> bool:
@@ -488,14 +571,37 @@ def validate_spatial(sc: Scene) -> None:
             if not isinstance(getattr(f, fld), str):
                 raise SceneError(f"{sc.source}: {label}: field {fld!r} = {getattr(f, fld)!r} "
                                  "must be a body's name")
-        want = {"gravity": 3, "point_force": 6, "torque": 3}.get(f.type, 9)
+        want = {"gravity": 3, "point_force": 6, "torque": 3, "sphere_plane": SPATIAL_FORCE_REALS,
+                "sphere_sphere": SPATIAL_FORCE_REALS}.get(f.type, 9)
         r = vec(label, "reals", f.reals, (want,))
         if f.type == "spring_damper" and not (r[6] >= 0 and r[7] >= 0 and r[8] >= 0):
             raise SceneError(f"{sc.source}: {label}: stiffness, damping and rest_length "
                              f"{r[6:].tolist()} must be >= 0")
-        ends = [f.body1] + ([f.body2] if f.type == "spring_damper" else [])
+        if f.type in ("sphere_plane", "sphere_sphere"):
+            _validate_contact(sc, label, f.type, r)
+        ends = [f.body1] + ([f.body2] if f.type in SPATIAL_TWO_BODY_FORCES else [])
         if f.type != "gravity" and (f.body1 not in names or any(
                 e != GROUND and e not in names for e in ends) or
                 (len(ends) == 2 and ends[0] == ends[1])):
             raise SceneError(f"{sc.source}: {label}: its bodies {ends} are not two (or one) "
                              "distinct bodies of this scene")
+
+
+def _validate_contact(sc: Scene, label: str, typ: str, r: np.ndarray) -> None:
+    """A contact's reals (mbdk_contact3d's layout), each wrong one named."""
+    def bad(what, msg):
+        return SceneError(f"{sc.source}: {label}: {what} {msg}")
+    if not (r[3] >= 0 and r[10] >= 0):
+        raise bad("the radii", f"{r[3]}, {r[10]} must be >= 0")
+    if typ == "sphere_plane" and not np.linalg.norm(r[7:10]) > 0:
+        raise bad("the plane's normal", f"{r[7:10].tolist()} has no direction")
+    if typ == "sphere_sphere" and not r[3] + r[10] > 0:
+        raise bad("the radii", "are both 0: two points never touch")
+    for i, fld, low in ((11, "stiffness", 0.0), (12, "exponent", 1.0), (13, "damping", 0.0),
+                        (14, "damping_depth", 0.0), (15, "friction static", 0.0),
+                        (16, "friction dynamic", 0.0)):
+        if not r[i] >= low:
+            raise bad(f"field {fld!r}", f"= {r[i]} must be at least {low:g}")
+    if not 0 < r[17] < r[18]:
+        raise bad("the friction's speeds", f"stiction_speed = {r[17]}, transition_speed = "
+                                           f"{r[18]} must satisfy 0 < stiction < transition")

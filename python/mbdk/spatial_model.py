@@ -12,7 +12,7 @@ from .codes import (ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS, SPATIAL
                     SPATIAL_JOINT_REALS)
 from .errors import (InvalidInputError, NoMemoryError, Status, exception_for, format_bytes,
                      no_memory_message, status_message)
-from .scene import DRIVERS, Scene, SceneError
+from .scene import DRIVERS, SPATIAL_TWO_BODY_FORCES, Scene, SceneError
 from .spatial_file import validate_spatial
 
 
@@ -41,7 +41,7 @@ def spatial_tables(sc: Scene):
     for k, f in enumerate(sc.forces):
         ftype[k] = SPATIAL_FORCE_CODES[f.type]
         fbody[:, k] = (sc.body_index(f.body1) if f.body1 else 0,
-                       sc.body_index(f.body2) if f.type == "spring_damper" else 0)
+                       sc.body_index(f.body2) if f.type in SPATIAL_TWO_BODY_FORCES else 0)
         freal[:len(f.reals), k] = f.reals
     return nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal
 

@@ -308,8 +308,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     if (b%kind == KIND_INDEX3) then
       b%t_good = b%i3%t
-      b%y_good(1:b%i3%nc) = b%i3%q
-      b%y_good(b%i3%nc + 1:) = b%i3%v
+      b%y_good(1:b%i3%ncq) = b%i3%q
+      b%y_good(b%i3%ncq + 1:) = b%i3%v
     else
       b%t_good = b%s%t
       b%y_good = b%s%y

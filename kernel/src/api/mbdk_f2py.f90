@@ -302,7 +302,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_scene_dae
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE, &
     MBDK_ERR_NO_MEMORY, mbdk_is_failure
@@ -440,7 +440,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     opt%method = method_id
     opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-    call mbdk_solve_scene_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
+    call mbdk_solve_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
                               lam_out(1:m, :), nwritten, st, status)
   else
     opt = transfer(optbuf, opt)
@@ -722,7 +722,7 @@ subroutine model_index3_matrix(nb, mass, inertia, bkind, nj, nj1, jint, jreal, n
   ! book's (3.15)-(3.16), 2 the solver's (dynamic rows times h^2/4, unknown h^2/4 lambda).
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
-  use mbdk_trapezoidal_index3, only: mbdk_index3_newton_matrix
+  use mbdk_index3_matrix, only: mbdk_index3_newton_matrix
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, nc, m, scaling
@@ -909,16 +909,16 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
   ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
   ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard,
-  ! watch_momentum, watch_quaternion. The tables have nj1 = max(nj, 1) columns (nf1
-  ! likewise). With assemble /= 0 the initial state is projected onto the constraints first
-  ! (moved: the largest change of a state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1,
-  ! nsamp): the outputs and multipliers at the samples (NaN where a failed run's last state has
-  ! none), the last row the work of dampers, loads and drivers as the run integrated it at every
-  ! step (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_spatial_dae;
-  ! the multipliers are the DAE's own); 2: trapezoidal_index3's projected form
-  ! (mbdk_spatial_index3; the model is built with the projection formulation); 3, 4: ida in
-  ! its index1 and GGL forms (mbdk_ida_solve_spatial; multipliers its own); 5: bdf on the
-  ! stabilised index-2 form (SI2).
+  ! watch_momentum, watch_quaternion, locate_events (the contacts' events, for dopri54 and
+  ! bs32). The tables have nj1 = max(nj, 1) columns (nf1 likewise). With assemble /= 0 the
+  ! initial state is projected onto the constraints first (moved: the largest change of a
+  ! state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
+  ! multipliers at the samples (NaN where a failed run's last state has none), the last row
+  ! the work of dampers, loads and drivers as the run integrated it at every step
+  ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_mechanism_dae;
+  ! the multipliers are the DAE's own); 2: trapezoidal_index3's augmented, projected form
+  ! (mbdk_trapezoidal_index3, fixed step opt%h; multipliers its own); 3, 4: ida in its index1
+  ! and GGL forms (mbdk_ida; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
   ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -927,13 +927,14 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_spatial_dae
-  use mbdk_spatial_index3, only: mbdk_spatial_index3_solve
+  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
+  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
+    MBDK_INDEX3_AUGMENTED
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
   integer, intent(in) :: dae_form
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
   integer, intent(in), target :: interrupt(4)
@@ -970,7 +971,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   invariants = 0.0d0
   ninv = 0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 17) return
+  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 18) return
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   opt = transfer(optbuf, opt)
   opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
@@ -992,6 +993,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   so%lock_guard = sopt(15)
   so%watch_momentum = sopt(16)
   so%watch_quaternion = sopt(17)
+  so%locate_events = nint(sopt(18))
   ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
@@ -1027,13 +1029,13 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   if (dae_form == 1 .or. (dae_form >= 3 .and. dae_form <= 5)) then
     ! bdf in its I3 (1) or SI2 (5) form, ida in its index1 (3) or GGL (4) form
-    call mbdk_solve_spatial_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
+    call mbdk_solve_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
                                 t_end, y, t_out, y_out, lam_out, nwritten, st, status)
     lam_out(:, nwritten + 1:) = nan
   else if (dae_form == 0) then
     call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
   else if (dae_form == 2) then
-    call mbdk_spatial_index3_solve(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status)
+    call index3_run(status)
   else
     status = MBDK_ERR_INVALID_INPUT
     return
@@ -1043,7 +1045,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   do k = 1, nwritten
     call mbdk_watch_work_at(work%watch, t_out(k), krec, parts)
     out(8, k) = parts(3)
-    if (dae_form == 1 .or. dae_form >= 3) then   ! the drivers' power with the DAE's own
+    if (dae_form >= 1) then   ! the drivers' power with the integrator's own multipliers
       call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status, &
                                 lam_in=lam_out(1:model%m, k))
     else
@@ -1053,7 +1055,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
       out(1:7, k) = nan
       cycle
     end if
-    if (dae_form == 0 .or. dae_form == 2) call spatial_lambda(y_out(:, k))
+    if (dae_form == 0) call spatial_lambda(y_out(:, k))
   end do
   status = s
   ! a record of the work that could not be allocated: the samples' W is incomplete
@@ -1065,6 +1067,32 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end associate
 
 contains
+
+  !> trapezoidal_index3, augmented and projected, at the fixed step of opt (its Newton
+  !> tolerances; at least 20 iterations, the simplified iteration with an old matrix
+  !> converging linearly); the multipliers are its own
+  subroutine index3_run(stat_r)
+    integer, intent(out) :: stat_r
+    type(mbdk_index3_options_t) :: i3
+    double precision, allocatable :: a_out(:, :)
+    integer, allocatable :: iters(:)
+    integer :: astat
+    i3%formulation = MBDK_INDEX3_AUGMENTED
+    i3%h = opt%h
+    i3%every = opt%every
+    i3%newton_rtol = opt%newton_rtol
+    i3%newton_atol = opt%newton_atol
+    i3%newton_max_iter = max(opt%newton_max_iter, 20)
+    i3%interrupt = opt%interrupt
+    i3%progress = opt%progress
+    allocate (a_out(model%nvel, nsamp), iters(nsamp), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%nvel + 1, kind(1.0d0)) * nsamp, &
+                           stat_r, st%alloc_bytes)
+    if (stat_r /= MBDK_SUCCESS) return
+    call mbdk_index3_solve(model, i3, t0, t_end, y, t_out, y_out, a_out, lam_out, iters, &
+                           nwritten, st, stat_r)
+    if (nwritten < nsamp) lam_out(:, nwritten + 1:) = nan
+  end subroutine index3_run
 
   subroutine spatial_lambda(ys)
     double precision, intent(in) :: ys(:)
@@ -1089,7 +1117,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1
-  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(9, nf1)
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: rotation, y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)

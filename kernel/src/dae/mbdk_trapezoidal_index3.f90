@@ -1,40 +1,48 @@
-!> trapezoidal_index3: direct integration of the index-3 DAE of a planar scene
+!> trapezoidal_index3: direct integration of the index-3 DAE of a mechanism, planar or spatial
+!> (mbdk_mechanism, whose velocity form is written here: q' = T(q) v, C = dPhi/dq T)
 !>
-!>   M q'' + D(q)^T lambda = f(q, q', t),   Phi(q, t) = 0
+!>   M v' + C(q)^T lambda = f(q, v, t),   Phi(q, t) = 0
 !>
-!> by the implicit trapezoidal rule (Fekete (2023) 3.2.1). With s = h^2/4 and the trapezoidal
-!> relations (3.12)-(3.13),
-!>   v+ = (2/h)(q+ - q) - v,     a+ = (4/h^2)(q+ - q) - (4/h) v - a,
+!> by the implicit trapezoidal rule (Fekete (2023) 3.2.1). The unknown of a step is its
+!> increment dq in the velocities' coordinates, q+ = q (+) dq (the mechanism's retraction:
+!> q + dq for planar bodies, for a spatial body its position moved by dr and its orientation
+!> turned by the body-frame rotation dtheta, R+ = R exp(dtheta); the trapezoidal dtheta =
+!> (h/2)(Omega + Omega+) is the rotation over the step to its O(h^3)). With s = h^2/4 and the
+!> trapezoidal relations (3.12)-(3.13),
+!>   v+ = (2/h) dq - v,     a+ = (4/h^2) dq - (4/h) v - a,
 !> the equations of motion at t+ = t + h, multiplied by s (3.15), read
-!>   r(q+, lambda+) = M (q+ - qhat) + s (D^T lambda+ - f) = 0,   qhat = q + h v + s a.
+!>   r(dq, lambda+) = M (dq - dqhat) + s (C^T lambda+ - f) = 0,   dqhat = h v + s a.
+!> (An increment, not q+ itself, carries the roundoff of the step's motion, not of the
+!> coordinates: eps |q| / h in the velocities from positions far from the origin would not
+!> shrink with h.) For planar bodies this is the book's scheme on q+ = q + dq.
 !>
 !> Formulations (mbdk_index3_options_t%formulation):
-!>   1 index3     the book's scheme: Newton-Raphson (3.16) on (q+, lambda+) for r = 0 and
+!>   1 index3     the book's scheme: Newton-Raphson (3.16) on (dq, lambda+) for r = 0 and
 !>                Phi(q+) = 0, multiplier predictor (3.11) lambda+ = lambda + (h/h-)(lambda -
-!>                lambda-), position predictor q + h v + (h^2/2) a. v+ and a+ follow from the
+!>                lambda-), increment predictor h v + (h^2/2) a. v+ and a+ follow from the
 !>                trapezoidal relations and do not satisfy Phi' = 0, Phi'' = 0: the weakness the
 !>                book names. Worse, the errors of v and a in the constraint directions
 !>                alternate in sign from step to step with a growing amplitude (the trapezoidal
 !>                rule on an index-3 system is unstable there: Cardona and Geradin 1989): on the
-!>                double pendulum, the four-bar and the crane |D a - gamma| grows about 15-fold
+!>                double pendulum, the four-bar and the crane |C a - gamma| grows about 15-fold
 !>                per 1.4 s whatever h, until Newton fails after a few seconds (5.0 s on the
 !>                four-bar, 10.7 s on the double pendulum at h = 1e-3: studies/index3.py).
 !>   2 augmented  the index-3 augmented Lagrangian with projections (ALI3-P: Bayo and Ledesma
 !>                1996; Cuadrado, Cardenal and Bayo 1997; the family the book cites in [6], [20],
-!>                [23]): Newton on q+ alone for
-!>                  M (q+ - qhat) + s (D^T (lam* + alpha Phi) - f) = 0,
+!>                [23]): Newton on dq alone for
+!>                  M (dq - dqhat) + s (C^T (lam* + alpha Phi) - f) = 0,
 !>                with lam* <- lam* + alpha Phi after every iteration, from the predictor
-!>                q + h v + s (a + a_x), a_x = a + (h/h-)(a - a-) (the rule itself with a+
+!>                h v + s (a + a_x), a_x = a + (h/h-)(a - a-) (the rule itself with a+
 !>                extrapolated: O(h^4)) and lam* extrapolated likewise. Then the mass-orthogonal
-!>                projections of v+ onto D v + Phi_t = 0 and of a+ onto D a = gamma (one
-!>                factorisation of [M D^T; D 0], through D M^-1 D^T when M > 0; where D has
+!>                projections of v+ onto C v + Phi_t = 0 and of a+ onto C a = gamma (one
+!>                factorisation of [M C^T; C 0], through C M^-1 C^T when M > 0; where C has
 !>                lost a rank, redundant joints or a singular configuration, the regular
-!>                augmented Lagrangian path of mbdk_constrained, and likewise for the
+!>                augmented Lagrangian path of the mechanism's solve, and likewise for the
 !>                consistent a and lambda at t0), computed so that
-!>                the Newton error of q+ is not amplified: P removes every M^-1 D^T term, so
-!>                  v+ = P (v + (h/2)(a + a~)),  a~ any solution of M a~ = f - D^T (..),
-!>                equals P (2/h (q+ - q) - v) once Newton has converged, without its 2/h times
-!>                the Newton error; and a+, lambda+ solve M a + D^T lambda = f, D a = gamma(q+,
+!>                the Newton error of q+ is not amplified: P removes every M^-1 C^T term, so
+!>                  v+ = P (v + (h/2)(a + a~)),  a~ any solution of M a~ = f - C^T (..),
+!>                equals P ((2/h) dq - v) once Newton has converged, without its 2/h times
+!>                the Newton error; and a+, lambda+ solve M a + C^T lambda = f, C a = gamma(q+,
 !>                v+), the projection of a+ with its multipliers (second order), without the
 !>                4/h^2 times the Newton error of the trapezoidal a+. Taken from the relations,
 !>                a Newton tolerance of 1e-10 capped the error at 1e-5 on the double pendulum
@@ -43,24 +51,30 @@
 !>                constraints the same path gives a+ = M^-1 f.
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
 !>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
-!>                D^T D outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
+!>                C^T C outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
 !>                per multiplier update. A fixed alpha (the literature's 1e7-1e9) converges
 !>                slowly at small h (s alpha ~ M: the step-size controller then stalls) and
 !>                makes the matrix ill-conditioned at large h. newton_max_iter: default 20.
 !>
-!> Newton matrix (analytic; tangent stiffness and damping of the force elements from
-!> mbdk_forces_tangent, geometric stiffness of the joints from mbdk_joints_tangent):
-!>   index3:    [M + s (K_c(lambda) + K_f) + (h/2) C_f, D^T; D, 0] in the unknowns (dq, s dlambda)
-!>   augmented: M + s (K_c(lam*) + K_f + alpha D^T D) + (h/2) C_f. K_c takes lam* without
+!> Newton matrix. Planar scenes (the model's has_i3_matrix: mbdk_index3_matrix) analytic;
+!> tangent stiffness and damping of the force elements from mbdk_forces_tangent, geometric
+!> stiffness of the joints from mbdk_joints_tangent:
+!>   index3:    [M + s (K_c(lambda) + K_f) + (h/2) C_f, C^T; C, 0] in the unknowns (dq, s dlambda)
+!>   augmented: M + s (K_c(lam*) + K_f + alpha C^T C) + (h/2) C_f. K_c takes lam* without
 !>              alpha Phi: that term vanishes at the solution, and far from it (the predictor)
 !>              it inflates the geometric stiffness until Newton's first step overshoots.
 !> The book scales both rows by s (3.15)-(3.16) with lambda itself as unknown: its matrix
-!> [M + .., s D^T; s D, 0] has a condition number growing like h^-4. Scaling the unknown to
+!> [M + .., s C^T; s C, 0] has a condition number growing like h^-4. Scaling the unknown to
 !> s lambda and leaving Phi unscaled gives the same Newton iterates (row and column scalings do
 !> not change Newton's steps) with a condition number bounded as h -> 0 (studies/index3.py
-!> measures both; mbdk_index3_newton_matrix builds all three forms).
+!> measures both; mbdk_index3_newton_matrix builds all three forms). A mechanism without its own
+!> tangents (spatial scenes: the gyroscopic moment, the rotations' retraction and the contacts
+!> make them long to write) gets the residual's Jacobian by forward differences in each
+!> component of dq (build_matrix: one evaluation per column, the multipliers' update
+!> lam* + alpha Phi and the retraction included; the book form's columns of s lambda are C^T),
+!> factorised by LAPACK's LU; it is reused as the analytic one is.
 !>
-!> Newton. Up to MBDK_SMALL_DENSE_MAX rows the matrix is factorised in-house (LAPACK's call
+!> Newton. On planar scenes, up to MBDK_SMALL_DENSE_MAX rows the matrix is factorised in-house (LAPACK's call
 !> overhead dominates such systems; model%small_dense = false, or more rows, take LAPACK's
 !> dgetrf/dgetrs): the augmented form's matrix, when symmetric to roundoff (no dampers: their
 !> tangent stiffness is unsymmetric) and positive definite, by the block LDL^T with the bodies as
@@ -75,15 +89,16 @@
 !> step restarts once from the predictor with a matrix built there (the augmented form's
 !> multiplier update can spoil the iterate beyond repair), and the next 8 steps start with fresh
 !> matrices, twice as many after each such failure until a step is served by an old matrix again
-!> (with alpha D^T D a thousand times M, a matrix from the last step fails once h |omega| is above
+!> (with alpha C^T C a thousand times M, a matrix from the last step fails once h |omega| is above
 !> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
-!> norm (atol + rtol |q|) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
+!> norm (atol + rtol |q|; for a spatial body's rotation, atol + rtol: its coordinates' size is
+!> 1, the mechanism's coord_weights) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
 !> multipliers were frozen at a rank loss: below). That last update is applied. At least two
 !> evaluations per step, so both tests are made on evaluated residuals, never on predicted ones.
 !> After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix:
 !> SINGULAR_MATRIX).
 !>
-!> Singular configurations (augmented form). Where D is close to losing a rank (a four-bar
+!> Singular configurations (augmented form). Where C is close to losing a rank (a four-bar
 !> chain's flat pose, a dead point) a multiplier update reduces Phi along the vanishing direction
 !> by only 1/(1 + alpha s sigma^2 / m) instead of a thousandfold: Newton converges linearly or
 !> not at all, and the trapezoidal step's own multiplier there grows like 1/sigma. Three
@@ -98,19 +113,21 @@
 !>     and also when its update no longer shrinks within NOISE tolerances (the roundoff floor of
 !>     the stiffer matrix). A stall also happens on regular mechanisms now and then (a fresh
 !>     matrix contracting slowly); there the boost alone ends it.
-!>   - the projections take the regular augmented Lagrangian path of mbdk_constrained already
-!>     below a relative pivot of NEAR_PIVOT of D M^-1 D^T, not only where it is singular: exact
-!>     projections amplify the part of gamma (and of D v) that the vanishing direction cannot
+!>   - the projections take the regular augmented Lagrangian path of the mechanism's
+!>     constrained solve (i3_cs_factor: mbdk_constrained for planar scenes, the spatial model's
+!>     dense one) already below a relative pivot of NEAR_PIVOT of C M^-1 C^T, not only where
+!>     it is singular: exact
+!>     projections amplify the part of gamma (and of C v) that the vanishing direction cannot
 !>     meet by up to 1/sigma^2, and the jump in a and v spoils the steps after it.
 !>   - after such a projection the next step's lam* starts from the projection's multipliers,
-!>     not from its own: with D rank-deficient lam* is not unique, and its updates accumulate
-!>     the part of Phi that D cannot remove from step to step without bound.
+!>     not from its own: with C rank-deficient lam* is not unique, and its updates accumulate
+!>     the part of Phi that C cannot remove from step to step without bound.
 !> Where no pose exists (a driver pushing a loop past its dead point) Newton still fails there.
 !> studies/index3.py (table index3_crossings) measures the IFToMM A02 chains of 1 to 40 loops.
 !>
 !> Step size. Fixed: opt%h, samples every opt%every steps (mbdk_step_plan). In the augmented
 !> form a step whose Newton iteration fails (diverges, meets a singular matrix or a non-finite
-!> iterate: typically near a singular configuration, where D loses rank) is retried in
+!> iterate: typically near a singular configuration, where C loses rank) is retried in
 !> substeps, quartered at each failure (stats%newton_failures) and doubled back after each
 !> success, down to h / 4^5; the samples stay on the grid. Only below that is the failure
 !> returned. The book's scheme is not retried: its failures come from the growing oscillation
@@ -126,7 +143,8 @@
 !>     half-steps' error is (y_H/2 - y_H)/3, the controller's err. The step keeps the
 !>     extrapolated (4 y_H/2 - y_H)/3, whose local error is O(H^4): the solution is third
 !>     order (projected, the rule is not symmetric, so no h^4 cancellation beyond). q is
-!>     projected onto Phi = 0 (Gauss-Newton), v onto D v + Phi_t = 0, and a, lambda come from
+!>     extrapolated in its coordinates (a quaternion then normalised) and projected onto
+!>     Phi = 0 (Gauss-Newton), v onto C v + Phi_t = 0, and a, lambda come from
 !>     the constrained solve there, as at the end of every step. The predictors' history is
 !>     the half-step grid. PI control (mbdk_step_controller, ki = 0.7, kp = 0.4). Why: with a
 !>     second order method step-size control cannot pay on motions that are about equally
@@ -137,7 +155,7 @@
 !>     h lambda = z by (4 R(z/2)^2 - R(z))/3, R(z) = (1 + z/2)/(1 - z/2), which tends to 5/3 as
 !>     z -> -inf; a stiff mode's part in the difference of the solutions is twice its amplitude,
 !>     so the error test keeps stiff modes resolved instead (bdf does not need to).
-!>     Next to a rank loss of D (a solve froze its multipliers) the difference of the
+!>     Next to a rank loss of C (a solve froze its multipliers) the difference of the
 !>     solutions measures what the frozen iteration leaves, not the truncation error: there a
 !>     macro step the difference would reject, up to NEAR_FLOOR, is judged by mode 1's
 !>     estimate instead, scaled to H, and if accepted draws on the retry budget below, so that
@@ -165,10 +183,13 @@
 !> that produced it; every update computed, the last, converged one included) and counts
 !> factorizations in the stats.
 !>
-!> Code layout. The Newton matrix and its factorisations are mbdk_index3_matrix; the step-size
-!> controller is mbdk_step_controller_t. Here: the solver's state between steps (mbdk_index3_t),
-!> one step (mbdk_index3_step: from t to a given tn, not retried), a fixed-step advance with the
-!> substep retries (mbdk_index3_advance), and the whole-interval driver with sampling, fixed or
+!> Code layout. What the mechanism gives (its evaluation, the constrained solves, the Newton
+!> matrix where it has tangents) is mbdk_mechanism's i3_ procedures, implemented by
+!> mbdk_model_i3 (planar: mbdk_index3_matrix, mbdk_constrained) and mbdk_spatial_i3; the
+!> step-size controller is mbdk_step_controller_t. Here, once for both: the solver's state
+!> between steps (mbdk_index3_t), one step (mbdk_index3_step: from t to a given tn, not
+!> retried; attempt = predictors, newton, finish_step), a fixed-step advance with the substep
+!> retries (mbdk_index3_advance), and the whole-interval driver with sampling, fixed or
 !> adaptive (mbdk_index3_solve). An embedder steps through mbdk_index3_init and
 !> mbdk_index3_advance (or the C stepper, mbdk_stepper_create_index3).
 module mbdk_trapezoidal_index3
@@ -176,40 +197,38 @@ module mbdk_trapezoidal_index3
   use mbdk_status
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_intptr_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, MBDK_SOLVER_KKT, mbdk_model_sparse, &
-    mbdk_model_watch_start, mbdk_model_watch
-  use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
-    mbdk_constrained_factor, mbdk_constrained_solve
-  use mbdk_joints, only: mbdk_joints_eval, mbdk_body_rotations, MBDK_JOINT_TYPES
-  use mbdk_force_elements, only: mbdk_forces_eval
-  use mbdk_sparse_schur, only: mbdk_sparse_d_times, mbdk_sparse_w_residual
-  use mbdk_index3_matrix, only: mbdk_index3_factors_t, mbdk_index3_factors_init, &
-    mbdk_index3_factor, mbdk_index3_factors_solve, mbdk_index3_newton_matrix, &
-    MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t
+  use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_step_controller, only: mbdk_step_controller_t, mbdk_controller_init, &
     mbdk_controller_next_step, mbdk_controller_accept, mbdk_controller_reject, &
     mbdk_controller_newton_failure, mbdk_controller_too_small
   use mbdk_fixed_step, only: mbdk_step_plan
   implicit none
   private
-  public :: mbdk_index3_solve, mbdk_index3_newton_matrix, mbdk_index3_plan, mbdk_index3_init, &
-    mbdk_index3_step, mbdk_index3_advance
-  public :: MBDK_INDEX3_UNSCALED, MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED
+  public :: mbdk_index3_solve, mbdk_index3_plan, mbdk_index3_init, mbdk_index3_step, &
+    mbdk_index3_advance
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
   !> opt%adaptive: 1 the local error estimate from differences, 2 local Richardson extrapolation
   integer, parameter, public :: MBDK_INDEX3_ESTIMATED = 1, MBDK_INDEX3_EXTRAPOLATED = 2
   !> alpha = 0 (the default): alpha = KAPPA max(M) / s at every step, so that the penalty term
-  !> s alpha D^T D outweighs the mass matrix by KAPPA whatever h (see the module header).
+  !> s alpha C^T C outweighs the mass matrix by KAPPA whatever h (see the module header).
   real(dp), parameter, public :: MBDK_INDEX3_KAPPA = 1.0e3_dp
   !> fixed step: a step whose Newton iteration fails is retried in substeps down to h / 4^this
   integer, parameter, public :: MBDK_INDEX3_MAX_CUTS = 5
   !> Newton: a matrix is rebuilt when the contraction rate exceeds this
   real(dp), parameter :: REBUILD_RATE = 0.5_dp
-  !> augmented form, near a rank loss of D (see "Singular configurations" in the header): an
+  !> augmented form: the update's target, a share of the step's local error estimate (below)
+  real(dp), parameter :: LOCAL_SHARE = 1.0e-2_dp
+  !> and not below this share of the options' tolerance (a state at rest has no local error)
+  real(dp), parameter :: TAU_MIN = 1.0e-3_dp
+  !> an old matrix's stall within STALL_ACCEPT times the last roundoff stall is accepted; that
+  !> level decays by NOISE_DECAY per step
+  real(dp), parameter :: STALL_ACCEPT = 2.0_dp, NOISE_DECAY = 0.9_dp
+  !> augmented form, near a rank loss of C (see "Singular configurations" in the header): an
   !> iteration whose progress, computed with a matrix built at the iterate before, falls by less
   !> than STALL_RATE has stalled; the first stall multiplies alpha by BOOST, the second freezes
   !> lam*; a frozen step converges with max |Phi| up to FROZEN_PHI times its tolerance, and on
@@ -217,7 +236,7 @@ module mbdk_trapezoidal_index3
   !> matrix)
   real(dp), parameter :: STALL_RATE = 0.25_dp, BOOST = 1.0e3_dp, NOISE = 1.0e2_dp, &
     FROZEN_PHI = 1.0e3_dp
-  !> the projections take the regular path below this relative pivot of D M^-1 D^T
+  !> the projections take the regular path below this relative pivot of C M^-1 C^T
   real(dp), parameter :: NEAR_PIVOT = 1.0e-6_dp
   !> after a failed reuse, this many steps start with fresh matrices (doubled after each further
   !> failure, up to COOL_MAX)
@@ -227,7 +246,7 @@ module mbdk_trapezoidal_index3
   !> adaptive, extrapolated: Gauss-Newton iterations of the projection of the extrapolated q
   !> (it starts within the square of the step's error of Phi = 0: one or two suffice)
   integer, parameter :: PROJECT_MAX_ITER = 10
-  !> adaptive, extrapolated: next to a rank loss of D, an error norm of the macro step up to
+  !> adaptive, extrapolated: next to a rank loss of C, an error norm of the macro step up to
   !> this is taken for the noise of the frozen Newton iteration (extrapolated_attempt): above
   !> the noise the A02 chains' crossings leave, below the disagreement of steps that run into
   !> a dead point (studies/index3.py, table index3_crossings; tests/test_hard_cases.py)
@@ -266,34 +285,46 @@ module mbdk_trapezoidal_index3
 
   !> The solver's state between steps: the accepted state (t, q, v, a, lam) with the history
   !> the predictors and the error estimate use, the Newton matrix and its reuse policy, the work
-  !> arrays of a step (allocated once) and the statistics.
+  !> arrays of a step (allocated once), the mechanism's part (aux) and the statistics. Sizes:
+  !> q of ncq coordinates, v, a and the increments of nv velocities, m multipliers, nk Newton
+  !> unknowns.
   type, public :: mbdk_index3_t
     type(mbdk_index3_options_t) :: opt
-    integer :: nc = 0, m = 0, nk = 0
+    integer :: ncq = 0, nv = 0, m = 0, nk = 0
     logical :: book = .true.
+    !> T = I: q (+) dq = q + dq, weights |q| (the mechanism's identity_kinematics)
+    logical :: identity = .false.
+    !> the Newton matrix by differences here (the mechanism has no tangents of its own)
+    logical :: fd_matrix = .false.
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
-    real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp
+    real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
+    !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
+    real(dp) :: tau = 1.0_dp
+    !> the update's norm where a matrix built in its step last stalled (roundoff), decaying
+    real(dp) :: noise = 0.0_dp
     !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
     logical :: lu_boosted = .false.
     !> the projection of the accepted state (regular) and of the attempted one (regular_n) took
-    !> the regular path: D is (nearly) rank-deficient there
+    !> the regular path: C is (nearly) rank-deficient there
     logical :: regular = .false., regular_n = .false.
     logical :: have_lu = .false.
     !> the last attempted step's Newton iteration froze lam* (after two stalls: next to a rank
-    !> loss of D, where a multiplier no longer reaches the vanishing direction)
+    !> loss of C, where a multiplier no longer reaches the vanishing direction)
     logical :: stalled = .false.
     integer :: cool = 0, cool_len = COOL_START
     integer :: iters = 0                !< Newton iterations of the last attempted step
     real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
     type(mbdk_stats_t) :: st
-    type(mbdk_index3_factors_t) :: fa
-    real(dp), allocatable :: q(:), v(:), a(:), lam(:), lam_old(:), a_prev(:), a_prev2(:)
-    real(dp), allocatable :: qn(:), vn(:), an(:), ln(:), lst(:), lstn(:), lst_old(:)
-    real(dp), allocatable :: qhat(:), qp(:), lp(:), lt(:), fq(:), phi(:), d(:, :), gam(:)
-    real(dp), allocatable :: phit(:), lw(:), rc(:), corr(:), mu(:), r(:)
-    real(dp), allocatable :: zero_nc(:), zero_m(:), one_nc(:)
-    !> the projections of v and a (mbdk_constrained, weight M^-1)
-    type(mbdk_constrained_t) :: cs
+    class(mbdk_i3_aux_t), allocatable :: aux
+    real(dp), allocatable :: q(:), qn(:), qs(:)
+    real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), vn(:), an(:), dq(:), dqhat(:), &
+      dqp(:), dd(:), f(:), corr(:), w(:), zero_nv(:)
+    real(dp), allocatable :: lam(:), lam_old(:), ln(:), lst(:), lstn(:), lst_old(:), lp(:), &
+      lt(:), phi(:), gam(:), phit(:), rc(:), mu(:), zero_m(:)
+    real(dp), allocatable :: r(:), y(:)
+    !> fd_matrix: the matrix and its LU, and the evaluation it was built around
+    real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
+    integer, allocatable :: ipiv(:)
   end type mbdk_index3_t
 
   !> adaptive = MBDK_INDEX3_EXTRAPOLATED: the accepted state a macro step starts from (restored
@@ -310,31 +341,24 @@ module mbdk_trapezoidal_index3
 contains
 
   !> A solver at (t0, y0 = [q; v]) with options opt: validates them, allocates the work arrays
-  !> and computes the consistent a and lambda at t0 (the reduced formulation's solve).
-  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme), or the
-  !> failure of that first solve (MBDK_ERR_SINGULAR_MATRIX with dependent constraints).
-  subroutine mbdk_index3_init(s, model, opt, t0, y0, stat)
+  !> and the mechanism's part, and computes the consistent a and lambda at t0 (the constrained
+  !> solve there; where C has lost a rank, the augmented form's regular path).
+  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme, or a
+  !> mechanism that cannot take the scheme), or the failure of that first solve
+  !> (MBDK_ERR_SINGULAR_MATRIX with dependent constraints in the book's scheme).
+  subroutine mbdk_index3_init(s, mech, opt, t0, y0, stat)
     type(mbdk_index3_t), intent(out) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, y0(:)
     integer, intent(out) :: stat
-    integer :: nc, m, nk, astat
 
     stat = MBDK_ERR_INVALID_INPUT
-    nc = model%nc
-    m = model%m
     if (opt%formulation /= MBDK_INDEX3_BOOK .and. opt%formulation /= MBDK_INDEX3_AUGMENTED) return
     if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. &
         opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
-    ! the Newton matrix has no tangent of contacts and friction, and the state no effects; a
-    ! knife edge has no position row to solve for (its velocity row would be left unkept)
-    if (model%has_contacts .or. model%has_pfaffian) then
-      stat = MBDK_ERR_NOT_APPLICABLE
-      return
-    end if
-    if (size(y0) /= 2 * nc) return
+    if (size(y0) /= mech%ncoord + mech%nvel .or. mech%ns > 0) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (opt%adaptive < 0 .or. opt%adaptive > MBDK_INDEX3_EXTRAPOLATED) return
     if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
@@ -342,64 +366,24 @@ contains
       return
     end if
     s%opt = opt
-    s%nc = nc
-    s%m = m
     s%book = opt%formulation == MBDK_INDEX3_BOOK
-    nk = nc
-    if (s%book) nk = nc + m
-    s%nk = nk
-    call mbdk_constrained_init(s%cs, nc, m, model%m_positive, &
-                               model%solver == MBDK_SOLVER_KKT, model%small_dense, model%sp, &
-                               mbdk_model_sparse(model), stat, s%st%alloc_bytes)
+    call mech%i3_create(s%aux, s%book, stat, s%st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_index3_factors_init(s%fa, model, nk, stat, s%st%alloc_bytes)
+    call allocate_state(s, mech, stat)
     if (stat /= MBDK_SUCCESS) return
-    allocate (s%q(nc), s%v(nc), s%a(nc), s%lam(m), s%lam_old(m), s%a_prev(nc), s%a_prev2(nc), &
-              s%qn(nc), s%vn(nc), s%an(nc), s%ln(m), s%lst(m), s%lstn(m), s%lst_old(m), &
-              s%qhat(nc), s%qp(nc), s%lp(m), s%lt(m), s%fq(nc), s%phi(m), s%gam(m), &
-              s%phit(m), s%lw(m), s%rc(m), s%corr(nc), s%mu(m), s%r(nk), s%zero_nc(nc), &
-              s%zero_m(m), s%one_nc(nc), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (14.0_dp * nc + 15.0_dp * m + nk), stat, &
-                           s%st%alloc_bytes)
-    if (stat /= MBDK_SUCCESS) return
-    ! the dense D serves the book scheme's matrix only
-    if (s%book) then
-      allocate (s%d(m, nc), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(m, dp) * nc, stat, s%st%alloc_bytes)
-    else
-      allocate (s%d(0, 0), stat=astat)
-      call mbdk_alloc_status(astat, 0.0_dp, stat, s%st%alloc_bytes)
-    end if
-    if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INVALID_INPUT
-    s%zero_nc = 0.0_dp
-    s%zero_m = 0.0_dp
-    s%one_nc = 1.0_dp
-    s%q = y0(1:nc)
-    s%v = y0(nc + 1:)
+    s%q = y0(1:s%ncq)
+    s%v = y0(s%ncq + 1:)
     s%t = t0
     s%st%t_reached = t0
-    ! consistent a and lambda at t0: the reduced formulation's solve; where D has lost a rank
-    ! (redundant joints, or a start at a singular configuration) the augmented form takes the
-    ! regular path of its projections instead (lambda is then one of many)
-    call mbdk_model_accelerations(model, s%t, s%q, s%v, s%a, s%lam, stat)
-    if (stat == MBDK_ERR_SINGULAR_MATRIX .and. .not. s%book) then
-      s%qn = s%q
-      s%vn = s%v
-      s%tn = s%t
-      call constraints_at(s, model)
-      s%fq = 0.0_dp
-      call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%q, s%v, s%t, &
-                            s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), stat)
-      if (stat /= MBDK_SUCCESS) return
-      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
-                                   model%mass, stat, regular=.true.)
-      if (stat /= MBDK_SUCCESS) return
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
-                                  s%gam, s%a, s%lam, stat)
-    end if
+    ! consistent a and lambda at t0: the constrained solve; where C has lost a rank (redundant
+    ! joints, or a start at a singular configuration) the augmented form takes the regular
+    ! path of its projections instead (lambda is then one of many)
+    call mech%i3_evaluate(s%aux, s%t, s%q, s%v, s%f, s%phi, s%gam, s%phit, .true., .false., stat)
     if (stat /= MBDK_SUCCESS) return
-    s%regular = s%cs%regular
+    call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%a, s%lam, stat)
+    if (stat /= MBDK_SUCCESS) return
     s%lam_old = s%lam
     s%lst = s%lam
     s%lstn = s%lam
@@ -407,23 +391,69 @@ contains
     s%a_prev = s%a
     s%a_prev2 = s%a
     s%st%nfev = 1
-    call mbdk_model_watch_start(model, s%t, s%q, s%v, stat, velocity=.not. s%book)
+    s%y(1:s%ncq) = s%q
+    s%y(s%ncq + 1:) = s%v
+    call mech%watch_begin(s%t, s%y, .not. s%book, stat)
   end subroutine mbdk_index3_init
+
+  !> The work arrays of a solve (and, for a mechanism without its own Newton matrix, the
+  !> differences' matrix), sized from the mechanism; the mass scale of the default alpha.
+  subroutine allocate_state(s, mech, stat)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: stat
+    integer :: ncq, nv, m, nk, astat
+    ncq = mech%ncoord
+    nv = mech%nvel
+    m = mech%m
+    nk = nv
+    if (s%book) nk = nv + m
+    s%ncq = ncq
+    s%nv = nv
+    s%m = m
+    s%nk = nk
+    s%identity = mech%identity_kinematics
+    s%fd_matrix = .not. mech%has_i3_matrix
+    allocate (s%q(ncq), s%qn(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
+              s%vn(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%f(nv), &
+              s%corr(nv), s%w(nv), s%zero_nv(nv), s%lam(m), s%lam_old(m), s%ln(m), s%lst(m), &
+              s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%phi(m), s%gam(m), s%phit(m), &
+              s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 14.0_dp * nv + 14.0_dp * m + &
+                           nk), stat, s%st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
+    if (s%fd_matrix) then
+      allocate (s%jm(nk, nk), s%ipiv(nk), s%r0(nk), s%f0(nv), s%phi0(m), s%gam0(m), &
+                s%phit0(m), s%col(nk), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nk, dp) * (nk + 2) + nv + 3.0_dp * m) &
+                             + MBDK_INT_BYTES * nk, stat, s%st%alloc_bytes)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    s%zero_nv = 0.0_dp
+    s%zero_m = 0.0_dp
+    s%phi = 0.0_dp
+    s%gam = 0.0_dp
+    s%phit = 0.0_dp
+    s%f = 0.0_dp
+    call mech%mass_diagonal(s%f)
+    s%mmax = maxval(s%f)
+    s%f = 0.0_dp
+  end subroutine allocate_state
 
   !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
   subroutine commit(s)
     type(mbdk_index3_t), intent(inout) :: s
-    s%a_prev2 = s%a_prev
+    s%a_prev2(:) = s%a_prev
     s%h_prev2 = s%h_prev
-    s%a_prev = s%a
+    s%a_prev(:) = s%a
     s%h_prev = s%h
-    s%lam_old = s%lam
-    s%lst_old = s%lst
-    s%q = s%qn
-    s%v = s%vn
-    s%a = s%an
-    s%lam = s%ln
-    s%lst = s%lstn
+    s%lam_old(:) = s%lam
+    s%lst_old(:) = s%lst
+    s%q(:) = s%qn
+    s%v(:) = s%vn
+    s%a(:) = s%an
+    s%lam(:) = s%ln
+    s%lst(:) = s%lstn
     s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
@@ -442,19 +472,19 @@ contains
 
   !> One step from s%t to tn, accepted on success; on failure the state stays at s%t.
   !> No retries (mbdk_index3_advance retries in substeps).
-  subroutine mbdk_index3_step(s, model, tn, stat)
+  subroutine mbdk_index3_step(s, mech, tn, stat)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: tn
     integer, intent(out) :: stat
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. (tn > s%t .and. tn - s%t <= huge(1.0_dp))) return
     s%tn = tn
     s%h = tn - s%t
-    call attempt(s, model, stat)
+    call attempt(s, mech, stat)
     if (stat == MBDK_SUCCESS) then
       call commit(s)
-      call watch_step(s, model, .false., stat)
+      call watch_step(s, mech, .false., stat)
     end if
   end subroutine mbdk_index3_step
 
@@ -462,12 +492,12 @@ contains
   !> singular matrix, non-finite iterate) in the augmented form, in substeps: each failure
   !> quarters the substep (stats%newton_failures), each success doubles it back up to the
   !> full step. Below h / 4^MBDK_INDEX3_MAX_CUTS the failure is returned.
-  subroutine mbdk_index3_advance(s, model, t_s, ierr, sample_at_end)
+  subroutine mbdk_index3_advance(s, mech, t_s, ierr, sample_at_end)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: t_s
     integer, intent(out) :: ierr
-    !> the state at t_s will be sampled: the watch checks it (mbdk_model_watch)
+    !> the state at t_s will be sampled: the watch checks it
     logical, intent(in), optional :: sample_at_end
     real(dp) :: h_full, h_sub
     logical :: sample
@@ -480,7 +510,7 @@ contains
       s%tn = s%t + h_sub
       if (t_s - s%tn <= 1.0e-9_dp * h_full) s%tn = t_s
       s%h = s%tn - s%t
-      call attempt(s, model, ierr)
+      call attempt(s, mech, ierr)
       if (newton_failed(ierr)) then
         if (s%book) return
         s%st%newton_failures = s%st%newton_failures + 1
@@ -491,26 +521,34 @@ contains
       end if
       if (ierr /= MBDK_SUCCESS) return
       call commit(s)
-      call watch_step(s, model, sample .and. s%t == t_s, ierr)
+      call watch_step(s, mech, sample .and. s%t == t_s, ierr)
       if (ierr /= MBDK_SUCCESS) return
       h_sub = min(2.0_dp * h_sub, h_full)
     end do
   end subroutine mbdk_index3_advance
 
-  !> The model's watch after an accepted step: with the projected form's multipliers (exact at
-  !> the state) for the drivers' power; the book scheme's are not accurate enough (they grow as
-  !> h shrinks), so the watch solves for them.
-  subroutine watch_step(s, model, force, stat)
-    type(mbdk_index3_t), intent(in) :: s
-    type(mbdk_model_t), intent(in) :: model
+  !> The mechanism's watch after an accepted step: with the projected form's multipliers
+  !> (exact at the state) for the drivers' power; the book scheme's are not accurate enough
+  !> (they grow as h shrinks), so the watch solves for them.
+  subroutine watch_step(s, mech, force, stat)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
     logical, intent(in) :: force
     integer, intent(out) :: stat
+    s%y(1:s%ncq) = s%q
+    s%y(s%ncq + 1:) = s%v
     if (s%book) then
-      call mbdk_model_watch(model, s%t, s%q, s%v, force, stat, solve_lam=.true.)
+      call mech%watch_solve(s%t, s%y, force, stat)
     else
-      call mbdk_model_watch(model, s%t, s%q, s%v, force, stat, lam=s%lam)
+      call mech%watch_lam(s%t, s%y, force, s%lam, stat)
     end if
   end subroutine watch_step
+
+  logical function watch_status(ierr)
+    integer, intent(in) :: ierr
+    watch_status = ierr == MBDK_ERR_CONSTRAINT_DRIFT .or. ierr == MBDK_ERR_ENERGY_DRIFT .or. &
+      ierr == MBDK_ERR_INVARIANT_DRIFT
+  end function watch_status
 
   logical function newton_failed(ierr)
     integer, intent(in) :: ierr
@@ -518,14 +556,15 @@ contains
       ierr == MBDK_ERR_SINGULAR_MATRIX
   end function newton_failed
 
-  !> Integrates the scene from (q, v) = y0 over [t0, t_end]: with the fixed step opt%h, or, when
-  !> opt%adaptive, with the step-size controller from the initial step opt%h and samples every
-  !> opt%dt_out. Samples: t_out, y_out (= [q; v]), a_out, lam_out, iters_out (Newton iterations
-  !> of the step that produced the sample). nwritten samples are valid; on failure the samples
-  !> before it are kept, and the last one is the state the failed step started from.
-  subroutine mbdk_index3_solve(model, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out, &
+  !> Integrates the mechanism from (q, v) = y0 over [t0, t_end]: with the fixed step opt%h, or,
+  !> when opt%adaptive, with the step-size controller from the initial step opt%h and samples
+  !> every opt%dt_out. Samples: t_out, y_out (= [q; v]), a_out, lam_out, iters_out (Newton
+  !> iterations of the step that produced the sample). nwritten samples are valid; on failure
+  !> the samples before it are kept, and the last one is the state the failed step started
+  !> from.
+  subroutine mbdk_index3_solve(mech, opt, t0, t_end, y0, t_out, y_out, a_out, lam_out, &
                                iters_out, nwritten, st, stat)
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end, y0(:)
     real(dp), intent(out) :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
@@ -533,7 +572,7 @@ contains
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
     integer(i8) :: nsteps, i
-    integer :: nsamp, plan_stat
+    integer :: nsamp, plan_stat, wstat
     logical :: shortened, sample
     real(dp) :: t_s
     type(mbdk_timer_t) :: timer
@@ -549,7 +588,7 @@ contains
       return
     end if
     call mbdk_timer_start(timer)
-    call mbdk_index3_init(s, model, opt, t0, y0, stat)
+    call mbdk_index3_init(s, mech, opt, t0, y0, stat)
     if (stat /= MBDK_SUCCESS) then
       st = s%st
       return
@@ -567,7 +606,7 @@ contains
         end if
         if (opt%progress /= 0) call mbdk_progress(opt%progress, t_s)
         sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
-        call mbdk_index3_advance(s, model, t_s, stat, sample)
+        call mbdk_index3_advance(s, mech, t_s, stat, sample)
         if (stat /= MBDK_SUCCESS) exit
         if (sample) call write_sample()
       end do
@@ -576,9 +615,17 @@ contains
     ! on failure the last sample is the state the failed step started from (where it stopped);
     ! a state the watch refused is not a sample (the last sample passed its checks; adaptive,
     ! extrapolated: the start of the refused macro step, written by adaptive_loop)
-    if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. &
-        stat /= MBDK_ERR_CONSTRAINT_DRIFT .and. stat /= MBDK_ERR_ENERGY_DRIFT) then
-      if (s%t > t_out(nwritten)) call write_sample()
+    if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. .not. watch_status(stat)) then
+      if (s%t > t_out(nwritten)) then
+        ! the watch checks every few steps: the state where it stopped is checked before it
+        ! becomes a sample (a step that blew up just before a failed one is named as such)
+        call watch_step(s, mech, .true., wstat)
+        if (watch_status(wstat)) then
+          stat = wstat
+        else
+          call write_sample()
+        end if
+      end if
     end if
     st = s%st
     call mbdk_timer_stop(timer, st)
@@ -600,9 +647,9 @@ contains
       integer, intent(in) :: iters
       nwritten = nwritten + 1
       t_out(nwritten) = t
-      y_out(1:s%nc, nwritten) = q
-      y_out(s%nc + 1:2 * s%nc, nwritten) = v
-      a_out(1:s%nc, nwritten) = a
+      y_out(1:s%ncq, nwritten) = q
+      y_out(s%ncq + 1:s%ncq + s%nv, nwritten) = v
+      a_out(1:s%nv, nwritten) = a
       if (s%m > 0) lam_out(1:s%m, nwritten) = lam
       iters_out(nwritten) = iters
     end subroutine write_row
@@ -623,7 +670,7 @@ contains
         ctl%kp = 0.4_dp
       end if
       if (extrapolated) then
-        call snapshot_init(x0, s%nc, s%m, ierr, s%st%alloc_bytes)
+        call snapshot_init(x0, s%ncq, s%nv, s%m, ierr, s%st%alloc_bytes)
         if (ierr /= MBDK_SUCCESS) return
       end if
       ierr = MBDK_SUCCESS
@@ -642,11 +689,11 @@ contains
           ! half-steps leave their own h in s%h for the predictors' history)
           h_ctl = s%h
           if (extrapolated) then
-            call extrapolated_attempt(s, model, x0, err, ierr)
+            call extrapolated_attempt(s, mech, x0, err, ierr)
           else
             call hold_matrix(s)
-            call attempt(s, model, ierr)
-            if (ierr == MBDK_SUCCESS) err = error_estimate(s)
+            call attempt(s, mech, ierr)
+            if (ierr == MBDK_SUCCESS) err = error_estimate(s, mech)
           end if
           ! (an extrapolated step judged next to a rank loss exhausted the budget)
           if (ierr == MBDK_ERR_NEWTON_DIVERGED .and. s%retries < 0.0_dp) return
@@ -667,7 +714,7 @@ contains
               ! cheap beside it), so that the macro step's start passed when it refuses the
               ! end; the samples then end there, where the run stopped (next to a dead point
               ! the last sample on the dt_out grid can be far from it)
-              call watch_step(s, model, extrapolated .or. s%t >= t_s, ierr)
+              call watch_step(s, mech, extrapolated .or. s%t >= t_s, ierr)
               if (ierr /= MBDK_SUCCESS) then
                 if (extrapolated .and. nwritten < size(t_out) .and. x0%t > t_out(nwritten)) &
                   call write_state(x0)
@@ -690,15 +737,16 @@ contains
 
   end subroutine mbdk_index3_solve
 
-  subroutine snapshot_init(x, nc, m, stat, asked)
+  subroutine snapshot_init(x, ncq, nv, m, stat, asked)
     type(mbdk_index3_snapshot_t), intent(out) :: x
-    integer, intent(in) :: nc, m
+    integer, intent(in) :: ncq, nv, m
     integer, intent(out) :: stat
     real(dp), intent(inout) :: asked
     integer :: astat
-    allocate (x%q(nc), x%v(nc), x%a(nc), x%lam(m), x%lst(m), x%lam_old(m), x%lst_old(m), &
-              x%a_prev(nc), x%a_prev2(nc), x%qf(nc), x%vf(nc), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (7.0_dp * nc + 4.0_dp * m), stat, asked)
+    allocate (x%q(ncq), x%v(nv), x%a(nv), x%lam(m), x%lst(m), x%lam_old(m), x%lst_old(m), &
+              x%a_prev(nv), x%a_prev2(nv), x%qf(ncq), x%vf(nv), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * ncq + 5.0_dp * nv + 4.0_dp * m), &
+                           stat, asked)
   end subroutine snapshot_init
 
   !> The accepted state and everything commit moves into x (save) or back from x (restore).
@@ -752,16 +800,15 @@ contains
   !> committed already, so that the history the predictors use is the half-step grid), and err
   !> is the error norm of the half-step solution. When the step is rejected (err > 1) or a solve
   !> fails, the state is restored to s%t.
-  subroutine extrapolated_attempt(s, model, x, err, ierr)
+  subroutine extrapolated_attempt(s, mech, x, err, ierr)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     type(mbdk_index3_snapshot_t), intent(inout) :: x
     real(dp), intent(out) :: err
     integer, intent(out) :: ierr
-    real(dp) :: t_end, wq, wv, sum2
-    integer :: k, nc, iters
+    real(dp) :: t_end
+    integer :: iters
     logical :: near
-    nc = s%nc
     err = huge(1.0_dp)
     t_end = s%tn
     call snapshot(s, x, .true.)
@@ -770,7 +817,7 @@ contains
     ! h |omega| is above the 1e-3 where a matrix from the step before fails (module header)
     s%h = t_end - s%t
     call hold_matrix(s)
-    call attempt(s, model, ierr)
+    call attempt(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
     x%qf = s%qn
     x%vf = s%vn
@@ -780,7 +827,7 @@ contains
     s%tn = s%t + 0.5_dp * (t_end - s%t)
     s%h = s%tn - s%t
     call hold_matrix(s)
-    call attempt(s, model, ierr)
+    call attempt(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
     near = near .or. s%stalled
     iters = iters + s%iters
@@ -791,7 +838,7 @@ contains
     s%tn = t_end
     s%h = t_end - s%t
     call hold_matrix(s)
-    call attempt(s, model, ierr)
+    call attempt(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) then
       call snapshot(s, x, .false.)
       return
@@ -799,16 +846,9 @@ contains
     s%iters = iters + s%iters
     ! the half-steps' error is (y_half - y_full) / 3 (local error C h^3: C H^3 / 4 against
     ! C H^3), measured as error_estimate's, on q and v
-    sum2 = 0.0_dp
-    do k = 1, nc
-      wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%qn(k)))
-      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%vn(k)))
-      sum2 = sum2 + ((s%qn(k) - x%qf(k)) / (3.0_dp * wq))**2 + &
-        ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
-    end do
-    err = sqrt(sum2 / real(2 * nc, dp))
+    err = half_step_error(s, x)
     if (err > 1.0_dp .and. err <= NEAR_FLOOR .and. (near .or. s%stalled)) then
-      ! next to a rank loss of D (a solve froze its multipliers) the three solutions differ by
+      ! next to a rank loss of C (a solve froze its multipliers) the three solutions differ by
       ! the |Phi| up to FROZEN_PHI tolerances that frozen Newton steps leave along the
       ! vanishing direction, whatever H: there the difference is no estimate of the truncation
       ! error, up to NEAR_FLOOR (beyond it the solutions disagree by more than such a floor:
@@ -816,7 +856,7 @@ contains
       ! the estimate from differences (error_estimate) of the second, scaled by 2^3 to a step
       ! of H (the controller's step): what the estimated mode would ask of a step of H, for a
       ! solution whose error is a quarter of that step's.
-      err = 8.0_dp * error_estimate(s)
+      err = 8.0_dp * error_estimate(s, mech)
       if (.not. err <= 1.0_dp) then
         call snapshot(s, x, .false.)
         return
@@ -837,11 +877,35 @@ contains
       call snapshot(s, x, .false.)
       return
     end if
+    ! (extrapolated coordinates leave a quaternion's unit norm: normalised before the
+    ! projection)
     s%qn = s%qn + (s%qn - x%qf) / 3.0_dp
     s%vn = s%vn + (s%vn - x%vf) / 3.0_dp
-    call consistent_end(s, model, ierr)
+    if (.not. s%identity) call mech%normalise(s%qn)
+    call consistent_end(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) call snapshot(s, x, .false.)
   end subroutine extrapolated_attempt
+
+  !> The weighted RMS over the coordinates and velocities of (y_half - y_full) / 3 (module
+  !> header), with the half-steps' solution in (qn, vn) and the full step's in x.
+  real(dp) function half_step_error(s, x) result(err)
+    type(mbdk_index3_t), intent(in) :: s
+    type(mbdk_index3_snapshot_t), intent(in) :: x
+    real(dp) :: wq, wv, sum2
+    integer :: k
+    sum2 = 0.0_dp
+    do k = 1, max(s%ncq, s%nv)
+      if (k <= s%ncq) then
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%qn(k)))
+        sum2 = sum2 + ((s%qn(k) - x%qf(k)) / (3.0_dp * wq))**2
+      end if
+      if (k <= s%nv) then
+        wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%vn(k)))
+        sum2 = sum2 + ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
+      end if
+    end do
+    err = sqrt(sum2 / real(s%ncq + s%nv, dp))
+  end function half_step_error
 
   !> Keeps the current matrix for a step s%h within KEEP_MATRIX of the one it was built for
   !> (modified Newton absorbs the difference).
@@ -850,71 +914,85 @@ contains
     if (s%have_lu .and. abs(s%h - s%h_lu) <= KEEP_MATRIX * s%h_lu) s%h_lu = s%h
   end subroutine hold_matrix
 
-  !> (qn, vn) onto Phi = 0 (Gauss-Newton, as the projection formulation's) and D v + Phi_t = 0,
-  !> both mass-orthogonal, then an, ln from M a + D^T lambda = f, D a = gamma there: the solves
-  !> of a step's end (attempt), on its regular path where D is (nearly) rank-deficient.
-  subroutine consistent_end(s, model, ierr)
+  !> (qn, vn) onto Phi = 0 (Gauss-Newton on the least mass-weighted change, as the projection
+  !> formulation's) and C v + Phi_t = 0, then an, ln from M a + C^T lambda = f, C a = gamma
+  !> there: the solves of a step's end (finish_step), on the regular path where C is (nearly)
+  !> rank-deficient.
+  subroutine consistent_end(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     integer :: it
     real(dp) :: phi_tol
     phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
     do it = 0, PROJECT_MAX_ITER
-      call constraints_at(s, model)
-      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
-                                   model%mass, ierr, regular=.true., near=NEAR_PIVOT)
+      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
+                            .false., ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
       if (ierr /= MBDK_SUCCESS) return
       if (s%m == 0) exit
       if (maxval(abs(s%phi)) <= phi_tol) exit
-      ! at a rank loss the part of Phi that D cannot reach stays, as in a frozen Newton step
-      if (s%cs%regular .and. it > 0 .and. maxval(abs(s%phi)) <= FROZEN_PHI * phi_tol) exit
+      ! at a rank loss the part of Phi that C cannot reach stays, as in a frozen Newton step
+      if (s%regular_n .and. it > 0 .and. maxval(abs(s%phi)) <= FROZEN_PHI * phi_tol) exit
       if (it == PROJECT_MAX_ITER) then
         ierr = MBDK_ERR_NEWTON_DIVERGED
         return
       end if
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
-                                  s%zero_nc, s%phi, s%corr, s%mu, ierr)
+      call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%qn = s%qn - s%corr
+      call move_by(s, mech, s%qn, -s%corr, ierr)
+      if (ierr /= MBDK_SUCCESS) return
     end do
-    s%regular_n = s%cs%regular
     if (s%m > 0) then
-      call mbdk_sparse_d_times(model%sp, model%work%dz, s%vn, s%rc, .false.)
+      call mech%i3_c_times(s%aux, s%vn, s%rc)
       s%rc = s%rc + s%phit
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
-                                  s%zero_nc, s%rc, s%corr, s%mu, ierr)
+      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
       s%vn = s%vn - s%corr
-      call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, s%qn, s%vn, &
-                            s%tn, s%phi, model%work%dz, s%gam, s%phit, &
-                            model%work%visits(1:MBDK_JOINT_TYPES))
     end if
-    s%fq = 0.0_dp
-    call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%qn, s%vn, &
-                          s%tn, s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .true., &
+                          ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%st%nfev = s%st%nfev + 1
-    call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
-                                s%gam, s%an, s%ln, ierr)
+    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
     if (ierr /= MBDK_SUCCESS) return
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine consistent_end
 
+  !> q moved in place by the increment dq (the mechanism's retraction; q + dq where T = I).
+  subroutine move_by(s, mech, q, dq, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(inout) :: q(:)
+    real(dp), intent(in) :: dq(:)
+    integer, intent(out) :: ierr
+    ierr = MBDK_SUCCESS
+    if (s%identity) then
+      q = q + dq
+    else
+      s%qs = q
+      call mech%retract(s%qs, dq, q, ierr)
+    end if
+  end subroutine move_by
+
   !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
-  !> rule, -h^3/12 q(3) and -h^3/12 q(4). The derivatives are divided differences of the step
-  !> mean accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
+  !> rule, -h^3/12 q(3) and -h^3/12 q(4) (in the velocities' coordinates: a spatial body's
+  !> rotation in radians). The derivatives are divided differences of the step mean
+  !> accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
   !> period-2 oscillation of the book scheme's accelerations, which would otherwise dominate.
   !> The first two steps have no q(4) from history: it is taken as q(3) / (h + h_prev)
   !> (large, so those steps are judged conservatively).
-  real(dp) function error_estimate(s)
-    type(mbdk_index3_t), intent(in) :: s
+  real(dp) function error_estimate(s, mech)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
     real(dp) :: eq, ev, wq, wv, d1, d0, sum2, b2, b1, b0, h
     integer :: k
     h = s%h
     sum2 = 0.0_dp
-    do k = 1, s%nc
+    if (.not. s%identity) call mech%coord_weights(s%qn, s%w)
+    do k = 1, s%nv
       b2 = 0.5_dp * (s%a(k) + s%an(k))
       if (s%h_prev > 0.0_dp) then
         b1 = 0.5_dp * (s%a_prev(k) + s%a(k))
@@ -931,11 +1009,15 @@ contains
       else
         ev = h**3 / 12.0_dp * d1 / (h + s%h_prev)
       end if
-      wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%qn(k)))
+      if (s%identity) then
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%qn(k)))
+      else
+        wq = s%opt%err_atol + s%opt%err_rtol * s%w(k)
+      end if
       wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%vn(k)))
       sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
     end do
-    error_estimate = sqrt(sum2 / real(2 * s%nc, dp))
+    error_estimate = sqrt(sum2 / real(2 * s%nv, dp))
   end function error_estimate
 
   logical function finite_all(x)
@@ -943,65 +1025,98 @@ contains
     finite_all = all(abs(x) <= huge(1.0_dp))
   end function finite_all
 
-  !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed.
-  !> Newton as in the module header; both formulations share this loop.
-  subroutine attempt(s, model, ierr)
+  !> One step from (t, q, v, a, lam) to tn = t + h into (qn, vn, an, ln), not committed:
+  !> the predictors (here), Newton on the increment (newton), and the step's end (finish_step).
+  subroutine attempt(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    real(dp) :: sh, h
+
+    h = s%h
+    sh = 0.25_dp * h * h
+    s%dqhat(:) = h * s%v + sh * s%a
+    if (s%book .or. s%h_prev <= 0.0_dp) then
+      s%dqp(:) = h * s%v + 0.5_dp * h * h * s%a
+      s%lp(:) = s%lst
+    else
+      ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
+      s%dqp(:) = s%dqhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
+      s%lp(:) = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
+      ! where the accepted state's projection found C (nearly) rank-deficient, lam* is (nearly)
+      ! not unique: its updates add the part of Phi that C cannot remove, which carried from
+      ! step to step grows without bound. There the projection's multipliers (bounded) start it.
+      if (s%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
+    end if
+    if (s%book) s%lp = s%lam
+    if (s%book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
+    ! a new h takes a new matrix; h = tn - t jitters by the rounding of t (ulp(t) / h: 2e-9 at
+    ! t = 10 s, h = 1e-6), which does not make one
+    if (s%have_lu .and. (abs(h - s%h_lu) > sqrt(epsilon(1.0_dp)) * h .or. s%cool > 0 .or. &
+                         s%lu_boosted)) s%have_lu = .false.
+    if (.not. s%identity .or. s%fd_matrix) call mech%coord_weights(s%q, s%w)
+    ! the augmented form's target for Newton's update: LOCAL_SHARE times the step's local error,
+    ! estimated by what the third-order predictor adds to the second-order one, s (h/h-)
+    ! (a - a-) ~ h^3 q'''/4 (three times the trapezoidal rule's h^3 q'''/12), in the weights
+    ! of the update's test. With the options' tolerance alone, what Newton leaves per step
+    ! adds up over the 1/h steps and stops the second order as h shrinks (the heavy top's
+    ! velocity error fell 6-fold, not 100-fold, from h = 1e-4 to 1e-5); the share keeps it a
+    ! hundredth of the truncation error. The first step has no estimate: the options' alone.
+    s%tau = 1.0_dp
+    s%noise = NOISE_DECAY * s%noise
+    if (.not. s%book .and. s%h_prev > 0.0_dp) then
+      if (s%identity) then
+        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(sh * (h / s%h_prev) * (s%a - s%a_prev)) / &
+                                                  (s%opt%newton_atol + s%opt%newton_rtol * abs(s%q))))
+      else
+        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(sh * (h / s%h_prev) * (s%a - s%a_prev)) / &
+                                                  (s%opt%newton_atol + s%opt%newton_rtol * s%w)))
+      end if
+    end if
+    call newton(s, mech, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    call finish_step(s, mech, ierr)
+  end subroutine attempt
+
+  !> Newton on the step's increment dq (qn = q (+) dq) as in the module header; both
+  !> formulations share this loop. On success dq and qn are the step's end, vn its trapezoidal
+  !> velocity, f the forces of the last evaluation and ln (book) or lstn (augmented) its
+  !> multipliers.
+  subroutine newton(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old, alpha0
-    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted
-    integer :: k, kk, nc, m, stalls
+    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted, own, stall_own
+    integer :: k, nv, m, stalls
 
-    nc = s%nc
+    nv = s%nv
     m = s%m
     h = s%h
     book = s%book
     sh = 0.25_dp * h * h
     alpha0 = s%opt%alpha
-    if (alpha0 == 0.0_dp) alpha0 = MBDK_INDEX3_KAPPA * maxval(model%mass) / sh
+    if (alpha0 == 0.0_dp) alpha0 = MBDK_INDEX3_KAPPA * s%mmax / sh
     s%alpha = alpha0
-    s%qhat = s%q + h * s%v + sh * s%a
-    if (book .or. s%h_prev <= 0.0_dp) then
-      s%qp = s%q + h * s%v + 0.5_dp * h * h * s%a
-      s%lp = s%lst
-    else
-      ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
-      s%qp = s%qhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
-      s%lp = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
-      ! where the accepted state's projection found D (nearly) rank-deficient, lam* is (nearly)
-      ! not unique: its updates add the part of Phi that D cannot remove, which carried from
-      ! step to step grows without bound. There the projection's multipliers (bounded) start it.
-      if (s%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
-    end if
-    if (book) s%lp = s%lam
-    if (book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
-    if (s%have_lu .and. (abs(h - s%h_lu) > 1.0e-12_dp * h .or. s%cool > 0 .or. &
-                         s%lu_boosted)) s%have_lu = .false.
     reused = s%have_lu
-    s%qn = s%qp
-    s%ln = s%lp
+    s%dq(:) = s%dqp
+    s%ln(:) = s%lp
     restarted = .false.
     fresh = .false.
+    own = .false.
     dnorm_old = huge(1.0_dp)
     s%iters = 0
     k = 0
-    s%phi = 0.0_dp
+    s%phi(:) = 0.0_dp
     frozen = .false.
     boosted = .false.
     stalls = 0
     upd_fresh = .false.
     prog_old = huge(1.0_dp)
     do
-      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
-      ! (leaves work%rot and work%dz at qn, for the forces and the matrix)
-      call constraints_at(s, model)
-      s%fq = 0.0_dp
-      call mbdk_forces_eval(model%fint, model%freal, model%mass, model%work%rot, s%qn, s%vn, &
-                            s%tn, s%fq, model%work%visits(MBDK_JOINT_TYPES + 1:), ierr)
+      call evaluate_at(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%st%nfev = s%st%nfev + 1
-      s%lt = s%ln
+      s%lt(:) = s%ln
       phin = 0.0_dp
       if (m > 0) phin = maxval(abs(s%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
@@ -1027,17 +1142,11 @@ contains
       end if
       if (.not. book) then
         if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
-        s%lt = s%ln + s%alpha * s%phi
+        s%lt(:) = s%ln + s%alpha * s%phi
       end if
-      ! corr = f - D^T lt over the nonzeros of D
-      call mbdk_sparse_w_residual(model%sp, model%work%dz, s%one_nc, s%lt, s%corr, nc, s%fq)
-      do kk = 1, nc
-        s%r(kk) = model%mass(kk) * (s%qn(kk) - s%qhat(kk)) - sh * s%corr(kk)
-      end do
-      if (book) s%r(nc + 1:) = s%phi
+      call residual(s, mech, sh)
       if (.not. s%have_lu) then
-        call mbdk_index3_factor(s%fa, model, book, s%tn, s%qn, s%vn, s%ln, h, s%alpha, s%d, &
-                                s%lw, ierr)
+        call build_matrix(s, mech, ierr)
         s%st%nlu = s%st%nlu + 1
         s%st%njev = s%st%njev + 1
         if (ierr /= MBDK_SUCCESS) return
@@ -1045,10 +1154,15 @@ contains
         s%h_lu = h
         s%lu_boosted = boosted
         fresh = .true.
+        own = .true.
         reused = .false.
       end if
-      s%r = -s%r
-      call mbdk_index3_factors_solve(s%fa, s%r, ierr)
+      s%r(:) = -s%r
+      if (s%fd_matrix) then
+        call mbdk_lu_solve(s%jm, s%ipiv, s%r, ierr)
+      else
+        call mech%i3_matrix_solve(s%aux, s%r, ierr)
+      end if
       if (ierr /= MBDK_SUCCESS) return
       if (.not. finite_all(s%r)) then
         ierr = MBDK_ERR_NONFINITE
@@ -1057,7 +1171,11 @@ contains
       s%iters = s%iters + 1
       k = k + 1
       s%st%newton_iterations = s%st%newton_iterations + 1
-      dnorm = maxval(abs(s%r(1:nc)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
+      if (s%identity) then
+        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
+      else
+        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
+      end if
       ! progress: the distance from convergence, in tolerances of the update and of Phi. A
       ! stall counts only after an update from a matrix built at its iterate (an old matrix
       ! contracts slowly for reasons of its own).
@@ -1069,10 +1187,12 @@ contains
       ! up to FROZEN_PHI times its tolerance; or the update is at the roundoff floor of the
       ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
-      ! it); f keeps this evaluation, the step's end evaluates D at the final q+.
+      ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
+      stall_own = .false.
       if (converged()) then
-        s%qn = s%qn + s%r(1:nc)
-        if (book) s%ln = s%ln + s%r(nc + 1:) / sh
+        if (stall_own) s%noise = dnorm
+        s%dq(:) = s%dq + s%r(1:nv)
+        if (book) s%ln = s%ln + s%r(nv + 1:) / sh
         exit
       end if
       if (s%iters >= s%opt%newton_max_iter) then
@@ -1093,8 +1213,8 @@ contains
           s%cool = s%cool_len
           s%cool_len = min(2 * s%cool_len, COOL_MAX)
           reused = .false.
-          s%qn = s%qp
-          s%ln = s%lp
+          s%dq(:) = s%dqp
+          s%ln(:) = s%lp
           k = 0
           frozen = .false.
           boosted = .false.
@@ -1105,10 +1225,10 @@ contains
         upd_fresh = .false.
         cycle
       end if
-      s%qn = s%qn + s%r(1:nc)
-      if (book) s%ln = s%ln + s%r(nc + 1:) / sh
+      s%dq(:) = s%dq + s%r(1:nv)
+      if (book) s%ln = s%ln + s%r(nv + 1:) / sh
       ! rebuild the matrix when two more iterations at this rate would not reach the
-      ! tolerance (an iteration costs about as much as a factorisation)
+      ! options' tolerance (an iteration costs about as much as a factorisation)
       if (rate > REBUILD_RATE .or. dnorm * rate * rate > 1.0_dp) s%have_lu = .false.
       upd_fresh = fresh
       fresh = .false.
@@ -1117,73 +1237,224 @@ contains
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
     s%stalled = frozen
-    if (book) then
-      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
-      s%an = (4.0_dp / (h * h)) * (s%qn - s%q) - (4.0_dp / h) * s%v - s%a
-    else
-      s%lstn = s%ln
-      s%vn = (2.0_dp / h) * (s%qn - s%q) - s%v
-      call constraints_at(s, model)
-      ! at a rank loss of D (a singular crossing, redundant joints) the projections take the
-      ! regular augmented Lagrangian path of mbdk_constrained instead of failing
-      call mbdk_constrained_factor(s%cs, model%sp, model%work%dz, model%col, model%blk, &
-                                   model%mass, ierr, regular=.true., near=NEAR_PIVOT)
-      if (ierr /= MBDK_SUCCESS) return
-      s%regular_n = s%cs%regular
-      ! v+ = P (v + (h/2)(a + a~)), P the projection onto D v + Phi_t = 0 and a~ any
-      ! solution of M a~ = f - D^T (anything): P removes M^-1 D^T terms, so this is P v+ of
-      ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),
-      ! without the Newton error that v+ = (2/h)(q+ - q) - v would carry amplified by 2/h.
-      ! Then a+ and lambda+ from M a + D^T lambda = f, D a = gamma(q+, v+): the projection
-      ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
-      ! error (4/h^2) that a+ = (4/h^2)(q+ - q) - .. would carry.
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
-                                  s%zero_m, s%an, s%ln, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      s%vn = s%v + (0.5_dp * h) * (s%a + s%an)
-      ! vn onto D v + Phi_t = 0 (mass-orthogonal)
-      call mbdk_sparse_d_times(model%sp, model%work%dz, s%vn, s%rc, .false.)
-      s%rc = s%rc + s%phit
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, &
-                                  s%zero_nc, s%rc, s%corr, s%mu, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-      s%vn = s%vn - s%corr
-      ! q+ is unchanged: work%rot still holds its sin/cos and D, Phi are the same; only gamma
-      ! changes with v+
-      if (m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, &
-                                       s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
-                                       model%work%visits(1:MBDK_JOINT_TYPES))
-      call mbdk_constrained_solve(s%cs, model%sp, model%work%dz, model%blk, model%winv, s%fq, &
-                                  s%gam, s%an, s%ln, ierr)
-      if (ierr /= MBDK_SUCCESS) return
-    end if
-    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
-      ierr = MBDK_ERR_NONFINITE
+    call move_to(s, mech, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    s%vn(:) = (2.0_dp / h) * s%dq - s%v
+    if (.not. book) s%lstn = s%ln
 
   contains
 
     logical function converged()
+      real(dp) :: left, qsize
       converged = .false.
       if (k < 2) return
       if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
         converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
       else if (m == 0 .or. phin <= phi_tol) then
         converged = dnorm <= 1.0_dp
+        if (.not. converged .or. s%tau >= 1.0_dp) return
+        ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
+        ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
+        ! (the update itself where no rate is known); or an update from a matrix built in this
+        ! step that no longer halves (the roundoff of the increment: an old matrix contracting
+        ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
+        ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
+        ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
+        ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
+        ! of their size: what Phi's roundoff moves them by, which no matrix removes)
+        if (s%identity) then
+          qsize = max(1.0_dp, maxval(abs(s%qn)))
+        else
+          qsize = max(1.0_dp, maxval(s%w))
+        end if
+        left = dnorm
+        if (dnorm_old < huge(1.0_dp)) then
+          left = huge(1.0_dp)
+          if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
+        end if
+        stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
+        converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
+                    (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
+                    s%iters >= s%opt%newton_max_iter .or. &
+                    maxval(abs(s%r(1:nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
       end if
     end function converged
 
-  end subroutine attempt
+  end subroutine newton
 
-  !> Rotations and constraints at (tn, qn, vn): model%work%rot, phi, D's compact rows
-  !> model%work%dz, gam, phit (the dense d only where it is needed: scattered by the caller).
-  subroutine constraints_at(s, model)
+  !> qn = q (+) dq
+  subroutine move_to(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
-    type(mbdk_model_t), intent(in) :: model
-    call mbdk_body_rotations(s%qn, model%work%rot)
-    if (s%m > 0) call mbdk_joints_eval(model%jint, model%jreal, model%row0, model%work%rot, &
-                                       s%qn, s%vn, s%tn, s%phi, model%work%dz, s%gam, s%phit, &
-                                       model%work%visits(1:MBDK_JOINT_TYPES))
-  end subroutine constraints_at
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    ierr = MBDK_SUCCESS
+    if (s%identity) then
+      s%qn(:) = s%q + s%dq
+    else
+      call mech%retract(s%q, s%dq, s%qn, ierr)
+    end if
+  end subroutine move_to
+
+  !> The evaluation at the iterate dq: qn = q (+) dq, vn = (2/h) dq - v, and f, Phi, gamma,
+  !> Phi_t there (C kept by the mechanism).
+  subroutine evaluate_at(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    call move_to(s, mech, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    s%vn(:) = (2.0_dp / s%h) * s%dq - s%v
+    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
+                          ierr)
+    s%st%nfev = s%st%nfev + 1
+  end subroutine evaluate_at
+
+  !> r = M (dq - dqhat) - s (f - C^T lt) at the last evaluation (the equations of motion at
+  !> t+ times s, (3.15)), and the book scheme's Phi rows.
+  subroutine residual(s, mech, sh)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: sh
+    s%dd(:) = s%dq - s%dqhat
+    call mech%i3_residual(s%aux, s%f, s%lt, sh, s%dd, s%r(1:s%nv))
+    if (s%book) s%r(s%nv + 1:) = s%phi
+  end subroutine residual
+
+  !> The Newton matrix at the current iterate: the mechanism's own (has_i3_matrix) or, for a
+  !> mechanism without tangents, forward differences of the residual in each component of dq
+  !> (the multipliers' update lt = ln + alpha Phi and the retraction included, so that the
+  !> matrix is the residual's Jacobian; one evaluation per column, counted in nfev), the book
+  !> scheme's columns of s lambda being C^T; factorised by LAPACK's LU. The evaluation and the
+  !> residual at the iterate are restored after.
+  subroutine build_matrix(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    real(dp) :: sh, dlt, keep, wmax
+    integer :: j, nv, m
+    if (.not. s%fd_matrix) then
+      call mech%i3_matrix(s%aux, s%book, s%tn, s%qn, s%vn, s%ln, s%h, s%alpha, ierr)
+      return
+    end if
+    nv = s%nv
+    m = s%m
+    sh = 0.25_dp * s%h * s%h
+    s%r0 = s%r
+    s%f0 = s%f
+    s%phi0 = s%phi
+    s%gam0 = s%gam
+    s%phit0 = s%phit
+    s%jm = 0.0_dp
+    wmax = max(1.0_dp, maxval(s%w))
+    do j = 1, nv
+      keep = s%dq(j)
+      ! the increment: sqrt(eps) of the coordinates' size (wmax, the largest of the
+      ! mechanism's coordinate sizes: q+ resolves eps of it, and Phi(q+) and r with it; an
+      ! increment scaled to the component's own motion or size, h v + s a or |q_j|, fell
+      ! below that for a coordinate at rest, at 0 or at small h, and left its column to
+      ! roundoff: singular matrices on the flyball governor and on the spatial double
+      ! pendulum at h = 1e-5), or of the increment itself where larger
+      dlt = sqrt(epsilon(1.0_dp)) * max(abs(keep), s%h * abs(s%v(j)) + sh * abs(s%a(j)), wmax)
+      s%dq(j) = keep + dlt
+      dlt = s%dq(j) - keep
+      call evaluate_at(s, mech, ierr)
+      if (ierr /= MBDK_SUCCESS) then
+        s%dq(j) = keep
+        return
+      end if
+      if (s%book) then
+        s%lt = s%ln
+      else
+        s%lt = s%ln + s%alpha * s%phi
+      end if
+      call residual(s, mech, sh)
+      s%dq(j) = keep
+      s%jm(:, j) = (s%r - s%r0) / dlt
+    end do
+    ! back to the iterate (its C for the multipliers' columns and the solves after)
+    call evaluate_at(s, mech, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    s%f = s%f0
+    s%phi = s%phi0
+    s%gam = s%gam0
+    s%phit = s%phit0
+    s%r = s%r0
+    if (s%book) then
+      s%lt = s%ln
+      do j = 1, m
+        s%col(1:m) = 0.0_dp
+        s%col(j) = 1.0_dp
+        call mech%i3_ct_times(s%aux, s%col(1:m), s%jm(1:nv, nv + j))
+      end do
+    else
+      s%lt = s%ln + s%alpha * s%phi
+    end if
+    call mbdk_lu_factor(s%jm, s%ipiv, ierr)
+    if (ierr /= MBDK_SUCCESS) ierr = MBDK_ERR_SINGULAR_MATRIX
+  end subroutine build_matrix
+
+  !> The end of a converged step: the book scheme's v+ and a+ from the trapezoidal relations;
+  !> the augmented form's projections (module header).
+  subroutine finish_step(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    real(dp) :: h
+    h = s%h
+    ierr = MBDK_SUCCESS
+    if (s%book) then
+      s%an(:) = (4.0_dp / (h * h)) * s%dq - (4.0_dp / h) * s%v - s%a
+    else
+      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
+                            .false., ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      ! at a rank loss of C (a singular crossing, redundant joints) the projections take the
+      ! regular augmented Lagrangian path instead of failing
+      call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      if (mech%velocity_forces .and. s%m > 0) then
+        ! forces that depend on v (dampers, the gyroscopic moment) taken at P vn, not at the
+        ! trapezoidal vn = (2/h) dq - v: Newton's last update, at the roundoff of Phi (about
+        ! eps |q| across the joints), is in vn 2/h times larger, and f(vn) would carry it into
+        ! a~ and v+ at every step (on the heavy top at h = 1e-6 it capped the velocity error
+        ! at 2e-8, against the truncation error's 4e-11)
+        call mech%i3_c_times(s%aux, s%vn, s%rc)
+        s%rc(:) = s%rc + s%phit
+        call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+        if (ierr /= MBDK_SUCCESS) return
+        s%vn(:) = s%vn - s%corr
+        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., &
+                              .true., ierr)
+        if (ierr /= MBDK_SUCCESS) return
+      end if
+      ! v+ = P (v + (h/2)(a + a~)), P the projection onto C v + Phi_t = 0 and a~ any
+      ! solution of M a~ = f - C^T (anything): P removes M^-1 C^T terms, so this is P v+ of
+      ! the trapezoidal rule (a+ differs from a~ by such a term once Newton has converged),
+      ! without the Newton error that v+ = (2/h) dq - v would carry amplified by 2/h.
+      ! Then a+ and lambda+ from M a + C^T lambda = f, C a = gamma(q+, v+): the projection
+      ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
+      ! error (4/h^2) that a+ = (4/h^2) dq - .. would carry.
+      call mech%i3_cs_solve(s%aux, s%f, s%zero_m, s%an, s%ln, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      s%vn(:) = s%v + (0.5_dp * h) * (s%a + s%an)
+      ! vn onto C v + Phi_t = 0 (mass-orthogonal)
+      call mech%i3_c_times(s%aux, s%vn, s%rc)
+      s%rc(:) = s%rc + s%phit
+      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      s%vn(:) = s%vn - s%corr
+      ! q+ is unchanged: C, Phi are the same; only gamma changes with v+
+      if (s%m > 0) then
+        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
+                              .true., ierr)
+        if (ierr /= MBDK_SUCCESS) return
+      end if
+      call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+    end if
+    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+      ierr = MBDK_ERR_NONFINITE
+  end subroutine finish_step
 
   !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
   !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).

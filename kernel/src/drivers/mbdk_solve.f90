@@ -7,8 +7,8 @@
 !> For an error-controlled method this routine checks the options and atol, writes the sample
 !> times into t_out and the first sample, starts a watching problem's watch at t0, and times the
 !> solve (the thread's CPU time and the wall time in st); the method writes samples 2, 3, ...
-!> mbdk_solve_scene_dae does the same for ida and for bdf on a scene's DAE itself (ida is a
-!> method of the scene model only, not of y' = F(t, y): mbdk_solve_ode refuses it,
+!> mbdk_solve_dae does the same for ida and for bdf on a mechanism's DAE itself (ida is a
+!> method of a mechanism only, not of y' = F(t, y): mbdk_solve_ode refuses it,
 !> MBDK_ERR_NOT_APPLICABLE).
 module mbdk_solve
   use mbdk_kinds, only: dp, i8
@@ -25,19 +25,16 @@ module mbdk_solve
   use mbdk_embedded_rk, only: mbdk_embedded_rk_solve
   use mbdk_variable_bdf, only: mbdk_variable_bdf_solve
   use mbdk_cvode, only: mbdk_cvode_solve
-  use mbdk_model, only: mbdk_model_t, mbdk_model_accelerations, mbdk_model_constraints, &
-    MBDK_FORM_REDUCED
-  use mbdk_ida, only: mbdk_ida_solve, mbdk_ida_solve_spatial
-  use mbdk_scene_dae, only: mbdk_scene_dae_t, mbdk_scene_dae_init, MBDK_DAE_I3
-  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_multipliers, &
-    mbdk_spatial_constraints, MBDK_SPATIAL_REDUCED
-  use mbdk_spatial_dae, only: mbdk_spatial_dae_t, mbdk_spatial_dae_init
+  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED
+  use mbdk_ida, only: mbdk_ida_solve
+  use mbdk_mechanism_dae, only: mbdk_mechanism_dae_t, mbdk_mechanism_dae_init, MBDK_DAE_I3, &
+    MBDK_DAE_SI2
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
-  public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_scene_dae, mbdk_solve_spatial_dae
+  public :: mbdk_solve_ode, mbdk_sample_plan, mbdk_solve_dae
 
-  !> bdf on a scene's DAE: |Phi(q0)| and |D v0 + Phi_t| (per unit of |v0|) a consistent start
+  !> bdf on a mechanism's DAE: |Phi(q0)| and |C v0 + Phi_t| (per unit of |v0|) a consistent start
   !> keeps; the assembly of mbdk_model_start reaches 1e-12
   real(dp), parameter :: CONSISTENT_PHI = 1.0e-10_dp
 
@@ -91,7 +88,7 @@ contains
 
     call mbdk_method_info(opt%method, name, family, order)
     nwritten = 0
-    stat = MBDK_ERR_NOT_APPLICABLE   ! ida integrates a scene's DAE: mbdk_solve_scene_dae
+    stat = MBDK_ERR_NOT_APPLICABLE   ! ida integrates a mechanism's DAE: mbdk_solve_dae
     if (family == MBDK_FAMILY_IDA) return
     stat = MBDK_ERR_INVALID_INPUT    ! a one-order method has no max_order to cap
     if (opt%max_order > max_order_of(family, order)) return
@@ -121,14 +118,17 @@ contains
     call mbdk_timer_stop(timer, st)
   end subroutine mbdk_solve_ode
 
-  !> A scene's DAE itself (mbdk_scene_dae, mbdk_ida): ida in form 1 (index 1) or 2 (GGL), or
-  !> bdf in form 1 (index 3, as GSTIFF I3) or 2 (stabilised index 2, as SI2). y0 = [q0; v0]
-  !> consistent (assembled); samples [q; v] in y_out and the multipliers in lam_out (m rows;
-  !> the columns it has). The model must be built with the reduced formulation, whose solve
-  !> gives the consistent initial accelerations and multipliers.
-  subroutine mbdk_solve_scene_dae(model, opt, form, t0, t_end, y0, t_out, y_out, lam_out, &
-                                  nwritten, st, stat)
-    type(mbdk_model_t), intent(in), target :: model
+  !> A mechanism's DAE itself (mbdk_mechanism_dae, mbdk_ida): ida in form 1 (index 1) or 2
+  !> (GGL), or bdf in form 1 (index 3, as GSTIFF I3) or 2 (stabilised index 2, as SI2).
+  !> y0 = [q0; v0] consistent (assembled); samples [q; v] in y_out and the multipliers in
+  !> lam_out (m rows, zero on the rows a redundant scene leaves out; the columns it has). The
+  !> mechanism must be built with the reduced formulation, whose solve gives the consistent
+  !> initial accelerations and multipliers. bdf: a start off the joints (|Phi| or
+  !> |C v + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL; ida checks its own
+  !> form's residual (mbdk_ida: index1 not Phi).
+  subroutine mbdk_solve_dae(mech, opt, form, t0, t_end, y0, t_out, y_out, lam_out, nwritten, &
+                            st, stat)
+    class(mbdk_mechanism_t), intent(in), target :: mech
     type(mbdk_options_t), intent(in) :: opt
     integer, intent(in) :: form
     real(dp), intent(in) :: t0, t_end, y0(:)
@@ -146,13 +146,13 @@ contains
     stat = MBDK_ERR_NOT_APPLICABLE
     if (family /= MBDK_FAMILY_IDA .and. family /= MBDK_FAMILY_VARIABLE_BDF) return
     stat = MBDK_ERR_INVALID_INPUT
-    if (form /= 1 .and. form /= 2) return
+    if (form /= MBDK_DAE_I3 .and. form /= MBDK_DAE_SI2) return
     if (opt%max_order > max_order_of(family, order)) return
-    call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
+    call prologue(mech, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
     if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
     if (family == MBDK_FAMILY_IDA) then
-      call mbdk_ida_solve(model, opt, form == 2, t0, y0, t_out(1:nsamp), y_out, lam_out, &
-                          nwritten, st, stat)
+      call mbdk_ida_solve(mech, opt, form == MBDK_DAE_SI2, t0, y0, t_out(1:nsamp), y_out, &
+                          lam_out, nwritten, st, stat)
     else
       call bdf_on_dae(stat)
     end if
@@ -160,157 +160,64 @@ contains
 
   contains
 
-    !> bdf on E Y' = G(t, Y) of mbdk_scene_dae, from the consistent Y(0) and Y'(0) of the
+    !> bdf on E Y' = G(t, Y) of mbdk_mechanism_dae, from the consistent Y(0) and Y'(0) of the
     !> reduced solve; [q; v] and the multipliers copied out of the DAE's samples.
     subroutine bdf_on_dae(s)
       integer, intent(out) :: s
-      type(mbdk_scene_dae_t) :: dae
-      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), a0(:), lam0(:), ypd_check(:)
-      real(dp), allocatable :: phi0(:), d0(:, :), gam0(:), phit0(:)
-      integer :: nc, m, k, astat
-      nc = model%nc
-      m = model%m
-      if (model%formulation /= MBDK_FORM_REDUCED) then
+      type(mbdk_mechanism_dae_t) :: dae
+      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), lam0(:), f0(:), phi0(:), &
+        c0(:, :), gam0(:), phit0(:)
+      integer :: nq, nv, ny, m, na, k, astat
+      nq = mech%ncoord
+      nv = mech%nvel
+      ny = nq + nv
+      m = mech%m
+      if (mech%formulation /= MBDK_FORM_REDUCED) then
         s = MBDK_ERR_NOT_APPLICABLE
         return
       end if
-      call mbdk_scene_dae_init(dae, model, form, mass, s, st%alloc_bytes)
+      allocate (lam0(m), f0(nv), phi0(m), c0(m, nv), gam0(m), phit0(m), ypd(ny), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (nv + 4) + nv + ny), s, &
+                             st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), a0(nc), lam0(m), ypd_check(dae%n), &
-                phi0(m), d0(m, nc), gam0(m), phit0(m), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(dae%n, dp) * (nsamp + 3) + &
-                             real(m, dp) * (nc + 4) + nc), s, st%alloc_bytes)
-      if (s /= MBDK_SUCCESS) return
-      call mbdk_model_accelerations(model, t0, y0(1:nc), y0(nc + 1:), a0, lam0, s)
-      if (s /= MBDK_SUCCESS) return
-      yd = 0.0_dp
-      yd(1:2 * nc) = y0
-      yd(2 * nc + 1:2 * nc + m) = lam0
-      ypd = 0.0_dp
-      ypd(1:nc) = y0(nc + 1:)
-      ypd(nc + 1:2 * nc) = a0
-      ys(:, 1) = yd
       ! a start off the constraints would be projected by the first Newton iteration into a
       ! correction no error test accepts: refused, as ida refuses it
       if (m > 0) then
-        s = MBDK_ERR_INCONSISTENT_INITIAL
-        call dae%rhs(t0, yd, ypd_check, s)
+        call mech%evaluate(t0, y0(1:nq), y0(nq + 1:ny), f0, phi0, c0, gam0, phit0, s)
         if (s /= MBDK_SUCCESS) return
         s = MBDK_ERR_INCONSISTENT_INITIAL
-        if (maxval(abs(ypd_check(2 * nc + 1:2 * nc + m))) > CONSISTENT_PHI) return
-        call mbdk_model_constraints(model, t0, y0(1:nc), y0(nc + 1:), phi0, d0, gam0, phit0)
-        if (maxval(abs(matmul(d0, y0(nc + 1:)) + phit0)) > CONSISTENT_PHI * &
-            max(1.0_dp, maxval(abs(y0(nc + 1:))))) return
+        if (mech%has_pfaffian) phi0 = merge(0.0_dp, phi0, mech%pfaffian)
+        if (maxval(abs(phi0)) > CONSISTENT_PHI) return
+        if (maxval(abs(matmul(c0, y0(nq + 1:ny)) + phit0)) > CONSISTENT_PHI * &
+            max(1.0_dp, maxval(abs(y0(nq + 1:ny))))) return
       end if
-      ! the index-3 form's velocities are index-2 variables: after a rejection their
-      ! correction grows like 1/h (the rescaled history misses the constraint by
-      ! O(h_old^(q+1))), so i3 tests the positions and h times the velocities' error (the
-      ! index-2 practice); si2, whose velocities are constrained themselves, tests both
-      if (form == MBDK_DAE_I3) then
-        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
-                                     st, s, mass=mass, yp0=ypd, ntest=nc, nindex2=nc)
-      else
-        call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
-                                     st, s, mass=mass, yp0=ypd, ntest=2 * nc)
-      end if
-      do k = 1, nwritten
-        y_out(:, k) = ys(1:2 * nc, k)
-        if (k <= size(lam_out, 2) .and. size(lam_out, 1) >= m) &
-          lam_out(1:m, k) = ys(2 * nc + 1:2 * nc + m, k)
-      end do
-    end subroutine bdf_on_dae
-
-  end subroutine mbdk_solve_scene_dae
-
-  !> bdf on a spatial scene's DAE (mbdk_spatial_dae: form 1 the index-3 form as GSTIFF I3, 2
-  !> the stabilised index-2 form as SI2), or ida in form 1
-  !> (index 1) or 2 (GGL: mbdk_ida_solve_spatial), from y0 = [q0; w0]
-  !> on the joints: Y(0) = [q0; w0; lam0] and Y'(0) = [q'; w'; 0] from the model's reduced
-  !> solve (its formulation must be reduced). y_out gets [q; w] at the samples, lam_out(1:m, k)
-  !> the multipliers (zero on the rows a redundant scene leaves out). bdf: a start off the
-  !> joints (|Phi| or |C w + Phi_t| above CONSISTENT_PHI) is MBDK_ERR_INCONSISTENT_INITIAL; ida
-  !> checks its own form's residual (mbdk_ida_solve_spatial: index1 not Phi).
-  subroutine mbdk_solve_spatial_dae(model, opt, form, t0, t_end, y0, t_out, y_out, lam_out, &
-                                    nwritten, st, stat)
-    type(mbdk_spatial_model_t), intent(in), target :: model
-    type(mbdk_options_t), intent(in) :: opt
-    integer, intent(in) :: form
-    real(dp), intent(in) :: t0, t_end, y0(:)
-    real(dp), intent(out) :: t_out(:), y_out(:, :)
-    real(dp), intent(inout) :: lam_out(:, :)
-    integer, intent(out) :: nwritten
-    type(mbdk_stats_t), intent(out) :: st
-    integer, intent(out) :: stat
-    character(len=MBDK_METHOD_NAME_LEN) :: name
-    integer :: family, order, nsamp, ny, m, nq, k
-    real(dp) :: no_atol(0)
-    real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), lam0(:), f0(:), phi(:), c(:, :), &
-      gam(:), phit(:)
-    type(mbdk_timer_t) :: timer
-    type(mbdk_spatial_dae_t) :: dae
-    nwritten = 0
-    call mbdk_method_info(opt%method, name, family, order)
-    stat = MBDK_ERR_NOT_APPLICABLE
-    if ((family /= MBDK_FAMILY_VARIABLE_BDF .and. family /= MBDK_FAMILY_IDA) .or. &
-        model%opt%formulation /= MBDK_SPATIAL_REDUCED) return
-    stat = MBDK_ERR_INVALID_INPUT
-    if (opt%max_order > max_order_of(family, order)) return
-    if (form /= 1 .and. form /= 2) return
-    ny = size(y0)
-    m = model%m
-    nq = ny - 6 * model%nb
-    call prologue(model, opt, t0, t_end, y0, no_atol, t_out, y_out, nwritten, nsamp, timer, stat)
-    if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
-    if (family == MBDK_FAMILY_IDA) then
-      call mbdk_ida_solve_spatial(model, opt, form == 2, t0, y0, t_out(1:nsamp), y_out, &
-                                  lam_out, nwritten, st, stat)
-    else
-      call solve(stat)
-    end if
-    call mbdk_timer_stop(timer, st)
-
-  contains
-
-    !> the DAE from the consistent start, and its samples copied out
-    subroutine solve(s)
-      integer, intent(out) :: s
-      integer :: astat
-      allocate (lam0(m), f0(ny), phi(m), c(m, ny - nq), gam(m), phit(m), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 4) + ny), s, &
-                             st%alloc_bytes)
+      ! the consistent rates and multipliers; the rows after this solve, which may move a
+      ! redundant scene to another set of independent rows
+      call mech%accelerations(t0, y0(1:nq), y0(nq + 1:ny), ypd(nq + 1:ny), lam0, s)
       if (s /= MBDK_SUCCESS) return
-      if (m > 0) then
-        call mbdk_spatial_constraints(model, t0, y0, phi, c, gam, phit, s)
-        if (s /= MBDK_SUCCESS) return
-        s = MBDK_ERR_INCONSISTENT_INITIAL
-        if (maxval(abs(phi)) > CONSISTENT_PHI .or. maxval(abs(matmul(c, y0(nq + 1:)) + phit)) > &
-            CONSISTENT_PHI * max(1.0_dp, maxval(abs(y0(nq + 1:))))) return
-        call mbdk_spatial_multipliers(model, t0, y0, lam0, s)
-        if (s /= MBDK_SUCCESS) return
-      end if
-      call model%rhs(t0, y0, f0, s)
+      call mech%rates(y0(1:nq), y0(nq + 1:ny), ypd(1:nq), s)
       if (s /= MBDK_SUCCESS) return
-      ! the DAE's rows after the model's solve at t0, which may move a redundant scene to
-      ! another set of independent rows
-      call mbdk_spatial_dae_init(dae, model, ny, mass, s, form, st%alloc_bytes)
+      call mbdk_mechanism_dae_init(dae, mech, form, mass, s, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
-      allocate (yd(dae%n), ypd(dae%n), ys(dae%n, nsamp), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(dae%n, dp) * (nsamp + 2), s, &
+      na = dae%na
+      allocate (yd(dae%n), ys(dae%n, nsamp), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(dae%n, dp) * (nsamp + 1), s, &
                              st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
       yd = 0.0_dp
       yd(1:ny) = y0
-      yd(ny + 1:ny + dae%na) = lam0(dae%rows)
-      ypd = 0.0_dp
-      ypd(1:ny) = f0
+      yd(ny + 1:ny + na) = lam0(dae%rows)
+      ypd = [ypd, spread(0.0_dp, 1, dae%n - ny)]
       ys(:, 1) = yd
-      if (form == 1) then
-        ! the velocities are index-2 variables: the error test sees h times theirs (as bdf on
-        ! the planar scene's i3 form), and not the multipliers'
+      if (form == MBDK_DAE_I3) then
+        ! the index-3 form's velocities are index-2 variables: after a rejection their
+        ! correction grows like 1/h (the rescaled history misses the constraint by
+        ! O(h_old^(q+1))), so i3 tests the positions and h times the velocities' error (the
+        ! index-2 practice), not the multipliers'; si2, whose velocities are constrained
+        ! themselves, tests both
         call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
-                                     st, s, mass=mass, yp0=ypd, ntest=nq, nindex2=ny - nq)
+                                     st, s, mass=mass, yp0=ypd, ntest=nq, nindex2=nv)
       else
-        ! si2's velocities are constrained themselves: both tested (as the planar si2)
         call mbdk_variable_bdf_solve(dae, opt, t0, yd, no_atol, t_out(1:nsamp), ys, nwritten, &
                                      st, s, mass=mass, yp0=ypd, ntest=ny)
       end if
@@ -318,12 +225,12 @@ contains
         y_out(:, k) = ys(1:ny, k)
         if (k <= size(lam_out, 2) .and. size(lam_out, 1) >= m) then
           lam_out(1:m, k) = 0.0_dp
-          lam_out(dae%rows, k) = ys(ny + 1:ny + dae%na, k)
+          lam_out(dae%rows, k) = ys(ny + 1:ny + na, k)
         end if
       end do
-    end subroutine solve
+    end subroutine bdf_on_dae
 
-  end subroutine mbdk_solve_spatial_dae
+  end subroutine mbdk_solve_dae
 
   !> The largest max_order a method takes: its top order for the variable-order ones (bdf,
   !> cvode_*, ida), 0 for the explicit pairs (their order is fixed).

@@ -19,13 +19,9 @@
 !> well), its generalised force is exactly -grad of the potential below: the contact conserves
 !> energy without damping, whatever its exponent.
 !>
-!> Normal force (IMPACT): for delta > 0
-!>   F = max(0, k delta^e + step(delta; 0, 0, dmax, cmax) delta'),  F = 0 for delta <= 0,
-!> with delta' the penetration rate and step the cubic 3 x^2 - 2 x^3 on x = delta/dmax clipped to
-!> [0, 1] (dmax = 0: the full cmax at once, a Kelvin-Voigt contact). The ramp keeps F continuous
-!> where the contact closes; the clip keeps a contact from pulling (a damped contact otherwise
-!> ends with a tensile force). Potential k delta^(e+1)/(e+1); the dissipated power is
-!> (F - k delta^e) delta', >= 0 in both branches.
+!> Normal force: the IMPACT law of mbdk_contact_law, F = max(0, k delta^e + step(delta; 0, 0,
+!> dmax, cmax) delta') while delta > 0, with delta' the penetration rate; potential
+!> k delta^(e+1)/(e+1), dissipated power (F - k delta^e) delta' >= 0.
 !> freal: 1:2 s1, 3 r1, 4:5 s2, 6 a or r2, 7 k, 8 e (>= 1), 9 cmax, 10 dmax.
 !>
 !> Involute gear pair (geometry 4; freal: 1 rb1, 2 rb2 the base radii, 3 ra1, 4 ra2 the tip radii,
@@ -62,12 +58,9 @@
 !>
 !> Friction (an element of its own, fint(4) = the column of its contact in the same table):
 !> the slip speed u = t . (v1(c) - v2(c)) along t = perp(n), the force -mu(u) F t on body1 at c
-!> and the opposite on body2, with the signed coefficient
-!>   |u| <= vs:       mu = mus step(|u|; 0, 0, vs, 1) sign(u)      (stiction, regularised)
-!>   vs < |u| < vd:   mu = (mus + (mud - mus) step(|u|; vs, 0, vd, 1)) sign(u)
-!>   |u| >= vd:       mu = mud sign(u)
-!> (Adams' friction law with its stiction and friction transition speeds). Its dissipated power
-!> is |mu| F |u| >= 0. freal: 1 mus, 2 mud, 3 vs > 0, 4 vd > vs.
+!> and the opposite on body2, mu the regularised Coulomb law of mbdk_contact_law (Adams' law with
+!> its stiction and transition speeds). Its dissipated power is |mu| F |u| >= 0. freal: 1 mus,
+!> 2 mud, 3 vs > 0, 4 vd > vs.
 !>
 !> A circle on circle whose centres coincide has no normal while it penetrates:
 !> MBDK_ERR_NONFINITE, as for a spring of zero length.
@@ -76,10 +69,12 @@ module mbdk_contact
   use mbdk_joints, only: mbdk_body_point
   use mbdk_elements, only: FRICTION => MBDK_FORCE_FRICTION
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE, MBDK_ERR_CONTACT_OVERRUN
+  use mbdk_contact_law, only: mbdk_step3, mbdk_contact_normal, mbdk_contact_potential, &
+    mbdk_friction_mu
   implicit none
   private
-  public :: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu, mbdk_step3, &
-    mbdk_contact_apply, mbdk_contact_forces, mbdk_contact_forces_all
+  public :: mbdk_contact_t, mbdk_contact_eval, mbdk_contact_apply, mbdk_contact_forces, &
+    mbdk_contact_forces_all
 
   integer, parameter, public :: MBDK_CONTACT_LINE = 1, MBDK_CONTACT_CIRCLES = 2, &
     MBDK_CONTACT_INSIDE = 3, MBDK_CONTACT_GEAR = 4
@@ -109,20 +104,6 @@ module mbdk_contact
   end type mbdk_contact_t
 
 contains
-
-  !> The cubic step: 0 at x <= x0, 1 at x >= x1, 3 s^2 - 2 s^3 between (s = (x - x0)/(x1 - x0));
-  !> a jump at x0 when x1 <= x0.
-  pure real(dp) function mbdk_step3(x, x0, x1) result(s)
-    real(dp), intent(in) :: x, x0, x1
-    if (x <= x0) then
-      s = 0.0_dp
-    else if (x >= x1) then
-      s = 1.0_dp
-    else
-      s = (x - x0) / (x1 - x0)
-      s = s * s * (3.0_dp - 2.0_dp * s)
-    end if
-  end function mbdk_step3
 
   !> The contact of table entry (fi, fr) at (q, v), rot the bodies' (cos, sin). ok = .false.
   !> where a penetrating contact has no normal (coincident centres).
@@ -181,9 +162,7 @@ contains
 
     pure subroutine normal_force(ct)
       type(mbdk_contact_t), intent(inout) :: ct
-      ct%elastic = fr(7) * ct%delta**fr(8)
-      ct%unclipped = ct%elastic + fr(9) * mbdk_step3(ct%delta, 0.0_dp, fr(10)) * ct%rate
-      ct%force = max(0.0_dp, ct%unclipped)
+      call mbdk_contact_normal(ct%delta, ct%rate, fr(7:10), ct%elastic, ct%unclipped, ct%force)
     end subroutine normal_force
 
     !> The involute pair (the module header): delta, the touching pairs' points and slips.
@@ -281,21 +260,6 @@ contains
     ds = 6.0_dp * s * (1.0_dp - s) / (x1 - x0)
   end function dstep3
 
-  !> The signed friction coefficient at slip speed u (see the module header).
-  pure real(dp) function mbdk_friction_mu(u, fr) result(mu)
-    real(dp), intent(in) :: u, fr(:)
-    real(dp) :: a
-    a = abs(u)
-    if (a <= fr(3)) then
-      mu = fr(1) * mbdk_step3(a, 0.0_dp, fr(3))
-    else if (a < fr(4)) then
-      mu = fr(1) + (fr(2) - fr(1)) * mbdk_step3(a, fr(3), fr(4))
-    else
-      mu = fr(2)
-    end if
-    mu = sign(mu, u)
-  end function mbdk_friction_mu
-
   !> f += the generalised force of the force fv acting at the global point c on body b1 and of
   !> -fv on body b2 (bodies 0, the ground, take nothing).
   pure subroutine mbdk_contact_apply(b1, b2, c, fv, q, f)
@@ -351,7 +315,7 @@ contains
       ! a gear pair's weight changes along the path and with the centre distance: its
       ! potential's gradient there
       if (ct%dweight(k) /= 0.0_dp .or. ct%dweight_a(k) /= 0.0_dp) then
-        pot = ct%elastic * ct%delta / (freal(8, e) + 1.0_dp)
+        pot = mbdk_contact_potential(ct%elastic, ct%delta, freal(8, e))
         ften = -ct%dweight(k) * pot
         b = fint(2, e)
         f(3 * b - 2:3 * b - 1) = f(3 * b - 2:3 * b - 1) + ften * ct%dl_c1 &

@@ -31,7 +31,8 @@ module mbdk_force_elements
   use mbdk_elements, only: MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
     MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, &
     MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, MBDK_FORCE_TYPES
-  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu
+  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval
+  use mbdk_contact_law, only: mbdk_friction_mu
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
   use mbdk_time_function, only: mbdk_time_fn

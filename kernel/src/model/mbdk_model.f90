@@ -54,6 +54,8 @@ module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
@@ -68,6 +70,7 @@ module mbdk_model
     MBDK_EFFECT_WEAR
   use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR, &
     mbdk_contact_forces_all, mbdk_contact_t, mbdk_contact_eval
+  use mbdk_contact_law, only: mbdk_contact_event
   use mbdk_wear, only: mbdk_wear_rates, MBDK_WEAR_LAWS, MBDK_WEAR_GEAR, MBDK_WEAR_LOAD_NORMAL, &
     MBDK_WEAR_LOAD_FRICTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve
@@ -93,8 +96,8 @@ module mbdk_model
   public :: mbdk_model_assemble, mbdk_model_linear_solve, mbdk_model_watch_start, &
     mbdk_model_watch, mbdk_model_watch_nodes, mbdk_model_sparse, mbdk_phi_floor
 
-  integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
-    MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
+  ! the formulations' codes are the mechanism interface's
+  public :: MBDK_FORM_REDUCED, MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   integer, parameter, public :: MBDK_SOLVER_AUTO = 1, MBDK_SOLVER_SCHUR = 2, MBDK_SOLVER_KKT = 3, &
     MBDK_SOLVER_REVOLUTE = 4, MBDK_SOLVER_SPARSE = 5
   ! the linear solve an evaluation takes (mbdk_model_linear_solve): mbdk_constrained's codes
@@ -171,8 +174,10 @@ module mbdk_model
     real(dp), allocatable :: wres(:), wterm(:), wa(:), wlam(:)
   end type mbdk_model_work_t
 
-  type, extends(mbdk_problem_t), public :: mbdk_model_t
-    integer :: nb = 0, nc = 0, m = 0
+  !> The planar model: a mechanism (mbdk_mechanism) with T = I, ncoord = nvel = nc, and a
+  !> diagonal M.
+  type, extends(mbdk_mechanism_t), public :: mbdk_model_t
+    integer :: nc = 0
     !> each body's kind (mbdk_elements) and the index of its first coordinate in q
     integer, allocatable :: body_kind(:), qoff(:)
     real(dp), allocatable :: mass(:), winv(:)     !< diagonal of M (nc) and of the projection weight
@@ -184,7 +189,7 @@ module mbdk_model
     integer, allocatable :: blk(:), row_blk(:)
     type(mbdk_sparse_schur_t) :: sp               !< pattern of D and of S = D M^-1 D^T
     real(dp), allocatable :: jreal(:, :), freal(:, :)
-    integer :: formulation = MBDK_FORM_REDUCED, solver = MBDK_SOLVER_AUTO
+    integer :: solver = MBDK_SOLVER_AUTO
     logical :: small_dense = .true.
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp               !< Baumgarte
     real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp   !< Jalon-Bayo
@@ -200,15 +205,12 @@ module mbdk_model
     !> every step (mbdk_watch_work_at; set by the caller before the run)
     logical :: record_work = .false.
     logical :: has_drivers = .false.    !< rheonomic rows: their power needs the multipliers
-    !> rows that constrain velocities only (knife edges: mbdk_joints_pfaffian)
-    logical, allocatable :: pfaffian(:)
-    logical :: has_pfaffian = .false.
+    ! pfaffian(:): the rows that constrain velocities only (knife edges: mbdk_joints_pfaffian)
     !> a power term needs the bodies' rotations (a point force, a two-point damper)
     logical :: power_rot = .false.
     type(mbdk_model_work_t), pointer :: work => null()
     !> effect states (wear elements: eint/ereal, their columns referring to fint_c) and whether
     !> the scene has contacts or friction (no tangent for trapezoidal_index3's Newton matrix)
-    integer :: ns = 0
     integer, allocatable :: eint(:, :)
     real(dp), allocatable :: ereal(:, :)
     logical :: has_contacts = .false.
@@ -231,7 +233,100 @@ module mbdk_model
     procedure :: watch_wants_nodes => model_wants_nodes
     procedure :: watch_nodes => model_watch_nodes
     procedure :: events => model_events
+    procedure :: evaluate => model_evaluate
+    procedure :: mass_times => model_mass_times
+    procedure :: minv_times => model_minv_times
+    procedure :: mass_diagonal => model_mass_diagonal
+    procedure :: rates => model_rates
+    procedure :: accelerations => model_accelerations
+    procedure :: active_rows => model_active_rows
+    procedure :: watch_lam => model_watch_lam
+    procedure :: watch_nodes_lam => model_watch_nodes_lam
+    procedure :: watch_begin => model_watch_begin
+    procedure :: watch_solve => model_watch_solve
+    procedure :: retract => model_retract
+    procedure :: normalise => model_normalise
+    procedure :: coord_weights => model_coord_weights
+    ! trapezoidal_index3's part (the submodule mbdk_model_i3)
+    procedure :: i3_create => model_i3_create
+    procedure :: i3_evaluate => model_i3_evaluate
+    procedure :: i3_residual => model_i3_residual
+    procedure :: i3_c_times => model_i3_c_times
+    procedure :: i3_ct_times => model_i3_ct_times
+    procedure :: i3_cs_factor => model_i3_cs_factor
+    procedure :: i3_cs_solve => model_i3_cs_solve
+    procedure :: i3_matrix => model_i3_matrix
+    procedure :: i3_matrix_solve => model_i3_matrix_solve
   end type mbdk_model_t
+
+  interface
+    module subroutine model_i3_create(self, aux, book, stat, asked)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), allocatable, intent(out) :: aux
+      logical, intent(in) :: book
+      integer, intent(out) :: stat
+      real(dp), intent(inout), optional :: asked
+    end subroutine model_i3_create
+    module subroutine model_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
+                                        stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: t
+      real(dp), intent(in), contiguous :: q(:), v(:)
+      real(dp), intent(inout), contiguous :: f(:)
+      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      logical, intent(in) :: forces, same_q
+      integer, intent(out) :: stat
+    end subroutine model_i3_evaluate
+    module subroutine model_i3_residual(self, aux, f, lt, s, dd, r)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      real(dp), intent(in) :: s
+      real(dp), intent(out), contiguous :: r(:)
+    end subroutine model_i3_residual
+    module subroutine model_i3_c_times(self, aux, x, y)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine model_i3_c_times
+    module subroutine model_i3_ct_times(self, aux, x, y)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine model_i3_ct_times
+    module subroutine model_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: near
+      logical, intent(in) :: regular_ok
+      logical, intent(out) :: regular
+      integer, intent(out) :: stat
+    end subroutine model_i3_cs_factor
+    module subroutine model_i3_cs_solve(self, aux, b, c, x, mu, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: b(:), c(:)
+      real(dp), intent(out), contiguous :: x(:), mu(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_cs_solve
+    module subroutine model_i3_matrix(self, aux, book, t, q, v, lam, h, alpha, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      logical, intent(in) :: book
+      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_matrix
+    module subroutine model_i3_matrix_solve(self, aux, r, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(inout), contiguous :: r(:)
+      integer, intent(out) :: stat
+    end subroutine model_i3_matrix_solve
+  end interface
 
 contains
 
@@ -292,7 +387,15 @@ contains
     model%ns = count(fint(1, :) == MBDK_EFFECT_WEAR)
     model%n = 2 * model%nc + model%ns
     model%nq = model%nc
+    model%ncoord = model%nc
+    model%nvel = model%nc
+    model%diag_mass = .true.
+    model%identity_kinematics = .true.
+    model%has_i3_matrix = .true.
     model%has_contacts = any(fint(1, :) >= MBDK_FORCE_CONTACT)
+    model%velocity_forces = any(fint(1, :) == MBDK_FORCE_SPRING_DAMPER .or. &
+                                fint(1, :) == MBDK_FORCE_COORDINATE .or. &
+                                fint(1, :) >= MBDK_FORCE_DAMPER)
     allocate (model%mass(model%nc), model%winv(model%nc), model%row0(nj), stat=astat)
     call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * model%nc + MBDK_INT_BYTES * nj, stat, &
                            asked)
@@ -1026,11 +1129,10 @@ contains
     end associate
   end subroutine mbdk_model_outputs
 
-  !> The events of a scene, one per contact (not gear meshes) in table order: the normal force
-  !> before its clip at zero, k delta^e + c step(delta) delta' while it touches, extended by
-  !> -k |delta|^e where it does not (delta itself for k = 0). Continuous, it changes sign where
-  !> the contact closes and where it lets go: at delta = 0, or, damped, where the force would
-  !> turn into a pull and the clip cuts it (the kink the ball's exit has, delta still > 0).
+  !> The events of a scene, one per contact (not gear meshes) in table order: the law's event
+  !> function (mbdk_contact_event), the normal force before its clip while the contact touches,
+  !> extended continuously where it does not: it changes sign where the contact closes and where
+  !> it lets go.
   subroutine model_events(self, t, y, g, stat)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
@@ -1051,12 +1153,8 @@ contains
                              y(nc + 1:2 * nc), ct, ok)
       if (.not. ok) then     ! no normal: the evaluation itself reports it
         g(k) = ct%delta
-      else if (ct%touching) then
-        g(k) = ct%unclipped
-      else if (self%freal_c(7, e) > 0.0_dp) then
-        g(k) = -self%freal_c(7, e) * abs(ct%delta)**self%freal_c(8, e)
       else
-        g(k) = ct%delta
+        g(k) = mbdk_contact_event(ct%delta, ct%unclipped, self%freal_c(7:10, e))
       end if
     end do
   end subroutine model_events
@@ -1490,5 +1588,135 @@ contains
       end associate
     end subroutine exact_lam
   end subroutine watch_quantities
+
+  ! ----- the mechanism interface (mbdk_mechanism): T = I, M diagonal -----
+
+  !> f = the force elements' generalised force, and Phi, the dense D, gamma, Phi_t at (t, q, v).
+  !> The joints' second pass (for the dense D) is not counted: one visit per element and
+  !> evaluation, as the ODE's.
+  subroutine model_evaluate(self, t, q, v, f, phi, c, gam, phit, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: f(:), phi(:), c(:, :), gam(:), phit(:)
+    integer, intent(out) :: stat
+    integer(i8) :: visits(MBDK_JOINT_TYPES)
+    call mbdk_model_assemble(self, t, q, v, stat)
+    if (stat /= MBDK_SUCCESS) return
+    f = self%work%fq
+    if (self%m == 0) return
+    visits = self%work%visits(1:MBDK_JOINT_TYPES)
+    call mbdk_model_constraints(self, t, q, v, phi, c, gam, phit)
+    self%work%visits(1:MBDK_JOINT_TYPES) = visits
+  end subroutine model_evaluate
+
+  subroutine model_mass_times(self, x, y)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    y = self%mass * x
+  end subroutine model_mass_times
+
+  !> M^-1 x, 0 in the rows of a body without inertia (M has no inverse there: the DAE forms
+  !> keep M on the left, diag_mass)
+  subroutine model_minv_times(self, x, y)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    y = merge(x / self%mass, 0.0_dp, self%mass > 0.0_dp)
+  end subroutine model_minv_times
+
+  subroutine model_mass_diagonal(self, dm)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(out) :: dm(:)
+    dm = self%mass
+  end subroutine model_mass_diagonal
+
+  subroutine model_rates(self, q, v, qdot, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    qdot = v
+    stat = MBDK_SUCCESS
+  end subroutine model_rates
+
+  subroutine model_accelerations(self, t, q, v, a, lam, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: a(:), lam(:)
+    integer, intent(out) :: stat
+    call mbdk_model_accelerations(self, t, q, v, a, lam, stat)
+  end subroutine model_accelerations
+
+  !> every row: a planar scene's multipliers are solved on all of them
+  subroutine model_active_rows(self, rows, stat)
+    class(mbdk_model_t), intent(in) :: self
+    integer, allocatable, intent(out) :: rows(:)
+    integer, intent(out) :: stat
+    integer :: i, astat
+    allocate (rows(self%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * self%m, stat)
+    if (stat /= MBDK_SUCCESS) return
+    rows = [(i, i = 1, self%m)]
+  end subroutine model_active_rows
+
+  subroutine model_watch_lam(self, t, y, force, lam, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:), lam(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat, &
+                          lam=lam)
+  end subroutine model_watch_lam
+
+  subroutine model_watch_nodes_lam(self, t_a, t_b, y, lam, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :), lam(:, :)
+    integer, intent(out) :: stat
+    call mbdk_model_watch_nodes(self, t_a, t_b, y(1:self%nc, :), y(self%nc + 1:2 * self%nc, :), &
+                                stat, lam=lam)
+  end subroutine model_watch_nodes_lam
+
+  subroutine model_watch_begin(self, t, y, velocity, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: velocity
+    integer, intent(out) :: stat
+    call mbdk_model_watch_start(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), stat, &
+                                velocity=velocity)
+  end subroutine model_watch_begin
+
+  subroutine model_watch_solve(self, t, y, force, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_model_watch(self, t, y(1:self%nc), y(self%nc + 1:2 * self%nc), force, stat, &
+                          solve_lam=.true.)
+  end subroutine model_watch_solve
+
+  subroutine model_retract(self, q, dq, qn, stat)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), dq(:)
+    real(dp), intent(out) :: qn(:)
+    integer, intent(out) :: stat
+    qn = q + dq
+    stat = MBDK_SUCCESS
+  end subroutine model_retract
+
+  !> nothing to keep: planar coordinates are free
+  subroutine model_normalise(self, q)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(inout) :: q(:)
+  end subroutine model_normalise
+
+  subroutine model_coord_weights(self, q, w)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: w(:)
+    w = abs(q)
+  end subroutine model_coord_weights
 
 end module mbdk_model

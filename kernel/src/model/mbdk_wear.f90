@@ -23,7 +23,8 @@
 module mbdk_wear
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
-  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval, mbdk_friction_mu
+  use mbdk_contact, only: mbdk_contact_t, mbdk_contact_eval
+  use mbdk_contact_law, only: mbdk_friction_mu
   implicit none
   private
   public :: mbdk_wear_rate, mbdk_wear_rates, mbdk_wear_psi

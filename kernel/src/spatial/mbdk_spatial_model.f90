@@ -65,7 +65,13 @@
 !>   point_force    s (3, body frame), f (3, space)  a constant force at a body point
 !>   torque         n (3, space)                     a constant moment
 !>   spring_damper  s_i (3), s_j (3), k, c, l0       along the line of the two points
-!> Only the elements a scene declares are visited.
+!>   sphere_plane,  compliant contact with friction between a sphere on body i and a plane or
+!>   sphere_sphere  a sphere on body j (the ground or a body): mbdk_contact3d (geometry, reals)
+!>                  over mbdk_contact_law (the IMPACT normal force, regularised Coulomb friction)
+!> Only the elements a scene declares are visited. A contact's potential is part of the spring
+!> energy, the power its damping and friction dissipate part of the dampers' power; with
+!> locate_events, dopri54 and bs32 end a step where a contact closes or lets go (spatial_events:
+!> the law's event function and the penetration per contact, in table order).
 !>
 !> The watch (mbdk_watch) checks Phi, C w + Phi_t and the energy balance as on planar scenes
 !> (a driven scene pays a constrained solve per step for its drivers' power); rows of
@@ -76,6 +82,8 @@ module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
@@ -86,11 +94,17 @@ module mbdk_spatial_model
     mbdk_inv_gravity, mbdk_inv_pivot, mbdk_inv_result, mbdk_inv_force, mbdk_inv_moment, &
     MBDK_INV_MAX, MBDK_INV_WORDS, MBDK_INV_ANGULAR_POINT
   use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
+  use mbdk_contact3d, only: mbdk_contact3d_t, mbdk_contact3d_eval, mbdk_contact3d_loads, &
+    mbdk_contact3d_events, mbdk_contact3d_rough, MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
+    MBDK_CONTACT3D_REALS
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
     mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
     mbdk_spatial_watch_nodes
+  ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
+  ! (and clones it), so that a submodule compiled on its own cannot link to it
+  public :: frames, forces, constraints, apply_minv, gram, near_test
 
   integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
     MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
@@ -99,15 +113,15 @@ module mbdk_spatial_model
   integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
     [3, 5, 4, 4, 5, 6, 1, 1]
   integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
-    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_FORCE_TYPES = 4
-  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 9
+    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_SPHERE_PLANE = 5, &
+    MBDK_SPATIAL_SPHERE_SPHERE = 6, MBDK_SPATIAL_FORCE_TYPES = 6
+  !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
+  integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
+    MBDK_SPATIAL_FORCE_REALS = MBDK_CONTACT3D_REALS
   integer, parameter, public :: MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, &
     MBDK_ROT_CARDAN123 = 3
   integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
     MBDK_NORM_NONE = 3
-  !> the formulations, with the codes of the planar model's (mbdk_model)
-  integer, parameter, public :: MBDK_SPATIAL_REDUCED = 1, MBDK_SPATIAL_BAUMGARTE = 2, &
-    MBDK_SPATIAL_PENALTY = 3, MBDK_SPATIAL_PROJECTION = 4
   !> outputs per sample (mbdk_spatial_outputs)
   integer, parameter, public :: MBDK_SPATIAL_NOUT = 7
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
@@ -131,7 +145,7 @@ module mbdk_spatial_model
     PRIM_SLIDE = 5
 
   type, public :: mbdk_spatial_options_t
-    integer :: formulation = MBDK_SPATIAL_REDUCED
+    integer :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
     integer :: rotation = MBDK_ROT_QUATERNION
     integer :: norm = MBDK_NORM_PROJECT
     real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
@@ -146,6 +160,8 @@ module mbdk_spatial_model
     real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
       watch_energy = 1.0e-1_dp, watch_momentum = 1.0e-2_dp, watch_quaternion = 1.0e-1_dp
     integer :: watch_every = MBDK_WATCH_EVERY
+    !> /= 0: the contacts' events, for the error-controlled Runge-Kutta pairs (mbdk_problem)
+    integer :: locate_events = 1
   end type mbdk_spatial_options_t
 
   !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
@@ -167,9 +183,12 @@ module mbdk_spatial_model
     integer :: switches = 0
   end type mbdk_spatial_work_t
 
-  type, extends(mbdk_problem_t), public :: mbdk_spatial_model_t
+  !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
+  !> per body], ncoord = nqb nb, nvel = 6 nb, M block diagonal (not diagonal: J).
+  type, extends(mbdk_mechanism_t), public :: mbdk_spatial_model_t
     type(mbdk_spatial_options_t) :: opt
-    integer :: nb = 0, m = 0, nqb = 7, nprim = 0, nf = 0
+    integer :: nqb = 7, nprim = 0, nf = 0
+    integer :: ncontacts = 0   !< contact elements (the events, in table order)
     integer :: seq(3) = 0
     real(dp), allocatable :: mass(:), inertia(:, :, :), inv_inertia(:, :, :)
     type(prim_t), allocatable :: prim(:)
@@ -198,7 +217,101 @@ module mbdk_spatial_model
     procedure :: watch => spatial_watch
     procedure :: watch_wants_nodes => spatial_wants_nodes
     procedure :: watch_nodes => spatial_watch_nodes
+    procedure :: events => spatial_events
+    procedure :: evaluate => spatial_evaluate
+    procedure :: mass_times => spatial_mass_times
+    procedure :: minv_times => spatial_minv_times
+    procedure :: mass_diagonal => spatial_mass_diagonal
+    procedure :: rates => spatial_rates
+    procedure :: accelerations => spatial_accelerations_of
+    procedure :: active_rows => spatial_active_rows
+    procedure :: watch_lam => spatial_watch_lam
+    procedure :: watch_nodes_lam => spatial_watch_nodes_lam
+    procedure :: watch_begin => spatial_watch_begin
+    procedure :: watch_solve => spatial_watch_solve
+    procedure :: retract => spatial_retract
+    procedure :: normalise => spatial_normalise
+    procedure :: coord_weights => spatial_coord_weights
+    ! trapezoidal_index3's part (the submodule mbdk_spatial_i3)
+    procedure :: i3_create => spatial_i3_create
+    procedure :: i3_evaluate => spatial_i3_evaluate
+    procedure :: i3_residual => spatial_i3_residual
+    procedure :: i3_c_times => spatial_i3_c_times
+    procedure :: i3_ct_times => spatial_i3_ct_times
+    procedure :: i3_cs_factor => spatial_i3_cs_factor
+    procedure :: i3_cs_solve => spatial_i3_cs_solve
+    procedure :: i3_matrix => spatial_i3_matrix
+    procedure :: i3_matrix_solve => spatial_i3_matrix_solve
   end type mbdk_spatial_model_t
+
+  interface
+    module subroutine spatial_i3_create(self, aux, book, stat, asked)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), allocatable, intent(out) :: aux
+      logical, intent(in) :: book
+      integer, intent(out) :: stat
+      real(dp), intent(inout), optional :: asked
+    end subroutine spatial_i3_create
+    module subroutine spatial_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
+                                          stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: t
+      real(dp), intent(in), contiguous :: q(:), v(:)
+      real(dp), intent(inout), contiguous :: f(:)
+      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      logical, intent(in) :: forces, same_q
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_evaluate
+    module subroutine spatial_i3_residual(self, aux, f, lt, s, dd, r)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      real(dp), intent(in) :: s
+      real(dp), intent(out), contiguous :: r(:)
+    end subroutine spatial_i3_residual
+    module subroutine spatial_i3_c_times(self, aux, x, y)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine spatial_i3_c_times
+    module subroutine spatial_i3_ct_times(self, aux, x, y)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: x(:)
+      real(dp), intent(out), contiguous :: y(:)
+    end subroutine spatial_i3_ct_times
+    module subroutine spatial_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: near
+      logical, intent(in) :: regular_ok
+      logical, intent(out) :: regular
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_cs_factor
+    module subroutine spatial_i3_cs_solve(self, aux, b, c, x, mu, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in), contiguous :: b(:), c(:)
+      real(dp), intent(out), contiguous :: x(:), mu(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_cs_solve
+    module subroutine spatial_i3_matrix(self, aux, book, t, q, v, lam, h, alpha, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      logical, intent(in) :: book
+      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_matrix
+    module subroutine spatial_i3_matrix_solve(self, aux, r, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(inout), contiguous :: r(:)
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_matrix_solve
+  end interface
 
   !> the kinematics of every body at one state (index 0: the ground)
   type :: frames_t
@@ -238,9 +351,9 @@ contains
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
         MBDK_SPATIAL_FORCE_REALS .or. size(freal, 2) /= size(ftype)) return
-    if (opt%formulation < MBDK_SPATIAL_REDUCED .or. opt%formulation > &
-        MBDK_SPATIAL_PROJECTION) return
-    if (opt%formulation == MBDK_SPATIAL_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
+    if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > &
+        MBDK_FORM_PROJECTION) return
+    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
         opt%pen_omega > 0.0_dp .and. opt%pen_mu > 0.0_dp .and. opt%pen_alpha <= huge(1.0_dp) &
         .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
@@ -255,6 +368,9 @@ contains
     if (opt%rotation == MBDK_ROT_EULER313) model%seq = MBDK_SEQ_EULER313
     if (opt%rotation == MBDK_ROT_CARDAN123) model%seq = MBDK_SEQ_CARDAN123
     model%n = nb * (model%nqb + 6)
+    model%ncoord = nb * model%nqb
+    model%nvel = 6 * nb
+    model%formulation = opt%formulation
     if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
     allocate (model%mass(nb), model%inertia(3, 3, nb), model%inv_inertia(3, 3, nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 19.0_dp * nb, stat, asked)
@@ -376,13 +492,27 @@ contains
         if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
             fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
         if (.not. all(freal(7:9, k) >= 0.0_dp)) return
+      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        if (.not. contact_entry_ok(k)) return
       end select
-      if (ftype(k) /= MBDK_SPATIAL_GRAVITY) model%has_power = .true.
+    end do
+    ! loads and springs; of the contacts, those with damping or friction (an undamped,
+    ! frictionless contact does no net work)
+    model%has_power = any(ftype /= MBDK_SPATIAL_GRAVITY .and. ftype < MBDK_SPATIAL_SPHERE_PLANE)
+    do k = 1, model%nf
+      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE .and. (freal(14, k) /= 0.0_dp .or. &
+          mbdk_contact3d_rough(freal(:, k)))) model%has_power = .true.
     end do
     if (model%has_drivers) model%has_power = .true.
     model%ftype = ftype
     model%fbody = fbody
     model%freal = freal
+    do k = 1, model%nf
+      if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) &
+        model%freal(8:10, k) = freal(8:10, k) / norm2(freal(8:10, k))
+    end do
+    model%ncontacts = count(ftype >= MBDK_SPATIAL_SPHERE_PLANE)
+    if (opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
 
     ! the length scale of the watch: joint and spring points, and the bodies' spread
     model%length = 0.0_dp
@@ -392,6 +522,8 @@ contains
     do k = 1, model%nf
       if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
         norm2(freal(1:3, k)), norm2(freal(4:6, k)))
+      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE) model%length = max(model%length, &
+        norm2(freal(1:3, k)) + freal(4, k))
     end do
     do b = 1, nb
       model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
@@ -445,7 +577,7 @@ contains
     work%active = model%active
     work%switches = 0
     model%nq = 0
-    model%has_post_step = opt%formulation == MBDK_SPATIAL_PROJECTION .or. &
+    model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
     model%has_watch = opt%watch_position > 0.0_dp .or. opt%watch_velocity > 0.0_dp .or. &
       opt%watch_energy > 0.0_dp .or. (model%ninv > 0 .and. opt%watch_momentum > 0.0_dp) .or. &
@@ -454,6 +586,25 @@ contains
     stat = MBDK_SUCCESS
 
   contains
+
+    !> A contact: body1 a body, body2 the ground or another body; radii >= 0 (two spheres: not
+    !> both 0), a plane's normal of nonzero length, k >= 0, e >= 1, cmax, dmax >= 0; mus,
+    !> mud >= 0 and 0 < vs < vd.
+    logical function contact_entry_ok(e) result(ok)
+      integer, intent(in) :: e
+      ok = .false.
+      associate (r => freal(:, e))
+        if (fbody(1, e) < 1 .or. fbody(1, e) > nb .or. fbody(2, e) < 0 .or. &
+            fbody(2, e) > nb .or. fbody(1, e) == fbody(2, e)) return
+        if (.not. (r(4) >= 0.0_dp .and. r(11) >= 0.0_dp .and. r(12) >= 0.0_dp .and. &
+                   r(13) >= 1.0_dp .and. r(14) >= 0.0_dp .and. r(15) >= 0.0_dp .and. &
+                   r(16) >= 0.0_dp .and. r(17) >= 0.0_dp .and. r(18) > 0.0_dp .and. &
+                   r(19) > r(18))) return
+        if (ftype(e) == MBDK_SPATIAL_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
+        if (ftype(e) == MBDK_SPATIAL_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
+      end associate
+      ok = .true.
+    end function contact_entry_ok
 
     subroutine add(kind, si, sj, ui, uj)
       integer, intent(in) :: kind
@@ -511,6 +662,17 @@ contains
         call mbdk_inv_force(rule, freal(4:6, k))
       case (MBDK_SPATIAL_TORQUE)
         call mbdk_inv_moment(rule)
+      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        ! between two bodies: equal and opposite at one point, internal; to the ground without
+        ! friction: along the ground plane's normal, or through the ground sphere's centre
+        if (fbody(2, k) /= 0) cycle
+        if (mbdk_contact3d_rough(freal(:, k))) then
+          call mbdk_inv_external(rule)
+        else if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) then
+          call mbdk_inv_force(rule, freal(8:10, k))
+        else
+          call mbdk_inv_pivot(rule, freal(5:7, k))
+        end if
       case default
         call mbdk_inv_external(rule)
       end select
@@ -1096,18 +1258,23 @@ contains
   ! ---- forces --------------------------------------------------------------------------------
 
   !> Applied forces (space frame) and moments (body frame) on every body, with the energy parts:
-  !> gravity's potential vg, the springs' vs, and the power of dampers and loads.
-  pure subroutine forces(model, fr, fw, nb_, vg, vs, power)
+  !> gravity's potential vg, the springs' and contacts' vs, and the power of dampers, contacts
+  !> and loads. MBDK_ERR_NONFINITE where two penetrating spheres have no normal.
+  pure subroutine forces(model, fr, fw, nb_, vg, vs, power, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(out) :: fw(:, :), nb_(:, :), vg, vs, power
+    integer, intent(out) :: stat
     integer :: k, b, i, j
-    real(dp) :: pi(3), pj(3), d(3), len, e(3), ldot, f, fv(3), vi(3), vj(3)
+    real(dp) :: pi(3), pj(3), d(3), len, e(3), ldot, f, fv(3), vi(3), vj(3), m1(3), f2(3), m2(3)
+    type(mbdk_contact3d_t) :: ct
+    logical :: ok
     fw = 0.0_dp
     nb_ = 0.0_dp
     vg = 0.0_dp
     vs = 0.0_dp
     power = 0.0_dp
+    stat = MBDK_SUCCESS
     do k = 1, model%nf
       associate (r => model%freal(:, k))
         select case (model%ftype(k))
@@ -1148,10 +1315,71 @@ contains
             fw(:, j) = fw(:, j) - fv
             nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
           end if
+        case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+          i = model%fbody(1, k)
+          j = model%fbody(2, k)
+          call contact_at(model, fr, k, ct, ok)
+          if (.not. ok) then
+            stat = MBDK_ERR_NONFINITE
+            return
+          end if
+          if (.not. ct%touching) cycle
+          vs = vs + ct%potential
+          power = power - ct%dissipation
+          call mbdk_contact3d_loads(ct, fr%r(:, i), fr%rot(:, :, i), fr%r(:, j), &
+                                    fr%rot(:, :, j), fv, m1, f2, m2)
+          fw(:, i) = fw(:, i) + fv
+          nb_(:, i) = nb_(:, i) + m1
+          if (j > 0) then
+            fw(:, j) = fw(:, j) + f2
+            nb_(:, j) = nb_(:, j) + m2
+          end if
         end select
       end associate
     end do
   end subroutine forces
+
+  !> Contact k of the force table at the frames fr (mbdk_contact3d_eval).
+  pure subroutine contact_at(model, fr, k, ct, ok)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    integer, intent(in) :: k
+    type(mbdk_contact3d_t), intent(out) :: ct
+    logical, intent(out) :: ok
+    integer :: i, j
+    i = model%fbody(1, k)
+    j = model%fbody(2, k)
+    call mbdk_contact3d_eval(merge(MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
+                                   model%ftype(k) == MBDK_SPATIAL_SPHERE_PLANE), &
+                             model%freal(:, k), fr%r(:, i), fr%rot(:, :, i), fr%v(:, i), &
+                             fr%om(:, i), fr%r(:, j), fr%rot(:, :, j), fr%v(:, j), &
+                             fr%om(:, j), ct, ok)
+  end subroutine contact_at
+
+  !> The events of a scene with contacts (nevents = 2 ncontacts with locate_events), two per
+  !> contact in table order (mbdk_contact3d_events): the law's, where the contact closes and
+  !> where its force would turn into a pull and the clip lets it go, and the parting one, where
+  !> the surfaces of a contact that let go part (mbdk_contact_law says why that point too).
+  subroutine spatial_events(self, t, y, g, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: g(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    type(mbdk_contact3d_t) :: ct
+    logical :: ok
+    integer :: k, e
+    g = 0.0_dp
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    e = 0
+    do k = 1, self%nf
+      if (self%ftype(k) < MBDK_SPATIAL_SPHERE_PLANE) cycle
+      e = e + 2
+      call contact_at(self, fr, k, ct, ok)
+      g(e - 1:e) = mbdk_contact3d_events(ct, ok, self%freal(:, k))
+    end do
+  end subroutine spatial_events
 
   ! ---- the problem ---------------------------------------------------------------------------
 
@@ -1179,7 +1407,7 @@ contains
     type(frames_t) :: fr
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
       l(:), mc(:, :), phit(:)
-    real(dp) :: vg, vs, power, p(4), jw(3)
+    real(dp) :: vg, vs, power, jw(3)
     integer :: b, k, o, nb, m
     f = 0.0_dp
     nb = self%nb
@@ -1191,7 +1419,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(self, fr, fw, nbd, vg, vs, power)
+    call forces(self, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
     do b = 1, self%nb
       o = (b - 1) * 6
       jw = matmul(self%inertia(:, :, b), fr%om(:, b))
@@ -1208,17 +1437,17 @@ contains
       acc = acc - matmul(mc, lam_in)
       if (present(phi_out)) phi_out = phi
       if (present(acc_abs)) acc_abs = acc_abs + matmul(abs(mc), abs(lam_in))
-    else if (self%m > 0 .and. self%opt%formulation == MBDK_SPATIAL_PENALTY) then
+    else if (self%m > 0 .and. self%opt%formulation == MBDK_FORM_PENALTY) then
       call constraints(self, fr, t, phi, c, gam, phit)
       call penalty_solve(stat)
       if (stat /= MBDK_SUCCESS) return
       if (present(lam)) lam = l
     else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
-      if (self%opt%formulation == MBDK_SPATIAL_BAUMGARTE) &
+      if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
         gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
               self%opt%beta**2 * phi
-      if (self%opt%formulation == MBDK_SPATIAL_REDUCED) then
+      if (self%opt%formulation == MBDK_FORM_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
@@ -1228,27 +1457,8 @@ contains
       if (present(lam)) lam = l
     end if
     ! the kinematic equations
-    do b = 1, self%nb
-      k = qi(self, b)
-      f(k:k + 2) = fr%v(:, b)
-      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
-        p = y(k + 3:k + 6)
-        f(k + 3:k + 6) = mbdk_quat_rates(p, fr%om(:, b), .true.)
-        if (self%opt%norm == MBDK_NORM_STABILISE) f(k + 3:k + 6) = f(k + 3:k + 6) + &
-          0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
-      else
-        if (self%opt%lock_guard > 0.0_dp) then
-          if (merge(abs(sin(y(k + 4))), abs(cos(y(k + 4))), &
-                    self%opt%rotation == MBDK_ROT_EULER313) < self%opt%lock_guard) then
-            stat = MBDK_ERR_SINGULAR_MATRIX
-            return
-          end if
-        end if
-        call mbdk_angles_rates(self%seq, y(k + 3:k + 5), fr%om(:, b), .true., f(k + 3:k + 5), &
-                               stat)
-        if (stat /= MBDK_SUCCESS) return
-      end if
-    end do
+    call body_rates(self, y(1:self%ncoord), y(self%ncoord + 1:), f(1:self%ncoord), stat)
+    if (stat /= MBDK_SUCCESS) return
     f(wi(self, 1):) = acc
     stat = MBDK_SUCCESS
 
@@ -1344,7 +1554,7 @@ contains
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: y(:)
     integer, intent(out) :: stat
-    call spatial_project(self, t, y, self%opt%formulation == MBDK_SPATIAL_PROJECTION, stat)
+    call spatial_project(self, t, y, self%opt%formulation == MBDK_FORM_PROJECTION, stat)
   end subroutine spatial_post_step
 
   !> Normalises the quaternions, and with constrained: the least mass-weighted change of
@@ -1476,7 +1686,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(model, fr, fw, nbd, out(2), out(3), out(4))
+    call forces(model, fr, fw, nbd, out(2), out(3), out(4), stat)
+    if (stat /= MBDK_SUCCESS) return
     kin = 0.0_dp
     qn = 0.0_dp
     do b = 1, model%nb
@@ -1533,7 +1744,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
-    call forces(model, fr, fw, nbd, vg, vs, power)
+    call forces(model, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
     if (.not. (model%has_drivers .and. m > 0)) return
     allocate (phi(m), c(m, 6 * nb), gam(m), phit(m), lam(m), f(size(y)), stat=k)
     call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (6.0_dp * nb + 4) + size(y)), &
@@ -1553,10 +1765,21 @@ contains
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     integer, intent(out) :: stat
+    call spatial_watch_begin(self, t, y, .true., stat)
+  end subroutine spatial_watch_start
+
+  !> The watch started at (t, y); velocity = .false.: the integrator does not promise the
+  !> velocity constraints (the book's index-3 scheme), so they are not tested.
+  subroutine spatial_watch_begin(self, t, y, velocity, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: velocity
+    integer, intent(out) :: stat
     real(dp) :: out(MBDK_SPATIAL_NOUT), mom(6), msc(2)
     call mbdk_spatial_outputs(self, t, y, out, stat, mom=mom, msc=msc)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_watch_start(self%work%watch, self%opt%watch_position, self%opt%watch_velocity, &
+    call mbdk_watch_start(self%work%watch, self%opt%watch_position, &
+                          merge(self%opt%watch_velocity, 0.0_dp, velocity), &
                           self%opt%watch_energy, self%opt%watch_every, self%has_power, &
                           self%length, self%row_angular, t, out(1), out(2), out(3), &
                           [0.0_dp, 0.0_dp, out(4)], self%gscale, sum(self%mass), stat, &
@@ -1565,7 +1788,84 @@ contains
     call mbdk_watch_start_invariants(self%work%watch, self%opt%watch_momentum, self%inv, &
                                      self%ninv, mom, msc, self%opt%watch_quaternion, &
                                      merge(self%nb, 0, self%opt%rotation == MBDK_ROT_QUATERNION))
-  end subroutine spatial_watch_start
+  end subroutine spatial_watch_begin
+
+  !> The watch with the multipliers of the drivers' power solved for at (t, y).
+  subroutine spatial_watch_solve(self, t, y, force, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch(self, t, y, force, stat)
+  end subroutine spatial_watch_solve
+
+  !> q (+) dq body by body: r + dr, and the orientation turned by the body-frame rotation
+  !> dtheta, R+ = R exp(skew(dtheta)): a quaternion multiplied by exp(dtheta / 2) (its norm
+  !> kept), an angle set moved along its rates by the midpoint rule (exact to O(|dtheta|^3),
+  !> the order of a trapezoidal step's own error; at the set's gimbal lock
+  !> MBDK_ERR_SINGULAR_MATRIX).
+  subroutine spatial_retract(self, q, dq, qn, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), dq(:)
+    real(dp), intent(out) :: qn(:)
+    integer, intent(out) :: stat
+    real(dp) :: th, e(4), da(3), am(3)
+    integer :: b, k, o
+    stat = MBDK_SUCCESS
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      qn(k:k + 2) = q(k:k + 2) + dq(o + 1:o + 3)
+      associate (dth => dq(o + 4:o + 6))
+        if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+          th = norm2(dth)
+          e(1) = cos(0.5_dp * th)
+          if (th > 0.0_dp) then
+            e(2:4) = (sin(0.5_dp * th) / th) * dth
+          else
+            e(2:4) = 0.0_dp
+          end if
+          qn(k + 3:k + 6) = mbdk_quat_mul(q(k + 3:k + 6), e)
+        else
+          call mbdk_angles_rates(self%seq, q(k + 3:k + 5), dth, .true., da, stat)
+          if (stat /= MBDK_SUCCESS) return
+          am = q(k + 3:k + 5) + 0.5_dp * da
+          call mbdk_angles_rates(self%seq, am, dth, .true., da, stat)
+          if (stat /= MBDK_SUCCESS) return
+          qn(k + 3:k + 5) = q(k + 3:k + 5) + da
+        end if
+      end associate
+    end do
+  end subroutine spatial_retract
+
+  !> the quaternions to unit norm (angle sets have nothing to keep)
+  subroutine spatial_normalise(self, q)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(inout) :: q(:)
+    integer :: b, k
+    real(dp) :: n
+    if (self%opt%rotation /= MBDK_ROT_QUATERNION) return
+    do b = 1, self%nb
+      k = qi(self, b) + 3
+      n = norm2(q(k:k + 3))
+      if (n > 0.0_dp) q(k:k + 3) = q(k:k + 3) / n
+    end do
+  end subroutine spatial_normalise
+
+  !> |r| component by component for the translations, 1 (a rotation of the body's unit frame)
+  !> for the rotations
+  subroutine spatial_coord_weights(self, q, w)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: w(:)
+    integer :: b, k, o
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      w(o + 1:o + 3) = abs(q(k:k + 2))
+      w(o + 4:o + 6) = 1.0_dp
+    end do
+  end subroutine spatial_coord_weights
 
   !> Whether the watch integrates a work the run reports (the states inside a step serve it).
   logical function spatial_wants_nodes(self)
@@ -1651,5 +1951,171 @@ contains
     call mbdk_watch_test(self%work%watch, t, phi, vres, vterm, out(1), out(2), out(3), &
                          [0.0_dp, 0.0_dp, out(4)], stat, mom=mom, mom_scale=msc, qdev=qdev)
   end subroutine mbdk_spatial_watch
+
+  !> q' = T(q) v body by body: r' = v, and the orientation's rates from Omega (5.43), (5.95),
+  !> with a quaternion's norm stabilisation where the scene asks for it (norm = stabilise);
+  !> an angle set within lock_guard of its gimbal lock, or at it: MBDK_ERR_SINGULAR_MATRIX.
+  subroutine body_rates(self, q, v, qdot, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    real(dp) :: p(4)
+    integer :: b, k, o
+    stat = MBDK_SUCCESS
+    do b = 1, self%nb
+      k = qi(self, b)
+      o = (b - 1) * 6
+      qdot(k:k + 2) = v(o + 1:o + 3)
+      if (self%opt%rotation == MBDK_ROT_QUATERNION) then
+        p = q(k + 3:k + 6)
+        qdot(k + 3:k + 6) = mbdk_quat_rates(p, v(o + 4:o + 6), .true.)
+        if (self%opt%norm == MBDK_NORM_STABILISE) qdot(k + 3:k + 6) = qdot(k + 3:k + 6) + &
+          0.5_dp * self%opt%norm_gain * (1.0_dp - dot_product(p, p)) * p
+      else
+        if (self%opt%lock_guard > 0.0_dp) then
+          if (merge(abs(sin(q(k + 4))), abs(cos(q(k + 4))), &
+                    self%opt%rotation == MBDK_ROT_EULER313) < self%opt%lock_guard) then
+            stat = MBDK_ERR_SINGULAR_MATRIX
+            return
+          end if
+        end if
+        call mbdk_angles_rates(self%seq, q(k + 3:k + 5), v(o + 4:o + 6), .true., &
+                               qdot(k + 3:k + 5), stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+    end do
+  end subroutine body_rates
+
+  ! ----- the mechanism interface (mbdk_mechanism) -----
+
+  !> f = (force, moment - Omega x J Omega) per body, and Phi, C, gamma, Phi_t at (t, q, v).
+  subroutine spatial_evaluate(self, t, q, v, f, phi, c, gam, phit, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: f(:), phi(:), c(:, :), gam(:), phit(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    real(dp), allocatable :: y(:), fw(:, :), nbd(:, :)
+    real(dp) :: vg, vs, power, jw(3)
+    integer :: b, o, astat
+    stat = MBDK_ERR_NONFINITE
+    if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) return
+    allocate (y(self%n), fw(3, self%nb), nbd(3, self%nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (self%n + 6.0_dp * self%nb), stat)
+    if (stat /= MBDK_SUCCESS) return
+    y(1:self%ncoord) = q
+    y(self%ncoord + 1:) = v
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(self, fr, fw, nbd, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
+      f(o + 1:o + 3) = fw(:, b)
+      f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
+    end do
+    if (self%m == 0) return
+    phi = 0.0_dp
+    c = 0.0_dp
+    gam = 0.0_dp
+    phit = 0.0_dp
+    call constraints(self, fr, t, phi, c, gam, phit)
+  end subroutine spatial_evaluate
+
+  !> M x body by body: m x_r, J x_Omega
+  subroutine spatial_mass_times(self, x, y)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    integer :: b, o
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      y(o + 1:o + 3) = self%mass(b) * x(o + 1:o + 3)
+      y(o + 4:o + 6) = matmul(self%inertia(:, :, b), x(o + 4:o + 6))
+    end do
+  end subroutine spatial_mass_times
+
+  subroutine spatial_minv_times(self, x, y)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: y(:)
+    call apply_minv(self, x, y)
+  end subroutine spatial_minv_times
+
+  !> M's diagonal (M itself is not diagonal where an inertia tensor is not: diag_mass is off)
+  subroutine spatial_mass_diagonal(self, dm)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(out) :: dm(:)
+    integer :: b, o, k
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      dm(o + 1:o + 3) = self%mass(b)
+      do k = 1, 3
+        dm(o + 3 + k) = self%inertia(k, k, b)
+      end do
+    end do
+  end subroutine spatial_mass_diagonal
+
+  subroutine spatial_rates(self, q, v, qdot, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: q(:), v(:)
+    real(dp), intent(out) :: qdot(:)
+    integer, intent(out) :: stat
+    call body_rates(self, q, v, qdot, stat)
+  end subroutine spatial_rates
+
+  !> the formulation's accelerations and multipliers (a redundant scene's solve may move it to
+  !> another set of independent rows: active_rows after this)
+  subroutine spatial_accelerations_of(self, t, q, v, a, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: q(:), v(:)
+    real(dp), intent(out), contiguous :: a(:), lam(:)
+    integer, intent(out) :: stat
+    real(dp), allocatable :: y(:), f(:)
+    integer :: astat
+    allocate (y(self%n), f(self%n), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * self%n, stat)
+    if (stat /= MBDK_SUCCESS) return
+    y(1:self%ncoord) = q
+    y(self%ncoord + 1:) = v
+    if (self%m > 0) then
+      call spatial_accelerations(self, t, y, f, stat, lam)
+    else
+      call spatial_accelerations(self, t, y, f, stat)
+    end if
+    if (stat /= MBDK_SUCCESS) return
+    a = f(self%ncoord + 1:)
+  end subroutine spatial_accelerations_of
+
+  !> the independent rows the model solves now (work%active)
+  subroutine spatial_active_rows(self, rows, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    integer, allocatable, intent(out) :: rows(:)
+    integer, intent(out) :: stat
+    integer :: astat
+    allocate (rows(size(self%work%active)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * size(self%work%active), stat)
+    if (stat /= MBDK_SUCCESS) return
+    rows = self%work%active
+  end subroutine spatial_active_rows
+
+  subroutine spatial_watch_lam(self, t, y, force, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:), lam(:)
+    logical, intent(in) :: force
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch(self, t, y, force, stat, lam)
+  end subroutine spatial_watch_lam
+
+  subroutine spatial_watch_nodes_lam(self, t_a, t_b, y, lam, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t_a, t_b, y(:, :), lam(:, :)
+    integer, intent(out) :: stat
+    call mbdk_spatial_watch_nodes(self, t_a, t_b, y, stat, lam)
+  end subroutine spatial_watch_nodes_lam
 
 end module mbdk_spatial_model

@@ -1,42 +1,47 @@
-!> SUNDIALS IDA (6.x) through its Fortran 2003 interface, integrating a scene's equations of
-!> motion (Fekete (2023) (2.54))
-!>   M q'' + D^T lam = f(q, v, t),   Phi(q, t) = 0,   D = dPhi/dq,
-!>   Phi' = D v + Phi_t,   D a = gamma
+!> SUNDIALS IDA (6.x) through its Fortran 2003 interface, integrating a mechanism's equations
+!> of motion (Fekete (2023) (2.54), in the velocity form of mbdk_mechanism: q' = T(q) v, T = I
+!> for a planar scene)
+!>   M v' + C^T lam = f(t, q, v),   Phi(q, t) = 0,   Phi' = C v + Phi_t,   C v' = gamma
 !> as a differential-algebraic system F(t, Y, Y') = 0, not as the reduced ODE, in one of two
 !> forms, index1 or ggl (ggl refuses knife edges, MBDK_ERR_NOT_APPLICABLE: they have no
-!> position row for its mu to stabilise). mbdk_ida_solve_spatial does the same for a spatial
-!> scene (mbdk_spatial_model: rotations in q, velocities w, its comment gives the forms);
-!> both share ida_run, the SUNDIALS part below.
+!> position row for its mu to stabilise). Written once above the mechanism interface: planar
+!> and spatial scenes take the same code.
 !>
 !> IDA solves F(t, Y, Y') = 0 with variable-order, variable-step BDF formulas (orders 1..5) in
 !> fixed-leading-coefficient form (Brenan, Campbell and Petzold, Numerical Solution of IVPs in
 !> DAEs, 1996, ch. 5; Hindmarsh et al., ACM TOMS 31 (2005) 363), Newton iteration on
 !> dF/dY + cj dF/dY' from IDA's dense difference quotients (N residuals per Jacobian) on
 !> SUNDIALS' dense matrix and dense LU (SUNMatrix_Dense, SUNLinSol_Dense). An analytic Jacobian
-!> (the mass matrix, D, the force elements' tangents and the joints' geometric stiffness, as
+!> (the mass matrix, C, the force elements' tangents and the joints' geometric stiffness, as
 !> mbdk_index3_matrix builds them) is out of scope: it would save the N residuals per setup,
 !> not change what is computed.
 !>
-!> The two forms (nc = 3 nb coordinates, m constraint rows):
-!>   index1 (ggl = .false.)  Y = [q; v; lam], N = 2 nc + m:
-!>       r_q   = q' - v
-!>       r_v   = M v' + D^T lam - f
-!>       r_lam = D v' - gamma
+!> The two forms (nq coordinates, nv velocities; the multipliers of the rows a the mechanism
+!> solves, active_rows: all m rows, or the independent subset a redundant spatial scene keeps,
+!> whose Phi = 0 implies the others: Bricard's linkage keeps 29 of its 30):
+!>   index1 (ggl = .false.)  Y = [q; v; lam_a], N = nq + nv + na:
+!>       r_q   = q' - T(q) v
+!>       r_v   = M v' + C_a^T lam - f           (M diagonal: a planar scene, whose bodies
+!>                                              without inertia leave a zero there)
+!>             = v' - M^-1 (f - C_a^T lam)      (otherwise: a spatial body's inertia tensor)
+!>       r_lam = C_a v' - gamma_a
 !>     the acceleration-level constraint with the multipliers: an index-1 system. Phi and Phi'
 !>     are not kept; they drift as in the reduced ODE (formulation 1 of mbdk_model), and the
 !>     scene's watch ends the solve by name (MBDK_ERR_CONSTRAINT_DRIFT) where they leave its
 !>     tolerances.
-!>   ggl (ggl = .true.)      Y = [q; v; lam; mu], N = 2 nc + 2 m: the stabilised index-2 form of
-!>     Gear, Gupta and Leimkuhler (J. Comput. Appl. Math. 12 (1985) 77):
-!>       r_q   = q' - v + D^T mu
-!>       r_v   = M v' + D^T lam - f
-!>       r_lam = Phi(q, t)
-!>       r_mu  = D v + Phi_t
+!>   ggl (ggl = .true.)      Y = [q; v; lam_a; mu_a], N = nq + nv + 2 na: the stabilised index-2
+!>     form of Gear, Gupta and Leimkuhler (J. Comput. Appl. Math. 12 (1985) 77):
+!>       r_q   = q' - T(q) (v - C_a^T mu)
+!>       r_v   as index1
+!>       r_lam = Phi_a(q, t)
+!>       r_mu  = C_a v + Phi_t,a
 !>     Phi and Phi' are solved for at every step, so the constraints do not drift and need no
 !>     projection; they hold to the Newton tolerance of q and v at the steps (and to the local
-!>     error at samples between steps, which come from the interpolant).
-!>     mu = 0 in the exact solution and only takes up the part of q' - v the position
-!>     constraint needs.
+!>     error at samples between steps, which come from the interpolant). Since dPhi/dq T = C,
+!>     Phi' = C (v - C^T mu) + Phi_t: with both rows held, C C^T mu = 0, so mu = 0 in the exact
+!>     solution (C_a has full rank) and only takes up the part of q' - T v the position
+!>     constraint needs. The quaternions' norm is not projected (IDA's history forbids it); a
+!>     rotation is read from p / |p|.
 !> lam (and mu) are algebraic: IDASetId marks q and v differential (1) and lam, mu algebraic (0),
 !> and IDASetSuppressAlg leaves the algebraic components out of the local error test, so the
 !> error test sees positions and velocities only, as index-2 codes do (the local error of an
@@ -44,12 +49,13 @@
 !> h down; for index1 the multipliers follow from (q, v) and are left out the same way). The
 !> local error of q and v is kept at WRMS <= 1 with the weights of mbdk_adaptive: rtol and the
 !> scalar opt%atol.
-!> The same weights serve IDA's Newton convergence test, which sees every component: lam with
-!> rtol and opt%atol, so that the sampled multipliers are converged (ggl: with an absolute
-!> tolerance of max(rtol, LAM_RTOL_FLOOR) times the largest multiplier so far, the roundoff
-!> the index-2 iteration leaves in them; ggl_lam_atol), but mu with the absolute tolerance
-!> MU_ATOL = 1 (ggl's weights are ida_ewt's, IDAWFtolerances), which takes it out of the
-!> test. mu is zero in the
+!> The same weights serve IDA's Newton convergence test, which sees every component (the
+!> weights are ida_ewt's, IDAWFtolerances): lam with rtol and an absolute tolerance of
+!> max(atol, max(rtol, LAM_RTOL_FLOOR) times the largest multiplier so far), so that the
+!> sampled multipliers are converged to the roundoff the iteration leaves in them and no
+!> further (lam_atol: tested at atol alone the flyball governor's index1 run at rtol 1e-11
+!> passed or stalled at steps of 1e-9 s depending on the last bits of its tolerances), but mu
+!> with the absolute tolerance MU_ATOL = 1, which takes it out of the test. mu is zero in the
 !> exact solution and has no meaning of its own; its Newton updates carry the roundoff of the
 !> index-2 iteration matrix, whose condition grows like 1/h^2, so tested at opt%atol they stop
 !> converging at small steps (IDA's own first step, 0.5 / |Y'(0)| in the error weights, is
@@ -57,35 +63,41 @@
 !> tolerance is mu's difference-quotient increment: F is linear in mu, so an increment of 1
 !> gives its Jacobian column to roundoff.
 !>
-!> Initial values. The caller passes a consistent [q0; v0] (assembled: Phi = 0, D v + Phi_t = 0)
-!> and a model built with the reduced formulation (another formulation: MBDK_ERR_NOT_APPLICABLE:
-!> they are the ODE's ways of keeping the constraints, and the forms here replace them).
-!> mbdk_model_accelerations gives a0 and lam0, and
-!>   Y(0) = [q0; v0; lam0 (; 0)],   Y'(0) = [v0; a0; 0 (; 0)].
+!> Initial values. The caller passes a consistent [q0; v0] (assembled: Phi = 0, C v + Phi_t = 0)
+!> and a mechanism built with the reduced formulation (another formulation:
+!> MBDK_ERR_NOT_APPLICABLE: they are the ODE's ways of keeping the constraints, and the forms
+!> here replace them; a scene with effect states, wear, likewise). The mechanism's
+!> accelerations give a0 and lam0, and
+!>   Y(0) = [q0; v0; lam0_a (; 0)],   Y'(0) = [T(q0) v0; a0; 0 (; 0)].
 !> That is a consistent pair, so IDACalcIC is not needed: r_q = 0 exactly, r_v and (index1)
 !> r_lam are the constrained solve's own residuals, and (ggl) r_lam, r_mu are the assembled
 !> residuals; lam and mu appear in F undifferentiated, so lam' = mu' = 0 only seeds the first
 !> predictor and is otherwise irrelevant. IDACalcIC would solve the same linear equations
 !> again with a Newton stopping test on top. The residual at (Y(0), Y'(0)) is checked row by
 !> row against the roundoff of the row's terms (CONSISTENT_ULPS units of eps times the sum of
-!> their magnitudes; the position rows Phi also against ASSEMBLED_PHI, the tolerance
-!> mbdk_model_start assembles to): a larger one is MBDK_ERR_INCONSISTENT_INITIAL. index1 checks
+!> their magnitudes, or of the largest row's where M^-1 or the assembly mixes rows; the
+!> position rows Phi against ASSEMBLED_PHI, the tolerance an assembly reaches, or the roundoff
+!> of the positions): a larger one is MBDK_ERR_INCONSISTENT_INITIAL. index1 checks
 !> only its own residual, so it does not require Phi(q0) = 0 (nor does the reduced ODE).
 !> lam0 is written to lam_out(:, 1).
 !>
 !> Options read: rtol, atol, h (> 0: the first step, IDASetInitStep; 0: IDA's estimate),
 !> h_min and h_max (> 0: IDA's bounds, IDASetMinStep and IDASetMaxStep), max_order (0: 5;
 !> above 5: MBDK_ERR_INVALID_INPUT), max_steps, interrupt. The caller has checked the
-!> tolerances and step options (mbdk_adaptive_check) and, for a watching model, started the
-!> watch at t0 (mbdk_model_watch_start).
+!> tolerances and step options (mbdk_adaptive_check) and, for a watching mechanism, started the
+!> watch at t0 (its watch_start). ggl's first step, where the caller gives none: IDA's own
+!> estimate (0.5 / |Y'(0)| in the error weights, at most a thousandth of the interval), but not
+!> below GGL_FIRST_STEP of the interval: the index-2 Newton matrix's condition grows like
+!> 1/h^2, and a fast start (a spinning body) at a tight rtol makes the estimate so small that
+!> the matrix is singular to roundoff.
 !>
 !> The loop is mbdk_adaptive's: IDA takes one internal step per call (IDA_ONE_STEP) and never
 !> passes t_end (IDASetStopTime); after each step the samples in it come from IDA's
 !> interpolant (IDAGetDky: [q; v] into y_out, lam into lam_out), the sample at t_end is the last
 !> step's own state, Y is checked (finite: else MBDK_ERR_NONFINITE) and the scene's watch runs
 !> (force = a sample fell in the step) with the step's own multipliers for the drivers' power:
-!> no model evaluation of IDA's leaves work%lam_rhs current (a watch that integrates a work gets
-!> the interpolant at the step's Gauss nodes first, mbdk_model_watch_nodes). The step's order
+!> no evaluation of IDA's leaves the model's multipliers current (a watch that integrates a work
+!> gets the interpolant at the step's Gauss nodes first, watch_nodes_lam). The step's order
 !> is counted.
 !> max_steps bounds the accepted steps plus the steps retried after an error-test or a
 !> convergence failure (IDAGetNumErrTestFails + IDAGetNumStepSolveFails), counted here (IDA's
@@ -94,10 +106,10 @@
 !> shortens to land on t_end. The interrupt flag is polled before each step and in every
 !> residual, so a long Jacobian of a large model ends within one evaluation.
 !>
-!> Residual callback. One evaluation: mbdk_model_assemble (forces; counted in the model's visit
-!> counters once) and mbdk_model_constraints (Phi, the dense D, gamma, Phi_t into buffers of
-!> the context, allocated once per solve; its second pass over the joints is not counted).
-!> A model failure (mbdk_model_assemble's stat) or the interrupt is stored and returned as
+!> Residual callback. One evaluation of the mechanism (evaluate: f, Phi, the dense C, gamma,
+!> Phi_t into buffers of the context, allocated once per solve; each element counted once),
+!> its rates T(q) v and, for a non-diagonal M, one product with M^-1.
+!> A mechanism's failure (evaluate's stat) or the interrupt is stored and returned as
 !> unrecoverable (-1), and every later call returns -1 too (mbdk_cvode's rule: no step can be
 !> accepted after a failure even where a solver passes a -1 on as recoverable). IDA 6.4 stops at
 !> the first: from the Newton iteration as IDA_RES_FAIL, from the difference-quotient Jacobian
@@ -142,13 +154,7 @@ module mbdk_ida
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
-  use mbdk_model, only: mbdk_model_t, mbdk_model_assemble, mbdk_model_constraints, &
-    mbdk_model_accelerations, mbdk_model_watch, mbdk_model_watch_nodes, MBDK_FORM_REDUCED
-  use mbdk_joints, only: MBDK_JOINT_TYPES
-  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_dae_rhs, &
-    mbdk_spatial_constraints, mbdk_spatial_multipliers, mbdk_spatial_watch, &
-    mbdk_spatial_watch_nodes, MBDK_SPATIAL_REDUCED
-  use mbdk_spatial_dae, only: mbdk_spatial_ggl_rates
+  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -168,21 +174,22 @@ module mbdk_ida
     FIDAWFtolerances
   implicit none
   private
-  public :: mbdk_ida_solve, mbdk_ida_solve_spatial
+  public :: mbdk_ida_solve
 
   integer, parameter :: IDA_MAX_ORDER = 5
   !> a consistent initial residual row is within this many eps of the sum of its terms' sizes:
   !> the roundoff of a constrained solve's residual, with room for a row's few terms and the
   !> conditioning of D M^-1 D^T
   real(dp), parameter :: CONSISTENT_ULPS = 1.0e3_dp
-  !> |Phi| an assembled state may keep: mbdk_model_start's assembly tolerance
+  !> |Phi| an assembled state may keep: the assembly's tolerance (mbdk_model_start, and a
+  !> spatial scene's projection)
   real(dp), parameter :: ASSEMBLED_PHI = 1.0e-12_dp
   !> ggl: mu's absolute tolerance, which leaves it out of the Newton test (module header)
   real(dp), parameter :: MU_ATOL = 1.0_dp
-  !> ggl: the multipliers' Newton test, relative to the largest initial multiplier, is not
-  !> tighter than this (ggl_lam_atol)
+  !> the multipliers' Newton test, relative to the largest multiplier, is not tighter than this
+  !> (lam_atol; Python's GGL_LAMBDA_RTOL)
   real(dp), parameter :: LAM_RTOL_FLOOR = 1.0e-8_dp
-  !> spatial ggl: the least first step, as a fraction of the interval (mbdk_ida_solve_spatial)
+  !> ggl: the least first step, as a fraction of the interval (the module header)
   real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
 
   ! SUNDIALS' own accessor, called directly (as in mbdk_cvode): the interface's
@@ -197,42 +204,38 @@ module mbdk_ida
   !> What the residual reaches through IDA's user data: one per solve, on the solver's stack,
   !> with the evaluation's buffers so that an evaluation allocates nothing.
   type :: ida_context_t
-    type(mbdk_model_t), pointer :: model => null()
-    integer :: nc = 0, m = 0, n = 0
-    !> Y = [the differential part (ny); the multipliers (nl); (ggl) mu (nl)]: planar ny = 2 nc,
-    !> nl = m; spatial ny = nq + 6 nb, nl = the independent rows (rows)
-    integer :: ny = 0, nl = 0
+    class(mbdk_mechanism_t), pointer :: mech => null()
+    !> Y = [q (nq); v (nv); lam (nl); (ggl) mu (nl)], ny = nq + nv, nl = size(rows) <= m
+    integer :: nq = 0, nv = 0, ny = 0, m = 0, nl = 0, n = 0
+    integer, allocatable :: rows(:)
     !> the first step where the caller gave none (0: IDA's own estimate)
     real(dp) :: h0 = 0.0_dp
     logical :: ggl = .false.
-    !> ggl: the largest multiplier its tolerance was set from (ggl_lam_atol), and the error
+    !> the largest multiplier its tolerance was set from (lam_atol), and the error
     !> weights' tolerances, which ida_ewt reads (IDA's own IDASVtolerances cannot be called
     !> again once the solve has started: IDA 6.4 leaves its weight function without its data)
     real(dp) :: lam_scale = 0.0_dp, rtol = 0.0_dp
     real(dp), pointer, contiguous :: atol(:) => null()
-    logical :: spatial = .false.
-    type(mbdk_spatial_model_t), pointer :: smodel => null()
-    integer :: nq = 0
-    integer, allocatable :: rows(:)
-    real(dp), allocatable :: c(:, :), lamfull(:), g(:), g2(:)
-    !> spatial: whether the residual also keeps the accelerations' force part in g2
-    logical :: want_g2 = .false.
     !> a residual's failure status that made it return -1 (IDA then stops)
     integer :: stat = MBDK_SUCCESS
     !> MBDK_ERR_NONFINITE when a residual was not finite in the current step (recoverable)
     integer :: soft_stat = MBDK_SUCCESS
     integer(c_intptr_t) :: interrupt = 0
-    real(dp), allocatable :: phi(:), d(:, :), gam(:), phit(:)
+    !> one evaluation: f, Phi, C, gamma, Phi_t; lam and mu on every row; g = f - C^T lam,
+    !> x = v - C^T mu (ggl), M^-1 g (a non-diagonal M), the rates; M's diagonal (diag_mass)
+    real(dp), allocatable :: f(:), phi(:), c(:, :), gam(:), phit(:), lamfull(:), mufull(:), &
+      g(:), x(:), ming(:), qd(:), dm(:)
   end type ida_context_t
 
 contains
 
   !> See the module header. ggl: the stabilised index-2 form, else index1. y0 = [q0; v0];
   !> t_out: the sample times (t_out(1) = t0, written by the caller with nwritten = 1, the last
-  !> t_end); y_out(2 nc, >= size(t_out)) receives [q; v] at samples 2, 3, ...; lam_out(>= m, :)
-  !> the multipliers at the samples its columns reach (column 1: lam0; no columns: none).
-  subroutine mbdk_ida_solve(model, opt, ggl, t0, y0, t_out, y_out, lam_out, nwritten, st, stat)
-    type(mbdk_model_t), intent(in), target :: model
+  !> t_end); y_out(nq + nv, >= size(t_out)) receives [q; v] at samples 2, 3, ...; lam_out(>= m,
+  !> :) the multipliers at the samples its columns reach (column 1: lam0; zero on the rows a
+  !> redundant scene leaves out; no columns: none).
+  subroutine mbdk_ida_solve(mech, opt, ggl, t0, y0, t_out, y_out, lam_out, nwritten, st, stat)
+    class(mbdk_mechanism_t), intent(in), target :: mech
     type(mbdk_options_t), intent(in) :: opt
     logical, intent(in) :: ggl
     real(dp), intent(in) :: t0, y0(:)
@@ -245,263 +248,95 @@ contains
 
     type(ida_context_t), target :: ctx
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
-    real(dp), allocatable :: r0(:), a0(:), dtl(:)
-    integer :: nc, m, n, ns, ierr, nlam
-    real(dp) :: t_end
+    real(dp), allocatable :: r0(:), lam0(:)
+    integer :: nq, nv, ny, m, nl, n, ns, ierr, nlam
+    real(dp) :: t_end, s
 
-    nc = model%nc
-    m = model%m
+    nq = mech%ncoord
+    nv = mech%nvel
+    ny = nq + nv
+    m = mech%m
     ns = size(t_out)
     nlam = size(lam_out, 2)
     stat = MBDK_ERR_NOT_APPLICABLE
-    if (model%formulation /= MBDK_FORM_REDUCED) return
-    ! GGL's mu stabilises position rows; a knife edge has none (index1 keeps it: D a = gamma)
-    if (ggl .and. model%has_pfaffian) return
+    if (mech%formulation /= MBDK_FORM_REDUCED .or. mech%ns > 0) return
+    ! GGL's mu stabilises position rows; a knife edge has none (index1 keeps it: C a = gamma)
+    if (ggl .and. mech%has_pfaffian) return
     stat = MBDK_ERR_INVALID_INPUT
-    if (nc < 1 .or. size(y0) /= 2 * nc .or. ns < 2) return
-    t_end = t_out(ns)
-    if (.not. (t_end > t0)) return
-    if (opt%max_order < 0 .or. opt%max_order > IDA_MAX_ORDER) return
-    stat = MBDK_ERR_OUTPUT_SIZE
-    if (size(y_out, 1) /= 2 * nc .or. size(y_out, 2) < ns) return
-    if (nlam > 0 .and. size(lam_out, 1) < m) return
-    n = 2 * nc + m
-    if (ggl) n = n + m
-
-    stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), a0(nc), dtl(nc), ctx%phi(m), &
-              ctx%d(m, nc), ctx%gam(m), ctx%phit(m), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (6.0_dp * n + 2 * nc + real(m, dp) * (nc + 3)), &
-                           stat, st%alloc_bytes)
-    if (stat /= MBDK_SUCCESS) return
-    ctx%model => model
-    ctx%nc = nc
-    ctx%m = m
-    ctx%n = n
-    ctx%ggl = ggl
-    ctx%interrupt = opt%interrupt
-
-    ! consistent initial values (module header): lam0 from the model's constrained solve
-    y(1:2 * nc) = y0
-    call mbdk_model_accelerations(model, t0, y0(1:nc), y0(nc + 1:2 * nc), a0, &
-                                  y(2 * nc + 1:2 * nc + m), stat)
-    if (stat /= MBDK_SUCCESS) return
-    y(2 * nc + m + 1:) = 0.0_dp
-    yp(1:nc) = y0(nc + 1:2 * nc)
-    yp(nc + 1:2 * nc) = a0
-    yp(2 * nc + 1:) = 0.0_dp
-    call dae_residual(ctx, t0, y, yp, r0, stat)
-    if (stat /= MBDK_SUCCESS) return
-    stat = MBDK_ERR_INCONSISTENT_INITIAL
-    if (.not. consistent(ctx, y, yp, a0, r0, dtl)) return
-    if (nlam >= 1) lam_out(1:m, 1) = y(2 * nc + 1:2 * nc + m)
-    id(1:2 * nc) = 1.0_dp
-    id(2 * nc + 1:) = 0.0_dp
-    atol_v(1:2 * nc + m) = opt%atol
-    atol_v(2 * nc + m + 1:) = MU_ATOL
-    if (ggl .and. m > 0) then
-      atol_v(2 * nc + 1:2 * nc + m) = ggl_lam_atol(opt, y(2 * nc + 1:2 * nc + m))
-      ctx%lam_scale = maxval(abs(y(2 * nc + 1:2 * nc + m)))
-    end if
-
-    ctx%ny = 2 * nc
-    ctx%nl = m
-    call ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, nwritten, &
-                 st, stat)
-  end subroutine mbdk_ida_solve
-
-  !> ida on a spatial scene (mbdk_spatial_model, built with the reduced formulation), with the
-  !> state y0 = [q0; w0] (q: centres and quaternions or angles, w: velocities and body-frame
-  !> angular velocities) and the multipliers of the independent rows a = model%work%active
-  !> (Bricard's linkage keeps 29 of its 30), a(q, w, lam) = M^-1 (f - W x J W - C_a^T lam):
-  !>   index1  Y = [q; w; lam_a]:
-  !>       r_q = q' - T(q) w,   r_w = w' - a(q, w, lam),   r_lam = C_a w' - gamma_a
-  !>   ggl     Y = [q; w; lam_a; mu_a]:
-  !>       r_q = q' - T(q) (w - M^-1 C_a^T mu),   r_w = w' - a(q, w, lam),
-  !>       r_lam = Phi_a(q, t),   r_mu = C_a w + Phi_t,a
-  !>     GGL's mu acts through the rates T(q) of the velocities M^-1 C^T mu, since the spatial
-  !>     model forms C in w, not dPhi/dq in q: Phi' = C (w - M^-1 C^T mu) + Phi_t, so with
-  !>     C w + Phi_t = 0 and Phi = 0 held, mu = 0 (C M^-1 C^T is regular on the independent
-  !>     rows). M^-1 C^T mu comes from a's linearity in lam, a(lam - mu) - a(lam), and its rates
-  !>     from T(q) at the same q: three model evaluations and the constraints per residual
-  !>     (index1: one and the constraints).
-  !> The rest is mbdk_ida_solve's (the module header): consistent Y(0) = [q0; w0; lam0 (; 0)],
-  !> Y'(0) = [T(q0) w0; a0; 0 (; 0)] from the model's constrained solve, the error test on q
-  !> and w, mu out of the Newton test, the same statuses and counters. The quaternions' norm
-  !> is not projected (IDA's history forbids it); the rotation is read from p / |p|.
-  subroutine mbdk_ida_solve_spatial(model, opt, ggl, t0, y0, t_out, y_out, lam_out, nwritten, &
-                                    st, stat)
-    type(mbdk_spatial_model_t), intent(in), target :: model
-    type(mbdk_options_t), intent(in) :: opt
-    logical, intent(in) :: ggl
-    real(dp), intent(in) :: t0, y0(:)
-    real(dp), intent(in) :: t_out(:)
-    real(dp), intent(inout) :: y_out(:, :)
-    real(dp), intent(inout) :: lam_out(:, :)
-    integer, intent(inout) :: nwritten
-    type(mbdk_stats_t), intent(inout) :: st
-    integer, intent(out) :: stat
-
-    type(ida_context_t), target :: ctx
-    real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
-    real(dp), allocatable :: r0(:), phi(:), gam(:), phit(:), sizes(:)
-    integer :: ny, nq, m, na, n, ns, ierr, nlam, i, k
-    real(dp) :: t_end, tol, s
-
-    ny = size(y0)
-    nq = ny - 6 * model%nb
-    m = model%m
-    ns = size(t_out)
-    nlam = size(lam_out, 2)
-    stat = MBDK_ERR_NOT_APPLICABLE
-    if (model%opt%formulation /= MBDK_SPATIAL_REDUCED) return
-    stat = MBDK_ERR_INVALID_INPUT
-    if (ny /= model%n .or. nq < 1 .or. ns < 2) return
+    if (nq < 1 .or. size(y0) /= ny .or. ns < 2) return
     t_end = t_out(ns)
     if (.not. (t_end > t0)) return
     if (opt%max_order < 0 .or. opt%max_order > IDA_MAX_ORDER) return
     stat = MBDK_ERR_OUTPUT_SIZE
     if (size(y_out, 1) /= ny .or. size(y_out, 2) < ns) return
     if (nlam > 0 .and. size(lam_out, 1) < m) return
+
     stat = MBDK_ERR_NO_MEMORY
-    allocate (phi(m), gam(m), phit(m), ctx%c(m, ny - nq), ctx%lamfull(m), ctx%phi(m), &
-              ctx%gam(m), ctx%phit(m), ctx%g(ny), ctx%g2(ny), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (ny - nq + 7) + 2.0_dp * ny), &
+    allocate (ctx%f(nv), ctx%phi(m), ctx%c(m, nv), ctx%gam(m), ctx%phit(m), ctx%lamfull(m), &
+              ctx%mufull(m), ctx%g(nv), ctx%x(nv), ctx%ming(nv), ctx%qd(nq), ctx%dm(nv), &
+              lam0(m), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (nv + 6) + 6.0_dp * nv + nq), &
                            stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
-    ! the rows after the model's solve at t0, which may move a redundant scene to another set
-    if (m > 0) then
-      call mbdk_spatial_multipliers(model, t0, y0, ctx%lamfull, stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    ctx%rows = model%work%active
-    na = size(ctx%rows)
-    n = ny + na
-    if (ggl) n = n + na
-    stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), yp(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 6.0_dp * n, stat, st%alloc_bytes)
-    if (stat /= MBDK_SUCCESS) return
-    ctx%smodel => model
-    ctx%spatial = .true.
-    ctx%m = m
-    ctx%n = n
-    ctx%ny = ny
+    ctx%mech => mech
     ctx%nq = nq
-    ctx%nl = na
+    ctx%nv = nv
+    ctx%ny = ny
+    ctx%m = m
     ctx%ggl = ggl
     ctx%interrupt = opt%interrupt
+    if (mech%diag_mass) call mech%mass_diagonal(ctx%dm)
 
-    ! consistent initial values: the reduced formulation's rates and multipliers
+    ! consistent initial values (module header): a0 and lam0 from the mechanism's solve, which
+    ! may move a redundant scene to another set of rows: the rows are asked for after it
+    allocate (yp(ny), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * ny, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
+    call mech%accelerations(t0, y0(1:nq), y0(nq + 1:ny), yp(nq + 1:ny), lam0, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mech%rates(y0(1:nq), y0(nq + 1:ny), yp(1:nq), stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mech%active_rows(ctx%rows, stat)
+    if (stat /= MBDK_SUCCESS) return
+    nl = size(ctx%rows)
+    n = ny + nl
+    if (ggl) n = n + nl
+    ctx%nl = nl
+    ctx%n = n
+    yp = [yp, spread(0.0_dp, 1, n - ny)]
+    stat = MBDK_ERR_NO_MEMORY
+    allocate (y(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 5.0_dp * n, stat, st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
     y(1:ny) = y0
     y(ny + 1:) = 0.0_dp
-    if (m > 0) y(ny + 1:ny + na) = ctx%lamfull(ctx%rows)
-    call model%rhs(t0, y0, yp(1:ny), stat)
-    if (stat /= MBDK_SUCCESS) return
-    yp(ny + 1:) = 0.0_dp
-    ctx%want_g2 = .true.          ! the force part, for the test below only
+    y(ny + 1:ny + nl) = lam0(ctx%rows)
     call dae_residual(ctx, t0, y, yp, r0, stat)
-    ctx%want_g2 = .false.
-    if (stat /= MBDK_SUCCESS) return
-    ! every row within roundoff of its terms' sizes (the rates', the accelerations', C's)
-    stat = MBDK_ERR_INCONSISTENT_INITIAL
-    tol = CONSISTENT_ULPS * epsilon(1.0_dp)
-    s = maxval(abs(yp(1:nq))) + maxval(abs(ctx%g(1:nq)))
-    if (.not. all(abs(r0(1:nq)) <= tol * s)) return
-    s = maxval(abs(yp(nq + 1:ny))) + maxval(abs(ctx%g2(nq + 1:ny))) + tiny(1.0_dp)
-    if (.not. all(abs(r0(nq + 1:ny)) <= tol * s)) return
-    call mbdk_spatial_constraints(model, t0, y0, phi, ctx%c, gam, phit, stat)
-    if (stat /= MBDK_SUCCESS) return
-    ! the constraint rows within roundoff of the largest row's terms: a row whose own terms are
-    ! all zero (a mechanism at rest) still carries the roundoff of gamma's
-    allocate (sizes(na), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * na, stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INCONSISTENT_INITIAL
-    do i = 1, na
-      k = ctx%rows(i)
-      if (ggl) then
-        if (.not. (abs(r0(ny + i)) <= max(ASSEMBLED_PHI, model%opt%projection_tol))) return
-        sizes(i) = sum(abs(ctx%c(k, :) * y0(nq + 1:))) + abs(phit(k))
-      else
-        ! C a = gamma with a = M^-1 (f - C^T lam): a's roundoff is that of its two parts,
-        ! which nearly cancel in a mechanism at rest under gravity
-        sizes(i) = sum(abs(ctx%c(k, :)) * (abs(yp(nq + 1:ny)) + abs(ctx%g2(nq + 1:ny)) + &
-                                           abs(ctx%g(nq + 1:ny) - ctx%g2(nq + 1:ny)))) + &
-                   abs(gam(k))
-      end if
-    end do
-    if (na > 0) then
-      if (.not. all(abs(r0(ny + merge(na, 0, ggl) + 1:ny + merge(na, 0, ggl) + na)) <= &
-                    tol * max(maxval(sizes), 1.0_dp))) return
-    end if
-    if (nlam >= 1 .and. m > 0) call put_lam(ctx, y(ny + 1:ny + na), lam_out(:, 1))
+    if (.not. consistent(ctx, y, yp, r0)) return
+    if (nlam >= 1) call put_lam(ctx, y(ny + 1:ny + nl), lam_out(:, 1))
     id(1:ny) = 1.0_dp
     id(ny + 1:) = 0.0_dp
-    atol_v(1:ny + na) = opt%atol
-    atol_v(ny + na + 1:) = MU_ATOL
-    if (ggl .and. na > 0) then
-      atol_v(ny + 1:ny + na) = ggl_lam_atol(opt, y(ny + 1:ny + na))
-      ctx%lam_scale = maxval(abs(y(ny + 1:ny + na)))
+    atol_v(1:ny + nl) = opt%atol
+    atol_v(ny + nl + 1:) = MU_ATOL
+    if (nl > 0) then
+      atol_v(ny + 1:ny + nl) = lam_atol(opt, y(ny + 1:ny + nl))
+      ctx%lam_scale = maxval(abs(y(ny + 1:ny + nl)))
     end if
     if (ggl) then
-      ! IDA's first step, 0.5 / ||Y'(0)|| in its error weights, at least GGL_FIRST_STEP of the
-      ! interval: the index-2 Newton matrix's condition grows like 1/h^2, and a fast start
-      ! (a spinning body) at a tight rtol would make that estimate so small that the matrix is
-      ! singular to roundoff
+      ! IDA's own first step unless it falls below GGL_FIRST_STEP of the interval (header)
       s = sqrt(sum((yp(1:ny) / (opt%rtol * abs(y0) + opt%atol))**2) / ny)
-      ctx%h0 = (t_end - t0) * GGL_FIRST_STEP
-      if (s > 0.0_dp) ctx%h0 = min(max(0.5_dp / s, ctx%h0), 1.0e-3_dp * (t_end - t0))
+      if (s > 0.0_dp) then
+        if (0.5_dp / s < GGL_FIRST_STEP * (t_end - t0)) ctx%h0 = GGL_FIRST_STEP * (t_end - t0)
+      end if
     end if
     call ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, nwritten, &
                  st, stat)
-  end subroutine mbdk_ida_solve_spatial
+  end subroutine mbdk_ida_solve
 
-  !> F(t, Y, Y') of a spatial scene's form (mbdk_ida_solve_spatial) into r; ctx%g holds
-  !> [T(q) w; a] (ggl: [T(q) (w - M^-1 C^T mu); a]) and, when want_g2, ctx%g2 the
-  !> accelerations' force part M^-1 (f - W x J W) for the consistency test.
-  subroutine spatial_residual(ctx, t, y, yp, r, stat)
-    type(ida_context_t), intent(inout) :: ctx
-    real(dp), intent(in) :: t
-    real(dp), intent(in), contiguous :: y(:), yp(:)
-    real(dp), intent(out), contiguous :: r(:)
-    integer, intent(out) :: stat
-    integer :: ny, nq, na, i, k
-    ny = ctx%ny
-    nq = ctx%nq
-    na = ctx%nl
-    ctx%lamfull = 0.0_dp
-    if (ctx%want_g2) then          ! the force part alone (lam = 0)
-      call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g2, ctx%phi, stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    ctx%lamfull(ctx%rows) = y(ny + 1:ny + na)
-    call mbdk_spatial_dae_rhs(ctx%smodel, t, y(1:ny), ctx%lamfull, ctx%g, ctx%phi, stat)
-    if (stat /= MBDK_SUCCESS) return
-    r(nq + 1:ny) = yp(nq + 1:ny) - ctx%g(nq + 1:ny)
-    if (ctx%ggl) then          ! T(q) (w - M^-1 C^T mu)
-      ctx%lamfull(ctx%rows) = y(ny + 1:ny + na) - y(ny + na + 1:ny + 2 * na)
-      call mbdk_spatial_ggl_rates(ctx%smodel, t, y(1:ny), nq, ctx%lamfull, ctx%g(nq + 1:ny), &
-                                  ctx%g(1:nq), stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    r(1:nq) = yp(1:nq) - ctx%g(1:nq)
-    if (na == 0) return
-    call mbdk_spatial_constraints(ctx%smodel, t, y(1:ny), ctx%phi, ctx%c, ctx%gam, ctx%phit, &
-                                  stat)
-    if (stat /= MBDK_SUCCESS) return
-    do i = 1, na
-      k = ctx%rows(i)
-      if (ctx%ggl) then
-        r(ny + i) = ctx%phi(k)
-        r(ny + na + i) = dot_product(ctx%c(k, :), y(nq + 1:ny)) + ctx%phit(k)
-      else
-        r(ny + i) = dot_product(ctx%c(k, :), yp(nq + 1:ny)) - ctx%gam(k)
-      end if
-    end do
-  end subroutine spatial_residual
 
-  !> The SUNDIALS part of a solve (the module header), for either model: IDA from the
+  !> The SUNDIALS part of a solve (the module header): IDA from the
   !> consistent (y, yp) of the context's form to t_out's last time, samples and multipliers out.
   subroutine ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, &
                      nwritten, st, stat)
@@ -523,7 +358,7 @@ contains
     integer(c_long) :: nst(1), netf(1), ncfn(1)
     integer(i8) :: limit
     integer :: n, ns, k, ierr, nlam, ny, nl, i
-    logical :: sample, nodes
+    logical :: sample
     real(dp), allocatable :: yn(:, :), lamn(:, :)
     n = ctx%n
     ny = ctx%ny
@@ -555,13 +390,9 @@ contains
 
       flag = FIDAInit(mem, c_funloc(ida_res), t0, nv_y, nv_yp)
       if (flag == 0) then
-        if (ctx%ggl) then
-          ctx%rtol = opt%rtol
-          ctx%atol => atol_v
-          flag = FIDAWFtolerances(mem, c_funloc(ida_ewt))
-        else
-          flag = FIDASStolerances(mem, opt%rtol, opt%atol)
-        end if
+        ctx%rtol = opt%rtol
+        ctx%atol => atol_v
+        flag = FIDAWFtolerances(mem, c_funloc(ida_ewt))
       end if
       if (flag == 0) flag = FIDASetUserData(mem, c_loc(ctx))
       ! the error test sees q and v only (module header); IDA copies id
@@ -656,12 +487,7 @@ contains
           exit run
         end if
         ! the watch's work over the step from IDA's interpolant at its Gauss nodes
-        if (ctx%spatial) then
-          nodes = ctx%smodel%watch_wants_nodes()
-        else
-          nodes = ctx%model%watch_wants_nodes()
-        end if
-        if (nodes) then
+        if (ctx%mech%watch_wants_nodes()) then
           do i = 1, 3
             if (FIDAGetDky(mem, told + MBDK_GAUSS3(i) * (tret(1) - told), 0_c_int, &
                            nv_dky) /= 0) then
@@ -671,33 +497,21 @@ contains
             yn(:, i) = ydky(1:ny)
             call put_lam(ctx, ydky(ny + 1:ny + nl), lamn(:, i))
           end do
-          if (ctx%spatial) then
-            call mbdk_spatial_watch_nodes(ctx%smodel, told, tret(1), yn, stat, lamn)
-          else
-            call mbdk_model_watch_nodes(ctx%model, told, tret(1), yn(1:ny / 2, :), &
-                                        yn(ny / 2 + 1:ny, :), stat, lamn)
-          end if
+          call ctx%mech%watch_nodes_lam(told, tret(1), yn, lamn, stat)
           if (stat /= MBDK_SUCCESS) exit run
         end if
         told = tret(1)
-        if (ctx%spatial) then
-          if (ctx%smodel%has_watch) then
-            call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
-            call mbdk_spatial_watch(ctx%smodel, tret(1), y(1:ny), sample, stat, &
-                                    lam=ctx%lamfull)
-            if (stat /= MBDK_SUCCESS) exit run
-          end if
-        else if (ctx%model%has_watch) then
-          call mbdk_model_watch(ctx%model, tret(1), y(1:ny / 2), y(ny / 2 + 1:ny), sample, &
-                                stat, lam=y(ny + 1:ny + nl))
+        if (ctx%mech%has_watch) then
+          call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
+          call ctx%mech%watch_lam(tret(1), y(1:ny), sample, ctx%lamfull, stat)
           if (stat /= MBDK_SUCCESS) exit run
         end if
         st%t_reached = tret(1)      ! the step passed its checks
-        if (ctx%ggl .and. ctx%nl > 0) then
+        if (ctx%nl > 0) then
           ! multipliers that grew (from rest, or a load ramped up) raise their tolerance
           if (maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl))) > 2.0_dp * ctx%lam_scale) then
             ctx%lam_scale = maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl)))
-            atol_v(ctx%ny + 1:ctx%ny + ctx%nl) = ggl_lam_atol(opt, y(ctx%ny + 1:ctx%ny + ctx%nl))
+            atol_v(ctx%ny + 1:ctx%ny + ctx%nl) = lam_atol(opt, y(ctx%ny + 1:ctx%ny + ctx%nl))
           end if
         end if
         do while (k <= ns)
@@ -722,130 +536,139 @@ contains
     if (c_associated(sunctx)) ierr = FSUNContext_Free(sunctx)
   end subroutine ida_run
 
-  !> The multipliers of Y (the context's nl) as the model's m rows into dst (the spatial model's
-  !> dependent rows: 0).
+  !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
+  !> (the rows a redundant scene leaves out: 0).
   subroutine put_lam(ctx, src, dst)
     type(ida_context_t), intent(in) :: ctx
     real(dp), intent(in) :: src(:)
     real(dp), intent(inout) :: dst(:)
-    if (ctx%spatial) then
-      dst(1:ctx%m) = 0.0_dp
-      dst(ctx%rows) = src
-    else
-      dst(1:ctx%m) = src
-    end if
+    dst(1:ctx%m) = 0.0_dp
+    dst(ctx%rows) = src
   end subroutine put_lam
 
   !> Whether the residual r of the initial values (y, yp) is within roundoff, row by row (see
-  !> the module header); ctx holds the evaluation at those values, a the accelerations. dtl(nc):
-  !> work (the caller's: an automatic array would be taken from malloc unchecked).
-  logical function consistent(ctx, y, yp, a, r, dtl)
-    type(ida_context_t), intent(in) :: ctx
-    real(dp), intent(in) :: y(:), yp(:), a(:), r(:)
-    real(dp), intent(out) :: dtl(:)
-    real(dp) :: s, smax, tol
-    integer :: nc, m, i, k
-    nc = ctx%nc
-    m = ctx%m
+  !> the module header); ctx holds the evaluation at those values (dae_residual).
+  logical function consistent(ctx, y, yp, r)
+    type(ida_context_t), intent(inout) :: ctx
+    real(dp), intent(in) :: y(:), yp(:), r(:)
+    real(dp), allocatable :: ts(:), mlam(:), sz(:)
+    real(dp) :: tol, s
+    integer :: nq, nv, ny, nl, i, j, k, astat
+    nq = ctx%nq
+    nv = ctx%nv
+    ny = ctx%ny
+    nl = ctx%nl
     tol = CONSISTENT_ULPS * epsilon(1.0_dp)
-    associate (mass => ctx%model%mass, winv => ctx%model%winv, fq => ctx%model%work%fq, &
-               d => ctx%d, lam => y(2 * nc + 1:2 * nc + m))
-      consistent = .false.
-      do k = 1, nc
-        dtl(k) = sum(abs(d(:, k) * lam))     ! the sizes of the terms of D^T lam
-        if (.not. (abs(r(k)) <= tol * (abs(yp(k)) + abs(y(nc + k))))) return
-        if (.not. (abs(r(nc + k)) <= tol * (abs(mass(k) * yp(nc + k)) + dtl(k) + abs(fq(k))))) &
-          return
+    consistent = .false.
+    allocate (ts(nv), mlam(nv), sz(max(nl, 1)), stat=astat)
+    if (astat /= 0) return
+    ! the kinematic rows: the rates are the same function of the same numbers (0 exactly)
+    if (.not. all(abs(r(1:nq)) <= tol * (abs(yp(1:nq)) + abs(ctx%qd)))) return
+    ! the velocity rows; ts: the sizes of the terms of each acceleration (M^-1 f and
+    ! M^-1 C^T lam, which nearly cancel in a mechanism at rest under gravity)
+    associate (v => y(nq + 1:ny), a => yp(nq + 1:ny), rv => r(nq + 1:ny))
+      do k = 1, nv
+        mlam(k) = sum(abs(ctx%c(:, k) * ctx%lamfull))   ! |C^T lam| term by term
       end do
-      ! ggl's velocity rows against the largest row's terms: a row whose own terms are all
-      ! zero (a slider's, while the crank turns) still carries the roundoff of the assembly's
-      ! velocity solve, which is that of the largest
-      smax = 0.0_dp
-      if (ctx%ggl) then
-        do i = 1, m
-          smax = max(smax, sum(abs(d(i, :) * y(nc + 1:2 * nc))) + abs(ctx%phit(i)))
+      if (ctx%mech%diag_mass) then
+        do k = 1, nv
+          if (.not. (abs(rv(k)) <= tol * (abs(ctx%dm(k) * a(k)) + mlam(k) + abs(ctx%f(k))))) &
+            return
+          ts(k) = 0.0_dp
+          if (ctx%dm(k) > 0.0_dp) ts(k) = (abs(ctx%f(k)) + mlam(k)) / ctx%dm(k)
         end do
+      else
+        ! M^-1 mixes a body's rows: against the largest terms
+        call ctx%mech%minv_times(ctx%f, ts)
+        call ctx%mech%minv_times(ctx%f - ctx%g, mlam)
+        ts = abs(ts) + abs(mlam)
+        if (.not. all(abs(rv) <= tol * (maxval(abs(a)) + maxval(ts)))) return
       end if
-      do i = 1, m
+      ! the constraint rows against the largest row's terms: a row whose own terms are all
+      ! zero (a slider's, while the crank turns) still carries the roundoff of the assembly's
+      ! solve, which is that of the largest
+      do i = 1, nl
+        j = ctx%rows(i)
         if (ctx%ggl) then
-          s = sum(abs(d(i, :) * y(1:nc)))
-          if (.not. (abs(r(2 * nc + i)) <= max(tol * s, ASSEMBLED_PHI))) return
-          if (.not. (abs(r(2 * nc + m + i)) <= tol * smax)) return
+          sz(i) = sum(abs(ctx%c(j, :) * v)) + abs(ctx%phit(j))
+          if (.not. (abs(r(ny + i)) <= max(ASSEMBLED_PHI, tol * maxval(abs(y(1:nq)))))) return
         else
-          ! D a = gamma with a = M^-1 (f - D^T lam): a's roundoff is that of its terms, which
-          ! may nearly cancel (a mechanism at rest under gravity)
-          s = abs(ctx%gam(i))
-          do k = 1, nc
-            s = s + abs(d(i, k)) * (abs(a(k)) + winv(k) * (abs(fq(k)) + dtl(k)))
-          end do
-          if (.not. (abs(r(2 * nc + i)) <= tol * s)) return
+          ! C a = gamma: a's roundoff is that of its terms
+          sz(i) = abs(ctx%gam(j)) + sum(abs(ctx%c(j, :)) * (abs(a) + ts))
         end if
       end do
-      consistent = .true.
+      if (nl > 0) then
+        s = tol * maxval(sz(1:nl))
+        k = ny + merge(nl, 0, ctx%ggl)
+        if (.not. all(abs(r(k + 1:k + nl)) <= s)) return
+      end if
     end associate
+    consistent = .true.
   end function consistent
 
-  !> F(t, Y, Y') of the form (module header) into r; ctx%phi, d, gam, phit and the model's
-  !> work%fq are left at (t, q, v). stat: mbdk_model_assemble's.
+  !> F(t, Y, Y') of the form (module header) into r; the context's f, phi, c, gam, phit,
+  !> lamfull, g (= f - C^T lam) and qd (the rates) are left at (t, q, v). stat: the
+  !> mechanism's.
   subroutine dae_residual(ctx, t, y, yp, r, stat)
     type(ida_context_t), intent(inout) :: ctx
     real(dp), intent(in) :: t
     real(dp), intent(in), contiguous :: y(:), yp(:)
     real(dp), intent(out), contiguous :: r(:)
     integer, intent(out) :: stat
-    integer(i8) :: visits(MBDK_JOINT_TYPES)
-    integer :: nc, m, i, k, ol, om
-    real(dp) :: s, vk
+    integer :: nq, nv, ny, nl, i, j, k, ol, om
+    real(dp) :: s, u
 
-    if (ctx%spatial) then
-      call spatial_residual(ctx, t, y, yp, r, stat)
-      return
-    end if
-    nc = ctx%nc
-    m = ctx%m
-    ol = 2 * nc        ! lam(i) = y(ol + i)
-    om = 2 * nc + m    ! mu(i) = y(om + i)
-    call mbdk_model_assemble(ctx%model, t, y(1:nc), y(nc + 1:2 * nc), stat)
-    if (stat /= MBDK_SUCCESS) return
-    if (m > 0) then
-      ! the joints were visited by the assembly: this pass for the dense D is not counted
-      visits = ctx%model%work%visits(1:MBDK_JOINT_TYPES)
-      call mbdk_model_constraints(ctx%model, t, y(1:nc), y(nc + 1:2 * nc), ctx%phi, ctx%d, &
-                                  ctx%gam, ctx%phit)
-      ctx%model%work%visits(1:MBDK_JOINT_TYPES) = visits
-    end if
-    associate (d => ctx%d, mass => ctx%model%mass, fq => ctx%model%work%fq)
-      ! column by column of D (its storage order): D^T lam, D^T mu, D v and D v' together
+    nq = ctx%nq
+    nv = ctx%nv
+    ny = ctx%ny
+    nl = ctx%nl
+    ol = ny          ! lam(i) = y(ol + i)
+    om = ny + nl     ! mu(i) = y(om + i)
+    associate (q => y(1:nq), v => y(nq + 1:ny), c => ctx%c)
+      call ctx%mech%evaluate(t, q, v, ctx%f, ctx%phi, c, ctx%gam, ctx%phit, stat)
+      if (stat /= MBDK_SUCCESS) return
+      ctx%lamfull = 0.0_dp
+      ctx%lamfull(ctx%rows) = y(ol + 1:ol + nl)
       if (ctx%ggl) then
-        do i = 1, m
-          r(ol + i) = ctx%phi(i)
-          r(om + i) = ctx%phit(i)
-        end do
-      else
-        do i = 1, m
-          r(ol + i) = -ctx%gam(i)
-        end do
+        ctx%mufull = 0.0_dp
+        ctx%mufull(ctx%rows) = y(om + 1:om + nl)
       end if
-      do k = 1, nc
-        s = mass(k) * yp(nc + k) - fq(k)
-        do i = 1, m
-          s = s + d(i, k) * y(ol + i)
+      ! column by column of C (its storage order): g = f - C^T lam, x = v - C^T mu
+      do k = 1, nv
+        s = ctx%f(k)
+        do i = 1, ctx%m
+          s = s - c(i, k) * ctx%lamfull(i)
         end do
-        r(nc + k) = s
-        s = yp(k) - y(nc + k)
+        ctx%g(k) = s
         if (ctx%ggl) then
-          vk = y(nc + k)
-          do i = 1, m
-            s = s + d(i, k) * y(om + i)
-            r(om + i) = r(om + i) + d(i, k) * vk
+          u = v(k)
+          do i = 1, ctx%m
+            u = u - c(i, k) * ctx%mufull(i)
           end do
-        else
-          vk = yp(nc + k)
-          do i = 1, m
-            r(ol + i) = r(ol + i) + d(i, k) * vk
-          end do
+          ctx%x(k) = u
         end if
-        r(k) = s
+      end do
+      if (ctx%mech%diag_mass) then
+        r(nq + 1:ny) = ctx%dm * yp(nq + 1:ny) - ctx%g
+      else
+        call ctx%mech%minv_times(ctx%g, ctx%ming)
+        r(nq + 1:ny) = yp(nq + 1:ny) - ctx%ming
+      end if
+      if (ctx%ggl) then
+        call ctx%mech%rates(q, ctx%x, ctx%qd, stat)
+      else
+        call ctx%mech%rates(q, v, ctx%qd, stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+      r(1:nq) = yp(1:nq) - ctx%qd
+      do i = 1, nl
+        j = ctx%rows(i)
+        if (ctx%ggl) then
+          r(ol + i) = ctx%phi(j)
+          r(om + i) = dot_product(c(j, :), v) + ctx%phit(j)
+        else
+          r(ol + i) = dot_product(c(j, :), yp(nq + 1:ny)) - ctx%gam(j)
+        end if
       end do
     end associate
   end subroutine dae_residual
@@ -917,8 +740,8 @@ contains
 
   !> IDAResFn: r = F(t, Y, Y') on the vectors' own storage. 0: done; 1: Y or r not finite (IDA
   !> cuts the step); -1: the model failed or the solve was interrupted (ctx%stat says which).
-  !> The error weights of the ggl form (IDAWFtolerances): 1 / (rtol |y_i| + atol_i), atol from
-  !> ctx%atol, whose multipliers' entries the loop raises as they grow (ggl_lam_atol). -1
+  !> The error weights (IDAWFtolerances): 1 / (rtol |y_i| + atol_i), atol from ctx%atol,
+  !> whose multipliers' entries the loop raises as they grow (lam_atol). -1
   !> (IDA stops) where a weight would not be positive and finite.
   integer(c_int) function ida_ewt(nv_y, nv_ewt, user_data) bind(C, name='') result(ierr)
     type(N_Vector), target :: nv_y, nv_ewt
@@ -978,17 +801,17 @@ contains
     end if
   end function ida_res
 
-  !> ggl's absolute tolerance of the multipliers lam (their values at the start, and again after
+  !> The absolute tolerance of the multipliers lam (their values at the start, and again after
   !> a step where the largest has doubled): max(atol, max(rtol, LAM_RTOL_FLOOR) max |lam|). In
-  !> the index-2 iteration the multipliers carry roundoff of the order of eps times the largest
-  !> one times the iteration matrix's condition, which grows like 1/h^2; tested at atol alone,
+  !> the iteration the multipliers carry roundoff of the order of eps times the largest one
+  !> times the iteration matrix's condition, which grows as h shrinks; tested at atol alone,
   !> or at rtol near eps, that roundoff keeps Newton from converging (IDA_CONV_FAIL) on stiff
   !> scenes at tight tolerances, and whether it does then depends on where the steps fall.
-  pure function ggl_lam_atol(opt, lam0) result(a)
+  pure function lam_atol(opt, lam0) result(a)
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: lam0(:)
     real(dp) :: a
     a = max(opt%atol, max(opt%rtol, LAM_RTOL_FLOOR) * maxval(abs(lam0)))
-  end function ggl_lam_atol
+  end function lam_atol
 
 end module mbdk_ida
