@@ -143,6 +143,9 @@ typedef struct mbdk_index3_options {
     int newton_max_iter;
     int adaptive;          /* mbdk_index3_adaptive; controlled (augmented only): samples every dt_out */
     volatile double *progress; /* NULL, or where the solve stores the time reached, per step */
+    /* the generalized-alpha family (the manual: newmark, hht, generalized_alpha); the defaults
+     * 1/4, 1/2, 0, 0 are the trapezoidal rule. beta > 0, gamma > 0, alpha_m < 1, alpha_f < 1 */
+    double beta, gamma, alpha_m, alpha_f;
 } mbdk_index3_options;
 
 void mbdk_index3_default_options(mbdk_index3_options *opt);

@@ -32,7 +32,9 @@ static const struct field index3[] = {
     F(mbdk_index3_options, dt_out), F(mbdk_index3_options, h_min), F(mbdk_index3_options, h_max),
     F(mbdk_index3_options, interrupt), F(mbdk_index3_options, formulation),
     F(mbdk_index3_options, every), F(mbdk_index3_options, newton_max_iter),
-    F(mbdk_index3_options, adaptive), F(mbdk_index3_options, progress)};
+    F(mbdk_index3_options, adaptive), F(mbdk_index3_options, progress),
+    F(mbdk_index3_options, beta), F(mbdk_index3_options, gamma),
+    F(mbdk_index3_options, alpha_m), F(mbdk_index3_options, alpha_f)};
 static const struct field model[] = {
     F(mbdk_model_options, baumgarte_alpha), F(mbdk_model_options, baumgarte_beta),
     F(mbdk_model_options, penalty_alpha), F(mbdk_model_options, penalty_omega),

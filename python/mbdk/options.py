@@ -180,6 +180,10 @@ class Index3Options(_Struct):
     every: int = 1
     newton_max_iter: int = 20
     adaptive: int = 0
+    beta: float = 0.25        # the generalized-alpha family; the defaults: the trapezoidal rule
+    gamma: float = 0.5
+    alpha_m: float = 0.0
+    alpha_f: float = 0.0
 
 
 @dataclass(frozen=True)

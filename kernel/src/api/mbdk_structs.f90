@@ -155,6 +155,10 @@ contains
       call add('newton_max_iter', transfer(c_loc(i3%newton_max_iter), base), MBDK_FIELD_INT)
       call add('adaptive', transfer(c_loc(i3%adaptive), base), MBDK_FIELD_INT)
       call add('progress', transfer(c_loc(i3%progress), base), MBDK_FIELD_POINTER)
+      call add('beta', transfer(c_loc(i3%beta), base), MBDK_FIELD_DOUBLE)
+      call add('gamma', transfer(c_loc(i3%gamma), base), MBDK_FIELD_DOUBLE)
+      call add('alpha_m', transfer(c_loc(i3%alpha_m), base), MBDK_FIELD_DOUBLE)
+      call add('alpha_f', transfer(c_loc(i3%alpha_f), base), MBDK_FIELD_DOUBLE)
     case (MBDK_STRUCT_MODEL_OPTIONS)
       cname = 'mbdk_model_options'
       nbytes = int(c_sizeof(mo))

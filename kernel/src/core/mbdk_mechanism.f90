@@ -288,14 +288,15 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_cs_solve_iface
 
-    !> builds and factorises the Newton matrix at (t, q, v, lam) of the last evaluation for
-    !> step h (book: with the multipliers' rows; else the augmented form with penalty alpha)
-    subroutine i3_matrix_iface(self, aux, book, t, q, v, lam, h, alpha, stat)
+    !> builds and factorises the Newton matrix M + ck (K + alpha C^T C) + cd D_f at (t, q, v,
+    !> lam) of the last evaluation (book: [.., C^T; C, 0] with the multipliers' rows and no
+    !> alpha; ck, cd: the step's coefficients, h^2/4 and h/2 for the trapezoidal rule)
+    subroutine i3_matrix_iface(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
       import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
-      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in) :: t, ck, cd, alpha
       real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
       integer, intent(out) :: stat
     end subroutine i3_matrix_iface

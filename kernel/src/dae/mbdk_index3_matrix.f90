@@ -107,15 +107,18 @@ contains
     end do
   end subroutine mbdk_index3_factors_init
 
-  !> Builds the Newton matrix at (t, q, v, lam) for step h and factorises it. book: the book
+  !> Builds the Newton matrix at (t, q, v, lam) and factorises it: ck the coefficient of the
+  !> stiffness and of the multipliers' terms (the trapezoidal rule's s = h^2/4; the
+  !> generalized-alpha family's beta h^2 (1 - alpha_f) / (1 - alpha_m)), cd that of the
+  !> damping (h/2; gamma h (1 - alpha_f) / (1 - alpha_m)). book: the book
   !> scheme's matrix (d(m, nc) receives the dense D from model%work%dz, the compact rows at q);
   !> otherwise the augmented one with penalty alpha. model%work%rot must hold the rotations at q.
   !> lw(m) is a work array.
-  subroutine mbdk_index3_factor(fa, model, book, t, q, v, lam, h, alpha, d, lw, stat)
+  subroutine mbdk_index3_factor(fa, model, book, t, q, v, lam, ck, cd, alpha, d, lw, stat)
     type(mbdk_index3_factors_t), intent(inout) :: fa
     type(mbdk_model_t), intent(in) :: model
     logical, intent(in) :: book
-    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in) :: t, ck, cd, alpha
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
     real(dp), intent(inout), contiguous :: d(:, :), lw(:)
     integer, intent(out) :: stat
@@ -123,24 +126,24 @@ contains
     fa%have_inv = .false.
     fa%nuse = 0
     if (fa%sparse) then
-      call sparse_matrix(fa, model, t, q, v, lam, h, alpha, stat)
+      call sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, stat)
       if (stat == MBDK_SUCCESS) call mbdk_sparse_ldlt_factor(fa%ldl, LDLT_TOL, stat)
       return
     end if
     if (book) then
       if (model%m > 0) call mbdk_joints_scatter(model%col, model%work%dz, d)
-      call book_matrix(model, t, q, v, lam, h, d, lw, fa%lu, stat)
+      call book_matrix(model, t, q, v, lam, ck, cd, d, lw, fa%lu, stat)
     else
       ! the geometric stiffness of the augmented form takes lam* alone: alpha Phi, large while
       ! the iterate is off the constraints, vanishes at the solution
-      call al_matrix(model, t, q, v, lam, h, alpha, lw, fa%lu, stat)
+      call al_matrix(model, t, q, v, lam, ck, cd, alpha, lw, fa%lu, stat)
       if (stat /= MBDK_SUCCESS) return
       if (fa%small) then
         if (symmetric(fa%lu, fa%nk)) then
           call mbdk_small_ldlt_factor(fa%lu, fa%nk, fa%body_blk, LDLT_TOL, stat)
           fa%ldlt = stat == MBDK_SUCCESS
           ! not positive definite: rebuilt for the LU
-          if (.not. fa%ldlt) call al_matrix(model, t, q, v, lam, h, alpha, lw, fa%lu, stat)
+          if (.not. fa%ldlt) call al_matrix(model, t, q, v, lam, ck, cd, alpha, lw, fa%lu, stat)
         end if
       end if
     end if
@@ -203,7 +206,7 @@ contains
       return
     end if
     call mbdk_model_constraints(model, t, q, v, phi, d, gam, phit)
-    call book_matrix(model, t, q, v, lam, h, d, lw, a, stat)
+    call book_matrix(model, t, q, v, lam, s, 0.5_dp * h, d, lw, a, stat)
     if (stat /= MBDK_SUCCESS) return
     jac = a
     select case (scaling)
@@ -219,19 +222,19 @@ contains
     end select
   end subroutine mbdk_index3_newton_matrix
 
-  !> a = 0 but for its leading (nc, nc) block M + s (K_c(lam) + K_f) + (h/2) C_f at (q, v, lam,
+  !> a = 0 but for its leading (nc, nc) block M + ck (K_c(lam) + K_f) + cd C_f at (q, v, lam,
   !> t), the body rotations model%work%rot at q; lw(m) is a work array. a(nc, nc) or larger.
-  subroutine dynamic_block(model, t, q, v, lam, h, lw, a, stat)
+  subroutine dynamic_block(model, t, q, v, lam, ck, cd, lw, a, stat)
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h
+    real(dp), intent(in) :: t, ck, cd
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
     real(dp), intent(out), contiguous :: lw(:), a(:, :)
     integer, intent(out) :: stat
     real(dp) :: s
     integer :: i
-    s = 0.25_dp * h * h
+    s = ck
     a = 0.0_dp
-    call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, s, 0.5_dp * h, &
+    call mbdk_forces_tangent(model%fint, model%freal, model%work%rot, q, v, t, s, cd, &
                              a, model%work%visits(MBDK_JOINT_TYPES + 1:), stat)
     if (stat /= MBDK_SUCCESS) return
     if (model%m > 0) then
@@ -244,19 +247,19 @@ contains
     end do
   end subroutine dynamic_block
 
-  !> The book scheme's [M + s (K_c(lam) + K_f) + (h/2) C_f, D^T; D, 0] (nc+m, nc+m) at (q, v,
+  !> The book scheme's [M + ck (K_c(lam) + K_f) + cd C_f, D^T; D, 0] (nc+m, nc+m) at (q, v,
   !> lam, t), with D = d given there and the body rotations model%work%rot at q (the callers
   !> evaluate the constraints, or the rotations, at q just before); lw(m) is a work array.
-  subroutine book_matrix(model, t, q, v, lam, h, d, lw, jac, stat)
+  subroutine book_matrix(model, t, q, v, lam, ck, cd, d, lw, jac, stat)
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h
+    real(dp), intent(in) :: t, ck, cd
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:), d(:, :)
     real(dp), intent(out), contiguous :: lw(:), jac(:, :)
     integer, intent(out) :: stat
     integer :: nc, m, i, k
     nc = model%nc
     m = model%m
-    call dynamic_block(model, t, q, v, lam, h, lw, jac, stat)
+    call dynamic_block(model, t, q, v, lam, ck, cd, lw, jac, stat)
     if (stat /= MBDK_SUCCESS) return
     do k = 1, nc
       do i = 1, m
@@ -268,15 +271,15 @@ contains
 
   !> The augmented form's M + s (K_c(lam) + K_f + alpha D^T D) + (h/2) C_f (nc, nc) at (q, v,
   !> lam, t): D from its compact rows model%work%dz and the rotations model%work%rot, both at q.
-  subroutine al_matrix(model, t, q, v, lam, h, alpha, lw, a, stat)
+  subroutine al_matrix(model, t, q, v, lam, ck, cd, alpha, lw, a, stat)
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in) :: t, ck, cd, alpha
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
     real(dp), intent(out), contiguous :: lw(:), a(:, :)
     integer, intent(out) :: stat
-    call dynamic_block(model, t, q, v, lam, h, lw, a, stat)
+    call dynamic_block(model, t, q, v, lam, ck, cd, lw, a, stat)
     if (stat /= MBDK_SUCCESS .or. model%m == 0) return
-    call mbdk_sparse_dtd_add(model%sp, model%work%dz, 0.25_dp * h * h * alpha, a)
+    call mbdk_sparse_dtd_add(model%sp, model%work%dz, ck * alpha, a)
   end subroutine al_matrix
 
   !> The sparse path's pattern (bodies coupled by a joint or a force element) and its ordering.
@@ -319,15 +322,15 @@ contains
 
   !> The augmented matrix into fa%ldl%ax, element by element (see the module header), then
   !> its symmetric part. model%work%rot and model%work%dz at q.
-  subroutine sparse_matrix(fa, model, t, q, v, lam, h, alpha, stat)
+  subroutine sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, stat)
     type(mbdk_index3_factors_t), intent(inout) :: fa
     type(mbdk_model_t), intent(in) :: model
-    real(dp), intent(in) :: t, h, alpha
+    real(dp), intent(in) :: t, ck, cd, alpha
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
     integer, intent(out) :: stat
     real(dp) :: s, ke(6, 6), ql(6), vl(6), rl(2, 2), ll(3), x
     integer :: e, b1, b2, k, r, i, j, n, jl(4, 1), row0(1), p, pt
-    s = 0.25_dp * h * h
+    s = ck
     stat = MBDK_SUCCESS
     associate (ax => fa%ldl%ax, w => model%work)
       ax = 0.0_dp
@@ -336,7 +339,7 @@ contains
         jl(:, 1) = [model%fint(1, e), merge(1, 0, b1 > 0), merge(merge(1, 2, b2 == b1), 0, &
                     b2 > 0), model%fint(4, e)]
         ke = 0.0_dp
-        call mbdk_forces_tangent(jl, model%freal(:, e:e), rl, ql, vl, t, s, 0.5_dp * h, ke, &
+        call mbdk_forces_tangent(jl, model%freal(:, e:e), rl, ql, vl, t, s, cd, ke, &
                                  w%visits(MBDK_JOINT_TYPES + 1:), stat)
         if (stat /= MBDK_SUCCESS) return
         call mbdk_body_pattern_scatter(fa%bp, b1, merge(0, b2, b2 == b1), ke, ax)

@@ -16,6 +16,32 @@
 !> coordinates: eps |q| / h in the velocities from positions far from the origin would not
 !> shrink with h.) For planar bodies this is the book's scheme on q+ = q + dq.
 !>
+!> The generalized-alpha family (opt%beta, gamma, alpha_m, alpha_f; Chung and Hulbert 1993 in
+!> the form of Arnold and Bruls 2007, which keeps the equations of motion at t+ and carries the
+!> alphas in a pseudo-acceleration ap; on spatial bodies with the retraction above, the Lie-group
+!> form of Bruls and Cardona 2010):
+!>   dq = h v + h^2 (1/2 - beta) ap + h^2 beta ap+,   v+ = v + h (1 - gamma) ap + h gamma ap+,
+!>   (1 - alpha_m) ap+ + alpha_m ap = (1 - alpha_f) a+ + alpha_f a,
+!>   M a+ + C^T lambda+ = f(q+, v+, t+),   Phi(q+) = 0.
+!> Times cs = beta h^2 (1 - alpha_f) / (1 - alpha_m) the equations of motion read r = M (dq -
+!> dqhat) + cs (C^T lambda+ - f) with dqhat = h v + h^2 (1/2 - beta) ap - beta h^2 (alpha_m ap -
+!> alpha_f a) / (1 - alpha_m), and v+ depends on dq through gamma / (beta h): the same Newton,
+!> matrix (stiffness and multipliers times cs, damping times gamma h (1 - alpha_f) /
+!> (1 - alpha_m)), projections and rank-loss handling as below serve every member. The members
+!> (Python's method names set the parameters):
+!>   trapezoidal_index3   beta 1/4, gamma 1/2, alpha_m = alpha_f = 0 (ap = a): the book's rule,
+!>                        its coefficients computed to the same bits as before the family
+!>   newmark              beta, gamma; alpha_m = alpha_f = 0 (gamma > 1/2 damps, first order)
+!>   hht                  alpha in [-1/3, 0]: alpha_m = 0, alpha_f = -alpha, gamma = 1/2 - alpha,
+!>                        beta = (1 - alpha)^2 / 4 (HHT's linear spectral properties; the forces
+!>                        are not weighted in time as in Hilber, Hughes and Taylor's own form)
+!>   generalized_alpha    rho_inf in [0, 1]: alpha_m = (2 rho - 1) / (rho + 1), alpha_f = rho /
+!>                        (rho + 1), gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m +
+!>                        alpha_f)^2 / 4; rho_inf = 1 is the trapezoidal rule again (ap = a
+!>                        from a consistent start), to roundoff
+!> Second order in q and v for gamma = 1/2 - alpha_m + alpha_f. Step-size control
+!> (opt%adaptive) is the trapezoidal rule's only (its error estimates are the rule's).
+!>
 !> Formulations (mbdk_index3_options_t%formulation):
 !>   1 index3     the book's scheme: Newton-Raphson (3.16) on (dq, lambda+) for r = 0 and
 !>                Phi(q+) = 0, multiplier predictor (3.11) lambda+ = lambda + (h/h-)(lambda -
@@ -209,7 +235,7 @@ module mbdk_trapezoidal_index3
   implicit none
   private
   public :: mbdk_index3_solve, mbdk_index3_plan, mbdk_index3_init, mbdk_index3_step, &
-    mbdk_index3_advance
+    mbdk_index3_advance, mbdk_index3_is_trapezoidal
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
   !> opt%adaptive: 1 the local error estimate from differences, 2 local Richardson extrapolation
@@ -280,6 +306,12 @@ module mbdk_trapezoidal_index3
     integer(c_int) :: adaptive = 0
     !> address of a C double the solve stores the time reached in, once per step; 0: none
     integer(c_intptr_t) :: progress = 0
+    !> the generalized-alpha family's parameters (the module header); the defaults are the
+    !> trapezoidal rule
+    real(c_double) :: beta = 0.25_c_double
+    real(c_double) :: gamma = 0.5_c_double
+    real(c_double) :: alpha_m = 0.0_c_double
+    real(c_double) :: alpha_f = 0.0_c_double
   end type mbdk_index3_options_t
 
 
@@ -300,6 +332,15 @@ module mbdk_trapezoidal_index3
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
     !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
     real(dp) :: tau = 1.0_dp
+    !> the step's coefficients (set_coefficients): cs the Newton scale beta h^2 (1 - alpha_f) /
+    !> (1 - alpha_m) (s = h^2/4 for the trapezoidal rule), cd the damping's gamma h (1 -
+    !> alpha_f) / (1 - alpha_m), bh2 = beta h^2, cq = h^2 (1/2 - beta); v+ = cv dq + kv1 v +
+    !> kv2 ap; ap+ = ca dq + ka1 v + ka2 ap; cg = (1 - gamma) / gamma; ra = -beta h^2 /
+    !> (1 - alpha_m)
+    real(dp) :: cs = 0.0_dp, cd = 0.0_dp, bh2 = 0.0_dp, cq = 0.0_dp, cv = 0.0_dp, kv1 = 0.0_dp, &
+                kv2 = 0.0_dp, ca = 0.0_dp, ka1 = 0.0_dp, ka2 = 0.0_dp, cg = 0.0_dp, ra = 0.0_dp
+    !> alpha_m or alpha_f nonzero: the pseudo-acceleration ap differs from a
+    logical :: alpha_terms = .false.
     !> the update's norm where a matrix built in its step last stalled (roundoff), decaying
     real(dp) :: noise = 0.0_dp
     !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
@@ -319,6 +360,9 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: q(:), qn(:), qs(:)
     real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), vn(:), an(:), dq(:), dqhat(:), &
       dqp(:), dd(:), f(:), corr(:), w(:), zero_nv(:)
+    !> the generalized-alpha family's pseudo-acceleration (= a for the trapezoidal rule), of the
+    !> state, the last state and the attempted step
+    real(dp), allocatable :: ap(:), ap_prev(:), apn(:)
     real(dp), allocatable :: lam(:), lam_old(:), ln(:), lst(:), lstn(:), lst_old(:), lp(:), &
       lt(:), phi(:), gam(:), phit(:), rc(:), mu(:), zero_m(:)
     real(dp), allocatable :: r(:), y(:)
@@ -358,10 +402,15 @@ contains
     if (.not. (opt%newton_rtol >= 0.0_dp .and. opt%newton_atol > 0.0_dp) .or. &
         opt%newton_max_iter < 1) return
     if (opt%formulation == MBDK_INDEX3_AUGMENTED .and. .not. (opt%alpha >= 0.0_dp)) return
+    if (.not. (opt%beta > 0.0_dp .and. opt%beta <= huge(1.0_dp) .and. opt%gamma > 0.0_dp .and. &
+               opt%gamma <= huge(1.0_dp) .and. opt%alpha_m < 1.0_dp .and. &
+               opt%alpha_m >= -huge(1.0_dp) .and. opt%alpha_f < 1.0_dp .and. &
+               opt%alpha_f >= -huge(1.0_dp))) return
     if (size(y0) /= mech%ncoord + mech%nvel .or. mech%ns > 0) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (opt%adaptive < 0 .or. opt%adaptive > MBDK_INDEX3_EXTRAPOLATED) return
-    if (opt%adaptive /= 0 .and. opt%formulation == MBDK_INDEX3_BOOK) then
+    if (opt%adaptive /= 0 .and. (opt%formulation == MBDK_INDEX3_BOOK .or. .not. &
+        mbdk_index3_is_trapezoidal(opt))) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
     end if
@@ -390,6 +439,9 @@ contains
     s%lst_old = s%lam
     s%a_prev = s%a
     s%a_prev2 = s%a
+    s%ap = s%a
+    s%ap_prev = s%a
+    s%alpha_terms = opt%alpha_m /= 0.0_dp .or. opt%alpha_f /= 0.0_dp
     s%st%nfev = 1
     s%y(1:s%ncq) = s%q
     s%y(s%ncq + 1:) = s%v
@@ -418,8 +470,9 @@ contains
               s%vn(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%f(nv), &
               s%corr(nv), s%w(nv), s%zero_nv(nv), s%lam(m), s%lam_old(m), s%ln(m), s%lst(m), &
               s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%phi(m), s%gam(m), s%phit(m), &
-              s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 14.0_dp * nv + 14.0_dp * m + &
+              s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
+              s%apn(nv), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 17.0_dp * nv + 14.0_dp * m + &
                            nk), stat, s%st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     if (s%fd_matrix) then
@@ -446,12 +499,14 @@ contains
     s%a_prev2(:) = s%a_prev
     s%h_prev2 = s%h_prev
     s%a_prev(:) = s%a
+    s%ap_prev(:) = s%ap
     s%h_prev = s%h
     s%lam_old(:) = s%lam
     s%lst_old(:) = s%lst
     s%q(:) = s%qn
     s%v(:) = s%vn
     s%a(:) = s%an
+    s%ap(:) = s%apn
     s%lam(:) = s%ln
     s%lst(:) = s%lstn
     s%regular = s%regular_n
@@ -791,6 +846,9 @@ contains
       s%lst_old = x%lst_old
       s%a_prev = x%a_prev
       s%a_prev2 = x%a_prev2
+      ! adaptive runs the trapezoidal rule only, whose pseudo-acceleration is a
+      s%ap = s%a
+      s%ap_prev = s%a_prev
     end if
   end subroutine snapshot
 
@@ -957,6 +1015,7 @@ contains
     s%st%nfev = s%st%nfev + 1
     call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
     if (ierr /= MBDK_SUCCESS) return
+    s%apn(:) = s%an
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine consistent_end
@@ -1031,23 +1090,26 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    real(dp) :: sh, h
+    real(dp) :: h
 
     h = s%h
-    sh = 0.25_dp * h * h
-    s%dqhat(:) = h * s%v + sh * s%a
+    call set_coefficients(s, h)
+    ! Newmark's part of the increment, h v + h^2 (1/2 - beta) ap; dq = that + beta h^2 ap+
+    s%dqhat(:) = h * s%v + s%cq * s%ap
     if (s%book .or. s%h_prev <= 0.0_dp) then
-      s%dqp(:) = h * s%v + 0.5_dp * h * h * s%a
+      s%dqp(:) = h * s%v + 0.5_dp * h * h * s%ap
       s%lp(:) = s%lst
     else
-      ! the trapezoidal rule itself with a+ and lam* extrapolated linearly: O(h^4) in q
-      s%dqp(:) = s%dqhat + sh * (s%a + (h / s%h_prev) * (s%a - s%a_prev))
+      ! the step's rule itself with ap+ and lam* extrapolated linearly: O(h^4) in q
+      s%dqp(:) = s%dqhat + s%bh2 * (s%ap + (h / s%h_prev) * (s%ap - s%ap_prev))
       s%lp(:) = s%lst + (h / s%h_prev) * (s%lst - s%lst_old)
       ! where the accepted state's projection found C (nearly) rank-deficient, lam* is (nearly)
       ! not unique: its updates add the part of Phi that C cannot remove, which carried from
       ! step to step grows without bound. There the projection's multipliers (bounded) start it.
       if (s%regular) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)
     end if
+    ! the residual's dqhat: with the alpha terms, M (dq - dqhat) = cs M a+ (the module header)
+    if (s%alpha_terms) s%dqhat = s%dqhat + s%ra * (s%opt%alpha_m * s%ap - s%opt%alpha_f * s%a)
     if (s%book) s%lp = s%lam
     if (s%book .and. s%h_prev > 0.0_dp) s%lp = s%lam + (h / s%h_prev) * (s%lam - s%lam_old)  ! (3.11)
     ! a new h takes a new matrix; h = tn - t jitters by the rounding of t (ulp(t) / h: 2e-9 at
@@ -1066,10 +1128,10 @@ contains
     s%noise = NOISE_DECAY * s%noise
     if (.not. s%book .and. s%h_prev > 0.0_dp) then
       if (s%identity) then
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(sh * (h / s%h_prev) * (s%a - s%a_prev)) / &
+        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
                                                   (s%opt%newton_atol + s%opt%newton_rtol * abs(s%q))))
       else
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(sh * (h / s%h_prev) * (s%a - s%a_prev)) / &
+        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
                                                   (s%opt%newton_atol + s%opt%newton_rtol * s%w)))
       end if
     end if
@@ -1094,7 +1156,7 @@ contains
     m = s%m
     h = s%h
     book = s%book
-    sh = 0.25_dp * h * h
+    sh = s%cs
     alpha0 = s%opt%alpha
     if (alpha0 == 0.0_dp) alpha0 = MBDK_INDEX3_KAPPA * s%mmax / sh
     s%alpha = alpha0
@@ -1121,25 +1183,11 @@ contains
       if (m > 0) phin = maxval(abs(s%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
       phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
-      ! a stall (measured below, after the solve) stiffens the penalty, then freezes lam*. The
-      ! multiplier update takes the alpha that produced this Phi: with the new one it would
-      ! overshoot BOOST-fold and leave Phi where it was.
+      ! the multiplier update takes the alpha that produced this Phi: with a stiffened one it
+      ! would overshoot BOOST-fold and leave Phi where it was
       alpha_upd = s%alpha
-      if (stalls > 0 .and. .not. frozen) then
-        stalls = 0
-        if (.not. boosted) then
-          boosted = .true.
-          s%alpha = s%alpha * BOOST
-          s%have_lu = .false.
-          upd_fresh = .false.
-        else
-          ! freeze only what a frozen step may accept: a larger Phi stalls for another reason
-          ! (a stiff force's nonlinearity) and the multipliers go on
-          frozen = phin <= FROZEN_PHI * phi_tol
-          ! the noise test of a frozen step compares frozen updates only
-          if (frozen) dnorm_old = huge(1.0_dp)
-        end if
-      end if
+      if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
+                                                             frozen, upd_fresh, dnorm_old)
       if (.not. book) then
         if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
         s%lt(:) = s%ln + s%alpha * s%phi
@@ -1188,8 +1236,7 @@ contains
       ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
-      stall_own = .false.
-      if (converged()) then
+      if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, stall_own)) then
         if (stall_own) s%noise = dnorm
         s%dq(:) = s%dq + s%r(1:nv)
         if (book) s%ln = s%ln + s%r(nv + 1:) / sh
@@ -1239,48 +1286,82 @@ contains
     s%stalled = frozen
     call move_to(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    s%vn(:) = (2.0_dp / h) * s%dq - s%v
+    call velocity(s)
     if (.not. book) s%lstn = s%ln
 
   contains
 
-    logical function converged()
-      real(dp) :: left, qsize
-      converged = .false.
-      if (k < 2) return
-      if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
-        converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
-      else if (m == 0 .or. phin <= phi_tol) then
-        converged = dnorm <= 1.0_dp
-        if (.not. converged .or. s%tau >= 1.0_dp) return
-        ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
-        ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
-        ! (the update itself where no rate is known); or an update from a matrix built in this
-        ! step that no longer halves (the roundoff of the increment: an old matrix contracting
-        ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
-        ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
-        ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
-        ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
-        ! of their size: what Phi's roundoff moves them by, which no matrix removes)
-        if (s%identity) then
-          qsize = max(1.0_dp, maxval(abs(s%qn)))
-        else
-          qsize = max(1.0_dp, maxval(s%w))
-        end if
-        left = dnorm
-        if (dnorm_old < huge(1.0_dp)) then
-          left = huge(1.0_dp)
-          if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
-        end if
-        stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
-        converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
-                    (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
-                    s%iters >= s%opt%newton_max_iter .or. &
-                    maxval(abs(s%r(1:nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
-      end if
-    end function converged
 
   end subroutine newton
+
+  !> A stall (measured after the solve) stiffens the penalty BOOST-fold (a new matrix), and at
+  !> the next one freezes lam* where |Phi| is within what a frozen step may accept (a larger
+  !> Phi stalls for another reason, a stiff force's nonlinearity, and the multipliers go on);
+  !> the noise test of a frozen step compares frozen updates only.
+  subroutine stall_response(s, phin, phi_tol, stalls, boosted, frozen, upd_fresh, dnorm_old)
+    type(mbdk_index3_t), intent(inout) :: s
+    real(dp), intent(in) :: phin, phi_tol
+    integer, intent(inout) :: stalls
+    logical, intent(inout) :: boosted, frozen, upd_fresh
+    real(dp), intent(inout) :: dnorm_old
+    stalls = 0
+    if (.not. boosted) then
+      boosted = .true.
+      s%alpha = s%alpha * BOOST
+      s%have_lu = .false.
+      upd_fresh = .false.
+    else
+      frozen = phin <= FROZEN_PHI * phi_tol
+      if (frozen) dnorm_old = huge(1.0_dp)
+    end if
+  end subroutine stall_response
+
+  !> Newton's stopping test after the update r computed at iterate k (the step's test, in the
+  !> module header): the update's norm dnorm (the last one's dnorm_old) and |Phi| (phin against
+  !> phi_tol) there. own: the matrix was built in this step; stall_own: set when a stall of such
+  !> a matrix is what passes (its level is then the step's roundoff, s%noise).
+  logical function newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, &
+                                  stall_own) result(converged)
+    type(mbdk_index3_t), intent(in) :: s
+    integer, intent(in) :: k
+    logical, intent(in) :: frozen, own
+    real(dp), intent(in) :: phin, phi_tol, dnorm, dnorm_old
+    logical, intent(out) :: stall_own
+    real(dp) :: left, qsize
+    converged = .false.
+    stall_own = .false.
+    if (k < 2) return
+    if (frozen .and. phin <= FROZEN_PHI * phi_tol) then
+      converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
+    else if (s%m == 0 .or. phin <= phi_tol) then
+      converged = dnorm <= 1.0_dp
+      if (.not. converged .or. s%tau >= 1.0_dp) return
+      ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
+      ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
+      ! (the update itself where no rate is known); or an update from a matrix built in this
+      ! step that no longer halves (the roundoff of the increment: an old matrix contracting
+      ! slowly is rebuilt instead), or from an old one within STALL_ACCEPT times the level
+      ! where a matrix of its own last stalled (noise: decaying by NOISE_DECAY per step, so
+      ! that the rebuild at every step that meets roundoff is not repeated in vain); or the
+      ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
+      ! of their size: what Phi's roundoff moves them by, which no matrix removes)
+      if (s%identity) then
+        qsize = max(1.0_dp, maxval(abs(s%qn)))
+      else
+        qsize = max(1.0_dp, maxval(s%w))
+      end if
+      left = dnorm
+      if (dnorm_old < huge(1.0_dp)) then
+        left = huge(1.0_dp)
+        if (dnorm < dnorm_old) left = dnorm * dnorm / (dnorm_old - dnorm)
+      end if
+      stall_own = own .and. dnorm > REBUILD_RATE * dnorm_old
+      converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
+                  (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
+                  s%iters >= s%opt%newton_max_iter .or. &
+                  maxval(abs(s%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
+    end if
+  end function newton_converged
 
   !> qn = q (+) dq
   subroutine move_to(s, mech, ierr)
@@ -1303,7 +1384,7 @@ contains
     integer, intent(out) :: ierr
     call move_to(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    s%vn(:) = (2.0_dp / s%h) * s%dq - s%v
+    call velocity(s)
     call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
                           ierr)
     s%st%nfev = s%st%nfev + 1
@@ -1333,12 +1414,12 @@ contains
     real(dp) :: sh, dlt, keep, wmax
     integer :: j, nv, m
     if (.not. s%fd_matrix) then
-      call mech%i3_matrix(s%aux, s%book, s%tn, s%qn, s%vn, s%ln, s%h, s%alpha, ierr)
+      call mech%i3_matrix(s%aux, s%book, s%tn, s%qn, s%vn, s%ln, s%cs, s%cd, s%alpha, ierr)
       return
     end if
     nv = s%nv
     m = s%m
-    sh = 0.25_dp * s%h * s%h
+    sh = s%cs
     s%r0 = s%r
     s%f0 = s%f
     s%phi0 = s%phi
@@ -1354,7 +1435,7 @@ contains
       ! below that for a coordinate at rest, at 0 or at small h, and left its column to
       ! roundoff: singular matrices on the flyball governor and on the spatial double
       ! pendulum at h = 1e-5), or of the increment itself where larger
-      dlt = sqrt(epsilon(1.0_dp)) * max(abs(keep), s%h * abs(s%v(j)) + sh * abs(s%a(j)), wmax)
+      dlt = sqrt(epsilon(1.0_dp)) * max(abs(keep), s%h * abs(s%v(j)) + s%bh2 * abs(s%ap(j)), wmax)
       s%dq(j) = keep + dlt
       dlt = s%dq(j) - keep
       call evaluate_at(s, mech, ierr)
@@ -1403,7 +1484,14 @@ contains
     h = s%h
     ierr = MBDK_SUCCESS
     if (s%book) then
-      s%an(:) = (4.0_dp / (h * h)) * s%dq - (4.0_dp / h) * s%v - s%a
+      ! Newmark's ap+ from dq, and the acceleration from the alpha relation
+      s%apn(:) = s%ca * s%dq + s%ka1 * s%v + s%ka2 * s%ap
+      if (s%alpha_terms) then
+        s%an(:) = ((1.0_dp - s%opt%alpha_m) * s%apn + s%opt%alpha_m * s%ap - &
+                   s%opt%alpha_f * s%a) / (1.0_dp - s%opt%alpha_f)
+      else
+        s%an(:) = s%apn
+      end if
     else
       call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
                             .false., ierr)
@@ -1436,7 +1524,10 @@ contains
       ! error (4/h^2) that a+ = (4/h^2) dq - .. would carry.
       call mech%i3_cs_solve(s%aux, s%f, s%zero_m, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%vn(:) = s%v + (0.5_dp * h) * (s%a + s%an)
+      ! v+ = v + h ((1 - gamma) ap + gamma ap~), ap~ the pseudo-acceleration of a~
+      if (s%alpha_terms) s%an = ((1.0_dp - s%opt%alpha_f) * s%an + s%opt%alpha_f * s%a - &
+                                 s%opt%alpha_m * s%ap) / (1.0_dp - s%opt%alpha_m)
+      s%vn(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
       ! vn onto C v + Phi_t = 0 (mass-orthogonal)
       call mech%i3_c_times(s%aux, s%vn, s%rc)
       s%rc(:) = s%rc + s%phit
@@ -1451,10 +1542,58 @@ contains
       end if
       call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
+      ! the pseudo-acceleration of the projected a+ (the alpha relation)
+      if (s%alpha_terms) then
+        s%apn(:) = ((1.0_dp - s%opt%alpha_f) * s%an + s%opt%alpha_f * s%a - &
+                    s%opt%alpha_m * s%ap) / (1.0_dp - s%opt%alpha_m)
+      else
+        s%apn(:) = s%an
+      end if
     end if
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine finish_step
+
+  !> vn from the increment: v + h (1 - gamma) ap + h gamma ap+ with Newmark's ap+ (for the
+  !> trapezoidal rule (2/h) dq - v)
+  subroutine velocity(s)
+    type(mbdk_index3_t), intent(inout) :: s
+    if (s%kv2 == 0.0_dp) then
+      s%vn(:) = s%cv * s%dq + s%kv1 * s%v
+    else
+      s%vn(:) = s%cv * s%dq + s%kv1 * s%v + s%kv2 * s%ap
+    end if
+  end subroutine velocity
+
+  !> The step's coefficients for h (the type's comment); for the trapezoidal rule's parameters
+  !> they are its own to the last bit (h^2/4, 2/h, 4/h^2, ...)
+  subroutine set_coefficients(s, h)
+    type(mbdk_index3_t), intent(inout) :: s
+    real(dp), intent(in) :: h
+    real(dp) :: beta, gamma, rs
+    beta = s%opt%beta
+    gamma = s%opt%gamma
+    rs = (1.0_dp - s%opt%alpha_f) / (1.0_dp - s%opt%alpha_m)
+    s%bh2 = beta * h * h
+    s%cs = s%bh2 * rs
+    s%cd = gamma * h * rs
+    s%cq = h * h * (0.5_dp - beta)
+    s%cv = gamma / (beta * h)
+    s%kv1 = 1.0_dp - gamma / beta
+    s%kv2 = h * (1.0_dp - gamma - gamma * (0.5_dp - beta) / beta)
+    s%ca = 1.0_dp / (beta * h * h)
+    s%ka1 = -1.0_dp / (beta * h)
+    s%ka2 = -(0.5_dp - beta) / beta
+    s%cg = (1.0_dp - gamma) / gamma
+    s%ra = -s%bh2 / (1.0_dp - s%opt%alpha_m)
+  end subroutine set_coefficients
+
+  !> The options' parameters are the trapezoidal rule's (beta 1/4, gamma 1/2, no alphas)
+  logical function mbdk_index3_is_trapezoidal(opt) result(yes)
+    type(mbdk_index3_options_t), intent(in) :: opt
+    yes = opt%beta == 0.25_dp .and. opt%gamma == 0.5_dp .and. opt%alpha_m == 0.0_dp .and. &
+      opt%alpha_f == 0.0_dp
+  end function mbdk_index3_is_trapezoidal
 
   !> Steps and samples of a solve: fixed step, as mbdk_step_plan (h, every); adaptive, samples
   !> at t0 + k dt_out and t_end (nsteps is then the number of sample intervals).

@@ -312,11 +312,11 @@ module mbdk_model
       real(dp), intent(out), contiguous :: x(:), mu(:)
       integer, intent(out) :: stat
     end subroutine model_i3_cs_solve
-    module subroutine model_i3_matrix(self, aux, book, t, q, v, lam, h, alpha, stat)
+    module subroutine model_i3_matrix(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
-      real(dp), intent(in) :: t, h, alpha
+      real(dp), intent(in) :: t, ck, cd, alpha
       real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
       integer, intent(out) :: stat
     end subroutine model_i3_matrix

@@ -119,7 +119,8 @@ contains
   module procedure model_i3_matrix
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_index3_factor(aux%fa, self, book, t, q, v, lam, h, alpha, aux%d, aux%lw, stat)
+      call mbdk_index3_factor(aux%fa, self, book, t, q, v, lam, ck, cd, alpha, aux%d, aux%lw, &
+                              stat)
     end select
   end procedure model_i3_matrix
 

@@ -18,17 +18,19 @@
 !> (> 0: CVODE's bounds; 0: CVODE's defaults, no bound), max_order (0: the method's; above 5
 !> for bdf or 12 for adams: MBDK_ERR_INVALID_INPUT), max_steps, fd_jacobian, interrupt.
 !>
-!> The loop is mbdk_adaptive's: CVODE takes one internal step per call (CV_ONE_STEP) and never
-!> passes t_end (CVodeSetStopTime); after each step the samples in it come from CVODE's
-!> interpolant (CVodeGetDky), the sample at t_end is the last step's own state, the state is
-!> checked (finite, and the watch with force = a sample fell in the step; before it, a watch
-!> that integrates a work gets the interpolant at the step's Gauss nodes) and the step's order
-!> is counted (order5_steps also takes Adams orders 6..12). max_steps bounds the accepted steps
-!> plus the error-test and convergence failures, counted here (CVODE's own limit is off):
-!> MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor (opt%h_min, and 10 ulps of t)
-!> is MBDK_ERR_STEP_TOO_SMALL: CVODE itself only warns when t + h = t and goes on. The
-!> interrupt flag is polled before each step and in every F evaluation, so a long step of a
-!> large model ends within one evaluation.
+!> The loop is mbdk_sundials_loop's, which this module drives through its hooks (cvode_loop_t):
+!> CVODE takes one internal step per call (CV_ONE_STEP) and never passes t_end
+!> (CVodeSetStopTime); after each step the samples in it come from CVODE's interpolant
+!> (CVodeGetDky), the sample at t_end is the last step's own state, the state is checked
+!> (finite, and the watch with force = a sample fell in the step; before it, a watch that
+!> integrates a work gets the interpolant at the step's Gauss nodes) and the step's order is
+!> counted (order5_steps also takes Adams orders 6..12). max_steps bounds the accepted steps
+!> plus the error-test and convergence failures (CVodeGetNumErrTestFails +
+!> CVodeGetNumNonlinSolvConvFails), counted there (CVODE's own limit is off):
+!> MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor (opt%h_min, and 10 ulps of t;
+!> the step that lands on t_end, 10 ulps) is MBDK_ERR_STEP_TOO_SMALL: CVODE itself only warns
+!> when t + h = t and goes on. The interrupt flag is polled before each step and in every F
+!> evaluation, so a long step of a large model ends within one evaluation.
 !>
 !> Refused: a problem with has_post_step (the projection formulation) gets
 !> MBDK_ERR_NOT_APPLICABLE. Its projection must restart the multistep history, which CVODE
@@ -70,13 +72,12 @@ module mbdk_cvode
     c_associated, c_int, c_long, c_int64_t, c_double, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
+  use mbdk_problem, only: mbdk_problem_t
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
-  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
-  use mbdk_adaptive, only: mbdk_adaptive_after_step, mbdk_adaptive_step_limit, &
-    mbdk_adaptive_h_floor, mbdk_adaptive_count_order
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
+  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_sundials_loop, only: mbdk_sundials_loop_t, mbdk_sundials_run
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -124,6 +125,28 @@ module mbdk_cvode
     integer(c_intptr_t) :: interrupt = 0
   end type cvode_context_t
 
+  !> One CVODE solve: its SUNDIALS objects (each handle empty until made, so that cvode_free
+  !> frees what exists on any path) and the hooks of mbdk_sundials_loop's one-step loop.
+  type, extends(mbdk_sundials_loop_t) :: cvode_loop_t
+    type(c_ptr) :: sunctx = c_null_ptr, mem = c_null_ptr
+    type(N_Vector), pointer :: nv_y => null(), nv_dky => null(), nv_atol => null()
+    type(SUNMatrix), pointer :: amat => null()
+    type(SUNLinearSolver), pointer :: ls => null()
+    type(SUNNonlinearSolver), pointer :: nls => null()
+    type(cvode_context_t), pointer :: ctx => null()
+    !> the interpolant at the Gauss nodes of a step, for the watch
+    real(dp), allocatable :: yn(:, :)
+  contains
+    procedure :: step => cvode_step
+    procedure :: tries => cvode_tries
+    procedure :: last_step => cvode_last_step
+    procedure :: dky => cvode_dky
+    procedure :: wants_nodes => cvode_wants_nodes
+    procedure :: keep_node => cvode_keep_node
+    procedure :: watch_nodes => cvode_watch_nodes
+    procedure :: accept => cvode_accept
+  end type cvode_loop_t
+
 contains
 
   !> See the module header; called by mbdk_solve_ode, which has checked the options and atol,
@@ -141,24 +164,11 @@ contains
     integer, intent(out) :: stat
 
     type(cvode_context_t), target :: ctx
-    type(c_ptr) :: sunctx, mem
-    type(N_Vector), pointer :: nv_y, nv_dky, nv_atol
-    type(SUNMatrix), pointer :: amat
-    type(SUNLinearSolver), pointer :: ls
-    type(SUNNonlinearSolver), pointer :: nls
+    type(cvode_loop_t) :: lp
     real(dp), allocatable, target :: y(:), ydky(:), atol_v(:)
-    real(dp), allocatable :: yn(:, :)
-    real(c_double) :: tret(1), hlast(1), told
-    integer(c_int) :: flag, qlast(1)
-    integer(c_long) :: nst(1), netf(1), ncfn(1)
-    integer(i8) :: limit
-    integer :: n, ns, k, ierr, i
-    logical :: sample, projected
-    real(dp) :: t_end
+    integer :: n, ierr
 
     n = size(y0)
-    ns = size(t_out)
-    t_end = t_out(ns)
     ! the projection must restart CVODE's history (module header)
     stat = MBDK_ERR_NOT_APPLICABLE
     if (prob%has_post_step) return
@@ -166,7 +176,7 @@ contains
     if (adams .and. opt%max_order > ADAMS_MAX_ORDER) return
     if (.not. adams .and. opt%max_order > BDF_MAX_ORDER) return
     stat = MBDK_ERR_NO_MEMORY
-    allocate (y(n), ydky(n), atol_v(size(atol)), yn(n, 3), stat=ierr)
+    allocate (y(n), ydky(n), atol_v(size(atol)), lp%yn(n, 3), stat=ierr)
     call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (5.0_dp * n + size(atol)), stat, &
                            st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
@@ -176,167 +186,196 @@ contains
     ctx%prob => prob
     ctx%n = n
     ctx%interrupt = opt%interrupt
-    ! every handle starts empty so that the release below frees what exists on any path
-    sunctx = c_null_ptr
-    mem = c_null_ptr
-    nullify (nv_y, nv_dky, nv_atol, amat, ls, nls)
-
-    run: block
-      stat = MBDK_ERR_BACKEND
-      if (FSUNContext_Create(c_null_ptr, sunctx) /= 0) exit run
-      stat = MBDK_ERR_NO_MEMORY
-      nv_y => FN_VMake_Serial(int(n, c_int64_t), y, sunctx)
-      if (.not. associated(nv_y)) exit run
-      nv_dky => FN_VMake_Serial(int(n, c_int64_t), ydky, sunctx)
-      if (.not. associated(nv_dky)) exit run
-      if (adams) then
-        mem = FCVodeCreate(CV_ADAMS, sunctx)
-      else
-        mem = FCVodeCreate(CV_BDF, sunctx)
-      end if
-      if (.not. c_associated(mem)) exit run
-      ! before anything else can fail: the kernel never prints
-      stat = MBDK_ERR_BACKEND
-      if (FCVodeSetErrFile(mem, c_null_ptr) /= 0) exit run
-
-      flag = FCVodeInit(mem, c_funloc(cvode_rhs), t0, nv_y)
-      if (flag == 0) then
-        if (size(atol) == 0) then
-          flag = FCVodeSStolerances(mem, opt%rtol, opt%atol)
-        else
-          nv_atol => FN_VMake_Serial(int(n, c_int64_t), atol_v, sunctx)
-          flag = CV_MEM_FAIL
-          if (associated(nv_atol)) flag = FCVodeSVtolerances(mem, opt%rtol, nv_atol)
-        end if
-      end if
-      if (flag == 0) flag = FCVodeSetUserData(mem, c_loc(ctx))
-      ! the step count is ours (max_steps counts rejections too); CVODE's per-call limit is off
-      if (flag == 0) flag = FCVodeSetMaxNumSteps(mem, -1_c_long)
-      if (flag == 0) flag = FCVodeSetStopTime(mem, t_end)
-      if (flag == 0 .and. opt%max_order > 0) &
-        flag = FCVodeSetMaxOrd(mem, int(opt%max_order, c_int))
-      if (flag == 0 .and. opt%h > 0.0_dp) flag = FCVodeSetInitStep(mem, opt%h)
-      if (flag == 0 .and. opt%h_min > 0.0_dp) flag = FCVodeSetMinStep(mem, opt%h_min)
-      if (flag == 0 .and. opt%h_max > 0.0_dp) flag = FCVodeSetMaxStep(mem, opt%h_max)
-      if (flag /= 0) then
-        stat = cvode_status(flag, ctx%stat, ctx%soft_stat)
-        exit run
-      end if
-
-      stat = MBDK_ERR_NO_MEMORY
-      if (adams) then
-        nls => FSUNNonlinSol_FixedPoint(nv_y, 0_c_int, sunctx)
-        if (.not. associated(nls)) exit run
-      else
-        amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-        if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
-          st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
-          exit run
-        end if
-        ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
-        if (.not. associated(ls)) exit run
-        nls => FSUNNonlinSol_Newton(nv_y, sunctx)
-        if (.not. associated(nls)) exit run
-        flag = FCVodeSetLinearSolver(mem, ls, amat)
-        if (flag == 0 .and. prob%has_jac .and. opt%fd_jacobian == 0) &
-          flag = FCVodeSetJacFn(mem, c_funloc(cvode_jac))
-        if (flag /= 0) then
-          stat = MBDK_ERR_BACKEND
-          exit run
-        end if
-      end if
-      stat = MBDK_ERR_BACKEND
-      if (FCVodeSetNonlinearSolver(mem, nls) /= 0) exit run
-
-      limit = mbdk_adaptive_step_limit(opt)
-      k = nwritten + 1           ! the next sample to write
-      tret(1) = t0
-      told = t0
-      st%t_reached = t0
-      do while (tret(1) < t_end)
-        if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-          stat = MBDK_ERR_INTERRUPTED
-          exit run
-        end if
-        if (opt%progress /= 0) call mbdk_progress(opt%progress, tret(1))
-        flag = FCVodeGetNumSteps(mem, nst)
-        flag = FCVodeGetNumErrTestFails(mem, netf)
-        flag = FCVodeGetNumNonlinSolvConvFails(mem, ncfn)
-        if (int(nst(1), i8) + int(netf(1), i8) + int(ncfn(1), i8) >= limit) then
-          stat = MBDK_ERR_TOO_MANY_STEPS
-          exit run
-        end if
-        ctx%soft_stat = MBDK_SUCCESS
-        flag = FCVode(mem, t_end, nv_y, tret, CV_ONE_STEP)
-        if (flag < 0) then
-          stat = cvode_status(flag, ctx%stat, ctx%soft_stat)
-          exit run
-        end if
-        stat = ctx%stat
-        if (stat /= MBDK_SUCCESS) exit run
-        ! CVODE's own floor is h_min (0 by default): a step that cannot move t would repeat
-        flag = FCVodeGetLastStep(mem, hlast)
-        if (hlast(1) < mbdk_adaptive_h_floor(opt, tret(1), landing=tret(1) >= t_end)) then
-          stat = MBDK_ERR_STEP_TOO_SMALL
-          exit run
-        end if
-        flag = FCVodeGetLastOrder(mem, qlast)
-        call mbdk_adaptive_count_order(st, int(qlast(1)))
-
-        ! samples inside the step from CVODE's interpolant
-        sample = .false.
-        do while (k <= ns)
-          if (t_out(k) >= tret(1)) exit
-          if (FCVodeGetDky(mem, t_out(k), 0_c_int, nv_dky) /= 0) then
-            stat = MBDK_ERR_BACKEND
-            exit run
-          end if
-          y_out(:, k) = ydky
-          nwritten = k
-          k = k + 1
-          sample = .true.
-        end do
-        if (k <= ns) sample = sample .or. t_out(k) <= tret(1)
-        ! the watch's work over the step from CVODE's interpolant at its Gauss nodes
-        if (prob%has_watch) then
-          if (prob%watch_wants_nodes()) then
-            do i = 1, 3
-              if (FCVodeGetDky(mem, told + MBDK_GAUSS3(i) * (tret(1) - told), 0_c_int, &
-                               nv_dky) /= 0) then
-                stat = MBDK_ERR_BACKEND
-                exit run
-              end if
-              yn(:, i) = ydky
-            end do
-            call prob%watch_nodes(told, tret(1), yn, stat)
-            if (stat /= MBDK_SUCCESS) exit run
-          end if
-        end if
-        told = tret(1)
-        ! has_post_step was refused: this is the finite check and the watch
-        call mbdk_adaptive_after_step(prob, tret(1), y, sample, projected, stat)
-        if (stat /= MBDK_SUCCESS) exit run
-        st%t_reached = tret(1)      ! the step passed its checks
-        do while (k <= ns)
-          if (t_out(k) > tret(1)) exit
-          y_out(:, k) = y
-          nwritten = k
-          k = k + 1
-        end do
-      end do
-      stat = MBDK_SUCCESS
-    end block run
-
-    if (c_associated(mem)) call add_stats(mem, adams, st)
-    call FCVodeFree(mem)   ! NULL-safe; also frees CVODE's copy of atol
-    if (associated(nls)) ierr = FSUNNonlinSolFree(nls)
-    if (associated(ls)) ierr = FSUNLinSolFree(ls)
-    if (associated(amat)) call FSUNMatDestroy(amat)
-    if (associated(nv_atol)) call FN_VDestroy(nv_atol)
-    if (associated(nv_dky)) call FN_VDestroy(nv_dky)
-    if (associated(nv_y)) call FN_VDestroy(nv_y)
-    if (c_associated(sunctx)) ierr = FSUNContext_Free(sunctx)
+    lp%ctx => ctx
+    lp%y => y
+    lp%ydky => ydky
+    call cvode_create(lp, opt, adams, t0, t_out(size(t_out)), y, ydky, atol_v, stat)
+    if (stat == MBDK_SUCCESS) call cvode_solvers(lp, opt, adams, n, st, stat)
+    if (stat == MBDK_SUCCESS) call mbdk_sundials_run(lp, opt, t0, t_out, y_out, nwritten, st, stat)
+    if (c_associated(lp%mem)) call add_stats(lp%mem, adams, st)
+    call cvode_free(lp)
   end subroutine mbdk_cvode_solve
+
+  !> CVODE's context, vectors (on y, ydky and atol_v, which outlive the solve) and memory,
+  !> initialised at (t0, y) with the options of the module header and the stop time t_end.
+  subroutine cvode_create(lp, opt, adams, t0, t_end, y, ydky, atol_v, stat)
+    type(cvode_loop_t), intent(inout) :: lp
+    type(mbdk_options_t), intent(in) :: opt
+    logical, intent(in) :: adams
+    real(dp), intent(in) :: t0, t_end
+    real(dp), intent(inout), target, contiguous :: y(:), ydky(:), atol_v(:)
+    integer, intent(out) :: stat
+    integer(c_int) :: flag
+    integer(c_int64_t) :: n
+    n = int(size(y), c_int64_t)
+    stat = MBDK_ERR_BACKEND
+    if (FSUNContext_Create(c_null_ptr, lp%sunctx) /= 0) return
+    stat = MBDK_ERR_NO_MEMORY
+    lp%nv_y => FN_VMake_Serial(n, y, lp%sunctx)
+    if (.not. associated(lp%nv_y)) return
+    lp%nv_dky => FN_VMake_Serial(n, ydky, lp%sunctx)
+    if (.not. associated(lp%nv_dky)) return
+    if (adams) then
+      lp%mem = FCVodeCreate(CV_ADAMS, lp%sunctx)
+    else
+      lp%mem = FCVodeCreate(CV_BDF, lp%sunctx)
+    end if
+    if (.not. c_associated(lp%mem)) return
+    ! before anything else can fail: the kernel never prints
+    stat = MBDK_ERR_BACKEND
+    if (FCVodeSetErrFile(lp%mem, c_null_ptr) /= 0) return
+
+    flag = FCVodeInit(lp%mem, c_funloc(cvode_rhs), t0, lp%nv_y)
+    if (flag == 0) then
+      if (size(atol_v) == 0) then
+        flag = FCVodeSStolerances(lp%mem, opt%rtol, opt%atol)
+      else
+        lp%nv_atol => FN_VMake_Serial(n, atol_v, lp%sunctx)
+        flag = CV_MEM_FAIL
+        if (associated(lp%nv_atol)) flag = FCVodeSVtolerances(lp%mem, opt%rtol, lp%nv_atol)
+      end if
+    end if
+    if (flag == 0) flag = FCVodeSetUserData(lp%mem, c_loc(lp%ctx))
+    ! the step count is ours (max_steps counts rejections too); CVODE's per-call limit is off
+    if (flag == 0) flag = FCVodeSetMaxNumSteps(lp%mem, -1_c_long)
+    if (flag == 0) flag = FCVodeSetStopTime(lp%mem, t_end)
+    if (flag == 0 .and. opt%max_order > 0) &
+      flag = FCVodeSetMaxOrd(lp%mem, int(opt%max_order, c_int))
+    if (flag == 0 .and. opt%h > 0.0_dp) flag = FCVodeSetInitStep(lp%mem, opt%h)
+    if (flag == 0 .and. opt%h_min > 0.0_dp) flag = FCVodeSetMinStep(lp%mem, opt%h_min)
+    if (flag == 0 .and. opt%h_max > 0.0_dp) flag = FCVodeSetMaxStep(lp%mem, opt%h_max)
+    stat = MBDK_SUCCESS
+    if (flag /= 0) stat = cvode_status(flag, lp%ctx%stat, lp%ctx%soft_stat)
+  end subroutine cvode_create
+
+  !> The nonlinear solver: fixed-point iteration for adams; for bdf, Newton on the dense matrix
+  !> and dense LU (the problem's jac where it has one and opt%fd_jacobian = 0).
+  subroutine cvode_solvers(lp, opt, adams, n, st, stat)
+    type(cvode_loop_t), intent(inout) :: lp
+    type(mbdk_options_t), intent(in) :: opt
+    logical, intent(in) :: adams
+    integer, intent(in) :: n
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    integer(c_int) :: flag
+    stat = MBDK_ERR_NO_MEMORY
+    if (adams) then
+      lp%nls => FSUNNonlinSol_FixedPoint(lp%nv_y, 0_c_int, lp%sunctx)
+      if (.not. associated(lp%nls)) return
+    else
+      lp%amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), lp%sunctx)
+      if (.not. associated(lp%amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+        st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+        return
+      end if
+      lp%ls => FSUNLinSol_Dense(lp%nv_y, lp%amat, lp%sunctx)
+      if (.not. associated(lp%ls)) return
+      lp%nls => FSUNNonlinSol_Newton(lp%nv_y, lp%sunctx)
+      if (.not. associated(lp%nls)) return
+      flag = FCVodeSetLinearSolver(lp%mem, lp%ls, lp%amat)
+      if (flag == 0 .and. lp%ctx%prob%has_jac .and. opt%fd_jacobian == 0) &
+        flag = FCVodeSetJacFn(lp%mem, c_funloc(cvode_jac))
+      if (flag /= 0) then
+        stat = MBDK_ERR_BACKEND
+        return
+      end if
+    end if
+    stat = MBDK_ERR_BACKEND
+    if (FCVodeSetNonlinearSolver(lp%mem, lp%nls) /= 0) return
+    stat = MBDK_SUCCESS
+  end subroutine cvode_solvers
+
+  !> Frees every SUNDIALS object of the solve that exists.
+  subroutine cvode_free(lp)
+    type(cvode_loop_t), intent(inout) :: lp
+    integer :: ierr
+    call FCVodeFree(lp%mem)   ! NULL-safe; also frees CVODE's copy of atol
+    if (associated(lp%nls)) ierr = FSUNNonlinSolFree(lp%nls)
+    if (associated(lp%ls)) ierr = FSUNLinSolFree(lp%ls)
+    if (associated(lp%amat)) call FSUNMatDestroy(lp%amat)
+    if (associated(lp%nv_atol)) call FN_VDestroy(lp%nv_atol)
+    if (associated(lp%nv_dky)) call FN_VDestroy(lp%nv_dky)
+    if (associated(lp%nv_y)) call FN_VDestroy(lp%nv_y)
+    if (c_associated(lp%sunctx)) ierr = FSUNContext_Free(lp%sunctx)
+  end subroutine cvode_free
+
+  !> One internal step (CV_ONE_STEP) towards t_stop; a callback's failure comes first.
+  subroutine cvode_step(self, t_stop, t, stat)
+    class(cvode_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t_stop
+    real(dp), intent(out) :: t
+    integer, intent(out) :: stat
+    real(c_double) :: tret(1)
+    integer(c_int) :: flag
+    self%ctx%soft_stat = MBDK_SUCCESS
+    flag = FCVode(self%mem, t_stop, self%nv_y, tret, CV_ONE_STEP)
+    t = tret(1)
+    if (flag < 0) then
+      stat = cvode_status(flag, self%ctx%stat, self%ctx%soft_stat)
+      return
+    end if
+    stat = self%ctx%stat
+  end subroutine cvode_step
+
+  !> Steps plus error-test and convergence failures (the module header).
+  integer(i8) function cvode_tries(self) result(tries)
+    class(cvode_loop_t), intent(inout) :: self
+    integer(c_long) :: nst(1), netf(1), ncfn(1)
+    integer(c_int) :: flag
+    flag = FCVodeGetNumSteps(self%mem, nst)
+    flag = FCVodeGetNumErrTestFails(self%mem, netf)
+    flag = FCVodeGetNumNonlinSolvConvFails(self%mem, ncfn)
+    tries = int(nst(1), i8) + int(netf(1), i8) + int(ncfn(1), i8)
+  end function cvode_tries
+
+  subroutine cvode_last_step(self, h, q)
+    class(cvode_loop_t), intent(inout) :: self
+    real(dp), intent(out) :: h
+    integer, intent(out) :: q
+    real(c_double) :: hlast(1)
+    integer(c_int) :: flag, qlast(1)
+    flag = FCVodeGetLastStep(self%mem, hlast)
+    flag = FCVodeGetLastOrder(self%mem, qlast)
+    h = hlast(1)
+    q = int(qlast(1))
+  end subroutine cvode_last_step
+
+  subroutine cvode_dky(self, t, stat)
+    class(cvode_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    if (FCVodeGetDky(self%mem, t, 0_c_int, self%nv_dky) /= 0) stat = MBDK_ERR_BACKEND
+  end subroutine cvode_dky
+
+  logical function cvode_wants_nodes(self) result(wants)
+    class(cvode_loop_t), intent(inout) :: self
+    wants = .false.
+    if (self%ctx%prob%has_watch) wants = self%ctx%prob%watch_wants_nodes()
+  end function cvode_wants_nodes
+
+  subroutine cvode_keep_node(self, i)
+    class(cvode_loop_t), intent(inout) :: self
+    integer, intent(in) :: i
+    self%yn(:, i) = self%ydky
+  end subroutine cvode_keep_node
+
+  subroutine cvode_watch_nodes(self, t_a, t_b, stat)
+    class(cvode_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t_a, t_b
+    integer, intent(out) :: stat
+    call self%ctx%prob%watch_nodes(t_a, t_b, self%yn, stat)
+  end subroutine cvode_watch_nodes
+
+  !> The watch (has_post_step was refused: no projection; the loop checked the state).
+  subroutine cvode_accept(self, t, sample, stat)
+    class(cvode_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    logical, intent(in) :: sample
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    if (self%ctx%prob%has_watch) call self%ctx%prob%watch(t, self%y, sample, stat)
+  end subroutine cvode_accept
 
   !> CVODE's counters into st (see the module header). The linear-solver counters exist only
   !> with a linear solver (bdf).

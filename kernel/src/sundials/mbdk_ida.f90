@@ -91,16 +91,16 @@
 !> 1/h^2, and a fast start (a spinning body) at a tight rtol makes the estimate so small that
 !> the matrix is singular to roundoff.
 !>
-!> The loop is mbdk_adaptive's: IDA takes one internal step per call (IDA_ONE_STEP) and never
-!> passes t_end (IDASetStopTime); after each step the samples in it come from IDA's
-!> interpolant (IDAGetDky: [q; v] into y_out, lam into lam_out), the sample at t_end is the last
-!> step's own state, Y is checked (finite: else MBDK_ERR_NONFINITE) and the scene's watch runs
-!> (force = a sample fell in the step) with the step's own multipliers for the drivers' power:
-!> no evaluation of IDA's leaves the model's multipliers current (a watch that integrates a work
-!> gets the interpolant at the step's Gauss nodes first, watch_nodes_lam). The step's order
-!> is counted.
+!> The loop is mbdk_sundials_loop's, which this module drives through its hooks (ida_loop_t):
+!> IDA takes one internal step per call (IDA_ONE_STEP) and never passes t_end
+!> (IDASetStopTime); after each step the samples in it come from IDA's interpolant (IDAGetDky:
+!> [q; v] into y_out, lam into lam_out), the sample at t_end is the last step's own state, Y is
+!> checked (finite: else MBDK_ERR_NONFINITE) and the scene's watch runs (force = a sample fell
+!> in the step) with the step's own multipliers for the drivers' power: no evaluation of IDA's
+!> leaves the model's multipliers current (a watch that integrates a work gets the
+!> interpolant at the step's Gauss nodes first, watch_nodes_lam). The step's order is counted.
 !> max_steps bounds the accepted steps plus the steps retried after an error-test or a
-!> convergence failure (IDAGetNumErrTestFails + IDAGetNumStepSolveFails), counted here (IDA's
+!> convergence failure (IDAGetNumErrTestFails + IDAGetNumStepSolveFails), counted there (IDA's
 !> own limit is off): MBDK_ERR_TOO_MANY_STEPS. A step below mbdk_adaptive_h_floor
 !> (opt%h_min, and 10 ulps of t) is MBDK_ERR_STEP_TOO_SMALL, except the last one, which IDA
 !> shortens to land on t_end. The interrupt flag is polled before each step and in every
@@ -148,12 +148,11 @@ module mbdk_ida
     c_associated, c_int, c_long, c_int64_t, c_double, c_intptr_t
   use mbdk_kinds, only: dp, i8
   use mbdk_status
-  use mbdk_problem, only: MBDK_GAUSS3
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
-  use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
-  use mbdk_adaptive, only: mbdk_adaptive_step_limit, mbdk_adaptive_h_floor, mbdk_adaptive_count_order
+  use mbdk_interrupt, only: mbdk_interrupted
+  use mbdk_sundials_loop, only: mbdk_sundials_loop_t, mbdk_sundials_run
   use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
@@ -226,6 +225,33 @@ module mbdk_ida
     real(dp), allocatable :: f(:), phi(:), c(:, :), gam(:), phit(:), lamfull(:), mufull(:), &
       g(:), x(:), ming(:), qd(:), dm(:)
   end type ida_context_t
+
+  !> One IDA solve: its SUNDIALS objects (each handle empty until made, so that ida_run frees
+  !> what exists on any path) and the hooks of mbdk_sundials_loop's one-step loop.
+  type, extends(mbdk_sundials_loop_t) :: ida_loop_t
+    type(c_ptr) :: sunctx = c_null_ptr, mem = c_null_ptr
+    type(N_Vector), pointer :: nv_y => null(), nv_yp => null(), nv_dky => null(), &
+      nv_id => null()
+    type(SUNMatrix), pointer :: amat => null()
+    type(SUNLinearSolver), pointer :: ls => null()
+    type(ida_context_t), pointer :: ctx => null()
+    !> the solve's options (the multipliers' tolerance, lam_atol)
+    type(mbdk_options_t) :: opt
+    !> the multipliers at the samples (mbdk_ida_solve's lam_out)
+    real(dp), pointer :: lam_out(:, :) => null()
+    !> the interpolant's [q; v] and multipliers at the Gauss nodes of a step, for the watch
+    real(dp), allocatable :: yn(:, :), lamn(:, :)
+  contains
+    procedure :: step => ida_step
+    procedure :: tries => ida_tries
+    procedure :: last_step => ida_last_step
+    procedure :: dky => ida_dky
+    procedure :: write_extra => ida_write_extra
+    procedure :: wants_nodes => ida_wants_nodes
+    procedure :: keep_node => ida_keep_node
+    procedure :: watch_nodes => ida_watch_nodes
+    procedure :: accept => ida_accept
+  end type ida_loop_t
 
 contains
 
@@ -336,8 +362,8 @@ contains
   end subroutine mbdk_ida_solve
 
 
-  !> The SUNDIALS part of a solve (the module header): IDA from the
-  !> consistent (y, yp) of the context's form to t_out's last time, samples and multipliers out.
+  !> The SUNDIALS part of a solve (the module header): IDA from the consistent (y, yp) of the
+  !> context's form to t_out's last time, samples and multipliers out.
   subroutine ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, &
                      nwritten, st, stat)
     type(ida_context_t), intent(inout), target :: ctx
@@ -345,196 +371,211 @@ contains
     real(dp), intent(in) :: t0, t_end
     real(dp), intent(inout), target, contiguous :: y(:), yp(:), ydky(:), id(:), atol_v(:)
     real(dp), intent(in) :: t_out(:)
-    real(dp), intent(inout) :: y_out(:, :), lam_out(:, :)
+    real(dp), intent(inout) :: y_out(:, :)
+    real(dp), intent(inout), target :: lam_out(:, :)
     integer, intent(inout) :: nwritten
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
-    type(c_ptr) :: sunctx, mem
-    type(N_Vector), pointer :: nv_y, nv_yp, nv_dky, nv_id
-    type(SUNMatrix), pointer :: amat
-    type(SUNLinearSolver), pointer :: ls
-    real(c_double) :: tret(1), hlast(1), told
-    integer(c_int) :: flag, qlast(1)
-    integer(c_long) :: nst(1), netf(1), ncfn(1)
-    integer(i8) :: limit
-    integer :: n, ns, k, ierr, nlam, ny, nl, i
-    logical :: sample
-    real(dp), allocatable :: yn(:, :), lamn(:, :)
-    n = ctx%n
-    ny = ctx%ny
-    nl = ctx%nl
-    ns = size(t_out)
-    nlam = size(lam_out, 2)
-    ! every handle starts empty so that the release below frees what exists on any path
-    sunctx = c_null_ptr
-    mem = c_null_ptr
-    nullify (nv_y, nv_yp, nv_dky, nv_id, amat, ls)
-
-    run: block
-      stat = MBDK_ERR_BACKEND
-      if (FSUNContext_Create(c_null_ptr, sunctx) /= 0) exit run
-      stat = MBDK_ERR_NO_MEMORY
-      nv_y => FN_VMake_Serial(int(n, c_int64_t), y, sunctx)
-      if (.not. associated(nv_y)) exit run
-      nv_yp => FN_VMake_Serial(int(n, c_int64_t), yp, sunctx)
-      if (.not. associated(nv_yp)) exit run
-      nv_dky => FN_VMake_Serial(int(n, c_int64_t), ydky, sunctx)
-      if (.not. associated(nv_dky)) exit run
-      nv_id => FN_VMake_Serial(int(n, c_int64_t), id, sunctx)
-      if (.not. associated(nv_id)) exit run
-      mem = FIDACreate(sunctx)
-      if (.not. c_associated(mem)) exit run
-      ! before anything else can fail: the kernel never prints
-      stat = MBDK_ERR_BACKEND
-      if (FIDASetErrFile(mem, c_null_ptr) /= 0) exit run
-
-      flag = FIDAInit(mem, c_funloc(ida_res), t0, nv_y, nv_yp)
-      if (flag == 0) then
-        ctx%rtol = opt%rtol
-        ctx%atol => atol_v
-        flag = FIDAWFtolerances(mem, c_funloc(ida_ewt))
-      end if
-      if (flag == 0) flag = FIDASetUserData(mem, c_loc(ctx))
-      ! the error test sees q and v only (module header); IDA copies id
-      if (flag == 0) flag = FIDASetId(mem, nv_id)
-      if (flag == 0) flag = FIDASetSuppressAlg(mem, 1_c_int)
-      ! the step count is ours (max_steps counts failures too); IDA's per-call limit is off
-      if (flag == 0) flag = FIDASetMaxNumSteps(mem, -1_c_long)
-      if (flag == 0) flag = FIDASetStopTime(mem, t_end)
-      if (flag == 0 .and. opt%max_order > 0) &
-        flag = FIDASetMaxOrd(mem, int(opt%max_order, c_int))
-      if (flag == 0 .and. opt%h > 0.0_dp) then
-        flag = FIDASetInitStep(mem, opt%h)
-      else if (flag == 0 .and. ctx%h0 > 0.0_dp) then
-        flag = FIDASetInitStep(mem, ctx%h0)
-      end if
-      if (flag == 0 .and. opt%h_min > 0.0_dp) flag = FIDASetMinStep(mem, opt%h_min)
-      if (flag == 0 .and. opt%h_max > 0.0_dp) flag = FIDASetMaxStep(mem, opt%h_max)
-      if (flag /= 0) then
-        stat = ida_status(flag, ctx%stat, ctx%soft_stat)
-        exit run
-      end if
-
-      stat = MBDK_ERR_NO_MEMORY
-      amat => FSUNDenseMatrix(int(n, c_int64_t), int(n, c_int64_t), sunctx)
-      if (.not. associated(amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
-        st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
-        exit run
-      end if
-      ls => FSUNLinSol_Dense(nv_y, amat, sunctx)
-      if (.not. associated(ls)) exit run
-      ! no Jacobian function: IDA's dense difference quotients
-      stat = MBDK_ERR_BACKEND
-      if (FIDASetLinearSolver(mem, ls, amat) /= 0) exit run
-
-      limit = mbdk_adaptive_step_limit(opt)
-      k = nwritten + 1           ! the next sample to write
-      tret(1) = t0
-      told = t0
+    type(ida_loop_t) :: lp
+    integer :: ierr
+    lp%ctx => ctx
+    lp%y => y
+    lp%ydky => ydky
+    lp%lam_out => lam_out
+    lp%landing_floor = .false.    ! IDA shortens its last step to land on t_end
+    lp%opt = opt
+    call ida_create(lp, opt, t0, t_end, y, yp, ydky, id, atol_v, st, stat)
+    if (stat == MBDK_SUCCESS) then
       st%t_reached = t0
-      allocate (yn(ny, 3), lamn(ctx%m, 3), stat=ierr)
-      call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 3.0_dp * (ny + ctx%m), stat, &
+      allocate (lp%yn(ctx%ny, 3), lp%lamn(ctx%m, 3), stat=ierr)
+      call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * 3.0_dp * (ctx%ny + ctx%m), stat, &
                              st%alloc_bytes)
-      if (stat /= MBDK_SUCCESS) exit run
-      do while (tret(1) < t_end)
-        if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-          stat = MBDK_ERR_INTERRUPTED
-          exit run
-        end if
-        if (opt%progress /= 0) call mbdk_progress(opt%progress, tret(1))
-        flag = FIDAGetNumSteps(mem, nst)
-        flag = FIDAGetNumErrTestFails(mem, netf)
-        flag = FIDAGetNumStepSolveFails(mem, ncfn)
-        if (int(nst(1), i8) + int(netf(1), i8) + int(ncfn(1), i8) >= limit) then
-          stat = MBDK_ERR_TOO_MANY_STEPS
-          exit run
-        end if
-        ctx%soft_stat = MBDK_SUCCESS
-        flag = FIDASolve(mem, t_end, tret, nv_y, nv_yp, IDA_ONE_STEP)
-        if (flag < 0) then
-          stat = ida_status(flag, ctx%stat, ctx%soft_stat)
-          exit run
-        end if
-        stat = ctx%stat
-        if (stat /= MBDK_SUCCESS) exit run
-        ! IDA's own floor is h_min (0 by default): a step that cannot move t would repeat. The
-        ! step IDA shortened to land on t_end is the last one, whatever its length.
-        flag = FIDAGetLastStep(mem, hlast)
-        if (tret(1) < t_end .and. hlast(1) < mbdk_adaptive_h_floor(opt, tret(1))) then
-          stat = MBDK_ERR_STEP_TOO_SMALL
-          exit run
-        end if
-        flag = FIDAGetLastOrder(mem, qlast)
-        call mbdk_adaptive_count_order(st, int(qlast(1)))
-
-        ! samples inside the step from IDA's interpolant
-        sample = .false.
-        do while (k <= ns)
-          if (t_out(k) >= tret(1)) exit
-          if (FIDAGetDky(mem, t_out(k), 0_c_int, nv_dky) /= 0) then
-            stat = MBDK_ERR_BACKEND
-            exit run
-          end if
-          y_out(:, k) = ydky(1:ny)
-          if (nlam >= k) call put_lam(ctx, ydky(ny + 1:ny + nl), lam_out(:, k))
-          nwritten = k
-          k = k + 1
-          sample = .true.
-        end do
-        if (k <= ns) sample = sample .or. t_out(k) <= tret(1)
-        if (.not. all(abs(y) <= huge(1.0_dp))) then
-          stat = MBDK_ERR_NONFINITE
-          exit run
-        end if
-        ! the watch's work over the step from IDA's interpolant at its Gauss nodes
-        if (ctx%mech%watch_wants_nodes()) then
-          do i = 1, 3
-            if (FIDAGetDky(mem, told + MBDK_GAUSS3(i) * (tret(1) - told), 0_c_int, &
-                           nv_dky) /= 0) then
-              stat = MBDK_ERR_BACKEND
-              exit run
-            end if
-            yn(:, i) = ydky(1:ny)
-            call put_lam(ctx, ydky(ny + 1:ny + nl), lamn(:, i))
-          end do
-          call ctx%mech%watch_nodes_lam(told, tret(1), yn, lamn, stat)
-          if (stat /= MBDK_SUCCESS) exit run
-        end if
-        told = tret(1)
-        if (ctx%mech%has_watch) then
-          call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
-          call ctx%mech%watch_lam(tret(1), y(1:ny), sample, ctx%lamfull, stat)
-          if (stat /= MBDK_SUCCESS) exit run
-        end if
-        st%t_reached = tret(1)      ! the step passed its checks
-        if (ctx%nl > 0) then
-          ! multipliers that grew (from rest, or a load ramped up) raise their tolerance
-          if (maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl))) > 2.0_dp * ctx%lam_scale) then
-            ctx%lam_scale = maxval(abs(y(ctx%ny + 1:ctx%ny + ctx%nl)))
-            atol_v(ctx%ny + 1:ctx%ny + ctx%nl) = lam_atol(opt, y(ctx%ny + 1:ctx%ny + ctx%nl))
-          end if
-        end if
-        do while (k <= ns)
-          if (t_out(k) > tret(1)) exit
-          y_out(:, k) = y(1:ny)
-          if (nlam >= k) call put_lam(ctx, y(ny + 1:ny + nl), lam_out(:, k))
-          nwritten = k
-          k = k + 1
-        end do
-      end do
-      stat = MBDK_SUCCESS
-    end block run
-
-    if (c_associated(mem)) call add_stats(mem, st)
-    call FIDAFree(mem)   ! NULL-safe; also frees IDA's copy of id
-    if (associated(ls)) ierr = FSUNLinSolFree(ls)
-    if (associated(amat)) call FSUNMatDestroy(amat)
-    if (associated(nv_id)) call FN_VDestroy(nv_id)
-    if (associated(nv_dky)) call FN_VDestroy(nv_dky)
-    if (associated(nv_yp)) call FN_VDestroy(nv_yp)
-    if (associated(nv_y)) call FN_VDestroy(nv_y)
-    if (c_associated(sunctx)) ierr = FSUNContext_Free(sunctx)
+    end if
+    if (stat == MBDK_SUCCESS) call mbdk_sundials_run(lp, opt, t0, t_out, y_out, nwritten, st, stat)
+    if (c_associated(lp%mem)) call add_stats(lp%mem, st)
+    call FIDAFree(lp%mem)   ! NULL-safe; also frees IDA's copy of id
+    if (associated(lp%ls)) ierr = FSUNLinSolFree(lp%ls)
+    if (associated(lp%amat)) call FSUNMatDestroy(lp%amat)
+    if (associated(lp%nv_id)) call FN_VDestroy(lp%nv_id)
+    if (associated(lp%nv_dky)) call FN_VDestroy(lp%nv_dky)
+    if (associated(lp%nv_yp)) call FN_VDestroy(lp%nv_yp)
+    if (associated(lp%nv_y)) call FN_VDestroy(lp%nv_y)
+    if (c_associated(lp%sunctx)) ierr = FSUNContext_Free(lp%sunctx)
   end subroutine ida_run
+
+  !> IDA's context, vectors (on y, yp, ydky and id, which outlive the solve), memory and dense
+  !> linear solver, initialised at (t0, y, yp) with the weights of ida_ewt on atol_v, the
+  !> options of the module header and the stop time t_end.
+  subroutine ida_create(lp, opt, t0, t_end, y, yp, ydky, id, atol_v, st, stat)
+    type(ida_loop_t), intent(inout) :: lp
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, t_end
+    real(dp), intent(inout), target, contiguous :: y(:), yp(:), ydky(:), id(:), atol_v(:)
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    integer(c_int) :: flag
+    integer(c_int64_t) :: n
+    n = int(lp%ctx%n, c_int64_t)
+    stat = MBDK_ERR_BACKEND
+    if (FSUNContext_Create(c_null_ptr, lp%sunctx) /= 0) return
+    stat = MBDK_ERR_NO_MEMORY
+    lp%nv_y => FN_VMake_Serial(n, y, lp%sunctx)
+    if (.not. associated(lp%nv_y)) return
+    lp%nv_yp => FN_VMake_Serial(n, yp, lp%sunctx)
+    if (.not. associated(lp%nv_yp)) return
+    lp%nv_dky => FN_VMake_Serial(n, ydky, lp%sunctx)
+    if (.not. associated(lp%nv_dky)) return
+    lp%nv_id => FN_VMake_Serial(n, id, lp%sunctx)
+    if (.not. associated(lp%nv_id)) return
+    lp%mem = FIDACreate(lp%sunctx)
+    if (.not. c_associated(lp%mem)) return
+    ! before anything else can fail: the kernel never prints
+    stat = MBDK_ERR_BACKEND
+    if (FIDASetErrFile(lp%mem, c_null_ptr) /= 0) return
+
+    flag = FIDAInit(lp%mem, c_funloc(ida_res), t0, lp%nv_y, lp%nv_yp)
+    if (flag == 0) then
+      lp%ctx%rtol = opt%rtol
+      lp%ctx%atol => atol_v
+      flag = FIDAWFtolerances(lp%mem, c_funloc(ida_ewt))
+    end if
+    if (flag == 0) flag = FIDASetUserData(lp%mem, c_loc(lp%ctx))
+    ! the error test sees q and v only (module header); IDA copies id
+    if (flag == 0) flag = FIDASetId(lp%mem, lp%nv_id)
+    if (flag == 0) flag = FIDASetSuppressAlg(lp%mem, 1_c_int)
+    ! the step count is ours (max_steps counts failures too); IDA's per-call limit is off
+    if (flag == 0) flag = FIDASetMaxNumSteps(lp%mem, -1_c_long)
+    if (flag == 0) flag = FIDASetStopTime(lp%mem, t_end)
+    if (flag == 0 .and. opt%max_order > 0) &
+      flag = FIDASetMaxOrd(lp%mem, int(opt%max_order, c_int))
+    if (flag == 0 .and. opt%h > 0.0_dp) then
+      flag = FIDASetInitStep(lp%mem, opt%h)
+    else if (flag == 0 .and. lp%ctx%h0 > 0.0_dp) then
+      flag = FIDASetInitStep(lp%mem, lp%ctx%h0)
+    end if
+    if (flag == 0 .and. opt%h_min > 0.0_dp) flag = FIDASetMinStep(lp%mem, opt%h_min)
+    if (flag == 0 .and. opt%h_max > 0.0_dp) flag = FIDASetMaxStep(lp%mem, opt%h_max)
+    if (flag /= 0) then
+      stat = ida_status(flag, lp%ctx%stat, lp%ctx%soft_stat)
+      return
+    end if
+
+    stat = MBDK_ERR_NO_MEMORY
+    lp%amat => FSUNDenseMatrix(n, n, lp%sunctx)
+    if (.not. associated(lp%amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
+      st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
+      return
+    end if
+    lp%ls => FSUNLinSol_Dense(lp%nv_y, lp%amat, lp%sunctx)
+    if (.not. associated(lp%ls)) return
+    ! no Jacobian function: IDA's dense difference quotients
+    stat = MBDK_ERR_BACKEND
+    if (FIDASetLinearSolver(lp%mem, lp%ls, lp%amat) /= 0) return
+    stat = MBDK_SUCCESS
+  end subroutine ida_create
+
+  !> One internal step (IDA_ONE_STEP) towards t_stop; a residual's failure comes first.
+  subroutine ida_step(self, t_stop, t, stat)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t_stop
+    real(dp), intent(out) :: t
+    integer, intent(out) :: stat
+    real(c_double) :: tret(1)
+    integer(c_int) :: flag
+    self%ctx%soft_stat = MBDK_SUCCESS
+    flag = FIDASolve(self%mem, t_stop, tret, self%nv_y, self%nv_yp, IDA_ONE_STEP)
+    t = tret(1)
+    if (flag < 0) then
+      stat = ida_status(flag, self%ctx%stat, self%ctx%soft_stat)
+      return
+    end if
+    stat = self%ctx%stat
+  end subroutine ida_step
+
+  !> Steps plus steps retried after an error-test or convergence failure (the module header).
+  integer(i8) function ida_tries(self) result(tries)
+    class(ida_loop_t), intent(inout) :: self
+    integer(c_long) :: nst(1), netf(1), ncfn(1)
+    integer(c_int) :: flag
+    flag = FIDAGetNumSteps(self%mem, nst)
+    flag = FIDAGetNumErrTestFails(self%mem, netf)
+    flag = FIDAGetNumStepSolveFails(self%mem, ncfn)
+    tries = int(nst(1), i8) + int(netf(1), i8) + int(ncfn(1), i8)
+  end function ida_tries
+
+  subroutine ida_last_step(self, h, q)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(out) :: h
+    integer, intent(out) :: q
+    real(c_double) :: hlast(1)
+    integer(c_int) :: flag, qlast(1)
+    flag = FIDAGetLastStep(self%mem, hlast)
+    flag = FIDAGetLastOrder(self%mem, qlast)
+    h = hlast(1)
+    q = int(qlast(1))
+  end subroutine ida_last_step
+
+  subroutine ida_dky(self, t, stat)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    stat = MBDK_SUCCESS
+    if (FIDAGetDky(self%mem, t, 0_c_int, self%nv_dky) /= 0) stat = MBDK_ERR_BACKEND
+  end subroutine ida_dky
+
+  !> A sample's multipliers (its [q; v] the loop has written): src's lam into lam_out(:, k),
+  !> where lam_out has that column.
+  subroutine ida_write_extra(self, k, src)
+    class(ida_loop_t), intent(inout) :: self
+    integer, intent(in) :: k
+    real(dp), intent(in) :: src(:)
+    if (size(self%lam_out, 2) >= k) &
+      call put_lam(self%ctx, src(self%ctx%ny + 1:self%ctx%ny + self%ctx%nl), self%lam_out(:, k))
+  end subroutine ida_write_extra
+
+  logical function ida_wants_nodes(self) result(wants)
+    class(ida_loop_t), intent(inout) :: self
+    wants = self%ctx%mech%watch_wants_nodes()
+  end function ida_wants_nodes
+
+  subroutine ida_keep_node(self, i)
+    class(ida_loop_t), intent(inout) :: self
+    integer, intent(in) :: i
+    associate (ny => self%ctx%ny, nl => self%ctx%nl)
+      self%yn(:, i) = self%ydky(1:ny)
+      call put_lam(self%ctx, self%ydky(ny + 1:ny + nl), self%lamn(:, i))
+    end associate
+  end subroutine ida_keep_node
+
+  subroutine ida_watch_nodes(self, t_a, t_b, stat)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t_a, t_b
+    integer, intent(out) :: stat
+    call self%ctx%mech%watch_nodes_lam(t_a, t_b, self%yn, self%lamn, stat)
+  end subroutine ida_watch_nodes
+
+  !> The watch with the step's own multipliers (the module header); then multipliers that grew
+  !> (from rest, or a load ramped up) raise their tolerance (lam_atol).
+  subroutine ida_accept(self, t, sample, stat)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    logical, intent(in) :: sample
+    integer, intent(out) :: stat
+    associate (ctx => self%ctx, y => self%y, ny => self%ctx%ny, nl => self%ctx%nl)
+      stat = MBDK_SUCCESS
+      if (ctx%mech%has_watch) then
+        call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
+        call ctx%mech%watch_lam(t, y(1:ny), sample, ctx%lamfull, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      if (nl > 0) then
+        if (maxval(abs(y(ny + 1:ny + nl))) > 2.0_dp * ctx%lam_scale) then
+          ctx%lam_scale = maxval(abs(y(ny + 1:ny + nl)))
+          ctx%atol(ny + 1:ny + nl) = lam_atol(self%opt, y(ny + 1:ny + nl))
+        end if
+      end if
+    end associate
+  end subroutine ida_accept
 
   !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
   !> (the rows a redundant scene leaves out: 0).
