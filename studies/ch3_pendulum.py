@@ -41,7 +41,7 @@ import mbdk  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 from mbdk.analysis.timing import simulate_timed  # noqa: E402
-from mbdk.scene import scene_from_dict, scene_to_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict, scene_to_dict  # noqa: E402
 
 G = 9.81
 PHI0 = math.pi / 6                      # the chapter 4 release angle, 30 deg from the vertical

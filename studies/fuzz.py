@@ -326,7 +326,7 @@ def bad_arguments(seed: int, n: int):
 
 
 def _finite(r) -> bool:
-    arrays = [getattr(r, name, None) for name in ("y", "q", "v", "w", "energy")]
+    arrays = [getattr(r, name, None) for name in ("y", "q", "v", "energy")]
     return all(a is None or callable(a) or np.all(np.isfinite(np.asarray(a, float)))
                for a in arrays)
 
@@ -355,8 +355,8 @@ def run_scene_case(data: bytes, tmp: Path):
         sc = mbdk.load_scene(path)
         # a spatial scene's second method: an error-controlled one (trapezoidal_index3 is the
         # planar model's)
-        second = ("dopri54", {"rtol": 1e-6, "atol": 1e-8}) if isinstance(
-            sc, mbdk.SpatialScene) else ("trapezoidal_index3", {"h": 1e-3})
+        second = (("dopri54", {"rtol": 1e-6, "atol": 1e-8}) if sc.kind == "spatial" else
+                  ("trapezoidal_index3", {"h": 1e-3}))
         return [mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.005),
                 mbdk.simulate(sc, second[0], t_end=0.005, **second[1])]
     return classify(go)
@@ -393,7 +393,7 @@ def bad_paths(tmp: Path):
     """(label, callable) cases: load_scene on paths that are no scene file. A device or a pipe
     would be read for ever (or block) if opened: each must be refused at once."""
     import os
-    from mbdk.scene import scene_or_file
+    from mbdk.scene_file import scene_or_file
     pipe = tmp / "pipe.toml"
     if not pipe.exists():
         os.mkfifo(pipe)

@@ -49,7 +49,7 @@ from _common import main, progress  # noqa: E402
 
 import mbdk  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
-from mbdk.scene import scene_from_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
 
 CYCLE, BW, MU, K_WEAR = 1.5, 800.0, 0.0575, 1.3e-6 * 1e-9          # tables 6.5, 6.7
 SLIDE_ROLL = [1.137558, 0.02378365, 0.3631732, -0.111667]          # table 6.7, c0..c3

@@ -38,8 +38,8 @@ from _common import main, progress  # noqa: E402
 
 import mbdk  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
-from mbdk.scene import scene_from_dict  # noqa: E402
-from mbdk.simulate import OUTPUTS  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
+from mbdk.codes import OUTPUTS  # noqa: E402
 
 try:                      # Python 3.11+
     import tomllib

@@ -44,7 +44,7 @@ from _common import main, progress  # noqa: E402
 import mbdk  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
 from mbdk.problems import rigid_body_momentum  # noqa: E402
-from mbdk.spatial import spatial_scene_from_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
 
 METHODS = ("explicit_euler", "heun", "rk4", "implicit_euler", "trapezoidal", "bdf2")
 
@@ -99,8 +99,9 @@ def gimbal_rows(quick: bool) -> list[dict]:
                              "orientation_error": float(np.abs(rr - r_end).max())
                              if done else None})
         # the same body as a spatial scene in 3-1-3 angles that switches to 1-2-3 within 0.1
-        # of the lock and back (mbdk.spatial, switch_angles): what passing the lock costs
-        sc = spatial_scene_from_dict({
+        # of the lock and back (simulate's switch_angles, mbdk.angle_switch): what passing the
+        # lock costs
+        sc = scene_from_dict({
             "scene": {"name": "spin", "rotation": "euler313"},
             "body": [{"name": "b", "kind": "spatial", "mass": 1.0, "inertia": [1.0, 2.0, 3.0],
                       "euler313": a0.tolist(), "omega_body": w.tolist()}]}, "spin")

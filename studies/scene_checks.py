@@ -32,7 +32,7 @@ import mbdk  # noqa: E402
 from mbdk import model as M  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
-from mbdk.scene import scene_from_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
 
 L, S, K, OMEGA = 1.0, 1000.0, 10.0, 2.0
 

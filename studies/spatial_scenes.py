@@ -1,4 +1,4 @@
-"""Spatial scenes (mbdk.spatial; Fekete (2023) chapter 5): accuracy and CPU time of each
+"""Spatial scenes (Fekete (2023) chapter 5): accuracy and CPU time of each
 formulation and method on the heavy top and on the double pendulum built from spatial bodies,
 the quaternion norm by the user's choice, and what a spatial body costs beside a planar one.
 
@@ -77,7 +77,7 @@ def top_reference(sc):
 
 def top_error(r, ref):
     return float(max(np.abs(r.q[:, 3:7] - ref[:, :4]).max(),
-                     np.abs(r.w[:, 3:6] - ref[:, 4:]).max()))
+                     np.abs(r.v[:, 3:6] - ref[:, 4:]).max()))
 
 
 def pendulum_setup():
@@ -190,7 +190,7 @@ def cost_rows(quick: bool) -> list[dict]:
 
 
 def benchmark_rows(quick: bool) -> list[dict]:
-    from mbdk.spatial import evaluate_spatial
+    from mbdk.spatial_model import evaluate_spatial
     rows = []
     sc = mbdk.scene("bricard")
     rank = evaluate_spatial(sc)["rank"]
@@ -278,7 +278,7 @@ def small_step_rows(quick: bool) -> tuple[list[dict], float]:
                 prev = None
                 continue
             err = float(max(np.abs(r.q[-1] - ref.q[-1]).max(),
-                            np.abs(r.w[-1] - ref.w[-1]).max()))
+                            np.abs(r.v[-1] - ref.v[-1]).max()))
             rows.append({**row, "status": "ok", "error": err,
                          "ratio": prev[1] / err if prev else None,
                          "order": (float(np.log(prev[1] / err) / np.log(prev[0] / row["h"]))

@@ -33,7 +33,7 @@ import mbdk  # noqa: E402
 from mbdk import symbolic  # noqa: E402
 from mbdk.analysis import plotting  # noqa: E402
 from mbdk.analysis.tables import write_table  # noqa: E402
-from mbdk.scene import scene_from_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
 
 G = 9.81
 

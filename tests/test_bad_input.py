@@ -11,7 +11,7 @@ import pytest
 
 import mbdk
 from mbdk import checks, stability
-from mbdk.scene import scene_from_dict, scene_or_file, scene_to_dict
+from mbdk.scene_file import scene_from_dict, scene_or_file, scene_to_dict
 
 SIM = sys.modules["mbdk.simulate"]
 ODE = sys.modules["mbdk.ode"]
@@ -270,7 +270,7 @@ def test_a_pipe_and_a_directory_are_refused_without_opening_them(tmp_path):
 
 
 def test_a_file_beyond_the_size_limit_is_refused(tmp_path, monkeypatch):
-    monkeypatch.setattr(sys.modules["mbdk.scene"], "MAX_SCENE_BYTES", 100)
+    monkeypatch.setattr(sys.modules["mbdk.scene_file"], "MAX_SCENE_BYTES", 100)
     path = tmp_path / "big.toml"
     path.write_text("# " + "x" * 200 + "\n")
     with pytest.raises(mbdk.SceneError, match="201 bytes|203 bytes|more than a scene file"):

@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 
 import mbdk
 from mbdk import model as M
-from mbdk.scene import SceneError, scene_from_dict
+from mbdk.scene import SceneError
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 
@@ -401,11 +402,6 @@ def test_rolling_disc_down_an_incline(method):
     lam = r.multipliers
     assert np.abs(-lam[1:, 0] - m * G * math.cos(al)).max() < 1e-6
     assert np.abs(-lam[1:, 1] + m * G * math.sin(al) / 3).max() < 1e-6
-
-
-def test_scene_row_counts_are_the_kernels():
-    from mbdk.scene import JOINT_ROW_COUNT
-    assert JOINT_ROW_COUNT == M.JOINT_ROWS
 
 
 def test_a_time_dependent_coupling_row():

@@ -12,7 +12,8 @@ from scipy.special import beta
 
 import mbdk
 from mbdk.errors import NotApplicableError
-from mbdk.scene import SceneError, scene_from_dict
+from mbdk.scene import SceneError
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 

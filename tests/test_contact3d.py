@@ -12,7 +12,8 @@ from scipy.special import beta
 
 import mbdk
 from mbdk.errors import EnergyDriftError
-from mbdk.scene import SceneError, scene_from_dict
+from mbdk.scene import SceneError
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 
@@ -69,12 +70,12 @@ def test_restitution_of_a_damped_sphere():
     r = mbdk.simulate(ball(k, c, v=(0.3, -0.2, -v0), omega=(5.0, -3.0, 40.0)), "rk4", h=2e-6,
                       t_end=0.03, every=50)
     e_closed, z = kelvin_voigt(m, k, c, v0)
-    e_sim = r.w[-1, 2] / v0
+    e_sim = r.v[-1, 2] / v0
     assert abs(e_sim - e_closed) < 2e-5, (e_sim, e_closed)
     textbook = math.exp(-z * math.pi / math.sqrt(1 - z * z))
     assert abs((e_sim - textbook) / (2 * z * z * textbook) - 1) < 0.1
-    assert np.allclose(r.w[-1, [0, 1]], [0.3, -0.2], rtol=0, atol=1e-12)
-    assert np.allclose(r.w[-1, 3:], [5.0, -3.0, 40.0], rtol=0, atol=1e-9)
+    assert np.allclose(r.v[-1, [0, 1]], [0.3, -0.2], rtol=0, atol=1e-12)
+    assert np.allclose(r.v[-1, 3:], [5.0, -3.0, 40.0], rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("shape", ["plane", "sphere"])
@@ -108,9 +109,9 @@ def test_hertz_contact_time(shape):
     assert abs((inside[-1] - inside[0]) - tc) < 3e-6, (inside[-1] - inside[0], tc)
     assert abs(pen.max() - dmax) < 1e-3 * dmax
     if shape == "plane":
-        assert abs(r.w[-1, 2] - v0) < 1e-8
+        assert abs(r.v[-1, 2] - v0) < 1e-8
     else:
-        assert np.allclose(r.w[-1, [0, 6]], [0.0, v0], rtol=0, atol=1e-8)
+        assert np.allclose(r.v[-1, [0, 6]], [0.0, v0], rtol=0, atol=1e-8)
 
 
 def tilted(v0=2.0, mu=0.3, r=0.1, m=1.0, k=1e6, vs=1e-3):
@@ -146,7 +147,7 @@ def test_sliding_sphere_rolls_at_five_sevenths(method, kw):
     v0, mu, rad, vd = 2.0, 0.3, 0.1, 2e-3
     sc, n, t = tilted(v0, mu, rad)
     r = mbdk.simulate(sc, method, t_end=0.4, **kw)
-    v = r.w[:, :3] @ t
+    v = r.v[:, :3] @ t
     axis = np.cross(n, t)            # rolling along t turns the sphere about n x t
     om = np.einsum("nij,nj->ni", r.orientation("ball"), r.omega_body("ball")) @ axis
     slip = v - om * rad
@@ -158,7 +159,7 @@ def test_sliding_sphere_rolls_at_five_sevenths(method, kw):
     crossed = r.t[np.argmax(slip < vd)]
     assert t_vd <= crossed < t_vd + 2e-3 and t_vd < 2 * v0 / (7 * mu * G)
     assert abs(v[-1] - 5 / 7 * v0) < 1e-6 and abs(slip[-1]) < 1e-6
-    assert np.abs(r.w[:, :3] @ n).max() < 1e-8 * v0       # no bounce
+    assert np.abs(r.v[:, :3] @ n).max() < 1e-8 * v0       # no bounce
     lost = r.energy[0] - r.energy[-1]
     assert abs(lost - v0 ** 2 / 7) < 1e-6
     assert np.abs(r.energy_balance()).max() < 1e-6 * lost
@@ -172,7 +173,7 @@ def test_every_method_rolls_the_sphere(method, kw):
     rolling speed 5/7 v0 as the ODE methods do."""
     sc, n, t = tilted()
     r = mbdk.simulate(sc, method, t_end=0.4, **kw)
-    assert abs(r.w[-1, :3] @ t - 5 / 7 * 2.0) < 1e-6
+    assert abs(r.v[-1, :3] @ t - 5 / 7 * 2.0) < 1e-6
 
 
 def top_on_its_tip(tip=1e-5, k=1e6, vs=1e-4):
@@ -243,7 +244,7 @@ def test_located_events_and_the_energy_balance_of_a_damped_bounce():
                           dt_out=1e-3, locate_events=located)
         assert r.manifest["locate_events"] is located
         lost = r.energy[0] - r.energy[-1]
-        err[located] = abs(r.w[-1, 2] / v0 - e_closed)
+        err[located] = abs(r.v[-1, 2] / v0 - e_closed)
         bal[located] = np.abs(r.energy_balance()).max() / lost
     assert err[True] < 1e-9 and err[True] < err[False] / 5, err
     assert bal[True] < 1e-7 < 1e-4 < bal[False], bal
@@ -291,8 +292,8 @@ def test_two_spheres_with_friction_keep_their_momenta():
                       watch={"momentum": 1e-10})
     assert len(r.manifest["invariants"]) == 6
     inertia = 0.4 * m * rad ** 2
-    p = r.w[:, 0:3] + r.w[:, 6:9]
-    h = sum(m * np.cross(r.position(b), r.w[:, 6 * i:6 * i + 3]) + inertia * np.einsum(
+    p = r.v[:, 0:3] + r.v[:, 6:9]
+    h = sum(m * np.cross(r.position(b), r.v[:, 6 * i:6 * i + 3]) + inertia * np.einsum(
         "nij,nj->ni", r.orientation(b), r.omega_body(b)) for i, b in enumerate("ab"))
     assert np.abs(p - p[0]).max() < 1e-12 and np.abs(h - h[0]).max() < 1e-12
     assert r.omega_body("b")[-1, 2] < -5.0           # friction spun b the other way
@@ -317,10 +318,10 @@ def test_sphere_hits_a_plane_on_a_free_body():
                           {"type": "plane", "point": [0, 0, 0.05], "normal": [0, 0, 1]},
                           stiffness=1e6, exponent=1.5)]})
     r = mbdk.simulate(sc, "dopri54", rtol=1e-10, atol=1e-12, t_end=0.15, dt_out=1e-3)
-    p = 0.5 * r.w[:, 0:3] + 2.0 * r.w[:, 6:9]
+    p = 0.5 * r.v[:, 0:3] + 2.0 * r.v[:, 6:9]
     assert np.abs(p - p[0]).max() < 1e-12
     assert np.linalg.norm(r.omega_body("slab")[-1]) > 0.5
-    assert r.w[-1, 2] > 0                             # the ball bounced off
+    assert r.v[-1, 2] > 0                             # the ball bounced off
     assert np.abs(r.energy - r.energy[0]).max() < 1e-8 * r.energy[0]
 
 

@@ -13,8 +13,8 @@ import pytest
 
 import mbdk
 from mbdk.benchmarks import a02_chain, a02_crank
-from mbdk.scene import scene_from_dict
-from mbdk.spatial import evaluate_spatial
+from mbdk.scene_file import scene_from_dict
+from mbdk.spatial_model import evaluate_spatial
 from mbdk.stability import spectral_radius, unstable_mode
 
 
@@ -74,7 +74,7 @@ def test_a_step_beyond_the_stability_limit_is_named():
     text = str(exc.value)
     assert "beyond rk4's stability limit" in text and "rank" not in text
     r = exc.value.result
-    y = np.concatenate([r.q[-1], r.w[-1]])
+    y = np.concatenate([r.q[-1], r.v[-1]])
     sc = mbdk.scene("flyball_governor")
     jac = np.empty((y.size, y.size))
     for j in range(y.size):                 # central differences of the reduced ODE

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk import _kernel, model as M
-from mbdk.scene import FORCE_TYPES, JOINT_TYPES, WEAR_LAWS
+from mbdk import _kernel, codes as C, model as M
+from mbdk.codes import WEAR_LAWS
+from mbdk.scene import FORCE_TYPES, JOINT_TYPES
 
 
 def header_kinds(root):
@@ -28,19 +29,19 @@ ABBREVIATED = {"point": "point_force", "coordinate": "coordinate_spring_damper"}
 
 
 def test_header_enums_are_the_kernel_registry(root):
-    kernel = {(cls, code): name for cls, code, name, _r, _s in M.ELEMENT_KINDS}
+    kernel = {(cls, code): name for cls, code, name, _r, _s in C.ELEMENT_KINDS}
     header = {k: ABBREVIATED.get(v, v) for k, v in header_kinds(root).items()}
     assert len(kernel) >= 11 and kernel == header
 
 
 def test_every_scene_type_is_a_kernel_kind_and_back():
-    kinds = {name for _c, _k, name, _r, _s in M.ELEMENT_KINDS}
-    assert set(JOINT_TYPES) == set(M.JOINT_CODES) <= kinds
+    kinds = {name for _c, _k, name, _r, _s in C.ELEMENT_KINDS}
+    assert set(JOINT_TYPES) == set(C.JOINT_CODES) <= kinds
     # friction is written in its contact's table, not as a [[force]] of its own
-    assert set(FORCE_TYPES) | {"friction"} == set(M.FORCE_CODES)
-    assert set(M.FORCE_CODES.values()) == {k for c, k, *_ in M.ELEMENT_KINDS if c == 2}
-    assert set(WEAR_LAWS) and set(M.EFFECT_CODES) == {"wear"}
-    assert M.VISIT_NAMES == [name for _c, _k, name, _r, _s in M.ELEMENT_KINDS]
+    assert set(FORCE_TYPES) | {"friction"} == set(C.FORCE_CODES)
+    assert set(C.FORCE_CODES.values()) == {k for c, k, *_ in C.ELEMENT_KINDS if c == 2}
+    assert set(WEAR_LAWS) and set(C.EFFECT_CODES) == {"wear"}
+    assert C.VISIT_NAMES == [name for _c, _k, name, _r, _s in C.ELEMENT_KINDS]
 
 
 def test_joint_rows_are_the_kernels():
@@ -49,7 +50,7 @@ def test_joint_rows_are_the_kernels():
     for name in ("four_bar", "trolley_crane", "three_link_pendulum"):
         sc = mbdk.scene(name)
         tab = M.build_tables(sc)
-        assert tab.m == sum(M.JOINT_ROWS[j.type] for j in sc.joints)
+        assert tab.m == sum(C.JOINT_ROWS[j.type] for j in sc.joints)
         assert M.evaluate(tab, sc.q0(), sc.v0())["phi"].size == tab.m
 
 
@@ -59,7 +60,7 @@ def test_a_spring_with_damping_is_refused_by_the_kernel():
     sc = mbdk.scene("spring_bar")
     tab = M.build_tables(sc)
     k = [f.type for f in sc.forces].index("spring")
-    assert tab.fint[0, k] == M.FORCE_CODES["spring"]
+    assert tab.fint[0, k] == C.FORCE_CODES["spring"]
     assert M.evaluate(tab, sc.q0(), sc.v0())["status"] == mbdk.Status.SUCCESS
     tab.freal[6, k] = 1.0
     y = np.concatenate([sc.q0(), sc.v0()])
@@ -70,7 +71,7 @@ def test_a_spring_with_damping_is_refused_by_the_kernel():
 def test_body_kinds_are_the_kernels_and_the_headers(root):
     """The body kinds: the kernel's table (mbdk_elements), mbdk.h's enum and the scene format
     read the same names and codes; planar bodies carry (x, y, theta)."""
-    from mbdk.scene import BODY_KINDS
+    from mbdk.codes import BODY_KINDS
     text = (root / "kernel" / "include" / "mbdk.h").read_text()
     body = re.search(r"enum mbdk_body_kind \{(.*?)\};", text, re.S).group(1)
     header = {m.group(1).lower(): int(m.group(2))

@@ -90,7 +90,7 @@ def test_a_scene_is_re_read_only_when_it_changed():
     changed since it was read (a field its type does not use included: the tables are built
     from the objects), and takes it as it is otherwise (the check then costs microseconds)."""
     import mbdk
-    from mbdk.scene import checked
+    from mbdk.scene_file import checked
     sc = mbdk.scene("double_pendulum")
     assert checked(sc) is sc
     sc.joints[0].axis = (0.0, 1.0)          # unused by a revolute joint, still compared

@@ -15,7 +15,7 @@ import mbdk
 from mbdk import model as M
 from mbdk.benchmarks import a02_chain, a02_crank
 from mbdk.index3 import newton_matrix
-from mbdk.scene import scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 FORMS = ["index3", "augmented_lagrangian"]
 

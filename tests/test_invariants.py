@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.scene import scene_from_dict
-from mbdk.spatial import spatial_scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 BOX = (1.0, 0.5, 0.25)          # a box of 1 kg, its three principal moments all different
@@ -23,7 +22,7 @@ def box_inertia(size=BOX, m=1.0):
 
 
 def free_box(omega_body):
-    return spatial_scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
+    return scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
         {"name": "box", "kind": "spatial", "mass": 1.0,
          "shape": {"type": "box", "size": list(BOX)}, "omega_body": list(omega_body)}]},
         "box.toml")
@@ -34,7 +33,7 @@ def spatial_momenta(r, sc, point=None):
     H = sum (r_b - c) x m_b v_b + R_b J_b W_b (J from the scene's bodies)."""
     mass = np.array([b.mass for b in sc.bodies])
     pos = np.stack([r.position(b.name) for b in sc.bodies], axis=1)          # (n, nb, 3)
-    vel = np.stack([r.w[:, 6 * k:6 * k + 3] for k in range(len(sc.bodies))], axis=1)
+    vel = np.stack([r.v[:, 6 * k:6 * k + 3] for k in range(len(sc.bodies))], axis=1)
     p = np.einsum("b,nbi->ni", mass, vel)
     c = (np.einsum("b,nbi->ni", mass, pos) / mass.sum() if point is None else
          np.broadcast_to(np.asarray(point, float), p.shape))
@@ -248,7 +247,7 @@ def ball_on_floor(friction):
 def rotor(g):
     """A spatial body on a revolute joint to the ground about z through (0, 0, 0.5), its
     centre off the axis."""
-    return spatial_scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
+    return scene_from_dict({"scene": {"rotation": "quaternion"}, "body": [
         {"name": "rotor", "kind": "spatial", "mass": 2.0, "inertia": [0.02, 0.03, 0.04],
          "position": [0.2, 0.0, 0.5], "velocity": [0.0, 0.6, 0.0],
          "omega_body": [0.0, 0.0, 3.0]}],
@@ -296,7 +295,7 @@ def test_the_watched_components_are_the_scenes_and_they_are_conserved(name):
     r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=1.0, every=50)
     names = r.manifest["invariants"]
     assert names == expected
-    spatial = hasattr(r, "w")
+    spatial = r.kind == "spatial"
     for label in names:
         point = None
         if "fixed point" in label:
@@ -306,8 +305,7 @@ def test_the_watched_components_are_the_scenes_and_they_are_conserved(name):
         k = "xyz".index(axis)
         if label.startswith("momentum"):
             c = p[:, k]
-            size = np.abs(p).max() + sum(b.mass for b in sc.bodies) * np.abs(r.v if not spatial
-                                                                              else r.w).max()
+            size = np.abs(p).max() + sum(b.mass for b in sc.bodies) * np.abs(r.v).max()
         else:
             c = h[:, k] if spatial else h
             # the component's scale: the largest angular momentum of the run (at least

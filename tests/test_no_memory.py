@@ -56,11 +56,11 @@ def test_bdf_si2_on_many_free_spatial_bodies_names_its_dense_newton_matrix():
     n = 13 * nb                                   # the unknowns: (r, p; v, Omega) per body
     newton = 2 * 8.0 * n * n                      # the Newton matrix and its LU factors
     rep = run_child(f'''
-        from mbdk.spatial import spatial_scene_from_dict
+        from mbdk.scene_file import scene_from_dict
         bodies = [{{"name": f"b{{i}}", "kind": "spatial", "mass": 1.0,
                     "inertia": [0.1, 0.2, 0.3], "position": [float(i), 0.0, 0.0]}}
                   for i in range({nb})]
-        sc = spatial_scene_from_dict({{"scene": {{"name": "free"}}, "body": bodies}}, "free.toml")
+        sc = scene_from_dict({{"scene": {{"name": "free"}}, "body": bodies}}, "free.toml")
         try:
             mbdk.simulate(sc, "bdf", formulation="si2", rtol=1e-6, atol=1e-8, t_end=0.01)
         except MemoryError as e:
@@ -83,7 +83,7 @@ def test_penalty_matrix_of_a_large_planar_scene_is_named_from_the_model_build():
     nb = 20000
     nc = 3 * nb
     rep = run_child(f'''
-        from mbdk.scene import scene_from_dict
+        from mbdk.scene_file import scene_from_dict
         bodies = [{{"name": f"b{{i}}", "mass": 1.0, "inertia": 0.1, "x": float(i)}}
                   for i in range({nb})]
         sc = scene_from_dict({{"scene": {{"name": "row"}}, "body": bodies}}, "row.toml")
@@ -106,14 +106,14 @@ def test_a_spatial_model_too_large_to_check_is_no_memory_not_degenerate_joints()
     of 3000 bodies on spherical joints: C alone is 9000 x 18 000 doubles (1.3 GB), the rank
     test's matrices 3 x 9000^2 (1.9 GB) more."""
     rep = run_child('''
-        from mbdk.spatial import spatial_scene_from_dict
+        from mbdk.scene_file import scene_from_dict
         nb = 3000
         bodies = [{"name": f"b{i}", "kind": "spatial", "mass": 1.0, "inertia": [0.1, 0.2, 0.3],
                    "position": [i + 0.5, 0.0, 0.0]} for i in range(nb)]
         joints = [{"name": "j0", "type": "spherical", "body1": "b0", "at": [0.0, 0.0, 0.0]}] + [
             {"name": f"j{i}", "type": "spherical", "body1": f"b{i}", "body2": f"b{i - 1}",
              "at": [float(i), 0.0, 0.0]} for i in range(1, nb)]
-        sc = spatial_scene_from_dict({"scene": {"name": "chain"}, "body": bodies,
+        sc = scene_from_dict({"scene": {"name": "chain"}, "body": bodies,
                                       "joint": joints}, "chain.toml")
         try:
             mbdk.simulate(sc, "rk4", h=1e-3, t_end=1e-3)

@@ -170,7 +170,7 @@ def test_the_kernel_assembles_and_takes_pose_values_at_the_assembled_pose():
     the assembled pose (so the spring starts relaxed: zero potential energy), all in the one run."""
     import tomllib
     from pathlib import Path
-    from mbdk.scene import scene_from_dict
+    from mbdk.scene_file import scene_from_dict
     d = tomllib.loads((Path(mbdk.__file__).parent / "scenes" / "four_bar.toml").read_text())
     coupler = d["body"][1]
     d["force"].append({"name": "k", "type": "spring", "body1": coupler["name"],
@@ -231,7 +231,7 @@ def test_bodies_and_coordinates_outside_q_are_refused_not_written():
     """Element references the kernel would turn into writes outside q: a torque on a body with
     an empty name (read as the ground once), the same tables handed to the kernel directly
     (torque on body 0, a driver of coordinate 0), and masses changed after loading."""
-    from mbdk.scene import scene_from_dict
+    from mbdk.scene_file import scene_from_dict
     d = {"body": [{"name": "bar", "mass": 1.0, "inertia": 0.1}],
          "force": [{"type": "torque", "body": "", "torque": 1.0}]}
     with pytest.raises(mbdk.SceneError, match="field 'body' = '' is empty"):
@@ -240,7 +240,7 @@ def test_bodies_and_coordinates_outside_q_are_refused_not_written():
     tab = mbdk.model.build_tables(sc)
     y = np.concatenate([sc.q0(), sc.v0()])
     fint, freal = np.zeros((4, 1), np.int32, order="F"), np.zeros((12, 1), order="F")
-    fint[:, 0] = [mbdk.model.FORCE_CODES["torque"], 0, 0, 0]
+    fint[:, 0] = [mbdk.codes.FORCE_CODES["torque"], 0, 0, 0]
     *_, status = mbdk._kernel.model_eval(tab.mass, tab.inertia, tab.kind, tab.nj, tab.jint, tab.jreal, 1,
                                          fint, freal, mbdk.ModelOptions().pack(), tab.m, 0.0, y)
     assert status == mbdk.Status.ERR_INVALID_INPUT

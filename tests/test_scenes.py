@@ -13,7 +13,7 @@ import pytest
 
 import mbdk
 from mbdk import model as M
-from mbdk.scene import scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 ALL = mbdk.scenes()
 

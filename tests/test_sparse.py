@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.simulate import RedundantConstraintsError
+from mbdk.errors import RedundantConstraintsError
 from mbdk.benchmarks import a02_chain, a02_crank, bar_chain
-from mbdk.scene import scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 SPARSE = "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"
 

@@ -1,4 +1,4 @@
-"""Spatial scenes (mbdk.spatial, kernel/src/spatial/mbdk_spatial_model.f90): the kinematics of
+"""Spatial scenes (kernel/src/spatial/mbdk_spatial_model.f90): the kinematics of
 every joint against differences of Phi, the scenes against the compiled chapter-5 problems and
 the planar model, closed forms for the joints, the quaternion norm, gimbal lock and bad input.
 
@@ -14,7 +14,8 @@ import pytest
 
 import mbdk
 from mbdk.rotations import quaternion_product
-from mbdk.spatial import evaluate_spatial, spatial_scene_from_dict
+from mbdk.scene_file import scene_from_dict
+from mbdk.spatial_model import evaluate_spatial
 
 G = 9.81
 
@@ -26,7 +27,7 @@ def body(name, mass=1.0, inertia=(0.1, 0.2, 0.25), **kw):
 def every_joint_scene(rotation="quaternion"):
     """Six bodies, one joint of each type, in general positions (the rows need not hold: the
     kinematics is checked off the manifold as well)."""
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "scene": {"name": "joints", "rotation": rotation},
         "body": [body("a", position=[0.1, 0.2, 0.3], cardan123=[0.3, -0.2, 0.5],
                       omega_body=[0.4, -0.3, 0.9], velocity=[0.2, 0.1, -0.3]),
@@ -101,7 +102,7 @@ def test_the_free_body_scene_follows_the_compiled_free_rigid_body():
     ref = mbdk.solve_ode("free_rigid_body", "rk4", h=1e-3, t_end=4.0, every=50,
                          y0=[1, 0, 0, 0, *om0], params=dict(J1=j[0], J2=j[1], J3=j[2]))
     assert np.max(np.abs(r.q[:, 3:7] - ref.y[:, :4])) < 1e-10
-    assert np.max(np.abs(r.w[:, 3:6] - ref.y[:, 4:])) < 1e-10
+    assert np.max(np.abs(r.v[:, 3:6] - ref.y[:, 4:])) < 1e-10
     # the invariants: kinetic energy, and the angular momentum in space R J Omega
     assert np.max(np.abs(r.energy - r.energy[0])) < 1e-9 * r.energy[0]
     lw = np.array([rr @ (j * om) for rr, om in zip(r.orientation("box"), r.omega_body("box"))])
@@ -120,7 +121,7 @@ def test_the_heavy_top_scene_follows_the_compiled_heavy_top(formulation, tol):
     ref = mbdk.solve_ode("heavy_top", "rk4", h=2e-4, t_end=1.0, every=50, y0=[*q0, *b.omega_body],
                          params=dict(J1=0.015, J2=0.015, J3=0.01, m=1.0, g=G, l=0.1))
     assert np.max(np.abs(r.q[:, 3:7] - ref.y[:, :4])) < tol
-    assert np.max(np.abs(r.w[:, 3:6] - ref.y[:, 4:])) < tol * 50
+    assert np.max(np.abs(r.v[:, 3:6] - ref.y[:, 4:])) < tol * 50
     assert np.max(np.abs(r.energy_balance())) < 1e-6
     # the tip stays at the origin; the multipliers are the tip's force: on average the weight
     assert np.max(r.residuals[:, 0]) < (1e-9 if formulation != "baumgarte" else 1e-6)
@@ -147,7 +148,7 @@ def test_a_spatial_double_pendulum_on_spherical_joints_agrees_with_the_planar_on
 
 
 def _one_body(joint, g=(0.0, 0.0, -G), **kw):
-    return spatial_scene_from_dict({"body": [body("x", 2.0, (0.02, 0.03, 0.04), **kw)],
+    return scene_from_dict({"body": [body("x", 2.0, (0.02, 0.03, 0.04), **kw)],
                                     "joint": [joint],
                                     "force": [{"type": "gravity", "g": list(g)}]}, "one.toml")
 
@@ -161,7 +162,7 @@ def test_prismatic_and_cylindrical_joints_let_the_body_fall_along_the_axis_only(
     assert np.max(np.abs(r.position("x") - np.outer(s, axis))) < 1e-12
     assert np.max(np.abs(r.omega_body("x"))) < 1e-12    # no turn at all
     # cylindrical: the same fall, and a spin about the axis kept
-    sc = spatial_scene_from_dict({"body": [body("x", 2.0, (0.03, 0.03, 0.04),
+    sc = scene_from_dict({"body": [body("x", 2.0, (0.03, 0.03, 0.04),
                                                 omega_body=[0.0, 0.0, 3.0])],
                                   "joint": [{"name": "c", "type": "cylindrical", "body1": "x",
                                              "at": [0, 0, 0], "axis": [0.0, 0.0, 1.0]}],
@@ -176,7 +177,7 @@ def test_a_revolute_pendulum_swings_with_the_physical_pendulum_period():
     # the period 2 pi sqrt(J_O / (m g d)) (1 + th0^2 / 16), measured between up-crossings
     m, d, jz, th0 = 2.0, 0.5, 0.04, 0.01
     pos = [d * math.sin(th0), -d * math.cos(th0), 0.0]
-    sc = spatial_scene_from_dict({
+    sc = scene_from_dict({
         "body": [body("x", m, (0.02, 0.03, jz), position=pos, cardan123=[0.0, 0.0, th0])],
         "joint": [{"name": "h", "type": "revolute", "body1": "x", "at": [0, 0, 0],
                    "axis": [0.0, 0.0, 1.0]}],
@@ -204,7 +205,7 @@ def test_forces_torques_and_spring_dampers_keep_the_energy_balance():
             forces += [{"type": "point_force", "body": "x", "point": [0.0, 0.2, 0.0],
                         "force": [1.0, -2.0, 0.5]},
                        {"type": "torque", "body": "x", "torque": [0.0, 0.3, -0.2]}]
-        return spatial_scene_from_dict({
+        return scene_from_dict({
             "body": [body("x", 2.0, (0.02, 0.03, 0.04), position=[0.3, 0.1, -0.2],
                           cardan123=[0.2, -0.1, 0.4], omega_body=[1.0, -0.5, 2.0])],
             "joint": [{"name": "s", "type": "spherical", "body1": "x", "at": [0.0, 0.0, 0.0]}],
@@ -230,7 +231,7 @@ def test_forces_torques_and_spring_dampers_keep_the_energy_balance():
 def test_a_prismatic_joint_holds_a_torque_about_its_axis_a_cylindrical_one_turns():
     torque = {"type": "torque", "body": "x", "torque": [0.0, 0.0, 0.5]}
     for typ, turns in (("prismatic", False), ("cylindrical", True)):
-        sc = spatial_scene_from_dict({
+        sc = scene_from_dict({
             "body": [body("x", 2.0, (0.03, 0.03, 0.04))],
             "joint": [{"name": "j", "type": typ, "body1": "x", "at": [0, 0, 0],
                        "axis": [0.0, 0.0, 1.0]}],
@@ -282,7 +283,7 @@ def test_the_quaternion_norm_is_kept_by_the_users_choice():
 
 
 def test_euler_angles_stop_by_name_at_their_gimbal_lock_and_quaternions_pass_it():
-    sc = spatial_scene_from_dict({"scene": {"rotation": "euler313"},
+    sc = scene_from_dict({"scene": {"rotation": "euler313"},
                                   "body": [body("x", euler313=[0.0, 0.05, 0.0],
                                                 omega_body=[-1.0, 0.0, 0.0])]})
     with pytest.raises(mbdk.SingularMatrixError, match="gimbal lock") as err:
@@ -309,7 +310,7 @@ def spatial_from_planar(name, q0):
                "point1": [*j.point1, 0.0], "point2": [*j.point2, 0.0], "axis": [0, 0, 1]}
               for j in sc.joints]
     forces = [{"type": "gravity", "g": [*f.g, 0.0]} for f in sc.forces if f.type == "gravity"]
-    return spatial_scene_from_dict({"body": bodies, "joint": joints, "force": forces},
+    return scene_from_dict({"body": bodies, "joint": joints, "force": forces},
                                    f"{name}_3d.toml")
 
 
@@ -330,7 +331,7 @@ def test_redundant_joints_are_passed_and_agree_with_the_planar_mechanism():
                      "axis": [0, 0, 1]}, g=(0.0, -G, 0.0), position=[0.5, 0.0, 0.0])
     two = _one_body({"name": "h1", "type": "revolute", "body1": "x", "at": [0, 0, 0],
                      "axis": [0, 0, 1]}, g=(0.0, -G, 0.0), position=[0.5, 0.0, 0.0])
-    two.joints.append(spatial_scene_from_dict({
+    two.joints.append(scene_from_dict({
         "body": [body("x", 2.0, (0.02, 0.03, 0.04), position=[0.5, 0.0, 0.0])],
         "joint": [{"name": "h2", "type": "revolute", "body1": "x", "at": [0, 0, 0.2],
                    "axis": [0, 0, 1]}]}).joints[0])
@@ -413,7 +414,7 @@ def test_bad_spatial_scenes_name_the_element_and_field(change, field):
     d = {"scene": {"name": "bad"}, "body": [body("x")], "joint": []}
     change(d)
     with pytest.raises(mbdk.InvalidInputError, match=field):
-        sc = spatial_scene_from_dict(d, "bad.toml")
+        sc = scene_from_dict(d, "bad.toml")
         mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01)
 
 
@@ -444,7 +445,7 @@ def test_the_flyball_governor_rises_and_explicit_and_implicit_runs_agree():
     bound for the dampers) and bdf at rtol 1e-9 agree on the sleeve's height."""
     sc = mbdk.scene("flyball_governor")
     e = evaluate_spatial(sc)
-    assert (sc.rows, e["rank"], e["springs"]) == (20, 20, 0.0)
+    assert (sc.rows, e["rank"], e["potential_springs"]) == (20, 20, 0.0)
     a = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.3, every=300, formulation="projection")
     b = mbdk.simulate(sc, "bdf", rtol=1e-9, atol=1e-11, t_end=0.3, dt_out=0.03,
                       formulation="projection")
@@ -488,7 +489,7 @@ def test_cvode_runs_spatial_scenes_whose_norm_needs_no_projection():
 
 
 def test_orientations_near_a_lock_keep_their_angles():
-    from mbdk.spatial import orientation_coordinates
+    from mbdk.scene import orientation_coordinates
     for seq, a in (("313", [0.3, 1e-8, 0.5]), ("123", [0.3, math.pi / 2 - 1e-8, 0.5])):
         r = mbdk.rotations.from_angles(a, seq)
         got = orientation_coordinates(r, "euler313" if seq == "313" else "cardan123")
@@ -520,7 +521,7 @@ def test_the_rank_test_is_on_the_geometry_not_on_masses_or_units():
     the reduced form exactly as in metres (a near-singular test with rotations weighted by L^2
     refused it at t = 0)."""
     def pendulum(scale, j):
-        return spatial_scene_from_dict({
+        return scene_from_dict({
             "body": [body("x", 1.0, (j * scale ** 2,) * 3, position=[scale, 0.0, 0.0])],
             "joint": [{"name": "h", "type": "revolute", "body1": "x", "at": [0, 0, 0],
                        "axis": [0, 0, 1]}],
@@ -576,7 +577,7 @@ def _driven_crank(rate=2.0, amplitude=0.0):
     angle driven by f(t) = rate t + amplitude sin(3 t), turning at f'(0) from the start."""
     m, d = 2.0, 0.5
     w0 = rate + 3.0 * amplitude
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "body": [body("x", m, (0.02, 0.03, 0.04), position=[d, 0.0, 0.0],
                       omega_body=[0.0, 0.0, w0], velocity=[0.0, w0 * d, 0.0])],
         "joint": [{"name": "h", "type": "revolute", "body1": "x", "at": [0, 0, 0],
@@ -656,7 +657,7 @@ def _driven_slider(amplitude=0.2, omega=3.0, axis=(0.6, 0.0, 0.8)):
     start."""
     u = np.array(axis)
     v0 = amplitude * omega * u
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "body": [body("s", 3.0, (0.02, 0.03, 0.04), position=[0.0, 0.0, 0.0],
                       velocity=v0.tolist())],
         "joint": [{"name": "guide", "type": "prismatic", "body1": "s", "at": [0, 0, 0],
@@ -764,7 +765,7 @@ def test_bdf_on_the_spatial_index3_dae(name):
         assert r.residuals[:, 0].max() < 1e2 * tol
     assert err[1] < 1e-6 and err[1] < err[0] / 10
     if name != "bricard":
-        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), 1.0)["multipliers"]
+        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), 1.0)["multipliers"]
         assert np.abs(r.multipliers[-1] - red).max() < 1e-4 * max(1.0, np.abs(red).max())
 
 
@@ -784,7 +785,7 @@ def _slide_between_moving_bodies():
     """A slide driver between two bodies in general positions, both moving and turning, its
     points off their centres (every term of the row: body i's and body j's rotations and
     velocities), f(t) = 0.3 t + 0.1 sin(2 t)."""
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "body": [body("a", position=[0.1, 0.2, 0.3], cardan123=[0.3, -0.2, 0.5],
                       omega_body=[0.4, -0.3, 0.9], velocity=[0.2, 0.1, -0.3]),
                  body("b", 2.0, (0.3, 0.2, 0.4), position=[0.8, 0.1, -0.2],
@@ -837,7 +838,7 @@ def _spinning_body(rotation="euler313", e=1e-3):
     """The torque-free body (J = 1, 2, 3) of studies/rigid_body.py's gimbal table: theta0 =
     0.5 rad, turning about its x axis at 1 rad/s with Omega_y = e, so that theta passes pi
     within about e, near the 3-1-3 lock."""
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "scene": {"name": "spin", "rotation": rotation},
         "body": [body("b", 1.0, (1.0, 2.0, 3.0), euler313=[0.0, 0.5, 0.0],
                       omega_body=[1.0, e, 0.0])]}, "spin.toml")
@@ -896,7 +897,7 @@ def test_trapezoidal_index3_on_spatial_scenes_is_second_order_and_keeps_the_join
     for h in (5e-3, 2.5e-3, 1.25e-3):
         r = mbdk.simulate(sc, "trapezoidal_index3", h=h, t_end=t_end, every=round(0.05 / h))
         assert r.manifest["formulation"] == "projected" and "trapezoidal" in r.manifest["form"]
-        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
+        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
         drifts.append(np.ptp(r.energy))
         # the joints to Newton's atol (1e-12: no projection of q after the step), the
         # velocity rows to roundoff (v+ is projected)
@@ -980,8 +981,8 @@ def test_ida_on_spatial_scenes(name, t_end, tols):
             r = mbdk.simulate(sc, "ida", formulation=form, rtol=tol, atol=tol * 1e-2,
                               t_end=t_end, dt_out=0.1)
             assert r.manifest["formulation"] == form and "IDA" in r.manifest["linear_solve"]
-            errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
-            red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), t_end)["multipliers"]
+            errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
+            red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), t_end)["multipliers"]
             scale = max(1.0, np.abs(red).max())
             assert np.abs(r.multipliers[-1] - red).max() < 1e3 * tol * scale, (form, tol)
             if form == "ggl":
@@ -1025,8 +1026,8 @@ def test_bdf_on_the_spatial_stabilised_index2_dae(name, t_end, tols):
         r = mbdk.simulate(sc, "bdf", formulation="si2", rtol=tol, atol=tol * 1e-2, t_end=t_end,
                           dt_out=0.1)
         assert "SI2" in r.manifest["form"]
-        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.w - ref.w).max()))
+        errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
         assert r.residuals[:, 0].max() < 100 * tol and r.residuals[:, 1].max() < 100 * tol
-        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.w[-1]]), t_end)["multipliers"]
+        red = evaluate_spatial(sc, np.concatenate([r.q[-1], r.v[-1]]), t_end)["multipliers"]
         assert np.abs(r.multipliers[-1] - red).max() < 1e3 * tol * max(1.0, np.abs(red).max())
     assert errs[1] < errs[0] / 10

@@ -3,7 +3,7 @@ agree name by name (the C side is also checked by kernel/tests/c_status_table.c)
 import re
 
 from mbdk import Status, _kernel
-from mbdk.errors import _decode, exception_for
+from mbdk.errors import decode_text, exception_for
 
 
 def kernel_table():
@@ -13,7 +13,7 @@ def kernel_table():
         code, name, _msg = _kernel.status_entry(i)
         if code == 2**31 - 1:
             return out
-        out[_decode(name)] = int(code)
+        out[decode_text(name)] = int(code)
         i += 1
 
 

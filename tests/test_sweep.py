@@ -166,19 +166,19 @@ def test_a_failed_reference_is_named_in_every_row_it_leaves_without_an_error():
 
 
 def _failing_solve_ode(failing):
-    """mbdk.solve_ode, raising ZeroDivisionError (not an mbdk error) for the (problem, method)
+    """mbdk.ode.solve_ode, raising ZeroDivisionError (not an mbdk error) for the (problem, method)
     pairs in failing: a stand-in for a bug inside a run. Built here and pickled by value, so
     that a Dask worker can install it too."""
     def install():
-        import mbdk
-        real = getattr(mbdk.solve_ode, "real", mbdk.solve_ode)
+        import mbdk.ode
+        real = getattr(mbdk.ode.solve_ode, "real", mbdk.ode.solve_ode)
 
         def solve_ode(problem, method, **kw):
             if (problem, method) in failing:
                 raise ZeroDivisionError(f"boom in {problem}/{method}\nsecond line")
             return real(problem, method, **kw)
         solve_ode.real = real
-        mbdk.solve_ode = solve_ode
+        mbdk.ode.solve_ode = solve_ode
         return True
     return install
 
@@ -224,7 +224,7 @@ def test_a_case_that_fails_is_its_rows_serially_and_on_dask(tmp_path, monkeypatc
     import mbdk
     from dask.distributed import Client, LocalCluster
     grid = _failing_grid(tmp_path)
-    monkeypatch.setattr(mbdk, "solve_ode", mbdk.solve_ode)     # restored after the test
+    monkeypatch.setattr(mbdk.ode, "solve_ode", mbdk.ode.solve_ode)     # restored after the test
     _failing_solve_ode(FAILING)()
     serial = sweep(grid, workers=0)
     _check_failing_rows(serial.rows, tmp_path)

@@ -11,7 +11,7 @@ import pytest
 
 import mbdk
 from mbdk import symbolic
-from mbdk.scene import scene_from_dict
+from mbdk.scene_file import scene_from_dict
 
 #: roundoff bounds of the accelerations: the parallelogram's rows are redundant on the manifold
 #: and nearly so beside it (a near-singular solve); Bricard's linkage likewise
@@ -50,7 +50,7 @@ def test_a_wrong_row_is_caught(monkeypatch):
     """cross_check of the four-bar with SymPy handed the derivation of a four-bar whose coupler
     is 1 mm longer: Phi differs by the millimetre, D and gamma by its share; the comparison
     could fail."""
-    from mbdk.scene import scene_to_dict
+    from mbdk.scene_file import scene_to_dict
     sc = mbdk.scene("four_bar")
     wrong = scene_from_dict(scene_to_dict(sc), "wrong.toml")
     j = wrong.joints[1]

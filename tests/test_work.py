@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.scene import Joint, scene_from_dict
-from mbdk.spatial import spatial_scene_from_dict
+from mbdk.scene import Joint
+from mbdk.scene_file import scene_from_dict
 
 G = 9.81
 
@@ -123,7 +123,7 @@ def test_fixed_step_and_index3_runs_take_the_trapezoidal_rule_on_their_steps():
 
 def spatial_damped():
     """A body on a spherical joint hanging from a spring-damper to the ground, under gravity."""
-    return spatial_scene_from_dict({
+    return scene_from_dict({
         "body": [{"name": "x", "kind": "spatial", "mass": 2.0, "inertia": [0.02, 0.03, 0.04],
                   "position": [0.3, 0.0, 0.0], "omega_body": [0.0, 0.0, 1.0],
                   "velocity": [0.0, 0.3, 0.0]}],

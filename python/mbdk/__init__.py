@@ -8,7 +8,7 @@ from . import exact  # noqa: F401
 from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError,
                      ContactOverrunError, EnergyDriftError, InvariantDriftError,
                      InvalidInputError, MbdkError, NewtonDivergedError, NoMemoryError,
-                     NonFiniteSolutionError, NotApplicableError,
+                     NonFiniteSolutionError, NotApplicableError, RedundantConstraintsError,
                      SingularMatrixError, SolveInterrupted, Status, StepTooSmallError,
                      TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
@@ -16,14 +16,14 @@ from .methods import MethodInfo, methods
 from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions
-from .result import ODEResult, Result, Stats
+from .result import ODEResult, Result, SceneResult, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
-from .scene import Scene, SceneError, load_scene, scene, scenes
+from .scene import Scene, SceneError
+from .scene_file import load_scene, scene, scenes
 from .scene_report import SceneReport, scene_report
-from .simulate import RedundantConstraintsError, SceneResult, evaluate, simulate
+from .simulate import evaluate, simulate
 from .watch import Watch
-from .spatial import SpatialResult, SpatialScene
 
 __all__ = [
     "solve_ode", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
@@ -35,5 +35,5 @@ __all__ = [
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
-    "Watch", "SpatialScene", "SpatialResult", "AccuracyWarning",
+    "Watch", "AccuracyWarning",
 ]

@@ -162,6 +162,7 @@ def progress_bar(total: int, desc: str, unit: str):
     if not _show_progress():
         return None
     try:
+        # tqdm is slow to import, and only a bar that is drawn needs it
         from tqdm import tqdm
     except ImportError:     # pragma: no cover - tqdm is in the requirements
         return None
@@ -193,6 +194,7 @@ def print_line(text: str, file=None) -> None:
     """print, above any bar on the terminal rather than through it."""
     file = file or sys.stdout
     try:
+        # tqdm is slow to import, and only a bar that is drawn needs it
         from tqdm import tqdm
     except ImportError:     # pragma: no cover
         print(text, file=file, flush=True)
@@ -211,6 +213,7 @@ class _Bar:
         if span is None or not _show_progress():
             return
         try:
+            # tqdm is slow to import, and only a bar that is drawn needs it
             from tqdm import tqdm
         except ImportError:     # pragma: no cover - tqdm is in the requirements
             return

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError
-from .scene import scene_from_dict
+from .scene_file import scene_from_dict
 
 G = 9.81
 
@@ -92,6 +92,7 @@ def a02_chain(n: int):
 def a02_crank(n: int, t) -> tuple[np.ndarray, np.ndarray]:
     """The exact crank angle theta(t) (rad, unwrapped) and angular velocity theta'(t) of the A02
     chain of n loops (the module's derivation)."""
+    # SciPy is an optional dependency (the studies' extra): only the exact solution needs it
     from scipy.special import ellipj, ellipk
 
     t = np.asarray(t, dtype=float)

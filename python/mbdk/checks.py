@@ -11,7 +11,7 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from .errors import InvalidInputError, NoMemoryError
+from .errors import InvalidInputError, NoMemoryError, NotApplicableError
 
 #: the magnitudes a number of a scene may have, 0 aside. mbdk forms squares and products of two
 #: of them (r^2 in a distance row, m r^2 in an inertia, omega^2 r, k x) and reciprocals (1/m,
@@ -108,7 +108,6 @@ def choice(name: str, value, known, *, error=InvalidInputError, what: str = "") 
 def tolerances(rtol, atol, *, where: str, rtol_floor: float) -> tuple[float, float]:
     """(rtol, atol) of an error-controlled scene run, planar or spatial: each one number,
     finite, rtol in [floor, 1) or 0, atol > 0; a per-state atol is solve_ode's."""
-    from .errors import NotApplicableError
     if atol is not None and not isinstance(atol, (str, bytes)) and np.ndim(atol) != 0:
         raise NotApplicableError(f"atol = {show(atol)}: {where} takes one absolute tolerance (a "
                                  "number); per-state tolerances are solve_ode's")

@@ -27,7 +27,19 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import MbdkError as MbdkErrorBase
+import numpy as np
+
+from . import ode
+from .errors import InvalidInputError, MbdkError as MbdkErrorBase
+from .methods import methods
+from .problems import problems
+from .report import STUDIES, build_report
+from .results_io import check_writable, plot_result, save_result
+from .scene_file import scene_or_file
+from .scene_report import scene_report
+from .simulate import simulate
+from .sweep import load_grid, one_line, sweep
+from .symbolic import cross_check
 
 #: the commands that write their output file only when they succeed
 WRITERS = ("run", "sweep", "plot")
@@ -45,7 +57,6 @@ def _describe(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         where = f"{exc.filename}: " if exc.filename else ""
         return f"{type(exc).__name__}: {where}{exc.strerror}"
-    from .sweep import one_line
     return f"{type(exc).__name__}: {one_line(exc) or '(no message)'}"
 
 
@@ -144,8 +155,6 @@ def _fail(args, exc: BaseException) -> None:
 
 def _main(args) -> int:
     if args.cmd == "report":
-        from .report import STUDIES, build_report
-        from .errors import InvalidInputError
         if args.studies is not None and not args.studies.is_dir():
             raise InvalidInputError(f"--studies {args.studies}: not a folder")
         unknown = [n for n in (args.only or []) if n not in STUDIES]
@@ -154,22 +163,17 @@ def _main(args) -> int:
                                     f"{', '.join(STUDIES)}")
         build_report(args.out, quick=args.quick, studies=args.studies, only=args.only)
     elif args.cmd == "methods":
-        from .methods import methods
         for m in methods().values():
             print(f"{m.name:16s} order {m.order}  {'implicit' if m.implicit else 'explicit'}"
                   f"  {m.stability}  [{m.reference}]")
     elif args.cmd == "problems":
-        from .problems import problems
         for p in problems().values():
             print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
                   f"[{p.reference}]")
     elif args.cmd in ("scene", "check"):
-        from .scene import scene_or_file
-        from .scene_report import scene_report
         sc = scene_or_file(args.scene)
         print(scene_report(sc))
         if args.symbolic:
-            from .symbolic import cross_check
             r = cross_check(sc)
             print("symbolic cross-check (SymPy, max relative difference at 5 random "
                   "states): " + ", ".join(f"{k} {r[k]:.1e}" for k in
@@ -180,10 +184,7 @@ def _main(args) -> int:
     elif args.cmd == "run":
         _run(args)
     elif args.cmd == "sweep":
-        from .results_io import check_writable
-        from .sweep import load_grid, sweep
         if args.out.suffix.lower() != ".csv":
-            from .errors import InvalidInputError
             raise InvalidInputError(f"{args.out}: a sweep's table is a CSV file; give a name "
                                     "ending in .csv")
         check_writable(args.out)
@@ -196,12 +197,10 @@ def _main(args) -> int:
               f"({len(failed)} failed{': ' + ', '.join(kinds) if kinds else ''}); "
               f"wrote {args.out}")
     elif args.cmd == "plot":
-        from .results_io import plot_result
         args.written = plot_result(args.result, args.out)
         print(f"wrote {args.written}")
     elif args.cmd == "solve":
-        from .ode import solve_ode
-        r = solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
+        r = ode.solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
         print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  steps = {r.stats.steps}  "
               f"cpu = {r.cpu_time:.3g} s  status = {r.status.name}")
     return 0
@@ -210,11 +209,6 @@ def _main(args) -> int:
 def _run(args) -> None:
     """mbdk run: the scene run, a summary on one screen, the result file (written only when
     the run succeeded)."""
-    import numpy as np
-
-    from .results_io import check_writable, save_result
-    from .scene import scene_or_file
-    from .simulate import simulate
     out = check_writable(args.out)
     sc = scene_or_file(args.scene)
     kw = {k: v for k, v in (("h", args.h), ("rtol", args.rtol), ("atol", args.atol),
@@ -233,7 +227,7 @@ def _run(args) -> None:
     if r.residuals is not None and len(r.residuals):
         res = np.max(np.abs(r.residuals), axis=0)
         print(f"residuals (max over the samples): |Phi| {res[0]:.2e}, |Phi'| {res[1]:.2e}")
-    if getattr(r, "energy", None) is not None:
+    if r.energy is not None:
         try:
             bal = float(np.max(np.abs(r.energy_balance())))
             work = float(r.energy_parts["work"][-1])

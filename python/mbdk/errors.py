@@ -6,9 +6,10 @@ as a status and are raised by :func:`raise_for_status`.
 """
 from __future__ import annotations
 
+from enum import IntEnum
 from functools import lru_cache
 
-from enum import IntEnum
+from . import _kernel
 
 
 class Status(IntEnum):
@@ -104,6 +105,10 @@ class NewtonDivergedError(MbdkError, ArithmeticError):
 
 class SingularMatrixError(MbdkError, ArithmeticError):
     status = Status.ERR_SINGULAR_MATRIX
+
+
+class RedundantConstraintsError(SingularMatrixError):
+    """The constraint Jacobian has dependent rows: the reduced forms have no unique multipliers."""
 
 
 class NonFiniteSolutionError(MbdkError, FloatingPointError):
@@ -272,16 +277,15 @@ def status_message(status: int) -> str:
 
 @lru_cache(maxsize=1)
 def _kernel_messages() -> dict:
-    from . import _kernel
-
     table = {}
     for i in range(1, len(Status) + 1):
         code, _name, msg = _kernel.status_entry(i)
-        table[int(code)] = _decode(msg)
+        table[int(code)] = decode_text(msg)
     return table
 
 
-def _decode(b) -> str:
+def decode_text(b) -> str:
+    """A name or message from the kernel (a Fortran character array, padded) as a str."""
     if isinstance(b, bytes):
         return b.decode("ascii", "replace").strip()
     if hasattr(b, "tobytes"):

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InvalidInputError
+
 
 def linear_growth(t, t0, y0, p):
     """y' = a t  =>  y = y0 + a (t^2 - t0^2)/2;  (4.12): y = x^2 + 1 for a = 2, y(0) = 1."""
@@ -51,7 +53,6 @@ def beam_nonlinear(t, t0, y0, p):
     s = y0[0] / np.sqrt(1.0 + y0[0] ** 2) - _moment_integral(t, t0, p)
     bad = np.flatnonzero(np.abs(s) >= 1.0)
     if bad.size:
-        from .errors import InvalidInputError
         i = bad[0]
         raise InvalidInputError(
             f"beam_nonlinear has no solution past x = {t[i]:g}: there phi/sqrt(1+phi^2) = {s[i]:.4g}"
@@ -96,6 +97,7 @@ def pendulum(t, t0, y0, p):
     k = sin(phi_max/2), phi = 2 arcsin(k sn(w (t - t0) + u0 | k^2)), phi' = 2 k w cn(...),
     u0 = F(arcsin(sin(phi0/2)/k) | k^2), reflected to 2K - u0 when phi0' < 0.
     Returns None for rotating motion (no closed form implemented)."""
+    # SciPy is an optional dependency (the studies' extra): only this solution needs it
     from scipy.special import ellipj, ellipk, ellipkinc
 
     w = np.sqrt(1.5 * p["g"] / p["l"])
@@ -123,6 +125,7 @@ def linear_system(t, t0, y0, p):
         c = np.linalg.solve(v, y0)
         y = (np.exp(np.outer(t - t0, lam)) * c) @ v.T
         return np.real_if_close(y, tol=1e6).real
+    # SciPy is optional: only a defective A (no eigenvector basis) needs its expm
     from scipy.linalg import expm
     return np.array([expm(a * (ti - t0)) @ y0 for ti in t])
 

@@ -41,11 +41,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernel
+from .codes import INDEX3_SCALINGS
 from .errors import Status, exception_for
 from .options import ModelOptions
 
-INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
-SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 # a failed step's report calls D near-singular where its smallest singular value is below this
 # fraction of its largest (the collinear four-bar fails within about 1e-3 of its rank loss)
 NEAR_SINGULAR = 1e-2
@@ -71,7 +70,8 @@ def newton_matrix(tab, q, v, lam, h: float, scaling: str = "scaled", t: float = 
     'book' ((3.15)-(3.16): both rows times h^2/4) or 'scaled' (the solver's)."""
     y = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
     jac, status = _kernel.model_index3_matrix(*tab.args(), ModelOptions().pack(), float(t), y,
-                                              np.asarray(lam, float), float(h), SCALINGS[scaling])
+                                              np.asarray(lam, float), float(h),
+                                              INDEX3_SCALINGS[scaling])
     if status != 0:
         raise exception_for(Status(int(status)))(f"Newton matrix: {Status(int(status)).name}")
     return jac

@@ -7,15 +7,15 @@ from dataclasses import dataclass
 
 from . import _kernel
 from .checks import show
-from .errors import InvalidInputError, UnknownMethodError, _decode
+from .codes import METHOD_FAMILIES
+from .errors import InvalidInputError, UnknownMethodError, decode_text
 
 
 @dataclass(frozen=True)
 class MethodInfo:
     name: str
     id: int
-    family: str          # explicit_rk | euler_cromer | implicit_lmm | dae_index3 |
-                         # embedded_rk | variable_bdf | cvode
+    family: str          # a value of mbdk.codes.METHOD_FAMILIES
     order: int
     implicit: bool
     steps: int           # previous values used (1 for one-step methods)
@@ -35,8 +35,6 @@ class MethodInfo:
         return self.family in ("embedded_rk", "variable_bdf", "cvode", "ida")
 
 
-_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3",
-             5: "embedded_rk", 6: "variable_bdf", 7: "cvode", 8: "ida"}
 
 _ABOUT = {
     "explicit_euler": ("conditionally stable: |1 + h*lambda| <= 1", "Fekete (2023) (4.6)"),
@@ -81,8 +79,8 @@ def _load() -> dict[str, MethodInfo]:
         name, family, order = _kernel.method_info(i)
         if family == 0:
             break
-        name = _decode(name)
-        fam = _FAMILIES[int(family)]
+        name = decode_text(name)
+        fam = METHOD_FAMILIES[int(family)]
         steps = int(name[3:]) if name[:3] == "bdf" and name[3:].isdigit() else 1
         stability, ref = _ABOUT[name]
         out[name] = MethodInfo(name, i, fam, int(order),

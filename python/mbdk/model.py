@@ -11,62 +11,17 @@ pose (rest lengths, relative angles) and the assembly are computed in the kernel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from . import _kernel
+from .codes import (BODY_KINDS, CONTACT_GEOMETRY, COORDS, EFFECT_CODES, FORCE_CODES,
+                    FORMULATIONS, FROM_POSE, JOINT_CODES, JOINT_ROWS, JOINT_ROWS_BY_CODE,
+                    LINEAR_SOLVES, SOLVERS, WEAR_LAWS, WEAR_LOADS)
 from .errors import NotApplicableError, Status, exception_for
 from .options import ModelOptions
-from .scene import (BODY_KINDS, COORDS, GROUND_JOINTS, WEAR_LAWS, WEAR_LOADS, Scene, SceneError,
-                    body_kind_problem)
-
-FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
-#: solver="auto" takes revolute_schur when every joint is revolute (and M is positive, up to 12
-#: constraint rows), else schur when M is positive (sparse above 12 constraint rows), else kkt
-#: (kernel/src/model/mbdk_model.f90); "schur" is the dense Schur complement at any size,
-#: "sparse" the sparse one at any size
-SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
-#: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
-SPARSE_MIN_ROWS = 12
-#: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (evaluate()["solve"])
-LINEAR_SOLVES = {0: "none (no constraints)",
-                 1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
-                 2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",
-                 3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
-                 4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
-                 5: "penalty: M + ap D^T D, in-house LDL^T",
-                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs",
-                 7: "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"}
-def _element_kinds() -> list[tuple[int, int, str, int, int]]:
-    """The kernel's element registry (kernel/src/model/mbdk_elements.f90): (class, code, name,
-    rows, states) per kind, in the order of the visit counters."""
-    from .errors import _decode
-    out, i = [], 1
-    while True:
-        cls, code, name, rows, states = _kernel.element_kind(i)
-        if cls == 0:
-            return out
-        out.append((int(cls), int(code), _decode(name), int(rows), int(states)))
-        i += 1
-
-
-ELEMENT_KINDS = _element_kinds()
-JOINT_CLASS, FORCE_CLASS = 1, 2
-JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
-JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
-JOINT_ROWS_BY_CODE = {code: rows for cls, code, _n, rows, _s in ELEMENT_KINDS
-                      if cls == JOINT_CLASS}
-_FORCE_KIND = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
-#: scene force types -> kernel codes; the coordinate spring and damper are one kernel kind
-FORCE_CODES = {**_FORCE_KIND, "coordinate_spring": _FORCE_KIND["coordinate_spring_damper"],
-               "coordinate_damper": _FORCE_KIND["coordinate_spring_damper"]}
-EFFECT_CLASS = 3
-EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
-#: a contact's body2 shape -> the kernel's geometry code (kernel/src/model/mbdk_contact.f90)
-CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3, "gear": 4}
-#: the kernel's visit counters, in its order: one per element kind
-VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
+from .scene import GROUND_JOINTS, Scene, SceneError, body_kind_problem
 
 
 @dataclass
@@ -87,12 +42,6 @@ class Tables:
     def args(self):
         return (self.mass, self.inertia, self.kind, self.nj, self.jint, self.jreal, self.nf,
                 self.fint, self.freal)
-
-
-#: the 4th integer of a two-point force or a prismatic, fixed, distance, coupling or rolling
-#: joint: take the value (rest length, relative angle, length, offset) from the initial pose
-#: (kernel/src/model/mbdk_assembly.f90, MBDK_FROM_POSE)
-FROM_POSE = 1
 
 
 def build_tables(sc: Scene, q0=None, resolve: bool = True) -> Tables:
@@ -317,7 +266,6 @@ def model_options(formulation: str = "reduced", alpha: float = 0.0, beta: float 
 
 
 def _options(formulation: str, options: ModelOptions | None) -> ModelOptions:
-    from dataclasses import replace
     return replace(options or ModelOptions(), formulation=FORMULATIONS[formulation])
 
 

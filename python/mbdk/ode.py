@@ -16,8 +16,9 @@ from numbers import Integral
 import numpy as np
 
 from . import _compiled, _kernel, checks
+from .codes import STARTUP
 from .errors import (CallbackError, InvalidInputError, NotApplicableError, SolveInterrupted,
-                     Status, _decode, exception_for, failure_text, status_message, stopped_at)
+                     Status, decode_text, exception_for, failure_text, status_message, stopped_at)
 from .errors import no_memory_message
 from .methods import method as _method, methods
 from .options import ODEOptions, empty
@@ -30,7 +31,6 @@ from .result import ODEResult, Stats
 _CALLBACK_LOCK = threading.Lock()
 _IN_CALLBACK = threading.local()
 
-STARTUP = {"rk4": 0, "bdf": 1}
 MAX_STEPS = int(_kernel.max_steps())   # the kernel's limit (mbdk_fixed_step: MBDK_MAX_STEPS)
 _INT_MAX = 2**31 - 1
 _STATUS = {int(s): s for s in Status}
@@ -41,11 +41,13 @@ _STATS_WORDS = empty("mbdk_stats").size
 def build_info() -> dict:
     compiler, options = _kernel.build_info()
     try:
+        # importlib.metadata is slow to import, and only the manifest's version needs it
         from importlib.metadata import version
         ver = version("mbdk")
     except Exception:  # pragma: no cover - running from a source tree without metadata
         ver = "0+unknown"
-    return {"version": ver, "compiler": _decode(compiler), "compiler_flags": _decode(options),
+    return {"version": ver, "compiler": decode_text(compiler),
+            "compiler_flags": decode_text(options),
             "numpy": np.__version__, "python": platform.python_version(),
             "machine": platform.machine()}
 
@@ -137,7 +139,7 @@ def _plan_of(method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_
             or not 1 <= every <= _INT_MAX:
         raise InvalidInputError(f"every = {every!r} must be a whole number from 1 to {_INT_MAX}")
     if info_m.adaptive:
-        opt, nsteps, nsamp, control = _adaptive_options(
+        opt, nsteps, nsamp, control = adaptive_options(
             info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_max, max_steps, max_order,
             fd_jacobian)
     else:
@@ -209,7 +211,7 @@ class ODESolver:
             if info_p.y0 is None:
                 raise InvalidInputError(f"problem {problem!r} has no default y0; give y0")
             y0 = info_p.y0
-        y0 = _state("y0", y0, info_p.n if info_p.n > 0 else None)
+        y0 = state_vector("y0", y0, info_p.n if info_p.n > 0 else None)
         if info_m.family == "euler_cromer" and not info_p.second_order:
             raise NotApplicableError(f"euler_cromer needs a second-order problem (y = [q, q']); "
                                      f"{problem!r} is first order. Use explicit_euler, heun or "
@@ -236,7 +238,7 @@ class ODESolver:
     def solve(self, y0=None) -> ODEResult:
         """One solve, from y0 (checked: n finite numbers) or the initial state given at
         construction."""
-        y0 = self.y0 if y0 is None else _state("y0", y0, self._n)
+        y0 = self.y0 if y0 is None else state_vector("y0", y0, self._n)
         stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
                 self._nsamp, stats)
@@ -290,7 +292,7 @@ MAX_ORDER = {"bdf": 5, "cvode_bdf": 5, "cvode_adams": 12, "ida": 5}
 RTOL_FLOOR = 100 * np.finfo(float).eps   # the kernel's MBDK_RTOL_FLOOR (mbdk_adaptive)
 
 
-def _adaptive_options(info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_max,
+def adaptive_options(info_m, h, t0, t_end, every, rtol, atol, dt_out, h_min, h_max,
                       max_steps, max_order, fd_jacobian):
     """ODEOptions, a step estimate, the sample count and the manifest's entries of an
     error-controlled solve; every value is checked here with a message that names it."""
@@ -365,7 +367,7 @@ def _atol_vector(atol, n: int, rtol: float) -> np.ndarray:
     return a
 
 
-def _state(name: str, value, n: int | None) -> np.ndarray:
+def state_vector(name: str, value, n: int | None) -> np.ndarray:
     try:
         y = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -433,7 +435,7 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
             "solve). Use a compiled problem for the inner solve, or run it outside the callback")
     if y0 is None:
         raise InvalidInputError("a Python right-hand side needs y0")
-    y0 = _state("y0", y0, None)
+    y0 = state_vector("y0", y0, None)
     n = y0.size
     if isinstance(nq, bool) or not isinstance(nq, Integral) or nq < 0 or (nq and 2 * nq != n):
         raise InvalidInputError(f"nq = {nq!r} must be 0 or half the state size {n}")
@@ -508,7 +510,7 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
 def evaluate_rhs(problem: str, t: float, y, params: dict | None = None) -> np.ndarray:
     """One evaluation of F(t, y) of a compiled problem, e.g. the accelerations of a worked step."""
     info = _problem(problem)
-    y = _state("y", y, info.n if info.n > 0 else None)
+    y = state_vector("y", y, info.n if info.n > 0 else None)
     _merged, pvec = resolve_params(info, params, len(y))
     f, status = _kernel.eval_problem(info.id, pvec, _real("t", t), y)
     if status < 0:

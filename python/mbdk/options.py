@@ -19,12 +19,9 @@ from functools import lru_cache
 import numpy as np
 
 from . import _kernel
-from .errors import _decode
+from .codes import FIELD_TYPES, STRUCT_IDS
+from .errors import decode_text
 
-#: struct ids of kernel/src/api/mbdk_structs.f90 (MBDK_STRUCT_*)
-STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
-              "mbdk_model_options": 4}
-_FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
 _F64 = np.dtype(np.float64)
 
 
@@ -33,13 +30,13 @@ def layout(cname: str) -> np.dtype:
     """The numpy dtype of a kernel struct, from the kernel's table (names, offsets, size)."""
     sid = STRUCT_IDS[cname]
     name, nbytes, nfields = _kernel.struct_info(sid)
-    if _decode(name) != cname or nfields < 1:
-        raise RuntimeError(f"kernel struct {sid} is {_decode(name)!r}, expected {cname!r}")
+    if decode_text(name) != cname or nfields < 1:
+        raise RuntimeError(f"kernel struct {sid} is {decode_text(name)!r}, expected {cname!r}")
     names, formats, offsets = [], [], []
     for i in range(1, int(nfields) + 1):
         fname, offset, ftype = _kernel.struct_field(sid, i)
-        names.append(_decode(fname))
-        formats.append(_FIELD_TYPES[int(ftype)])
+        names.append(decode_text(fname))
+        formats.append(FIELD_TYPES[int(ftype)])
         offsets.append(int(offset))
     return np.dtype({"names": names, "formats": formats, "offsets": offsets,
                      "itemsize": int(nbytes)})

@@ -16,7 +16,9 @@ from typing import Callable
 import numpy as np
 
 from . import _kernel
-from .errors import InvalidInputError, UnknownParameterError, UnknownProblemError, _decode
+from .checks import show
+from .errors import InvalidInputError, UnknownParameterError, UnknownProblemError, decode_text
+from .exact import EXACT
 
 
 @dataclass(frozen=True)
@@ -37,7 +39,6 @@ class ProblemInfo:
 
     @property
     def has_exact(self) -> bool:
-        from .exact import EXACT
         return self.name in EXACT
 
 
@@ -247,7 +248,7 @@ def _load() -> dict[str, ProblemInfo]:
         name, n, np_ = _kernel.problem_info(i)
         if n < 0:
             break
-        name = _decode(name)
+        name = decode_text(name)
         spec = dict(_SPECS[name])
         if name != "linear_system" and len(spec["params"]) != np_:
             raise RuntimeError(f"problem {name}: kernel has {np_} parameters, registry "
@@ -309,7 +310,6 @@ def resolve_params(info: ProblemInfo, params: dict | None, n: int) -> tuple[dict
         try:
             v = float(value)
         except (TypeError, ValueError, OverflowError):
-            from .checks import show
             raise InvalidInputError(f"params[{key!r}] = {show(value)} is not a number in "
                                     "floating-point range") from None
         if not math.isfinite(v):

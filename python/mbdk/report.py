@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from ._compiled import print_line, progress_bar
+from .analysis.tables import fmt
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
@@ -42,7 +43,6 @@ def load_study(folder: Path, name: str):
 
 def _table_html(t: dict, out_dir: Path) -> str:
     cols = t["columns"]
-    from .analysis.tables import fmt
     links = " · ".join(f"<a href='{html.escape(str(Path(t[k]).relative_to(out_dir)))}'>"
                        f"{html.escape(Path(t[k]).name)}</a>" for k in ("csv", "md"))
     out = [f"<h3>{html.escape(t['title'])}</h3>",

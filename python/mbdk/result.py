@@ -5,8 +5,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import Status
-from .options import unpack as _unpack
+from .errors import NotApplicableError, Status
+from .exact import exact_solution
+from .options import unpack
+from .problems import problems
+from .rotations import from_angles, from_quaternion
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,7 @@ class Stats:
         # the generated __init__ sets each field one by one through object.__setattr__, which
         # cost more than a short solve's kernel call
         stats = object.__new__(cls)
-        stats.__dict__.update(_unpack("mbdk_stats", words))
+        stats.__dict__.update(unpack("mbdk_stats", words))
         return stats
 
 
@@ -82,7 +85,6 @@ class ODEResult(Result):
 
     def exact(self) -> np.ndarray | None:
         """The exact solution at the sample times, or None where the problem has none."""
-        from .exact import exact_solution
         return exact_solution(self.problem, self.t, self.t0, self.y0, self.params)
 
     def max_error(self, component: int | None = None) -> float | None:
@@ -98,8 +100,136 @@ class ODEResult(Result):
         return None if ex is None else float(abs(self.y[-1, component] - ex[-1, component]))
 
     def energy(self) -> np.ndarray | None:
-        from .problems import problems
         info = problems().get(self.problem)
         if info is None or info.energy is None:
             return None
         return info.energy(self.y, self.params)
+
+
+#: what the three columns of SceneResult.residuals hold, by the scene's body kind
+RESIDUAL_NAMES = {"planar": ("position", "velocity", "acceleration"),
+                  "spatial": ("position", "velocity", "quaternion_norm")}
+
+
+@dataclass
+class SceneResult(Result):
+    """A scene run (see Result), of planar or of spatial bodies: t, the coordinates q and the
+    velocities v per sample (y = [q, v]), and the outputs.
+
+    q per body: x, y, angle (planar); the centre and the orientation coordinates, a quaternion
+    or the scene's angle set (spatial). v per body: vx, vy, omega (planar); the centre's velocity
+    and the body-frame angular velocity (spatial). energy: kinetic + potential per sample;
+    energy_parts: "kinetic", "potential_gravity", "potential_springs", "power" (of dampers,
+    loads and drivers) and "work" (W, their work as the run integrated it at every step), and
+    for planar runs the kernel's breakdown of power and work by element class. residuals
+    (nsamp, 3): max |Phi|, max |D v + Phi_t|, and max |D a - gamma| (planar) or max ||p| - 1|
+    (spatial): residual_names. An output a run did not compute is None (a planar run computes
+    those asked for; a spatial one energy, residuals and multipliers, not a or reactions)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray | None
+    multipliers: np.ndarray | None
+    reactions: np.ndarray | None   # (nsamp, njoints, 3)
+    energy: np.ndarray | None      # kinetic + potential, one per sample
+    energy_parts: dict | None
+    residuals: np.ndarray | None   # (nsamp, 3): residual_names
+    stats: Stats
+    status: Status
+    message: str
+    visits: dict = field(default_factory=dict)
+    manifest: dict = field(default_factory=dict)
+    assembly: dict = field(default_factory=dict)
+    joints: list = field(default_factory=list)
+    bodies: list = field(default_factory=list)
+    iterations: np.ndarray | None = None   # trapezoidal_index3: Newton iterations per sample
+    #: a run the watch stopped: what left its tolerance, where and when (mbdk.watch.drift_report)
+    drift: dict | None = None
+    #: each wear element's worn volume per sample, by name (integrated with the motion)
+    wear: dict = field(default_factory=dict)
+    #: the scene's body kind, "planar" or "spatial"
+    kind: str = "planar"
+    #: spatial: the orientation coordinates (quaternion, euler313, cardan123), and each
+    #: sample's angle set where a run switched sets near a lock (switch_angles)
+    rotation: str | None = None
+    rotations: list | None = None
+
+    @property
+    def y(self) -> np.ndarray:
+        """The state [q, v] per sample, as an ODE result has it."""
+        return np.hstack([self.q, self.v])
+
+    @property
+    def residual_names(self) -> tuple:
+        return RESIDUAL_NAMES[self.kind]
+
+    def reaction(self, joint: str) -> np.ndarray:
+        """(nsamp, 3): Fx, Fy, moment of the named joint on its body1 (planar runs)."""
+        if self.reactions is None:
+            if self.kind == "spatial":
+                raise NotApplicableError("a spatial run does not compute its joints' reactions "
+                                         "yet; its multipliers are in result.multipliers")
+            raise NotApplicableError("this run did not compute reactions: pass outputs "
+                                     "including 'reactions' to simulate")
+        return self.reactions[:, self.joints.index(joint), :]
+
+    def energy_balance(self) -> np.ndarray:
+        """E(t) - E(0) - W(t), W = load work + constraint work - damper work as the run
+        integrated it at every step (energy_parts["work"]): zero for an exact solution."""
+        if self.energy is None:
+            raise NotApplicableError("this run did not compute the energy: pass outputs "
+                                     "including 'energy' to simulate")
+        return self.energy - self.energy[0] - self.energy_parts["work"]
+
+    def _layout(self, body: str) -> tuple[int, int, int]:
+        """(the body's first coordinate, its coordinate count, its first velocity)."""
+        k = self.bodies.index(body)
+        if self.kind == "spatial":
+            nqb = 7 if self.rotation == "quaternion" else 6
+            return k * nqb, nqb, 6 * k
+        return 3 * k, 3, 3 * k
+
+    def position(self, body: str) -> np.ndarray:
+        """(nsamp, 3): the body's centre of mass (a planar body's in its plane z = 0)."""
+        q0, _nqb, _v0 = self._layout(body)
+        if self.kind == "spatial":
+            return self.q[:, q0:q0 + 3]
+        return np.column_stack([self.q[:, q0:q0 + 2], np.zeros(len(self.t))])
+
+    def orientation(self, body: str) -> np.ndarray:
+        """(nsamp, 3, 3): the body's rotation matrix, body to space (a planar body's about z)."""
+        q0, nqb, _v0 = self._layout(body)
+        if self.kind == "planar":
+            c, s = np.cos(self.q[:, q0 + 2]), np.sin(self.q[:, q0 + 2])
+            rot = np.zeros((len(self.t), 3, 3))
+            rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1] = c, -s, s, c
+            rot[:, 2, 2] = 1.0
+            return rot
+        p = self.q[:, q0 + 3:q0 + nqb]
+        if self.rotation == "quaternion":
+            return np.array([from_quaternion(x / np.linalg.norm(x)) for x in p])
+        sets = self.rotations or [self.rotation] * len(p)
+        return np.array([from_angles(x, s[-3:]) for x, s in zip(p, sets)])
+
+    def omega_body(self, body: str) -> np.ndarray:
+        """(nsamp, 3): the body's angular velocity in its own frame (a planar body's about z)."""
+        _q0, _nqb, v0 = self._layout(body)
+        if self.kind == "spatial":
+            return self.v[:, v0 + 3:v0 + 6]
+        return np.column_stack([np.zeros((len(self.t), 2)), self.v[:, v0 + 2]])
+
+
+@dataclass
+class KernelRun:
+    """A scene run as the kernel's entry returned it, before its diagnosis (mbdk.diagnosis):
+    the result, whether an interrupt stopped it, the watch's report and the invariants it
+    watched (mbdk.watch reads both), the initial state given, and a planar run's tables (as
+    built, the values taken from the pose left to the kernel)."""
+
+    result: SceneResult
+    interrupted: bool
+    watch_report: np.ndarray
+    invariants: np.ndarray          # (ninv, 7)
+    y0: np.ndarray
+    tables: object = None

@@ -5,11 +5,11 @@ the leading comment lines) or .h5 / .hdf5 (h5py, where it is installed).
     >>> mbdk.results_io.save_result(r, "run.npz")
     >>> d = mbdk.results_io.load_result("run.npz")     # d["t"], d["q"], d["manifest"], ...
 
-What is written: t; the coordinates q and the velocities (v of planar scenes, w = (v, Omega)
-of spatial ones) with their column names; where the run computed them, the energy, the work W
-of dampers, loads and drivers as the run integrated it at every step (not a quadrature over
-the samples), the energy balance E - E0 - W and the residuals; the
-multipliers; the status and the manifest (version, method, formulation, step or tolerances,
+What is written: t; the coordinates q and the velocities v (of a spatial body the centre's
+velocity and the body-frame angular velocity) with their column names; where the run computed
+them, the energy, the work W of dampers, loads and drivers as the run integrated it at every
+step (not a quadrature over the samples), the energy balance E - E0 - W and the residuals
+(residual_names says which); the multipliers; the status and the manifest (version, method, formulation, step or tolerances,
 compiler flags). A file is written under a temporary name beside the target and renamed
 when complete, so a failed or interrupted write leaves no partial file with the target's name.
 """
@@ -27,6 +27,9 @@ from .errors import InvalidInputError, NotApplicableError
 
 FORMATS = {".npz": "npz", ".csv": "csv", ".h5": "h5", ".hdf5": "h5"}
 _PLANAR = ("x", "y", "angle")
+#: the CSV columns of SceneResult.residuals, by SceneResult.residual_names
+_RESIDUAL_COLUMNS = {"position": "residual_position", "velocity": "residual_velocity",
+                     "acceleration": "residual_acceleration", "quaternion_norm": "quaternion_norm"}
 
 
 def _format(path: Path) -> str:
@@ -56,6 +59,7 @@ def check_writable(path) -> Path:
 
 def _h5py():
     try:
+        # h5py is optional: only .h5 results need it
         import h5py
     except ImportError:
         raise InvalidInputError("HDF5 results need h5py: pip install h5py (or write .npz or "
@@ -65,8 +69,8 @@ def _h5py():
 
 def _columns(r) -> tuple[list, list]:
     """The names of q's and of the velocities' columns."""
-    bodies = list(getattr(r, "bodies", []) or [])
-    if hasattr(r, "w"):        # spatial
+    bodies = list(r.bodies or [])
+    if r.kind == "spatial":
         nqb = r.q.shape[1] // max(len(bodies), 1)
         rot = (["p0", "p1", "p2", "p3"] if nqb == 7 else ["a1", "a2", "a3"])
         qn = [f"{b}.{c}" for b in bodies for c in ("x", "y", "z", *rot)]
@@ -83,8 +87,7 @@ def _columns(r) -> tuple[list, list]:
 def result_arrays(r) -> dict:
     """The arrays and names save_result writes (None where the run did not compute them)."""
     qn, vn = _columns(r)
-    vel = r.w if hasattr(r, "w") else r.v
-    energy = getattr(r, "energy", None)
+    energy = r.energy
     balance = work = None
     if energy is not None:
         try:
@@ -92,16 +95,17 @@ def result_arrays(r) -> dict:
             work = np.asarray(r.energy_parts["work"])
         except NotApplicableError:       # an output the run was not asked for
             balance = None
-    return {"t": np.asarray(r.t), "q": np.asarray(r.q), "velocities": np.asarray(vel),
+    return {"t": np.asarray(r.t), "q": np.asarray(r.q), "velocities": np.asarray(r.v),
             "q_names": qn, "velocity_names": vn,
             "energy": None if energy is None else np.asarray(energy),
             "work": work, "energy_balance": balance,
             "residuals": None if r.residuals is None else np.asarray(r.residuals),
+            "residual_names": [_RESIDUAL_COLUMNS[n] for n in r.residual_names],
             "multipliers": None if r.multipliers is None else np.asarray(r.multipliers),
             "status": r.status.name, "manifest": r.manifest}
 
 
-def _atomic(path: Path, write) -> None:
+def write_atomic(path: Path, write) -> None:
     """write(tmp) to a temporary name beside path, then the rename: whatever stops the write
     (a full disk, Ctrl-C) removes the temporary file and leaves no file named path. An OSError
     is raised again naming path, not the temporary name."""
@@ -120,7 +124,7 @@ def _atomic(path: Path, write) -> None:
 
 
 def save_result(r, path) -> Path:
-    """Writes the run r (a SceneResult or SpatialResult) to path, by its suffix."""
+    """Writes the run r (a SceneResult) to path, by its suffix."""
     path = check_writable(path)
     a = result_arrays(r)
     manifest = json.dumps(a["manifest"], default=str)
@@ -155,9 +159,7 @@ def save_result(r, path) -> Path:
                     blocks.append(a[name][:, None])
             if a["residuals"] is not None:
                 res = a["residuals"]
-                cols += ["residual_position", "residual_velocity",
-                         "residual_acceleration" if not hasattr(r, "w") else "quaternion_norm"
-                         ][:res.shape[1]]
+                cols += a["residual_names"][:res.shape[1]]
                 blocks.append(res)
             if a["multipliers"] is not None and a["multipliers"].size:
                 cols += [f"lambda{k + 1}" for k in range(a["multipliers"].shape[1])]
@@ -171,7 +173,7 @@ def save_result(r, path) -> Path:
                 w.writerow(cols)
                 for row in data:
                     w.writerow([repr(float(x)) for x in row])
-    _atomic(path, write)
+    write_atomic(path, write)
     return path
 
 
@@ -288,9 +290,10 @@ def plot_result(path, out=None) -> Path:
     check_folder = out.parent if str(out.parent) else Path(".")
     if not check_folder.is_dir() or not os.access(check_folder, os.W_OK):
         raise InvalidInputError(f"{out}: the folder {str(check_folder)!r} cannot be written")
+    # matplotlib: optional (the studies' extra), slow to import, only plots need it
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg"): plots without a screen
     panels = 1 + (data["energy_balance"] is not None) + (data["residuals"] is not None)
     fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels + 0.6), sharex=True,
                              squeeze=False)
@@ -326,6 +329,6 @@ def plot_result(path, out=None) -> Path:
 
     def write(tmp):
         fig.savefig(tmp, dpi=110, format="png")
-    _atomic(out, write)
+    write_atomic(out, write)
     plt.close(fig)
     return out

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernel
+from .codes import FRAMES, ROTATION_PARAMETRISATIONS
 from .errors import InvalidInputError, SingularMatrixError, Status
 
 SEQUENCES = ("121", "123", "131", "132", "212", "213", "231", "232", "312", "313", "321", "323")
@@ -53,20 +54,22 @@ def _unit(q) -> np.ndarray:
 
 
 def _frame(frame: str) -> int:
-    if frame not in ("space", "body"):
+    if frame not in FRAMES:
         raise InvalidInputError(f"frame = {frame!r}: 'space' or 'body'")
-    return int(frame == "body")
+    return FRAMES[frame]
 
 
 def from_angles(angles, sequence="313") -> np.ndarray:
     """R = R_s1(a1) R_s2(a2) R_s3(a3) (radians)."""
-    r, st = _kernel.rotation_matrix(1, np.r_[_vec("angles", angles, 3), 0.0], _seq(sequence))
+    r, st = _kernel.rotation_matrix(ROTATION_PARAMETRISATIONS["angles"],
+                                    np.r_[_vec("angles", angles, 3), 0.0], _seq(sequence))
     return r
 
 
 def from_quaternion(q) -> np.ndarray:
     """The rotation matrix of a unit quaternion (s, x, y, z)."""
-    r, st = _kernel.rotation_matrix(2, _unit(q), np.zeros(3, np.int32))
+    r, st = _kernel.rotation_matrix(ROTATION_PARAMETRISATIONS["quaternion"],
+                                    _unit(q), np.zeros(3, np.int32))
     return r
 
 
@@ -75,7 +78,8 @@ def from_axis_angle(axis, angle: float) -> np.ndarray:
     a = _vec("axis", axis, 3)
     if not np.linalg.norm(a) > 0:
         raise InvalidInputError(f"axis = {axis!r} has zero length: no direction to rotate about")
-    r, st = _kernel.rotation_matrix(3, np.r_[a, _vec("angle", angle, 1)],
+    r, st = _kernel.rotation_matrix(ROTATION_PARAMETRISATIONS["axis_angle"],
+                                    np.r_[a, _vec("angle", angle, 1)],
                                     np.zeros(3, np.int32))
     return r
 
@@ -126,7 +130,8 @@ def angle_rates(angles, omega, sequence="313", frame="space") -> np.ndarray:
 
 def quaternion_product(p, q) -> np.ndarray:
     """p q (scalar first)."""
-    pq, _qd, _w, _st = _kernel.quaternion_ops(_vec("p", p, 4), _vec("q", q, 4), np.zeros(3), 0)
+    pq, _qd, _w, _st = _kernel.quaternion_ops(_vec("p", p, 4), _vec("q", q, 4), np.zeros(3),
+                                              FRAMES["space"])
     return pq
 
 

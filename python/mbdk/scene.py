@@ -1,109 +1,24 @@
-"""Planar scenes: bodies, joints and force elements, from TOML files or as Python objects.
+"""A scene: bodies, joints, force elements and effects, as Python objects.
 
-A scene file (SI units; angles in radians unless a field ends in _deg)::
-
-    [scene]
-    name = "physical_pendulum"
-    description = "a uniform bar hinged at one end (Fekete 2023, 2.4.1)"
-
-    [[body]]
-    name = "bar"
-    kind = "planar"                           # the default; the kernel's body kinds
-    mass = 1.0
-    shape = { type = "bar", length = 1.0 }    # or: inertia = 0.0833 (centroidal, kg m^2)
-    x = 0.25                                  # centroid and angle; vx, vy, omega: their rates
-    y = -0.4330127
-    angle_deg = -60
-    given = ["angle", "omega"]                # kept when the initial state is assembled
-
-    [[joint]]
-    name = "hinge"
-    type = "revolute"                         # revolute | prismatic | fixed | driver | ...
-    body1 = "bar"
-    point1 = [-0.5, 0.0]                      # body-fixed, from the centroid
-    body2 = "ground"                          # ground points are global
-    point2 = [0.0, 0.0]
-
-    [[force]]
-    type = "gravity"                          # only when declared
-    g = [0.0, -9.81]
-
-Bodies: planar (x, y, angle). A scene with a body of kind "spatial" is a spatial scene (chapter 5
-of the book): mbdk.spatial reads and runs it, and its docstring gives the format.
-
-Joints: revolute (body1, point1, body2, point2); prismatic (the same, plus axis: a unit vector
-fixed in body2, global for the ground, and the relative angle kept at its initial value or
-angle0); fixed (revolute plus the relative angle); driver (body1, coordinate = x | y | angle,
-function: the coordinate follows f(t)); distance (body1, point1, body2, point2, length: the
-points' distance, a number or a time function L(t), by default the initial distance; the
-mathematical pendulum (1.5) and the pendulum of changing length (1.6)); point_line (body1,
-point1 on the line through point2 of body2 along axis: a slider that turns freely);
-point_curve (body1, point1 on the ground curve y = f(x), curve a time-function table taken in
-x); coupling (body1, coordinate1, body2, coordinate2, ratio: q2 - q2(0) = ratio (q1 - q1(0));
-gears on fixed axles: the angles with ratio -R1/R2, or +R1/R2 for an internal gear; a rack
-along x driven by a pinion: coordinate1 = "angle", coordinate2 = "x", ratio -R for a rack
-above the pinion, +R below it); rolling
-(body1 a disc of radius rolling without slip on the ground line through point along
-direction, on its left: (1.15)-(1.20), integrated to the position rows of x = R phi and y =
-R); knife_edge (body1, point1, axis: the point has no velocity across the body-fixed axis, a
-nonholonomic constraint: the car of (1.7)-(1.14) at the centroid, a skate off it).
-
-Forces: gravity (g); point_force (body, point, force = [Fx, Fy] global, function); torque
-(body, torque, function); spring (body1, point1, body2, point2, stiffness, rest_length: default
-the initial length); damper (same points, damping); spring_damper (both); coordinate_spring,
-coordinate_damper, coordinate_spring_damper (body, coordinate, stiffness, damping, rest: the
-trolley's -s x1 - k x1'); contact (below).
-
-A contact (kernel/src/model/mbdk_contact.f90: the IMPACT normal force with Coulomb friction)::
-
-    [[force]]
-    type = "contact"
-    name = "floor"
-    body1 = "ball"
-    shape1 = { type = "circle", radius = 0.1 }            # or { type = "point" }; centre = [x, y]
-    body2 = "ground"
-    shape2 = { type = "line", point = [0, 0], normal = [0, 1] }
-    #        or { type = "circle", radius, centre }: two circles outside each other
-    #        or { type = "ring", radius, centre }: body1's circle held inside (Fekete 2023, (1.22))
-    stiffness = 1e6              # F = k delta^exponent + damping step(delta) delta'
-    exponent = 1.5               # >= 1 (default 1)
-    damping = 50.0               # default 0
-    damping_depth = 1e-4         # where the damping is fully in (step: 0 at delta = 0; 0: at once)
-    friction = { static = 0.3, dynamic = 0.2, stiction_speed = 1e-3, transition_speed = 2e-3 }
-
-Points and normals of a shape are in its body's frame (global on the ground); a line's normal
-points to the side body1 is on. Friction is optional (dynamic defaults to static, the speeds to
-1e-3 and 2e-3 m/s).
-
-Wear (kernel/src/model/mbdk_wear.f90: the laws of chapter 6), a state of its own integrated with
-the motion; the result's wear[name] is the worn volume against time::
-
-    [[wear]]
-    name = "plateau"
-    law = "archard"              # archard | gear | knee
-    load = "floor.normal_force"  # CONTACT.normal_force or CONTACT.friction_force
-    coefficient = 1.3e-15        # k: volume per newton and metre of sliding (m^3/(N m))
-    # gear: radius (R of (6.6)), temperature (K), and a_x, t0, activation_energy, gas_constant
-    #       (defaults: table 6.4's 3e-10 m, 3e-12 s, 49e3 J/mol, 8.31 J/(mol K))
-    # knee: slide_roll = [c0, c1, c2, c3], S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3 (table 6.7)
-
-A time function is a table {offset, rate, amplitude, omega, phase}: f(t) = offset + rate t +
-amplitude sin(omega t + phase); a number is a constant. Loads are multiplied by f(t) (default 1).
-
-Bad scenes raise SceneError naming the file, the element and the field.
+One Scene holds bodies of either kind: planar bodies (x, y, angle; chapters 2-4 of the book)
+with the planar joints, forces, contacts and wear, or spatial bodies (a centre and an
+orientation; chapter 5) with the spatial joints and forces. A scene's bodies are of one kind
+(Scene.kind); a scene that mixes them is refused by name where it is read or run. The scene
+file format and its reader are python/mbdk/planar_file.py and spatial_file.py, reached through
+python/mbdk/scene_file.py (mbdk.load_scene, mbdk.scene, mbdk.scenes).
 """
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 
-from .checks import MAX_SCENE_BYTES, NUMBER_MAX, NUMBER_MIN, length_scale, number_problem, show
+import numpy as np
+
+from .codes import BODY_KINDS, JOINT_ROWS, SPATIAL_JOINT_CODES, SPATIAL_JOINT_ROWS
 from .errors import InvalidInputError
+from .rotations import from_angles, to_quaternion
 
 GROUND = "ground"
-COORDS = {"x": 1, "y": 2, "angle": 3}
 
 
 class SceneError(InvalidInputError):
@@ -201,19 +116,67 @@ class Wear:
         return self.load.rpartition(".")[2]
 
 
-WEAR_LAWS = {"archard": 1, "gear": 2, "knee": 3}
-WEAR_LOADS = {"normal_force": 1, "friction_force": 2}
+@dataclass
+class SpatialBody:
+    name: str
+    mass: float
+    inertia: np.ndarray                 # 3 x 3, about the centre, body frame
+    position: np.ndarray                # (3,)
+    rotation: np.ndarray                # 3 x 3, body to space
+    velocity: np.ndarray                # (3,)
+    omega_body: np.ndarray              # (3,)
+
+    @property
+    def kind(self) -> str:
+        return "spatial"
+
+
+@dataclass
+class SpatialJoint:
+    name: str
+    type: str
+    body1: str
+    body2: str
+    point1: np.ndarray                  # body1 frame
+    point2: np.ndarray                  # body2 frame (space for the ground)
+    axis1: np.ndarray                   # body1 frame
+    axis2: np.ndarray                   # body2 frame
+    function: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)   # a driver's time function (angle or slide)
+
+
+@dataclass
+class SpatialForce:
+    type: str
+    name: str
+    body1: str = ""
+    body2: str = GROUND
+    reals: tuple = ()                   # the kernel's MBDK_SPATIAL_FORCE_REALS
 
 
 @dataclass
 class Scene:
+    """A mechanism: bodies of one kind (planar Body or SpatialBody), the joints and forces of
+    that kind, and (planar) wear. rotation, quaternion_norm and norm_gain are the spatial
+    bodies' orientation coordinates and how their quaternions keep |p| = 1
+    (python/mbdk/spatial_file.py); planar scenes ignore them."""
+
     name: str
-    bodies: list[Body]
-    joints: list[Joint] = field(default_factory=list)
-    forces: list[Force] = field(default_factory=list)
+    bodies: list
+    joints: list = field(default_factory=list)
+    forces: list = field(default_factory=list)
     description: str = ""
     source: str = "<python>"
-    wear: list[Wear] = field(default_factory=list)
+    wear: list = field(default_factory=list)
+    rotation: str = "quaternion"
+    quaternion_norm: str = "project"
+    norm_gain: float = 10.0
+
+    @property
+    def kind(self) -> str:
+        """"spatial" where a body is spatial, else "planar" (a scene that mixes the kinds is
+        refused where it is read or run: mbdk.scene_file.checked)."""
+        bodies = self.bodies if isinstance(self.bodies, list) else []
+        return "spatial" if any(body_kind(b) == "spatial" for b in bodies) else "planar"
 
     def body_index(self, name: str) -> int:
         """1-based index of a body; 0 for the ground."""
@@ -234,33 +197,83 @@ class Scene:
             raise SceneError(f"{self.source}: no body named {name!r}")
         return i
 
-    def q0(self):
+    def q0(self) -> list:
+        """The initial coordinates: x, y, angle per planar body; the centre and the orientation
+        coordinates (the scene's rotation) per spatial body."""
+        if self.kind == "spatial":
+            return [float(x) for b in self.bodies
+                    for x in (*b.position, *orientation_coordinates(b.rotation, self.rotation))]
         out = []
         for b in self.bodies:
             out += [b.x, b.y, b.angle]
         return out
 
-    def v0(self):
+    def v0(self) -> list:
+        """The initial velocities: vx, vy, omega per planar body; the centre's velocity and the
+        body-frame angular velocity per spatial body."""
+        if self.kind == "spatial":
+            return [float(x) for b in self.bodies for x in (*b.velocity, *b.omega_body)]
         out = []
         for b in self.bodies:
             out += [b.vx, b.vy, b.omega]
         return out
 
+    def state0(self) -> np.ndarray:
+        """The initial state y0 = [q, v] (the bodies' coordinates, then their velocities)."""
+        return np.array(self.q0() + self.v0(), dtype=float)
 
-def _body_kinds() -> dict:
-    """The kernel's body kinds: name -> (code, coordinates, velocities, available)."""
-    from . import _kernel
-    from .errors import _decode
-    out, i = {}, 1
-    while True:
-        code, name, coords, vels, available = _kernel.body_kind(i)
-        if code == 0:
-            return out
-        out[_decode(name)] = (int(code), int(coords), int(vels), bool(available))
-        i += 1
+    @property
+    def rows(self) -> int:
+        """The constraint rows of the joints."""
+        return sum(count for _name, _first, count in self.joint_rows())
+
+    def joint_rows(self) -> list:
+        """(joint name, first row, row count) of each joint, in the kernel's row order."""
+        table = SPATIAL_JOINT_ROWS if self.kind == "spatial" else JOINT_ROWS
+        out, first = [], 0
+        for j in self.joints:
+            out.append((j.name, first, table[j.type]))
+            first += table[j.type]
+        return out
 
 
-BODY_KINDS = _body_kinds()
+def body_kind(body) -> str | None:
+    """A body's kind ("spatial", or a planar Body's kind field, "" where that is no name), or
+    None for an object that is no body."""
+    if isinstance(body, SpatialBody):
+        return "spatial"
+    if isinstance(body, Body):
+        return body.kind if isinstance(body.kind, str) else ""
+    return None
+
+
+def orientation_coordinates(r: np.ndarray, rotation: str) -> np.ndarray:
+    """The orientation coordinates of rotation matrix r: a quaternion (scalar first, q0 >= 0),
+    or the 3-1-3 / 1-2-3 angles of the sequence (R = R_i R_j R_k about moving axes)."""
+    if rotation == "quaternion":
+        return to_quaternion(r)
+    if rotation == "euler313":
+        # R33 = cos(theta), R13 = sin(theta) sin(phi), R23 = -sin(theta) cos(phi),
+        # R31 = sin(theta) sin(psi), R32 = sin(theta) cos(psi)
+        # theta from atan2, not acos(R33): acos loses half the digits near the lock
+        theta = math.atan2(math.hypot(r[0, 2], r[1, 2]), r[2, 2])
+        if math.hypot(r[0, 2], r[1, 2]) > 1e-12:
+            a = np.array([math.atan2(r[0, 2], -r[1, 2]), theta, math.atan2(r[2, 0], r[2, 1])])
+        else:   # the lock: only phi +- psi is defined; psi = 0, R = R3(phi) R1(theta)
+            a = np.array([math.atan2(r[1, 0], r[0, 0]), theta, 0.0])
+    else:
+        # 1-2-3: R13 = sin(beta), R23 = -sin(alpha) cos(beta), R33 = cos(alpha) cos(beta),
+        # R12 = -cos(beta) sin(gamma), R11 = cos(beta) cos(gamma)
+        beta = math.atan2(r[0, 2], math.hypot(r[0, 0], r[0, 1]))   # not asin: see theta
+        if math.hypot(r[1, 2], r[2, 2]) > 1e-12:
+            a = np.array([math.atan2(-r[1, 2], r[2, 2]), beta, math.atan2(-r[0, 1], r[0, 0])])
+        else:   # the lock: gamma = 0, R = R1(alpha) R2(beta), whose first column is
+            sb = math.copysign(1.0, r[0, 2])   # (cos b, sin a sin b, -cos a sin b)
+            a = np.array([math.atan2(r[1, 0] * sb, -r[2, 0] * sb), beta, 0.0])
+    if not np.allclose(from_angles(a, rotation[-3:]), r, rtol=0, atol=1e-9):
+        raise SceneError(f"the orientation {r.tolist()} has no {rotation} angles to 1e-9 "
+                         "(it is not a rotation matrix)")
+    return a
 
 
 def body_kind_problem(kind) -> str | None:
@@ -270,805 +283,30 @@ def body_kind_problem(kind) -> str | None:
     _code, coords, vels, available = BODY_KINDS[kind]
     if kind == "spatial":
         return (f"= {kind!r} in a planar scene: spatial bodies ({coords} coordinates, {vels} "
-                "velocities) run in spatial scenes (mbdk.spatial), where every body is "
-                "spatial; make this body 'planar', or all of the scene's bodies 'spatial'")
+                "velocities) run in spatial scenes (python/mbdk/spatial_file.py), where every "
+                "body is spatial; make this body 'planar', or all of the scene's bodies "
+                "'spatial'")
     if not available:
         return (f"= {kind!r}: the kernel declares this kind ({coords} coordinates, {vels} "
                 "velocities) but the planar model cannot simulate it; use 'planar'")
     return None
+
+
+#: the planar joint and force types (their codes and rows: mbdk.codes, from the kernel)
 JOINT_TYPES = {"revolute", "prismatic", "fixed", "driver", "distance", "point_line",
                "point_curve", "coupling", "rolling", "knife_edge"}
-#: constraint rows per joint type (the kernel's table, mbdk_elements; tests/test_elements.py)
-JOINT_ROW_COUNT = {"revolute": 2, "prismatic": 2, "fixed": 3, "driver": 1, "distance": 1,
-                   "point_line": 1, "point_curve": 1, "coupling": 1, "rolling": 2,
-                   "knife_edge": 1}
 #: joints fixed to the ground by their nature (no body2)
 GROUND_JOINTS = {"driver", "point_curve", "rolling", "knife_edge"}
 FORCE_TYPES = {"gravity", "point_force", "torque", "spring", "damper", "spring_damper",
                "coordinate_spring", "coordinate_damper", "coordinate_spring_damper", "contact"}
 
-
-class _Reader:
-    """Reads one element's table, naming file, element and field in every error."""
-
-    def __init__(self, source: str, kind: str, index: int, table: dict):
-        if not isinstance(table, dict):
-            raise SceneError(f"{source}: {kind} #{index + 1} = {table!r} is not a table; write it "
-                             f"as [[{kind}]] with its fields")
-        self.source, self.kind, self.index, self.t = source, kind, index, table
-        self.used = set()
-        nm = table.get("name")
-        self.label = f"{kind} {nm!r}" if isinstance(nm, str) else f"{kind} #{index + 1}"
-
-    def err(self, fld, msg):
-        return SceneError(f"{self.source}: {self.label}: field {fld!r} {msg}")
-
-    def has(self, fld):
-        return fld in self.t
-
-    def get(self, fld, default=None, required=False):
-        self.used.add(fld)
-        if fld not in self.t:
-            if required:
-                raise self.err(fld, "is missing")
-            return default
-        v = self.t[fld]
-        if v is None and (required or default is not None):   # a Scene object's field
-            raise self.err(fld, "= None; give a value (or, in a file, leave the field out for "
-                                "its default)")
-        return v
-
-    def num(self, fld, default=None, required=False, positive=False, nonneg=False):
-        v = self.get(fld, default, required)
-        if v is None:
-            return None
-        problem = number_problem(v)
-        if problem:
-            raise self.err(fld, problem)
-        v = float(v)
-        if positive and not v > 0:
-            raise self.err(fld, f"= {v} must be positive")
-        if nonneg and v < 0:
-            raise self.err(fld, f"= {v} must not be negative")
-        return v
-
-    def angle(self, fld, default=0.0):
-        if fld + "_deg" in self.t:
-            if fld in self.t:
-                raise self.err(fld, f"and {fld}_deg are both given; give one")
-            return math.radians(self.num(fld + "_deg"))
-        return self.num(fld, default)
-
-    def vec(self, fld, default=None, required=False):
-        v = self.get(fld, default, required)
-        if v is None:
-            return None
-        if not isinstance(v, (list, tuple)) or len(v) != 2:
-            raise self.err(fld, f"= {show(v)} must be a pair [x, y]")
-        return tuple(self.entries(fld, v, "two"))
-
-    def entries(self, fld, v, count: str) -> list:
-        """The numbers of a list field, each finite and in range, or an error naming the entry."""
-        out = []
-        for i, c in enumerate(v):
-            problem = number_problem(c)
-            if problem:
-                raise self.err(fld, f"= {show(v)} must hold {count} finite numbers in range; "
-                                    f"entry {i} {problem}")
-            out.append(float(c))
-        return out
-
-    def name(self, fld, required=True, default=None):
-        v = self.get(fld, default, required)
-        if v is not None and not isinstance(v, str):
-            raise self.err(fld, f"= {v!r} must be a name (a string)")
-        if v is not None and not v.strip():
-            raise self.err(fld, f"= {v!r} is empty; give a name")
-        return v
-
-    def coordinate(self, fld, default):
-        v = self.name(fld, required=False, default=default)
-        if v not in COORDS:
-            raise self.err(fld, f"= {v!r} must be one of x, y, angle")
-        return v
-
-    def function(self, fld, default):
-        v = self.get(fld, None)
-        if v is None:
-            return default
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            problem = number_problem(v)
-            if problem:
-                raise self.err(fld, problem)
-            return (float(v), 0.0, 0.0, 0.0, 0.0)
-        if not isinstance(v, dict):
-            raise self.err(fld, f"= {v!r} must be a number or a table {{offset, rate, amplitude, "
-                                "omega, phase}")
-        keys = ["offset", "rate", "amplitude", "omega", "phase"]
-        bad = [k for k in v if k not in keys]
-        if bad:
-            raise self.err(fld, f"has unknown entry {bad[0]!r}; known: {', '.join(keys)}")
-        out = []
-        for k in keys:
-            c = v.get(k, 0.0)
-            problem = number_problem(c)
-            if problem:
-                raise self.err(fld, f"entry {k!r} {problem}")
-            out.append(float(c))
-        return tuple(out)
-
-    def done(self):
-        extra = [k for k in self.t if k not in self.used and k.removesuffix("_deg") not in self.used]
-        if extra:
-            raise self.err(extra[0], "is not a field of this element type")
-
-
-def _body(r: _Reader) -> Body:
-    name = r.name("name")
-    body_kind = r.name("kind", required=False, default="planar")
-    problem = body_kind_problem(body_kind)
-    if problem:
-        raise r.err("kind", problem)
-    mass = r.num("mass", required=True, positive=True)
-    if r.has("inertia") and r.has("shape"):
-        raise r.err("inertia", "and 'shape' are both given; give one")
-    if r.has("shape"):
-        shape = r.get("shape")
-        if not isinstance(shape, dict) or shape.get("type") not in ("bar", "point", "disc",
-                                                                     "rectangle"):
-            raise r.err("shape", f"= {shape!r} must be {{type = bar | point | disc | rectangle, ...}}")
-        sr = _Reader(r.source, f"{r.label} shape", 0, shape)
-        sr.get("type")
-        kind = shape["type"]
-        try:
-            if kind == "bar":
-                inertia = mass * sr.num("length", required=True, positive=True) ** 2 / 12
-            elif kind == "disc":
-                inertia = mass * sr.num("radius", required=True, positive=True) ** 2 / 2
-            elif kind == "rectangle":
-                inertia = mass * (sr.num("width", required=True, positive=True) ** 2
-                                  + sr.num("height", required=True, positive=True) ** 2) / 12
-            else:
-                inertia = 0.0
-        except OverflowError:
-            inertia = math.inf
-        if not math.isfinite(inertia) or inertia > NUMBER_MAX or 0 < inertia < NUMBER_MIN:
-            raise r.err("shape", f"= {show(shape)} gives an inertia of {inertia:.3g}, out of "
-                                 "range (a nonzero inertia must lie between 1e-150 and 1e150); "
-                                 "give the body's size in metres and its mass in kg")
-        sr.done()
-    else:
-        inertia = r.num("inertia", required=True, nonneg=True)
-    given = r.get("given", [])
-    ok = {"x", "y", "angle", "vx", "vy", "omega"}
-    if not isinstance(given, list) or any(g not in ok for g in given):
-        raise r.err("given", f"= {given!r} must list some of {', '.join(sorted(ok))}")
-    b = Body(name, mass, inertia, r.num("x", 0.0), r.num("y", 0.0), r.angle("angle"),
-             r.num("vx", 0.0), r.num("vy", 0.0), r.num("omega", 0.0), tuple(given), body_kind)
-    r.done()
-    return b
-
-
-def _unit(r: _Reader, fld: str, default) -> tuple:
-    """A direction: the vector fld made unit (required when default is None)."""
-    ax = r.vec(fld, default, required=default is None)
-    n = math.hypot(*ax)
-    if n == 0:
-        raise r.err(fld, "= [0, 0] has no direction")
-    return (ax[0] / n, ax[1] / n)
-
-
-def _joint(r: _Reader) -> Joint:
-    typ = r.name("type")
-    if typ not in JOINT_TYPES:
-        raise r.err("type", f"= {typ!r} is not a joint type; known: {', '.join(sorted(JOINT_TYPES))}")
-    name = r.name("name", required=False, default=f"joint{r.index + 1}")
-    if typ == "driver":
-        j = Joint(name, typ, r.name("body1"), coordinate=r.coordinate("coordinate", "angle"),
-                  function=r.function("function", None))
-        if j.function is None:
-            raise r.err("function", "is missing (the driven coordinate's f(t))")
-    elif typ == "point_curve":
-        j = Joint(name, typ, r.name("body1"), point1=r.vec("point1", (0.0, 0.0)),
-                  curve=r.function("curve", None))
-        if j.curve is None:
-            raise r.err("curve", "is missing (the ground curve y = f(x): a table {offset, rate, "
-                                 "amplitude, omega, phase})")
-    elif typ == "coupling":
-        j = Joint(name, typ, r.name("body1"), r.name("body2"),
-                  coordinate=r.coordinate("coordinate1", "angle"),
-                  coordinate2=r.coordinate("coordinate2", "angle"),
-                  ratio=r.num("ratio", required=True))
-        if j.ratio == 0:
-            raise r.err("ratio", "= 0 couples nothing: body2's coordinate would be fixed; use a "
-                                 "driver or a fixed joint")
-    elif typ == "rolling":
-        j = Joint(name, typ, r.name("body1"), point2=r.vec("point", (0.0, 0.0)),
-                  radius=r.num("radius", required=True))
-        if not j.radius > 0:
-            raise r.err("radius", f"= {j.radius:g} must be positive (the disc's rolling radius)")
-        j.axis = _unit(r, "direction", (1.0, 0.0))
-    elif typ == "knife_edge":
-        j = Joint(name, typ, r.name("body1"), point1=r.vec("point1", (0.0, 0.0)))
-        j.axis = _unit(r, "axis", (1.0, 0.0))
-    else:
-        j = Joint(name, typ, r.name("body1"), r.name("body2", required=False, default=GROUND),
-                  r.vec("point1", (0.0, 0.0)), r.vec("point2", (0.0, 0.0)))
-        if typ in ("prismatic", "point_line"):
-            j.axis = _unit(r, "axis", None)
-        if typ in ("prismatic", "fixed") and (r.has("angle0") or r.has("angle0_deg")):
-            j.angle0 = r.angle("angle0")
-        if typ == "distance":
-            j.length = r.function("length", None)
-            if j.length is not None:
-                off, _rate, amp, _om, ph = j.length
-                if not off + amp * math.sin(ph) > 0:
-                    raise r.err("length", f"= {r.get('length')!r} gives L(0) = "
-                                          f"{off + amp * math.sin(ph):g}: a distance must be "
-                                          "positive")
-    r.done()
-    return j
-
-
-def _force(r: _Reader) -> Force:
-    typ = r.name("type")
-    if typ not in FORCE_TYPES:
-        raise r.err("type", f"= {typ!r} is not a force type; known: {', '.join(sorted(FORCE_TYPES))}")
-    f = Force(typ, r.name("name", required=False, default=f"{typ}{r.index + 1}"))
-    if typ == "gravity":
-        f.g = r.vec("g", required=True)
-    elif typ == "point_force":
-        f.body1 = r.name("body")
-        f.point1 = r.vec("point", (0.0, 0.0))
-        f.force = r.vec("force", required=True)
-        f.function = r.function("function", f.function)
-    elif typ == "torque":
-        f.body1 = r.name("body")
-        f.torque = r.num("torque", required=True)
-        f.function = r.function("function", f.function)
-    elif typ in ("spring", "damper", "spring_damper"):
-        f.body1 = r.name("body1")
-        f.point1 = r.vec("point1", (0.0, 0.0))
-        f.body2 = r.name("body2", required=False, default=GROUND)
-        f.point2 = r.vec("point2", (0.0, 0.0))
-        if typ != "damper":
-            f.stiffness = r.num("stiffness", required=True, nonneg=True)
-            f.rest_length = r.num("rest_length", None, nonneg=True)
-        if typ != "spring":
-            f.damping = r.num("damping", required=True, nonneg=True)
-    elif typ == "contact":
-        f.body1 = r.name("body1")
-        f.body2 = r.name("body2", required=False, default=GROUND)
-        f.shape1 = _shape(r, "shape1", ("point", "circle", "gear"))
-        f.shape2 = _shape(r, "shape2", ("line", "circle", "ring", "gear"))
-        if (f.shape1[0] == "gear") != (f.shape2[0] == "gear"):
-            raise r.err("shape2", f"= {f.shape2[0]!r} against shape1 = {f.shape1[0]!r}: a gear "
-                                  "meshes only with a gear")
-        if f.shape1[0] == "gear":
-            z1, m1, a1, _ = f.shape1[2]
-            z2, m2, a2, _ = f.shape2[2]
-            if abs(m1 * math.cos(a1) - m2 * math.cos(a2)) > 1e-12 * m1:
-                raise r.err("shape2", f"module {m2} and pressure angle {math.degrees(a2):g} deg "
-                                      f"against gear 1's {m1} and {math.degrees(a1):g} deg: "
-                                      "involute gears mesh only with the same base pitch "
-                                      "pi m cos(alpha)")
-            if f.body2 == GROUND:
-                raise r.err("body2", "= 'ground': a gear mesh is between two bodies, each gear "
-                                     "centred at its body's origin")
-            f.backlash = r.num("backlash", 0.0, nonneg=True)
-        f.stiffness = r.num("stiffness", required=True, nonneg=True)
-        f.exponent = r.num("exponent", 1.0)
-        if f.exponent < 1:
-            raise r.err("exponent", f"= {f.exponent} must be at least 1 (below 1 the force's "
-                                    "slope is infinite where the contact closes)")
-        f.damping = r.num("damping", 0.0, nonneg=True)
-        f.damping_depth = r.num("damping_depth", 0.0, nonneg=True)
-        if f.shape2[0] == "ring" and not f.shape2[2] > f.shape1[2]:
-            raise r.err("shape2", f"= ring of radius {f.shape2[2]} must be larger than body1's "
-                                  f"circle (radius {f.shape1[2]}) to hold it")
-        if r.has("friction"):
-            f.friction = read_friction(r)
-    else:
-        f.body1 = r.name("body")
-        f.coordinate = r.coordinate("coordinate", "x")
-        if typ != "coordinate_damper":
-            f.stiffness = r.num("stiffness", required=True, nonneg=True)
-            f.rest = r.num("rest", 0.0)
-        if typ != "coordinate_spring":
-            f.damping = r.num("damping", required=True, nonneg=True)
-    r.done()
-    return f
-
-
-def _shape(r: _Reader, fld: str, kinds: tuple) -> tuple:
-    """A contact's shape table as (type, point, radius or normal)."""
-    v = r.get(fld, required=True)
-    if not isinstance(v, dict) or v.get("type") not in kinds:
-        raise r.err(fld, f"= {v!r} must be a table {{type = {' | '.join(kinds)}, ...}}")
-    sr = _Reader(r.source, f"{r.label} {fld}", 0, v)
-    typ = sr.get("type")
-    if typ == "line":
-        point = sr.vec("point", (0.0, 0.0))
-        n = sr.vec("normal", required=True)
-        ln = math.hypot(*n)
-        if not ln > 0:
-            raise r.err(fld, f"normal = {list(n)} has no direction")
-        out = (typ, point, (n[0] / ln, n[1] / ln))
-    elif typ == "point":
-        out = (typ, sr.vec("point", (0.0, 0.0)), 0.0)
-    elif typ == "gear":
-        z = sr.num("teeth", required=True, positive=True)
-        if z != int(z) or z < 3:
-            raise r.err(fld, f"teeth = {z} must be a whole number of at least 3")
-        alpha = math.radians(sr.num("pressure_angle_deg", 20.0))
-        if not 0 < alpha < math.pi / 2:
-            raise r.err(fld, f"pressure_angle_deg = {math.degrees(alpha)} must lie between 0 "
-                             "and 90")
-        out = (typ, (0.0, 0.0), (int(z), sr.num("module", required=True, positive=True), alpha,
-                                 sr.num("addendum", 1.0, positive=True)))
-    else:
-        out = (typ, sr.vec("centre", (0.0, 0.0)), sr.num("radius", required=True, positive=True))
-    try:
-        sr.done()
-    except SceneError:
-        extra = [k for k in v if k not in sr.used]
-        raise r.err(fld, f"entry {extra[0]!r} is not a field of a {typ} "
-                         f"(a {typ} has {', '.join(sorted(sr.used))})") from None
-    return out
-
-
-def read_friction(r: _Reader) -> tuple:
-    """A contact's friction table (static, dynamic, stiction_speed, transition_speed), as the
-    planar and the spatial readers take it."""
-    v = r.get("friction")
-    if not isinstance(v, dict):
-        raise r.err("friction", f"= {v!r} must be a table {{static, dynamic, stiction_speed, "
-                                "transition_speed}")
-    fr = _Reader(r.source, f"{r.label} friction", 0, v)
-    st = fr.num("static", required=True, nonneg=True)
-    dy = fr.num("dynamic", st, nonneg=True)
-    vs = fr.num("stiction_speed", 1e-3, positive=True)
-    vd = fr.num("transition_speed", 2 * vs, positive=True)
-    if not vd > vs:
-        raise r.err("friction", f"transition_speed = {vd} must exceed stiction_speed = {vs}")
-    extra = [k for k in v if k not in fr.used]
-    if extra:
-        raise r.err("friction", f"entry {extra[0]!r} is not known; known: static, dynamic, "
-                                "stiction_speed, transition_speed")
-    return (st, dy, vs, vd)
-
-
-def _wear(r: _Reader) -> Wear:
-    name = r.name("name", required=False, default=f"wear{r.index + 1}")
-    law = r.name("law")
-    if law not in WEAR_LAWS:
-        raise r.err("law", f"= {law!r} is not a wear law; known: {', '.join(WEAR_LAWS)}")
-    load = r.name("load")
-    contact, _, qty = load.rpartition(".")
-    if not contact or qty not in WEAR_LOADS:
-        raise r.err("load", f"= {load!r} must be CONTACT.normal_force or CONTACT.friction_force")
-    w = Wear(name, law, load, r.num("coefficient", required=True, nonneg=True),
-             initial=r.num("initial", 0.0, nonneg=True))
-    if law == "gear":
-        w.radius = r.num("radius", required=True, nonneg=True)
-        w.temperature = r.num("temperature", required=True, positive=True)
-        w.a_x = r.num("a_x", w.a_x, positive=True)
-        w.t0 = r.num("t0", w.t0, positive=True)
-        w.activation_energy = r.num("activation_energy", w.activation_energy, nonneg=True)
-        w.gas_constant = r.num("gas_constant", w.gas_constant, positive=True)
-    elif law == "knee":
-        c = r.get("slide_roll", required=True)
-        if not isinstance(c, list) or len(c) != 4:
-            raise r.err("slide_roll", f"= {show(c)} must be four finite numbers [c0, c1, c2, c3]")
-        w.slide_roll = tuple(r.entries("slide_roll", c, "four"))
-    r.done()
-    return w
-
-
-def section_items(data: dict, key: str, source: str) -> list:
-    """A scene file's array of tables [[key]] (empty when absent), or a SceneError."""
-    v = data.get(key, [])
-    if not isinstance(v, list):
-        raise SceneError(f"{source}: '{key}' must be an array of tables ([[{key}]])")
-    return v
-
-
-def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
-    """Builds and checks a Scene from the parsed TOML structure."""
-    if not isinstance(data, dict):
-        raise SceneError(f"{source}: a scene is a table")
-    from .spatial import is_spatial, spatial_scene_from_dict
-    if is_spatial(data):   # a body of kind "spatial": the whole scene is (mbdk.spatial)
-        return spatial_scene_from_dict(data, source)
-    known = {"scene", "body", "joint", "force", "wear"}
-    extra = [k for k in data if k not in known]
-    if extra:
-        raise SceneError(f"{source}: unknown section {extra[0]!r}; a scene has "
-                         "[scene], [[body]], [[joint]], [[force]] and [[wear]]")
-    head = data.get("scene", {})
-    hr = _Reader(source, "scene", 0, head)
-    name = hr.name("name", required=False, default=Path(source).stem)
-    desc = hr.get("description", "")
-    hr.get("reference")
-    hr.done()
-
-    def items(key):
-        return section_items(data, key, source)
-
-    bodies = [_body(_Reader(source, "body", i, t)) for i, t in enumerate(items("body"))]
-    joints = [_joint(_Reader(source, "joint", i, t)) for i, t in enumerate(items("joint"))]
-    forces = [_force(_Reader(source, "force", i, t)) for i, t in enumerate(items("force"))]
-    wear = [_wear(_Reader(source, "wear", i, t)) for i, t in enumerate(items("wear"))]
-    sc = Scene(name, bodies, joints, forces, desc, source, wear)
-    check_scene(sc)
-    sc._read_as = _snapshot(sc)   # what checked() compares against
-    return sc
-
-
-_FN_KEYS = ("offset", "rate", "amplitude", "omega", "phase")
-
-
-def _fn(v):
-    """A time function as the file writes it (a table), or the value as it is (the reader
-    names what is wrong with it)."""
-    if isinstance(v, (tuple, list)) and len(v) == 5:
-        return dict(zip(_FN_KEYS, v))
-    return dict(v) if isinstance(v, dict) else v
-
-
-def _seq(v):
-    """A copy, so that a snapshot does not change with the scene's own lists."""
-    return list(v) if isinstance(v, (tuple, list)) else v
-
-
-def scene_to_dict(sc: Scene) -> dict:
-    """The scene as the parsed TOML structure the reader takes (the inverse of
-    scene_from_dict): each element with exactly the fields its type has. Values are passed as
-    they are, so that reading the result checks a Scene changed in Python with the reader's own
-    rules and messages."""
-    bodies = [{"name": b.name, "kind": b.kind, "mass": b.mass, "inertia": b.inertia, "x": b.x,
-               "y": b.y, "angle": b.angle, "vx": b.vx, "vy": b.vy, "omega": b.omega,
-               "given": _seq(b.given)} for b in sc.bodies]
-    joints = []
-    for j in sc.joints:
-        d = {"name": j.name, "type": j.type, "body1": j.body1}
-        t = j.type if isinstance(j.type, str) else None
-        if t == "driver":
-            d.update(coordinate=j.coordinate, function=_fn(j.function))
-        elif t == "point_curve":
-            d.update(point1=_seq(j.point1), curve=_fn(j.curve))
-        elif t == "coupling":
-            d.update(body2=j.body2, coordinate1=j.coordinate, coordinate2=j.coordinate2,
-                     ratio=j.ratio)
-        elif t == "rolling":
-            d.update(point=_seq(j.point2), direction=_seq(j.axis), radius=j.radius)
-        elif t == "knife_edge":
-            d.update(point1=_seq(j.point1), axis=_seq(j.axis))
-        else:
-            d.update(body2=j.body2, point1=_seq(j.point1), point2=_seq(j.point2))
-            if isinstance(j.type, str) and j.type in ("prismatic", "point_line"):
-                d["axis"] = _seq(j.axis)
-            if isinstance(j.type, str) and j.type in ("prismatic", "fixed") and \
-                    j.angle0 is not None:
-                d["angle0"] = j.angle0
-            if isinstance(j.type, str) and j.type == "distance" and j.length is not None:
-                d["length"] = _fn(j.length)
-        joints.append(d)
-    forces = []
-    for f in sc.forces:
-        t = f.type if isinstance(f.type, str) else None
-        d = {"name": f.name, "type": f.type}
-        if t == "gravity":
-            d["g"] = _seq(f.g)
-        elif t == "point_force":
-            d.update(body=f.body1, point=_seq(f.point1), force=_seq(f.force),
-                     function=_fn(f.function))
-        elif t == "torque":
-            d.update(body=f.body1, torque=f.torque, function=_fn(f.function))
-        elif t in ("spring", "damper", "spring_damper"):
-            d.update(body1=f.body1, point1=_seq(f.point1), body2=f.body2,
-                     point2=_seq(f.point2))
-            if t != "damper":
-                d["stiffness"] = f.stiffness
-                if f.rest_length is not None:
-                    d["rest_length"] = f.rest_length
-            if t != "spring":
-                d["damping"] = f.damping
-        elif t == "contact":
-            d.update(body1=f.body1, body2=f.body2, shape1=_shape_dict(f.shape1),
-                     shape2=_shape_dict(f.shape2), stiffness=f.stiffness, exponent=f.exponent,
-                     damping=f.damping, damping_depth=f.damping_depth)
-            if isinstance(f.shape1, (tuple, list)) and f.shape1 and f.shape1[0] == "gear":
-                d["backlash"] = f.backlash
-            if f.friction is not None:
-                d["friction"] = (dict(zip(("static", "dynamic", "stiction_speed",
-                                           "transition_speed"), f.friction))
-                                 if isinstance(f.friction, (tuple, list)) and len(f.friction) == 4
-                                 else f.friction)
-        elif t is not None and t.startswith("coordinate_"):
-            d.update(body=f.body1, coordinate=f.coordinate)
-            if t != "coordinate_damper":
-                d.update(stiffness=f.stiffness, rest=f.rest)
-            if t != "coordinate_spring":
-                d["damping"] = f.damping
-        forces.append(d)
-    wear = []
-    for w in sc.wear:
-        d = {"name": w.name, "law": w.law, "load": w.load, "coefficient": w.coefficient,
-             "initial": w.initial}
-        if w.law == "gear":
-            d.update(radius=w.radius, temperature=w.temperature, a_x=w.a_x, t0=w.t0,
-                     activation_energy=w.activation_energy, gas_constant=w.gas_constant)
-        elif w.law == "knee":
-            d["slide_roll"] = _seq(w.slide_roll)
-        wear.append(d)
-    out = {"scene": {"name": sc.name, "description": sc.description}, "body": bodies,
-           "joint": joints, "force": forces}
-    if wear:
-        out["wear"] = wear
-    return out
-
-
-def _shape_dict(sh):
-    """A contact shape as the file writes it (the reader names what is wrong with an odd one)."""
-    if not (isinstance(sh, (tuple, list)) and len(sh) == 3):
-        return sh
-    typ, point, third = sh
-    if typ == "line":
-        return {"type": typ, "point": _seq(point), "normal": _seq(third)}
-    if typ == "point":
-        return {"type": typ, "point": _seq(point)}
-    if typ == "gear" and isinstance(third, (tuple, list)) and len(third) == 4:
-        return {"type": typ, "teeth": third[0], "module": third[1],
-                "pressure_angle_deg": math.degrees(third[2]), "addendum": third[3]}
-    return {"type": typ, "centre": _seq(point), "radius": third}
-
-
-def checked(sc: Scene) -> Scene:
-    """The scene re-read through the reader's checks: a Scene whose fields were changed in
-    Python after it was read (or built by hand) gets the errors a file would, naming the
-    element and field, instead of failing somewhere inside the pipeline. A scene unchanged since
-    the reader made it (its snapshot, compared in a few microseconds) is returned as it is."""
-    if not isinstance(sc, Scene):
-        raise SceneError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
-    if not isinstance(sc.bodies, list) or not isinstance(sc.joints, list) or \
-            not isinstance(sc.forces, list) or not isinstance(sc.wear, list):
-        raise SceneError(f"{sc.source}: bodies, joints, forces and wear must be lists")
-    read_as = getattr(sc, "_read_as", None)
-    if read_as is not None:
-        try:
-            if read_as == _snapshot(sc):
-                return sc
-        except (TypeError, ValueError):   # an array or an odd object in a field: changed
-            pass
-    return scene_from_dict(scene_to_dict(sc), sc.source)
-
-
-def _snapshot(sc: Scene):
-    """Every field of every element: what checked() compares (fields a type does not use
-    included, since the tables are built from the objects). The reader stores only immutable
-    values (numbers, strings, tuples), so its snapshot cannot change behind its back; a list a
-    user puts in a field never equals the tuple it replaced."""
-    return (sc.name, sc.description, sc.source,
-            *(tuple((type(o), tuple(vars(o).values())) for o in items)
-              for items in (sc.bodies, sc.joints, sc.forces, sc.wear)))
-
-
-def _point_at(sc: Scene, body: str, p) -> tuple:
-    """A body point's global position at the scene's initial pose (a ground point as it is)."""
-    if body == GROUND:
-        return p
-    b = sc.bodies[sc.body_index(body) - 1]
-    c, s = math.cos(b.angle), math.sin(b.angle)
-    return (b.x + c * p[0] - s * p[1], b.y + s * p[0] + c * p[1])
-
-
-def check_lengths(sc: Scene) -> None:
-    """The scene's coordinates, offsets and lengths against its length scale (mbdk.checks.
-    length_scale): a distance, a radius or a point offset too small to be resolved next to the
-    scene's largest coordinate is refused, naming the element and field."""
-    sizes = []
-
-    def put(label, fld, body, p, kind="offset"):
-        sizes.append((label, fld, math.hypot(*p),
-                      "coordinate" if body == GROUND and kind == "offset" else kind))
-    for b in sc.bodies:
-        sizes.append((f"body {b.name!r}", "x", math.hypot(b.x, b.y), "coordinate"))
-    for j in sc.joints:
-        label = f"joint {j.name!r}"
-        if j.type in ("driver", "coupling"):
-            continue
-        if j.type == "rolling":
-            put(label, "point", GROUND, j.point2)
-            sizes.append((label, "radius", j.radius, "length"))
-            continue
-        put(label, "point1", j.body1, j.point1)
-        if j.type not in ("point_curve", "knife_edge"):
-            put(label, "point2", j.body2, j.point2)
-        if j.type == "distance":
-            if j.length is not None:
-                off, _rate, amp, _om, ph = j.length
-                sizes.append((label, "length", off + amp * math.sin(ph), "length"))
-            else:
-                p1 = _point_at(sc, j.body1, j.point1)
-                p2 = _point_at(sc, j.body2, j.point2)
-                sizes.append((label, "point2 (the points' initial distance, its length)",
-                              math.hypot(p1[0] - p2[0], p1[1] - p2[1]), "length",
-                              "its points coincide (or nearly) at the initial pose, where a "
-                              "distance has no direction: give the bodies a pose where they "
-                              "are apart, or use a revolute joint where the points coincide"))
-    for f in sc.forces:
-        label = f"force {f.name!r}"
-        if f.type in ("point_force",):
-            put(label, "point", f.body1, f.point1)
-        elif f.type in ("spring", "damper", "spring_damper"):
-            put(label, "point1", f.body1, f.point1)
-            put(label, "point2", f.body2, f.point2)
-        elif f.type == "contact":
-            for fld, body, sh in (("shape1", f.body1, f.shape1), ("shape2", f.body2, f.shape2)):
-                typ, point, third = sh
-                if typ == "gear":
-                    sizes.append((label, fld + " module", third[1], "length"))
-                    continue
-                put(label, fld, body, point)
-                if typ in ("circle", "ring"):
-                    sizes.append((label, fld + " radius", third, "length"))
-    length_scale(sizes, sc.source, SceneError)
-
-
-def check_scene(sc: Scene) -> None:
-    """References, duplicates and counts; raises SceneError naming the element and field."""
-    src = sc.source
-    if not sc.bodies:
-        raise SceneError(f"{src}: the scene has no [[body]]")
-    seen = {}
-    for kind, items in (("body", sc.bodies), ("joint", sc.joints), ("force", sc.forces)):
-        for e in items:
-            key = (kind, e.name)
-            if e.name and key in seen:
-                raise SceneError(f"{src}: {kind} {e.name!r}: field 'name' is used twice")
-            seen[key] = True
-            if kind == "body" and e.name == GROUND:
-                raise SceneError(f"{src}: body 'ground': field 'name' is reserved for the ground")
-    names = [b.name for b in sc.bodies]
-    for kind, items in (("joint", sc.joints), ("force", sc.forces)):
-        for e in items:
-            for fld in ("body1", "body2"):
-                v = getattr(e, fld)
-                if kind == "force" and e.type in ("gravity",):
-                    continue
-                if kind == "joint" and e.type in GROUND_JOINTS and fld == "body2":
-                    continue
-                if kind == "joint" and e.type == "coupling" and v == GROUND:
-                    raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = 'ground' must "
-                                     "name a body: a coupling joins two bodies' coordinates "
-                                     "(to follow a function of time, use a driver)")
-                if kind == "force" and fld == "body2" and e.type not in (
-                        "spring", "damper", "spring_damper", "contact"):
-                    continue
-                shown = fld if not (kind == "force" and e.type in (
-                    "point_force", "torque") or e.type.startswith("coordinate")) else "body"
-                if v != GROUND and v not in names:
-                    raise SceneError(f"{src}: {kind} {e.name!r}: field {shown!r} = {v!r} names no "
-                                     f"body; bodies: {', '.join(names)}, ground")
-                if v == GROUND and fld == "body1":
-                    raise SceneError(f"{src}: {kind} {e.name!r}: field {shown!r} must name a "
-                                     "body, not the ground")
-            if kind == "joint" and e.type not in GROUND_JOINTS and e.body1 == e.body2:
-                raise SceneError(f"{src}: joint {e.name!r}: field 'body2' = {e.body2!r} is body1 "
-                                 "itself")
-    contacts = {f.name: f for f in sc.forces if f.type == "contact"}
-    for f in contacts.values():
-        if f.body1 == f.body2:
-            raise SceneError(f"{src}: force {f.name!r}: field 'body2' = {f.body2!r} is body1 "
-                             "itself")
-    for w in sc.wear:
-        if ("wear", w.name) in seen:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'name' is used twice")
-        seen[("wear", w.name)] = True
-        c = contacts.get(w.contact)
-        if c is None:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r} names no contact"
-                             f"; contacts: {', '.join(contacts) or 'none'}")
-        if w.quantity == "friction_force" and c.friction is None:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
-                             f"{c.name!r} has no friction; give it a friction table, or use "
-                             f"'{c.name}.normal_force'")
-    check_lengths(sc)
-    rows = sum(JOINT_ROW_COUNT[j.type] for j in sc.joints)
-    if rows > 3 * len(sc.bodies):
-        raise SceneError(f"{src}: {rows} constraint equations for {3 * len(sc.bodies)} coordinates "
-                         f"({len(sc.bodies)} bodies): more constraints than coordinates")
-
-
-def read_scene_bytes(path) -> bytes:
-    """A scene file's bytes: a regular file (a device such as /dev/zero, a pipe or a directory
-    is refused before it is opened: reading one may never end) of at most MAX_SCENE_BYTES."""
-    import os
-    import stat
-    if not isinstance(path, (str, os.PathLike)):
-        raise SceneError(f"path = {show(path)} must be a file path (a string or a Path)")
-    path = Path(path)
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError) as exc:
-        why = getattr(exc, "strerror", None) or str(exc)
-        raise SceneError(f"{path}: cannot read the scene file ({why})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
-                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
-                "a pipe" if stat.S_ISFIFO(st.st_mode) else
-                "a socket" if stat.S_ISSOCK(st.st_mode) else "not a file")
-        raise SceneError(f"{path}: is {kind}, not a regular file; give the path of a scene "
-                         "file (TOML)")
-    limit = MAX_SCENE_BYTES
-    if st.st_size > limit:
-        raise SceneError(f"{path}: {st.st_size} bytes, more than a scene file may have "
-                         f"({limit // 2**20} MiB); is this the scene file?")
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(limit + 1)   # a file that grew since stat stops at the limit too
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read the scene file ({exc.strerror})") from None
-    if len(raw) > limit:
-        raise SceneError(f"{path}: more than {limit // 2**20} MiB, more than a scene file may "
-                         "have; is this the scene file?")
-    return raw
-
-
-def load_scene(path) -> Scene:
-    """Reads a scene file (TOML)."""
-    raw = read_scene_bytes(path)
-    path = Path(path)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise SceneError(f"{path}: line {line}: byte {raw[exc.start]:#04x} at offset {exc.start} "
-                         "is not UTF-8 text; TOML scene files are UTF-8") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise SceneError(f"{path}: arrays or tables nested too deep to read; a scene file "
-                         "needs at most a few levels") from None
-    except ValueError as exc:   # an integer of more digits than Python converts (4300)
-        raise SceneError(f"{path}: a number out of range: {exc}; give numbers in SI units "
-                         "(magnitude below 1e150)") from None
-    return scene_from_dict(data, str(path))
-
-
-SCENE_DIR = Path(__file__).resolve().parent / "scenes"
-
-
-def scenes(kind: str = "planar") -> list[str]:
-    """Names of the built-in scenes of a kind: "planar" (python/mbdk/scenes/*.toml), "spatial"
-    (python/mbdk/scenes/spatial/*.toml) or "all"."""
-    dirs = {"planar": [SCENE_DIR], "spatial": [SCENE_DIR / "spatial"],
-            "all": [SCENE_DIR, SCENE_DIR / "spatial"]}
-    if not isinstance(kind, str) or kind not in dirs:
-        raise InvalidInputError(f"kind = {show(kind)}; known: {', '.join(dirs)}")
-    return sorted(p.stem for d in dirs[kind] for p in d.glob("*.toml"))
-
-
-def scene_or_file(arg):
-    """A built-in scene by name, or a scene file (planar, or a SpatialScene when its bodies are
-    spatial): what the command line and sweeps take."""
-    if not isinstance(arg, (str, Path)):
-        raise SceneError(f"scene = {show(arg)} must be a built-in scene's name or a scene "
-                         "file's path")
-    path = Path(arg)
-    if path.suffix == ".toml" or path.exists():
-        return load_scene(path)   # spatial or planar, by its bodies' kind
-    return scene(arg)
-
-
-def scene(name: str):
-    """A built-in scene by name (python/mbdk/scenes/NAME.toml, or scenes/spatial/NAME.toml: a
-    SpatialScene)."""
-    if isinstance(name, str):
-        for p in (SCENE_DIR / f"{name}.toml", SCENE_DIR / "spatial" / f"{name}.toml"):
-            if p.is_file():
-                return load_scene(p)
-    raise SceneError(f"no built-in scene {name!r}; built-in scenes: {', '.join(scenes('all'))}")
+#: the spatial joint and force types (their codes: mbdk.codes)
+SPATIAL_JOINT_TYPES = set(SPATIAL_JOINT_CODES)
+#: the spatial force types a scene file writes (a contact is stored as sphere_plane or
+#: sphere_sphere, by its second shape)
+SPATIAL_FORCE_TYPES = ("gravity", "point_force", "torque", "spring_damper", "spring", "damper",
+                       "contact")
+#: the spatial force types between two bodies (body2 may be the ground)
+SPATIAL_TWO_BODY_FORCES = ("spring_damper", "sphere_plane", "sphere_sphere")
+#: the drivers: rows that follow a time function, f(t0) = 0
+DRIVERS = {"angle_driver": "turns body1", "slide_driver": "slides body1's point"}

@@ -28,7 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InvalidInputError
+from .model import (assemble, build_tables, dependent_rows, evaluate, rows_to_joints,
+                    scaled_jacobian)
 from .scene import Scene
+from .scene_file import checked
+from .spatial_model import evaluate_spatial
 
 
 @dataclass
@@ -109,17 +113,12 @@ def _index(rows: int, schur_regular: bool, velocity_rows: int = 0) -> tuple[int,
 
 
 def scene_report(sc) -> SceneReport:
-    """The report of a planar Scene or a SpatialScene (the module docstring); a scene that does
+    """The report of a Scene of either body kind (the module docstring); a scene that does
     not assemble raises the assembly's named error."""
-    from .spatial import SpatialScene
-    if isinstance(sc, SpatialScene):
-        return _spatial_report(sc)
     if not isinstance(sc, Scene):
-        raise InvalidInputError(f"scene must be an mbdk Scene or SpatialScene, got "
-                                f"{type(sc).__name__}")
-    from .model import (assemble, build_tables, dependent_rows, evaluate, rows_to_joints,
-                        scaled_jacobian)
-    from .scene import checked
+        raise InvalidInputError(f"scene must be an mbdk Scene, got {type(sc).__name__}")
+    if sc.kind == "spatial":
+        return _spatial_report(sc)
     sc = checked(sc)
     tab = build_tables(sc)
     q, v, _ = assemble(sc, tab)
@@ -170,14 +169,12 @@ def _spatial_report(sc) -> SceneReport:
     """The spatial model's own rank (its geometric test at the initial state); the redundant
     joints from the left null space of C with the rotation columns weighted by the bodies'
     spread (a rotation as the displacement it gives there)."""
-    from .model import dependent_rows
-    from .spatial import evaluate_spatial, joint_rows
     e = evaluate_spatial(sc)
     nb = len(sc.bodies)
     rows = int(sc.rows)
     rank = int(e["rank"]) if rows else 0
     coords = len(sc.state0()) - 6 * nb
-    table = joint_rows(sc)
+    table = sc.joint_rows()
     redundant = []
     if rank < rows:
         pos = np.array([b.position for b in sc.bodies], float)

@@ -33,6 +33,8 @@ from . import _kernel, checks
 from .checks import show
 from .errors import InvalidInputError, NotApplicableError, Status, exception_for
 from .methods import method as _any_method
+from .ode import evaluate_rhs, solve_ode, state_vector
+from .problems import problem as _problem
 
 STABLE_TOL = 1e-9
 #: Newton tolerances for the implicit steps; the problems are linear with the exact Jacobian,
@@ -333,6 +335,7 @@ def _window(name: str, w) -> tuple[float, float]:
 
 
 def _level_curves(x, y, values, level):
+    # contourpy comes with matplotlib, an optional dependency: only the regions' curves need it
     import contourpy
     v = np.where(np.isfinite(values), values, 1e300)
     lines = contourpy.contour_generator(x, y, v).lines(level)
@@ -449,7 +452,6 @@ def _reference_scale(problem, params, y0, t_span):
     """Per-component amplitude of the motion: max |y_i| of an rk4 run with h = 1e-3 over
     min(t_span, 20) s (every state component, so that angles and rates are each compared with
     their own size)."""
-    from .ode import solve_ode
     t = min(t_span, 20.0)
     r = solve_ode(problem, "rk4", h=1e-3, t_end=t, every=10, params=params, y0=y0)
     scale = np.abs(r.y).max(axis=0)
@@ -457,8 +459,6 @@ def _reference_scale(problem, params, y0, t_span):
 
 
 def _run_is_stable(problem, method, h, t_span, growth, params, y0, scale):
-    from .ode import solve_ode
-    from .problems import problem as _problem
     n = max(1, math.ceil(t_span / h - 1e-9))
     every = max(1, n // 4000)
     r = solve_ode(problem, method, h=h, t_end=n * h, every=every, params=params, y0=y0,
@@ -535,12 +535,10 @@ def largest_stable_step(problem: str, method: str, *, t_span: float = 100.0,
 
 def equilibrium(problem: str, params: dict | None = None, y0=None) -> np.ndarray:
     """The rest state nearest y0 (velocities zero), by Newton on the compiled right-hand side."""
+    # SciPy is an optional dependency (the studies' extra): only this Newton needs it
     from scipy.optimize import root
-    from .ode import evaluate_rhs
-    from .problems import problem as _problem
-    from .ode import _state
     info = _problem(problem)
-    y = _state("y0", y0 if y0 is not None else info.y0, info.n if info.n > 0 else None).copy()
+    y = state_vector("y0", y0 if y0 is not None else info.y0, info.n if info.n > 0 else None).copy()
     nq = y.size // 2 if info.second_order else 0
     if nq:
         y[nq:] = 0.0
@@ -560,7 +558,6 @@ def equilibrium(problem: str, params: dict | None = None, y0=None) -> np.ndarray
 def linearisation(problem: str, params: dict | None = None, y0=None) -> tuple[np.ndarray, np.ndarray]:
     """(y_eq, J): the rest state and the Jacobian of the compiled right-hand side there
     (central differences)."""
-    from .ode import evaluate_rhs
     y = equilibrium(problem, params, y0)
     n = y.size
     jac = np.empty((n, n))

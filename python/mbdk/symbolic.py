@@ -30,12 +30,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import model as M
+from .codes import COORDS
 from .errors import InvalidInputError, MbdkError
-from .scene import COORDS, GROUND, Scene
+from .scene import GROUND, Scene
+from .scene_file import checked
+from .symbolic_spatial import cross_check_spatial
 
 
 def _sympy():
     try:
+        # SymPy: optional (the studies' and tests' extra), slow to import
         import sympy
     except ImportError:      # pragma: no cover - sympy is in the test and study extras
         raise InvalidInputError("mbdk.symbolic needs SymPy: pip install sympy") from None
@@ -75,8 +80,7 @@ def derive(sc: Scene, q0=None) -> SymbolicModel:
         raise InvalidInputError(f"derive takes a planar Scene, got {type(sc).__name__} (spatial "
                                 "scenes: derive_spatial)")
     if q0 is None:
-        from .model import assemble, build_tables
-        q0 = assemble(sc, build_tables(sc))[0]
+        q0 = M.assemble(sc, M.build_tables(sc))[0]
     q0 = np.asarray(q0, float)
     nb = len(sc.bodies)
     t = sp.Symbol("t", real=True)
@@ -249,13 +253,9 @@ def cross_check(sc, states: int = 5, seed: int = 0, spread: float = 0.1) -> dict
     lambdification, CPU seconds), "kernel_ns" (the kernel's assembly of Phi, D, gamma and f,
     timed inside it; None where no state evaluates) and "symbolic_ns" (the lambdified
     expressions, one state)."""
-    from .spatial import SpatialScene
-    if isinstance(sc, SpatialScene):
-        from .symbolic_spatial import cross_check_spatial
+    if isinstance(sc, Scene) and sc.kind == "spatial":
         return cross_check_spatial(sc, states, seed, spread)
     sp = _sympy()
-    from . import model as M
-    from .scene import checked
     sc = checked(sc)
     tab = M.build_tables(sc)
     q0 = M.assemble(sc, tab)[0]

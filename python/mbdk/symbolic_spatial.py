@@ -28,6 +28,7 @@ import time
 import numpy as np
 
 from .errors import InvalidInputError
+from .spatial_model import evaluate_spatial, spatial_tables
 
 
 def _normals(a: np.ndarray):
@@ -54,12 +55,12 @@ def derive_spatial(sc):
     """(symbols, Phi(s), loads): the symbolic rows along the motion parameter s, and the
     generalised forces, for a quaternion scene. symbols: per body r (3), R (3 x 3 entries), v,
     W (3 each); and t, s."""
+    # SymPy: optional (the studies' and tests' extra), slow to import
     import sympy as sp
-    from .spatial import _tables
     if sc.rotation != "quaternion":
         raise InvalidInputError(f"{sc.source}: the symbolic check takes quaternion scenes "
                                 f"(rotation = {sc.rotation!r})")
-    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
     y0 = sc.state0()
     rot0 = [_quat_matrix(y0[7 * b + 3:7 * b + 7]) for b in range(nb)]
     t, s = sp.symbols("t s", real=True)
@@ -168,8 +169,8 @@ def cross_check_spatial(sc, states: int = 5, seed: int = 0, spread: float = 0.1)
     differences of phi, D (the C of w), gamma, phit at random states and of the accelerations
     a = (v', W') at admissible states, compared as M a; lam is not compared (not unique with
     redundant joints), f enters through a."""
+    # SymPy: optional (the studies' and tests' extra), slow to import
     import sympy as sp
-    from .spatial import evaluate_spatial
     c0 = time.process_time()
     syms, phi_s, f_s = derive_spatial(sc)
     nb = len(sc.bodies)

@@ -5,6 +5,7 @@ are deterministic, error-controlled ones included)."""
 from __future__ import annotations
 
 from ..ode import solve_ode
+from ..simulate import simulate
 
 
 def solve_timed(problem, method, *, min_cpu: float = 0.02, max_reps: int = 20000, **kw):
@@ -19,7 +20,6 @@ def solve_timed(problem, method, *, min_cpu: float = 0.02, max_reps: int = 20000
 
 def simulate_timed(scene, method, *, min_cpu: float = 0.02, max_reps: int = 2000, **kw):
     """(result, CPU seconds per run) of a scene run, repeated as solve_timed does."""
-    from ..simulate import simulate
     r = simulate(scene, method, **kw)
     total, reps = r.cpu_time, 1
     while total < min_cpu and reps < max_reps:

@@ -1,0 +1,165 @@
+"""The codes Python passes to the kernel, in one module.
+
+Where the kernel exports a table, the codes are read from it: the element kinds (joints, forces
+and effects of planar scenes, kernel/src/model/mbdk_elements.f90, with their constraint rows and
+visit counters) and the body kinds here, the methods' names and ids in mbdk.methods, the status
+codes' names and messages in mbdk.errors (whose Status mirrors them).
+
+The kernel has no exported table of the others yet: they are kept here, each beside the name of
+the kernel constants it mirrors. tests/test_codes.py compares each table with the kernel's
+named constants (its Fortran parameter definitions, read from kernel/src) and, where the f2py
+entry takes a bare number, with what the kernel does with the code (a run in each form, a scene
+of each spatial joint type evaluated). Nothing else in the package writes a code the kernel
+reads.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _kernel
+from .errors import decode_text
+
+# ---- read from the kernel's registries -------------------------------------------------------
+
+
+def _element_kinds() -> list[tuple[int, int, str, int, int]]:
+    """The kernel's element registry: (class, code, name, rows, states) per kind, in the order
+    of the visit counters."""
+    out, i = [], 1
+    while True:
+        cls, code, name, rows, states = _kernel.element_kind(i)
+        if cls == 0:
+            return out
+        out.append((int(cls), int(code), decode_text(name), int(rows), int(states)))
+        i += 1
+
+
+def _body_kinds() -> dict:
+    """The kernel's body kinds: name -> (code, coordinates, velocities, available in the planar
+    model)."""
+    out, i = {}, 1
+    while True:
+        code, name, coords, vels, available = _kernel.body_kind(i)
+        if code == 0:
+            return out
+        out[decode_text(name)] = (int(code), int(coords), int(vels), bool(available))
+        i += 1
+
+
+ELEMENT_KINDS = _element_kinds()
+JOINT_CLASS, FORCE_CLASS, EFFECT_CLASS = 1, 2, 3
+#: planar joint types -> the kernel's codes, and their constraint rows
+JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
+JOINT_ROWS_BY_CODE = {code: rows for cls, code, _n, rows, _s in ELEMENT_KINDS
+                      if cls == JOINT_CLASS}
+_FORCE_KINDS = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
+#: planar force types -> the kernel's codes; the coordinate spring and damper are one kernel kind
+FORCE_CODES = {**_FORCE_KINDS, "coordinate_spring": _FORCE_KINDS["coordinate_spring_damper"],
+               "coordinate_damper": _FORCE_KINDS["coordinate_spring_damper"]}
+EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
+#: the kernel's visit counters, in its order: one per element kind
+VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
+BODY_KINDS = _body_kinds()
+
+# ---- the kernel's structs (kernel/src/api/mbdk_structs.f90), laid out by mbdk.options ---------
+
+#: the structs' ids (MBDK_STRUCT_*); the kernel names each, and mbdk.options checks the name
+STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
+              "mbdk_model_options": 4}
+#: a field's type code (MBDK_FIELD_INT, _INT64, _DOUBLE, _POINTER) -> its numpy type
+FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
+
+# ---- the methods (kernel/src/core/mbdk_methods.f90), names and ids read by mbdk.methods -------
+
+#: the kernel's method families (MBDK_FAMILY_*), as its method_info returns them
+METHOD_FAMILIES = {1: "explicit_rk", 2: "euler_cromer", 3: "implicit_lmm", 4: "dae_index3",
+                   5: "embedded_rk", 6: "variable_bdf", 7: "cvode", 8: "ida"}
+
+# ---- the planar model (kernel/src/model), no exported table yet ------------------------------
+
+#: MBDK_FORM_* of kernel/src/core/mbdk_mechanism.f90, the codes of both models
+FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
+#: MBDK_SOLVER_* of mbdk_model.f90. solver="auto" takes revolute_schur when every joint is
+#: revolute (and M is positive, up to 12 constraint rows), else schur when M is positive (sparse
+#: above 12 constraint rows), else kkt; "schur" is the dense Schur complement at any size,
+#: "sparse" the sparse one at any size
+SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
+#: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
+SPARSE_MIN_ROWS = 12
+#: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (mbdk_constrained)
+LINEAR_SOLVES = {0: "none (no constraints)",
+                 1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
+                 2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",
+                 3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
+                 4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
+                 5: "penalty: M + ap D^T D, in-house LDL^T",
+                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs",
+                 7: "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"}
+#: the outputs a planar run computes at its samples, the bits of scene_run's want
+#: (MBDK_OUT_* of mbdk_model.f90)
+OUTPUTS = {"a": 1, "multipliers": 2, "reactions": 4, "energy": 8, "residuals": 16}
+#: a planar body's coordinates, as a driver, a coupling or a coordinate spring names them
+COORDS = {"x": 1, "y": 2, "angle": 3}
+#: a contact's body2 shape -> the kernel's geometry code (MBDK_CONTACT_* of mbdk_contact.f90)
+CONTACT_GEOMETRY = {"line": 1, "circle": 2, "ring": 3, "gear": 4}
+#: wear laws and the contact quantity they take (MBDK_WEAR_* of mbdk_wear.f90)
+WEAR_LAWS = {"archard": 1, "gear": 2, "knee": 3}
+WEAR_LOADS = {"normal_force": 1, "friction_force": 2}
+#: the 4th integer of a two-point force or a prismatic, fixed, distance, coupling or rolling
+#: joint: take the value (rest length, relative angle, length, offset) from the initial pose
+#: (MBDK_FROM_POSE of mbdk_assembly.f90)
+FROM_POSE = 1
+#: trapezoidal_index3's forms (MBDK_INDEX3_BOOK, MBDK_INDEX3_AUGMENTED of
+#: kernel/src/dae/mbdk_trapezoidal_index3.f90)
+INDEX3_FORMULATIONS = {"index3": 1, "augmented_lagrangian": 2}
+#: trapezoidal_index3's adaptive= values and the kernel's opt%adaptive codes: local Richardson
+#: extrapolation of two half-steps against the full step (True; order 3), or the step's error
+#: estimated from differences of the accelerations (order 2: on P1 no distribution of its steps
+#: saves more than 8 %, studies/step_control.py) (MBDK_INDEX3_EXTRAPOLATED, _ESTIMATED)
+ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
+#: the Newton matrix's scaling of mbdk.index3.newton_matrix (MBDK_INDEX3_UNSCALED,
+#: MBDK_INDEX3_SCALED_BOOK, MBDK_INDEX3_SCALED of kernel/src/dae/mbdk_index3_matrix.f90)
+INDEX3_SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
+#: the multistep methods' start-up (mbdk_options' startup)
+STARTUP = {"rk4": 0, "bdf": 1}
+#: scene_run's dae_form by method: ida's forms of the scene's DAE (kernel/src/sundials/
+#: mbdk_ida.f90) and bdf's (MBDK_DAE_I3, MBDK_DAE_SI2 of kernel/src/dae/mbdk_mechanism_dae.f90,
+#: as MSC Adams' GSTIFF I3 and SI2); 0 for every other run
+SCENE_DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
+
+# ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
+
+#: MBDK_SPATIAL_SPHERICAL .. MBDK_SPATIAL_SLIDE_DRIVER, and MBDK_SPATIAL_JOINT_ROWS
+SPATIAL_JOINT_CODES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4,
+                       "prismatic": 5, "fixed": 6, "angle_driver": 7, "slide_driver": 8}
+SPATIAL_JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4,
+                      "prismatic": 5, "fixed": 6, "angle_driver": 1, "slide_driver": 1}
+#: MBDK_SPATIAL_GRAVITY .. MBDK_SPATIAL_SPHERE_SPHERE (a spring and a damper are
+#: spring_dampers; a file's contact is sphere_plane or sphere_sphere by its second shape)
+SPATIAL_FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4,
+                       "spring": 4, "damper": 4, "sphere_plane": 5, "sphere_sphere": 6}
+#: the reals per joint and per force (MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS: as
+#: many as a contact has, kernel/src/spatial/mbdk_contact3d.f90; the other kinds use the first)
+SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 19
+#: the orientation coordinates (MBDK_ROT_*) and how |p| = 1 is kept (MBDK_NORM_*)
+ROTATIONS = {"quaternion": 1, "euler313": 2, "cardan123": 3}
+NORMS = {"project": 1, "stabilise": 2, "none": 3}
+#: the parametrisation rotation_matrix (the f2py entry) takes, its kind argument (mbdk.rotations)
+ROTATION_PARAMETRISATIONS = {"angles": 1, "quaternion": 2, "axis_angle": 3}
+#: the frame of an angular velocity, the body argument of the f2py entries angle_rates,
+#: quaternion_ops and quaternion_omega
+FRAMES = {"space": 0, "body": 1}
+#: the spatial model's formulations: the planar model's codes (MBDK_FORM_* of mbdk_mechanism)
+SPATIAL_FORMULATIONS = FORMULATIONS
+#: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the
+#: index-3 DAE (mbdk_mechanism_dae); 2 trapezoidal_index3's augmented, projected form
+#: (mbdk_trapezoidal_index3); 3, 4 ida in its index1 and GGL forms (mbdk_ida); 5 bdf on the
+#: stabilised index-2 form
+SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "projected"): 2,
+                     ("ida", "index1"): 3, ("ida", "ggl"): 4, ("bdf", "si2"): 5}
+#: the length of spatial_run's sopt, and each entry's position (the f2py entry's argument)
+SPATIAL_OPTIONS = ("formulation", "rotation", "norm", "alpha", "beta", "norm_gain",
+                   "projection_tol", "watch_position", "watch_velocity", "watch_energy",
+                   "watch_every", "pen_alpha", "pen_omega", "pen_mu", "lock_guard",
+                   "watch_momentum", "watch_quaternion", "locate_events")

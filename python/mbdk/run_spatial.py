@@ -1,0 +1,109 @@
+"""The run of a spatial scene: the spatial model's tables and initial state, one call of the
+f2py entry spatial_run (kernel/src/api/mbdk_f2py.f90) with the plan's options, and the samples
+as a SceneResult. Failures are left to mbdk.diagnosis.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _compiled, _kernel
+from .checks import check_memory, memory_error
+from .errors import Status, status_message
+from .ode import build_info
+from .options import empty
+from .plan import SPATIAL_IDA_FORMS, RunPlan
+from .result import KernelRun, SceneResult, Stats
+from .run_planar import SCENE_SAMPLE_ADVICE
+from .scene import Scene
+from .spatial_model import spatial_tables
+from .watch import invariant_names
+
+#: what to change when a spatial run's samples do not fit in memory (it has no outputs to drop)
+SPATIAL_SAMPLE_ADVICE = SCENE_SAMPLE_ADVICE.split(", or fewer outputs")[0]
+INDEX3_FORM = ("trapezoidal rule on the index-3 DAE, Newton on (q+, w+, lam+) with the "
+               "equations of motion at t+, then the projections of positions, velocities and "
+               "the quaternions' norm, and a+, lam+ from the constrained solve")
+SI2_FORM = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w - M^-1 C^T mu), w' = M^-1 (f - "
+            "C^T lam), 0 = Phi, 0 = C w + Phi_t on the independent rows; error test on q and w; "
+            "no projection between steps")
+I3_FORM = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), 0 = Phi on the "
+           "independent rows; error test on q and h times w; no projection between steps")
+BDF_NEWTON = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
+
+
+def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
+    """One call of spatial_run: the scene's run as planned."""
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(scene)
+    y0 = scene.state0()
+    req = plan.request
+    stats, flag = empty("mbdk_stats"), _compiled.new_flag()
+    m1 = max(scene.rows, 1)
+    nsamp = plan.nsamp
+    args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+            plan.spatial_options, plan.ode_options.pack(), flag, np.zeros(0), y0,
+            int(bool(req.assemble_initial)), plan.dae_form, float(req.t0), float(req.t_end),
+            nsamp, m1, stats)
+    # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
+    # before they are allocated where the machine has not that much memory
+    nbytes = 8.0 * nsamp * (1 + len(y0) + 8 + m1)   # spatial_run's out(8, nsamp)
+    what = f"{plan.method} on spatial scene {scene.name!r} ({nsamp} samples)"
+    check_memory(nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE)
+    try:
+        (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = \
+            _compiled.call(_kernel.spatial_run, args, flag, plan.steps * len(y0),
+                           span=(req.t0, req.t_end))
+    except MemoryError as exc:
+        raise memory_error(exc, nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE) from None
+    status = Status(int(status))
+    nq = nb * (7 if scene.rotation == "quaternion" else 6)
+    ys = y[:, :nw].T
+    o = out[:, :nw].T
+    inv = invariants[:, :int(ninv)].T
+    result = SceneResult(
+        t=t[:nw], q=ys[:, :nq], v=ys[:, nq:], a=None,
+        multipliers=lam[:scene.rows, :nw].T if scene.rows else None, reactions=None,
+        energy=o[:, 0] + o[:, 1] + o[:, 2],
+        energy_parts={"kinetic": o[:, 0], "potential_gravity": o[:, 1],
+                      "potential_springs": o[:, 2], "power": o[:, 3], "work": o[:, 7]},
+        residuals=o[:, 4:7], stats=Stats.from_words(stats), status=status,
+        message=status_message(status), manifest=_manifest(scene, plan, inv),
+        bodies=[b.name for b in scene.bodies], joints=[j.name for j in scene.joints],
+        assembly={"moved": float(moved)}, kind="spatial", rotation=scene.rotation)
+    return KernelRun(result, bool(interrupted), report, inv, y0)
+
+
+def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
+    formulation, w, req = plan.formulation, plan.watch, plan.request
+    manifest = {**build_info(), "scene": scene.name, "kind": "spatial", "method": plan.method,
+                "formulation": formulation, "rotation": scene.rotation,
+                **({"h": req.h, "every": int(req.every)} if not plan.info.adaptive else {}),
+                "quaternion_norm": ("none (bdf on the DAE: no projection between its steps)"
+                                    if plan.dae_bdf and scene.quaternion_norm == "project"
+                                    else scene.quaternion_norm), "t0": req.t0,
+                "t_end": req.t_end, **plan.manifest,
+                "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
+                                 if formulation == "penalty" else
+                                 "dense Schur complement (LAPACK dpotrf)"),
+                "locate_events": bool(req.locate_events) and plan.method in ("dopri54", "bs32"),
+                "watch": {"position": w.position, "velocity": w.velocity,
+                          "energy": w.energy, "every": w.every, "momentum": w.momentum,
+                          "quaternion": w.quaternion},
+                "invariants": invariant_names(inv)}
+    if formulation in ("projection", "projected"):
+        manifest["projection_tol"] = plan.projection_tol
+    if plan.multipliers_note:
+        manifest["multipliers"] = plan.multipliers_note
+    if plan.index3:
+        manifest["form"] = INDEX3_FORM
+        manifest["linear_solve"] = ("Newton matrix by forward differences (LAPACK LU), kept "
+                                    "while Newton contracts")
+    if plan.ida:
+        manifest["form"] = SPATIAL_IDA_FORMS[formulation]
+        manifest["linear_solve"] = "IDA's dense difference quotients, SUNDIALS dense LU"
+        manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
+                                       if scene.quaternion_norm == "project" else
+                                       scene.quaternion_norm)
+    if plan.dae_bdf:
+        manifest["form"] = SI2_FORM if formulation == "si2" else I3_FORM
+        manifest["linear_solve"] = BDF_NEWTON
+    return manifest

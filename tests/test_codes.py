@@ -1,0 +1,572 @@
+"""Every code Python passes to the kernel (python/mbdk/codes.py, and the method ids and status
+codes Python reads from it) against the kernel.
+
+First by name: the kernel's named integer constants, read from their Fortran parameter
+definitions in kernel/src (the f2py module exports tables only for the element kinds, body
+kinds, methods and statuses, and those registries are compared too), table by table: each
+Python code is its constant's value, and each constant of the kernel's set (every constant of
+its prefix, or the codes 1..its count constant) has its Python name, so that a code the kernel
+adds or renumbers fails here.
+
+Then by what the kernel does with the codes the f2py entries take as bare numbers (ida's forms,
+spatial_run's dae_form and options, rotation_matrix's kind) or that a constant alone cannot
+check: a scene of each spatial joint type evaluated (the motions the joint leaves free, the rows
+it adds), each spatial force (the accelerations and energies it gives), each orientation set
+(the kernel's rotation of the coordinates Python wrote), each quaternion-norm treatment, each
+formulation and each form of the DAE (their signatures in a run), the outputs' bits, the linear
+solves, and the positions of spatial_run's options in the f2py entry's source."""
+import ast
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mbdk
+from mbdk import _kernel, codes, rotations
+from mbdk.errors import Status, decode_text
+from mbdk.scene_file import scene_from_dict
+from mbdk.spatial_model import evaluate_spatial
+
+# ---- the kernel's named constants -----------------------------------------------------------
+
+_DECLARATION = re.compile(r"^\s*integer\s*(?:\([^)]*\))?\s*,[^:]*\bparameter\b[^:]*::(.*)$",
+                          re.I)
+
+
+def _code(line: str) -> str:
+    """A Fortran line without its comment (a ! outside a character literal)."""
+    quote = None
+    for i, ch in enumerate(line):
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "!":
+            return line[:i]
+    return line
+
+
+def _statements(text: str):
+    """The free-form statements of a Fortran file, continuation lines joined."""
+    joined = ""
+    for line in text.splitlines():
+        code = _code(line).strip()
+        if joined and code.startswith("&"):
+            code = code[1:]
+        if code.endswith("&"):
+            joined += code[:-1] + " "
+            continue
+        yield joined + code
+        joined = ""
+
+
+def _entities(text: str) -> list[str]:
+    """A declaration's entities, split at the commas outside brackets."""
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        depth += (ch in "([") - (ch in ")]")
+        if ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return out + [cur]
+
+
+def _value(expr: str, known: dict):
+    """An integer constant expression (literals with a kind, names of constants, + - *, an
+    array constructor); KeyError where it names a constant not known yet."""
+    def ev(n):
+        if isinstance(n, ast.Constant) and type(n.value) is int:
+            return n.value
+        if isinstance(n, ast.Name):
+            return known[n.id.upper()]
+        if isinstance(n, ast.UnaryOp) and isinstance(n.op, ast.USub):
+            return -ev(n.operand)
+        if isinstance(n, ast.BinOp) and type(n.op) in (ast.Add, ast.Sub, ast.Mult):
+            a, b = ev(n.left), ev(n.right)
+            return {ast.Add: a + b, ast.Sub: a - b, ast.Mult: a * b}[type(n.op)]
+        if isinstance(n, ast.List):
+            return [ev(e) for e in n.elts]
+        raise KeyError(ast.dump(n))
+    return ev(ast.parse(re.sub(r"(\d)_[A-Za-z]\w*", r"\1", expr.strip()), mode="eval").body)
+
+
+def fortran_constants(src: Path) -> dict:
+    """Every integer named constant of the Fortran files under src (upper case) -> its value,
+    an int or a list; a name declared twice, or whose value is not a constant expression of
+    the kinds above, is left out."""
+    exprs = {}
+    for path in sorted(src.rglob("*.f90")):
+        for statement in _statements(path.read_text()):
+            m = _DECLARATION.match(statement)
+            for entity in _entities(m.group(1)) if m else []:
+                name, eq, expr = entity.partition("=")
+                if eq:
+                    exprs.setdefault(re.sub(r"\(.*", "", name).strip().upper(), []).append(expr)
+    known, pending = {}, {k: v[0] for k, v in exprs.items() if len(v) == 1}
+    while True:
+        done = {}
+        for name, expr in pending.items():
+            try:
+                done[name] = _value(expr, known)
+            except (KeyError, SyntaxError):
+                pass
+        if not done:
+            return known
+        known.update(done)
+        pending = {k: v for k, v in pending.items() if k not in done}
+
+
+@pytest.fixture(scope="module")
+def kernel(root):
+    return fortran_constants(root / "kernel" / "src")
+
+
+def _named(prefix: str, names) -> dict:
+    return {n: prefix + n.upper() for n in names}
+
+
+#: Python's table -> (its codes by the kernel constant each mirrors, the kernel's set of codes:
+#: a prefix every constant of which the table must name (but those listed after it), or the
+#: constant that counts the codes 1..N). A table read from the kernel's registries is here too.
+TABLES = {
+    "JOINT_CODES": (_named("MBDK_JOINT_", codes.JOINT_CODES), "MBDK_JOINT_TYPES"),
+    "FORCE_CODES": ({**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "spring",
+                                               "damper", "contact", "friction"]),
+                     "point_force": "MBDK_FORCE_POINT",
+                     "coordinate_spring_damper": "MBDK_FORCE_COORDINATE",
+                     "coordinate_spring": "MBDK_FORCE_COORDINATE",
+                     "coordinate_damper": "MBDK_FORCE_COORDINATE"}, "MBDK_FORCE_TYPES"),
+    "EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
+    "BODY_CODES": (_named("MBDK_BODY_", ["planar", "spatial"]), "MBDK_BODY_KINDS"),
+    "STRUCT_IDS": ({"mbdk_stats": "MBDK_STRUCT_STATS", "mbdk_options": "MBDK_STRUCT_OPTIONS",
+                    "mbdk_index3_options": "MBDK_STRUCT_INDEX3_OPTIONS",
+                    "mbdk_model_options": "MBDK_STRUCT_MODEL_OPTIONS"}, "MBDK_STRUCT_COUNT"),
+    "FIELD_TYPE_CODES": (_named("MBDK_FIELD_", ["int", "int64", "double", "pointer"]),
+                         ("MBDK_FIELD_",)),
+    "METHOD_FAMILY_CODES": (_named("MBDK_FAMILY_", codes.METHOD_FAMILIES.values()),
+                            ("MBDK_FAMILY_",)),
+    "FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty", "projection"]),
+                     ("MBDK_FORM_",)),
+    "SOLVERS": ({**_named("MBDK_SOLVER_", ["auto", "schur", "kkt", "sparse"]),
+                 "revolute_schur": "MBDK_SOLVER_REVOLUTE"}, ("MBDK_SOLVER_",)),
+    "OUTPUTS": ({"a": "MBDK_OUT_ACCELERATIONS", **_named("MBDK_OUT_", ["multipliers",
+                 "reactions", "energy", "residuals"])}, ("MBDK_OUT_", "MBDK_OUT_ALL")),
+    "CONTACT_GEOMETRY": ({"line": "MBDK_CONTACT_LINE", "circle": "MBDK_CONTACT_CIRCLES",
+                          "ring": "MBDK_CONTACT_INSIDE", "gear": "MBDK_CONTACT_GEAR"},
+                         ("MBDK_CONTACT_", "MBDK_CONTACT_PAIRS")),
+    "WEAR_LAWS": (_named("MBDK_WEAR_", ["archard", "gear", "knee"]), "MBDK_WEAR_LAWS"),
+    "WEAR_LOADS": ({"normal_force": "MBDK_WEAR_LOAD_NORMAL",
+                    "friction_force": "MBDK_WEAR_LOAD_FRICTION"}, ("MBDK_WEAR_LOAD_",)),
+    "INDEX3_FORMULATIONS": ({"index3": "MBDK_INDEX3_BOOK",
+                             "augmented_lagrangian": "MBDK_INDEX3_AUGMENTED"}, None),
+    "ADAPTIVE_MODES": ({True: "MBDK_INDEX3_EXTRAPOLATED", "extrapolated":
+                        "MBDK_INDEX3_EXTRAPOLATED", "estimated": "MBDK_INDEX3_ESTIMATED"}, None),
+    "INDEX3_SCALINGS": ({"unscaled": "MBDK_INDEX3_UNSCALED", "book": "MBDK_INDEX3_SCALED_BOOK",
+                         "scaled": "MBDK_INDEX3_SCALED"}, None),
+    "STARTUP": (_named("MBDK_STARTUP_", ["rk4", "bdf"]), ("MBDK_STARTUP_",)),
+    "BDF_DAE_FORMS": (_named("MBDK_DAE_", ["i3", "si2"]), ("MBDK_DAE_",)),
+    "SPATIAL_JOINT_CODES": (_named("MBDK_SPATIAL_", codes.SPATIAL_JOINT_CODES),
+                            "MBDK_SPATIAL_JOINT_TYPES"),
+    "SPATIAL_FORCE_CODES": ({**_named("MBDK_SPATIAL_", ["gravity", "point_force", "torque",
+                                                         "spring_damper", "sphere_plane",
+                                                         "sphere_sphere"]),
+                             "spring": "MBDK_SPATIAL_SPRING_DAMPER",
+                             "damper": "MBDK_SPATIAL_SPRING_DAMPER"},
+                            "MBDK_SPATIAL_FORCE_TYPES"),
+    "ROTATIONS": (_named("MBDK_ROT_", ["quaternion", "euler313", "cardan123"]), ("MBDK_ROT_",)),
+    "NORMS": (_named("MBDK_NORM_", ["project", "stabilise", "none"]), ("MBDK_NORM_",)),
+    "SPATIAL_FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty",
+                                                   "projection"]), ("MBDK_FORM_",)),
+}
+
+#: Python's single codes and sizes -> the kernel constant each mirrors
+SCALARS = {"FROM_POSE": "MBDK_FROM_POSE", "SPARSE_MIN_ROWS": "MBDK_SPARSE_MIN_ROWS",
+           "SPATIAL_JOINT_REALS": "MBDK_SPATIAL_JOINT_REALS",
+           "SPATIAL_FORCE_REALS": "MBDK_SPATIAL_FORCE_REALS"}
+
+
+def _python_table(name: str) -> dict:
+    """The table TABLES names, as name -> code (inverted where Python keys it by code)."""
+    if name == "BODY_CODES":
+        return {k: v[0] for k, v in codes.BODY_KINDS.items()}
+    if name == "FIELD_TYPE_CODES":
+        kinds = {np.intc: "int", np.int64: "int64", np.float64: "double", np.uintp: "pointer"}
+        return {kinds[t]: k for k, t in codes.FIELD_TYPES.items()}
+    if name == "METHOD_FAMILY_CODES":
+        return {v: k for k, v in codes.METHOD_FAMILIES.items()}
+    if name == "BDF_DAE_FORMS":
+        return codes.SCENE_DAE_FORMS["bdf"]
+    table = dict(getattr(codes, name))
+    if name == "ADAPTIVE_MODES":     # False: no step-size control, the kernel's opt%adaptive 0
+        assert table.pop(False) == 0
+    return table
+
+
+def mismatches(table: dict, names: dict, whole, kernel: dict) -> list[str]:
+    """How a Python table (name -> code) differs from the kernel's constants it mirrors (names:
+    name -> constant; whole: TABLES' second entry); empty where they agree."""
+    out = [f"{k!r}: no kernel constant named" for k in set(table) - set(names)]
+    out += [f"{k!r}: missing (the kernel has {c})" for k, c in names.items() if k not in table]
+    for k in set(table) & set(names):
+        if names[k] not in kernel:
+            out.append(f"{k!r}: the kernel has no constant {names[k]}")
+        elif table[k] != kernel[names[k]]:
+            out.append(f"{k!r} = {table[k]}, the kernel's {names[k]} = {kernel[names[k]]}")
+    if isinstance(whole, str):
+        if sorted(set(table.values())) != list(range(1, kernel[whole] + 1)):
+            out.append(f"codes {sorted(set(table.values()))}, the kernel's are 1..{whole} = "
+                       f"{kernel[whole]}")
+    elif whole:
+        prefix, *others = whole
+        out += [f"the kernel's {c} = {v} has no Python name" for c, v in kernel.items()
+                if c.startswith(prefix) and c not in others and c not in names.values()]
+    return out
+
+
+def test_the_kernels_constants_are_read():
+    """The reader finds the constants it is meant to, values resolved through other names."""
+    k = fortran_constants(Path(__file__).resolve().parents[1] / "kernel" / "src")
+    assert k["MBDK_SPATIAL_JOINT_ROWS"] == [3, 5, 4, 4, 5, 6, 1, 1]     # an array, continued
+    assert k["MBDK_ERR_INTERRUPTED"] == -60 and k["MBDK_SUCCESS"] == 0
+    assert k["MBDK_ELEMENT_KINDS"] == k["MBDK_JOINT_TYPES"] + k["MBDK_FORCE_TYPES"] + 1
+    assert k["MBDK_SPARSE_MIN_ROWS"] == k["MBDK_SMALL_DENSE_MAX"]      # a constant's name
+
+
+@pytest.mark.parametrize("name", list(TABLES))
+def test_a_code_table_is_the_kernels(name, kernel):
+    names, whole = TABLES[name]
+    assert not mismatches(_python_table(name), names, whole, kernel)
+
+
+def test_a_wrong_table_is_found_wrong(kernel):
+    """The comparison fails on a code renumbered, a name the kernel lacks, a name Python lacks
+    and a kernel code without a Python name."""
+    names, whole = TABLES["FORMULATIONS"]
+    table = _python_table("FORMULATIONS")
+    assert not mismatches(table, names, whole, kernel)
+    assert mismatches({**table, "penalty": 5}, names, whole, kernel)
+    assert mismatches({**table, "index9": 9}, names, whole, kernel)
+    assert mismatches({k: v for k, v in table.items() if k != "penalty"}, names, whole, kernel)
+    assert mismatches(table, names, whole, {**kernel, "MBDK_FORM_NEW": 5})
+    names, whole = TABLES["SPATIAL_JOINT_CODES"]
+    assert mismatches(codes.SPATIAL_JOINT_CODES, names, whole,
+                      {**kernel, "MBDK_SPATIAL_JOINT_TYPES": 9})
+
+
+@pytest.mark.parametrize("name", list(SCALARS))
+def test_a_single_code_is_the_kernels(name, kernel):
+    assert getattr(codes, name) == kernel[SCALARS[name]]
+
+
+def test_the_joint_rows_are_the_kernels(kernel):
+    planar, spatial = kernel["MBDK_JOINT_ROW_COUNT"], kernel["MBDK_SPATIAL_JOINT_ROWS"]
+    assert codes.JOINT_ROWS == {n: planar[c - 1] for n, c in codes.JOINT_CODES.items()}
+    assert codes.SPATIAL_JOINT_ROWS == {n: spatial[c - 1]
+                                        for n, c in codes.SPATIAL_JOINT_CODES.items()}
+
+
+def test_the_coordinates_and_the_output_bits_fit_the_kernels(kernel):
+    """A planar body's coordinates are 1..MBDK_PLANAR_COORDS (no constant names each); the
+    output bits are distinct powers of two that sum to MBDK_OUT_ALL."""
+    assert sorted(codes.COORDS.values()) == list(range(1, kernel["MBDK_PLANAR_COORDS"] + 1))
+    assert codes.BODY_KINDS["planar"][1] == kernel["MBDK_PLANAR_COORDS"]
+    bits = list(codes.OUTPUTS.values())
+    assert all(b & (b - 1) == 0 for b in bits) and sum(bits) == kernel["MBDK_OUT_ALL"]
+
+
+def test_the_method_ids_are_the_kernels(kernel):
+    """mbdk.methods' ids (read from the kernel's registry) against the method constants, and
+    one method per id up to MBDK_METHOD_COUNT."""
+    special = {"bdf": "MBDK_BDF_VARIABLE"}
+    found = mbdk.methods()
+    for name, info in found.items():
+        if re.fullmatch(r"bdf[1-6]", name):
+            assert info.id == kernel["MBDK_BDF1"] + int(name[3:]) - 1, name
+        else:
+            assert info.id == kernel[special.get(name, "MBDK_" + name.upper())], name
+        assert info.family == codes.METHOD_FAMILIES[int(_kernel.method_info(info.id)[1])]
+    assert sorted(m.id for m in found.values()) == list(range(1, kernel["MBDK_METHOD_COUNT"] + 1))
+    assert found["bdf6"].id == kernel["MBDK_BDF6"]
+
+
+def test_the_status_codes_are_the_kernels(kernel):
+    """mbdk.Status against the status constants of kernel/src/core/mbdk_status.f90 (the f2py
+    table and mbdk.h: tests/test_status.py)."""
+    assert {s.name: s.value for s in Status} == {
+        c.removeprefix("MBDK_"): v for c, v in kernel.items()
+        if re.fullmatch(r"MBDK_(SUCCESS|NOTE_\w+|ERR_\w+)", c)}
+    assert len(Status) == kernel["MBDK_STATUS_COUNT"]
+
+
+def test_the_element_registry_is_the_kernels_constants(kernel):
+    """The f2py registry codes.py reads (element kinds, body kinds) against the constants
+    behind it: every kind once, by class, with its rows."""
+    classes = {1: "JOINT", 2: "FORCE", 3: "EFFECT"}
+    assert (codes.JOINT_CLASS, codes.FORCE_CLASS, codes.EFFECT_CLASS) == tuple(
+        kernel[f"MBDK_CLASS_{c}"] for c in classes.values())
+    assert len(codes.ELEMENT_KINDS) == kernel["MBDK_ELEMENT_KINDS"]
+    for cls, code, name, rows, _states in codes.ELEMENT_KINDS:
+        assert sum(c == cls for c, *_ in codes.ELEMENT_KINDS) == kernel[
+            f"MBDK_{classes[cls]}_TYPES"]
+        if cls == codes.JOINT_CLASS:
+            assert rows == kernel["MBDK_JOINT_ROW_COUNT"][code - 1], name
+    i, kinds = 1, {}
+    while (entry := _kernel.body_kind(i))[0] != 0:
+        kinds[decode_text(entry[1])] = int(entry[0])
+        i += 1
+    assert kinds == {n: kernel[f"MBDK_BODY_{n.upper()}"] for n in kinds}
+
+
+def test_the_rotation_kinds_are_the_f2py_entrys(root):
+    """rotation_matrix takes its parametrisation as a bare number: each Python code's case
+    calls that parametrisation's routine (the matrices themselves: tests/test_rotations.py)."""
+    src = (root / "kernel" / "src" / "api" / "mbdk_f2py.f90").read_text()
+    body = src[src.index("subroutine rotation_matrix("):src.index("end subroutine rotation_matrix")]
+    cases = {int(k): call for k, call in re.findall(r"case \((\d+)\)\s+call (\w+)", body)}
+    assert cases == {codes.ROTATION_PARAMETRISATIONS[n]: r for n, r in
+                     (("angles", "mbdk_angles_matrix"), ("quaternion", "mbdk_quat_matrix"),
+                      ("axis_angle", "mbdk_rodrigues"))}
+    for entry in ("angle_rates", "quaternion_ops", "quaternion_omega"):
+        body = src[src.index(f"subroutine {entry}("):src.index(f"end subroutine {entry}")]
+        assert "body /= 0" in body and "(body = 1: body frame" in body, entry
+    assert codes.FRAMES == {"space": 0, "body": 1}
+
+
+# ---- what the kernel does with the codes ----------------------------------------------------
+
+A = np.array([1.0, 2.0, 2.0]) / 3.0             # the joints' axis (space)
+B = np.array([2.0, -1.0, 0.0]) / np.sqrt(5.0)   # normal to it
+C = np.cross(A, B)
+P = np.array([0.1, 0.0, 0.3])                   # the joints' point (space)
+ANGLES = [0.3, 0.4, 0.5]                        # the body's 3-1-3 angles
+
+
+def _body(**kw):
+    return {"name": "b", "kind": "spatial", "mass": 2.0, "shape": {"type": "box",
+            "size": [0.4, 0.3, 0.2]}, "position": [0.3, -0.2, 0.5], "euler313": ANGLES, **kw}
+
+
+def _joint(typ):
+    j = {"type": typ, "name": "j", "body1": "b"}
+    if typ == "universal":
+        j.update(at=list(P), axis1=list(A), axis2=list(B))
+    elif typ == "angle_driver":
+        j.update(axis=list(A), function={"rate": 0.5})
+    else:
+        j["at"] = list(P)
+        if typ in ("revolute", "cylindrical", "prismatic", "slide_driver"):
+            j["axis"] = list(A)
+        if typ == "slide_driver":
+            j["function"] = {"rate": 0.5}
+    return j
+
+
+def _rot(sc, u):
+    """(v, Omega_body) of the body turning about the axis u through P."""
+    b = sc.bodies[0]
+    return np.concatenate([np.cross(u, b.position - P), b.rotation.T @ u])
+
+
+def _trans(u):
+    return np.concatenate([u, np.zeros(3)])
+
+
+#: per joint type: the motions it leaves free and those it does not (the kernel's C w)
+MOTIONS = {
+    "spherical": (["rot A", "rot B", "rot C"], ["trans A", "trans B"]),
+    "revolute": (["rot A"], ["rot B", "trans A", "trans B"]),
+    "universal": (["rot A", "rot B"], ["rot C", "trans A"]),
+    "cylindrical": (["rot A", "trans A"], ["rot B", "trans B"]),
+    "prismatic": (["trans A"], ["rot A", "rot B", "trans B"]),
+    "fixed": ([], ["rot A", "rot B", "trans A", "trans B"]),
+    "angle_driver": (["trans A", "trans B"], ["rot A"]),
+    "slide_driver": (["rot A", "trans B"], ["trans A"]),
+}
+
+
+def test_every_spatial_joint_type_has_a_row_of_motions():
+    assert set(MOTIONS) == set(codes.SPATIAL_JOINT_CODES) == set(codes.SPATIAL_JOINT_ROWS)
+
+
+@pytest.mark.parametrize("typ", list(MOTIONS))
+def test_a_spatial_joint_code_is_the_joint_the_kernel_builds(typ):
+    """Python's code and row count of a joint type, against the kernel's evaluation of a scene
+    with that joint: the rank of its rows and the motions its C lets through."""
+    sc = scene_from_dict({"body": [_body()], "joint": [_joint(typ)]}, f"{typ}.toml")
+    e = evaluate_spatial(sc)
+    assert e["status"] == mbdk.Status.SUCCESS
+    assert e["rank"] == sc.rows == codes.SPATIAL_JOINT_ROWS[typ]
+    c = np.asarray(e["C"])
+    assert c.shape == (sc.rows, 6)
+    motion = {"rot A": _rot(sc, A), "rot B": _rot(sc, B), "rot C": _rot(sc, C),
+              "trans A": _trans(A), "trans B": _trans(B)}
+    free, held = MOTIONS[typ]
+    for name in free:
+        assert np.abs(c @ motion[name]).max() < 1e-12, (typ, name)
+    for name in held:
+        assert np.abs(c @ motion[name]).max() > 1e-3, (typ, name)
+
+
+@pytest.mark.parametrize("typ", ["gravity", "point_force", "torque", "spring", "damper",
+                                 "spring_damper"])
+def test_a_spatial_force_code_is_the_force_the_kernel_applies(typ):
+    """The accelerations and potential energies of one free body under each force type (at
+    rest: no gyroscopic term, a damper's force zero), against Newton-Euler by hand."""
+    g, f, s, tau = (np.array([0.1, -0.2, -9.81]), np.array([1.0, 2.0, 3.0]),
+                    np.array([0.1, 0.2, 0.0]), np.array([0.1, 0.2, 0.3]))
+    at2, k, rest = np.array([0.0, 0.0, 1.5]), 10.0, 0.5
+    force = {"type": typ, "name": "f"}
+    if typ == "gravity":
+        force["g"] = list(g)
+    elif typ == "point_force":
+        force.update(body="b", point=list(s), force=list(f))
+    elif typ == "torque":
+        force.update(body="b", torque=list(tau))
+    else:
+        force.update(body1="b", at2=list(at2), rest_length=rest)
+        if typ != "damper":
+            force["stiffness"] = k
+        if typ != "spring":
+            force["damping"] = 3.0
+    sc = scene_from_dict({"body": [_body()], "force": [force]}, f"{typ}.toml")
+    b = sc.bodies[0]
+    m, rot, jb = b.mass, b.rotation, b.inertia
+    e = evaluate_spatial(sc)
+    acc = np.asarray(e["ydot"])[-6:]
+    stretch = np.linalg.norm(b.position - at2) - rest
+    expect = {
+        "gravity": (g, np.zeros(3), -m * g @ b.position, 0.0),
+        "point_force": (f / m, np.linalg.solve(jb, np.cross(s, rot.T @ f)), 0.0, 0.0),
+        "torque": (np.zeros(3), np.linalg.solve(jb, rot.T @ tau), 0.0, 0.0),
+        "damper": (np.zeros(3), np.zeros(3), 0.0, 0.0)}
+    spring_force = -k * stretch * (b.position - at2) / np.linalg.norm(b.position - at2) / m
+    expect["spring"] = expect["spring_damper"] = (spring_force, np.zeros(3), 0.0,
+                                                  0.5 * k * stretch ** 2)
+    v_dot, w_dot, vg, vs = expect[typ]
+    assert np.abs(acc[:3] - v_dot).max() < 1e-12 and np.abs(acc[3:] - w_dot).max() < 1e-12
+    assert abs(e["potential_gravity"] - vg) < 1e-12 and abs(e["potential_springs"] - vs) < 1e-12
+
+
+@pytest.mark.parametrize("rotation", list(codes.ROTATIONS))
+def test_a_rotation_code_is_the_orientation_the_kernel_reads(rotation):
+    """The coordinates Python writes for a body's orientation in each set, read by the kernel:
+    a spherical joint at an offset point holds at the start (the kernel's R(q) is Python's) and
+    the coordinates' rates are Python's rate maps of the body-frame angular velocity."""
+    om = np.array([0.3, -0.2, 0.5])
+    sc = scene_from_dict({"scene": {"rotation": rotation},
+                          "body": [_body(omega_body=list(om))],
+                          "joint": [{"type": "spherical", "body1": "b", "at": list(P)}]},
+                         f"{rotation}.toml")
+    y0 = sc.state0()
+    e = evaluate_spatial(sc)
+    assert np.abs(e["phi"]).max() < 1e-14
+    q = y0[3:7] if rotation == "quaternion" else y0[3:6]
+    rates = np.asarray(e["ydot"])[3:3 + q.size]
+    expect = (rotations.quaternion_rates(q, om, frame="body") if rotation == "quaternion" else
+              rotations.angle_rates(q, om, rotation[-3:], frame="body"))
+    assert np.abs(rates - expect).max() < 1e-13
+
+
+def _tumbling(norm, gain=10.0):
+    sc = mbdk.scene("free_body")
+    sc.quaternion_norm, sc.norm_gain = norm, gain
+    r = mbdk.simulate(sc, "rk4", h=5e-2, t_end=5.0, watch=False)
+    return r.residuals[:, 2].max(), r.q
+
+
+def test_the_quaternion_norm_codes_are_the_kernels_treatments():
+    """project keeps |p| = 1 at roundoff; none lets it drift whatever the gain; stabilise
+    follows its gain (the intermediate-axis flip at h = 0.05 s: rk4 drifts |p| by 1e-5)."""
+    assert set(codes.NORMS) == {"project", "stabilise", "none"}
+    assert _tumbling("project")[0] < 1e-14
+    (drift, q), (_, q2) = _tumbling("none"), _tumbling("none", 20.0)
+    assert drift > 1e-8 and np.array_equal(q, q2)
+    (_, q), (_, q2) = _tumbling("stabilise"), _tumbling("stabilise", 20.0)
+    assert np.abs(q - q2).max() > 1e-9
+
+
+@pytest.mark.parametrize("name", ["double_pendulum", "spatial_double_pendulum"])
+def test_the_formulation_codes_are_the_kernels_formulations(name):
+    """Each formulation's signature, planar and spatial: projection keeps Phi at roundoff;
+    reduced ignores alpha and beta and drifts; baumgarte follows alpha and beta; penalty follows
+    its penalty and ignores alpha and beta."""
+    sc = mbdk.scene(name)
+
+    def run(formulation, **kw):
+        return mbdk.simulate(sc, "rk4", formulation=formulation, h=2e-2, t_end=5.0,
+                             watch=False, **kw)
+    other = dict(alpha=5.0, beta=7.0)
+    assert run("projection").residuals[:, 0].max() < 1e-12
+    red = run("reduced")
+    assert red.residuals[:, 0].max() > 1e-9 and np.array_equal(red.q, run("reduced", **other).q)
+    assert np.abs(run("baumgarte").q - run("baumgarte", **other).q).max() > 1e-6
+    pen = run("penalty")
+    assert np.array_equal(pen.q, run("penalty", **other).q)
+    assert np.abs(pen.q - run("penalty", penalty=(1e5, 10.0, 1.0)).q).max() > 1e-6
+
+
+@pytest.mark.parametrize("name", ["double_pendulum", "spatial_double_pendulum"])
+@pytest.mark.parametrize("method,form", [("ida", "index1"), ("ida", "ggl"), ("bdf", "i3"),
+                                         ("bdf", "si2")])
+def test_the_dae_form_codes_are_the_kernels_forms(name, method, form):
+    """Each form of the DAE by its signature, planar (scene_run) and spatial (spatial_run):
+    index1 (acceleration level) lets Phi drift; GGL holds Phi and D v + Phi_t (to its Newton
+    tolerance); I3 holds Phi, not the velocity rows; SI2 holds both to the tolerance (rtol
+    1e-6, 5 s: the margins are more than an order of magnitude)."""
+    r = mbdk.simulate(mbdk.scene(name), method, formulation=form, rtol=1e-6, atol=1e-8,
+                      t_end=5.0, watch=False)
+    pos, vel = np.abs(r.residuals[:, :2]).max(axis=0)
+    if form == "index1":
+        assert pos > 1e-7
+    elif form == "ggl":
+        assert pos < 1e-8 and vel < 1e-8
+    elif form == "i3":
+        assert pos < 1e-8 and vel > 1e-7
+    else:
+        assert pos < 1e-8 and vel < 1e-7
+
+
+def test_the_spatial_index3_code_runs_the_trapezoidal_rule():
+    """spatial_run's dae_form for trapezoidal_index3: fixed steps of h, the constraints at
+    their projection's roundoff."""
+    r = mbdk.simulate(mbdk.scene("spatial_double_pendulum"), "trapezoidal_index3", h=1e-2,
+                      t_end=1.0)
+    assert codes.SPATIAL_DAE_FORMS[("trapezoidal_index3", "projected")] == 2
+    assert r.stats.steps == 100 and r.residuals[:, 0].max() < 1e-12
+
+
+def test_each_output_bit_is_the_output_the_kernel_computes():
+    """One output at a time: its array is the one a run of all outputs gives; the others are
+    not computed."""
+    sc = mbdk.scene("double_pendulum")
+    every = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.2)
+    attr = {"a": "a", "multipliers": "multipliers", "reactions": "reactions",
+            "energy": "energy", "residuals": "residuals"}
+    assert set(attr) == set(codes.OUTPUTS)
+    for name in codes.OUTPUTS:
+        r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.2, outputs=(name,))
+        assert np.abs(getattr(every, attr[name])).max() > 0
+        assert np.array_equal(getattr(r, attr[name]), getattr(every, attr[name])), name
+        assert all(getattr(r, attr[o]) is None for o in attr if o != name)
+
+
+@pytest.mark.parametrize("solver", list(codes.SOLVERS))
+def test_each_solver_code_is_the_linear_solve_the_kernel_takes(solver):
+    """The kernel names the path it took (LINEAR_SOLVES by its code): the one asked for (auto:
+    the closed form of an all-revolute chain)."""
+    took = mbdk.evaluate(mbdk.scene("double_pendulum"), solver=solver)["solve"]
+    assert took.startswith("revolute_schur:" if solver == "auto" else f"{solver}:"), took
+
+
+def test_the_spatial_options_are_where_the_f2py_entry_reads_them(root):
+    """spatial_run reads its options by position (sopt); SPATIAL_OPTIONS lists them in that
+    order, by the names of the kernel's mbdk_spatial_options_t."""
+    src = (root / "kernel" / "src" / "api" / "mbdk_f2py.f90").read_text()
+    body = src[src.index("subroutine spatial_run("):src.index("end subroutine spatial_run")]
+    read = {int(k): name for name, k in
+            re.findall(r"so%(\w+)\s*=\s*(?:nint\()?sopt\((\d+)\)", body)}
+    assert read == {k + 1: name for k, name in enumerate(codes.SPATIAL_OPTIONS)}
+    assert f"nso /= {len(codes.SPATIAL_OPTIONS)}" in body
