@@ -896,7 +896,8 @@ def test_trapezoidal_index3_on_spatial_scenes_is_second_order_and_keeps_the_join
     errs, drifts = [], []
     for h in (5e-3, 2.5e-3, 1.25e-3):
         r = mbdk.simulate(sc, "trapezoidal_index3", h=h, t_end=t_end, every=round(0.05 / h))
-        assert r.manifest["formulation"] == "projected" and "trapezoidal" in r.manifest["form"]
+        assert r.manifest["formulation"] == "augmented_lagrangian"
+        assert "augmented Lagrangian" in r.manifest["form"]
         errs.append(max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()))
         drifts.append(np.ptp(r.energy))
         # the joints to Newton's atol (1e-12: no projection of q after the step), the
@@ -940,9 +941,10 @@ def test_trapezoidal_index3_on_a_driven_slider():
 
 
 @pytest.mark.parametrize("kw, error, text", [
-    (dict(formulation="index3", h=1e-3), mbdk.NotApplicableError, "projected form only"),
-    (dict(rtol=1e-6, h=1e-3), mbdk.InvalidInputError, "fixed step"),
-    (dict(adaptive=True, h=1e-3), mbdk.NotApplicableError, "adaptive"),
+    (dict(formulation="reduced", h=1e-3), mbdk.NotApplicableError,
+     "index3, augmented_lagrangian"),
+    (dict(rtol=1e-6, h=1e-3), mbdk.InvalidInputError, "rtol"),
+    (dict(solver="kkt", h=1e-3), mbdk.NotApplicableError, "solver"),
     (dict(), mbdk.InvalidInputError, "give h"),
 ])
 def test_trapezoidal_index3_on_spatial_scenes_refuses_what_it_does_not_do(kw, error, text):

@@ -254,7 +254,10 @@ def test_stability_study(tmp_path, root):
     import csv
     import stability
     summary = stability.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 5 and all(f.exists() for f in summary["figures"])
+    assert len(summary["figures"]) == 6 and all(f.exists() for f in summary["figures"])
+    family = list(csv.DictReader(open(tmp_path / "alpha_family_spectra.csv")))
+    # the compiled steps against the closed forms, every member, over Omega in [0.05, 100]
+    assert all(float(r["max_diff_closed_form"]) < 1e-8 for r in family)
     rows = {r["method"]: r for r in csv.DictReader(open(tmp_path / "stability_intervals.csv"))}
     assert float(rows["rk4"]["real_interval_a"]) == pytest.approx(-2.785293563405282, abs=1e-9)
     assert float(rows["bdf5"]["A_alpha_deg"]) == pytest.approx(locus_angle(5), abs=1e-5)

@@ -12,9 +12,10 @@ pseudo-acceleration ap):
 and the members differ only in (beta, gamma, alpha_m, alpha_f):
 
     trapezoidal_index3   1/4, 1/2, 0, 0
-    newmark              beta, gamma (default 1/4, 1/2), 0, 0
-    hht                  alpha in [-1/3, 0]: (1 - alpha)^2 / 4, 1/2 - alpha, 0, -alpha
-    generalized_alpha    rho_inf in [0, 1]: alpha_m = (2 rho - 1) / (rho + 1),
+    newmark              newmark_beta, newmark_gamma (default 1/4, 1/2), 0, 0
+    hht                  alpha_hht in [-1/3, 0] (default -0.05): (1 - alpha)^2 / 4,
+                         1/2 - alpha, 0, -alpha
+    generalized_alpha    rho_inf in [0, 1] (default 0.8): alpha_m = (2 rho - 1) / (rho + 1),
                          alpha_f = rho / (rho + 1), gamma = 1/2 - alpha_m + alpha_f,
                          beta = (1 - alpha_m + alpha_f)^2 / 4; or the four given directly
 
@@ -34,9 +35,14 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-#: the members and the options each takes (besides trapezoidal_index3's own)
-MEMBERS = {"trapezoidal_index3": (), "newmark": ("beta", "gamma"), "hht": ("alpha_hht",),
-           "generalized_alpha": ("rho_inf", "beta", "gamma", "alpha_m", "alpha_f")}
+#: the members and the options of simulate each takes (newmark_beta and newmark_gamma: simulate's
+#: beta and alpha are Baumgarte's)
+MEMBERS = {"trapezoidal_index3": (), "newmark": ("newmark_beta", "newmark_gamma"),
+           "hht": ("alpha_hht",),
+           "generalized_alpha": ("rho_inf", "newmark_beta", "newmark_gamma", "alpha_m",
+                                 "alpha_f")}
+#: every option of the family, as simulate names them
+OPTIONS = ("rho_inf", "alpha_hht", "newmark_beta", "newmark_gamma", "alpha_m", "alpha_f")
 
 
 @dataclass(frozen=True)
@@ -78,29 +84,33 @@ def generalized_alpha_from_rho(rho_inf: float) -> AlphaParameters:
                            alpha_f=af, spec=f"rho_inf = {rho_inf:g}")
 
 
-def parameters(method: str, rho_inf=None, alpha_hht=None, beta=None, gamma=None, alpha_m=None,
-               alpha_f=None) -> AlphaParameters:
+def parameters(method: str, rho_inf=None, alpha_hht=None, newmark_beta=None,
+               newmark_gamma=None, alpha_m=None, alpha_f=None) -> AlphaParameters:
     """The member's parameters from its options (None: not given), checked; a bad value or an
     option the member does not take is an InvalidInputError naming it and what to give."""
-    given = {k: v for k, v in dict(rho_inf=rho_inf, alpha_hht=alpha_hht, beta=beta, gamma=gamma,
-                                   alpha_m=alpha_m, alpha_f=alpha_f).items() if v is not None}
+    given = {k: v for k, v in dict(rho_inf=rho_inf, alpha_hht=alpha_hht, beta=newmark_beta,
+                                   gamma=newmark_gamma, alpha_m=alpha_m,
+                                   alpha_f=alpha_f).items() if v is not None}
     if method not in MEMBERS:
         raise InvalidInputError(f"{method!r} is not a method of the generalized-alpha family "
                                 f"({', '.join(MEMBERS)})")
-    extra = sorted(set(given) - set(MEMBERS[method]))
+    named = {"beta": "newmark_beta", "gamma": "newmark_gamma"}
+    extra = sorted(named.get(k, k) for k in set(given)
+                   if named.get(k, k) not in MEMBERS[method])
     if extra:
         takes = ", ".join(MEMBERS[method]) or "none of these"
         raise InvalidInputError(f"{', '.join(extra)}: not options of {method} (it takes "
                                 f"{takes})")
-    vals = {k: _real(k, v, method) for k, v in given.items()}
+    vals = {k: _real(named.get(k, k), v, method) for k, v in given.items()}
     if method == "trapezoidal_index3":
         return AlphaParameters()
     if method == "newmark":
         b = vals.get("beta", 0.25)
         g = vals.get("gamma", 0.5)
         if not (b > 0 and g >= 0.5):
-            raise InvalidInputError(f"newmark with beta = {b:g}, gamma = {g:g}: give beta > 0 "
-                                    "and gamma >= 1/2 (gamma < 1/2 amplifies every mode)")
+            raise InvalidInputError(f"newmark with newmark_beta = {b:g}, newmark_gamma = {g:g}: "
+                                    "give newmark_beta > 0 and newmark_gamma >= 1/2 (gamma < "
+                                    "1/2 amplifies every mode)")
         return AlphaParameters(beta=b, gamma=g, spec=f"beta = {b:g}, gamma = {g:g}")
     if method == "hht":
         a = vals.get("alpha_hht", -0.05)
@@ -109,23 +119,24 @@ def parameters(method: str, rho_inf=None, alpha_hht=None, beta=None, gamma=None,
                                     "(0 is the trapezoidal rule, -1/3 the most damping)")
         return AlphaParameters(beta=0.25 * (1.0 - a) ** 2, gamma=0.5 - a, alpha_m=0.0,
                                alpha_f=-a, spec=f"alpha = {a:g}")
-    direct = [k for k in ("beta", "gamma", "alpha_m", "alpha_f") if k in vals]
+    direct = [named.get(k, k) for k in ("beta", "gamma", "alpha_m", "alpha_f") if k in vals]
     if "rho_inf" in vals and direct:
         raise InvalidInputError(f"generalized_alpha: give rho_inf or {', '.join(direct)}, not "
                                 "both")
     if direct:
         if len(direct) != 4:
-            missing = sorted({"beta", "gamma", "alpha_m", "alpha_f"} - set(direct))
+            missing = sorted({"newmark_beta", "newmark_gamma", "alpha_m", "alpha_f"}
+                             - set(direct))
             raise InvalidInputError(f"generalized_alpha given {', '.join(direct)}: give all "
                                     f"four parameters (missing {', '.join(missing)}), or "
                                     "rho_inf alone")
         p = AlphaParameters(beta=vals["beta"], gamma=vals["gamma"], alpha_m=vals["alpha_m"],
                             alpha_f=vals["alpha_f"], spec="given")
         if not (p.beta > 0 and p.gamma > 0 and p.alpha_m < 1 and p.alpha_f < 1):
-            raise InvalidInputError(f"generalized_alpha with beta = {p.beta:g}, gamma = "
-                                    f"{p.gamma:g}, alpha_m = {p.alpha_m:g}, alpha_f = "
-                                    f"{p.alpha_f:g}: give beta > 0, gamma > 0, alpha_m < 1 and "
-                                    "alpha_f < 1")
+            raise InvalidInputError(f"generalized_alpha with newmark_beta = {p.beta:g}, "
+                                    f"newmark_gamma = {p.gamma:g}, alpha_m = {p.alpha_m:g}, "
+                                    f"alpha_f = {p.alpha_f:g}: give newmark_beta > 0, "
+                                    "newmark_gamma > 0, alpha_m < 1 and alpha_f < 1")
         return p
     rho = vals.get("rho_inf", 0.8)
     if not 0.0 <= rho <= 1.0:

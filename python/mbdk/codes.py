@@ -153,10 +153,11 @@ FRAMES = {"space": 0, "body": 1}
 #: the spatial model's formulations: the planar model's codes (MBDK_FORM_* of mbdk_mechanism)
 SPATIAL_FORMULATIONS = FORMULATIONS
 #: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the
-#: index-3 DAE (mbdk_mechanism_dae); 2 trapezoidal_index3's augmented, projected form
-#: (mbdk_trapezoidal_index3); 3, 4 ida in its index1 and GGL forms (mbdk_ida); 5 bdf on the
-#: stabilised index-2 form
-SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "projected"): 2,
+#: index-3 DAE (mbdk_mechanism_dae); 2 the index-3 family (trapezoidal_index3, newmark, hht,
+#: generalized_alpha: mbdk_trapezoidal_index3, its formulation in mbdk_index3_options); 3, 4
+#: ida in its index1 and GGL forms (mbdk_ida); 5 bdf on the stabilised index-2 form
+SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "augmented_lagrangian"): 2,
+                     ("trapezoidal_index3", "index3"): 2,
                      ("ida", "index1"): 3, ("ida", "ggl"): 4, ("bdf", "si2"): 5}
 #: the length of spatial_run's sopt, and each entry's position (the f2py entry's argument)
 SPATIAL_OPTIONS = ("formulation", "rotation", "norm", "alpha", "beta", "norm_gain",

@@ -54,6 +54,16 @@ _ABOUT = {
                            "constrained directions, the augmented Lagrangian with projections "
                            "(ALI3-P) is not", "Fekete (2023) (3.11)-(3.16); Bayo and Ledesma "
                            "(1996)"),
+    "newmark": ("unconditionally stable for 2 beta >= gamma >= 1/2; gamma > 1/2 damps high "
+                "frequencies and is first order (the index-3 family, mbdk.alpha_family)",
+                "Newmark (1959); Hughes, The Finite Element Method, ch. 9"),
+    "hht": ("unconditionally stable, second order, high-frequency spectral radius (1 + alpha) / "
+            "(1 - alpha) for alpha_hht in [-1/3, 0] (the index-3 family)",
+            "Hilber, Hughes and Taylor (1977); Negrut et al. (2007) for HHT-I3"),
+    "generalized_alpha": ("unconditionally stable, second order, high-frequency spectral "
+                          "radius rho_inf in [0, 1] with the least low-frequency damping "
+                          "(the index-3 family)", "Chung and Hulbert (1993); Arnold and "
+                          "Bruls (2007); Bruls and Cardona (2010) on Lie groups"),
     "dopri54": ("conditionally stable (real-axis limit h*|lambda| < 3.31); error-controlled, "
                 "dense output of order 4", "Dormand and Prince (1980); Shampine (1986); "
                 "Hairer, Norsett and Wanner I, II.4-II.6"),

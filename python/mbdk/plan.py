@@ -18,7 +18,7 @@ from numbers import Integral
 
 import numpy as np
 
-from . import _kernel, checks
+from . import _kernel, alpha_family, checks
 from .checks import show
 from .codes import (ADAPTIVE_MODES, FORMULATIONS, INDEX3_FORMULATIONS, NORMS, OUTPUTS,
                     ROTATIONS, SCENE_DAE_FORMS, SOLVERS, SPATIAL_DAE_FORMS,
@@ -51,6 +51,9 @@ SPATIAL_IDA_FORMS = {
            "w' = M^-1 (f - C^T lam), Phi = 0, C w + Phi_t = 0 on the independent rows"}
 #: the options of trapezoidal_index3 alone
 INDEX3_ONLY = ("adaptive", "err_rtol", "err_atol", "dt_out", "h_min", "h_max", "max_iter")
+#: how the index-3 methods' Newton matrix is formed on spatial scenes
+SPATIAL_INDEX3_MATRIX = ("by forward differences of the residual (the retraction and the "
+                         "gyroscopic moment included), LAPACK LU, reused while Newton contracts")
 #: the default of simulate's penalty = (alpha_p, omega_p, mu_p)
 DEFAULT_PENALTY = (1e7, 10.0, 1.0)
 #: adaptive trapezoidal_index3 without Newton tolerances given: these times err_rtol/err_atol
@@ -108,6 +111,17 @@ class Request:
     raise_on_failure: bool = True
     switch_angles: float | None = None
     lock_guard: float = 0.0
+    rho_inf: float | None = None
+    alpha_hht: float | None = None
+    newmark_beta: float | None = None
+    newmark_gamma: float | None = None
+    alpha_m: float | None = None
+    alpha_f: float | None = None
+
+    def family_options(self) -> dict:
+        """The generalized-alpha family's options given a value (mbdk.alpha_family)."""
+        return {k: getattr(self, k) for k in alpha_family.OPTIONS
+                if getattr(self, k) is not None}
 
 
 @dataclass
@@ -250,6 +264,19 @@ def _planar_formulation(info_m: MethodInfo, method: str, formulation) -> str:
     return formulation
 
 
+def family_parameters(req: Request, info_m: MethodInfo) -> alpha_family.AlphaParameters:
+    """The index-3 family member's parameters (mbdk.alpha_family); the family's options given
+    to another method are refused by name."""
+    given = req.family_options()
+    if info_m.family != "dae_index3":
+        if given:
+            raise InvalidInputError(f"{', '.join(sorted(given))}: options of the index-3 "
+                                    "family (newmark, hht, generalized_alpha), not of "
+                                    f"{req.method}")
+        return alpha_family.AlphaParameters()
+    return alpha_family.parameters(req.method, **given)
+
+
 def _index3_options_given(req: Request, info_m: MethodInfo, index3: bool) -> dict:
     """trapezoidal_index3's own options given a value (refused for other methods, and the
     error-controlled methods' tolerances refused for fixed-step ones)."""
@@ -347,6 +374,8 @@ def _planar_plan(scene: Scene, req: Request) -> RunPlan:
     projection_tol = projection_tol_for(
         req.projection_tol,
         (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
+    if not index3:
+        family_parameters(req, info_m)      # the family's options refused by name
     if ida or dae_bdf:
         plan_, mopt = _dae_plan(req, info_m, formulation, ida, h, rtol, atol, projection_tol,
                                 projection_given)
@@ -367,7 +396,8 @@ def _planar_plan(scene: Scene, req: Request) -> RunPlan:
                              projection_tol, req.solver, req.small_dense)
     elif index3:
         plan_ = index3_plan(formulation, h, req.t_end, req.t0, every, req.alpha,
-                            req.newton_rtol, req.newton_atol, given3, req.small_dense)
+                            req.newton_rtol, req.newton_atol, given3, req.small_dense,
+                            family_parameters(req, info_m), req.method)
         mopt = model_options(solver=req.solver, small_dense=req.small_dense)
     else:
         plan_ = ode_plan(info_m, formulation, h, req.t_end, req.t0, every, req.alpha, req.beta,
@@ -398,19 +428,17 @@ def _spatial_formulation(info_m: MethodInfo, method: str, formulation, scene: Sc
     ida_forms = [form for (m, form) in SPATIAL_DAE_FORMS if m == "ida"]
     if formulation is not None and not isinstance(formulation, str):
         checks.choice("formulation", formulation,
-                      ["projected"] if index3 else ida_forms if ida else
+                      list(INDEX3_FORMULATIONS) if index3 else ida_forms if ida else
                       list(SPATIAL_FORMULATIONS)
                       + (["i3", "si2"] if info_m.family == "variable_bdf" else []),
                       error=NotApplicableError,
                       what=f"a formulation {method} runs on spatial scenes")
     if index3:
-        formulation = "projected" if formulation is None else formulation
-        if formulation != "projected":
+        formulation = "augmented_lagrangian" if formulation is None else formulation
+        if formulation not in INDEX3_FORMULATIONS:
             raise NotApplicableError(
-                f"formulation {formulation!r} of trapezoidal_index3 on spatial scene "
-                f"{scene.name!r}: spatial scenes take its projected form only ('projected', "
-                "kernel/src/spatial/mbdk_spatial_index3.f90); the unprojected book scheme "
-                "(index3) and the augmented Lagrangian are the planar model's")
+                f"formulation {formulation!r} of {method} on spatial scene {scene.name!r}: "
+                f"the index-3 methods run {', '.join(INDEX3_FORMULATIONS)}")
     if ida:
         formulation = "index1" if formulation is None else formulation
         if formulation not in ida_forms:
@@ -434,8 +462,8 @@ def _spatial_method(info_m: MethodInfo, method: str, scene: Scene) -> None:
             f"{method} on spatial scene {scene.name!r}: it integrates the planar model's DAE; "
             "spatial scenes run the ODE methods (mbdk.methods('ode')) on the reduced, "
             "baumgarte, penalty or projection formulation, bdf on their DAE itself "
-            "(formulations 'i3', 'si2'), ida ('index1', 'ggl') and trapezoidal_index3 "
-            "(formulation 'projected')")
+            "(formulations 'i3', 'si2'), ida ('index1', 'ggl') and the index-3 methods "
+            "(trapezoidal_index3, newmark, hht, generalized_alpha)")
     if info_m.family == "euler_cromer":
         raise NotApplicableError(f"euler_cromer on spatial scene {scene.name!r}: its state "
                                  "layout is y = [q, q'], and a spatial body's velocities (v, "
@@ -443,18 +471,20 @@ def _spatial_method(info_m: MethodInfo, method: str, scene: Scene) -> None:
                                  "on planar scenes, or rk4 here")
 
 
-def _spatial_refusals(req: Request) -> None:
+def _spatial_refusals(req: Request, index3: bool) -> None:
     """The planar model's options given a value, refused by name (outputs is checked and
-    otherwise moot: a spatial run computes every output it has at its samples)."""
+    otherwise moot: a spatial run computes every output it has at its samples); the index-3
+    methods' own options are theirs."""
     planar_only = {"solver": None if req.solver == "auto" else req.solver,
-                   "small_dense": None if req.small_dense else req.small_dense,
-                   "adaptive": req.adaptive, "err_rtol": req.err_rtol,
-                   "err_atol": req.err_atol, "max_iter": req.max_iter}
+                   "small_dense": None if req.small_dense else req.small_dense}
+    if not index3:
+        planar_only.update(adaptive=req.adaptive, err_rtol=req.err_rtol,
+                           err_atol=req.err_atol, max_iter=req.max_iter)
     bad = sorted(k for k, v in planar_only.items() if v is not None)
     if bad:
-        raise NotApplicableError(f"{', '.join(bad)}: not options of a spatial scene run (its "
-                                 "formulations: reduced, baumgarte, penalty, projection; solver "
-                                 "and the index-3 options are the planar model's)")
+        raise NotApplicableError(f"{', '.join(bad)}: not options of this spatial scene run "
+                                 "(solver and small_dense are the planar model's; adaptive, "
+                                 "err_rtol, err_atol and max_iter the index-3 methods')")
     if req.outputs is not None:
         output_bits(req.outputs)
 
@@ -486,9 +516,10 @@ def _spatial_steps(req: Request, info_m: MethodInfo, formulation: str):
 
 def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
     method = req.method
-    _spatial_refusals(req)
     info_m = method_info(method)
     index3, ida = info_m.family == "dae_index3", info_m.family == "ida"
+    _spatial_refusals(req, index3)
+    family = family_parameters(req, info_m)
     _spatial_method(info_m, method, scene)
     formulation = _spatial_formulation(info_m, method, req.formulation, scene)
     dae = formulation in ("i3", "si2") and info_m.family == "variable_bdf"
@@ -506,13 +537,32 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
                                  "quaternion_norm = 'project': CVODE cannot change the state "
                                  "between its steps; set the scene's quaternion_norm to "
                                  "'stabilise' or 'none'")
-    href, rtol, atol, adaptive = _spatial_steps(req, info_m, formulation)
+    if index3:
+        given3 = _index3_options_given(req, info_m, index3)
+        odes = [n for n, v in (("rtol", req.rtol), ("atol", req.atol),
+                               ("max_steps", req.max_steps), ("max_order", req.max_order)) if v]
+        if odes:
+            raise InvalidInputError(f"{', '.join(odes)}: options of the error-controlled ODE "
+                                    f"methods; {method} takes h (and, under step-size control, "
+                                    "adaptive, err_rtol and err_atol)")
+        if req.h is None:
+            raise InvalidInputError(f"{method} takes a step: give h (the fixed step, or the "
+                                    "first one under step-size control)")
+        check_run(req.h, req.t_end, req.t0, int(req.every))
+    href, rtol, atol, adaptive = ((req.h, None, None, None) if index3 else
+                                  _spatial_steps(req, info_m, formulation))
     projection_tol = projection_tol_for(
         req.projection_tol,
         (ODEOptions.atol if atol is None else atol) if info_m.adaptive else None)
-    plan_ = ode_plan(info_m, formulation, href, req.t_end, req.t0, int(req.every), req.alpha,
-                     req.beta, penalty, projection_tol, req.startup, req.newton_rtol,
-                     req.newton_atol, adaptive)
+    if index3:
+        plan_ = index3_plan(formulation, req.h, req.t_end, req.t0, int(req.every), req.alpha,
+                            req.newton_rtol, req.newton_atol, given3, False, family, method,
+                            matrix=SPATIAL_INDEX3_MATRIX)
+        plan_.update(alpha=0.0, beta=0.0)
+    else:
+        plan_ = ode_plan(info_m, formulation, href, req.t_end, req.t0, int(req.every),
+                         req.alpha, req.beta, penalty, projection_tol, req.startup,
+                         req.newton_rtol, req.newton_atol, adaptive)
     w = as_watch(req.watch)
     model_form = "reduced" if dae or ida else "projection" if index3 else formulation
     values = {"formulation": SPATIAL_FORMULATIONS[model_form],
@@ -528,9 +578,11 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
     return RunPlan(kind="spatial", method=method, info=info_m, formulation=formulation,
                    request=req, h=req.h, rtol=rtol, every=int(req.every), index3=index3,
                    ida=ida, dae_bdf=dae,
-                   dae_form=SPATIAL_DAE_FORMS[(method, formulation)] if index3 or ida or dae
-                   else 0,
+                   dae_form=SPATIAL_DAE_FORMS[("trapezoidal_index3" if index3 else method,
+                                               formulation)] if index3 or ida or dae else 0,
                    ode_options=replace(plan_["ode"], method=info_m.id), spatial_options=sopt,
+                   index3_options=plan_.get("index3", Index3Options()),
+                   adaptive=bool(plan_.get("adaptive", False)),
                    watch=w, projection_tol=projection_tol, nsamp=plan_["nsamp"],
                    steps=plan_["steps"], manifest=dict(plan_["manifest"]),
                    multipliers_note=ggl_multipliers(method, formulation, rtol) if scene.rows
@@ -662,9 +714,13 @@ def _index3_control(d: Index3Options, given3, h, every, t0, t_end) -> tuple:
 
 
 def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_atol,
-                given3, small_dense) -> dict:
-    """trapezoidal_index3's plan on a planar scene: {"ode", "index3": Index3Options, "nsamp",
-    "steps", "manifest", "adaptive"} (mbdk.index3 says what the options do)."""
+                given3, small_dense, family=None, method="trapezoidal_index3",
+                matrix="analytic") -> dict:
+    """The index-3 family's plan (trapezoidal_index3, newmark, hht, generalized_alpha; family:
+    the member's mbdk.alpha_family parameters): {"ode", "index3": Index3Options, "nsamp",
+    "steps", "manifest", "adaptive"} (mbdk.index3 says what the options do). matrix: how the
+    mechanism's Newton matrix is formed (planar: analytic; spatial: by differences)."""
+    family = alpha_family.AlphaParameters() if family is None else family
     d = Index3Options()
     rtol, atol, max_iter = _index3_newton(d, newton_rtol, newton_atol, given3)
     alpha = d.alpha if alpha is None else checks.real("alpha", alpha)
@@ -682,6 +738,12 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
             "local error, so an error test on q and v would shrink h without end (studies/"
             "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
             "step-size control, or a fixed h")
+    if adaptive and family != alpha_family.AlphaParameters():
+        raise NotApplicableError(
+            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): the step-size "
+            "control's error estimates are the trapezoidal rule's (its local error from the "
+            "accelerations, or Richardson extrapolation at its order); run "
+            "trapezoidal_index3 under step-size control, or this method at a fixed h")
     if adaptive:
         err_rtol, err_atol, dt_out, h_min, h_max = _index3_control(d, given3, h, every, t0,
                                                                    t_end)
@@ -700,7 +762,8 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
     opt = Index3Options(h=h, newton_rtol=rtol, newton_atol=atol, alpha=alpha,
                         err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
                         h_max=h_max, formulation=INDEX3_FORMULATIONS[formulation],
-                        every=every, newton_max_iter=int(max_iter), adaptive=mode)
+                        every=every, newton_max_iter=int(max_iter), adaptive=mode,
+                        **family.as_options())
     nsteps, nsamp, status = _kernel.index3_plan(opt.pack(), t0, t_end)
     if status < 0:
         raise InvalidInputError(
@@ -709,8 +772,12 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
             + " give no valid plan: need 0 < " + ("dt_out" if adaptive else "h")
             + " <= t_end - t0 and at most 2e9 " + ("samples" if adaptive else "steps"))
     manifest = {"newton": {"rtol": rtol, "atol": atol, "max_iter": int(max_iter),
-                           "matrix": "analytic, reused while Newton contracts; "
-                                     + factorisation(formulation, small_dense)}}
+                           "matrix": ("analytic, reused while Newton contracts; "
+                                      + factorisation(formulation, small_dense))
+                           if matrix == "analytic" else matrix}}
+    if method != "trapezoidal_index3":
+        manifest["family"] = {**family.as_options(), "given": family.spec,
+                              "second_order": family.second_order}
     if formulation == "augmented_lagrangian":
         manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
     if adaptive:

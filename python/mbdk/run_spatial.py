@@ -20,9 +20,13 @@ from .watch import invariant_names
 
 #: what to change when a spatial run's samples do not fit in memory (it has no outputs to drop)
 SPATIAL_SAMPLE_ADVICE = SCENE_SAMPLE_ADVICE.split(", or fewer outputs")[0]
-INDEX3_FORM = ("trapezoidal rule on the index-3 DAE, Newton on (q+, w+, lam+) with the "
-               "equations of motion at t+, then the projections of positions, velocities and "
-               "the quaternions' norm, and a+, lam+ from the constrained solve")
+INDEX3_FORMS = {
+    "augmented_lagrangian": ("the index-3 DAE by the family's step (mbdk_trapezoidal_index3), "
+                             "Newton on the increment dq (a body's rotation by the exponential "
+                             "map) with the augmented Lagrangian, then v+ and a+, lam+ "
+                             "projected onto the velocity and acceleration constraints"),
+    "index3": ("the index-3 DAE by the family's step (mbdk_trapezoidal_index3), Newton on "
+               "(dq, lam+) (a body's rotation by the exponential map), no projections")}
 SI2_FORM = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w - M^-1 C^T mu), w' = M^-1 (f - "
             "C^T lam), 0 = Phi, 0 = C w + Phi_t on the independent rows; error test on q and w; "
             "no projection between steps")
@@ -40,7 +44,8 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     m1 = max(scene.rows, 1)
     nsamp = plan.nsamp
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-            plan.spatial_options, plan.ode_options.pack(), flag, np.zeros(0), y0,
+            plan.spatial_options, plan.ode_options.pack(), plan.index3_options.pack(), flag,
+            np.zeros(0), y0,
             int(bool(req.assemble_initial)), plan.dae_form, float(req.t0), float(req.t_end),
             nsamp, m1, stats)
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
@@ -94,7 +99,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
     if plan.multipliers_note:
         manifest["multipliers"] = plan.multipliers_note
     if plan.index3:
-        manifest["form"] = INDEX3_FORM
+        manifest["form"] = INDEX3_FORMS[formulation]
         manifest["linear_solve"] = ("Newton matrix by forward differences (LAPACK LU), kept "
                                     "while Newton contracts")
     if plan.ida:

@@ -18,9 +18,11 @@ Methods and formulations (mbdk.methods() lists the methods):
     baumgarte   gamma - 2 alpha Phi' - beta^2 Phi (defaults alpha = 1/h, beta = sqrt(2)/h, (3.34))
     penalty     Jalon-Bayo (3.35)-(3.40): alpha_p, omega_p, mu_p = 1e7, 10, 1
     projection  reduced + projection of q onto Phi = 0 and of v onto Phi' = 0 after every step
-  trapezoidal_index3 on the index-3 DAE itself (kernel/src/dae/mbdk_trapezoidal_index3.f90):
+  trapezoidal_index3 on the index-3 DAE itself (kernel/src/dae/mbdk_trapezoidal_index3.f90),
+  and the other members of its family, newmark, hht and generalized_alpha (mbdk.alpha_family):
     augmented_lagrangian  ALI3-P, the augmented Lagrangian with projections (the default)
-    index3                the book's scheme (3.11)-(3.16)
+    index3                the book's scheme (3.11)-(3.16), no projections (as HHT-I3 in MSC
+                          Adams and Chrono, and Arnold and Bruls' generalized-alpha)
     with a fixed step, or adaptive=True (local extrapolation, third order) or "estimated"
     (second order), with err_rtol, err_atol, dt_out, h_min, h_max; and Newton's max_iter
     (default 20).
@@ -48,10 +50,10 @@ Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing 
   the result.
 
 Spatial scenes (python/mbdk/spatial_file.py gives their format and formulations) run the same
-methods but euler_cromer; trapezoidal_index3 in its projected form ("projected"); their runs
+methods but euler_cromer, the index-3 family in both formulations (its Newton matrix by
+differences, a body's rotation turned by the exponential map: the Lie-group form); their runs
 compute energy, residuals and multipliers at every sample (outputs is checked, not used), and
-the planar model's options (solver, small_dense, trapezoidal_index3's step-size control) are
-refused by name.
+the planar model's options (solver, small_dense) are refused by name.
 
 What a run must keep (watch=, mbdk.watch): the constraint residuals, the energy balance and the
 momenta the scene conserves are checked while it runs; leaving them ends the run with
@@ -70,6 +72,7 @@ from .errors import (AccuracyWarning, InvalidInputError, NotApplicableError, exc
                      status_message)
 from .model import assemble, build_tables, model_options
 from .model import evaluate as evaluate_model
+from .alpha_family import OPTIONS as FAMILY_OPTIONS
 from .plan import INDEX3_ONLY, Request, make_plan
 from .angle_switch import switching_run
 from .result import SceneResult
@@ -93,8 +96,10 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              rtol: float | None = None, atol: float | None = None,
              max_steps: int | None = None, max_order: int | None = None,
              watch=True, locate_events: bool = True, raise_on_failure: bool = True,
-             switch_angles: float | None = None,
-             **unknown) -> SceneResult:
+             switch_angles: float | None = None, rho_inf: float | None = None,
+             alpha_hht: float | None = None, newmark_beta: float | None = None,
+             newmark_gamma: float | None = None, alpha_m: float | None = None,
+             alpha_f: float | None = None, **unknown) -> SceneResult:
     """Integrate a scene. See the module docstring for methods, formulations and outputs.
 
     formulation: default "reduced" for the ODE methods, "augmented_lagrangian" for
@@ -109,7 +114,13 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
 
     adaptive (False, True = "extrapolated", "estimated"), err_rtol, err_atol, dt_out, h_min,
     h_max, max_iter: trapezoidal_index3 only (step-size control and Newton's iteration limit;
-    mbdk.index3 says what they do).
+    mbdk.index3 says what they do; max_iter also the other index-3 methods').
+
+    The index-3 methods newmark (newmark_beta, newmark_gamma; default 1/4, 1/2), hht
+    (alpha_hht in [-1/3, 0], default -0.05) and generalized_alpha (rho_inf in [0, 1], default
+    0.8; or newmark_beta, newmark_gamma, alpha_m, alpha_f given directly) take
+    trapezoidal_index3's formulations, step and Newton options at a fixed h; they are members
+    of one family with it (mbdk.alpha_family, whose docstring gives the parameters).
 
     The error-controlled ODE methods (dopri54, bs32, bdf, cvode_bdf, cvode_adams) run every
     formulation but cvode_* the projection one: rtol, atol (a number), dt_out, h (the first
@@ -128,7 +139,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     (default True; the manifest says whether the run's method located them)."""
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
-                                f"trapezoidal_index3 also takes {', '.join(INDEX3_ONLY)}")
+                                f"trapezoidal_index3 also takes {', '.join(INDEX3_ONLY)}; "
+                                "the index-3 family (newmark, hht, generalized_alpha) takes "
+                                f"{', '.join(FAMILY_OPTIONS)}")
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene (mbdk.scene(name) or "
                                 f"mbdk.load_scene(path)), got {type(scene).__name__}")
@@ -143,7 +156,9 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                   err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
                   h_max=h_max, rtol=rtol, atol=atol, max_steps=max_steps, max_order=max_order,
                   watch=watch, locate_events=locate_events, raise_on_failure=raise_on_failure,
-                  switch_angles=switch_angles)
+                  switch_angles=switch_angles, rho_inf=rho_inf, alpha_hht=alpha_hht,
+                  newmark_beta=newmark_beta, newmark_gamma=newmark_gamma, alpha_m=alpha_m,
+                  alpha_f=alpha_f)
     if scene.kind == "spatial" and switch_angles is not None:
         result, warning = switching_run(scene, req, run_scene)
     else:

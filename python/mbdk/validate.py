@@ -8,16 +8,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InvalidInputError, NotApplicableError
+from .errors import InvalidInputError, NotApplicableError, RedundantConstraintsError, Status
 from .plan import RunPlan
 from .scene import Scene, SceneError
-from .spatial_model import check_initial
+from .spatial_model import check_initial, evaluate_spatial
 
 
 def check_applicable(scene: Scene, plan: RunPlan) -> None:
     """Refuses, by name, a scene the plan cannot run."""
     if plan.kind == "spatial":
         check_initial(scene, scene.state0(), plan.request.assemble_initial, float(plan.t0))
+        if plan.index3 and plan.formulation == "index3" and scene.rows:
+            rank = evaluate_spatial(scene, scene.state0(), float(plan.t0))["rank"]
+            if rank < scene.rows:
+                raise RedundantConstraintsError(
+                    f"{scene.source}: the joints' {scene.rows} rows have rank {rank} at the "
+                    f"initial pose (redundant joints): {plan.method}'s formulation 'index3' "
+                    "solves for every multiplier, and its Newton matrix [M + .., C^T; C, 0] is "
+                    "singular. Use formulation = 'augmented_lagrangian', which runs redundant "
+                    "joints", status=Status.ERR_SINGULAR_MATRIX)
         return
     _check_solver(scene, plan.request.solver)
     _check_elements(scene, plan)

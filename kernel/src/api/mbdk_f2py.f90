@@ -298,12 +298,13 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_FAMILY_IDA, &
-    MBDK_FAMILY_VARIABLE_BDF, MBDK_METHOD_NAME_LEN
+    MBDK_FAMILY_VARIABLE_BDF, MBDK_METHOD_NAME_LEN, MBDK_TRAPEZOIDAL_INDEX3
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
     mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
     MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
-  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t
+  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
+    mbdk_index3_is_trapezoidal
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE, &
     MBDK_ERR_NO_MEMORY, mbdk_is_failure
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
@@ -430,6 +431,12 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
 
   if (index3) then
     i3 = transfer(i3buf, i3)
+    ! trapezoidal_index3 is the family's member with its own parameters (newmark, hht and
+    ! generalized_alpha carry theirs: mbdk_index3_options)
+    if (method_id == MBDK_TRAPEZOIDAL_INDEX3 .and. .not. mbdk_index3_is_trapezoidal(i3)) then
+      status = MBDK_ERR_INVALID_INPUT
+      return
+    end if
     i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
     i3%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
     call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
@@ -903,7 +910,8 @@ subroutine quaternion_omega(q, qd, body, w, status)
 end subroutine quaternion_omega
 
 subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
-                       freal, nso, sopt, noptw, optbuf, interrupt, natol, atol, n, y0, assemble, &
+                       freal, nso, sopt, noptw, optbuf, ni3w, i3buf, interrupt, natol, atol, n, &
+                       y0, assemble, &
                        dae_form, t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, &
                        nstatw, statbuf, moved, watch_report, invariants, ninv, status)
   ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
@@ -916,8 +924,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! multipliers at the samples (NaN where a failed run's last state has none), the last row
   ! the work of dampers, loads and drivers as the run integrated it at every step
   ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_mechanism_dae;
-  ! the multipliers are the DAE's own); 2: trapezoidal_index3's augmented, projected form
-  ! (mbdk_trapezoidal_index3, fixed step opt%h; multipliers its own); 3, 4: ida in its index1
+  ! the multipliers are the DAE's own); 2: trapezoidal_index3 or another member of the
+  ! generalized-alpha family (mbdk_trapezoidal_index3, with i3buf: mbdk_index3_options_t, its
+  ! formulation, step or step-size control and parameters; multipliers its own; i3buf is read
+  ! only then); 3, 4: ida in its index1
   ! and GGL forms (mbdk_ida; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
   ! watch_report, invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
@@ -929,14 +939,16 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
-    MBDK_INDEX3_AUGMENTED
+    mbdk_index3_is_trapezoidal
+  use mbdk_methods, only: MBDK_TRAPEZOIDAL_INDEX3
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
-  integer, intent(in) :: dae_form
+  integer, intent(in) :: dae_form, ni3w
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
-  double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end
+  double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end, &
+    i3buf(ni3w)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(8, nsamp), &
     lam_out(m1, nsamp), moved, watch_report(8), invariants(7, 6)
@@ -948,6 +960,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
 !f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
 !f2py integer intent(hide), depend(sopt) :: nso = len(sopt)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
+!f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
@@ -1068,21 +1081,17 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
 
 contains
 
-  !> trapezoidal_index3, augmented and projected, at the fixed step of opt (its Newton
-  !> tolerances; at least 20 iterations, the simplified iteration with an old matrix
-  !> converging linearly); the multipliers are its own
+  !> the index-3 family as i3buf asks (mbdk_trapezoidal_index3); the multipliers are its own
   subroutine index3_run(stat_r)
     integer, intent(out) :: stat_r
     type(mbdk_index3_options_t) :: i3
     double precision, allocatable :: a_out(:, :)
     integer, allocatable :: iters(:)
     integer :: astat
-    i3%formulation = MBDK_INDEX3_AUGMENTED
-    i3%h = opt%h
-    i3%every = opt%every
-    i3%newton_rtol = opt%newton_rtol
-    i3%newton_atol = opt%newton_atol
-    i3%newton_max_iter = max(opt%newton_max_iter, 20)
+    stat_r = MBDK_ERR_INVALID_INPUT
+    if (8 * ni3w /= c_sizeof(i3)) return
+    i3 = transfer(i3buf, i3)
+    if (opt%method == MBDK_TRAPEZOIDAL_INDEX3 .and. .not. mbdk_index3_is_trapezoidal(i3)) return
     i3%interrupt = opt%interrupt
     i3%progress = opt%progress
     allocate (a_out(model%nvel, nsamp), iters(nsamp), stat=astat)

@@ -8,7 +8,9 @@ module mbdk_methods
   integer, parameter, public :: MBDK_FAMILY_EXPLICIT_RK = 1
   integer, parameter, public :: MBDK_FAMILY_EULER_CROMER = 2
   integer, parameter, public :: MBDK_FAMILY_IMPLICIT_LMM = 3
-  !> integrates a scene's index-3 DAE itself (mbdk_trapezoidal_index3), not an ODE y' = F(t, y)
+  !> integrates a scene's index-3 DAE itself (mbdk_trapezoidal_index3: the trapezoidal rule and
+  !> the generalized-alpha family, one stepping routine with the family's parameters in
+  !> mbdk_index3_options), not an ODE y' = F(t, y)
   integer, parameter, public :: MBDK_FAMILY_DAE_INDEX3 = 4
   !> error-controlled (rtol, atol; mbdk_adaptive): embedded Runge-Kutta pairs with dense output
   integer, parameter, public :: MBDK_FAMILY_EMBEDDED_RK = 5
@@ -34,18 +36,23 @@ module mbdk_methods
   integer, parameter, public :: MBDK_CVODE_BDF = 17
   integer, parameter, public :: MBDK_CVODE_ADAMS = 18
   integer, parameter, public :: MBDK_IDA = 19
-  integer, parameter, public :: MBDK_METHOD_COUNT = 19
+  integer, parameter, public :: MBDK_NEWMARK = 20
+  integer, parameter, public :: MBDK_HHT = 21
+  integer, parameter, public :: MBDK_GENERALIZED_ALPHA = 22
+  integer, parameter, public :: MBDK_METHOD_COUNT = 22
   integer, parameter, public :: MBDK_METHOD_NAME_LEN = 24
 
   character(len=MBDK_METHOD_NAME_LEN), parameter :: names(MBDK_METHOD_COUNT) = [character( &
     len=MBDK_METHOD_NAME_LEN) :: 'explicit_euler', 'heun', 'rk4', 'euler_cromer', &
     'implicit_euler', 'trapezoidal', 'bdf1', 'bdf2', 'bdf3', 'bdf4', 'bdf5', 'bdf6', &
-    'trapezoidal_index3', 'dopri54', 'bs32', 'bdf', 'cvode_bdf', 'cvode_adams', 'ida']
+    'trapezoidal_index3', 'dopri54', 'bs32', 'bdf', 'cvode_bdf', 'cvode_adams', 'ida', &
+    'newmark', 'hht', 'generalized_alpha']
   integer, parameter :: families(MBDK_METHOD_COUNT) = [1, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3, 3, 4, &
-                                                        5, 5, 6, 7, 7, 8]
-  !> the nominal order; for bdf and cvode_* the highest order they select
+                                                        5, 5, 6, 7, 7, 8, 4, 4, 4]
+  !> the nominal order; for bdf and cvode_* the highest order they select; newmark's with its
+  !> default gamma = 1/2 (gamma > 1/2 is first order)
   integer, parameter :: orders(MBDK_METHOD_COUNT) = [1, 2, 4, 1, 1, 2, 1, 2, 3, 4, 5, 6, 2, &
-                                                      5, 3, 5, 5, 12, 5]
+                                                      5, 3, 5, 5, 12, 5, 2, 2, 2]
 
   public :: mbdk_method_id, mbdk_method_info, mbdk_method_adaptive
 

@@ -1,0 +1,178 @@
+"""The generalized-alpha family of index-3 integrators (newmark, hht, generalized_alpha beside
+trapezoidal_index3; issue 38): one stepping routine in the kernel, the members' parameters from
+mbdk.alpha_family.
+
+References: the closed forms of the family on the undamped oscillator (mbdk.alpha_family, an
+independent numpy computation of the published amplification matrix; Chung and Hulbert 1993,
+Hughes 9.3), the published high-frequency limits ((1 + alpha)/(1 - alpha) for HHT, rho_inf by
+construction for generalized-alpha), the trapezoidal rule's period error Omega / (2
+atan(Omega/2)) - 1 (Hughes 9.3), and reference solutions by rk4 at h = 1e-5 (planar) or dopri54
+at rtol 1e-12 (spatial)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import mbdk
+from mbdk import alpha_family as AF
+from mbdk import spectral
+
+MEMBERS = [("trapezoidal_index3", {}), ("newmark", {"newmark_beta": 0.3025, "newmark_gamma": 0.6}),
+           ("hht", {"alpha_hht": -0.1}), ("hht", {"alpha_hht": -1.0 / 3.0}),
+           ("generalized_alpha", {"rho_inf": 0.8}), ("generalized_alpha", {"rho_inf": 0.0}),
+           ("generalized_alpha", {"newmark_beta": 0.3, "newmark_gamma": 0.6, "alpha_m": 0.2,
+                                  "alpha_f": 0.3})]
+
+
+@pytest.mark.parametrize("method, opts", MEMBERS)
+@pytest.mark.parametrize("omega_h", [0.05, 0.5, 3.0, 30.0])
+def test_compiled_steps_have_the_closed_form_spectrum(method, opts, omega_h):
+    """Spectral radius, damping ratio and period error measured from the kernel's steps on the
+    oscillator (both formulations) equal the closed forms to 1e-9."""
+    p = AF.parameters(method, **opts)
+    cf = AF.closed_form_properties(p, omega_h)
+    for form in ("augmented_lagrangian", "index3"):
+        m = spectral.measured_properties(method, omega_h, formulation=form, **opts)
+        assert np.allclose(m[:3], cf, rtol=0, atol=1e-9, equal_nan=True), (form, m, cf)
+
+
+def test_closed_forms_are_the_published_ones():
+    """The closed forms themselves: the trapezoidal rule keeps |lambda| = 1 with the period
+    error Omega / (2 atan(Omega/2)) - 1; HHT's high-frequency radius is (1 + a)/(1 - a);
+    generalized-alpha's is rho_inf; generalized-alpha with rho_inf = 0.5 is HHT with a = -1/3
+    (alpha_m = 0)."""
+    trap = AF.parameters("trapezoidal_index3")
+    for w in (0.1, 1.0, 10.0):
+        rho, xi, pe = AF.closed_form_properties(trap, w)
+        assert rho == pytest.approx(1.0, abs=1e-14) and abs(xi) < 1e-14
+        assert pe == pytest.approx(w / (2 * math.atan(w / 2)) - 1, rel=1e-12)
+    # at Omega = 1e7 (where the designs' double root at infinity splits like Omega^-1/2)
+    for a in (-0.05, -0.2, -1.0 / 3.0):
+        assert AF.closed_form_properties(AF.parameters("hht", alpha_hht=a), 1e7)[0] == \
+            pytest.approx((1 + a) / (1 - a), abs=1e-4)
+    for r in (0.0, 0.3, 0.8, 1.0):
+        assert AF.closed_form_properties(AF.parameters("generalized_alpha", rho_inf=r),
+                                         1e7)[0] == pytest.approx(r, abs=1e-4)
+    assert AF.parameters("generalized_alpha", rho_inf=0.5).as_options() == pytest.approx(
+        AF.parameters("hht", alpha_hht=-1.0 / 3.0).as_options())
+
+
+@pytest.mark.parametrize("method, opts", [("hht", {"alpha_hht": -0.3}),
+                                          ("generalized_alpha", {"rho_inf": 0.6}),
+                                          ("generalized_alpha", {"rho_inf": 0.0}),
+                                          ("newmark", {"newmark_beta": 0.3025,
+                                                       "newmark_gamma": 0.6})])
+def test_a_stiff_spring_mode_loses_its_energy_at_the_spectral_radius(method, opts):
+    """A stiff mode (Omega = omega h = 1000), 40 steps: its energy falls like rho^(2n), rho the
+    closed-form spectral radius there (the per-step decay fitted to log E over steps 10-40
+    within 6 %: the energy of an oscillating pair wobbles about that line), while the
+    trapezoidal rule keeps it to 1e-6."""
+    sc = spectral.oscillator()
+    rho = AF.closed_form_properties(AF.parameters(method, **opts), 1000.0)[0]
+    runs = {m: mbdk.simulate(sc, m, h=1000.0, t_end=40000.0, every=1, outputs=("energy",),
+                             watch=False, **o)
+            for m, o in ((method, opts), ("trapezoidal_index3", {}))}
+    e = runs["trapezoidal_index3"].energy
+    assert np.abs(e / e[0] - 1).max() < 1e-6
+    e = runs[method].energy
+    n = np.arange(len(e))
+    slope = np.polyfit(n[10:], 0.5 * np.log(e[10:]), 1)[0]
+    assert math.exp(slope) == pytest.approx(rho, rel=0.06)
+
+
+@pytest.mark.parametrize("formulation", ["augmented_lagrangian", "index3"])
+def test_rho_inf_1_and_hht_0_are_the_trapezoidal_rule(formulation):
+    """generalized_alpha with rho_inf = 1 (alpha_m = alpha_f = 1/2: the pseudo-acceleration
+    stays the acceleration from a consistent start) and hht with alpha = 0 (the trapezoidal
+    rule's own parameters) reproduce trapezoidal_index3 on the double pendulum to roundoff."""
+    sc = mbdk.scene("double_pendulum")
+    kw = dict(h=1e-3, t_end=1.0, every=100, formulation=formulation, outputs=())
+    ref = mbdk.simulate(sc, "trapezoidal_index3", **kw)
+    for m, o in (("generalized_alpha", {"rho_inf": 1.0}), ("hht", {"alpha_hht": 0.0})):
+        r = mbdk.simulate(sc, m, **kw, **o)
+        assert np.abs(r.q - ref.q).max() < 1e-12 and np.abs(r.v - ref.v).max() < 1e-10, m
+
+
+PLANAR_ORDER = [("double_pendulum", 1.0), ("four_bar", 1.0)]
+
+
+@pytest.mark.parametrize("name, t_end", PLANAR_ORDER)
+@pytest.mark.parametrize("method, opts", MEMBERS[1:6])
+@pytest.mark.parametrize("formulation", ["augmented_lagrangian", "index3"])
+def test_order_in_q_v_and_lambda_on_planar_mechanisms(name, t_end, method, opts, formulation):
+    """Against rk4 at h = 1e-5: the error in q and v falls 4-fold per halving of h for the
+    second-order members (gamma = 1/2 - alpha_m + alpha_f) and 2-fold for Newmark with gamma =
+    0.6; the projected form's multipliers (from the constrained solve at the step's state)
+    likewise; the joints hold to 1e-10."""
+    sc = mbdk.scene(name)
+    ref = mbdk.simulate(sc, "rk4", h=1e-5, t_end=t_end, every=round(t_end / 1e-5),
+                        outputs=("multipliers",))
+    p = AF.parameters(method, **opts)
+    errs, lerrs = [], []
+    for h in (2e-3, 1e-3, 5e-4):
+        r = mbdk.simulate(sc, method, formulation=formulation, h=h, t_end=t_end,
+                          every=round(t_end / h), outputs=("multipliers", "residuals"), **opts)
+        assert r.residuals[:, 0].max() < 1e-10
+        errs.append(max(np.abs(r.q[-1] - ref.q[-1]).max(), np.abs(r.v[-1] - ref.v[-1]).max()))
+        lerrs.append(np.abs(r.multipliers[-1] - ref.multipliers[-1]).max())
+    ratio = 4.0 if p.second_order else 2.0
+    for e in (errs,) + ((lerrs,) if formulation == "augmented_lagrangian" else ()):
+        assert 0.85 * ratio < e[0] / e[1] < 1.15 * ratio, (errs, lerrs)
+        assert 0.85 * ratio < e[1] / e[2] < 1.15 * ratio, (errs, lerrs)
+
+
+@pytest.mark.parametrize("name", ["heavy_top", "spatial_double_pendulum", "bricard"])
+@pytest.mark.parametrize("method, opts", [("generalized_alpha", {"rho_inf": 0.8}),
+                                          ("hht", {"alpha_hht": -0.2})])
+def test_second_order_on_spatial_mechanisms_on_the_rotation_group(name, method, opts):
+    """The same step on spatial bodies (the retraction turns a body by the exponential map:
+    the Lie-group form), against dopri54 at rtol 1e-12: 4-fold per halving of h in q and v, the
+    joints to 1e-12, in the augmented form (Bricard's redundant row included) and, but for
+    Bricard, in the index3 form (Bricard's is refused by name: its Newton matrix is singular
+    with redundant rows)."""
+    sc = mbdk.scene(name)
+    ref = mbdk.simulate(sc, "dopri54", formulation="projection", rtol=1e-12, atol=1e-14,
+                        t_end=0.5, dt_out=0.5)
+    forms = ["augmented_lagrangian"] + ([] if name == "bricard" else ["index3"])
+    for form in forms:
+        errs = []
+        for h in (4e-3, 2e-3, 1e-3):
+            r = mbdk.simulate(sc, method, formulation=form, h=h, t_end=0.5,
+                              every=round(0.5 / h), **opts)
+            assert r.residuals[:, 0].max() < 1e-12
+            errs.append(max(np.abs(r.q[-1] - ref.q[-1]).max(), np.abs(r.v[-1] - ref.v[-1]).max()))
+        assert 3.5 < errs[0] / errs[1] < 4.5 and 3.5 < errs[1] / errs[2] < 4.5, (form, errs)
+    if name == "bricard":
+        with pytest.raises(mbdk.RedundantConstraintsError, match="augmented_lagrangian"):
+            mbdk.simulate(sc, method, formulation="index3", h=1e-3, t_end=0.1, **opts)
+
+
+def test_the_damped_members_run_the_plain_index3_form_where_the_book_scheme_fails():
+    """The plain index-3 form (no projections, as HHT-I3 in Adams and Chrono) on the heavy top
+    at h = 2e-3: the trapezoidal rule's undamped oscillation in the constrained directions
+    drives its angular momentum about the vertical off (InvariantDriftError, named), while
+    generalized_alpha (rho_inf = 0.8) and hht damp it and run with the joint at roundoff."""
+    sc = mbdk.scene("heavy_top")
+    with pytest.raises(mbdk.InvariantDriftError):
+        mbdk.simulate(sc, "trapezoidal_index3", formulation="index3", h=2e-3, t_end=0.5)
+    for m, o in (("generalized_alpha", {}), ("hht", {"alpha_hht": -0.1})):
+        r = mbdk.simulate(sc, m, formulation="index3", h=2e-3, t_end=0.5, **o)
+        assert r.success and r.residuals[:, 0].max() < 1e-12
+
+
+@pytest.mark.parametrize("method, kw, error, text", [
+    ("rk4", {"rho_inf": 0.5}, mbdk.InvalidInputError, "not of rk4"),
+    ("hht", {"rho_inf": 0.5}, mbdk.InvalidInputError, "it takes alpha_hht"),
+    ("hht", {"alpha_hht": 0.1}, mbdk.InvalidInputError, r"\[-1/3, 0\]"),
+    ("generalized_alpha", {"rho_inf": 1.5}, mbdk.InvalidInputError, r"\[0, 1\]"),
+    ("generalized_alpha", {"rho_inf": 0.5, "alpha_m": 0.1}, mbdk.InvalidInputError, "not both"),
+    ("generalized_alpha", {"alpha_m": 0.1}, mbdk.InvalidInputError, "all four"),
+    ("newmark", {"newmark_gamma": 0.4}, mbdk.InvalidInputError, "gamma >= 1/2"),
+    ("newmark", {"newmark_beta": float("nan")}, mbdk.InvalidInputError, "finite"),
+    ("generalized_alpha", {"adaptive": True}, mbdk.NotApplicableError, "trapezoidal rule's"),
+])
+def test_bad_family_options_are_named(method, kw, error, text):
+    with pytest.raises(error, match=text):
+        mbdk.simulate(mbdk.scene("double_pendulum"), method, h=1e-3, t_end=0.01, **kw)
