@@ -368,6 +368,14 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: r(:), y(:)
     !> fd_matrix: the matrix and its LU, and the evaluation it was built around
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
+    !> fd_matrix, augmented form: the matrix by differences less the penalty's cs alpha C^T C
+    !> at its iterate (penalty_matrix adds it at another), its h, a work vector
+    real(dp), allocatable :: jfd(:, :), rb(:), wv(:)
+    real(dp) :: h_fd = 0.0_dp
+    logical :: have_fd = .false.
+    !> steps left in which the penalty's renewal is not tried (it failed in a step lately: the
+    !> differences' part itself had gone stale, as under a fast spin)
+    integer :: no_renewal = 0
     integer, allocatable :: ipiv(:)
   end type mbdk_index3_t
 
@@ -477,9 +485,10 @@ contains
     if (stat /= MBDK_SUCCESS) return
     if (s%fd_matrix) then
       allocate (s%jm(nk, nk), s%ipiv(nk), s%r0(nk), s%f0(nv), s%phi0(m), s%gam0(m), &
-                s%phit0(m), s%col(nk), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nk, dp) * (nk + 2) + nv + 3.0_dp * m) &
-                             + MBDK_INT_BYTES * nk, stat, s%st%alloc_bytes)
+                s%phit0(m), s%col(nk), s%jfd(nk, nk), s%rb(nk), s%wv(nv), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nk, dp) * (2 * nk + 3) + &
+                             2.0_dp * nv + 3.0_dp * m) + MBDK_INT_BYTES * nk, stat, &
+                             s%st%alloc_bytes)
       if (stat /= MBDK_SUCCESS) return
     end if
     s%zero_nv = 0.0_dp
@@ -1128,6 +1137,7 @@ contains
     ! first step has no estimate: the options' tolerance alone.
     s%tau = 1.0_dp
     s%noise = NOISE_DECAY * s%noise
+    if (s%no_renewal > 0) s%no_renewal = s%no_renewal - 1
     if (.not. s%book .and. s%h_prev > 0.0_dp) then
       if (s%identity) then
         s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
@@ -1151,7 +1161,8 @@ contains
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     real(dp) :: sh, dnorm, dnorm_old, rate, h, phi_tol, phin, alpha_upd, prog, prog_old, alpha0
-    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted, own, stall_own
+    logical :: fresh, restarted, book, reused, frozen, upd_fresh, boosted, own, stall_own, &
+               penalty_renewed
     integer :: k, nv, m, stalls
 
     nv = s%nv
@@ -1168,6 +1179,7 @@ contains
     restarted = .false.
     fresh = .false.
     own = .false.
+    penalty_renewed = .false.
     dnorm_old = huge(1.0_dp)
     s%iters = 0
     k = 0
@@ -1196,15 +1208,9 @@ contains
       end if
       call residual(s, mech, sh)
       if (.not. s%have_lu) then
-        call build_matrix(s, mech, ierr)
-        s%st%nlu = s%st%nlu + 1
-        s%st%njev = s%st%njev + 1
+        call new_matrix(s, mech, boosted, penalty_renewed, fresh, ierr)
         if (ierr /= MBDK_SUCCESS) return
-        s%have_lu = .true.
-        s%h_lu = h
-        s%lu_boosted = boosted
-        fresh = .true.
-        own = .true.
+        own = own .or. fresh
         reused = .false.
       end if
       s%r(:) = -s%r
@@ -1295,6 +1301,35 @@ contains
 
 
   end subroutine newton
+
+  !> A matrix for Newton at the current iterate (fresh: built there). One by differences first
+  !> has its penalty renewed at the iterate, once per step (what an old augmented matrix loses
+  !> first: cs alpha C^T C is a thousand times M); where that did not serve a step, the next
+  !> COOL_START steps build theirs anew.
+  subroutine new_matrix(s, mech, boosted, penalty_renewed, fresh, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    logical, intent(in) :: boosted
+    logical, intent(inout) :: penalty_renewed
+    logical, intent(out) :: fresh
+    integer, intent(out) :: ierr
+    fresh = .false.
+    if (s%have_fd .and. .not. (s%book .or. penalty_renewed) .and. s%no_renewal == 0 .and. &
+        abs(s%h - s%h_fd) <= sqrt(epsilon(1.0_dp)) * s%h) then
+      call penalty_matrix(s, mech, ierr)
+      penalty_renewed = .true.
+    else
+      if (penalty_renewed) s%no_renewal = COOL_START
+      call build_matrix(s, mech, ierr)
+      s%st%njev = s%st%njev + 1
+      s%h_lu = s%h
+      fresh = .true.
+    end if
+    s%st%nlu = s%st%nlu + 1
+    if (ierr /= MBDK_SUCCESS) return
+    s%have_lu = .true.
+    s%lu_boosted = boosted
+  end subroutine new_matrix
 
   !> A stall (measured after the solve) stiffens the penalty BOOST-fold (a new matrix), and at
   !> the next one freezes lam* where |Phi| is within what a frozen step may accept (a larger
@@ -1471,10 +1506,47 @@ contains
       end do
     else
       s%lt = s%ln + s%alpha * s%phi
+      ! what the penalty's renewal keeps: the matrix less cs alpha C^T C at this iterate (the
+      ! rest of the penalty's derivative, the retraction's turn of C by about h |Omega|,
+      ! changes slowly and stays in)
+      s%jfd = s%jm
+      call penalty_add(s, mech, -1.0_dp)
+      s%h_fd = s%h
+      s%have_fd = .true.
     end if
     call mbdk_lu_factor(s%jm, s%ipiv, ierr)
     if (ierr /= MBDK_SUCCESS) ierr = MBDK_ERR_SINGULAR_MATRIX
   end subroutine build_matrix
+
+  !> jfd = jfd + sign cs alpha C^T C, C of the last evaluation
+  subroutine penalty_add(s, mech, sgn)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: sgn
+    integer :: j
+    if (s%m == 0) return
+    do j = 1, s%nv
+      s%wv = 0.0_dp
+      s%wv(j) = 1.0_dp
+      call mech%i3_c_times(s%aux, s%wv, s%rc)
+      call mech%i3_ct_times(s%aux, s%rc, s%wv)
+      s%jfd(1:s%nv, j) = s%jfd(1:s%nv, j) + (sgn * s%cs * s%alpha) * s%wv
+    end do
+  end subroutine penalty_add
+
+  !> The renewal of a matrix by differences at the iterate: jm = jfd + cs alpha C^T C with C
+  !> of the last evaluation (the augmented form's penalty, a thousand times M, is what an old
+  !> matrix loses first as the mechanism turns), factorised; jfd is kept
+  subroutine penalty_matrix(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    call penalty_add(s, mech, 1.0_dp)
+    s%jm = s%jfd
+    call penalty_add(s, mech, -1.0_dp)
+    call mbdk_lu_factor(s%jm, s%ipiv, ierr)
+    if (ierr /= MBDK_SUCCESS) ierr = MBDK_ERR_SINGULAR_MATRIX
+  end subroutine penalty_matrix
 
   !> The end of a converged step: the book scheme's v+ and a+ from the trapezoidal relations;
   !> the augmented form's projections (module header).
@@ -1501,6 +1573,8 @@ contains
       ! at a rank loss of C (a singular crossing, redundant joints) the projections take the
       ! regular augmented Lagrangian path instead of failing
       call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      call keep_joints(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
       if (mech%velocity_forces .and. s%m > 0) then
         ! forces that depend on v (dampers, the gyroscopic moment) taken at P vn, not at the
@@ -1555,6 +1629,31 @@ contains
     if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine finish_step
+
+  !> Newton tested |Phi| at its last iterate and then applied the last update; where a matrix
+  !> not built at that iterate (a renewed penalty: penalty_matrix) made the update leave Phi at
+  !> q+ above the tolerance, one projection of q+ onto Phi = 0 (the mass-orthogonal correction
+  !> of the factorisation just made) brings it back: the joints hold to newton_atol at every
+  !> accepted step (a frozen step's to FROZEN_PHI times it, as Newton accepted)
+  subroutine keep_joints(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    real(dp) :: phi_tol
+    ierr = MBDK_SUCCESS
+    if (s%m == 0 .or. s%stalled) return
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+    if (maxval(abs(s%phi)) <= phi_tol) return
+    call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    call move_by(s, mech, s%qn, -s%corr, ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
+                          ierr)
+    if (ierr /= MBDK_SUCCESS) return
+    s%st%nfev = s%st%nfev + 1
+    call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
+  end subroutine keep_joints
 
   !> vn from the increment: v + h (1 - gamma) ap + h gamma ap+ with Newmark's ap+ (for the
   !> trapezoidal rule (2/h) dq - v)
