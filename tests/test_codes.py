@@ -128,18 +128,31 @@ def _named(prefix: str, names) -> dict:
     return {n: prefix + n.upper() for n in names}
 
 
+#: the force table's kinds of planar and of spatial scenes -> the kernel constant of each
+PLANAR_FORCES = {**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "spring",
+                                           "damper", "contact", "friction"]),
+                 "point_force": "MBDK_FORCE_POINT",
+                 "coordinate_spring_damper": "MBDK_FORCE_COORDINATE",
+                 "coordinate_spring": "MBDK_FORCE_COORDINATE",
+                 "coordinate_damper": "MBDK_FORCE_COORDINATE"}
+SPATIAL_FORCES = {**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "sphere_plane",
+                                            "sphere_sphere"]), "point_force": "MBDK_FORCE_POINT"}
+
 #: Python's table -> (its codes by the kernel constant each mirrors, the kernel's set of codes:
 #: a prefix every constant of which the table must name (but those listed after it), or the
-#: constant that counts the codes 1..N). A table read from the kernel's registries is here too.
+#: constant that counts the codes 1..N). A table read from the kernel's registries is here too;
+#: the planar and the spatial joints, and the force table's kinds of both (forces and effects),
+#: are each the kernel's codes 1..N together.
 TABLES = {
-    "JOINT_CODES": (_named("MBDK_JOINT_", codes.JOINT_CODES), "MBDK_JOINT_TYPES"),
-    "FORCE_CODES": ({**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "spring",
-                                               "damper", "contact", "friction"]),
-                     "point_force": "MBDK_FORCE_POINT",
-                     "coordinate_spring_damper": "MBDK_FORCE_COORDINATE",
-                     "coordinate_spring": "MBDK_FORCE_COORDINATE",
-                     "coordinate_damper": "MBDK_FORCE_COORDINATE"}, "MBDK_FORCE_TYPES"),
+    "JOINT_CODES": (_named("MBDK_JOINT_", codes.JOINT_CODES), None),
+    "SPATIAL_JOINT_CODES": (_named("MBDK_JOINT_", codes.SPATIAL_JOINT_CODES), None),
+    "ALL_JOINT_CODES": (_named("MBDK_JOINT_", [*codes.JOINT_CODES, *codes.SPATIAL_JOINT_CODES]),
+                        "MBDK_JOINT_TYPES"),
+    "FORCE_CODES": (PLANAR_FORCES, None),
+    "SPATIAL_FORCE_CODES": (SPATIAL_FORCES, None),
     "EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
+    "FORCE_TABLE_CODES": ({**PLANAR_FORCES, **SPATIAL_FORCES, "wear": "MBDK_EFFECT_WEAR"},
+                          "MBDK_FORCE_TYPES"),
     "BODY_CODES": (_named("MBDK_BODY_", ["planar", "spatial"]), "MBDK_BODY_KINDS"),
     "STRUCT_IDS": ({"mbdk_stats": "MBDK_STRUCT_STATS", "mbdk_options": "MBDK_STRUCT_OPTIONS",
                     "mbdk_index3_options": "MBDK_STRUCT_INDEX3_OPTIONS",
@@ -168,14 +181,6 @@ TABLES = {
                          "scaled": "MBDK_INDEX3_SCALED"}, None),
     "STARTUP": (_named("MBDK_STARTUP_", ["rk4", "bdf"]), ("MBDK_STARTUP_",)),
     "BDF_DAE_FORMS": (_named("MBDK_DAE_", ["i3", "si2"]), ("MBDK_DAE_",)),
-    "SPATIAL_JOINT_CODES": (_named("MBDK_SPATIAL_", codes.SPATIAL_JOINT_CODES),
-                            "MBDK_SPATIAL_JOINT_TYPES"),
-    "SPATIAL_FORCE_CODES": ({**_named("MBDK_SPATIAL_", ["gravity", "point_force", "torque",
-                                                         "spring_damper", "sphere_plane",
-                                                         "sphere_sphere"]),
-                             "spring": "MBDK_SPATIAL_SPRING_DAMPER",
-                             "damper": "MBDK_SPATIAL_SPRING_DAMPER"},
-                            "MBDK_SPATIAL_FORCE_TYPES"),
     "ROTATIONS": (_named("MBDK_ROT_", ["quaternion", "euler313", "cardan123"]), ("MBDK_ROT_",)),
     "NORMS": (_named("MBDK_NORM_", ["project", "stabilise", "none"]), ("MBDK_NORM_",)),
     "SPATIAL_FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty",
@@ -199,6 +204,10 @@ def _python_table(name: str) -> dict:
         return {v: k for k, v in codes.METHOD_FAMILIES.items()}
     if name == "BDF_DAE_FORMS":
         return codes.SCENE_DAE_FORMS["bdf"]
+    if name == "ALL_JOINT_CODES":       # a name of both kinds with two codes: the last wins,
+        return {**codes.JOINT_CODES, **codes.SPATIAL_JOINT_CODES}    # and its constant differs
+    if name == "FORCE_TABLE_CODES":
+        return {**codes.FORCE_CODES, **codes.SPATIAL_FORCE_CODES, **codes.EFFECT_CODES}
     table = dict(getattr(codes, name))
     if name == "ADAPTIVE_MODES":     # False: no step-size control, the kernel's opt%adaptive 0
         assert table.pop(False) == 0
@@ -229,9 +238,11 @@ def mismatches(table: dict, names: dict, whole, kernel: dict) -> list[str]:
 def test_the_kernels_constants_are_read():
     """The reader finds the constants it is meant to, values resolved through other names."""
     k = fortran_constants(Path(__file__).resolve().parents[1] / "kernel" / "src")
-    assert k["MBDK_SPATIAL_JOINT_ROWS"] == [3, 5, 4, 4, 5, 6, 1, 1]     # an array, continued
+    family = {name: code for code, name in codes.METHOD_FAMILIES.items()}
+    by_id = sorted(mbdk.methods().values(), key=lambda m: m.id)
+    assert k["FAMILIES"] == [family[m.family] for m in by_id]     # an array, continued
     assert k["MBDK_ERR_INTERRUPTED"] == -60 and k["MBDK_SUCCESS"] == 0
-    assert k["MBDK_ELEMENT_KINDS"] == k["MBDK_JOINT_TYPES"] + k["MBDK_FORCE_TYPES"] + 1
+    assert k["MBDK_ELEMENT_KINDS"] == k["MBDK_JOINT_TYPES"] + k["MBDK_FORCE_TYPES"]
     assert k["MBDK_SPARSE_MIN_ROWS"] == k["MBDK_SMALL_DENSE_MAX"]      # a constant's name
 
 
@@ -251,9 +262,12 @@ def test_a_wrong_table_is_found_wrong(kernel):
     assert mismatches({**table, "index9": 9}, names, whole, kernel)
     assert mismatches({k: v for k, v in table.items() if k != "penalty"}, names, whole, kernel)
     assert mismatches(table, names, whole, {**kernel, "MBDK_FORM_NEW": 5})
-    names, whole = TABLES["SPATIAL_JOINT_CODES"]
-    assert mismatches(codes.SPATIAL_JOINT_CODES, names, whole,
-                      {**kernel, "MBDK_SPATIAL_JOINT_TYPES": 9})
+    names, whole = TABLES["ALL_JOINT_CODES"]
+    table = _python_table("ALL_JOINT_CODES")
+    assert not mismatches(table, names, whole, kernel)
+    assert mismatches(table, names, whole, {**kernel, "MBDK_JOINT_TYPES": 16})
+    # the spatial model's own numbering of before (spherical 1, revolute 2, ...)
+    assert mismatches({**table, "spherical": 1, "revolute": 2}, names, whole, kernel)
 
 
 @pytest.mark.parametrize("name", list(SCALARS))
@@ -261,11 +275,18 @@ def test_a_single_code_is_the_kernels(name, kernel):
     assert getattr(codes, name) == kernel[SCALARS[name]]
 
 
-def test_the_joint_rows_are_the_kernels(kernel):
-    planar, spatial = kernel["MBDK_JOINT_ROW_COUNT"], kernel["MBDK_SPATIAL_JOINT_ROWS"]
-    assert codes.JOINT_ROWS == {n: planar[c - 1] for n, c in codes.JOINT_CODES.items()}
-    assert codes.SPATIAL_JOINT_ROWS == {n: spatial[c - 1]
-                                        for n, c in codes.SPATIAL_JOINT_CODES.items()}
+def test_a_joint_has_rows_on_exactly_the_body_kinds_it_applies_to():
+    """Each registry row applies to body kinds the kernel has; a joint adds constraint rows on
+    each of them (a revolute joint 2 in a planar scene, 5 in a spatial one), a force or an
+    effect none; Python's row tables are the registry's, kind by kind."""
+    for e in codes.ELEMENT_KINDS:
+        assert e.rows and set(e.rows) <= set(codes.BODY_KINDS), e
+        assert all((rows > 0) == (e.cls == codes.JOINT_CLASS) for rows in e.rows.values()), e
+    assert codes.JOINT_ROWS == {e.name: e.rows["planar"] for e in codes.ELEMENT_KINDS
+                                if e.cls == codes.JOINT_CLASS and "planar" in e.rows}
+    assert codes.SPATIAL_JOINT_ROWS == {e.name: e.rows["spatial"] for e in codes.ELEMENT_KINDS
+                                        if e.cls == codes.JOINT_CLASS and "spatial" in e.rows}
+    assert (codes.JOINT_ROWS["revolute"], codes.SPATIAL_JOINT_ROWS["revolute"]) == (2, 5)
 
 
 def test_the_coordinates_and_the_output_bits_fit_the_kernels(kernel):
@@ -308,11 +329,17 @@ def test_the_element_registry_is_the_kernels_constants(kernel):
     assert (codes.JOINT_CLASS, codes.FORCE_CLASS, codes.EFFECT_CLASS) == tuple(
         kernel[f"MBDK_CLASS_{c}"] for c in classes.values())
     assert len(codes.ELEMENT_KINDS) == kernel["MBDK_ELEMENT_KINDS"]
-    for cls, code, name, rows, _states in codes.ELEMENT_KINDS:
-        assert sum(c == cls for c, *_ in codes.ELEMENT_KINDS) == kernel[
-            f"MBDK_{classes[cls]}_TYPES"]
-        if cls == codes.JOINT_CLASS:
-            assert rows == kernel["MBDK_JOINT_ROW_COUNT"][code - 1], name
+    count = {cls: sum(e.cls == cls for e in codes.ELEMENT_KINDS) for cls in classes}
+    assert count[codes.JOINT_CLASS] == kernel["MBDK_JOINT_TYPES"]
+    assert count[codes.FORCE_CLASS] + count[codes.EFFECT_CLASS] == kernel["MBDK_FORCE_TYPES"]
+    assert count[codes.EFFECT_CLASS] == kernel["MBDK_EFFECT_TYPES"]
+    # a kind's position is its visit counter: the joints by code, then the force table's codes
+    for k, e in enumerate(codes.ELEMENT_KINDS, 1):
+        assert k == e.code + (0 if e.cls == codes.JOINT_CLASS else kernel["MBDK_JOINT_TYPES"]), e
+    # the body kinds' bits (MBDK_ON_*): bit k - 1 for body kind k
+    for n in ("planar", "spatial"):
+        assert kernel[f"MBDK_ON_{n.upper()}"] == 1 << (kernel[f"MBDK_BODY_{n.upper()}"] - 1)
+    assert kernel["MBDK_ON_BOTH"] == kernel["MBDK_ON_PLANAR"] | kernel["MBDK_ON_SPATIAL"]
     i, kinds = 1, {}
     while (entry := _kernel.body_kind(i))[0] != 0:
         kinds[decode_text(entry[1])] = int(entry[0])
