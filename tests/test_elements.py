@@ -59,6 +59,45 @@ def test_every_scene_type_is_a_kernel_kind_and_back():
     assert C.VISIT_NAMES == [e.name for e in C.ELEMENT_KINDS]
 
 
+def test_a_planar_run_counts_the_kinds_of_planar_scenes():
+    """A planar run's visits name every kind of planar scenes, in the registry's order, and no
+    kind of spatial scenes alone (which the planar model cannot visit)."""
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=0.01)
+    assert list(r.visits) == [e.name for e in C.ELEMENT_KINDS if "planar" in e.rows]
+    assert r.visits["revolute"] > 0 and r.visits["gravity"] > 0
+
+
+def test_the_planar_model_refuses_the_kinds_of_spatial_scenes():
+    """Each joint and force-table code of the spatial scenes alone, put in a planar scene's
+    tables (a C embedder's slip): invalid input, not some planar kind evaluated; the scene's own
+    tables (a revolute joint and gravity, kinds of both) evaluate."""
+    sc = mbdk.scene("double_pendulum")
+    tab = M.build_tables(sc)
+    y = np.concatenate([sc.q0(), sc.v0()])
+
+    def status(jint=tab.jint, fint=tab.fint):
+        args = list(tab.args())
+        args[4], args[7] = jint, fint
+        *_, st = _kernel.model_eval(*args, mbdk.ModelOptions().pack(), tab.m, 0.0, y)
+        return st
+
+    assert status() == mbdk.Status.SUCCESS
+    joints = [e.code for e in C.ELEMENT_KINDS if e.cls == C.JOINT_CLASS and
+              "planar" not in e.rows]
+    forces = [e.code for e in C.ELEMENT_KINDS if e.cls != C.JOINT_CLASS and
+              "planar" not in e.rows]
+    assert joints and forces
+    for code in joints:
+        jint = tab.jint.copy()
+        jint[0, 0] = code
+        assert status(jint=jint) == mbdk.Status.ERR_INVALID_INPUT, code
+    k = [f.type for f in sc.forces].index("gravity")
+    for code in forces:
+        fint = tab.fint.copy()
+        fint[0, k] = code
+        assert status(fint=fint) == mbdk.Status.ERR_INVALID_INPUT, code
+
+
 def test_joint_rows_are_the_kernels():
     """The rows the registry states are the rows the kernel's Phi has (four-bar: three
     revolute joints and a ground revolute, 8 rows; trolley: prismatic + revolute)."""
