@@ -8,10 +8,15 @@ Python code is its constant's value, and each constant of the kernel's set (ever
 its prefix, or the codes 1..its count constant) has its Python name, so that a code the kernel
 adds or renumbers fails here.
 
+The element registry holds the kinds of planar and spatial scenes in one table: every name has
+one code in both, Python's tables of both models are read from it, and the spatial model takes
+exactly its spatial kinds (every other code refused with MBDK_ERR_INVALID_INPUT).
+
 Then by what the kernel does with the codes the f2py entries take as bare numbers (ida's forms,
 spatial_run's dae_form and options, rotation_matrix's kind) or that a constant alone cannot
 check: a scene of each spatial joint type evaluated (the motions the joint leaves free, the rows
-it adds), each spatial force (the accelerations and energies it gives), each orientation set
+it adds), each spatial force and contact (the accelerations and energies it gives), each
+orientation set
 (the kernel's rotation of the coordinates Python wrote), each quaternion-norm treatment, each
 formulation and each form of the DAE (their signatures in a run), the outputs' bits, the linear
 solves, and the positions of spatial_run's options in the f2py entry's source."""
@@ -26,7 +31,7 @@ import mbdk
 from mbdk import _kernel, codes, rotations
 from mbdk.errors import Status, decode_text
 from mbdk.scene_file import scene_from_dict
-from mbdk.spatial_model import evaluate_spatial
+from mbdk.spatial_model import evaluate_spatial, spatial_tables
 
 # ---- the kernel's named constants -----------------------------------------------------------
 
@@ -128,18 +133,31 @@ def _named(prefix: str, names) -> dict:
     return {n: prefix + n.upper() for n in names}
 
 
+#: the force table's kinds of planar and of spatial scenes -> the kernel constant of each
+PLANAR_FORCES = {**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "spring",
+                                           "damper", "contact", "friction"]),
+                 "point_force": "MBDK_FORCE_POINT",
+                 "coordinate_spring_damper": "MBDK_FORCE_COORDINATE",
+                 "coordinate_spring": "MBDK_FORCE_COORDINATE",
+                 "coordinate_damper": "MBDK_FORCE_COORDINATE"}
+SPATIAL_FORCES = {**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "sphere_plane",
+                                            "sphere_sphere"]), "point_force": "MBDK_FORCE_POINT"}
+
 #: Python's table -> (its codes by the kernel constant each mirrors, the kernel's set of codes:
 #: a prefix every constant of which the table must name (but those listed after it), or the
-#: constant that counts the codes 1..N). A table read from the kernel's registries is here too.
+#: constant that counts the codes 1..N). A table read from the kernel's registries is here too;
+#: the planar and the spatial joints, and the force table's kinds of both (forces and effects),
+#: are each the kernel's codes 1..N together.
 TABLES = {
-    "JOINT_CODES": (_named("MBDK_JOINT_", codes.JOINT_CODES), "MBDK_JOINT_TYPES"),
-    "FORCE_CODES": ({**_named("MBDK_FORCE_", ["gravity", "torque", "spring_damper", "spring",
-                                               "damper", "contact", "friction"]),
-                     "point_force": "MBDK_FORCE_POINT",
-                     "coordinate_spring_damper": "MBDK_FORCE_COORDINATE",
-                     "coordinate_spring": "MBDK_FORCE_COORDINATE",
-                     "coordinate_damper": "MBDK_FORCE_COORDINATE"}, "MBDK_FORCE_TYPES"),
+    "JOINT_CODES": (_named("MBDK_JOINT_", codes.JOINT_CODES), None),
+    "SPATIAL_JOINT_CODES": (_named("MBDK_JOINT_", codes.SPATIAL_JOINT_CODES), None),
+    "ALL_JOINT_CODES": (_named("MBDK_JOINT_", [*codes.JOINT_CODES, *codes.SPATIAL_JOINT_CODES]),
+                        "MBDK_JOINT_TYPES"),
+    "FORCE_CODES": (PLANAR_FORCES, None),
+    "SPATIAL_FORCE_CODES": (SPATIAL_FORCES, None),
     "EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
+    "FORCE_TABLE_CODES": ({**PLANAR_FORCES, **SPATIAL_FORCES, "wear": "MBDK_EFFECT_WEAR"},
+                          "MBDK_FORCE_TYPES"),
     "BODY_CODES": (_named("MBDK_BODY_", ["planar", "spatial"]), "MBDK_BODY_KINDS"),
     "STRUCT_IDS": ({"mbdk_stats": "MBDK_STRUCT_STATS", "mbdk_options": "MBDK_STRUCT_OPTIONS",
                     "mbdk_index3_options": "MBDK_STRUCT_INDEX3_OPTIONS",
@@ -168,14 +186,6 @@ TABLES = {
                          "scaled": "MBDK_INDEX3_SCALED"}, None),
     "STARTUP": (_named("MBDK_STARTUP_", ["rk4", "bdf"]), ("MBDK_STARTUP_",)),
     "BDF_DAE_FORMS": (_named("MBDK_DAE_", ["i3", "si2"]), ("MBDK_DAE_",)),
-    "SPATIAL_JOINT_CODES": (_named("MBDK_SPATIAL_", codes.SPATIAL_JOINT_CODES),
-                            "MBDK_SPATIAL_JOINT_TYPES"),
-    "SPATIAL_FORCE_CODES": ({**_named("MBDK_SPATIAL_", ["gravity", "point_force", "torque",
-                                                         "spring_damper", "sphere_plane",
-                                                         "sphere_sphere"]),
-                             "spring": "MBDK_SPATIAL_SPRING_DAMPER",
-                             "damper": "MBDK_SPATIAL_SPRING_DAMPER"},
-                            "MBDK_SPATIAL_FORCE_TYPES"),
     "ROTATIONS": (_named("MBDK_ROT_", ["quaternion", "euler313", "cardan123"]), ("MBDK_ROT_",)),
     "NORMS": (_named("MBDK_NORM_", ["project", "stabilise", "none"]), ("MBDK_NORM_",)),
     "SPATIAL_FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty",
@@ -199,6 +209,10 @@ def _python_table(name: str) -> dict:
         return {v: k for k, v in codes.METHOD_FAMILIES.items()}
     if name == "BDF_DAE_FORMS":
         return codes.SCENE_DAE_FORMS["bdf"]
+    if name == "ALL_JOINT_CODES":       # a name of both kinds with two codes: the last wins,
+        return {**codes.JOINT_CODES, **codes.SPATIAL_JOINT_CODES}    # and its constant differs
+    if name == "FORCE_TABLE_CODES":
+        return {**codes.FORCE_CODES, **codes.SPATIAL_FORCE_CODES, **codes.EFFECT_CODES}
     table = dict(getattr(codes, name))
     if name == "ADAPTIVE_MODES":     # False: no step-size control, the kernel's opt%adaptive 0
         assert table.pop(False) == 0
@@ -229,9 +243,11 @@ def mismatches(table: dict, names: dict, whole, kernel: dict) -> list[str]:
 def test_the_kernels_constants_are_read():
     """The reader finds the constants it is meant to, values resolved through other names."""
     k = fortran_constants(Path(__file__).resolve().parents[1] / "kernel" / "src")
-    assert k["MBDK_SPATIAL_JOINT_ROWS"] == [3, 5, 4, 4, 5, 6, 1, 1]     # an array, continued
+    family = {name: code for code, name in codes.METHOD_FAMILIES.items()}
+    by_id = sorted(mbdk.methods().values(), key=lambda m: m.id)
+    assert k["FAMILIES"] == [family[m.family] for m in by_id]     # an array, continued
     assert k["MBDK_ERR_INTERRUPTED"] == -60 and k["MBDK_SUCCESS"] == 0
-    assert k["MBDK_ELEMENT_KINDS"] == k["MBDK_JOINT_TYPES"] + k["MBDK_FORCE_TYPES"] + 1
+    assert k["MBDK_ELEMENT_KINDS"] == k["MBDK_JOINT_TYPES"] + k["MBDK_FORCE_TYPES"]
     assert k["MBDK_SPARSE_MIN_ROWS"] == k["MBDK_SMALL_DENSE_MAX"]      # a constant's name
 
 
@@ -251,9 +267,12 @@ def test_a_wrong_table_is_found_wrong(kernel):
     assert mismatches({**table, "index9": 9}, names, whole, kernel)
     assert mismatches({k: v for k, v in table.items() if k != "penalty"}, names, whole, kernel)
     assert mismatches(table, names, whole, {**kernel, "MBDK_FORM_NEW": 5})
-    names, whole = TABLES["SPATIAL_JOINT_CODES"]
-    assert mismatches(codes.SPATIAL_JOINT_CODES, names, whole,
-                      {**kernel, "MBDK_SPATIAL_JOINT_TYPES": 9})
+    names, whole = TABLES["ALL_JOINT_CODES"]
+    table = _python_table("ALL_JOINT_CODES")
+    assert not mismatches(table, names, whole, kernel)
+    assert mismatches(table, names, whole, {**kernel, "MBDK_JOINT_TYPES": 16})
+    # the spatial model's own numbering of before (spherical 1, revolute 2, ...)
+    assert mismatches({**table, "spherical": 1, "revolute": 2}, names, whole, kernel)
 
 
 @pytest.mark.parametrize("name", list(SCALARS))
@@ -261,11 +280,50 @@ def test_a_single_code_is_the_kernels(name, kernel):
     assert getattr(codes, name) == kernel[SCALARS[name]]
 
 
-def test_the_joint_rows_are_the_kernels(kernel):
-    planar, spatial = kernel["MBDK_JOINT_ROW_COUNT"], kernel["MBDK_SPATIAL_JOINT_ROWS"]
-    assert codes.JOINT_ROWS == {n: planar[c - 1] for n, c in codes.JOINT_CODES.items()}
-    assert codes.SPATIAL_JOINT_ROWS == {n: spatial[c - 1]
-                                        for n, c in codes.SPATIAL_JOINT_CODES.items()}
+def test_a_joint_has_rows_on_exactly_the_body_kinds_it_applies_to():
+    """Each registry row applies to body kinds the kernel has; a joint adds constraint rows on
+    each of them (a revolute joint 2 in a planar scene, 5 in a spatial one), a force or an
+    effect none; Python's row tables are the registry's, kind by kind."""
+    for e in codes.ELEMENT_KINDS:
+        assert e.rows and set(e.rows) <= set(codes.BODY_KINDS), e
+        assert all((rows > 0) == (e.cls == codes.JOINT_CLASS) for rows in e.rows.values()), e
+    assert codes.JOINT_ROWS == {e.name: e.rows["planar"] for e in codes.ELEMENT_KINDS
+                                if e.cls == codes.JOINT_CLASS and "planar" in e.rows}
+    assert codes.SPATIAL_JOINT_ROWS == {e.name: e.rows["spatial"] for e in codes.ELEMENT_KINDS
+                                        if e.cls == codes.JOINT_CLASS and "spatial" in e.rows}
+    assert (codes.JOINT_ROWS["revolute"], codes.SPATIAL_JOINT_ROWS["revolute"]) == (2, 5)
+
+
+def test_every_element_name_has_one_code_in_both_kinds_of_scene():
+    """One registry for planar and spatial scenes: every name once, every code once in its table
+    (the joints', or the force table's forces and effects), and every table of codes Python
+    passes to either model gives a name the one code the registry gives it. The kinds both
+    models have are one row each (revolute, prismatic and fixed joints; gravity, point forces,
+    torques, spring-dampers); the spatial model's others continue the codes after the planar
+    ones'."""
+    names = [e.name for e in codes.ELEMENT_KINDS]
+    assert len(set(names)) == len(names)
+    table = {codes.JOINT_CLASS: "joints", codes.FORCE_CLASS: "forces",
+             codes.EFFECT_CLASS: "forces"}
+    keys = [(table[e.cls], e.code) for e in codes.ELEMENT_KINDS]
+    assert len(set(keys)) == len(keys)
+    registry = {e.name: e.code for e in codes.ELEMENT_KINDS}
+    python = {}
+    for tab in (codes.JOINT_CODES, codes.SPATIAL_JOINT_CODES, codes.FORCE_CODES,
+                codes.SPATIAL_FORCE_CODES, codes.EFFECT_CODES):
+        for name, code in tab.items():
+            python.setdefault(name, set()).add(code)
+    assert {n: c for n, c in python.items() if len(c) > 1} == {}
+    assert {n: c for n, c in python.items() if n in registry and c != {registry[n]}} == {}
+    # the planar scene format's aliases of coordinate_spring_damper are the only other names
+    assert set(python) - set(registry) == {"coordinate_spring", "coordinate_damper"}
+    both = {e.name for e in codes.ELEMENT_KINDS if set(e.rows) == {"planar", "spatial"}}
+    assert both == {"revolute", "prismatic", "fixed", "gravity", "point_force", "torque",
+                    "spring_damper"}
+    for t in ("joints", "forces"):
+        kinds = [e for e in codes.ELEMENT_KINDS if table[e.cls] == t]
+        planar = max(e.code for e in kinds if "planar" in e.rows)
+        assert all(e.code > planar for e in kinds if "planar" not in e.rows), t
 
 
 def test_the_coordinates_and_the_output_bits_fit_the_kernels(kernel):
@@ -308,11 +366,17 @@ def test_the_element_registry_is_the_kernels_constants(kernel):
     assert (codes.JOINT_CLASS, codes.FORCE_CLASS, codes.EFFECT_CLASS) == tuple(
         kernel[f"MBDK_CLASS_{c}"] for c in classes.values())
     assert len(codes.ELEMENT_KINDS) == kernel["MBDK_ELEMENT_KINDS"]
-    for cls, code, name, rows, _states in codes.ELEMENT_KINDS:
-        assert sum(c == cls for c, *_ in codes.ELEMENT_KINDS) == kernel[
-            f"MBDK_{classes[cls]}_TYPES"]
-        if cls == codes.JOINT_CLASS:
-            assert rows == kernel["MBDK_JOINT_ROW_COUNT"][code - 1], name
+    count = {cls: sum(e.cls == cls for e in codes.ELEMENT_KINDS) for cls in classes}
+    assert count[codes.JOINT_CLASS] == kernel["MBDK_JOINT_TYPES"]
+    assert count[codes.FORCE_CLASS] + count[codes.EFFECT_CLASS] == kernel["MBDK_FORCE_TYPES"]
+    assert count[codes.EFFECT_CLASS] == kernel["MBDK_EFFECT_TYPES"]
+    # a kind's position is its visit counter: the joints by code, then the force table's codes
+    for k, e in enumerate(codes.ELEMENT_KINDS, 1):
+        assert k == e.code + (0 if e.cls == codes.JOINT_CLASS else kernel["MBDK_JOINT_TYPES"]), e
+    # the body kinds' bits (MBDK_ON_*): bit k - 1 for body kind k
+    for n in ("planar", "spatial"):
+        assert kernel[f"MBDK_ON_{n.upper()}"] == 1 << (kernel[f"MBDK_BODY_{n.upper()}"] - 1)
+    assert kernel["MBDK_ON_BOTH"] == kernel["MBDK_ON_PLANAR"] | kernel["MBDK_ON_SPATIAL"]
     i, kinds = 1, {}
     while (entry := _kernel.body_kind(i))[0] != 0:
         kinds[decode_text(entry[1])] = int(entry[0])
@@ -341,6 +405,8 @@ A = np.array([1.0, 2.0, 2.0]) / 3.0             # the joints' axis (space)
 B = np.array([2.0, -1.0, 0.0]) / np.sqrt(5.0)   # normal to it
 C = np.cross(A, B)
 P = np.array([0.1, 0.0, 0.3])                   # the joints' point (space)
+PLANE_N = np.array([0.0, 0.6, 0.8])             # a contact's ground plane (through 0), normal
+BALL = np.array([0.3, 0.4, 0.1])                # a contact's ground sphere, its centre
 ANGLES = [0.3, 0.4, 0.5]                        # the body's 3-1-3 angles
 
 
@@ -391,6 +457,50 @@ def test_every_spatial_joint_type_has_a_row_of_motions():
     assert set(MOTIONS) == set(codes.SPATIAL_JOINT_CODES) == set(codes.SPATIAL_JOINT_ROWS)
 
 
+def _spatial_status(sc, jtype=None, ftype=None) -> int:
+    """The status of the spatial model built from a scene's tables (spatial_residuals at its
+    initial state), with the first joint's or force's code replaced."""
+    nb, mass, inertia, nj, jt, jbody, jreal, nf, ft, fbody, freal = spatial_tables(sc)
+    if jtype is not None:
+        jt[0] = jtype
+    if ftype is not None:
+        ft[0] = ftype
+    y0 = sc.state0()
+    *_, status = _kernel.spatial_residuals(mass, inertia, nj, jt, jbody, jreal, nf, ft, fbody,
+                                           freal, float(codes.ROTATIONS[sc.rotation]), y0, 0.0,
+                                           y0, 6)
+    return int(status)
+
+
+def test_the_spatial_model_takes_exactly_the_registrys_spatial_joints():
+    """Every joint code of the registry and one past each end, in a joint's table whose reals
+    every spatial joint kind can take (a point, two axes): the spatial model builds the kinds
+    that apply to spatial bodies and refuses every other code, the planar joints' included, as
+    invalid input."""
+    sc = scene_from_dict({"body": [_body()], "joint": [_joint("revolute")]}, "probe.toml")
+    spatial = set(codes.SPATIAL_JOINT_CODES.values())
+    n = max(e.code for e in codes.ELEMENT_KINDS if e.cls == codes.JOINT_CLASS)
+    got = {c: _spatial_status(sc, jtype=c) for c in range(-1, n + 2)}
+    assert got == {c: Status.SUCCESS if c in spatial else Status.ERR_INVALID_INPUT
+                   for c in range(-1, n + 2)}
+    assert spatial and set(codes.JOINT_CODES.values()) - spatial   # both sides were probed
+
+
+def test_the_spatial_model_takes_exactly_the_registrys_spatial_forces():
+    """The same for the force table: a contact's reals (which every spatial force kind can take),
+    every code of the force table (forces and effects) and one past each end."""
+    contact = {"type": "contact", "name": "f", "body1": "b", "stiffness": 1e3,
+               "shape1": {"type": "sphere", "radius": 0.6},
+               "shape2": {"type": "plane", "normal": [0.0, 0.0, 1.0]}}
+    sc = scene_from_dict({"body": [_body()], "force": [contact]}, "probe.toml")
+    spatial = set(codes.SPATIAL_FORCE_CODES.values())
+    n = max(e.code for e in codes.ELEMENT_KINDS if e.cls != codes.JOINT_CLASS)
+    got = {c: _spatial_status(sc, ftype=c) for c in range(-1, n + 2)}
+    assert got == {c: Status.SUCCESS if c in spatial else Status.ERR_INVALID_INPUT
+                   for c in range(-1, n + 2)}
+    assert spatial and set(codes.FORCE_CODES.values()) - spatial
+
+
 @pytest.mark.parametrize("typ", list(MOTIONS))
 def test_a_spatial_joint_code_is_the_joint_the_kernel_builds(typ):
     """Python's code and row count of a joint type, against the kernel's evaluation of a scene
@@ -410,11 +520,24 @@ def test_a_spatial_joint_code_is_the_joint_the_kernel_builds(typ):
         assert np.abs(c @ motion[name]).max() > 1e-3, (typ, name)
 
 
-@pytest.mark.parametrize("typ", ["gravity", "point_force", "torque", "spring", "damper",
-                                 "spring_damper"])
+#: the spatial force types of a scene file whose forces the test below computes by hand
+SPATIAL_FORCE_CASES = ["gravity", "point_force", "torque", "spring", "damper", "spring_damper",
+                       "sphere_plane", "sphere_sphere"]
+
+
+def test_every_spatial_force_kind_is_computed_by_hand():
+    """The cases below cover every force kind of the registry's spatial ones (a file's spring
+    and damper are spring_dampers)."""
+    assert set(SPATIAL_FORCE_CASES) - {"spring", "damper"} == set(codes.SPATIAL_FORCE_CODES)
+
+
+@pytest.mark.parametrize("typ", SPATIAL_FORCE_CASES)
 def test_a_spatial_force_code_is_the_force_the_kernel_applies(typ):
     """The accelerations and potential energies of one free body under each force type (at
-    rest: no gyroscopic term, a damper's force zero), against Newton-Euler by hand."""
+    rest: no gyroscopic term, a damper's force zero), against Newton-Euler by hand. A contact
+    (sphere on a tilted ground plane, or on a ground sphere off to the side) pushes the body
+    along its normal n with k delta^e through the sphere's centre (no moment, the body at rest:
+    no damping, no friction), its potential k delta^(e+1)/(e+1) (mbdk_contact3d)."""
     g, f, s, tau = (np.array([0.1, -0.2, -9.81]), np.array([1.0, 2.0, 3.0]),
                     np.array([0.1, 0.2, 0.0]), np.array([0.1, 0.2, 0.3]))
     at2, k, rest = np.array([0.0, 0.0, 1.5]), 10.0, 0.5
@@ -425,6 +548,14 @@ def test_a_spatial_force_code_is_the_force_the_kernel_applies(typ):
         force.update(body="b", point=list(s), force=list(f))
     elif typ == "torque":
         force.update(body="b", torque=list(tau))
+    elif typ == "sphere_plane":
+        force.update(type="contact", body1="b", stiffness=k, exponent=1.5,
+                     shape1={"type": "sphere", "radius": 0.6},
+                     shape2={"type": "plane", "normal": list(PLANE_N)})
+    elif typ == "sphere_sphere":
+        force.update(type="contact", body1="b", stiffness=k, exponent=1.5,
+                     shape1={"type": "sphere", "radius": 0.3},
+                     shape2={"type": "sphere", "centre": list(BALL), "radius": 0.5})
     else:
         force.update(body1="b", at2=list(at2), rest_length=rest)
         if typ != "damper":
@@ -445,6 +576,16 @@ def test_a_spatial_force_code_is_the_force_the_kernel_applies(typ):
     spring_force = -k * stretch * (b.position - at2) / np.linalg.norm(b.position - at2) / m
     expect["spring"] = expect["spring_damper"] = (spring_force, np.zeros(3), 0.0,
                                                   0.5 * k * stretch ** 2)
+    if typ in ("sphere_plane", "sphere_sphere"):
+        assert [f.type for f in sc.forces] == [typ]
+        if typ == "sphere_plane":
+            n = PLANE_N
+            delta = 0.6 - n @ b.position
+        else:
+            n = (b.position - BALL) / np.linalg.norm(b.position - BALL)
+            delta = 0.8 - np.linalg.norm(b.position - BALL)
+        assert delta > 0.05
+        expect[typ] = (k * delta ** 1.5 * n / m, np.zeros(3), 0.0, k * delta ** 2.5 / 2.5)
     v_dot, w_dot, vg, vs = expect[typ]
     assert np.abs(acc[:3] - v_dot).max() < 1e-12 and np.abs(acc[3:] - w_dot).max() < 1e-12
     assert abs(e["potential_gravity"] - vg) < 1e-12 and abs(e["potential_springs"] - vs) < 1e-12

@@ -1,7 +1,9 @@
-"""The element registry exists once, in the kernel (kernel/src/model/mbdk_elements.f90); mbdk.h
-mirrors its codes (checked in C by kernel/tests/c_element_table.c) and Python reads it. Here:
-the header's enums, the scene format's element types and the kernel's kinds agree, and the
-kernel enforces what a kind means."""
+"""The element registry exists once, in the kernel (kernel/src/model/mbdk_elements.f90), for
+planar and spatial scenes; mbdk.h mirrors its codes (checked in C by
+kernel/tests/c_element_table.c) and Python reads it. Here: the header's enums, both scene
+formats' element types and the kernel's kinds agree, and the kernel enforces what a kind means
+(the planar model takes the kinds of planar scenes only; the spatial model's side:
+tests/test_codes.py)."""
 import re
 from pathlib import Path
 
@@ -11,7 +13,7 @@ import pytest
 import mbdk
 from mbdk import _kernel, codes as C, model as M
 from mbdk.codes import WEAR_LAWS
-from mbdk.scene import FORCE_TYPES, JOINT_TYPES
+from mbdk.scene import FORCE_TYPES, JOINT_TYPES, SPATIAL_FORCE_TYPES, SPATIAL_JOINT_TYPES
 
 
 def header_kinds(root):
@@ -34,14 +36,66 @@ def test_header_enums_are_the_kernel_registry(root):
     assert len(kernel) >= 11 and kernel == header
 
 
+def _kinds(cls: int, body: str) -> set:
+    return {e.name for e in C.ELEMENT_KINDS if e.cls == cls and body in e.rows}
+
+
 def test_every_scene_type_is_a_kernel_kind_and_back():
-    kinds = {name for _c, _k, name, _r, _s in C.ELEMENT_KINDS}
-    assert set(JOINT_TYPES) == set(C.JOINT_CODES) <= kinds
+    """The planar scene format's types are the registry's kinds of planar bodies, the spatial
+    format's its kinds of spatial bodies (a spatial file's spring and damper are spring_dampers,
+    its contact a sphere_plane or a sphere_sphere by its second shape)."""
+    assert set(JOINT_TYPES) == set(C.JOINT_CODES) == _kinds(C.JOINT_CLASS, "planar")
     # friction is written in its contact's table, not as a [[force]] of its own
     assert set(FORCE_TYPES) | {"friction"} == set(C.FORCE_CODES)
-    assert set(C.FORCE_CODES.values()) == {k for c, k, *_ in C.ELEMENT_KINDS if c == 2}
-    assert set(WEAR_LAWS) and set(C.EFFECT_CODES) == {"wear"}
-    assert C.VISIT_NAMES == [name for _c, _k, name, _r, _s in C.ELEMENT_KINDS]
+    assert set(C.FORCE_CODES.values()) == {e.code for e in C.ELEMENT_KINDS
+                                           if e.cls == C.FORCE_CLASS and "planar" in e.rows}
+    assert set(WEAR_LAWS) and set(C.EFFECT_CODES) == {"wear"} == _kinds(C.EFFECT_CLASS,
+                                                                         "planar")
+    assert SPATIAL_JOINT_TYPES == set(C.SPATIAL_JOINT_CODES) == _kinds(C.JOINT_CLASS, "spatial")
+    assert (set(SPATIAL_FORCE_TYPES) - {"spring", "damper", "contact"}) | {
+        "sphere_plane", "sphere_sphere"} == set(C.SPATIAL_FORCE_CODES) == _kinds(C.FORCE_CLASS,
+                                                                                 "spatial")
+    assert _kinds(C.EFFECT_CLASS, "spatial") == set()
+    assert C.VISIT_NAMES == [e.name for e in C.ELEMENT_KINDS]
+
+
+def test_a_planar_run_counts_the_kinds_of_planar_scenes():
+    """A planar run's visits name every kind of planar scenes, in the registry's order, and no
+    kind of spatial scenes alone (which the planar model cannot visit)."""
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=0.01)
+    assert list(r.visits) == [e.name for e in C.ELEMENT_KINDS if "planar" in e.rows]
+    assert r.visits["revolute"] > 0 and r.visits["gravity"] > 0
+
+
+def test_the_planar_model_refuses_the_kinds_of_spatial_scenes():
+    """Each joint and force-table code of the spatial scenes alone, put in a planar scene's
+    tables (a C embedder's slip): invalid input, not some planar kind evaluated; the scene's own
+    tables (a revolute joint and gravity, kinds of both) evaluate."""
+    sc = mbdk.scene("double_pendulum")
+    tab = M.build_tables(sc)
+    y = np.concatenate([sc.q0(), sc.v0()])
+
+    def status(jint=tab.jint, fint=tab.fint):
+        args = list(tab.args())
+        args[4], args[7] = jint, fint
+        *_, st = _kernel.model_eval(*args, mbdk.ModelOptions().pack(), tab.m, 0.0, y)
+        return st
+
+    assert status() == mbdk.Status.SUCCESS
+    joints = [e.code for e in C.ELEMENT_KINDS if e.cls == C.JOINT_CLASS and
+              "planar" not in e.rows]
+    forces = [e.code for e in C.ELEMENT_KINDS if e.cls != C.JOINT_CLASS and
+              "planar" not in e.rows]
+    assert joints and forces
+    for code in joints:
+        jint = tab.jint.copy()
+        jint[0, 0] = code
+        assert status(jint=jint) == mbdk.Status.ERR_INVALID_INPUT, code
+    k = [f.type for f in sc.forces].index("gravity")
+    for code in forces:
+        fint = tab.fint.copy()
+        fint[0, k] = code
+        assert status(fint=fint) == mbdk.Status.ERR_INVALID_INPUT, code
 
 
 def test_joint_rows_are_the_kernels():
@@ -70,7 +124,8 @@ def test_a_spring_with_damping_is_refused_by_the_kernel():
 
 def test_body_kinds_are_the_kernels_and_the_headers(root):
     """The body kinds: the kernel's table (mbdk_elements), mbdk.h's enum and the scene format
-    read the same names and codes; planar bodies carry (x, y, theta)."""
+    read the same names and codes; planar bodies carry (x, y, theta), spatial ones a position
+    and a quaternion (7) and 6 velocities, and a model of the kernel runs each kind."""
     from mbdk.codes import BODY_KINDS
     text = (root / "kernel" / "include" / "mbdk.h").read_text()
     body = re.search(r"enum mbdk_body_kind \{(.*?)\};", text, re.S).group(1)
@@ -78,7 +133,7 @@ def test_body_kinds_are_the_kernels_and_the_headers(root):
               for m in re.finditer(r"MBDK_BODY_(\w+)\s*=\s*(\d+)", body)}
     assert header == {name: code for name, (code, *_r) in BODY_KINDS.items()}
     assert BODY_KINDS["planar"] == (1, 3, 3, True)
-    assert "spatial" in BODY_KINDS and not BODY_KINDS["spatial"][3]
+    assert BODY_KINDS["spatial"] == (2, 7, 6, True)
 
 
 def test_a_declared_planar_kind_is_the_default_bit_for_bit(tmp_path):

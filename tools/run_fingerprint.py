@@ -33,8 +33,10 @@ sys.path.insert(0, str(ROOT / "studies"))
 
 import mbdk  # noqa: E402
 from mbdk import _kernel  # noqa: E402
+from mbdk.codes import ROTATIONS  # noqa: E402
 from mbdk.model import build_tables, given_mask  # noqa: E402
-from mbdk.scene import scene_from_dict  # noqa: E402
+from mbdk.scene_file import scene_from_dict  # noqa: E402
+from mbdk.spatial_model import spatial_tables  # noqa: E402
 
 SKIP = {"cpu_time", "wall_time", "seconds"}
 OUT = []
@@ -238,8 +240,7 @@ def planar_kernel_doors(name, sc):
 
 
 def spatial_kernel_doors(name, sc):
-    from mbdk.spatial import ROTATIONS, _tables
-    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = _tables(sc)
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
     y0 = sc.state0()
     rot = float(ROTATIONS[sc.rotation])
     m = max(sc.rows, 1)

@@ -168,20 +168,30 @@ int mbdk_index3_solve(int nb, const double *mass, const double *inertia, int nj,
                       int nsamp, double *t_out, double *y_out, double *a_out, double *lam_out,
                       int *iters_out, int *nwritten, mbdk_stats *stats);
 
-/* The element kinds of the scene tables (kernel/src/model/mbdk_elements.f90): jint[j][0] is a
- * joint kind, fint[f][0] a force kind. kernel/tests/c_element_table.c checks these against the
- * kernel's registry. Table layouts: mbdk_joints.f90, mbdk_force_elements.f90. */
+/* The element kinds of the scene tables, planar and spatial, in one registry
+ * (kernel/src/model/mbdk_elements.f90): jint[j][0] is a joint kind, fint[f][0] a force kind. A
+ * name has one code in both kinds of scene (revolute is 1 in a planar and in a spatial scene);
+ * the kinds of spatial scenes alone continue the codes after the planar ones. The scene entries
+ * of this header build planar scenes, which take the kinds that apply to planar bodies
+ * (mbdk_element_kind's on); another kind is MBDK_ERR_INVALID_INPUT. kernel/tests/c_element_table.c
+ * checks these enums against the kernel's registry. Table layouts: mbdk_joints.f90,
+ * mbdk_force_elements.f90 (planar), mbdk_spatial_model.f90 (spatial). */
 enum mbdk_element_class { MBDK_CLASS_JOINT = 1, MBDK_CLASS_FORCE = 2, MBDK_CLASS_EFFECT = 3 };
 enum mbdk_joint_kind { MBDK_JOINT_REVOLUTE = 1, MBDK_JOINT_PRISMATIC = 2, MBDK_JOINT_FIXED = 3,
                        MBDK_JOINT_DRIVER = 4, MBDK_JOINT_DISTANCE = 5, MBDK_JOINT_POINT_LINE = 6,
                        MBDK_JOINT_POINT_CURVE = 7, MBDK_JOINT_COUPLING = 8,
-                       MBDK_JOINT_ROLLING = 9, MBDK_JOINT_KNIFE_EDGE = 10 };
+                       MBDK_JOINT_ROLLING = 9, MBDK_JOINT_KNIFE_EDGE = 10,
+                       MBDK_JOINT_SPHERICAL = 11, MBDK_JOINT_UNIVERSAL = 12,
+                       MBDK_JOINT_CYLINDRICAL = 13, MBDK_JOINT_ANGLE_DRIVER = 14,
+                       MBDK_JOINT_SLIDE_DRIVER = 15 };
 enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_TORQUE = 3,
                        MBDK_FORCE_SPRING_DAMPER = 4, MBDK_FORCE_COORDINATE = 5,
                        MBDK_FORCE_SPRING = 6, MBDK_FORCE_DAMPER = 7, MBDK_FORCE_CONTACT = 8,
-                       MBDK_FORCE_FRICTION = 9 };
-/* Effects share the force table and carry states (kernel/src/model/mbdk_wear.f90): a scene
- * with nw wear elements has the state [q; v; w], 6 nb + nw values per sample. */
+                       MBDK_FORCE_FRICTION = 9, MBDK_FORCE_SPHERE_PLANE = 11,
+                       MBDK_FORCE_SPHERE_SPHERE = 12 };
+/* Effects share the force table and its codes, and carry states
+ * (kernel/src/model/mbdk_wear.f90): a scene with nw wear elements has the state [q; v; w],
+ * 6 nb + nw values per sample. */
 enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
 
 /* The 4th integer of a prismatic or fixed joint (jint[j][3]), of a distance joint, or of a
@@ -189,16 +199,22 @@ enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
  * the rest length from the initial pose (y0) instead of the table. */
 enum { MBDK_FROM_POSE = 1 };
 
-/* Entry i (1-based) of the kernel's element registry: class, code, name, constraint rows,
- * states. MBDK_ERR_INVALID_INPUT past the end. */
-int mbdk_element_kind(int i, int *cls, int *code, char *name, int namelen, int *rows, int *states);
-
-/* Body kinds (the same file): the coordinates and velocities a body carries. The scene entries
- * of this header build planar bodies; spatial bodies are declared (available = 0) until their
- * joints and forces exist (chapter 5), and bring a body table of their own then. */
+/* Body kinds (the same file): the coordinates and velocities a body carries, and whether a model
+ * of the kernel runs bodies of the kind (available). Planar bodies run in the planar model, the
+ * one of this header's scene entries; spatial bodies (chapter 5) in the spatial model, which
+ * Python reaches (python/mbdk/spatial_model.py) and this header does not yet. */
 enum mbdk_body_kind { MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2 };
+enum { MBDK_BODY_KINDS = 2 };
+/* The body kinds an element kind applies to, as bits: bit k - 1 for body kind k. */
+enum mbdk_body_set { MBDK_ON_PLANAR = 1, MBDK_ON_SPATIAL = 2 };
 int mbdk_body_kind(int i, int *code, char *name, int namelen, int *coords, int *velocities,
                    int *available);
+
+/* Entry i (1-based) of the kernel's element registry: class, code, name, the body kinds it
+ * applies to (on: MBDK_ON_* bits), its constraint rows on each body kind (rows[k - 1] on body
+ * kind k: an array of MBDK_BODY_KINDS), states. MBDK_ERR_INVALID_INPUT past the end. */
+int mbdk_element_kind(int i, int *cls, int *code, char *name, int namelen, int *on, int *rows,
+                      int *states);
 
 /* Options of a scene model (kernel/src/model/mbdk_model.f90): the formulation of the ODE
  * methods, the linear solver and the formulations' parameters. mbdk_index3_solve uses the

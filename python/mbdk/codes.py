@@ -1,18 +1,21 @@
 """The codes Python passes to the kernel, in one module.
 
-Where the kernel exports a table, the codes are read from it: the element kinds (joints, forces
-and effects of planar scenes, kernel/src/model/mbdk_elements.f90, with their constraint rows and
-visit counters) and the body kinds here, the methods' names and ids in mbdk.methods, the status
-codes' names and messages in mbdk.errors (whose Status mirrors them).
+Where the kernel exports a table, the codes are read from it: the element kinds of planar and
+spatial scenes (joints, forces and effects, kernel/src/model/mbdk_elements.f90: one code per
+name, with the body kinds each applies to, its constraint rows on each and its visit counter)
+and the body kinds here, the methods' names and ids in mbdk.methods, the status codes' names and
+messages in mbdk.errors (whose Status mirrors them).
 
 The kernel has no exported table of the others yet: they are kept here, each beside the name of
 the kernel constants it mirrors. tests/test_codes.py compares each table with the kernel's
 named constants (its Fortran parameter definitions, read from kernel/src) and, where the f2py
 entry takes a bare number, with what the kernel does with the code (a run in each form, a scene
-of each spatial joint type evaluated). Nothing else in the package writes a code the kernel
-reads.
+of each spatial joint and force type evaluated). Nothing else in the package writes a code the
+kernel reads.
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,21 +25,21 @@ from .errors import decode_text
 # ---- read from the kernel's registries -------------------------------------------------------
 
 
-def _element_kinds() -> list[tuple[int, int, str, int, int]]:
-    """The kernel's element registry: (class, code, name, rows, states) per kind, in the order
-    of the visit counters."""
-    out, i = [], 1
-    while True:
-        cls, code, name, rows, states = _kernel.element_kind(i)
-        if cls == 0:
-            return out
-        out.append((int(cls), int(code), decode_text(name), int(rows), int(states)))
-        i += 1
+class ElementKind(NamedTuple):
+    """One kind of the kernel's element registry: its class (JOINT_CLASS, FORCE_CLASS,
+    EFFECT_CLASS), its code within the class's table, its name, its constraint rows on each
+    body kind it applies to (body kind name -> rows; forces and effects have 0) and the states
+    it carries."""
+    cls: int
+    code: int
+    name: str
+    rows: dict
+    states: int
 
 
 def _body_kinds() -> dict:
-    """The kernel's body kinds: name -> (code, coordinates, velocities, available in the planar
-    model)."""
+    """The kernel's body kinds: name -> (code, coordinates, velocities, available: a model of
+    the kernel runs bodies of the kind)."""
     out, i = {}, 1
     while True:
         code, name, coords, vels, available = _kernel.body_kind(i)
@@ -46,21 +49,52 @@ def _body_kinds() -> dict:
         i += 1
 
 
-ELEMENT_KINDS = _element_kinds()
+def _element_kinds(bodies: dict) -> list[ElementKind]:
+    """The kernel's element registry, in the order of the visit counters."""
+    out, i = [], 1
+    while True:
+        cls, code, name, on, rows, states = _kernel.element_kind(i)
+        if cls == 0:
+            return out
+        out.append(ElementKind(int(cls), int(code), decode_text(name),
+                               {body: int(rows[c - 1]) for body, (c, *_r) in bodies.items()
+                                if int(on) >> (c - 1) & 1}, int(states)))
+        i += 1
+
+
+BODY_KINDS = _body_kinds()
+ELEMENT_KINDS = _element_kinds(BODY_KINDS)
 JOINT_CLASS, FORCE_CLASS, EFFECT_CLASS = 1, 2, 3
+
+
+def _codes(cls: int, body: str) -> dict:
+    """name -> code of the registry's kinds of a class that apply to a body kind."""
+    return {e.name: e.code for e in ELEMENT_KINDS if e.cls == cls and body in e.rows}
+
+
 #: planar joint types -> the kernel's codes, and their constraint rows
-JOINT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
-JOINT_ROWS = {name: rows for cls, _c, name, rows, _s in ELEMENT_KINDS if cls == JOINT_CLASS}
-JOINT_ROWS_BY_CODE = {code: rows for cls, code, _n, rows, _s in ELEMENT_KINDS
-                      if cls == JOINT_CLASS}
-_FORCE_KINDS = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == FORCE_CLASS}
+JOINT_CODES = _codes(JOINT_CLASS, "planar")
+JOINT_ROWS = {e.name: e.rows["planar"] for e in ELEMENT_KINDS
+              if e.cls == JOINT_CLASS and "planar" in e.rows}
+JOINT_ROWS_BY_CODE = {JOINT_CODES[name]: rows for name, rows in JOINT_ROWS.items()}
+_FORCE_KINDS = _codes(FORCE_CLASS, "planar")
 #: planar force types -> the kernel's codes; the coordinate spring and damper are one kernel kind
 FORCE_CODES = {**_FORCE_KINDS, "coordinate_spring": _FORCE_KINDS["coordinate_spring_damper"],
                "coordinate_damper": _FORCE_KINDS["coordinate_spring_damper"]}
-EFFECT_CODES = {name: code for cls, code, name, _r, _s in ELEMENT_KINDS if cls == EFFECT_CLASS}
+EFFECT_CODES = _codes(EFFECT_CLASS, "planar")
 #: the kernel's visit counters, in its order: one per element kind
-VISIT_NAMES = [name for _c, _k, name, _r, _s in ELEMENT_KINDS]
-BODY_KINDS = _body_kinds()
+VISIT_NAMES = [e.name for e in ELEMENT_KINDS]
+#: the counters a planar run reports (its SceneResult.visits): (position, name) of each kind
+#: that applies to planar bodies
+PLANAR_VISITS = [(k, e.name) for k, e in enumerate(ELEMENT_KINDS) if "planar" in e.rows]
+#: spatial joint and force types -> the kernel's codes (the same registry: a name that planar
+#: scenes have too keeps its code), and the joints' constraint rows in a spatial scene. A
+#: spatial file's spring and damper are spring_dampers (python/mbdk/spatial_file.py), a contact
+#: is sphere_plane or sphere_sphere by its second shape
+SPATIAL_JOINT_CODES = _codes(JOINT_CLASS, "spatial")
+SPATIAL_JOINT_ROWS = {e.name: e.rows["spatial"] for e in ELEMENT_KINDS
+                      if e.cls == JOINT_CLASS and "spatial" in e.rows}
+SPATIAL_FORCE_CODES = _codes(FORCE_CLASS, "spatial")
 
 # ---- the kernel's structs (kernel/src/api/mbdk_structs.f90), laid out by mbdk.options ---------
 
@@ -129,16 +163,8 @@ STARTUP = {"rk4": 0, "bdf": 1}
 SCENE_DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
 
 # ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
+# (its joint and force codes are the element registry's, above)
 
-#: MBDK_SPATIAL_SPHERICAL .. MBDK_SPATIAL_SLIDE_DRIVER, and MBDK_SPATIAL_JOINT_ROWS
-SPATIAL_JOINT_CODES = {"spherical": 1, "revolute": 2, "universal": 3, "cylindrical": 4,
-                       "prismatic": 5, "fixed": 6, "angle_driver": 7, "slide_driver": 8}
-SPATIAL_JOINT_ROWS = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4,
-                      "prismatic": 5, "fixed": 6, "angle_driver": 1, "slide_driver": 1}
-#: MBDK_SPATIAL_GRAVITY .. MBDK_SPATIAL_SPHERE_SPHERE (a spring and a damper are
-#: spring_dampers; a file's contact is sphere_plane or sphere_sphere by its second shape)
-SPATIAL_FORCE_CODES = {"gravity": 1, "point_force": 2, "torque": 3, "spring_damper": 4,
-                       "spring": 4, "damper": 4, "sphere_plane": 5, "sphere_sphere": 6}
 #: the reals per joint and per force (MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS: as
 #: many as a contact has, kernel/src/spatial/mbdk_contact3d.f90; the other kinds use the first)
 SPATIAL_JOINT_REALS, SPATIAL_FORCE_REALS = 17, 19

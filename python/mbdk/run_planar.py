@@ -11,7 +11,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from . import _compiled, _kernel, checks
-from .codes import LINEAR_SOLVES, OUTPUTS, VISIT_NAMES
+from .codes import LINEAR_SOLVES, OUTPUTS, PLANAR_VISITS, VISIT_NAMES
 from .errors import InvalidInputError, Status, status_message
 from .model import (assemble, assembly_error, assembly_report, build_tables, given_mask,
                     pose_error)
@@ -122,7 +122,7 @@ def run_planar(scene: Scene, plan: RunPlan) -> KernelRun:
         energy=None, energy_parts=None,
         residuals=resid[:, :nw].T if want & 16 else None,
         stats=stats, status=status, message=status_message(status),
-        visits=dict(zip(VISIT_NAMES, (int(x) for x in visits))),
+        visits={name: int(visits[k]) for k, name in PLANAR_VISITS},
         manifest=_manifest(scene, plan, stats, int(path), inv),
         assembly=report, joints=[j.name for j in scene.joints],
         bodies=[b.name for b in scene.bodies],

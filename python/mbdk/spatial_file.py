@@ -560,13 +560,14 @@ def validate_spatial(sc: Scene) -> None:
                 raise SceneError(f"{sc.source}: {label}: field {fld!r} has zero length")
     for f in sc.forces:
         label = f"force {getattr(f, 'name', '?')!r}"
+        if isinstance(f, SpatialForce) and isinstance(f.type, str) and \
+                f.type in ("spring", "damper"):
+            raise SceneError(f"{sc.source}: {label}: field 'type' = {f.type!r}: a SpatialForce "
+                             "object's spring or damper has type 'spring_damper'")
         if not isinstance(f, SpatialForce) or not isinstance(f.type, str) or \
                 f.type not in SPATIAL_FORCE_CODES:
             raise SceneError(f"{sc.source}: {label}: field 'type' must be one of "
                              f"{', '.join(SPATIAL_FORCE_CODES)}")
-        if f.type in ("spring", "damper"):
-            raise SceneError(f"{sc.source}: {label}: field 'type' = {f.type!r}: a SpatialForce "
-                             "object's spring or damper has type 'spring_damper'")
         for fld in ("body1", "body2"):
             if not isinstance(getattr(f, fld), str):
                 raise SceneError(f"{sc.source}: {label}: field {fld!r} = {getattr(f, fld)!r} "

@@ -27,8 +27,13 @@ import time
 
 import numpy as np
 
+from .codes import SPATIAL_FORCE_CODES, SPATIAL_JOINT_CODES
 from .errors import InvalidInputError
 from .spatial_model import evaluate_spatial, spatial_tables
+
+#: the kinds of the spatial model's tables by their codes (the kernel's element registry)
+_JOINTS = {code: name for name, code in SPATIAL_JOINT_CODES.items()}
+_FORCES = {code: name for name, code in SPATIAL_FORCE_CODES.items()}
 
 
 def _normals(a: np.ndarray):
@@ -88,9 +93,11 @@ def derive_spatial(sc):
 
     rows = []
     for k in range(nj):
-        typ, (bi, bj), re = int(jtype[k]), jbody[:, k], jreal[:, k]
+        code, (bi, bj), re = int(jtype[k]), jbody[:, k], jreal[:, k]
+        typ = _JOINTS.get(code)
         si, sj, ai, aj, fn = re[0:3], re[3:6], re[6:9], re[9:12], re[12:17]
-        if typ in (2, 3, 4, 5, 7, 8):
+        if typ in ("revolute", "universal", "cylindrical", "prismatic", "angle_driver",
+                   "slide_driver"):
             ai, aj = ai / np.linalg.norm(ai), aj / np.linalg.norm(aj)
         b1, b2 = _normals(aj) if np.linalg.norm(aj) > 0 else (np.eye(3)[0], np.eye(3)[1])
         sph = list(point(bi, si) - point(bj, sj))
@@ -102,45 +109,47 @@ def derive_spatial(sc):
             return (vec(bj, uj).T * (point(bi, si) - point(bj, sj)))[0]
         ri = rot0[bi - 1]
         rj = rot0[bj - 1] if bj else np.eye(3)
-        if typ == 1:
+        if typ == "spherical":
             rows += sph
-        elif typ == 2:
+        elif typ == "revolute":
             rows += sph + [dot1(ai, b1), dot1(ai, b2)]
-        elif typ == 3:
+        elif typ == "universal":
             rows += sph + [dot1(ai, aj)]
-        elif typ in (4, 5):
+        elif typ in ("cylindrical", "prismatic"):
             rows += [dot1(ai, b1), dot1(ai, b2), dot2(b1), dot2(b2)]
-            if typ == 5:
+            if typ == "prismatic":
                 rows.append(dot1(ri.T @ rj @ b2, b1))
-        elif typ == 6:
+        elif typ == "fixed":
             e = ri.T @ rj
             rows += sph + [dot1(e[:, m], np.eye(3)[(m + 1) % 3]) for m in range(3)]
-        elif typ in (7, 8):
+        elif typ in ("angle_driver", "slide_driver"):
             off, rate, amp, om, ph = (float(x) for x in fn)
             f = off + rate * ts + amp * sp.sin(om * ts + ph)
-            if typ == 7:
+            if typ == "angle_driver":
                 u = vec(bi, ri.T @ rj @ b1)
                 rows.append(sp.cos(f) * (u.T * vec(bj, b2))[0]
                             - sp.sin(f) * (u.T * vec(bj, b1))[0])
             else:
                 rows.append(dot2(aj) - f)
         else:
-            raise InvalidInputError(f"{sc.source}: joint type code {typ} has no symbolic form")
+            raise InvalidInputError(f"{sc.source}: joint type code {code} ({typ or 'unknown'}) "
+                                    "has no symbolic form")
 
     # loads at s = 0: force (space) and body-frame moment per body
     f = sp.zeros(6 * nb, 1)
     for k in range(nf):
-        typ, (bi, bj), re = int(ftype[k]), fbody[:, k], freal[:, k]
-        if typ == 1:
+        code, (bi, bj), re = int(ftype[k]), fbody[:, k], freal[:, k]
+        typ = _FORCES.get(code)
+        if typ == "gravity":
             for b in range(nb):
                 f[6 * b:6 * b + 3, 0] += float(mass[b]) * sp.Matrix(list(re[0:3]))
-        elif typ == 2:
+        elif typ == "point_force":
             force = sp.Matrix(list(re[3:6]))
             f[6 * (bi - 1):6 * (bi - 1) + 3, 0] += force
             f[6 * (bi - 1) + 3:6 * bi, 0] += sp.Matrix(list(re[0:3])).cross(R[bi - 1].T * force)
-        elif typ == 3:
+        elif typ == "torque":
             f[6 * (bi - 1) + 3:6 * bi, 0] += R[bi - 1].T * sp.Matrix(list(re[0:3]))
-        elif typ == 4:
+        elif typ == "spring_damper":
             pi = r[bi - 1] + R[bi - 1] * sp.Matrix(list(re[0:3]))
             pj = (r[bj - 1] + R[bj - 1] * sp.Matrix(list(re[3:6]))) if bj else \
                 sp.Matrix(list(re[3:6]))
@@ -156,7 +165,8 @@ def derive_spatial(sc):
                 f[6 * (bj - 1) + 3:6 * bj, 0] -= sp.Matrix(list(re[3:6])).cross(
                     R[bj - 1].T * force)
         else:
-            raise InvalidInputError(f"{sc.source}: force type code {typ} has no symbolic form")
+            raise InvalidInputError(f"{sc.source}: force type code {code} ({typ or 'unknown'}) "
+                                    "has no symbolic form")
     for b in range(nb):
         jb = sp.Matrix(np.asarray(inertia[:, :, b], float))
         f[6 * b + 3:6 * b + 6, 0] -= W[b].cross(jb * W[b])

@@ -18,7 +18,8 @@ module mbdk_capi
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, mbdk_index3_solve, mbdk_index3_plan
   use mbdk_structs, only: mbdk_struct_info, mbdk_struct_field, MBDK_STRUCT_NAME_LEN
-  use mbdk_elements, only: mbdk_element_kind, mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
+  use mbdk_elements, only: mbdk_element_kind, mbdk_body_kind, MBDK_ELEMENT_NAME_LEN, &
+    MBDK_BODY_KINDS
   use mbdk_c_tables, only: mbdk_c_tables_read
   implicit none
   private
@@ -292,20 +293,24 @@ contains
     mbdk_c_struct_field = MBDK_SUCCESS
   end function mbdk_c_struct_field
 
-  !> Entry i (1-based) of the element registry (mbdk_elements): class, code, name, rows, states.
-  integer(c_int) function mbdk_c_element_kind(i, cls, code, name, namelen, rows, states) &
+  !> Entry i (1-based) of the element registry (mbdk_elements): class, code, name, the body
+  !> kinds it applies to (MBDK_ON_* bits), its constraint rows on each body kind (rows[k - 1]
+  !> on kind k, MBDK_BODY_KINDS of them), states.
+  integer(c_int) function mbdk_c_element_kind(i, cls, code, name, namelen, on, rows, states) &
       bind(C, name='mbdk_element_kind')
     integer(c_int), value :: i, namelen
-    integer(c_int), intent(out), optional :: cls, code, rows, states
+    integer(c_int), intent(out), optional :: cls, code, on, states
+    integer(c_int), intent(out), optional :: rows(MBDK_BODY_KINDS)
     character(kind=c_char), intent(out), optional :: name(*)
     character(len=MBDK_ELEMENT_NAME_LEN) :: nm
-    integer :: c, k, r, st
+    integer :: c, k, b, r(MBDK_BODY_KINDS), st
     mbdk_c_element_kind = MBDK_ERR_INVALID_INPUT
-    if (.not. (present(cls) .and. present(code) .and. present(rows) .and. present(states) .and. &
-               present(name)) .or. namelen < 1) return
-    call mbdk_element_kind(int(i), c, k, nm, r, st)
+    if (.not. (present(cls) .and. present(code) .and. present(on) .and. present(rows) .and. &
+               present(states) .and. present(name)) .or. namelen < 1) return
+    call mbdk_element_kind(int(i), c, k, nm, b, r, st)
     cls = int(c, c_int)
     code = int(k, c_int)
+    on = int(b, c_int)
     rows = int(r, c_int)
     states = int(st, c_int)
     if (c == 0) return
@@ -314,7 +319,7 @@ contains
   end function mbdk_c_element_kind
 
   !> Entry i (1-based) of the body kinds (mbdk_elements): code, name, coordinates, velocities,
-  !> available (0: declared, not yet simulated).
+  !> available (0: declared, not yet simulated by any model).
   integer(c_int) function mbdk_c_body_kind(i, code, name, namelen, coords, velocities, &
                                            available) bind(C, name='mbdk_body_kind')
     integer(c_int), value :: i, namelen

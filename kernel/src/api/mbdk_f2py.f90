@@ -566,20 +566,23 @@ subroutine model_assemble(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf
   velocity = merge(1, 0, vel)
 end subroutine model_assemble
 
-subroutine element_kind(i, cls, code, name, rows, states)
-  ! Entry i of the element registry (mbdk_elements); cls = 0 past the end. The i-th entry's
-  ! name is also the name of scene_run's visits(i).
+subroutine element_kind(i, cls, code, name, on, rows, states)
+  ! Entry i of the element registry (mbdk_elements); cls = 0 past the end. on: the body kinds
+  ! it applies to (bit k - 1: body kind k), rows(k): its constraint rows on body kind k. The
+  ! i-th entry's name is also the name of scene_run's visits(i).
   use mbdk_elements, only: mbdk_element_kind
   implicit none
   integer, intent(in) :: i
-  integer, intent(out) :: cls, code, rows, states
+  ! rows(2): MBDK_BODY_KINDS (f2py reads no constant of the kernel's modules; a mismatch is a
+  ! compile-time error here, the sizes being known)
+  integer, intent(out) :: cls, code, on, rows(2), states
   character(len=32), intent(out) :: name
-  call mbdk_element_kind(i, cls, code, name, rows, states)
+  call mbdk_element_kind(i, cls, code, name, on, rows, states)
 end subroutine element_kind
 
 subroutine body_kind(i, code, name, coords, velocities, available)
   ! Entry i of the body kinds (mbdk_elements); code = 0 past the end. available = 0: declared,
-  ! not yet simulated.
+  ! not yet simulated by any model.
   use mbdk_elements, only: mbdk_body_kind
   implicit none
   integer, intent(in) :: i

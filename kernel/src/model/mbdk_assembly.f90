@@ -33,7 +33,7 @@ module mbdk_assembly
   use mbdk_joints, only: mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
-  use mbdk_elements, only: mbdk_body_kind, MBDK_ELEMENT_NAME_LEN
+  use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_ELEMENT_NAME_LEN
   use mbdk_model, only: mbdk_model_t, mbdk_model_constraints, mbdk_model_init, &
     mbdk_model_work_t, mbdk_model_options_t, mbdk_phi_floor
   use mbdk_joints, only: mbdk_joints_pattern, MBDK_JOINT_SLOTS
@@ -415,14 +415,14 @@ contains
     asm_resid = 0.0_dp
     velocity = .false.
     stat = MBDK_ERR_INVALID_INPUT
-    ! a kind the kernel cannot simulate yet is named as such before the sizes (which assume
-    ! planar bodies) are checked
+    ! a kind the planar model does not run (spatial bodies: mbdk_spatial_model) is named as
+    ! such before the sizes (which assume planar bodies) are checked
     if (present(kinds)) then
       if (size(kinds) /= nb) return
       do b = 1, nb
         call mbdk_body_kind(kinds(b), code, kname, coords, vels, available)
         if (code == 0) return
-        if (.not. available) then
+        if (code /= MBDK_BODY_PLANAR .or. .not. available) then
           stat = MBDK_ERR_NOT_APPLICABLE
           return
         end if

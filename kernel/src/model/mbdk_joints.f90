@@ -68,7 +68,7 @@
 !>                          (d(A v)/dt = A a - gamma). mbdk_joints_pfaffian marks its rows.
 !> Row order is the table order; the caller gives each joint's first row.
 module mbdk_joints
-  use mbdk_elements, only: mbdk_joint_rows, MBDK_JOINT_ROW_COUNT, MBDK_JOINT_REVOLUTE, &
+  use mbdk_elements, only: mbdk_joint_rows, MBDK_PLANAR_JOINT_ROWS, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, MBDK_JOINT_DRIVER, MBDK_JOINT_DISTANCE, &
     MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING, &
     MBDK_JOINT_KNIFE_EDGE, MBDK_JOINT_TYPES
@@ -305,7 +305,7 @@ contains
                     el(1) * rho2(2) - el(2) * rho2(1)]
       end select
       ! (the types were checked at mbdk_model_init)
-      if (b2 == 0) dz(4:6, r:r + MBDK_JOINT_ROW_COUNT(jint(1, j)) - 1) = 0.0_dp
+      if (b2 == 0) dz(4:6, r:r + MBDK_PLANAR_JOINT_ROWS(jint(1, j)) - 1) = 0.0_dp
     end do
 
   contains

@@ -43,8 +43,9 @@
 !> forms of ida and bdf): the other paths and the outputs work on the compact rows.
 !>
 !> Only the elements a scene declares are visited; work%visits(:) counts the evaluations of each
-!> element type (joints 1..MBDK_JOINT_TYPES, then forces and effects: mbdk_elements) so that a test can show that absent effects cost
-!> nothing. Gravity, constant in (q, v, t), is summed once at init and counted at every
+!> element kind of the registry (joints 1..MBDK_JOINT_TYPES, then the force table's forces and
+!> effects: mbdk_elements; the kinds of spatial scenes alone stay at 0) so that a test can show
+!> that absent effects cost nothing. Gravity, constant in (q, v, t), is summed once at init and counted at every
 !> evaluation that starts from it. The counters and the evaluation buffers live in a
 !> mbdk_model_work_t that the caller owns and the model points to (rhs receives the problem
 !> read-only): an evaluation allocates nothing, which matters at a hundred nanoseconds per
@@ -65,9 +66,9 @@ module mbdk_model
   use mbdk_force_elements, only: mbdk_forces_eval, mbdk_forces_energy, MBDK_FORCE_TYPES, &
     MBDK_FORCE_GRAVITY, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER, MBDK_FORCE_POINT, &
     MBDK_FORCE_TORQUE, MBDK_FORCE_COORDINATE, MBDK_FORCE_SPRING_DAMPER
-  use mbdk_elements, only: mbdk_body_kind, MBDK_BODY_PLANAR, MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, &
-    MBDK_ELEMENT_NAME_LEN, MBDK_ELEMENT_KINDS, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, &
-    MBDK_EFFECT_WEAR
+  use mbdk_elements, only: mbdk_body_kind, mbdk_element_applies, MBDK_BODY_PLANAR, &
+    MBDK_BODY_KINDS, MBDK_PLANAR_COORDS, MBDK_ELEMENT_NAME_LEN, MBDK_ELEMENT_KINDS, &
+    MBDK_CLASS_FORCE, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION, MBDK_EFFECT_WEAR
   use mbdk_contact, only: MBDK_CONTACT_LINE, MBDK_CONTACT_INSIDE, MBDK_CONTACT_GEAR, &
     mbdk_contact_forces_all, mbdk_contact_t, mbdk_contact_eval
   use mbdk_contact_law, only: mbdk_contact_event
@@ -424,8 +425,8 @@ contains
     do b = 1, model%nb
       call mbdk_body_kind(model%body_kind(b), code, kname, coords, vels, available)
       ! the joints and forces index a body's coordinates as a planar body's (3 b - 2 .. 3 b):
-      ! a kind becomes available together with its coordinates there (qoff)
-      if (.not. available .or. coords /= MBDK_PLANAR_COORDS) then
+      ! other kinds run in their own model (spatial bodies: mbdk_spatial_model)
+      if (code /= MBDK_BODY_PLANAR .or. .not. available .or. coords /= MBDK_PLANAR_COORDS) then
         stat = MBDK_ERR_NOT_APPLICABLE
         return
       end if
@@ -469,6 +470,7 @@ contains
     if (.not. all(abs(jreal) <= huge(1.0_dp))) return
     rows = 0
     do j = 1, size(jint, 2)
+      ! a joint of planar scenes: the registry gives a spatial one no planar rows
       if (mbdk_joint_rows(jint(1, j)) == 0) return
       if (jint(2, j) < 0 .or. jint(2, j) > model%nb .or. jint(3, j) < 0 .or. &
           jint(3, j) > model%nb) return
@@ -502,8 +504,10 @@ contains
     if (size(freal, 1) /= 12 .or. size(freal, 2) /= size(fint, 2)) return
     if (.not. all(abs(freal) <= huge(1.0_dp))) return
     do j = 1, size(fint, 2)
-      if (fint(1, j) < 1 .or. fint(1, j) > MBDK_FORCE_TYPES + 1) return
-      if (fint(1, j) >= MBDK_FORCE_CONTACT) then
+      ! a force or an effect of planar scenes (the registry's; spatial contacts are not)
+      if (.not. mbdk_element_applies(MBDK_CLASS_FORCE, fint(1, j), MBDK_BODY_PLANAR)) return
+      if (fint(1, j) == MBDK_FORCE_CONTACT .or. fint(1, j) == MBDK_FORCE_FRICTION .or. &
+          fint(1, j) == MBDK_EFFECT_WEAR) then
         if (.not. contact_entry_ok(nb, fint, freal, j)) return
         cycle
       end if

@@ -38,9 +38,10 @@
 !> An angle set at its gimbal lock (3-1-3: sin(theta) = 0; 1-2-3: cos(beta) = 0) has no angle
 !> rates: the evaluation returns MBDK_ERR_SINGULAR_MATRIX and the run stops there, by name.
 !>
-!> Joints (type, body i, body j; j = 0 is the ground, whose points and axes are global). Each is
-!> a set of the primitive constraints of Haug's spatial kinematics, written in body-fixed points
-!> s and unit vectors u:
+!> Joints (type, body i, body j; j = 0 is the ground, whose points and axes are global; the type
+!> is the element registry's code, mbdk_elements, of a kind of spatial bodies, and the registry
+!> states its rows here, those below). Each is a set of the primitive constraints of Haug's
+!> spatial kinematics, written in body-fixed points s and unit vectors u:
 !>   spherical   3 rows  r_i + R_i s_i - r_j - R_j s_j = 0
 !>   revolute    5 rows  spherical, and the axis a_i normal to two vectors normal to a_j
 !>   universal   4 rows  spherical, and a_i . a_j = 0 (the cross's two axes)
@@ -60,7 +61,8 @@
 !> body j frame), the time function (5; mbdk_time_function, drivers only); axes are normalised
 !> here, one of zero length is MBDK_ERR_INVALID_INPUT. A driver makes the rows rheonomic: Phi' =
 !> C w + Phi_t, and the energy balance counts the drivers' power lambda . Phi_t.
-!> Forces (type, body i, body j; reals MBDK_SPATIAL_FORCE_REALS):
+!> Forces (type, body i, body j; reals MBDK_SPATIAL_FORCE_REALS; the registry's codes, as the
+!> joints'):
 !>   gravity        g (3)                            on every body
 !>   point_force    s (3, body frame), f (3, space)  a constant force at a body point
 !>   torque         n (3, space)                     a constant moment
@@ -97,6 +99,14 @@ module mbdk_spatial_model
   use mbdk_contact3d, only: mbdk_contact3d_t, mbdk_contact3d_eval, mbdk_contact3d_loads, &
     mbdk_contact3d_events, mbdk_contact3d_rough, MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
     MBDK_CONTACT3D_REALS
+  ! the joint and force types, their codes and rows: the element registry's, one code per name
+  ! in planar and spatial scenes; this model takes the kinds that apply to spatial bodies
+  use mbdk_elements, only: mbdk_element_applies, mbdk_joint_rows, MBDK_CLASS_JOINT, &
+    MBDK_CLASS_FORCE, MBDK_BODY_SPATIAL, MBDK_JOINT_SPHERICAL, MBDK_JOINT_REVOLUTE, &
+    MBDK_JOINT_UNIVERSAL, MBDK_JOINT_CYLINDRICAL, MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, &
+    MBDK_JOINT_ANGLE_DRIVER, MBDK_JOINT_SLIDE_DRIVER, MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, &
+    MBDK_FORCE_TORQUE, MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPHERE_PLANE, &
+    MBDK_FORCE_SPHERE_SPHERE
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
@@ -106,15 +116,6 @@ module mbdk_spatial_model
   ! (and clones it), so that a submodule compiled on its own cannot link to it
   public :: frames, forces, constraints, apply_minv, gram, near_test
 
-  integer, parameter, public :: MBDK_SPATIAL_SPHERICAL = 1, MBDK_SPATIAL_REVOLUTE = 2, &
-    MBDK_SPATIAL_UNIVERSAL = 3, MBDK_SPATIAL_CYLINDRICAL = 4, MBDK_SPATIAL_PRISMATIC = 5, &
-    MBDK_SPATIAL_FIXED = 6, MBDK_SPATIAL_ANGLE_DRIVER = 7, MBDK_SPATIAL_SLIDE_DRIVER = 8, &
-    MBDK_SPATIAL_JOINT_TYPES = 8
-  integer, parameter, public :: MBDK_SPATIAL_JOINT_ROWS(MBDK_SPATIAL_JOINT_TYPES) = &
-    [3, 5, 4, 4, 5, 6, 1, 1]
-  integer, parameter, public :: MBDK_SPATIAL_GRAVITY = 1, MBDK_SPATIAL_POINT_FORCE = 2, &
-    MBDK_SPATIAL_TORQUE = 3, MBDK_SPATIAL_SPRING_DAMPER = 4, MBDK_SPATIAL_SPHERE_PLANE = 5, &
-    MBDK_SPATIAL_SPHERE_SPHERE = 6, MBDK_SPATIAL_FORCE_TYPES = 6
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
     MBDK_SPATIAL_FORCE_REALS = MBDK_CONTACT3D_REALS
@@ -481,11 +482,12 @@ contains
     model%m = 0
     model%nprim = 0
     do j = 1, size(jtype)
-      if (jtype(j) < 1 .or. jtype(j) > MBDK_SPATIAL_JOINT_TYPES) return
+      ! a joint of spatial scenes (the registry's kinds; a planar one is refused)
+      if (.not. mbdk_element_applies(MBDK_CLASS_JOINT, jtype(j), MBDK_BODY_SPATIAL)) return
       if (jbody(1, j) < 1 .or. jbody(1, j) > model%nb .or. jbody(2, j) < 0 .or. &
           jbody(2, j) > model%nb) return
       if (jbody(1, j) == jbody(2, j)) return
-      model%m = model%m + MBDK_SPATIAL_JOINT_ROWS(jtype(j))
+      model%m = model%m + mbdk_joint_rows(jtype(j), MBDK_BODY_SPATIAL)
     end do
     stat = MBDK_SUCCESS
   end subroutine count_joint_rows
@@ -530,46 +532,46 @@ contains
     stat = MBDK_ERR_INVALID_INPUT
     ai = r(7:9)
     aj = r(10:12)
-    if (any(jt == [MBDK_SPATIAL_REVOLUTE, MBDK_SPATIAL_UNIVERSAL, MBDK_SPATIAL_CYLINDRICAL, &
-                   MBDK_SPATIAL_PRISMATIC, MBDK_SPATIAL_ANGLE_DRIVER, &
-                   MBDK_SPATIAL_SLIDE_DRIVER])) then
+    if (any(jt == [MBDK_JOINT_REVOLUTE, MBDK_JOINT_UNIVERSAL, MBDK_JOINT_CYLINDRICAL, &
+                   MBDK_JOINT_PRISMATIC, MBDK_JOINT_ANGLE_DRIVER, &
+                   MBDK_JOINT_SLIDE_DRIVER])) then
       if (.not. (norm2(ai) > 0.0_dp .and. norm2(aj) > 0.0_dp)) return
       ai = ai / norm2(ai)
       aj = aj / norm2(aj)
     end if
     call normals(aj, b1, b2)
     select case (jt)
-    case (MBDK_SPATIAL_SPHERICAL)
+    case (MBDK_JOINT_SPHERICAL)
       call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
-    case (MBDK_SPATIAL_REVOLUTE)
+    case (MBDK_JOINT_REVOLUTE)
       call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
       call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
       call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
-    case (MBDK_SPATIAL_UNIVERSAL)
+    case (MBDK_JOINT_UNIVERSAL)
       call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
       call add(PRIM_DOT1, r(1:3), r(4:6), ai, aj)
-    case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
+    case (MBDK_JOINT_CYLINDRICAL, MBDK_JOINT_PRISMATIC)
       call add(PRIM_DOT1, r(1:3), r(4:6), ai, b1)
       call add(PRIM_DOT1, r(1:3), r(4:6), ai, b2)
       call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b1)
       call add(PRIM_DOT2, r(1:3), r(4:6), zero3, b2)
       ! the rotation about the axis: body i's image of b2 stays normal to b1
-      if (jt == MBDK_SPATIAL_PRISMATIC) &
+      if (jt == MBDK_JOINT_PRISMATIC) &
         call add(PRIM_DOT1, r(1:3), r(4:6), &
                  matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
-    case (MBDK_SPATIAL_ANGLE_DRIVER)
+    case (MBDK_JOINT_ANGLE_DRIVER)
       ! u on body i: body j's b1 as body i sees it at the start; v = b1, w = a_j x b1 on j
       call add(PRIM_ANGLE, zero3, zero3, &
                matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
       model%prim(model%nprim)%wj = b2
       model%prim(model%nprim)%fn = r(13:17)
       model%has_drivers = .true.
-    case (MBDK_SPATIAL_SLIDE_DRIVER)
+    case (MBDK_JOINT_SLIDE_DRIVER)
       ! the offset of the joint points along a_j (on body j) follows f(t)
       call add(PRIM_SLIDE, r(1:3), r(4:6), zero3, aj)
       model%prim(model%nprim)%fn = r(13:17)
       model%has_drivers = .true.
-    case (MBDK_SPATIAL_FIXED)
+    case (MBDK_JOINT_FIXED)
       call add(PRIM_SPH, r(1:3), r(4:6), zero3, zero3)
       ! body i's images of body j's axes e_k at the start: e1'.e2 = e2'.e3 = e3'.e1 = 0
       ! lock the three relative rotations
@@ -612,9 +614,9 @@ contains
     if (.not. spatial_forces_ok(model%nb, ftype, fbody, freal)) return
     ! loads and springs; of the contacts, those with damping or friction (an undamped,
     ! frictionless contact does no net work)
-    model%has_power = any(ftype /= MBDK_SPATIAL_GRAVITY .and. ftype < MBDK_SPATIAL_SPHERE_PLANE)
+    model%has_power = any(ftype /= MBDK_FORCE_GRAVITY .and. .not. is_contact(ftype))
     do k = 1, model%nf
-      if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE .and. (freal(14, k) /= 0.0_dp .or. &
+      if (is_contact(ftype(k)) .and. (freal(14, k) /= 0.0_dp .or. &
           mbdk_contact3d_rough(freal(:, k)))) model%has_power = .true.
     end do
     if (model%has_drivers) model%has_power = .true.
@@ -622,10 +624,10 @@ contains
     model%fbody = fbody
     model%freal = freal
     do k = 1, model%nf
-      if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) &
+      if (ftype(k) == MBDK_FORCE_SPHERE_PLANE) &
         model%freal(8:10, k) = freal(8:10, k) / norm2(freal(8:10, k))
     end do
-    model%ncontacts = count(ftype >= MBDK_SPATIAL_SPHERE_PLANE)
+    model%ncontacts = count(is_contact(ftype))
     if (model%opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
     stat = MBDK_SUCCESS
   end subroutine take_forces
@@ -639,15 +641,15 @@ contains
     integer :: k
     ok = .false.
     do k = 1, size(ftype)
-      if (ftype(k) < 1 .or. ftype(k) > MBDK_SPATIAL_FORCE_TYPES) return
+      if (.not. mbdk_element_applies(MBDK_CLASS_FORCE, ftype(k), MBDK_BODY_SPATIAL)) return
       select case (ftype(k))
-      case (MBDK_SPATIAL_POINT_FORCE, MBDK_SPATIAL_TORQUE)
+      case (MBDK_FORCE_POINT, MBDK_FORCE_TORQUE)
         if (fbody(1, k) < 1 .or. fbody(1, k) > nb) return
-      case (MBDK_SPATIAL_SPRING_DAMPER)
+      case (MBDK_FORCE_SPRING_DAMPER)
         if (fbody(1, k) < 1 .or. fbody(1, k) > nb .or. fbody(2, k) < 0 .or. &
             fbody(2, k) > nb .or. fbody(1, k) == fbody(2, k)) return
         if (.not. all(freal(7:9, k) >= 0.0_dp)) return
-      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+      case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
         if (.not. spatial_contact_ok(nb, ftype(k), fbody(:, k), freal(:, k))) return
       end select
     end do
@@ -666,10 +668,17 @@ contains
                r(13) >= 1.0_dp .and. r(14) >= 0.0_dp .and. r(15) >= 0.0_dp .and. &
                r(16) >= 0.0_dp .and. r(17) >= 0.0_dp .and. r(18) > 0.0_dp .and. &
                r(19) > r(18))) return
-    if (ft == MBDK_SPATIAL_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
-    if (ft == MBDK_SPATIAL_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
+    if (ft == MBDK_FORCE_SPHERE_PLANE .and. .not. (norm2(r(8:10)) > 0.0_dp)) return
+    if (ft == MBDK_FORCE_SPHERE_SPHERE .and. .not. (r(4) + r(11) > 0.0_dp)) return
     ok = .true.
   end function spatial_contact_ok
+
+  !> Whether a force type is a contact (its events, its length in the watch's scale, its power
+  !> where it is damped or rough).
+  elemental logical function is_contact(ft)
+    integer, intent(in) :: ft
+    is_contact = ft == MBDK_FORCE_SPHERE_PLANE .or. ft == MBDK_FORCE_SPHERE_SPHERE
+  end function is_contact
 
   !> The watch's scales: the length (joint and spring points, spheres, the bodies' spread; else
   !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1).
@@ -685,9 +694,9 @@ contains
     end do
     associate (ftype => model%ftype, freal => model%freal)
       do k = 1, model%nf
-        if (ftype(k) == MBDK_SPATIAL_SPRING_DAMPER) model%length = max(model%length, &
+        if (ftype(k) == MBDK_FORCE_SPRING_DAMPER) model%length = max(model%length, &
           norm2(freal(1:3, k)), norm2(freal(4:6, k)))
-        if (ftype(k) >= MBDK_SPATIAL_SPHERE_PLANE) model%length = max(model%length, &
+        if (is_contact(ftype(k))) model%length = max(model%length, &
           norm2(freal(1:3, k)) + freal(4, k))
       end do
       do b = 1, nb
@@ -701,7 +710,7 @@ contains
       if (.not. (model%length > 0.0_dp)) model%length = 1.0_dp
       model%gscale = 0.0_dp
       do k = 1, model%nf
-        if (ftype(k) == MBDK_SPATIAL_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
+        if (ftype(k) == MBDK_FORCE_GRAVITY) model%gscale = model%gscale + norm2(freal(1:3, k))
       end do
       model%gscale = model%gscale * sum(model%mass) * reach
     end associate
@@ -753,16 +762,16 @@ contains
     integer :: j, k
     real(dp) :: a(3), b1(3), b2(3)
     do j = 1, size(jtype)
-      if (jbody(2, j) /= 0 .and. jtype(j) /= MBDK_SPATIAL_ANGLE_DRIVER .and. &
-          jtype(j) /= MBDK_SPATIAL_SLIDE_DRIVER) cycle   ! between two bodies: internal
+      if (jbody(2, j) /= 0 .and. jtype(j) /= MBDK_JOINT_ANGLE_DRIVER .and. &
+          jtype(j) /= MBDK_JOINT_SLIDE_DRIVER) cycle   ! between two bodies: internal
       select case (jtype(j))
-      case (MBDK_SPATIAL_SPHERICAL)
+      case (MBDK_JOINT_SPHERICAL)
         ! a force at the ground point (global)
         call mbdk_inv_pivot(rule, jreal(4:6, j))
-      case (MBDK_SPATIAL_REVOLUTE)
+      case (MBDK_JOINT_REVOLUTE)
         ! and moments normal to the axis (global for the ground)
         call mbdk_inv_pivot(rule, jreal(4:6, j), jreal(10:12, j))
-      case (MBDK_SPATIAL_CYLINDRICAL, MBDK_SPATIAL_PRISMATIC)
+      case (MBDK_JOINT_CYLINDRICAL, MBDK_JOINT_PRISMATIC)
         ! forces across the axis (and moments)
         a = jreal(10:12, j)
         if (.not. (norm2(a) > 0.0_dp)) then
@@ -778,22 +787,22 @@ contains
     end do
     do k = 1, size(ftype)
       select case (ftype(k))
-      case (MBDK_SPATIAL_GRAVITY)
+      case (MBDK_FORCE_GRAVITY)
         call mbdk_inv_gravity(rule, freal(1:3, k))
-      case (MBDK_SPATIAL_SPRING_DAMPER)
+      case (MBDK_FORCE_SPRING_DAMPER)
         ! along the line of its points: to the ground, through the ground point
         if (fbody(2, k) == 0) call mbdk_inv_pivot(rule, freal(4:6, k))
-      case (MBDK_SPATIAL_POINT_FORCE)
+      case (MBDK_FORCE_POINT)
         call mbdk_inv_force(rule, freal(4:6, k))
-      case (MBDK_SPATIAL_TORQUE)
+      case (MBDK_FORCE_TORQUE)
         call mbdk_inv_moment(rule)
-      case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+      case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
         ! between two bodies: equal and opposite at one point, internal; to the ground without
         ! friction: along the ground plane's normal, or through the ground sphere's centre
         if (fbody(2, k) /= 0) cycle
         if (mbdk_contact3d_rough(freal(:, k))) then
           call mbdk_inv_external(rule)
-        else if (ftype(k) == MBDK_SPATIAL_SPHERE_PLANE) then
+        else if (ftype(k) == MBDK_FORCE_SPHERE_PLANE) then
           call mbdk_inv_force(rule, freal(8:10, k))
         else
           call mbdk_inv_pivot(rule, freal(5:7, k))
@@ -1452,22 +1461,22 @@ contains
     do k = 1, model%nf
       associate (r => model%freal(:, k))
         select case (model%ftype(k))
-        case (MBDK_SPATIAL_GRAVITY)
+        case (MBDK_FORCE_GRAVITY)
           do b = 1, model%nb
             fw(:, b) = fw(:, b) + model%mass(b) * r(1:3)
             vg = vg - model%mass(b) * dot_product(r(1:3), fr%r(:, b))
           end do
-        case (MBDK_SPATIAL_POINT_FORCE)
+        case (MBDK_FORCE_POINT)
           b = model%fbody(1, k)
           fw(:, b) = fw(:, b) + r(4:6)
           nb_(:, b) = nb_(:, b) + mbdk_cross(r(1:3), matmul(transpose(fr%rot(:, :, b)), r(4:6)))
           power = power + dot_product(r(4:6), fr%v(:, b) + &
                                       matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), r(1:3))))
-        case (MBDK_SPATIAL_TORQUE)
+        case (MBDK_FORCE_TORQUE)
           b = model%fbody(1, k)
           nb_(:, b) = nb_(:, b) + matmul(transpose(fr%rot(:, :, b)), r(1:3))
           power = power + dot_product(r(1:3), matmul(fr%rot(:, :, b), fr%om(:, b)))
-        case (MBDK_SPATIAL_SPRING_DAMPER)
+        case (MBDK_FORCE_SPRING_DAMPER)
           i = model%fbody(1, k)
           j = model%fbody(2, k)
           pi = fr%r(:, i) + matmul(fr%rot(:, :, i), r(1:3))
@@ -1489,7 +1498,7 @@ contains
             fw(:, j) = fw(:, j) - fv
             nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
           end if
-        case (MBDK_SPATIAL_SPHERE_PLANE, MBDK_SPATIAL_SPHERE_SPHERE)
+        case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
           i = model%fbody(1, k)
           j = model%fbody(2, k)
           call contact_at(model, fr, k, ct, ok)
@@ -1524,7 +1533,7 @@ contains
     i = model%fbody(1, k)
     j = model%fbody(2, k)
     call mbdk_contact3d_eval(merge(MBDK_CONTACT3D_PLANE, MBDK_CONTACT3D_SPHERES, &
-                                   model%ftype(k) == MBDK_SPATIAL_SPHERE_PLANE), &
+                                   model%ftype(k) == MBDK_FORCE_SPHERE_PLANE), &
                              model%freal(:, k), fr%r(:, i), fr%rot(:, :, i), fr%v(:, i), &
                              fr%om(:, i), fr%r(:, j), fr%rot(:, :, j), fr%v(:, j), &
                              fr%om(:, j), ct, ok)
@@ -1548,7 +1557,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     e = 0
     do k = 1, self%nf
-      if (self%ftype(k) < MBDK_SPATIAL_SPHERE_PLANE) cycle
+      if (.not. is_contact(self%ftype(k))) cycle
       e = e + 2
       call contact_at(self, fr, k, ct, ok)
       g(e - 1:e) = mbdk_contact3d_events(ct, ok, self%freal(:, k))
