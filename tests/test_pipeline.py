@@ -53,7 +53,7 @@ def test_unknown_outputs_and_options_are_named():
     sc = mbdk.scene("double_pendulum")
     with pytest.raises(mbdk.InvalidInputError, match="'power'.*unknown"):
         mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, outputs=("energy", "power"))
-    with pytest.raises(mbdk.InvalidInputError, match="adaptive: options of trapezoidal_index3"):
+    with pytest.raises(mbdk.InvalidInputError, match="adaptive: options of the index-3 methods"):
         mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.1, adaptive=True)
 
 

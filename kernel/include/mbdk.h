@@ -125,7 +125,8 @@ int mbdk_solve_ode(mbdk_rhs_fn f, mbdk_jac_fn jac, void *user_data, int n, doubl
                    double *y_out, int *nwritten, mbdk_stats *stats);
 
 /* trapezoidal_index3 (kernel/src/dae/mbdk_trapezoidal_index3.f90 is its manual): the index-3
- * DAE of a planar scene integrated by the implicit trapezoidal rule with Newton-Raphson. */
+ * DAE of a scene integrated by the implicit trapezoidal rule, or another member of the
+ * generalized-alpha family (beta, gamma, alpha_m, alpha_f below), with Newton-Raphson. */
 enum mbdk_index3_formulation { MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2 };
 /* opt.adaptive: a fixed step, step-size control on the error estimated from differences of the
  * accelerations (second order), or on local Richardson extrapolation (third order: the manual) */

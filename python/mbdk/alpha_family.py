@@ -107,10 +107,11 @@ def parameters(method: str, rho_inf=None, alpha_hht=None, newmark_beta=None,
     if method == "newmark":
         b = vals.get("beta", 0.25)
         g = vals.get("gamma", 0.5)
-        if not (b > 0 and g >= 0.5):
+        if not (g >= 0.5 and b >= 0.5 * g):
             raise InvalidInputError(f"newmark with newmark_beta = {b:g}, newmark_gamma = {g:g}: "
-                                    "give newmark_beta > 0 and newmark_gamma >= 1/2 (gamma < "
-                                    "1/2 amplifies every mode)")
+                                    "give 2 newmark_beta >= newmark_gamma >= 1/2, where Newmark's "
+                                    "rule is unconditionally stable (gamma < 1/2 amplifies every "
+                                    "mode; 2 beta < gamma amplifies the high frequencies)")
         return AlphaParameters(beta=b, gamma=g, spec=f"beta = {b:g}, gamma = {g:g}")
     if method == "hht":
         a = vals.get("alpha_hht", -0.05)
@@ -132,17 +133,28 @@ def parameters(method: str, rho_inf=None, alpha_hht=None, newmark_beta=None,
                                     "rho_inf alone")
         p = AlphaParameters(beta=vals["beta"], gamma=vals["gamma"], alpha_m=vals["alpha_m"],
                             alpha_f=vals["alpha_f"], spec="given")
-        if not (p.beta > 0 and p.gamma > 0 and p.alpha_m < 1 and p.alpha_f < 1):
+        if not stable(p):
             raise InvalidInputError(f"generalized_alpha with newmark_beta = {p.beta:g}, "
                                     f"newmark_gamma = {p.gamma:g}, alpha_m = {p.alpha_m:g}, "
-                                    f"alpha_f = {p.alpha_f:g}: give newmark_beta > 0, "
-                                    "newmark_gamma > 0, alpha_m < 1 and alpha_f < 1")
+                                    f"alpha_f = {p.alpha_f:g}: outside the unconditionally "
+                                    "stable set alpha_m <= alpha_f <= 1/2, newmark_gamma >= "
+                                    "1/2 - alpha_m + alpha_f, 2 newmark_beta >= newmark_gamma "
+                                    "(Chung and Hulbert 1993); or give rho_inf alone")
         return p
     rho = vals.get("rho_inf", 0.8)
     if not 0.0 <= rho <= 1.0:
         raise InvalidInputError(f"generalized_alpha with rho_inf = {rho:g}: give rho_inf in "
                                 "[0, 1] (1: no numerical damping, 0: the most)")
     return generalized_alpha_from_rho(rho)
+
+
+def stable(p: AlphaParameters) -> bool:
+    """Whether the parameters lie in the family's unconditionally stable set: alpha_m <=
+    alpha_f <= 1/2, gamma >= 1/2 - alpha_m + alpha_f, 2 beta >= gamma (Chung and Hulbert 1993
+    for gamma at its second-order value; Newmark's 2 beta >= gamma >= 1/2 for the alphas 0).
+    Every member that `parameters` builds from rho_inf or alpha_hht lies in it."""
+    return (p.alpha_m <= p.alpha_f <= 0.5 and p.gamma >= 0.5 - p.alpha_m + p.alpha_f - 1e-14
+            and 2.0 * p.beta >= p.gamma - 1e-14)
 
 
 def amplification(p: AlphaParameters, omega_h: float) -> np.ndarray:

@@ -295,8 +295,9 @@ def _index3_options_given(req: Request, info_m: MethodInfo, index3: bool) -> dic
     if info_m.adaptive:
         given3 = {k: v for k, v in given3.items() if k not in ("dt_out", "h_min", "h_max")}
     if given3 and not index3:
-        raise InvalidInputError(f"{', '.join(sorted(given3))}: options of trapezoidal_index3 "
-                                f"only ({', '.join(INDEX3_ONLY)})")
+        raise InvalidInputError(f"{', '.join(sorted(given3))}: options of the index-3 methods "
+                                f"only (trapezoidal_index3 and its family: "
+                                f"{', '.join(INDEX3_ONLY)})")
     return given3
 
 
@@ -585,8 +586,9 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
                    adaptive=bool(plan_.get("adaptive", False)),
                    watch=w, projection_tol=projection_tol, nsamp=plan_["nsamp"],
                    steps=plan_["steps"], manifest=dict(plan_["manifest"]),
-                   multipliers_note=ggl_multipliers(method, formulation, rtol) if scene.rows
-                   else None)
+                   multipliers_note=(ggl_multipliers(method, formulation, rtol)
+                                     or (BOOK_MULTIPLIERS if index3 and formulation == "index3"
+                                         else None)) if scene.rows else None)
 
 
 # ---- the option structs ----------------------------------------------------------------------
@@ -727,7 +729,8 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
     if formulation == "augmented_lagrangian" and not (alpha >= 0 and math.isfinite(alpha)):
         raise InvalidInputError(f"alpha = {alpha}: the augmented Lagrangian's penalty factor "
                                 "must be finite and > 0, or 0 for the default (1e3 max(M) "
-                                "/ (h^2/4) at every step)")
+                                "/ s at every step, s the Newton scale: h^2/4 for the "
+                                "trapezoidal rule)")
     mode = adaptive_mode(given3.get("adaptive", False))
     adaptive = mode > 0
     if adaptive and formulation == "index3":
@@ -738,7 +741,7 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
             "local error, so an error test on q and v would shrink h without end (studies/"
             "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
             "step-size control, or a fixed h")
-    if adaptive and family != alpha_family.AlphaParameters():
+    if adaptive and family.as_options() != alpha_family.AlphaParameters().as_options():
         raise NotApplicableError(
             f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): the step-size "
             "control's error estimates are the trapezoidal rule's (its local error from the "
@@ -779,7 +782,9 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
         manifest["family"] = {**family.as_options(), "given": family.spec,
                               "second_order": family.second_order}
     if formulation == "augmented_lagrangian":
-        manifest["alpha"] = alpha if alpha > 0 else "1e3 max(M) / (h^2/4), per step"
+        scale = ("h^2/4" if family.as_options() == alpha_family.AlphaParameters().as_options()
+                 else f"{family.beta:g} h^2 (1 - {family.alpha_f:g}) / (1 - {family.alpha_m:g})")
+        manifest["alpha"] = alpha if alpha > 0 else f"1e3 max(M) / ({scale}), per step"
     if adaptive:
         estimated = mode == ADAPTIVE_MODES["estimated"]
         manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,

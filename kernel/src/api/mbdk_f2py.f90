@@ -937,12 +937,12 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
   use mbdk_watch, only: mbdk_watch_work_at, mbdk_watch_reserve
-  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
   use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
-    mbdk_index3_is_trapezoidal
+    mbdk_index3_is_trapezoidal, MBDK_INDEX3_BOOK
   use mbdk_methods, only: MBDK_TRAPEZOIDAL_INDEX3
   use mbdk_spatial_model
   implicit none
@@ -975,8 +975,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   double precision :: nan, parts(3)
   double precision, allocatable :: y(:)
   integer :: k, s, krec
+  logical :: book_i3
 
   nwritten = 0
+  book_i3 = .false.
   t_out = 0.0d0
   y_out = 0.0d0
   nan = ieee_value(0.0d0, ieee_quiet_nan)
@@ -1061,7 +1063,9 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   do k = 1, nwritten
     call mbdk_watch_work_at(work%watch, t_out(k), krec, parts)
     out(8, k) = parts(3)
-    if (dae_form >= 1) then   ! the drivers' power with the integrator's own multipliers
+    ! the drivers' power with the integrator's own multipliers, but the book scheme's (index3
+    ! form of the index-3 family: not accurate enough, they grow as h shrinks) are solved for
+    if (dae_form >= 1 .and. .not. book_i3) then
       call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status, &
                                 lam_in=lam_out(1:model%m, k))
     else
@@ -1091,18 +1095,23 @@ contains
     double precision, allocatable :: a_out(:, :)
     integer, allocatable :: iters(:)
     integer :: astat
+    double precision :: before
     stat_r = MBDK_ERR_INVALID_INPUT
     if (8 * ni3w /= c_sizeof(i3)) return
     i3 = transfer(i3buf, i3)
     if (opt%method == MBDK_TRAPEZOIDAL_INDEX3 .and. .not. mbdk_index3_is_trapezoidal(i3)) return
+    book_i3 = i3%formulation == MBDK_INDEX3_BOOK
     i3%interrupt = opt%interrupt
     i3%progress = opt%progress
     allocate (a_out(model%nvel, nsamp), iters(nsamp), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%nvel + 1, kind(1.0d0)) * nsamp, &
-                           stat_r, st%alloc_bytes)
+    call mbdk_alloc_status(astat, (MBDK_REAL_BYTES * real(model%nvel, kind(1.0d0)) + &
+                           MBDK_INT_BYTES) * nsamp, stat_r, st%alloc_bytes)
     if (stat_r /= MBDK_SUCCESS) return
+    ! the solve's statistics replace st: what was asked here is added back
+    before = st%alloc_bytes
     call mbdk_index3_solve(model, i3, t0, t_end, y, t_out, y_out, a_out, lam_out, iters, &
                            nwritten, st, stat_r)
+    st%alloc_bytes = st%alloc_bytes + before
     if (nwritten < nsamp) lam_out(:, nwritten + 1:) = nan
   end subroutine index3_run
 

@@ -30,7 +30,7 @@
 !> (1 - alpha_m)), projections and rank-loss handling as below serve every member. The members
 !> (Python's method names set the parameters):
 !>   trapezoidal_index3   beta 1/4, gamma 1/2, alpha_m = alpha_f = 0 (ap = a): the book's rule,
-!>                        its coefficients computed to the same bits as before the family
+!>                        its coefficients computed as its own (2/h, 4/h^2, h^2/4) to the bit
 !>   newmark              beta, gamma; alpha_m = alpha_f = 0 (gamma > 1/2 damps, first order)
 !>   hht                  alpha in [-1/3, 0]: alpha_m = 0, alpha_f = -alpha, gamma = 1/2 - alpha,
 !>                        beta = (1 - alpha)^2 / 4 (HHT's linear spectral properties; the forces
@@ -76,7 +76,8 @@
 !>                down to h = 6e-5 (1.9e-7) and the Newton tolerance adds below 2 %. Without
 !>                constraints the same path gives a+ = M^-1 f.
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
-!>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3, so that s alpha
+!>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3 (s: cs below
+!>                for the family's members), so that s alpha
 !>                C^T C outweighs M a thousandfold whatever h; then Phi shrinks about 1000-fold
 !>                per multiplier update. A fixed alpha (the literature's 1e7-1e9) converges
 !>                slowly at small h (s alpha ~ M: the step-size controller then stalls) and
@@ -119,7 +120,11 @@
 !> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
 !> norm (atol + rtol |q|; for a spatial body's rotation, atol + rtol: its coordinates' size is
 !> 1, the mechanism's coord_weights) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
-!> multipliers were frozen at a rank loss: below). That last update is applied. At least two
+!> multipliers were frozen at a rank loss: below). That last update is applied. In the
+!> augmented form the update's target is tighter where the step's local error is small: what
+!> Newton leaves (the update times rate/(1 - rate)) below LOCAL_SHARE of the local error
+!> estimate, so that it does not add up over the 1/h steps (newton_converged); and where the
+!> last update leaves |Phi| at q+ above atol, one projection of q+ follows (keep_joints). At least two
 !> evaluations per step, so both tests are made on evaluated residuals, never on predicted ones.
 !> After newton_max_iter updates it fails with MBDK_ERR_NEWTON_DIVERGED (a singular matrix:
 !> SINGULAR_MATRIX).
@@ -370,7 +375,7 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
     !> fd_matrix, augmented form: the matrix by differences less the penalty's cs alpha C^T C
     !> at its iterate (penalty_matrix adds it at another), its h, a work vector
-    real(dp), allocatable :: jfd(:, :), rb(:), wv(:)
+    real(dp), allocatable :: jfd(:, :), wv(:)
     real(dp) :: h_fd = 0.0_dp
     logical :: have_fd = .false.
     !> steps left in which the penalty's renewal is not tried (it failed in a step lately: the
@@ -480,13 +485,13 @@ contains
               s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%phi(m), s%gam(m), s%phit(m), &
               s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
               s%apn(nv), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 17.0_dp * nv + 14.0_dp * m + &
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 18.0_dp * nv + 14.0_dp * m + &
                            nk), stat, s%st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     if (s%fd_matrix) then
       allocate (s%jm(nk, nk), s%ipiv(nk), s%r0(nk), s%f0(nv), s%phi0(m), s%gam0(m), &
-                s%phit0(m), s%col(nk), s%jfd(nk, nk), s%rb(nk), s%wv(nv), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nk, dp) * (2 * nk + 3) + &
+                s%phit0(m), s%col(nk), s%jfd(nk, nk), s%wv(nv), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(nk, dp) * (2 * nk + 2) + &
                              2.0_dp * nv + 3.0_dp * m) + MBDK_INT_BYTES * nk, stat, &
                              s%st%alloc_bytes)
       if (stat /= MBDK_SUCCESS) return
@@ -1103,6 +1108,13 @@ contains
 
     h = s%h
     call set_coefficients(s, h)
+    ! the pseudo-acceleration is the acceleration at t + (alpha_m - alpha_f) h to O(h^2) (Arnold
+    ! and Bruls 2007): where h changes (a substep retry, and back), it is moved to the new
+    ! step's shift along the accelerations' slope
+    if (s%alpha_terms .and. s%h_prev > 0.0_dp .and. &
+        abs(h - s%h_prev) > sqrt(epsilon(1.0_dp)) * h) &
+      s%ap = s%ap + ((s%opt%alpha_m - s%opt%alpha_f) * (h - s%h_prev) / s%h_prev) * &
+                    (s%a - s%a_prev)
     ! Newmark's part of the increment, h v + h^2 (1/2 - beta) ap; dq = that + beta h^2 ap+
     s%dqhat(:) = h * s%v + s%cq * s%ap
     if (s%book .or. s%h_prev <= 0.0_dp) then
@@ -1130,11 +1142,9 @@ contains
     ! error, estimated by what the third-order predictor adds to the second-order one,
     ! beta h^2 (h/h-)(ap - ap-) ~ h^3 q'''/4 (three times the trapezoidal rule's h^3 q'''/12),
     ! in the weights of the update's test. With the options' tolerance alone, what Newton
-    ! leaves per step adds up over the 1/h steps and stops the second order as h shrinks (the
-    ! heavy top's velocity error fell 6-fold, not 100-fold, from h = 1e-4 to 1e-5); the share
-    ! keeps it below a third of the truncation error (a hundredth cost a fifth more Newton
-    ! iterations at h = 1e-4 on the double pendulum for no accuracy the tests could see). The
-    ! first step has no estimate: the options' tolerance alone.
+    ! leaves per step adds up over the 1/h steps and stops the second order as h shrinks; the
+    ! share keeps it below a third of the truncation error (a smaller share costs iterations
+    ! and buys no accuracy that shows). The first step has no estimate: the options' alone.
     s%tau = 1.0_dp
     s%noise = NOISE_DECAY * s%noise
     if (s%no_renewal > 0) s%no_renewal = s%no_renewal - 1
@@ -1296,9 +1306,6 @@ contains
     if (ierr /= MBDK_SUCCESS) return
     call velocity(s)
     if (.not. book) s%lstn = s%ln
-
-  contains
-
 
   end subroutine newton
 
@@ -1468,10 +1475,9 @@ contains
       keep = s%dq(j)
       ! the increment: sqrt(eps) of the coordinates' size (wmax, the largest of the
       ! mechanism's coordinate sizes: q+ resolves eps of it, and Phi(q+) and r with it; an
-      ! increment scaled to the component's own motion or size, h v + s a or |q_j|, fell
-      ! below that for a coordinate at rest, at 0 or at small h, and left its column to
-      ! roundoff: singular matrices on the flyball governor and on the spatial double
-      ! pendulum at h = 1e-5), or of the increment itself where larger
+      ! increment scaled to the component's own motion or size, h v + s a or |q_j|, falls
+      ! below that for a coordinate at rest, at 0 or at small h, and leaves its column to
+      ! roundoff: a singular matrix), or of the increment itself where larger
       dlt = sqrt(epsilon(1.0_dp)) * max(abs(keep), s%h * abs(s%v(j)) + s%bh2 * abs(s%ap(j)), wmax)
       s%dq(j) = keep + dlt
       dlt = s%dq(j) - keep
@@ -1510,7 +1516,7 @@ contains
       ! rest of the penalty's derivative, the retraction's turn of C by about h |Omega|,
       ! changes slowly and stays in)
       s%jfd = s%jm
-      call penalty_add(s, mech, -1.0_dp)
+      call penalty_add(s, mech, -1.0_dp, s%jfd)
       s%h_fd = s%h
       s%have_fd = .true.
     end if
@@ -1518,11 +1524,12 @@ contains
     if (ierr /= MBDK_SUCCESS) ierr = MBDK_ERR_SINGULAR_MATRIX
   end subroutine build_matrix
 
-  !> jfd = jfd + sign cs alpha C^T C, C of the last evaluation
-  subroutine penalty_add(s, mech, sgn)
+  !> a = a + sgn cs alpha C^T C in its velocities' block, C of the last evaluation
+  subroutine penalty_add(s, mech, sgn, a)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: sgn
+    real(dp), intent(inout) :: a(:, :)
     integer :: j
     if (s%m == 0) return
     do j = 1, s%nv
@@ -1530,7 +1537,7 @@ contains
       s%wv(j) = 1.0_dp
       call mech%i3_c_times(s%aux, s%wv, s%rc)
       call mech%i3_ct_times(s%aux, s%rc, s%wv)
-      s%jfd(1:s%nv, j) = s%jfd(1:s%nv, j) + (sgn * s%cs * s%alpha) * s%wv
+      a(1:s%nv, j) = a(1:s%nv, j) + (sgn * s%cs * s%alpha) * s%wv
     end do
   end subroutine penalty_add
 
@@ -1541,9 +1548,8 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    call penalty_add(s, mech, 1.0_dp)
     s%jm = s%jfd
-    call penalty_add(s, mech, -1.0_dp)
+    call penalty_add(s, mech, 1.0_dp, s%jm)
     call mbdk_lu_factor(s%jm, s%ipiv, ierr)
     if (ierr /= MBDK_SUCCESS) ierr = MBDK_ERR_SINGULAR_MATRIX
   end subroutine penalty_matrix
@@ -1580,8 +1586,7 @@ contains
         ! forces that depend on v (dampers, the gyroscopic moment) taken at P vn, not at the
         ! trapezoidal vn = (2/h) dq - v: Newton's last update, at the roundoff of Phi (about
         ! eps |q| across the joints), is in vn 2/h times larger, and f(vn) would carry it into
-        ! a~ and v+ at every step (on the heavy top at h = 1e-6 it capped the velocity error
-        ! at 2e-8, against the truncation error's 4e-11)
+        ! a~ and v+ at every step: an error floor that does not shrink with h
         call mech%i3_c_times(s%aux, s%vn, s%rc)
         s%rc(:) = s%rc + s%phit
         call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
@@ -1630,11 +1635,12 @@ contains
       ierr = MBDK_ERR_NONFINITE
   end subroutine finish_step
 
-  !> Newton tested |Phi| at its last iterate and then applied the last update; where a matrix
-  !> not built at that iterate (a renewed penalty: penalty_matrix) made the update leave Phi at
-  !> q+ above the tolerance, one projection of q+ onto Phi = 0 (the mass-orthogonal correction
-  !> of the factorisation just made) brings it back: the joints hold to newton_atol at every
-  !> accepted step (a frozen step's to FROZEN_PHI times it, as Newton accepted)
+  !> Newton tested |Phi| at its last iterate and then applied the last update, which leaves
+  !> |Phi| at q+ above the tolerance now and then (an old matrix's update, or a renewed
+  !> penalty's: penalty_matrix). There one Gauss-Newton projection of q+ onto Phi = 0 (the
+  !> mass-orthogonal correction with the factorisation just made) brings it back to what its
+  !> residual leaves, the square of what it corrects. A frozen step keeps what Newton accepted
+  !> (up to FROZEN_PHI times the tolerance).
   subroutine keep_joints(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
