@@ -55,8 +55,8 @@ contains
   module procedure spatial_i3_evaluate
     type(frames_t) :: fr
     real(dp), allocatable :: fw(:, :), nbd(:, :)
-    real(dp) :: vg, vs, power, jw(3)
-    integer :: b, o, astat
+    real(dp) :: vg, vs, power
+    integer :: astat
     select type (aux)
     type is (spatial_i3_aux_t)
       aux%y(1:self%ncoord) = q
@@ -69,12 +69,7 @@ contains
         if (stat /= MBDK_SUCCESS) return
         call forces(self, fr, fw, nbd, vg, vs, power, stat)
         if (stat /= MBDK_SUCCESS) return
-        do b = 1, self%nb
-          o = (b - 1) * 6
-          jw = matmul(self%inertia(:, :, b), fr%om(:, b))
-          f(o + 1:o + 3) = fw(:, b)
-          f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
-        end do
+        call generalized_forces(self, fr, fw, nbd, f)
       end if
       if (self%m > 0) then
         phi = 0.0_dp

@@ -114,7 +114,7 @@ module mbdk_spatial_model
     mbdk_spatial_watch_nodes
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
-  public :: frames, forces, constraints, apply_minv, gram, near_test
+  public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces
 
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
@@ -1590,8 +1590,8 @@ contains
     type(frames_t) :: fr
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
       l(:), mc(:, :), phit(:)
-    real(dp) :: vg, vs, power, jw(3)
-    integer :: b, k, o, nb, m
+    real(dp) :: vg, vs, power
+    integer :: k, nb, m
     f = 0.0_dp
     nb = self%nb
     m = self%m
@@ -1604,12 +1604,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power, stat)
     if (stat /= MBDK_SUCCESS) return
-    do b = 1, self%nb
-      o = (b - 1) * 6
-      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
-      gen(o + 1:o + 3) = fw(:, b)
-      gen(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
-    end do
+    call generalized_forces(self, fr, fw, nbd, gen)
     call apply_minv(self, gen, acc)
     if (present(acc_abs)) acc_abs = abs(acc)
     if (self%m > 0 .and. present(lam_in)) then
@@ -2172,6 +2167,23 @@ contains
 
   ! ----- the mechanism interface (mbdk_mechanism) -----
 
+
+  !> f (6 nb) of the equations of motion in the body frames: the forces fw and the moments nbd
+  !> with the gyroscopic moment -Omega x J Omega
+  subroutine generalized_forces(self, fr, fw, nbd, f)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: fw(:, :), nbd(:, :)
+    real(dp), intent(out) :: f(:)
+    real(dp) :: jw(3)
+    integer :: b, o
+    do b = 1, self%nb
+      o = (b - 1) * 6
+      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
+      f(o + 1:o + 3) = fw(:, b)
+      f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
+    end do
+  end subroutine generalized_forces
   !> f = (force, moment - Omega x J Omega) per body, and Phi, C, gamma, Phi_t at (t, q, v).
   subroutine spatial_evaluate(self, t, q, v, f, phi, c, gam, phit, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
@@ -2181,8 +2193,8 @@ contains
     integer, intent(out) :: stat
     type(frames_t) :: fr
     real(dp), allocatable :: y(:), fw(:, :), nbd(:, :)
-    real(dp) :: vg, vs, power, jw(3)
-    integer :: b, o, astat
+    real(dp) :: vg, vs, power
+    integer :: astat
     stat = MBDK_ERR_NONFINITE
     if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) return
     allocate (y(self%n), fw(3, self%nb), nbd(3, self%nb), stat=astat)
@@ -2194,12 +2206,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power, stat)
     if (stat /= MBDK_SUCCESS) return
-    do b = 1, self%nb
-      o = (b - 1) * 6
-      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
-      f(o + 1:o + 3) = fw(:, b)
-      f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
-    end do
+    call generalized_forces(self, fr, fw, nbd, f)
     if (self%m == 0) return
     phi = 0.0_dp
     c = 0.0_dp
