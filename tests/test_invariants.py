@@ -121,28 +121,6 @@ def test_the_heavy_top_at_2000_rad_per_s_on_implicit_euler_stops_naming_its_vert
     assert r.success and np.abs(h[:, 2] - h[0, 2]).max() < 1e-8 * abs(h[0, 2])
 
 
-def test_implicit_euler_on_the_fast_top_names_the_angular_momentum_it_loses():
-    """implicit_euler at h = 5e-3 on the top spinning at 2000 rad/s about its axis, projected
-    onto its joint after every step, keeps the energy within the watch's tolerance but loses
-    more than a tenth of the angular momentum about the vertical through the fixed point,
-    which gravity's moment leaves conserved: unwatched it runs, watched it stops by naming that
-    component. rk4 at h = 1e-4 keeps it to 1e-8."""
-    sc = mbdk.scene("heavy_top")
-    sc.bodies[0].omega_body = np.array([1.0, 0.0, 2000.0])
-    kw = dict(formulation="projection", h=5e-3, t_end=2.0)
-    free = mbdk.simulate(sc, "implicit_euler", watch=False, **kw)
-    _, h = spatial_momenta(free, sc, point=(0.0, 0.0, 0.0))
-    assert free.success and np.abs(h[:, 2] - h[0, 2]).max() > 0.1 * abs(h[0, 2])
-    assert np.abs(free.energy_balance()).max() < 0.1 * free.energy[0]    # the energy test passes
-    with pytest.raises(mbdk.InvariantDriftError) as err:
-        mbdk.simulate(sc, "implicit_euler", **kw)
-    assert err.value.result.drift["invariant"] == \
-        "angular momentum along z about the fixed point (0, 0, 0)"
-    r = mbdk.simulate(sc, "rk4", formulation="projection", h=1e-4, t_end=0.2, every=100)
-    _, h = spatial_momenta(r, sc, point=(0.0, 0.0, 0.0))
-    assert r.success and np.abs(h[:, 2] - h[0, 2]).max() < 1e-8 * abs(h[0, 2])
-
-
 def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
     """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s, rtol 5e-3 and
     1 s the unwatched run lets |p| drift by more than twice the watch's tolerance (by how much

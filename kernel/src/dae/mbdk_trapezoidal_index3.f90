@@ -70,11 +70,10 @@
 !>                equals P ((2/h) dq - v) once Newton has converged, without its 2/h times
 !>                the Newton error; and a+, lambda+ solve M a + C^T lambda = f, C a = gamma(q+,
 !>                v+), the projection of a+ with its multipliers (second order), without the
-!>                4/h^2 times the Newton error of the trapezoidal a+. Taken from the relations,
-!>                a Newton tolerance of 1e-10 capped the error at 1e-5 on the double pendulum
-!>                (10 s) and made it grow as h fell below 3e-4; now the error is second order
-!>                down to h = 6e-5 (1.9e-7) and the Newton tolerance adds below 2 %. Without
-!>                constraints the same path gives a+ = M^-1 f.
+!>                4/h^2 times the Newton error of the trapezoidal a+ (taken from the
+!>                relations, v+ and a+ would carry Newton's tolerance amplified by 2/h and
+!>                4/h^2, an error that grows as h shrinks). Without constraints the same path
+!>                gives a+ = M^-1 f.
 !>                Parameters: alpha, the penalty factor (force per unit of Phi). Default
 !>                alpha = 0: at every step alpha = KAPPA max(M) / s, KAPPA = 1e3 (s: cs below
 !>                for the family's members), so that s alpha
