@@ -15,7 +15,8 @@ def _tool(name):
     return shutil.which(name, path=str(Path(sys.executable).parent)) or shutil.which(name)
 
 
-@pytest.mark.parametrize("example", ["c_embedding.c", "c_index3.c", "c_stepper.c"])
+@pytest.mark.parametrize("example", ["c_embedding.c", "c_index3.c", "c_stepper.c",
+                                     "c_spatial.c"])
 def test_c_example_builds_against_the_installed_copy(tmp_path, root, example):
     build = root / "build" / f"cp{sys.version_info[0]}{sys.version_info[1]}"
     if not (build / "build.ninja").exists():

@@ -202,8 +202,8 @@ enum { MBDK_FROM_POSE = 1 };
 
 /* Body kinds (the same file): the coordinates and velocities a body carries, and whether a model
  * of the kernel runs bodies of the kind (available). Planar bodies run in the planar model, the
- * one of this header's scene entries; spatial bodies (chapter 5) in the spatial model, which
- * Python reaches (python/mbdk/spatial_model.py) and this header does not yet. */
+ * one of this header's planar scene entries; spatial bodies (chapter 5) in the spatial model,
+ * which the spatial steppers below and Python (python/mbdk/spatial_model.py) reach. */
 enum mbdk_body_kind { MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2 };
 enum { MBDK_BODY_KINDS = 2 };
 /* The body kinds an element kind applies to, as bits: bit k - 1 for body kind k. */
@@ -247,8 +247,53 @@ typedef struct mbdk_model_options {
 /* The defaults of every field; start from them and set what differs. */
 void mbdk_model_default_options(mbdk_model_options *opt);
 
+/* Options of a spatial scene's model (kernel/src/spatial/mbdk_spatial_model.f90, whose header
+ * is its manual): the formulation of the ODE methods (enum mbdk_formulation, as for planar
+ * scenes) with the same parameters, the orientation coordinates and how a quaternion keeps its
+ * unit norm, and the watch. Start from mbdk_spatial_default_options. */
+enum mbdk_rotation { MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, MBDK_ROT_CARDAN123 = 3 };
+enum mbdk_quaternion_norm { MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, MBDK_NORM_NONE = 3 };
+typedef struct mbdk_spatial_options {
+    double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
+    double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */
+    /* angle sets: an evaluation within this distance of the gimbal lock (|sin theta| for 3-1-3,
+     * |cos beta| for 1-2-3) is MBDK_ERR_SINGULAR_MATRIX; 0: off */
+    double lock_guard;
+    double norm_gain;             /* MBDK_NORM_STABILISE: k of p' = ... + k (1 - |p|^2) p / 2, 1/s */
+    double projection_tol;        /* max |Phi| after a projection */
+    /* as mbdk_model_options' (<= 0: off); watch_quaternion: | |p| - 1 | of every quaternion */
+    double watch_position, watch_velocity, watch_energy, watch_momentum, watch_quaternion;
+    int formulation;              /* enum mbdk_formulation */
+    int rotation;                 /* enum mbdk_rotation */
+    int norm;                     /* enum mbdk_quaternion_norm */
+    int watch_every;              /* steps between checks; 0: the default (16) */
+    int locate_events;            /* 1: dopri54 and bs32 end a step where a contact closes or opens */
+} mbdk_spatial_options;
+
+void mbdk_spatial_default_options(mbdk_spatial_options *opt);
+
+/* A spatial scene's tables (the f2py entry spatial_run's, mbdk_spatial_model.f90): nb bodies with
+ * mass[nb] and inertia[nb][3][3] (about the centre, body frame); nj joints, jtype[nj] (enum
+ * mbdk_joint_kind of a kind on spatial bodies), jbody[nj][2] (1-based, 0 = the ground),
+ * jreal[nj][MBDK_SPATIAL_JOINT_REALS] = (s_i, s_j, a_i, a_j, time function); nf forces,
+ * ftype[nf], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]. The state, body by body:
+ * q_b = (r, p), p a quaternion (4, scalar first) or three angles as opt.rotation says, then
+ * w_b = (r', Omega), Omega in the body frame: nb (7 + 6) values with quaternions. */
+enum { MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 19 };
+
+/* The report of the watch's check that stopped a run (kernel/src/model/mbdk_watch.f90):
+ * quantity 1 position, 2 velocity, 3 energy, 4 momentum, 5 quaternion norm (0 while nothing
+ * failed); row 1-based: the constraint row, the conserved component or the body (0 for energy);
+ * value per its scale, the tolerance, t of the failed check, t_good of the last check passed, the
+ * value itself (absolute) and its scale. */
+typedef struct mbdk_watch_report {
+    double value, tol, t, t_good, absolute, scale;
+    int quantity, row;
+} mbdk_watch_report;
+
 /* The kernel's layout of the structs above, for checking a binding against it: struct id
- * 1 mbdk_stats, 2 mbdk_options, 3 mbdk_index3_options, 4 mbdk_model_options. Field types:
+ * 1 mbdk_stats, 2 mbdk_options, 3 mbdk_index3_options, 4 mbdk_model_options,
+ * 5 mbdk_spatial_options, 6 mbdk_watch_report. Field types:
  * 1 int, 2 int64_t, 3 double, 4 pointer. Both return MBDK_ERR_INVALID_INPUT past the end. */
 int mbdk_struct_info(int id, char *name, int namelen, int *nbytes, int *nfields);
 int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *type);
@@ -283,6 +328,22 @@ int mbdk_stepper_create_index3(int nb, const double *mass, const double *inertia
                                const int *jint, const double *jreal, int nf, const int *fint,
                                const double *freal, const mbdk_index3_options *opt, double t0,
                                const double *y0, mbdk_stepper **stepper);
+/* The same two on a spatial scene (its tables and state as above): an ODE method of opt on the
+ * model's formulation, and the index-3 family (trapezoidal_index3, or newmark, hht,
+ * generalized_alpha by opt's beta, gamma, alpha_m, alpha_f; fixed step). The stepping is the
+ * planar steppers' own, over the mechanism interface. */
+int mbdk_stepper_create_spatial(int nb, const double *mass, const double *inertia, int nj,
+                                const int *jtype, const int *jbody, const double *jreal, int nf,
+                                const int *ftype, const int *fbody, const double *freal,
+                                const mbdk_spatial_options *spatial_opt, const mbdk_options *opt,
+                                double t0, const double *y0, mbdk_stepper **stepper);
+int mbdk_stepper_create_spatial_index3(int nb, const double *mass, const double *inertia, int nj,
+                                       const int *jtype, const int *jbody, const double *jreal,
+                                       int nf, const int *ftype, const int *fbody,
+                                       const double *freal,
+                                       const mbdk_spatial_options *spatial_opt,
+                                       const mbdk_index3_options *opt, double t0,
+                                       const double *y0, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
 /* up to t, landing on it; t before the stepper's time: MBDK_ERR_INVALID_INPUT */
 int mbdk_stepper_advance(mbdk_stepper *stepper, double t);
@@ -291,11 +352,9 @@ int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
 int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */
 int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
 /* After MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT (scene and
- * index-3 steppers): what the watch found, report[8] = quantity (1 position, 2 velocity,
- * 3 energy, 4 momentum), row (1-based: the constraint row, or the conserved component; 0 for
- * energy), value per its scale, tolerance, time, time of the last check passed, the value
- * itself, its scale. ODE steppers: MBDK_ERR_NOT_APPLICABLE. */
-int mbdk_stepper_watch_report(const mbdk_stepper *stepper, double report[8]);
+ * index-3 steppers, planar or spatial): what the watch found. ODE steppers:
+ * MBDK_ERR_NOT_APPLICABLE. */
+int mbdk_stepper_watch_report(const mbdk_stepper *stepper, mbdk_watch_report *report);
 int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
 /* Copies the message of a status into buf (NUL-terminated). */

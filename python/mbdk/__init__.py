@@ -15,7 +15,7 @@ from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDri
 from .methods import MethodInfo, methods
 from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
 from .problems import ProblemInfo, problems
-from .options import Index3Options, ModelOptions, ODEOptions
+from .options import Index3Options, ModelOptions, ODEOptions, SpatialOptions
 from .result import ODEResult, Result, SceneResult, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
@@ -33,7 +33,7 @@ __all__ = [
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
-    "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
+    "ODEOptions", "Index3Options", "ModelOptions", "SpatialOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
     "Watch", "AccuracyWarning",
 ]

@@ -229,7 +229,7 @@ class KernelRun:
 
     result: SceneResult
     interrupted: bool
-    watch_report: np.ndarray
+    watch_report: dict              # mbdk_watch_report_t by name (mbdk.options.unpack)
     invariants: np.ndarray          # (ninv, 7)
     y0: np.ndarray
     tables: object = None

@@ -10,7 +10,7 @@ from . import _compiled, _kernel
 from .checks import check_memory, memory_error
 from .errors import Status, status_message
 from .ode import build_info
-from .options import empty
+from .options import empty, unpack
 from .plan import SPATIAL_IDA_FORMS, RunPlan
 from .result import KernelRun, SceneResult, Stats
 from .run_planar import SCENE_SAMPLE_ADVICE
@@ -43,18 +43,18 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     stats, flag = empty("mbdk_stats"), _compiled.new_flag()
     m1 = max(scene.rows, 1)
     nsamp = plan.nsamp
+    watch_words = empty("mbdk_watch_report")
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-            plan.spatial_options, plan.ode_options.pack(), plan.index3_options.pack(), flag,
-            np.zeros(0), y0,
-            int(bool(req.assemble_initial)), plan.dae_form, float(req.t0), float(req.t_end),
-            nsamp, m1, stats)
+            plan.spatial_options.pack(), plan.info.id, plan.dae_form, plan.ode_options.pack(),
+            plan.index3_options.pack(), flag, np.zeros(0), y0, int(bool(req.assemble_initial)),
+            float(req.t0), float(req.t_end), nsamp, m1, stats, watch_words)
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
     # before they are allocated where the machine has not that much memory
     nbytes = 8.0 * nsamp * (1 + len(y0) + 8 + m1)   # spatial_run's out(8, nsamp)
     what = f"{plan.method} on spatial scene {scene.name!r} ({nsamp} samples)"
     check_memory(nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE)
     try:
-        (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = \
+        (t, y, out, lam, nw, moved, invariants, ninv, status), interrupted = \
             _compiled.call(_kernel.spatial_run, args, flag, plan.steps * len(y0),
                            span=(req.t0, req.t_end))
     except MemoryError as exc:
@@ -74,7 +74,8 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
         message=status_message(status), manifest=_manifest(scene, plan, inv),
         bodies=[b.name for b in scene.bodies], joints=[j.name for j in scene.joints],
         assembly={"moved": float(moved)}, kind="spatial", rotation=scene.rotation)
-    return KernelRun(result, bool(interrupted), report, inv, y0)
+    return KernelRun(result, bool(interrupted), unpack("mbdk_watch_report", watch_words), inv,
+                     y0)
 
 
 def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:

@@ -69,7 +69,7 @@ def evaluate_spatial(sc: Scene, y=None, t: float = 0.0) -> dict:
     try:
         out, phi, c, gam, phit, lam, ydot, rank, asked, status = _kernel.spatial_residuals(
             mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-            float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+            ROTATIONS[sc.rotation], y0, float(t), y, max(m, 1))
     except MemoryError as exc:   # the arrays f2py allocates, C (rows x 6 nb) the largest
         raise NoMemoryError(f"{run}: its arrays ({format_bytes(8.0 * max(m, 1) * 6 * nb)} for C "
                             f"alone, {m} x {6 * nb}) could not be allocated ({exc}); fewer "

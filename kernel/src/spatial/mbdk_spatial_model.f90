@@ -81,6 +81,7 @@
 !> in the mechanism's length scale. Outputs (mbdk_spatial_outputs): kinetic, gravity and spring
 !> energy, the power of dampers, loads and drivers, max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
 module mbdk_spatial_model
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
@@ -145,24 +146,28 @@ module mbdk_spatial_model
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
 
-  type, public :: mbdk_spatial_options_t
-    integer :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
-    integer :: rotation = MBDK_ROT_QUATERNION
-    integer :: norm = MBDK_NORM_PROJECT
-    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
+  !> Options of a spatial model, by name with defaults. bind(C): the same struct is struct
+  !> mbdk_spatial_options in mbdk.h and mbdk.options.SpatialOptions in Python (tests/
+  !> test_structs.py and kernel/tests/c_struct_layout.c check that the three agree field by
+  !> field); the formulations' parameters carry the planar mbdk_model_options_t's names.
+  type, bind(C), public :: mbdk_spatial_options_t
+    real(c_double) :: baumgarte_alpha = 0.0_dp, baumgarte_beta = 0.0_dp   !< (3.29)
     !> Jalon-Bayo's penalty (3.35)-(3.40): alpha_p, omega_p, mu_p
-    real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp
+    real(c_double) :: penalty_alpha = 1.0e7_dp, penalty_omega = 10.0_dp, penalty_mu = 1.0_dp
     !> angle sets: an evaluation within this distance of the set's gimbal lock (|sin theta| for
     !> 3-1-3, |cos beta| for 1-2-3) returns MBDK_ERR_SINGULAR_MATRIX, so that the caller can
-    !> switch to the other set before the rates blow up (mbdk.spatial's switch_angles); 0: off
-    real(dp) :: lock_guard = 0.0_dp
-    real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
-    real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
-    real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
+    !> switch to the other set before the rates blow up (mbdk.angle_switch); 0: off
+    real(c_double) :: lock_guard = 0.0_dp
+    real(c_double) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
+    real(c_double) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
+    real(c_double) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
       watch_energy = 1.0e-1_dp, watch_momentum = 1.0e-2_dp, watch_quaternion = 1.0e-1_dp
-    integer :: watch_every = MBDK_WATCH_EVERY
+    integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
+    integer(c_int) :: rotation = MBDK_ROT_QUATERNION
+    integer(c_int) :: norm = MBDK_NORM_PROJECT
+    integer(c_int) :: watch_every = MBDK_WATCH_EVERY
     !> /= 0: the contacts' events, for the error-controlled Runge-Kutta pairs (mbdk_problem)
-    integer :: locate_events = 1
+    integer(c_int) :: locate_events = 1
   end type mbdk_spatial_options_t
 
   !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
@@ -408,13 +413,17 @@ contains
     ok = .false.
     if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > &
         MBDK_FORM_PROJECTION) return
-    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
-        opt%pen_omega > 0.0_dp .and. opt%pen_mu > 0.0_dp .and. opt%pen_alpha <= huge(1.0_dp) &
-        .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
+    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%penalty_alpha > 0.0_dp .and. &
+        opt%penalty_omega > 0.0_dp .and. opt%penalty_mu > 0.0_dp .and. &
+        opt%penalty_alpha <= huge(1.0_dp) .and. opt%penalty_omega <= huge(1.0_dp) .and. &
+        opt%penalty_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
-    ok = opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp .and. &
-         opt%projection_tol > 0.0_dp .and. opt%lock_guard >= 0.0_dp .and. &
+    ok = opt%baumgarte_alpha >= 0.0_dp .and. opt%baumgarte_beta >= 0.0_dp .and. &
+         opt%norm_gain >= 0.0_dp .and. opt%projection_tol > 0.0_dp .and. &
+         all(abs([opt%watch_position, opt%watch_velocity, opt%watch_energy, &
+                  opt%watch_momentum, opt%watch_quaternion, opt%norm_gain]) <= huge(1.0_dp)) &
+         .and. opt%watch_every >= 0 .and. opt%lock_guard >= 0.0_dp .and. &
          opt%lock_guard < 1.0_dp
   end function spatial_options_ok
 
@@ -425,6 +434,8 @@ contains
     type(mbdk_spatial_options_t), intent(in) :: opt
     integer, intent(in) :: nb
     model%opt = opt
+    ! 0: the default, as in mbdk_model_options_t
+    if (opt%watch_every == 0) model%opt%watch_every = MBDK_WATCH_EVERY
     model%nb = nb
     model%nqb = merge(7, 6, opt%rotation == MBDK_ROT_QUATERNION)
     if (opt%rotation == MBDK_ROT_EULER313) model%seq = MBDK_SEQ_EULER313
@@ -1623,8 +1634,8 @@ contains
     else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
       if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
-        gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
-              self%opt%beta**2 * phi
+        gam = gam - 2.0_dp * self%opt%baumgarte_alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
+              self%opt%baumgarte_beta**2 * phi
       if (self%opt%formulation == MBDK_FORM_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
@@ -1652,7 +1663,7 @@ contains
       allocate (a(6 * nb, 6 * nb), r(m), stat=kk)
       call mbdk_alloc_status(kk, MBDK_REAL_BYTES * (36.0_dp * nb * nb + m), st)
       if (st /= MBDK_SUCCESS) return
-      associate (ap => self%opt%pen_alpha, om => self%opt%pen_omega, mu => self%opt%pen_mu)
+      associate (ap => self%opt%penalty_alpha, om => self%opt%penalty_omega, mu => self%opt%penalty_mu)
         r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):)) + phit) + om**2 * phi
         ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
         ! status
