@@ -592,6 +592,14 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
 
 # ---- the option structs ----------------------------------------------------------------------
 
+def _estimate_text(opt: Index3Options) -> str:
+    """The estimated mode's local error in the manifest, with the member's constants (the
+    kernel's, mbdk_index3_error_constants: h^2/12 and h^3/12 for the trapezoidal rule)."""
+    lte_q, lte_v, _ = _kernel.index3_error_constants(opt.pack())
+    return (f"{lte_q:.6g} h^2 |a+ - a| on q, {lte_v:.6g} h^3 |a''| on v (the step's local "
+            "errors, the derivatives from divided differences of the accelerations)")
+
+
 def adaptive_mode(adaptive) -> int:
     """The kernel's code of an adaptive= value: a bool (numpy's too) or a mode's name; other
     values, 0 and 1 included, are refused (1 would read as the kernel's code of 'estimated')."""
@@ -740,12 +748,19 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
             "local error, so an error test on q and v would shrink h without end (studies/"
             "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
             "step-size control, or a fixed h")
-    if adaptive and family.as_options() != alpha_family.AlphaParameters().as_options():
+    trapezoidal = family.as_options() == alpha_family.AlphaParameters().as_options()
+    if adaptive and not family.second_order:
         raise NotApplicableError(
-            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): the step-size "
-            "control's error estimates are the trapezoidal rule's (its local error from the "
-            "accelerations, or Richardson extrapolation at its order); run "
-            "trapezoidal_index3 under step-size control, or this method at a fixed h")
+            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): this member is "
+            "first order (gamma != 1/2 - alpha_m + alpha_f), and the step-size control's "
+            "estimates are those of a second-order step; run it at a fixed h, or take "
+            "gamma = 1/2 - alpha_m + alpha_f")
+    if adaptive and not trapezoidal and mode == ADAPTIVE_MODES["extrapolated"]:
+        raise NotApplicableError(
+            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): Richardson "
+            "extrapolation's macro step is the trapezoidal rule's alone (an extrapolated "
+            "state would leave the pseudo-acceleration's history behind); use "
+            "adaptive='estimated', the member's own local error estimate")
     if adaptive:
         err_rtol, err_atol, dt_out, h_min, h_max = _index3_control(d, given3, h, every, t0,
                                                                    t_end)
@@ -789,8 +804,8 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
         manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
                                     "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
                                     "mode": "estimated" if estimated else "extrapolated",
-                                    "estimate": ("h^2/12 |a+ - a| on q, h^3/12 |a''| on v"
-                                                 if estimated else EXTRAPOLATED_TEXT)}
+                                    "estimate": (_estimate_text(opt) if estimated
+                                                 else EXTRAPOLATED_TEXT)}
     return {"ode": ODEOptions(), "index3": opt, "nsamp": int(nsamp),
             # adaptive: the steps are not known in advance, the run always counts as long
             # (a worker thread, interruptible)

@@ -698,6 +698,28 @@ subroutine model_constants(near_pivot)
   near_pivot = MBDK_MODEL_NEAR_PIVOT
 end subroutine model_constants
 
+subroutine index3_error_constants(ni3w, i3buf, lte_q, lte_v, status)
+  ! The constants of the index-3 family's local errors in q and v (h^3 q''' lte_q, h^3 q''''
+  ! lte_v) for the options' parameters: what its step-size control estimates with.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_trapezoidal_index3, only: mbdk_index3_error_constants, mbdk_index3_options_t
+  implicit none
+  integer, intent(in) :: ni3w
+  double precision, intent(in) :: i3buf(ni3w)
+  double precision, intent(out) :: lte_q, lte_v
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
+  type(mbdk_index3_options_t) :: opt
+  lte_q = 0.0d0
+  lte_v = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * ni3w /= c_sizeof(opt)) return
+  opt = transfer(i3buf, opt)
+  call mbdk_index3_error_constants(opt, lte_q, lte_v)
+  status = MBDK_SUCCESS
+end subroutine index3_error_constants
+
 subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
   use, intrinsic :: iso_c_binding, only: c_sizeof
