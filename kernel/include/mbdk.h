@@ -195,6 +195,59 @@ enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_
  * 6 nb + nw values per sample. */
 enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
 
+/* The planar tables, field by field (their home: kernel/src/model/mbdk_joints.f90,
+ * mbdk_force_elements.f90, mbdk_contact.f90, mbdk_contact_law.f90, mbdk_wear.f90). Bodies are
+ * 1-based, 0 is the ground (its points and axes global); points s are body-fixed (x, y) from the
+ * centroid. A time function f is 5 reals (offset, rate, amplitude, omega, phase):
+ * f(t) = offset + rate t + amplitude sin(omega t + phase); a constant c is (c, 0, 0, 0, 0).
+ *
+ * jint[j] = (kind, body1, body2, k4), jreal[j][0..11] (C indices):
+ *   REVOLUTE    P1 = P2                  s1 = jreal[0..1], s2 = jreal[2..3]
+ *   PRISMATIC   n2.(P1 - P2) = 0, theta1 - theta2 = theta0: points as revolute, axis u2 =
+ *               jreal[4..5] fixed in body2, theta0 = jreal[6] (k4 = MBDK_FROM_POSE: from y0)
+ *   FIXED       the revolute rows and theta1 - theta2 = theta0 (jreal[6], or from y0)
+ *   DRIVER      coordinate k4 (1 x, 2 y, 3 angle) of body1 = f(t), f = jreal[7..11]
+ *   DISTANCE    |P1 - P2| = L(t), points as revolute, L = jreal[7..11] (k4 = MBDK_FROM_POSE:
+ *               L's offset from y0)
+ *   POINT_LINE  s1 of body1 on the line through s2 of body2 along jreal[4..5] (body2's frame)
+ *   POINT_CURVE s1 of body1 on the ground curve y = f(x), f = jreal[7..11] taken in x
+ *   COUPLING    a . q_body1 + b . q_body2 = c(t), a = jreal[0..2], b = jreal[3..5] on (x, y,
+ *               angle), c = jreal[7..11] (k4 = MBDK_FROM_POSE: c's offset from y0)
+ *   ROLLING     a disc of radius jreal[6] centred at body1's centroid rolls on the ground line
+ *               through jreal[2..3] along the unit jreal[4..5], on its left; no-slip offset c0 =
+ *               jreal[7] (k4 = MBDK_FROM_POSE: from y0)
+ *   KNIFE_EDGE  s1 = jreal[0..1] of body1 has no velocity across the blade jreal[4..5] (body1's
+ *               frame): a nonholonomic row
+ * fint[f] = (kind, body1, body2, k4), freal[f][0..11]:
+ *   GRAVITY     g = freal[0..1] on every body
+ *   POINT       F(t) = freal[2..3] f(t) (global) at s = freal[0..1] of body1, f = freal[7..11]
+ *   TORQUE      T(t) = freal[0] f(t) on body1, f = freal[7..11]
+ *   SPRING_DAMPER, SPRING, DAMPER  between s1 = freal[0..1] on body1 and s2 = freal[2..3] on
+ *               body2: tension k (L - L0) + c L', k = freal[4], L0 = freal[5] (k4 =
+ *               MBDK_FROM_POSE: from y0), c = freal[6] (SPRING: c = 0, DAMPER: k = 0)
+ *   COORDINATE  on coordinate k4 of body1: -k (q - q0) - c q', k = freal[0], c = freal[1],
+ *               q0 = freal[2]
+ *   CONTACT     geometry k4: 1 circle (radius r1, 0: a point) on the line through s2 with the
+ *               normal angle a (body2's frame), 2 circle on circle r2, 3 circle inside the hollow
+ *               circle r2, 4 involute gear pair; freal: s1 [0..1], r1 [2], s2 [3..4], a or r2 [5],
+ *               then the IMPACT law: k [6], exponent e >= 1 [7], cmax [8], dmax [9] (the gear
+ *               pair: base radii [0..1], tip radii [2..3], base pitch [4], mesh phase [5], the law
+ *               [6..9], flank phase [10], hand +1/-1 [11])
+ *   FRICTION    regularised Coulomb friction of the contact in column k4 (1-based) of this
+ *               table: freal = (mus, mud, vs, vd), 0 < vs < vd
+ *   EFFECT_WEAR jint-like fint = (kind, law, load, column): law 1 archard, 2 gear, 3 knee; load 1
+ *               the normal force of the contact in column, 2 the force of the friction element
+ *               in column; freal[0] = k; gear: freal[1..6] = R, Ts, a_x, t0, Ea, Rg; knee:
+ *               freal[1..4] = c0..c3 (S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3). Each carries one
+ *               state, its worn volume, after the bodies' in y.
+ * The spatial tables (mbdk_stepper_create_spatial; kernel/src/spatial/mbdk_spatial_model.f90):
+ * jreal[j][0..16] = s_i (3), s_j (3), a_i (3, body i's frame), a_j (3, body j's frame), a time
+ * function (5; ANGLE_DRIVER and SLIDE_DRIVER); freal[f][0..18]: GRAVITY g (3); POINT s (3, body
+ * frame), F (3, global); TORQUE n (3, global); SPRING_DAMPER s_i (3), s_j (3), k, c, L0;
+ * SPHERE_PLANE, SPHERE_SPHERE s1 [0..2] on body i, r1 [3], s2 [4..6] on body j, the plane's
+ * normal n2 [7..9] (body j's frame), r2 [10], the IMPACT law (k, e >= 1, cmax, dmax) [11..14],
+ * friction (mus, mud, vs, vd) [15..18] (mus = mud = 0: none). */
+
 /* The 4th integer of a prismatic or fixed joint (jint[j][3]), of a distance joint, or of a
  * spring, damper or spring-damper (fint[f][3]): take the relative angle, the length L(0), or
  * the rest length from the initial pose (y0) instead of the table. */
