@@ -236,6 +236,9 @@ def _run(args) -> None:
                   f"{work:.6g} J at the end)")
         except MbdkErrorBase:
             pass
+    for name, w in r.wear.items():
+        print(f"wear {name!r}: {w[-1]:.6g} m^3 worn by t = {r.t[-1]:g} s")
     save_result(r, out)
     args.written = out
-    print(f"wrote {out} ({len(r.t)} samples, with the manifest)")
+    print(f"wrote {out} ({len(r.t)} samples of every output the run has, with the "
+          "manifest)")
