@@ -240,3 +240,13 @@ def test_pendulum_constrained_direction_carries_the_closed_form_transient(method
     c = spectral.pendulum_constrained_direction(method, formulation="augmented_lagrangian",
                                                 **opts)
     assert c.roots.size == 0 and c.remainder < 1e-10
+
+
+def test_a_run_with_substep_retries_is_not_measured():
+    """A Newton limit of three iterations fails steps of the projected form at Omega = 3, which
+    are retried in substeps: the samples no longer follow one step's map, and the measurement
+    says so by name instead of fitting them (with the default limit it measures them)."""
+    kw = dict(rho_inf=0.8, formulation="augmented_lagrangian")
+    with pytest.raises(mbdk.NotApplicableError, match="substeps"):
+        spectral.pendulum_free_direction("generalized_alpha", 3.0, max_iter=3, **kw)
+    assert spectral.pendulum_free_direction("generalized_alpha", 3.0, **kw).steps == 32

@@ -177,13 +177,23 @@ def _family(method: str) -> bool:
     return method in AF.MEMBERS
 
 
+def _one_map(r, method: str, h: float):
+    """A run whose steps were all one step of h: a step retried in substeps (Newton failed)
+    is another map, and the fitted recurrence would mix the two."""
+    if r.stats.newton_failures:
+        raise NotApplicableError(f"{method} at h = {h:g}: {r.stats.newton_failures} step(s) "
+                                 "were retried in substeps after Newton failed, so the samples "
+                                 "are not one step's map; measure at a smaller Omega")
+    return r
+
+
 def _runs(method, h, nsteps, options, scenes, scales):
     """x_n and v_x,n of each run (over its scale: position, velocity), their CPU time and
     steps."""
     out, cpu, steps = [], 0.0, 0
     for sc, (sq, sv) in zip(scenes, scales):
-        r = simulate(sc, method, h=h, t_end=nsteps * h, every=1, outputs=(), watch=False,
-                     **options)
+        r = _one_map(simulate(sc, method, h=h, t_end=nsteps * h, every=1, outputs=(),
+                              watch=False, **options), method, h)
         out += [r.q[:, 0] / sq, r.v[:, 0] / sv]
         cpu += r.stats.cpu_time
         steps += r.stats.steps
@@ -286,8 +296,8 @@ def pendulum_free_direction(method: str, omega_h: float, eps: float = EPS_FREE,
     amp = eps * LENGTH
     out, cpu, steps = [], 0.0, 0
     for sc in (pendulum(x0=amp), pendulum(vx0=amp * omega)):
-        r = simulate(sc, method, h=h, t_end=16 * h, every=1, outputs=(), watch=False,
-                     **options)
+        r = _one_map(simulate(sc, method, h=h, t_end=16 * h, every=1, outputs=(), watch=False,
+                              **options), method, h)
         out += [r.q[:, 0] / amp, r.v[:, 0] / (amp * omega)]
         cpu += r.stats.cpu_time
         steps += r.stats.steps
@@ -331,8 +341,8 @@ def pendulum_multiplier(method: str, omega_h: float, principal: complex,
     with warnings.catch_warnings():
         # the book form's multipliers carry its error: what is measured here
         warnings.simplefilter("ignore", AccuracyWarning)
-        r = simulate(pendulum(x0=eps * LENGTH), method, h=h, t_end=60 * h, every=1,
-                     outputs=("multipliers",), watch=False, **options)
+        r = _one_map(simulate(pendulum(x0=eps * LENGTH), method, h=h, t_end=60 * h, every=1,
+                              outputs=("multipliers",), watch=False, **options), method, h)
     lam = r.multipliers[SKIP:, 0]
     poly, _ = fit_recurrence([lam], max_order=12, rtol=1e-9)
     roots = np.roots(poly)
@@ -381,8 +391,8 @@ def pendulum_constrained_direction(method: str, h: float = 0.1,
     with warnings.catch_warnings():
         # the book form's multipliers carry its error: what is measured here
         warnings.simplefilter("ignore", AccuracyWarning)
-        r = simulate(sc, method, h=h, t_end=40 * h, every=1, outputs=("multipliers",),
-                     watch=False, **options)
+        r = _one_map(simulate(sc, method, h=h, t_end=40 * h, every=1,
+                              outputs=("multipliers",), watch=False, **options), method, h)
     lam = r.multipliers[SKIP:, 0]
     poly, _ = fit_recurrence([lam], max_order=9, rtol=1e-10)
     drive = np.polymul([1.0, -1.0], [1.0, -2.0 * math.cos(omega_d * h), 1.0])
