@@ -79,7 +79,7 @@ def test_every_format_holds_the_same_run(tmp_path, suffix):
 
 def test_check_prints_the_scene_report():
     r = mbdk_cli("check", "four_bar")
-    assert r.returncode == 0 and "1 degrees of freedom" in r.stdout
+    assert r.returncode == 0 and "1 degree of freedom" in r.stdout
 
 
 @pytest.mark.parametrize("args, text", [
