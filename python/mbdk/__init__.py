@@ -14,6 +14,7 @@ from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDri
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
 from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
+from .ivp import solve_ivp
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions, SpatialOptions
 from .result import ODEResult, Result, SceneResult, Stats
@@ -26,7 +27,7 @@ from .simulate import evaluate, simulate
 from .watch import Watch
 
 __all__ = [
-    "solve_ode", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
+    "solve_ode", "solve_ivp", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "TooManyStepsError", "TooMuchAccuracyError",

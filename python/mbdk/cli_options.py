@@ -82,6 +82,7 @@ SOLVE_HELP = {
     "h_max": "the largest step (error-controlled methods)",
     "max_steps": "the most steps an error-controlled method takes",
     "max_order": "the highest order of bdf and cvode_*",
+    "t_eval": "the sample times themselves (error-controlled methods)",
 }
 
 
@@ -133,7 +134,8 @@ SPECIAL = {"outputs": dict(nargs="*", metavar="NAME"),
            "watch": dict(type=_watch, metavar="on|off|NAME=VALUE,..."),
            "adaptive": dict(type=_adaptive, metavar="true|false|extrapolated|estimated"),
            "params": dict(type=_pairs, metavar="NAME=VALUE,..."),
-           "y0": dict(nargs="+", type=_number, metavar="Y")}
+           "y0": dict(nargs="+", type=_number, metavar="Y"),
+           "t_eval": dict(nargs="+", type=_number, metavar="T")}
 
 
 def keywords(fn, skip) -> list[inspect.Parameter]:

@@ -14,8 +14,10 @@
 ! aligns its arrays), where the solve stores the time it has reached (the progress field). The callback solve keeps the GIL: it calls Python.
 
 subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf, interrupt, &
-                         natol, atol, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
-  ! atol: empty, or one absolute tolerance per state for an error-controlled method
+                         natol, atol, ntimes, times, nsamp, t_out, y_out, nstatw, statbuf, &
+                         nwritten, status)
+  ! atol: empty, or one absolute tolerance per state for an error-controlled method; times:
+  ! empty, or its sample times (mbdk_solve_ode), nsamp of them
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
@@ -23,8 +25,9 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   use mbdk_textbook, only: mbdk_textbook_t, mbdk_textbook_init
   use mbdk_solve, only: mbdk_solve_ode
   implicit none
-  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol
-  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol)
+  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol, ntimes
+  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol), &
+    times(ntimes)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
@@ -34,6 +37,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
 !f2py integer intent(hide), depend(params) :: np = len(params)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   type(mbdk_textbook_t) :: prob
   type(mbdk_options_t) :: opt
@@ -49,7 +53,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
   call mbdk_textbook_init(prob, problem_id, n, params, status)
   if (status /= MBDK_SUCCESS) return
-  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol, times)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_problem
 
@@ -72,11 +76,12 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
 end subroutine eval_problem
 
 subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, natol, atol, &
-                          nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
+                          ntimes, times, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
   ! (f2py hides n); flag(1) = 1 reports a failure. With use_jac /= 0, jfun(t, y, dfdy, flag)
   ! fills its Jacobian dfdy (n x n) in place for the implicit methods' Newton (else jfun is
-  ! never called: finite differences). Not threadsafe: it calls Python.
+  ! never called: finite differences). times: as solve_problem's. Not threadsafe: it calls
+  ! Python.
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
@@ -85,14 +90,15 @@ subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, n
   use mbdk_solve, only: mbdk_solve_ode
   implicit none
   external fun, jfun
-  integer, intent(in) :: n, noptw, nsamp, nstatw, natol, use_jac
-  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol)
+  integer, intent(in) :: n, noptw, nsamp, nstatw, natol, use_jac, ntimes
+  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol), times(ntimes)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   ! The callback's signature for f2py: its first argument is named n so that the bounds of
   ! cb_y and cb_dydt refer to the callback's own argument.
@@ -116,7 +122,7 @@ subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, n
   else
     call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
   end if
-  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol, times)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_callback
 
