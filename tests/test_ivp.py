@@ -129,3 +129,28 @@ def test_refusals_are_named(kw, error, text):
         args["fun"] = lambda t, y, a: -a * y
     with pytest.raises(error, match=text):
         mbdk.solve_ivp(**args)
+
+
+def test_events_after_a_terminal_one_are_not_reported():
+    """A ball thrown up (y'' = -1 from (0, 1)): its height crosses 0.3 twice (t = 0.36754 and
+    1.63246, the roots of t - t^2/2 = 0.3) and lands at t = 2; with the landing terminal and a
+    first crossing of 0.3 counted as terminal too (terminal = 1), the run ends at the first
+    crossing and reports nothing after it, as SciPy does."""
+    def f(t, y):
+        return [y[1], -1.0]
+
+    def level(t, y):
+        return y[0] - 0.3
+    level.terminal = 1
+
+    def ground(t, y):
+        return y[0]
+    ground.terminal = True
+    ground.direction = -1
+    r = mbdk.solve_ivp(f, [0, 5], [0.0, 1.0], events=[level, ground], rtol=1e-9, atol=1e-12)
+    first = 1 - math.sqrt(1 - 0.6)
+    assert r.status == 1 and r.t_events[0] == pytest.approx([first], abs=1e-9)
+    assert r.t_events[1].size == 0 and r.t[-1] == pytest.approx(first, abs=1e-9)
+    s = scipy_integrate.solve_ivp(f, [0, 5], [0.0, 1.0], events=[level, ground], rtol=1e-9,
+                                  atol=1e-12)
+    assert [e.size for e in s.t_events] == [e.size for e in r.t_events]

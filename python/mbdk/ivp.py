@@ -79,9 +79,9 @@ class DenseSolution:
                           flat.max() > self.t_max + 1e-12 * abs(self.t_max)):
             raise InvalidInputError(f"sol(t): t must lie within [{self.t_min:g}, "
                                     f"{self.t_max:g}], where the solution was computed")
-        s = np.clip(self._sign * flat, self._sign * self.t_min if self._sign > 0 else
-                    self._sign * self.t_max, self._sign * self.t_max if self._sign > 0 else
-                    self._sign * self.t_min)
+        # in run time s = sign t, kept within the run (a t on its end to roundoff)
+        lo, hi = sorted((self._sign * self.t_min, self._sign * self.t_max))
+        s = np.clip(self._sign * flat, lo, hi)
         order = np.argsort(s)
         ys = self._values(s[order])
         out = np.empty((ys.shape[0], flat.size))
@@ -103,7 +103,8 @@ def solve_ivp(fun, t_span, y0, method: str = "RK45", t_eval=None, dense_output: 
               jac=None, **options) -> OdeResult:
     """scipy.integrate.solve_ivp's call on mbdk's kernel (the module docstring says what
     differs). options: mbdk's own solve_ode options (params of a compiled problem, max_order,
-    max_steps, ...)."""
+    max_steps, ...). vectorized is accepted and changes nothing: the kernel evaluates fun one
+    state at a time."""
     t0, tf = _span(t_span)
     sign = 1.0 if tf > t0 else -1.0
     name = _method_name(method)
@@ -124,9 +125,7 @@ def solve_ivp(fun, t_span, y0, method: str = "RK45", t_eval=None, dense_output: 
         j, extra = jac, tuple(args or ())
         jac = lambda s, y: sign * np.asarray(j(sign * s, y, *extra), dtype=float)  # noqa: E731
     kw = dict(options)
-    if callable(fun):
-        kw["y0"] = y0
-    elif y0 is not None:
+    if y0 is not None or callable(fun):
         kw["y0"] = y0
     if info.adaptive:
         kw.update(rtol=rtol, atol=atol, h_min=min_step,
@@ -171,6 +170,10 @@ def solve_ivp(fun, t_span, y0, method: str = "RK45", t_eval=None, dense_output: 
         stop = _terminal_stop(evs, found)
         if stop is not None:
             s_stop, y_stop = stop
+            # the integration ends there, as SciPy's: no event after it
+            found = [[(s, y) for s, y in f if s <= s_stop] for f in found]
+            t_events = [np.array([sign * s for s, _ in f]) for f in found]
+            y_events = [np.array([y for _, y in f]).reshape(-1, len(y_stop)) for f in found]
             keep = ts < s_stop
             ts, ys = np.append(ts[keep], s_stop), np.vstack([ys[keep], y_stop])
             status, message = 1, "A termination event occurred."
