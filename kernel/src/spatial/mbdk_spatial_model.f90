@@ -83,8 +83,8 @@
 !>                  planar scenes. The gear law (its speed R |omega1 - omega2| is a planar gear
 !>                  pair's) is MBDK_ERR_INVALID_INPUT here.
 !> Only the elements a scene declares are visited (a scene without wear has ns = 0 states after
-!> its bodies' and its evaluation never reaches the wear code). A contact's potential is part of the spring
-!> energy, the power its damping and friction dissipate part of the dampers' power; with
+!> its bodies' and its evaluation never reaches the wear code). A contact's potential is part of
+!> the spring energy, the power its damping and friction dissipate part of the dampers' power; with
 !> locate_events, dopri54 and bs32 end a step where a contact closes or lets go (spatial_events:
 !> the law's event function and the penetration per contact, in table order).
 !>
@@ -1724,7 +1724,8 @@ contains
     else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
       if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
-        gam = gam - 2.0_dp * self%opt%baumgarte_alpha * (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
+        gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
+              (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
               self%opt%baumgarte_beta**2 * phi
       if (self%opt%formulation == MBDK_FORM_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
@@ -1755,7 +1756,8 @@ contains
       call mbdk_alloc_status(kk, MBDK_REAL_BYTES * (36.0_dp * nb * nb + m), st)
       if (st /= MBDK_SUCCESS) return
       associate (ap => self%opt%penalty_alpha, om => self%opt%penalty_omega, mu => self%opt%penalty_mu)
-        r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) + om**2 * phi
+        r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) + &
+            om**2 * phi
         ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
         ! status
         a = matmul(transpose(c), c)
