@@ -346,8 +346,9 @@ contains
 
   !> Builds the model. mass(nb), inertia(3, 3, nb) (symmetric positive definite), joints:
   !> jtype(nj), jbody(2, nj), jreal(MBDK_SPATIAL_JOINT_REALS, nj); forces: ftype(nf), fbody(2,
-  !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state (its orientations fix the
-  !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
+  !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state, the bodies' and then one
+  !> volume per wear entry of the force table (its orientations fix the reference of prismatic
+  !> and fixed joints). work: owned by the caller, outliving the model's
   !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first), or for
   !> counts whose sizes (13 nb, 5 nj) no default integer holds; MBDK_ERR_NO_MEMORY (asked: the
   !> bytes, mbdk_memory). The steps check and allocate in one fixed order, so that an input
