@@ -400,8 +400,10 @@ def slip_bounds(s0, a0, vs, t_end):
 def test_sliding_sphere_wears_as_archard_says():
     """The sphere of test_sliding_sphere_rolls_at_five_sevenths (m, r, I = 2/5 m r^2, on a plane
     with gravity along its normal: F = m g) with two wear elements on its contact, solved by
-    hand: its slip falls as v0 - (7/2) mu g t (a0 = mu g (1 + m r^2 / I)), so until it rolls at
-    t* = 2 v0 / (7 mu g) it slides S = v0^2 / (7 mu g), and then slides no more:
+    hand (Newton-Euler with Coulomb friction mu m g at the contact point; Routh, Dynamics of a
+    System of Rigid Bodies (1905) 223): its slip falls as v0 - (7/2) mu g t (a0 = mu g (1 +
+    m r^2 / I)), so until it rolls at t* = 2 v0 / (7 mu g) it slides S = v0^2 / (7 mu g), and
+    then slides no more:
       archard on the normal force: V = k F S, k = K / H, and V(t) = k F (v0 t - 7/4 mu g t^2)
         while it slides;
       knee on the friction force mu F with S/R(t) = c0 + c1 t: V = k mu F (c0 S + c1 v0^3 /
