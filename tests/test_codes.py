@@ -156,6 +156,7 @@ TABLES = {
     "FORCE_CODES": (PLANAR_FORCES, None),
     "SPATIAL_FORCE_CODES": (SPATIAL_FORCES, None),
     "EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
+    "SPATIAL_EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
     "FORCE_TABLE_CODES": ({**PLANAR_FORCES, **SPATIAL_FORCES, "wear": "MBDK_EFFECT_WEAR"},
                           "MBDK_FORCE_TYPES"),
     "BODY_CODES": (_named("MBDK_BODY_", ["planar", "spatial"]), "MBDK_BODY_KINDS"),
@@ -301,7 +302,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     (the joints', or the force table's forces and effects), and every table of codes Python
     passes to either model gives a name the one code the registry gives it. The kinds both
     models have are one row each (revolute, prismatic and fixed joints; gravity, point forces,
-    torques, spring-dampers); the spatial model's others continue the codes after the planar
+    torques, spring-dampers; wear); the spatial model's others continue the codes after the planar
     ones'."""
     names = [e.name for e in codes.ELEMENT_KINDS]
     assert len(set(names)) == len(names)
@@ -312,7 +313,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     registry = {e.name: e.code for e in codes.ELEMENT_KINDS}
     python = {}
     for tab in (codes.JOINT_CODES, codes.SPATIAL_JOINT_CODES, codes.FORCE_CODES,
-                codes.SPATIAL_FORCE_CODES, codes.EFFECT_CODES):
+                codes.SPATIAL_FORCE_CODES, codes.EFFECT_CODES, codes.SPATIAL_EFFECT_CODES):
         for name, code in tab.items():
             python.setdefault(name, set()).add(code)
     assert {n: c for n, c in python.items() if len(c) > 1} == {}
@@ -321,7 +322,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     assert set(python) - set(registry) == {"coordinate_spring", "coordinate_damper"}
     both = {e.name for e in codes.ELEMENT_KINDS if set(e.rows) == {"planar", "spatial"}}
     assert both == {"revolute", "prismatic", "fixed", "gravity", "point_force", "torque",
-                    "spring_damper"}
+                    "spring_damper", "wear"}
     for t in ("joints", "forces"):
         kinds = [e for e in codes.ELEMENT_KINDS if table[e.cls] == t]
         planar = max(e.code for e in kinds if "planar" in e.rows)

@@ -20,7 +20,14 @@
  * 4. Failures: a state off the joint is refused (MBDK_ERR_INCONSISTENT_INITIAL), an adaptive
  *    index-3 stepper is MBDK_ERR_NOT_APPLICABLE, and an explicit Euler run with a tight watch
  *    stops by name with the watch's report (mbdk_watch_report) filled in.
- * With an argument "print", it prints its tables and the final states of 1 and 2 with 17
+ * 5. Wear: a ball (1 kg, radius 5 cm, J = 1e-3 kg m^2) sliding at 1 m/s without spin on the
+ *    ground (a sphere_plane contact, Coulomb friction 0.3 regularised below 1 mm/s), its Archard
+ *    wear (k = 5e-13 m^3/(N m)) a state after the body's: y0 has 14 values. rk4, 2000 steps of
+ *    0.1 ms: the ball rolls at 5/7 of its speed (the slip decelerates at (1 + m r^2 / J) mu g
+ *    until it vanishes) and the volume is k m g S, S = v0^2 / ((2 + 2 m r^2 / J) mu g) the slip
+ *    distance (the regularisation's share below 1e-5 of it); the index-3 stepper refuses the
+ *    wear state (MBDK_ERR_NOT_APPLICABLE).
+ * With an argument "print", it prints its tables and the final states of 1, 2 and 5 with 17
  * digits: tests/test_c_spatial.py compares them with mbdk.simulate's bit for bit.
  * Exit code 0 = pass.
  */
@@ -43,6 +50,21 @@ static const double state0[N] = {0.0, -0.029552020666133955, 0.09553364891256059
                              0.98877107793604235, 0.14943813247359924, 0, 0,
                              0, -0.095533648912560595, -0.029552020666133955,
                              1.0, 0, 50.0};
+
+/* 5: the sliding ball, its force table the gravity, the contact and the wear of the contact
+ * (fbody: entry 2 of this table, law 1 archard; freal: k, the knee's c0..c3 unused, load 1 the
+ * normal force) */
+enum { NFW = 3, NW = 14 };
+static const double ball_mass[1] = {1.0};
+static const double ball_inertia[9] = {1e-3, 0, 0, 0, 1e-3, 0, 0, 0, 1e-3};
+static const int wtype[NFW] = {MBDK_FORCE_GRAVITY, MBDK_FORCE_SPHERE_PLANE, MBDK_EFFECT_WEAR};
+static const int wbody[2 * NFW] = {0, 0, 1, 0, 2, 1};
+static const double wreal[NFW * MBDK_SPATIAL_FORCE_REALS] = {
+    0, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+    0, 0, 0, 0.05, 0, 0, 0, 0, 0, 1, 0, 1e6, 1, 100, 0, 0.3, 0.3, 1e-3, 2e-3,
+    5e-13, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+/* r at the contact's static penetration m g / k, no rotation, v = (1, 0, 0), no spin, V = 0 */
+static const double ball0[NW] = {0, 0, 0.049990190000000004, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0};
 
 static int fails = 0;
 static void check(int ok, const char *what)
@@ -81,6 +103,62 @@ static void print_state(const char *label, const double *y)
     printf("%s", label);
     for (int i = 0; i < N; i++) printf(" %.17g", y[i]);
     printf("\n");
+}
+
+static void print_values(const char *label, const double *y, int n)
+{
+    printf("%s", label);
+    for (int i = 0; i < n; i++) printf(" %.17g", y[i]);
+    printf("\n");
+}
+
+static void print_wear_tables(void)
+{
+    printf("wear_tables %.17g", ball_mass[0]);
+    for (int i = 0; i < 9; i++) printf(" %.17g", ball_inertia[i]);
+    for (int i = 0; i < NFW * MBDK_SPATIAL_FORCE_REALS; i++) printf(" %.17g", wreal[i]);
+    for (int i = 0; i < NFW; i++) printf(" %d %d %d", wtype[i], wbody[2 * i], wbody[2 * i + 1]);
+    printf("\n");
+    print_values("wear_y0", ball0, NW);
+}
+
+/* 5. the sliding ball's wear */
+static void wear(int printing)
+{
+    const double m = 1.0, r = 0.05, j = 1e-3, mu = 0.3, g = 9.81, v0 = 1.0, k = 5e-13;
+    const double slip = v0 * v0 / ((2 + 2 * m * r * r / j) * mu * g);
+    mbdk_spatial_options so;
+    mbdk_options opt;
+    mbdk_index3_options i3;
+    mbdk_stepper *s = NULL;
+    double t, y[NW];
+    int n = 0, m_rows = -1;
+    mbdk_spatial_default_options(&so);
+    mbdk_default_options(&opt);
+    opt.method = mbdk_method_id("rk4");
+    opt.h = 1e-4;
+    if (printing) print_wear_tables();
+    check(mbdk_stepper_create_spatial(1, ball_mass, ball_inertia, 0, NULL, NULL, NULL, NFW, wtype,
+                                      wbody, wreal, &so, &opt, 0.0, ball0, &s) == MBDK_SUCCESS
+          && mbdk_stepper_size(s, &n, &m_rows) == MBDK_SUCCESS && n == NW && m_rows == 0,
+          "a spatial stepper on a ball with wear: 13 values of the body, then its volume");
+    for (int i = 0; i < 2000; i++) mbdk_stepper_step(s);
+    check(mbdk_stepper_state(s, &t, y, NW) == MBDK_SUCCESS && fabs(t - 0.2) < 1e-15,
+          "2000 steps of 0.1 ms reach t = 0.2 s");
+    check(fabs(y[7] - 5.0 / 7.0 * v0) < 1e-4, "the ball rolls at 5/7 of its initial speed");
+    check(fabs(y[13] / (k * m * g * slip) - 1) < 1e-4,
+          "its wear is Archard's k m g times the slip distance");
+    printf("      v = %.9f m/s (5/7 v0 = %.9f), V = %.6g m^3 (k m g S = %.6g)\n", y[7],
+           5.0 / 7.0 * v0, y[13], k * m * g * slip);
+    if (printing) print_values("wear_rk4", y, NW);
+    mbdk_stepper_destroy(s);
+    s = NULL;
+    mbdk_index3_default_options(&i3);
+    i3.h = 1e-4;
+    check(mbdk_stepper_create_spatial_index3(1, ball_mass, ball_inertia, 0, NULL, NULL, NULL, NFW,
+                                             wtype, wbody, wreal, &so, &i3, 0.0, ball0, &s)
+          == MBDK_ERR_NOT_APPLICABLE && s == NULL,
+          "the index-3 family has no place for the wear state: not applicable");
 }
 
 static void print_tables(void)
@@ -213,6 +291,9 @@ int main(int argc, char **argv)
         mbdk_stepper_destroy(s3);
     }
     mbdk_stepper_destroy(s);
+
+    /* 5. wear */
+    wear(printing);
     printf("%s\n", fails ? "FAILED" : "all checks passed");
     return fails != 0;
 }

@@ -192,7 +192,7 @@ enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_
                        MBDK_FORCE_SPHERE_SPHERE = 12 };
 /* Effects share the force table and its codes, and carry states
  * (kernel/src/model/mbdk_wear.f90): a scene with nw wear elements has the state [q; v; w],
- * 6 nb + nw values per sample. */
+ * 6 nb + nw values per sample (a spatial scene: its bodies' state, then the nw volumes). */
 enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
 
 /* The planar tables, field by field (their home: kernel/src/model/mbdk_joints.f90,
@@ -329,9 +329,13 @@ void mbdk_spatial_default_options(mbdk_spatial_options *opt);
  * mass[nb] and inertia[nb][3][3] (about the centre, body frame); nj joints, jtype[nj] (enum
  * mbdk_joint_kind of a kind on spatial bodies), jbody[nj][2] (1-based, 0 = the ground),
  * jreal[nj][MBDK_SPATIAL_JOINT_REALS] = (s_i, s_j, a_i, a_j, time function); nf forces,
- * ftype[nf], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]. The state, body by body:
- * q_b = (r, p), p a quaternion (4, scalar first) or three angles as opt.rotation says, then
- * w_b = (r', Omega), Omega in the body frame: nb (7 + 6) values with quaternions. */
+ * ftype[nf], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]. A wear element is an entry of
+ * the force table too (ftype MBDK_EFFECT_WEAR): fbody = (its contact's entry, 1-based; the
+ * law, 1 archard or 3 knee), freal = (k, the knee's c0..c3, the load: 1 the contact's normal
+ * force, 2 its friction force). The state, body by body: q_b = (r, p), p a quaternion (4,
+ * scalar first) or three angles as opt.rotation says, then w_b = (r', Omega), Omega in the
+ * body frame: nb (7 + 6) values with quaternions; then the worn volume of each wear element,
+ * in table order (none without). */
 enum { MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 19 };
 
 /* The report of the watch's check that stopped a run (kernel/src/model/mbdk_watch.f90):
@@ -382,9 +386,11 @@ int mbdk_stepper_create_index3(int nb, const double *mass, const double *inertia
                                const double *freal, const mbdk_index3_options *opt, double t0,
                                const double *y0, mbdk_stepper **stepper);
 /* The same two on a spatial scene (its tables and state as above): an ODE method of opt on the
- * model's formulation, and the index-3 family (trapezoidal_index3, or newmark, hht,
- * generalized_alpha by opt's beta, gamma, alpha_m, alpha_f; fixed step). The stepping is the
- * planar steppers' own, over the mechanism interface. */
+ * model's formulation, y0 = (q, w) and the initial wear volumes after them, as
+ * mbdk_stepper_create_scene takes them; and the index-3 family (trapezoidal_index3, or newmark,
+ * hht, generalized_alpha by opt's beta, gamma, alpha_m, alpha_f; fixed step; a scene with wear
+ * is MBDK_ERR_NOT_APPLICABLE, its state [q; w] has no place for the volumes). The stepping is
+ * the planar steppers' own, over the mechanism interface. */
 int mbdk_stepper_create_spatial(int nb, const double *mass, const double *inertia, int nj,
                                 const int *jtype, const int *jbody, const double *jreal, int nf,
                                 const int *ftype, const int *fbody, const double *freal,

@@ -95,6 +95,8 @@ SPATIAL_JOINT_CODES = _codes(JOINT_CLASS, "spatial")
 SPATIAL_JOINT_ROWS = {e.name: e.rows["spatial"] for e in ELEMENT_KINDS
                       if e.cls == JOINT_CLASS and "spatial" in e.rows}
 SPATIAL_FORCE_CODES = _codes(FORCE_CLASS, "spatial")
+#: effects of spatial scenes (wear), written in their force table after the forces
+SPATIAL_EFFECT_CODES = _codes(EFFECT_CLASS, "spatial")
 
 # ---- the kernel's structs (kernel/src/api/mbdk_structs.f90), laid out by mbdk.options ---------
 

@@ -192,7 +192,7 @@ def _spatial_report(sc) -> SceneReport:
     return SceneReport(sc.name, "spatial", nb, coords, 6 * nb, rows, rank, 6 * nb - rank,
                        redundant, constraints,
                        [f.name for f in sc.forces if f.type in ("sphere_plane", "sphere_sphere")],
-                       [], index, reason, 6 * nb - rank)
+                       [w.name for w in sc.wear], index, reason, 6 * nb - rank)
 
 
 def _n(count: int, one: str, many: str | None = None) -> str:

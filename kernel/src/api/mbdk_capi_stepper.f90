@@ -52,6 +52,7 @@ module mbdk_capi_stepper
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
     mbdk_spatial_options_t, mbdk_spatial_init, MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS
   use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
+  use mbdk_elements, only: MBDK_EFFECT_WEAR
   implicit none
   private
 
@@ -188,8 +189,9 @@ contains
   !> spatial_run takes them (C row-major: inertia[nb][3][3], jbody[nj][2],
   !> jreal[nj][MBDK_SPATIAL_JOINT_REALS], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]),
   !> and its options (formulation, rotation, the norm's keeping, the watch), integrated by the
-  !> ODE method of opt from (t0, y0 = (q, w)): per body q_b = (r, p), p 4 or 3 values as
-  !> sopt%rotation says, then w_b = (r', Omega) per body.
+  !> ODE method of opt from (t0, y0 = (q, w, V)): per body q_b = (r, p), p 4 or 3 values as
+  !> sopt%rotation says, then w_b = (r', Omega) per body, then the initial volumes V of the
+  !> table's wear elements (MBDK_EFFECT_WEAR entries, in table order; none without).
   integer(c_int) function mbdk_c_stepper_create_spatial(nb, mass, inertia, nj, jtype, jbody, &
       jreal, nf, ftype, fbody, freal, sopt, opt, t0, y0, handle) &
       bind(C, name='mbdk_stepper_create_spatial')
@@ -223,9 +225,10 @@ contains
   !> Stepper running a member of the index-3 family (trapezoidal_index3 with opt's defaults,
   !> or newmark, hht, generalized_alpha by opt's beta, gamma, alpha_m, alpha_f) on a spatial
   !> scene, fixed step (opt.adaptive must be 0: MBDK_ERR_NOT_APPLICABLE otherwise); tables,
-  !> options and y0 as mbdk_stepper_create_spatial's. The model's formulation plays no part in
-  !> the index-3 step; the model is built with the projection formulation's, as simulate builds
-  !> it, so that the two give the same bits.
+  !> options and y0 as mbdk_stepper_create_spatial's (a table with wear elements:
+  !> MBDK_ERR_NOT_APPLICABLE, the family's state [q; v] has no place for their volumes). The
+  !> model's formulation plays no part in the index-3 step; the model is built with the
+  !> projection formulation's, as simulate builds it, so that the two give the same bits.
   integer(c_int) function mbdk_c_stepper_create_spatial_index3(nb, mass, inertia, nj, jtype, &
       jbody, jreal, nf, ftype, fbody, freal, sopt, opt, t0, y0, handle) &
       bind(C, name='mbdk_stepper_create_spatial_index3')
@@ -265,7 +268,7 @@ contains
   end function mbdk_c_stepper_create_spatial_index3
 
   !> b%smodel from the C tables (copied into Fortran's column order) and b%mech pointing at
-  !> it; n the state's length.
+  !> it; n the state's length (the bodies', then one per wear element).
   subroutine build_spatial(b, nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, &
                            freal, so, t0, y0, n, stat)
     type(stepper_box), intent(inout), target :: b
@@ -289,6 +292,7 @@ contains
     if (nj > 0 .and. .not. (present(jtype) .and. present(jbody) .and. present(jreal))) return
     if (nf > 0 .and. .not. (present(ftype) .and. present(fbody) .and. present(freal))) return
     n = nb * (merge(7, 6, so%rotation == 1) + 6)
+    if (nf > 0) n = n + count(ftype(1:nf) == MBDK_EFFECT_WEAR)
     allocate (jt(nj), jb(2, nj), jr(NJR, nj), ft(nf), fb(2, nf), fr(NFR, nf), &
               inert(3, 3, nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (NJR * real(nj, dp) + NFR * real(nf, dp) &

@@ -863,9 +863,10 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! method_id as scene_run runs a planar one, by the same rule (mbdk_entry): the ODE of the
   ! model's formulation (optbuf: mbdk_options_t), the index-3 family (i3buf:
   ! mbdk_index3_options_t) or, with dae_form MBDK_DAE_I3 or MBDK_DAE_SI2, bdf or ida on the
-  ! scene's DAE. The tables have nj1 = max(nj, 1) columns (nf1 likewise). With assemble /= 0
+  ! scene's DAE. The tables have nj1 = max(nj, 1) columns (nf1 likewise). y0 (n): the bodies'
+  ! state, then the initial volume of each wear entry of the force table. With assemble /= 0
   ! the initial state is projected onto the constraints first (moved: the largest change of a
-  ! state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
+  ! state; the volumes are not moved). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
   ! multipliers at the samples (NaN where a failed run's last state has none), the last row
   ! the work of dampers, loads and drivers as the run integrated it at every step
   ! (mbdk_watch_work_at). The multipliers are the integrator's own where it has them (a DAE,

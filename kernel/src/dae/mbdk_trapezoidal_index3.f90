@@ -406,8 +406,8 @@ contains
   !> A solver at (t0, y0 = [q; v]) with options opt: validates them, allocates the work arrays
   !> and the mechanism's part, and computes the consistent a and lambda at t0 (the constrained
   !> solve there; where C has lost a rank, the augmented form's regular path).
-  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme, or a
-  !> mechanism that cannot take the scheme), or the failure of that first solve
+  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme, a
+  !> mechanism with effect states (wear), or one that cannot take the scheme), or the failure of that first solve
   !> (MBDK_ERR_SINGULAR_MATRIX with dependent constraints in the book's scheme).
   subroutine mbdk_index3_init(s, mech, opt, t0, y0, stat)
     type(mbdk_index3_t), intent(out) :: s
@@ -425,7 +425,12 @@ contains
                opt%gamma <= huge(1.0_dp) .and. opt%alpha_m < 1.0_dp .and. &
                opt%alpha_m >= -huge(1.0_dp) .and. opt%alpha_f < 1.0_dp .and. &
                opt%alpha_f >= -huge(1.0_dp))) return
-    if (size(y0) /= mech%ncoord + mech%nvel .or. mech%ns > 0) return
+    if (mech%ns > 0) then
+      ! the family's state [q; v] (Newton on its increment) has no place for effect states
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    if (size(y0) /= mech%ncoord + mech%nvel) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (opt%adaptive < 0 .or. opt%adaptive > MBDK_INDEX3_EXTRAPOLATED) return
     ! step-size control: the estimated local error holds for the second-order members, the
