@@ -160,7 +160,7 @@ class ExudynScene:
                                           "has no Exudyn counterpart here")
             p1, p2 = np.array(f.reals[0:3]), np.array(f.reals[3:6])
             k, c, l0 = f.reals[6:9]
-            mbs.CreateSpringDamper(bodyNumbers=[self._body(f.body1), self._body(f.body2)],
+            mbs.CreateSpringDamper(itemNumbers=[self._body(f.body1), self._body(f.body2)],
                                    localPosition0=list(p1), localPosition1=list(p2),
                                    stiffness=k, damping=c, referenceLength=l0)
         mbs.Assemble()
@@ -189,7 +189,7 @@ class ExudynScene:
         if j.type not in make:
             raise NotImplementedError(f"{self.name}: joint {j.name!r} of type {j.type!r} has "
                                       "no Exudyn counterpart here")
-        make[j.type](bodyNumbers=[self._body(j.body2), self.bodies[j.body1]],
+        make[j.type](itemNumbers=[self._body(j.body2), self.bodies[j.body1]],
                      position=list(at), axis=list(axis), useGlobalFrame=True)
 
     def settings(self, rho: float, h: float, steps: int, verbose: int = 0):
