@@ -37,10 +37,12 @@ files or sensors. A run that fails (Exudyn raises SolverError when Newton fails 
 is a row with the time it reached.
 
 Reference: A02's exact motion (mbdk.benchmarks.a02_crank), else mbdk's dopri54 on the reduced
-formulation at rtol 1e-12, atol 1e-14 (neither side's scheme). Agreement: |mbdk - Exudyn|
-against the larger of the two errors. A ratio far below 1 says both computed the same discrete
-solution; up to 2 (the triangle inequality's bound, unless the reference is off) that they agree
-to each method's accuracy, each with its own error of that size.
+formulation at rtol 1e-12, atol 1e-14 (neither side's scheme; its accuracy estimated by its
+difference from bdf at rtol 1e-12). Agreement: |mbdk - Exudyn| against the larger of the two
+errors. Below 1e-2 both computed the same discrete solution; otherwise they agree to each
+method's accuracy, each with its own error of that size (the ratio cannot exceed 2: the
+triangle inequality through the reference). The errors are the methods' own where they are
+well above the reference's accuracy, which the verdict checks (10x).
 
 Cost: the solving thread's CPU time of one whole run (mbdk: r.stats.cpu_time, the kernel call;
 Exudyn: time.thread_time() around exu.SolveDynamic; the set-up of the solver and the initial
@@ -60,6 +62,7 @@ import io
 import re
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -262,8 +265,11 @@ def mbdk_run(scene, formulation: str, rho: float, h: float, t_end: float,
     steps = round(t_end / h)
     best = None
     for _ in range(repeats):
-        r = mbdk.simulate(scene, "generalized_alpha", rho_inf=rho, formulation=formulation,
-                          h=h, t_end=t_end, every=steps, outputs=())
+        with warnings.catch_warnings():
+            # the index3 form's multipliers are flagged; the compared state is not
+            warnings.simplefilter("ignore", mbdk.errors.AccuracyWarning)
+            r = mbdk.simulate(scene, "generalized_alpha", rho_inf=rho, formulation=formulation,
+                              h=h, t_end=t_end, every=steps, outputs=())
         if best is None or r.cpu_time < best[0]:
             best = (r.cpu_time, r.wall_time)
     return {"cpu": best[0] / steps, "wall": best[1] / steps, "state": mbdk_state(r)}
@@ -273,10 +279,11 @@ def case_scene(name: str):
     return a02_chain(int(name[len("a02_n"):])) if name.startswith("a02_n") else mbdk.scene(name)
 
 
-def reference(name: str, scene, t_end: float) -> tuple[np.ndarray, str]:
-    """The state at t_end: A02's exact motion (mbdk.benchmarks.a02_crank: cranks at theta
-    about their ground hinges, couplers translating with the crank tips), else mbdk's dopri54
-    on the reduced formulation at rtol 1e-12."""
+def reference(name: str, scene, t_end: float) -> tuple[np.ndarray, str, float]:
+    """(the state at t_end, what it is, its accuracy): A02's exact motion
+    (mbdk.benchmarks.a02_crank: cranks at theta about their ground hinges, couplers translating
+    with the crank tips; accuracy taken as 0), else mbdk's dopri54 on the reduced formulation
+    at rtol 1e-12, its accuracy estimated by its difference from bdf at rtol 1e-12."""
     if name.startswith("a02_n"):
         n = int(name[len("a02_n"):])
         th, om = (float(x[0]) for x in a02_crank(n, [t_end]))
@@ -289,22 +296,25 @@ def reference(name: str, scene, t_end: float) -> tuple[np.ndarray, str]:
                       [0.0, 0.0, om]]
         for i in range(n):           # coupler i, between the tips of cranks i and i + 1
             parts += [[i + 0.5 + c, s, 0.0], rot(0.0), [-om * s, om * c, 0.0], [0.0, 0.0, 0.0]]
-        return np.concatenate([np.asarray(p, float) for p in parts]), "exact"
+        return np.concatenate([np.asarray(p, float) for p in parts]), "exact", 0.0
     r = mbdk.simulate(scene, "dopri54", rtol=1e-12, atol=1e-14, t_end=t_end, outputs=())
-    return mbdk_state(r), "dopri54 rtol 1e-12"
+    check = mbdk.simulate(scene, "bdf", rtol=1e-12, atol=1e-14, t_end=t_end, outputs=())
+    return mbdk_state(r), "dopri54 rtol 1e-12", \
+        float(np.max(np.abs(mbdk_state(r) - mbdk_state(check))))
 
 
 def one_line(exc) -> str:
     return " ".join(str(exc).split())
 
 
-def verdict(diff: float, err: float) -> str:
-    ratio = diff / err
-    if ratio < 1e-2:
+def verdict(diff: float, err: float, ref_accuracy: float) -> str:
+    """diff <= 2 err always (the triangle inequality through the reference); the errors are
+    the methods' own only well above the reference's accuracy."""
+    if err < 10.0 * ref_accuracy:
+        return "errors within 10x the reference's accuracy"
+    if diff < 1e-2 * err:
         return "same discrete solution"
-    if ratio <= 2.0:
-        return "to each method's accuracy"
-    return "reference too coarse"
+    return "to each method's accuracy"
 
 
 def run(out: Path, quick: bool, repeats: int = 3) -> list[dict]:
@@ -314,7 +324,7 @@ def run(out: Path, quick: bool, repeats: int = 3) -> list[dict]:
     for name, (t_end, hs) in cases.items():
         scene = case_scene(name)
         progress(f"{name}: reference")
-        ref, ref_kind = reference(name, scene, t_end)
+        ref, ref_kind, ref_acc = reference(name, scene, t_end)
         r0 = mbdk.simulate(scene, "generalized_alpha", h=hs[0], t_end=hs[0], outputs=())
         ex = ExudynScene(scene, r0)
         if not np.allclose(ex.state(), mbdk_state(r0, 0), rtol=0, atol=1e-12):
@@ -344,7 +354,8 @@ def run(out: Path, quick: bool, repeats: int = 3) -> list[dict]:
                     except mbdk.errors.MbdkError as exc:
                         m = {"failed": f"{type(exc).__name__} ({one_line(exc)[:120]})"}
                     row = {"scene": name, "t_end": t_end, "rho_inf": rho, "h": h,
-                           "steps": steps, "mbdk formulation": form, "reference": ref_kind}
+                           "steps": steps, "mbdk formulation": form, "reference": ref_kind,
+                           "reference accuracy": ref_acc}
                     err = {who: float(np.max(np.abs(x["state"] - ref)))
                            for who, x in (("mbdk", m), ("Exudyn", e)) if "state" in x}
                     row.update({f"err {who}": v for who, v in err.items()})
@@ -354,7 +365,7 @@ def run(out: Path, quick: bool, repeats: int = 3) -> list[dict]:
                         row.update({"|mbdk - Exudyn|": diff,
                                     "err Exudyn / err mbdk": err["Exudyn"] / err["mbdk"],
                                     "diff / max err": diff / worst,
-                                    "agreement": verdict(diff, worst)})
+                                    "agreement": verdict(diff, worst, ref_acc)})
                     row["note"] = "; ".join(f"{who} stopped: {x['failed']}" for who, x in
                                             (("mbdk", m), ("Exudyn", e)) if "failed" in x)
                     for who, x in (("mbdk", m), ("Exudyn", e)):
@@ -365,7 +376,7 @@ def run(out: Path, quick: bool, repeats: int = 3) -> list[dict]:
                         row["cpu ratio mbdk/Exudyn"] = m["cpu"] / e["cpu"]
                     rows.append(row)
     cols = ["scene", "t_end", "rho_inf", "h", "steps", "mbdk formulation", "reference",
-            "|mbdk - Exudyn|", "err mbdk", "err Exudyn", "err Exudyn / err mbdk",
+            "reference accuracy", "|mbdk - Exudyn|", "err mbdk", "err Exudyn", "err Exudyn / err mbdk",
             "diff / max err", "agreement", "mbdk cpu us/step",
             "Exudyn cpu us/step", "cpu ratio mbdk/Exudyn", "mbdk wall us/step",
             "Exudyn wall us/step", "note"]
@@ -403,7 +414,7 @@ def newton_tolerance(repeats: int) -> list[dict]:
     run, on one case: the error in the state and the cost per step."""
     name, rho, h, t_end = NEWTON_CASE
     scene = case_scene(name)
-    ref, _ = reference(name, scene, t_end)
+    ref, _, _ = reference(name, scene, t_end)
     steps = round(t_end / h)
     r0 = mbdk.simulate(scene, "generalized_alpha", h=h, t_end=h, outputs=())
     rows = []

@@ -46,7 +46,7 @@ def test_exudyns_parameters_are_chung_hulberts(bench):
 def test_the_index3_form_is_exudyns_discrete_solution_on_the_double_pendulum(bench):
     sc = mbdk.scene("double_pendulum")
     t_end, h = 0.5, 1e-3
-    ref, _ = bench.reference("double_pendulum", sc, t_end)
+    ref, _, _ = bench.reference("double_pendulum", sc, t_end)
     r0 = mbdk.simulate(sc, "generalized_alpha", h=h, t_end=h, outputs=())
     ex = bench.ExudynScene(sc, r0)
     for rho in (0.8, 0.0):
