@@ -140,3 +140,21 @@ def test_a_driver_pushing_a_loop_past_its_dead_point_stops_there_by_name(method,
     # within 1e-5 s of it (1e-5 rad) is the dead point to within 1e-10 m
     assert t_lock - 2e-3 < r.t[-1] <= t_lock + 1e-5
     assert r.residuals[:, 0].max() < 1e-5
+
+
+def test_ida_index1_names_a_singular_pose_instead_of_leaving_the_branch():
+    """IFToMM A02 (one and two loops) through its first flat pose (t = 0.71 s): ida's index-1
+    form, which does not keep Phi, went on to the crossed branch there (5.6 rad off the exact
+    crank angle at t = 5 s, mbdk.benchmarks.a02_crank) and reported success; it now stops there
+    by name, at every tolerance, while its GGL form passes on the motion's branch."""
+    from mbdk.benchmarks import a02_chain, a02_crank
+    for n in (1, 2):
+        sc = a02_chain(n)
+        for rtol in (1e-4, 1e-6, 1e-8):
+            with pytest.raises(mbdk.SingularMatrixError, match="index-1 form stops") as info:
+                mbdk.simulate(sc, "ida", rtol=rtol, atol=1e-2 * rtol, t_end=5, dt_out=0.05)
+            assert 0.6 < info.value.result.stats.t_reached < 0.72, (n, rtol)
+        r = mbdk.simulate(sc, "ida", formulation="ggl", rtol=1e-6, atol=1e-8, t_end=5,
+                          dt_out=0.05)
+        theta, _ = a02_crank(n, r.t)
+        assert np.abs(r.q[:, 2] - theta).max() < 1e-2

@@ -214,6 +214,14 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
         note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
                 "whose centres coincide, or gears whose centres came within their base "
                 "circles' sum; a smaller h or a stiffer contact keeps them apart")
+    if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation == "index1":
+        found = singular_note(scene, tab, r)
+        note = ("; ida's index-1 form stops where the mechanism nears a singular pose (the "
+                "reduced solve's pivot, looked for at eight points of every step)"
+                + (f": {found}" if found else "") + ". There its acceleration rows hold on "
+                "either branch, and without Phi kept it can leave the motion's branch "
+                "unseen; formulation='ggl', bdf with 'i3' or trapezoidal_index3 "
+                "(augmented_lagrangian) pass such poses")
     if not note:
         note = singular_note(scene, tab, r)
         if note:   # a smaller h meets the singular configuration as well

@@ -188,6 +188,11 @@ module mbdk_ida
   !> the multipliers' Newton test, relative to the largest multiplier, is not tighter than this
   !> (lam_atol; Python's GGL_LAMBDA_RTOL)
   real(dp), parameter :: LAM_RTOL_FLOOR = 1.0e-8_dp
+  !> index1: the points of an accepted step where a singular pose is looked for
+  !> (singular_pose): their spacing, a quarter of the step, lands within the reduced solve's
+  !> pivot threshold of the flat poses A02's steps stride over at rtol 1e-4 .. 1e-8 (each
+  !> probe is one evaluation of the reduced ODE: about a quarter more CPU on a regular scene)
+  integer, parameter :: SINGULAR_PROBES = 4
   !> ggl: the least first step, as a fraction of the interval (the module header)
   real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
 
@@ -224,6 +229,8 @@ module mbdk_ida
     !> x = v - C^T mu (ggl), M^-1 g (a non-diagonal M), the rates; M's diagonal (diag_mass)
     real(dp), allocatable :: f(:), phi(:), c(:, :), gam(:), phit(:), lamfull(:), mufull(:), &
       g(:), x(:), ming(:), qd(:), dm(:)
+    !> index1: the reduced ODE's y' at a probe of singular_pose
+    real(dp), allocatable :: ydot(:)
   end type ida_context_t
 
   !> One IDA solve: its SUNDIALS objects (each handle empty until made, so that ida_run frees
@@ -300,9 +307,9 @@ contains
     stat = MBDK_ERR_NO_MEMORY
     allocate (ctx%f(nv), ctx%phi(m), ctx%c(m, nv), ctx%gam(m), ctx%phit(m), ctx%lamfull(m), &
               ctx%mufull(m), ctx%g(nv), ctx%x(nv), ctx%ming(nv), ctx%qd(nq), ctx%dm(nv), &
-              lam0(m), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (nv + 6) + 6.0_dp * nv + nq), &
-                           stat, st%alloc_bytes)
+              lam0(m), ctx%ydot(nq + nv), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (nv + 6) + 7.0_dp * nv + &
+                           2.0_dp * nq), stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     ctx%mech => mech
     ctx%nq = nq
@@ -555,7 +562,8 @@ contains
   end subroutine ida_watch_nodes
 
   !> The watch with the step's own multipliers (the module header); then multipliers that grew
-  !> (from rest, or a load ramped up) raise their tolerance (lam_atol).
+  !> (from rest, or a load ramped up) raise their tolerance (lam_atol). The index1 form first
+  !> looks for a singular pose in the step (singular_pose).
   subroutine ida_accept(self, t, sample, stat)
     class(ida_loop_t), intent(inout) :: self
     real(dp), intent(in) :: t
@@ -563,6 +571,10 @@ contains
     integer, intent(out) :: stat
     associate (ctx => self%ctx, y => self%y, ny => self%ctx%ny, nl => self%ctx%nl)
       stat = MBDK_SUCCESS
+      if (.not. ctx%ggl .and. ctx%m > 0) then
+        call singular_pose(self, t, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
       if (ctx%mech%has_watch) then
         call put_lam(ctx, y(ny + 1:ny + nl), ctx%lamfull)
         call ctx%mech%watch_lam(t, y(1:ny), sample, ctx%lamfull, stat)
@@ -576,6 +588,39 @@ contains
       end if
     end associate
   end subroutine ida_accept
+
+  !> The index1 form at a singular pose: there the acceleration-level rows hold on either
+  !> branch of the mechanism, and with Phi not kept it can leave the motion's branch for another
+  !> without a residual or the energy showing it (IFToMM A02's parallelogram turned crossed at
+  !> its second flat pose, 5.6 rad off the exact crank angle at t = 5 s, and reported success).
+  !> So it stops there by name, MBDK_ERR_SINGULAR_MATRIX, as the reduced ODE does: the
+  !> mechanism's reduced ODE (rhs; the mechanism of a DAE solve is built with the reduced
+  !> formulation, which refuses a relative pivot of C M^-1 C^T below its threshold) at
+  !> SINGULAR_PROBES points of the accepted step, from IDA's interpolant (a step strides over
+  !> a pose its end points miss).
+  !> The ggl form keeps Phi = 0 and passes such poses on the motion's branch.
+  subroutine singular_pose(self, t, stat)
+    class(ida_loop_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    integer, intent(out) :: stat
+    real(dp) :: h, tk
+    integer :: k, q
+    associate (ctx => self%ctx, nq => self%ctx%nq, ny => self%ctx%ny)
+      call self%last_step(h, q)
+      do k = 1, SINGULAR_PROBES
+        tk = t - h + (real(k, dp) / SINGULAR_PROBES) * h
+        if (k < SINGULAR_PROBES) then
+          call self%dky(tk, stat)
+          if (stat /= MBDK_SUCCESS) return
+          call ctx%mech%rhs(tk, self%ydky(1:ny), ctx%ydot, stat)
+        else
+          call ctx%mech%rhs(t, self%y(1:ny), ctx%ydot, stat)
+        end if
+        if (stat == MBDK_ERR_SINGULAR_MATRIX) return
+      end do
+      stat = MBDK_SUCCESS
+    end associate
+  end subroutine singular_pose
 
   !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
   !> (the rows a redundant scene leaves out: 0).
