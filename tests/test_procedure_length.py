@@ -29,7 +29,6 @@ MAX_LINES = 150
 STILL_LONG = {
     ("api/mbdk_f2py.f90", "scene_run"): 236,
     ("api/mbdk_f2py.f90", "spatial_run"): 212,
-    ("dae/mbdk_trapezoidal_index3.f90", "mbdk_index3_solve"): 174,
 }
 
 _PREFIX = (r"(?:(?:pure|impure|elemental|recursive|non_recursive|module)\s+"

@@ -219,8 +219,9 @@
 !> step-size controller is mbdk_step_controller_t. Here, once for both: the solver's state
 !> between steps (mbdk_index3_t), one step (mbdk_index3_step: from t to a given tn, not
 !> retried; attempt = predictors, newton, finish_step), a fixed-step advance with the substep
-!> retries (mbdk_index3_advance), and the whole-interval driver with sampling, fixed or
-!> adaptive (mbdk_index3_solve). An embedder steps through mbdk_index3_init and
+!> retries (mbdk_index3_advance), and the whole-interval driver (mbdk_index3_solve: set-up,
+!> then fixed_loop or adaptive_loop, each writing its samples, and the sample where a failed
+!> solve stopped). An embedder steps through mbdk_index3_init and
 !> mbdk_index3_advance (or the C stepper, mbdk_stepper_create_index3).
 module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
@@ -393,6 +394,15 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: q(:), v(:), a(:), lam(:), lst(:), lam_old(:), lst_old(:), &
       a_prev(:), a_prev2(:), qf(:), vf(:)
   end type mbdk_index3_snapshot_t
+
+  !> The samples of a whole-interval solve: the caller's output arrays (mbdk_index3_solve's
+  !> t_out, y_out, a_out, lam_out, iters_out) and how many rows are written (n)
+  type :: samples_t
+    real(dp), pointer :: t(:) => null(), y(:, :) => null(), a(:, :) => null(), &
+      lam(:, :) => null()
+    integer, pointer :: iters(:) => null()
+    integer :: n = 0
+  end type samples_t
 
 contains
 
@@ -635,16 +645,17 @@ contains
     class(mbdk_mechanism_t), intent(in) :: mech
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end, y0(:)
-    real(dp), intent(out) :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
-    integer, intent(out) :: iters_out(:), nwritten
+    real(dp), intent(out), target :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
+    integer, intent(out), target :: iters_out(:)
+    integer, intent(out) :: nwritten
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
-    integer(i8) :: nsteps, i
-    integer :: nsamp, plan_stat, wstat
-    logical :: shortened, sample
-    real(dp) :: t_s
+    integer(i8) :: nsteps
+    integer :: nsamp, plan_stat
+    logical :: shortened
     type(mbdk_timer_t) :: timer
     type(mbdk_index3_t) :: s
+    type(samples_t) :: out
 
     nwritten = 0
     call mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, plan_stat)
@@ -661,149 +672,185 @@ contains
       st = s%st
       return
     end if
-    call write_sample()
+    out%t => t_out
+    out%y => y_out
+    out%a => a_out
+    out%lam => lam_out
+    out%iters => iters_out
+    call put_sample(out, s)
     if (opt%adaptive /= 0) then
-      call adaptive_loop(stat)
+      call adaptive_loop(s, mech, t0, t_end, nsamp, out, stat)
     else
-      do i = 1, nsteps
-        t_s = t0 + real(i, dp) * opt%h
-        if (i == nsteps) t_s = t_end
-        if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-          stat = MBDK_ERR_INTERRUPTED
-          exit
-        end if
-        if (opt%progress /= 0) call mbdk_progress(opt%progress, t_s)
-        sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
-        call mbdk_index3_advance(s, mech, t_s, stat, sample)
-        if (stat /= MBDK_SUCCESS) exit
-        if (sample) call write_sample()
-      end do
+      call fixed_loop(s, mech, t0, t_end, nsteps, out, stat)
       if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
     end if
-    ! on failure the last sample is the state the failed step started from (where it stopped);
-    ! a state the watch refused is not a sample (the last sample passed its checks; adaptive,
-    ! extrapolated: the start of the refused macro step, written by adaptive_loop)
-    if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. .not. watch_status(stat)) then
-      if (s%t > t_out(nwritten)) then
-        ! the watch checks every few steps: the state where it stopped is checked before it
-        ! becomes a sample (a step that blew up just before a failed one is named as such)
-        call watch_step(s, mech, .true., wstat)
-        if (watch_status(wstat)) then
-          stat = wstat
-        else
-          call write_sample()
-        end if
-      end if
-    end if
+    if (mbdk_is_failure(stat)) call sample_where_stopped(s, mech, out, stat)
+    nwritten = out%n
     st = s%st
     call mbdk_timer_stop(timer, st)
+  end subroutine mbdk_index3_solve
 
-  contains
-
-    subroutine write_sample()
-      call write_row(s%t, s%q, s%v, s%a, s%lam, s%iters)
-    end subroutine write_sample
-
-    !> A saved state as the next sample (its Newton iterations unknown: 0).
-    subroutine write_state(x)
-      type(mbdk_index3_snapshot_t), intent(in) :: x
-      call write_row(x%t, x%q, x%v, x%a, x%lam, 0)
-    end subroutine write_state
-
-    subroutine write_row(t, q, v, a, lam, iters)
-      real(dp), intent(in) :: t, q(:), v(:), a(:), lam(:)
-      integer, intent(in) :: iters
-      nwritten = nwritten + 1
-      t_out(nwritten) = t
-      y_out(1:s%ncq, nwritten) = q
-      y_out(s%ncq + 1:s%ncq + s%nv, nwritten) = v
-      a_out(1:s%nv, nwritten) = a
-      if (s%m > 0) lam_out(1:s%m, nwritten) = lam
-      iters_out(nwritten) = iters
-    end subroutine write_row
-
-    !> The step-size controller (see the module header and mbdk_step_controller). Samples land
-    !> on t0 + k dt_out.
-    subroutine adaptive_loop(ierr)
-      integer, intent(out) :: ierr
-      integer :: k
-      real(dp) :: err, h_ctl
-      logical :: extrapolated
-      type(mbdk_step_controller_t) :: ctl
-      type(mbdk_index3_snapshot_t) :: x0
-      extrapolated = opt%adaptive == MBDK_INDEX3_EXTRAPOLATED
-      call mbdk_controller_init(ctl, opt%h, opt%h_min, opt%h_max, t0, t_end, 2)
-      if (extrapolated) then
-        ctl%ki = 0.7_dp
-        ctl%kp = 0.4_dp
+  !> Fixed step: nsteps steps of opt%h from t0, the last one ending at t_end; a sample every
+  !> opt%every steps and after the last. The interrupt flag is polled before every step.
+  subroutine fixed_loop(s, mech, t0, t_end, nsteps, out, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: t0, t_end
+    integer(i8), intent(in) :: nsteps
+    type(samples_t), intent(inout) :: out
+    integer, intent(out) :: ierr
+    integer(i8) :: i
+    real(dp) :: t_s
+    logical :: sample
+    ierr = MBDK_SUCCESS
+    do i = 1, nsteps
+      t_s = t0 + real(i, dp) * s%opt%h
+      if (i == nsteps) t_s = t_end
+      if (s%opt%interrupt /= 0 .and. mbdk_interrupted(s%opt%interrupt)) then
+        ierr = MBDK_ERR_INTERRUPTED
+        return
       end if
-      if (extrapolated) then
-        call snapshot_init(x0, s%ncq, s%nv, s%m, ierr, s%st%alloc_bytes)
-        if (ierr /= MBDK_SUCCESS) return
-      end if
-      ierr = MBDK_SUCCESS
-      do k = 1, nsamp - 1
-        t_s = t0 + real(k, dp) * opt%dt_out
-        if (k == nsamp - 1) t_s = t_end
-        do while (s%t < t_s)
-          if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-            ierr = MBDK_ERR_INTERRUPTED
+      if (s%opt%progress /= 0) call mbdk_progress(s%opt%progress, t_s)
+      sample = mod(i, int(s%opt%every, i8)) == 0 .or. i == nsteps
+      call mbdk_index3_advance(s, mech, t_s, ierr, sample)
+      if (ierr /= MBDK_SUCCESS) return
+      if (sample) call put_sample(out, s)
+    end do
+  end subroutine fixed_loop
+
+  !> The step-size controller (see the module header and mbdk_step_controller) over nsamp - 1
+  !> sample intervals; samples land on t0 + k dt_out and t_end.
+  subroutine adaptive_loop(s, mech, t0, t_end, nsamp, out, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: t0, t_end
+    integer, intent(in) :: nsamp
+    type(samples_t), intent(inout) :: out
+    integer, intent(out) :: ierr
+    integer :: k
+    real(dp) :: err, h_ctl, t_s
+    logical :: extrapolated
+    type(mbdk_step_controller_t) :: ctl
+    type(mbdk_index3_snapshot_t) :: x0
+    extrapolated = s%opt%adaptive == MBDK_INDEX3_EXTRAPOLATED
+    call mbdk_controller_init(ctl, s%opt%h, s%opt%h_min, s%opt%h_max, t0, t_end, 2)
+    if (extrapolated) then
+      ctl%ki = 0.7_dp
+      ctl%kp = 0.4_dp
+    end if
+    if (extrapolated) then
+      call snapshot_init(x0, s%ncq, s%nv, s%m, ierr, s%st%alloc_bytes)
+      if (ierr /= MBDK_SUCCESS) return
+    end if
+    ierr = MBDK_SUCCESS
+    do k = 1, nsamp - 1
+      t_s = t0 + real(k, dp) * s%opt%dt_out
+      if (k == nsamp - 1) t_s = t_end
+      do while (s%t < t_s)
+        if (s%opt%interrupt /= 0 .and. mbdk_interrupted(s%opt%interrupt)) then
+          ierr = MBDK_ERR_INTERRUPTED
+          return
+        end if
+        if (s%opt%progress /= 0) call mbdk_progress(s%opt%progress, s%t)
+        s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
+        s%h = s%tn - s%t
+        ! the controller judges the step from t to tn (extrapolated: the macro step, whose
+        ! half-steps leave their own h in s%h for the predictors' history)
+        h_ctl = s%h
+        if (extrapolated) then
+          call extrapolated_attempt(s, mech, x0, err, ierr)
+        else
+          call hold_matrix(s)
+          call attempt(s, mech, ierr)
+          if (ierr == MBDK_SUCCESS) err = error_estimate(s, mech)
+        end if
+        ! (an extrapolated step judged next to a rank loss exhausted the budget)
+        if (ierr == MBDK_ERR_NEWTON_DIVERGED .and. s%retries < 0.0_dp) return
+        if (newton_failed(ierr)) then
+          if (.not. retry_allowed(s)) then
+            ierr = MBDK_ERR_NEWTON_DIVERGED
             return
           end if
-          if (opt%progress /= 0) call mbdk_progress(opt%progress, s%t)
-          s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
-          s%h = s%tn - s%t
-          ! the controller judges the step from t to tn (extrapolated: the macro step, whose
-          ! half-steps leave their own h in s%h for the predictors' history)
-          h_ctl = s%h
-          if (extrapolated) then
-            call extrapolated_attempt(s, mech, x0, err, ierr)
-          else
-            call hold_matrix(s)
-            call attempt(s, mech, ierr)
-            if (ierr == MBDK_SUCCESS) err = error_estimate(s, mech)
-          end if
-          ! (an extrapolated step judged next to a rank loss exhausted the budget)
-          if (ierr == MBDK_ERR_NEWTON_DIVERGED .and. s%retries < 0.0_dp) return
-          if (newton_failed(ierr)) then
-            if (.not. retry_allowed(s)) then
-              ierr = MBDK_ERR_NEWTON_DIVERGED
+          s%have_lu = .false.
+          call mbdk_controller_newton_failure(ctl, h_ctl)
+        else if (ierr /= MBDK_SUCCESS) then
+          return
+        else
+          if (err <= 1.0_dp) then
+            call commit(s)
+            call mbdk_controller_accept(ctl, h_ctl, err)
+            ! extrapolated: the watch checks every macro step (three solves make a check
+            ! cheap beside it), so that the macro step's start passed when it refuses the
+            ! end; the samples then end there, where the run stopped (next to a dead point
+            ! the last sample on the dt_out grid can be far from it)
+            call watch_step(s, mech, extrapolated .or. s%t >= t_s, ierr)
+            if (ierr /= MBDK_SUCCESS) then
+              ! the macro step's start as the last sample (its Newton iterations unknown: 0)
+              if (extrapolated .and. out%n < size(out%t)) then
+                if (x0%t > out%t(out%n)) call put_row(out, x0%t, x0%q, x0%v, x0%a, x0%lam, 0)
+              end if
               return
             end if
-            s%have_lu = .false.
-            call mbdk_controller_newton_failure(ctl, h_ctl)
-          else if (ierr /= MBDK_SUCCESS) then
-            return
-          else
-            if (err <= 1.0_dp) then
-              call commit(s)
-              call mbdk_controller_accept(ctl, h_ctl, err)
-              ! extrapolated: the watch checks every macro step (three solves make a check
-              ! cheap beside it), so that the macro step's start passed when it refuses the
-              ! end; the samples then end there, where the run stopped (next to a dead point
-              ! the last sample on the dt_out grid can be far from it)
-              call watch_step(s, mech, extrapolated .or. s%t >= t_s, ierr)
-              if (ierr /= MBDK_SUCCESS) then
-                if (extrapolated .and. nwritten < size(t_out) .and. x0%t > t_out(nwritten)) &
-                  call write_state(x0)
-                return
-              end if
-              cycle
-            end if
-            s%st%rejected_steps = s%st%rejected_steps + 1
-            call mbdk_controller_reject(ctl, h_ctl, err)
+            cycle
           end if
-          ierr = MBDK_SUCCESS
-          if (mbdk_controller_too_small(ctl)) then
-            ierr = MBDK_ERR_STEP_TOO_SMALL
-            return
-          end if
-        end do
-        call write_sample()
+          s%st%rejected_steps = s%st%rejected_steps + 1
+          call mbdk_controller_reject(ctl, h_ctl, err)
+        end if
+        ierr = MBDK_SUCCESS
+        if (mbdk_controller_too_small(ctl)) then
+          ierr = MBDK_ERR_STEP_TOO_SMALL
+          return
+        end if
       end do
-    end subroutine adaptive_loop
+      call put_sample(out, s)
+    end do
+  end subroutine adaptive_loop
 
-  end subroutine mbdk_index3_solve
+  !> After a failure (stat), the state where the solve stopped as the last sample: the state
+  !> the failed step started from. A state the watch refused is not a sample (the last sample
+  !> passed its checks; adaptive, extrapolated: the start of the refused macro step, written by
+  !> adaptive_loop).
+  subroutine sample_where_stopped(s, mech, out, stat)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    type(samples_t), intent(inout) :: out
+    integer, intent(inout) :: stat
+    integer :: wstat
+    if (out%n >= size(out%t) .or. watch_status(stat)) return
+    if (.not. s%t > out%t(out%n)) return
+    ! the watch checks every few steps: the state where it stopped is checked before it
+    ! becomes a sample (a step that blew up just before a failed one is named as such)
+    call watch_step(s, mech, .true., wstat)
+    if (watch_status(wstat)) then
+      stat = wstat
+    else
+      call put_sample(out, s)
+    end if
+  end subroutine sample_where_stopped
+
+  !> The solver's state as the next sample (with the Newton iterations of its step).
+  subroutine put_sample(out, s)
+    type(samples_t), intent(inout) :: out
+    type(mbdk_index3_t), intent(in) :: s
+    call put_row(out, s%t, s%q, s%v, s%a, s%lam, s%iters)
+  end subroutine put_sample
+
+  subroutine put_row(out, t, q, v, a, lam, iters)
+    type(samples_t), intent(inout) :: out
+    real(dp), intent(in) :: t, q(:), v(:), a(:), lam(:)
+    integer, intent(in) :: iters
+    integer :: ncq, nv, m
+    ncq = size(q)
+    nv = size(v)
+    m = size(lam)
+    out%n = out%n + 1
+    out%t(out%n) = t
+    out%y(1:ncq, out%n) = q
+    out%y(ncq + 1:ncq + nv, out%n) = v
+    out%a(1:nv, out%n) = a
+    if (m > 0) out%lam(1:m, out%n) = lam
+    out%iters(out%n) = iters
+  end subroutine put_row
 
   subroutine snapshot_init(x, ncq, nv, m, stat, asked)
     type(mbdk_index3_snapshot_t), intent(out) :: x
