@@ -39,7 +39,8 @@
 !>                on increments
 !> and for the index-3 integrator (mbdk_trapezoidal_index3), with an mbdk_i3_aux_t the model
 !> creates for each solve (i3_create: its constrained-solve object and Newton factors):
-!>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v), C kept for the products and solves below
+!>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v) into an mbdk_i3_eval_t, C kept for the
+!>                products and solves below
 !>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion
 !>   i3_c_times, i3_ct_times   C x and C^T x
 !>   i3_cs_factor, i3_cs_solve   M x + C^T mu = b, C x = c at the last evaluation (the
@@ -60,6 +61,14 @@ module mbdk_mechanism
   !> What a mechanism keeps for one index-3 solve; each model extends it (i3_create).
   type, abstract, public :: mbdk_i3_aux_t
   end type mbdk_i3_aux_t
+
+  !> An index-3 evaluation, which the integrator owns: the point it sets (q of ncoord, v of
+  !> nvel) and what i3_evaluate gives there (f of nvel; phi, gam, phit of m). Allocatable
+  !> components, so that a model hands them on to its own routines as they are: a dummy array
+  !> handed on takes a new descriptor at every call, several per Newton iteration.
+  type, public :: mbdk_i3_eval_t
+    real(dp), allocatable :: q(:), v(:), f(:), phi(:), gam(:), phit(:)
+  end type mbdk_i3_eval_t
 
   type, abstract, extends(mbdk_problem_t), public :: mbdk_mechanism_t
     integer :: nb = 0        !< bodies
@@ -232,26 +241,25 @@ module mbdk_mechanism
       real(dp), intent(inout), optional :: asked
     end subroutine i3_create_iface
 
-    !> Phi, gamma, Phi_t (m) and, with forces, f (nvel; else left as it is) at (t, q, v); C
-    !> kept in aux. same_q: q is that of the last evaluation (only v changed)
-    subroutine i3_evaluate_iface(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> e%phi, e%gam, e%phit and, with forces, e%f (else left as it is) at (t, e%q, e%v); C
+    !> kept in aux. same_q: e%q is that of the last evaluation (only e%v changed)
+    subroutine i3_evaluate_iface(self, aux, t, e, forces, same_q, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in) :: t
-      real(dp), intent(in), contiguous :: q(:), v(:)
-      real(dp), intent(inout), contiguous :: f(:)
-      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       logical, intent(in) :: forces, same_q
       integer, intent(out) :: stat
     end subroutine i3_evaluate_iface
 
-    !> r = M dd - s (f - C^T lt) at the last evaluation
-    subroutine i3_residual_iface(self, aux, f, lt, s, dd, r)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> r = M dd - s (e%f - C^T lt) at the last evaluation (e)
+    subroutine i3_residual_iface(self, aux, e, lt, s, dd, r)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(in) :: e
+      real(dp), intent(in), contiguous :: lt(:), dd(:)
       real(dp), intent(in) :: s
       real(dp), intent(out), contiguous :: r(:)
     end subroutine i3_residual_iface
@@ -288,16 +296,17 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_cs_solve_iface
 
-    !> builds and factorises the Newton matrix M + ck (K + alpha C^T C) + cd D_f at (t, q, v,
-    !> lam) of the last evaluation (book: [.., C^T; C, 0] with the multipliers' rows and no
-    !> alpha; ck, cd: the step's coefficients, h^2/4 and h/2 for the trapezoidal rule)
-    subroutine i3_matrix_iface(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> builds and factorises the Newton matrix M + ck (K + alpha C^T C) + cd D_f at (t, e%q,
+    !> e%v, lam) of the last evaluation (book: [.., C^T; C, 0] with the multipliers' rows and
+    !> no alpha; ck, cd: the step's coefficients, h^2/4 and h/2 for the trapezoidal rule)
+    subroutine i3_matrix_iface(self, aux, book, t, e, lam, ck, cd, alpha, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
       real(dp), intent(in) :: t, ck, cd, alpha
-      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      type(mbdk_i3_eval_t), intent(in) :: e
+      real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine i3_matrix_iface
 

@@ -231,7 +231,7 @@ module mbdk_trapezoidal_index3
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
-  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_step_controller, only: mbdk_step_controller_t, mbdk_controller_init, &
     mbdk_controller_next_step, mbdk_controller_accept, mbdk_controller_reject, &
@@ -362,14 +362,17 @@ module mbdk_trapezoidal_index3
     real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
     type(mbdk_stats_t) :: st
     class(mbdk_i3_aux_t), allocatable :: aux
-    real(dp), allocatable :: q(:), qn(:), qs(:)
-    real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), vn(:), an(:), dq(:), dqhat(:), &
-      dqp(:), dd(:), f(:), corr(:), w(:), zero_nv(:)
+    !> the point the mechanism evaluates, the attempted step's end (qn = e%q, vn = e%v), and
+    !> what it gives there (f, phi, gam, phit)
+    type(mbdk_i3_eval_t) :: e
+    real(dp), allocatable :: q(:), qs(:)
+    real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), an(:), dq(:), dqhat(:), &
+      dqp(:), dd(:), corr(:), w(:), zero_nv(:)
     !> the generalized-alpha family's pseudo-acceleration (= a for the trapezoidal rule), of the
     !> state, the last state and the attempted step
     real(dp), allocatable :: ap(:), ap_prev(:), apn(:)
     real(dp), allocatable :: lam(:), lam_old(:), ln(:), lst(:), lstn(:), lst_old(:), lp(:), &
-      lt(:), phi(:), gam(:), phit(:), rc(:), mu(:), zero_m(:)
+      lt(:), rc(:), mu(:), zero_m(:)
     real(dp), allocatable :: r(:), y(:)
     !> fd_matrix: the matrix and its LU, and the evaluation it was built around
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
@@ -449,11 +452,13 @@ contains
     ! consistent a and lambda at t0: the constrained solve; where C has lost a rank (redundant
     ! joints, or a start at a singular configuration) the augmented form takes the regular
     ! path of its projections instead (lambda is then one of many)
-    call mech%i3_evaluate(s%aux, s%t, s%q, s%v, s%f, s%phi, s%gam, s%phit, .true., .false., stat)
+    s%e%q(:) = s%q
+    s%e%v(:) = s%v
+    call mech%i3_evaluate(s%aux, s%t, s%e, .true., .false., stat)
     if (stat /= MBDK_SUCCESS) return
     call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, stat)
     if (stat /= MBDK_SUCCESS) return
-    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%a, s%lam, stat)
+    call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%a, s%lam, stat)
     if (stat /= MBDK_SUCCESS) return
     s%lam_old = s%lam
     s%lst = s%lam
@@ -488,10 +493,10 @@ contains
     s%nk = nk
     s%identity = mech%identity_kinematics
     s%fd_matrix = .not. mech%has_i3_matrix
-    allocate (s%q(ncq), s%qn(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
-              s%vn(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%f(nv), &
+    allocate (s%q(ncq), s%e%q(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
+              s%e%v(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%e%f(nv), &
               s%corr(nv), s%w(nv), s%zero_nv(nv), s%lam(m), s%lam_old(m), s%ln(m), s%lst(m), &
-              s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%phi(m), s%gam(m), s%phit(m), &
+              s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%e%phi(m), s%e%gam(m), s%e%phit(m), &
               s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
               s%apn(nv), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 18.0_dp * nv + 14.0_dp * m + &
@@ -507,13 +512,13 @@ contains
     end if
     s%zero_nv = 0.0_dp
     s%zero_m = 0.0_dp
-    s%phi = 0.0_dp
-    s%gam = 0.0_dp
-    s%phit = 0.0_dp
-    s%f = 0.0_dp
-    call mech%mass_diagonal(s%f)
-    s%mmax = maxval(s%f)
-    s%f = 0.0_dp
+    s%e%phi = 0.0_dp
+    s%e%gam = 0.0_dp
+    s%e%phit = 0.0_dp
+    s%e%f = 0.0_dp
+    call mech%mass_diagonal(s%e%f)
+    s%mmax = maxval(s%e%f)
+    s%e%f = 0.0_dp
   end subroutine allocate_state
 
   !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
@@ -526,8 +531,8 @@ contains
     s%h_prev = s%h
     s%lam_old(:) = s%lam
     s%lst_old(:) = s%lst
-    s%q(:) = s%qn
-    s%v(:) = s%vn
+    s%q(:) = s%e%q
+    s%v(:) = s%e%v
     s%a(:) = s%an
     s%ap(:) = s%apn
     s%lam(:) = s%ln
@@ -937,8 +942,8 @@ contains
     call hold_matrix(s)
     call attempt(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    x%qf = s%qn
-    x%vf = s%vn
+    x%qf = s%e%q
+    x%vf = s%e%v
     iters = s%iters
     near = s%stalled
     ! two half-steps
@@ -997,9 +1002,9 @@ contains
     end if
     ! (extrapolated coordinates leave a quaternion's unit norm: normalised before the
     ! projection)
-    s%qn = s%qn + (s%qn - x%qf) / 3.0_dp
-    s%vn = s%vn + (s%vn - x%vf) / 3.0_dp
-    if (.not. s%identity) call mech%normalise(s%qn)
+    s%e%q = s%e%q + (s%e%q - x%qf) / 3.0_dp
+    s%e%v = s%e%v + (s%e%v - x%vf) / 3.0_dp
+    if (.not. s%identity) call mech%normalise(s%e%q)
     call consistent_end(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) call snapshot(s, x, .false.)
   end subroutine extrapolated_attempt
@@ -1014,12 +1019,12 @@ contains
     sum2 = 0.0_dp
     do k = 1, max(s%ncq, s%nv)
       if (k <= s%ncq) then
-        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%qn(k)))
-        sum2 = sum2 + ((s%qn(k) - x%qf(k)) / (3.0_dp * wq))**2
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%e%q(k)))
+        sum2 = sum2 + ((s%e%q(k) - x%qf(k)) / (3.0_dp * wq))**2
       end if
       if (k <= s%nv) then
-        wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%vn(k)))
-        sum2 = sum2 + ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
+        wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%e%v(k)))
+        sum2 = sum2 + ((s%e%v(k) - x%vf(k)) / (3.0_dp * wv))**2
       end if
     end do
     err = sqrt(sum2 / real(s%ncq + s%nv, dp))
@@ -1042,41 +1047,39 @@ contains
     integer, intent(out) :: ierr
     integer :: it
     real(dp) :: phi_tol
-    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
     do it = 0, PROJECT_MAX_ITER
-      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                            .false., ierr)
+      call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .false., ierr)
       if (ierr /= MBDK_SUCCESS) return
       call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
       if (ierr /= MBDK_SUCCESS) return
       if (s%m == 0) exit
-      if (maxval(abs(s%phi)) <= phi_tol) exit
+      if (maxval(abs(s%e%phi)) <= phi_tol) exit
       ! at a rank loss the part of Phi that C cannot reach stays, as in a frozen Newton step
-      if (s%regular_n .and. it > 0 .and. maxval(abs(s%phi)) <= FROZEN_PHI * phi_tol) exit
+      if (s%regular_n .and. it > 0 .and. maxval(abs(s%e%phi)) <= FROZEN_PHI * phi_tol) exit
       if (it == PROJECT_MAX_ITER) then
         ierr = MBDK_ERR_NEWTON_DIVERGED
         return
       end if
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
+      call mech%i3_cs_solve(s%aux, s%zero_nv, s%e%phi, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      call move_by(s, mech, s%qn, -s%corr, ierr)
+      call move_by(s, mech, s%e%q, -s%corr, ierr)
       if (ierr /= MBDK_SUCCESS) return
     end do
     if (s%m > 0) then
-      call mech%i3_c_times(s%aux, s%vn, s%rc)
-      s%rc = s%rc + s%phit
+      call mech%i3_c_times(s%aux, s%e%v, s%rc)
+      s%rc = s%rc + s%e%phit
       call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%vn = s%vn - s%corr
+      s%e%v = s%e%v - s%corr
     end if
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .true., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%st%nfev = s%st%nfev + 1
-    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+    call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%apn(:) = s%an
-    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+    if (.not. (finite_all(s%e%q) .and. finite_all(s%e%v) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine consistent_end
 
@@ -1110,7 +1113,7 @@ contains
     integer :: k
     h = s%h
     sum2 = 0.0_dp
-    if (.not. s%identity) call mech%coord_weights(s%qn, s%w)
+    if (.not. s%identity) call mech%coord_weights(s%e%q, s%w)
     do k = 1, s%nv
       b2 = 0.5_dp * (s%a(k) + s%an(k))
       if (s%h_prev > 0.0_dp) then
@@ -1129,11 +1132,11 @@ contains
         ev = h**3 / 12.0_dp * d1 / (h + s%h_prev)
       end if
       if (s%identity) then
-        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%qn(k)))
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%e%q(k)))
       else
         wq = s%opt%err_atol + s%opt%err_rtol * s%w(k)
       end if
-      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%vn(k)))
+      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%e%v(k)))
       sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
     end do
     error_estimate = sqrt(sum2 / real(2 * s%nv, dp))
@@ -1239,7 +1242,7 @@ contains
     dnorm_old = huge(1.0_dp)
     s%iters = 0
     k = 0
-    s%phi(:) = 0.0_dp
+    s%e%phi(:) = 0.0_dp
     frozen = .false.
     boosted = .false.
     stalls = 0
@@ -1250,17 +1253,17 @@ contains
       if (ierr /= MBDK_SUCCESS) return
       s%lt(:) = s%ln
       phin = 0.0_dp
-      if (m > 0) phin = maxval(abs(s%phi))
+      if (m > 0) phin = maxval(abs(s%e%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
-      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
       ! the multiplier update takes the alpha that produced this Phi: with a stiffened one it
       ! would overshoot BOOST-fold and leave Phi where it was
       alpha_upd = s%alpha
       if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
                                                              frozen, upd_fresh, dnorm_old)
       if (.not. book) then
-        if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
-        s%lt(:) = s%ln + s%alpha * s%phi
+        if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%e%phi
+        s%lt(:) = s%ln + s%alpha * s%e%phi
       end if
       call residual(s, mech, sh)
       if (.not. s%have_lu) then
@@ -1284,7 +1287,7 @@ contains
       k = k + 1
       s%st%newton_iterations = s%st%newton_iterations + 1
       if (s%identity) then
-        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
+        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%e%q)))
       else
         dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
       end if
@@ -1436,7 +1439,7 @@ contains
       ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
       ! of their size: what Phi's roundoff moves them by, which no matrix removes)
       if (s%identity) then
-        qsize = max(1.0_dp, maxval(abs(s%qn)))
+        qsize = max(1.0_dp, maxval(abs(s%e%q)))
       else
         qsize = max(1.0_dp, maxval(s%w))
       end if
@@ -1460,9 +1463,9 @@ contains
     integer, intent(out) :: ierr
     ierr = MBDK_SUCCESS
     if (s%identity) then
-      s%qn(:) = s%q + s%dq
+      s%e%q(:) = s%q + s%dq
     else
-      call mech%retract(s%q, s%dq, s%qn, ierr)
+      call mech%retract(s%q, s%dq, s%e%q, ierr)
     end if
   end subroutine move_to
 
@@ -1475,8 +1478,7 @@ contains
     call move_to(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
     call velocity(s)
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     s%st%nfev = s%st%nfev + 1
   end subroutine evaluate_at
 
@@ -1487,8 +1489,8 @@ contains
     class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: sh
     s%dd(:) = s%dq - s%dqhat
-    call mech%i3_residual(s%aux, s%f, s%lt, sh, s%dd, s%r(1:s%nv))
-    if (s%book) s%r(s%nv + 1:) = s%phi
+    call mech%i3_residual(s%aux, s%e, s%lt, sh, s%dd, s%r(1:s%nv))
+    if (s%book) s%r(s%nv + 1:) = s%e%phi
   end subroutine residual
 
   !> The Newton matrix at the current iterate: the mechanism's own (has_i3_matrix) or, for a
@@ -1504,17 +1506,17 @@ contains
     real(dp) :: sh, dlt, keep, wmax
     integer :: j, nv, m
     if (.not. s%fd_matrix) then
-      call mech%i3_matrix(s%aux, s%book, s%tn, s%qn, s%vn, s%ln, s%cs, s%cd, s%alpha, ierr)
+      call mech%i3_matrix(s%aux, s%book, s%tn, s%e, s%ln, s%cs, s%cd, s%alpha, ierr)
       return
     end if
     nv = s%nv
     m = s%m
     sh = s%cs
     s%r0 = s%r
-    s%f0 = s%f
-    s%phi0 = s%phi
-    s%gam0 = s%gam
-    s%phit0 = s%phit
+    s%f0 = s%e%f
+    s%phi0 = s%e%phi
+    s%gam0 = s%e%gam
+    s%phit0 = s%e%phit
     s%jm = 0.0_dp
     wmax = max(1.0_dp, maxval(s%w))
     do j = 1, nv
@@ -1535,7 +1537,7 @@ contains
       if (s%book) then
         s%lt = s%ln
       else
-        s%lt = s%ln + s%alpha * s%phi
+        s%lt = s%ln + s%alpha * s%e%phi
       end if
       call residual(s, mech, sh)
       s%dq(j) = keep
@@ -1544,10 +1546,10 @@ contains
     ! back to the iterate (its C for the multipliers' columns and the solves after)
     call evaluate_at(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    s%f = s%f0
-    s%phi = s%phi0
-    s%gam = s%gam0
-    s%phit = s%phit0
+    s%e%f = s%f0
+    s%e%phi = s%phi0
+    s%e%gam = s%gam0
+    s%e%phit = s%phit0
     s%r = s%r0
     if (s%book) then
       s%lt = s%ln
@@ -1557,7 +1559,7 @@ contains
         call mech%i3_ct_times(s%aux, s%col(1:m), s%jm(1:nv, nv + j))
       end do
     else
-      s%lt = s%ln + s%alpha * s%phi
+      s%lt = s%ln + s%alpha * s%e%phi
       ! what the penalty's renewal keeps: the matrix less cs alpha C^T C at this iterate (the
       ! rest of the penalty's derivative, the retraction's turn of C by about h |Omega|,
       ! changes slowly and stays in)
@@ -1619,8 +1621,7 @@ contains
         s%an(:) = s%apn
       end if
     else
-      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                            .false., ierr)
+      call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .false., ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! at a rank loss of C (a singular crossing, redundant joints) the projections take the
       ! regular augmented Lagrangian path instead of failing
@@ -1633,13 +1634,12 @@ contains
         ! trapezoidal vn = (2/h) dq - v: Newton's last update, at the roundoff of Phi (about
         ! eps |q| across the joints), is in vn 2/h times larger, and f(vn) would carry it into
         ! a~ and v+ at every step: an error floor that does not shrink with h
-        call mech%i3_c_times(s%aux, s%vn, s%rc)
-        s%rc(:) = s%rc + s%phit
+        call mech%i3_c_times(s%aux, s%e%v, s%rc)
+        s%rc(:) = s%rc + s%e%phit
         call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
         if (ierr /= MBDK_SUCCESS) return
-        s%vn(:) = s%vn - s%corr
-        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., &
-                              .true., ierr)
+        s%e%v(:) = s%e%v - s%corr
+        call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto C v + Phi_t = 0 and a~ any
@@ -1649,25 +1649,24 @@ contains
       ! Then a+ and lambda+ from M a + C^T lambda = f, C a = gamma(q+, v+): the projection
       ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
       ! error (4/h^2) that a+ = (4/h^2) dq - .. would carry.
-      call mech%i3_cs_solve(s%aux, s%f, s%zero_m, s%an, s%ln, ierr)
+      call mech%i3_cs_solve(s%aux, s%e%f, s%zero_m, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! v+ = v + h ((1 - gamma) ap + gamma ap~), ap~ the pseudo-acceleration of a~
       if (s%alpha_terms) s%an = ((1.0_dp - s%opt%alpha_f) * s%an + s%opt%alpha_f * s%a - &
                                  s%opt%alpha_m * s%ap) / (1.0_dp - s%opt%alpha_m)
-      s%vn(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
+      s%e%v(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
       ! vn onto C v + Phi_t = 0 (mass-orthogonal)
-      call mech%i3_c_times(s%aux, s%vn, s%rc)
-      s%rc(:) = s%rc + s%phit
+      call mech%i3_c_times(s%aux, s%e%v, s%rc)
+      s%rc(:) = s%rc + s%e%phit
       call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%vn(:) = s%vn - s%corr
+      s%e%v(:) = s%e%v - s%corr
       ! q+ is unchanged: C, Phi are the same; only gamma changes with v+
       if (s%m > 0) then
-        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                              .true., ierr)
+        call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .true., ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
-      call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+      call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! the pseudo-acceleration of the projected a+ (the alpha relation)
       if (s%alpha_terms) then
@@ -1677,7 +1676,7 @@ contains
         s%apn(:) = s%an
       end if
     end if
-    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+    if (.not. (finite_all(s%e%q) .and. finite_all(s%e%v) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine finish_step
 
@@ -1694,14 +1693,13 @@ contains
     real(dp) :: phi_tol
     ierr = MBDK_SUCCESS
     if (s%m == 0 .or. s%stalled) return
-    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
-    if (maxval(abs(s%phi)) <= phi_tol) return
-    call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
+    if (maxval(abs(s%e%phi)) <= phi_tol) return
+    call mech%i3_cs_solve(s%aux, s%zero_nv, s%e%phi, s%corr, s%mu, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call move_by(s, mech, s%qn, -s%corr, ierr)
+    call move_by(s, mech, s%e%q, -s%corr, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%st%nfev = s%st%nfev + 1
     call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
@@ -1712,9 +1710,9 @@ contains
   subroutine velocity(s)
     type(mbdk_index3_t), intent(inout) :: s
     if (s%kv2 == 0.0_dp) then
-      s%vn(:) = s%cv * s%dq + s%kv1 * s%v
+      s%e%v(:) = s%cv * s%dq + s%kv1 * s%v
     else
-      s%vn(:) = s%cv * s%dq + s%kv1 * s%v + s%kv2 * s%ap
+      s%e%v(:) = s%cv * s%dq + s%kv1 * s%v + s%kv2 * s%ap
     end if
   end subroutine velocity
 

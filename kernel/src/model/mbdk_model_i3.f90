@@ -53,17 +53,17 @@ contains
     end select
   end procedure model_i3_create
 
-  !> the rotations (unless same_q) and the joints at (t, q, v) into work%rot and work%dz, and
-  !> the force elements' f (gravity among them, counted at every evaluation)
+  !> the rotations (unless same_q) and the joints at (t, e%q, e%v) into work%rot and work%dz,
+  !> and the force elements' f (gravity among them, counted at every evaluation)
   module procedure model_i3_evaluate
-    if (.not. same_q) call mbdk_body_rotations(q, self%work%rot)
-    if (self%m > 0) call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, q, &
-                                          v, t, phi, self%work%dz, gam, phit, &
+    if (.not. same_q) call mbdk_body_rotations(e%q, self%work%rot)
+    if (self%m > 0) call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, e%q, &
+                                          e%v, t, e%phi, self%work%dz, e%gam, e%phit, &
                                           self%work%visits(1:MBDK_JOINT_TYPES))
     stat = MBDK_SUCCESS
     if (forces) then
-      f = 0.0_dp
-      call mbdk_forces_eval(self%fint, self%freal, self%mass, self%work%rot, q, v, t, f, &
+      e%f = 0.0_dp
+      call mbdk_forces_eval(self%fint, self%freal, self%mass, self%work%rot, e%q, e%v, t, e%f, &
                             self%work%visits(MBDK_JOINT_TYPES + 1:), stat)
     end if
   end procedure model_i3_evaluate
@@ -73,7 +73,7 @@ contains
     integer :: k
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, lt, aux%corr, self%nc, f)
+      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, lt, aux%corr, self%nc, e%f)
       do k = 1, self%nc
         r(k) = self%mass(k) * dd(k) - s * aux%corr(k)
       end do
@@ -119,8 +119,8 @@ contains
   module procedure model_i3_matrix
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_index3_factor(aux%fa, self, book, t, q, v, lam, ck, cd, alpha, aux%d, aux%lw, &
-                              stat)
+      call mbdk_index3_factor(aux%fa, self, book, t, e%q, e%v, lam, ck, cd, alpha, aux%d, &
+                              aux%lw, stat)
     end select
   end procedure model_i3_matrix
 
