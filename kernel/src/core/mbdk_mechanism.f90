@@ -41,7 +41,8 @@
 !> creates for each solve (i3_create: its constrained-solve object and Newton factors):
 !>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v) into an mbdk_i3_eval_t, C kept for the
 !>                products and solves below
-!>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion
+!>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion (in the
+!>                mbdk_i3_eval_t)
 !>   i3_c_times, i3_ct_times   C x and C^T x
 !>   i3_cs_factor, i3_cs_solve   M x + C^T mu = b, C x = c at the last evaluation (the
 !>                projections); on a regular path (an augmented Lagrangian iteration) where C
@@ -62,12 +63,14 @@ module mbdk_mechanism
   type, abstract, public :: mbdk_i3_aux_t
   end type mbdk_i3_aux_t
 
-  !> An index-3 evaluation, which the integrator owns: the point it sets (q of ncoord, v of
-  !> nvel) and what i3_evaluate gives there (f of nvel; phi, gam, phit of m). Allocatable
-  !> components, so that a model hands them on to its own routines as they are: a dummy array
-  !> handed on takes a new descriptor at every call, several per Newton iteration.
+  !> An index-3 evaluation and the Newton residual there, which the integrator owns: the point
+  !> it sets (q of ncoord, v of nvel), what i3_evaluate gives there (f of nvel; phi, gam, phit
+  !> of m), the residual's multipliers lt (m) and mass term dd (nvel) it sets, and r (the
+  !> Newton unknowns': the residual, i3_residual's in its first nvel, then the Newton update).
+  !> Allocatable components, so that a model hands them on to its own routines as they are: a
+  !> dummy array handed on takes a new descriptor at every call, several per Newton iteration.
   type, public :: mbdk_i3_eval_t
-    real(dp), allocatable :: q(:), v(:), f(:), phi(:), gam(:), phit(:)
+    real(dp), allocatable :: q(:), v(:), f(:), phi(:), gam(:), phit(:), lt(:), dd(:), r(:)
   end type mbdk_i3_eval_t
 
   type, abstract, extends(mbdk_problem_t), public :: mbdk_mechanism_t
@@ -253,15 +256,13 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_evaluate_iface
 
-    !> r = M dd - s (e%f - C^T lt) at the last evaluation (e)
-    subroutine i3_residual_iface(self, aux, e, lt, s, dd, r)
+    !> e%r(1:nvel) = M e%dd - s (e%f - C^T e%lt) at the last evaluation (e)
+    subroutine i3_residual_iface(self, aux, e, s)
       import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      type(mbdk_i3_eval_t), intent(in) :: e
-      real(dp), intent(in), contiguous :: lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
-      real(dp), intent(out), contiguous :: r(:)
     end subroutine i3_residual_iface
 
     !> y = C x (i3_c_times: x of nvel, y of m) or C^T x (i3_ct_times) at the last evaluation
@@ -310,12 +311,12 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_matrix_iface
 
-    !> r overwritten by the solution of the Newton matrix's system
-    subroutine i3_matrix_solve_iface(self, aux, r, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> e%r overwritten by the solution of the Newton matrix's system
+    subroutine i3_matrix_solve_iface(self, aux, e, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(inout), contiguous :: r(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine i3_matrix_solve_iface
   end interface

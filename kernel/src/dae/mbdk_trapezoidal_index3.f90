@@ -362,18 +362,18 @@ module mbdk_trapezoidal_index3
     real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
     type(mbdk_stats_t) :: st
     class(mbdk_i3_aux_t), allocatable :: aux
-    !> the point the mechanism evaluates, the attempted step's end (qn = e%q, vn = e%v), and
-    !> what it gives there (f, phi, gam, phit)
+    !> the point the mechanism evaluates, the attempted step's end (qn = e%q, vn = e%v), what
+    !> it gives there (f, phi, gam, phit), and the residual there (lt, dd, r)
     type(mbdk_i3_eval_t) :: e
     real(dp), allocatable :: q(:), qs(:)
     real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), an(:), dq(:), dqhat(:), &
-      dqp(:), dd(:), corr(:), w(:), zero_nv(:)
+      dqp(:), corr(:), w(:), zero_nv(:)
     !> the generalized-alpha family's pseudo-acceleration (= a for the trapezoidal rule), of the
     !> state, the last state and the attempted step
     real(dp), allocatable :: ap(:), ap_prev(:), apn(:)
     real(dp), allocatable :: lam(:), lam_old(:), ln(:), lst(:), lstn(:), lst_old(:), lp(:), &
-      lt(:), rc(:), mu(:), zero_m(:)
-    real(dp), allocatable :: r(:), y(:)
+      rc(:), mu(:), zero_m(:)
+    real(dp), allocatable :: y(:)
     !> fd_matrix: the matrix and its LU, and the evaluation it was built around
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
     !> fd_matrix, augmented form: the matrix by differences less the penalty's cs alpha C^T C
@@ -494,10 +494,10 @@ contains
     s%identity = mech%identity_kinematics
     s%fd_matrix = .not. mech%has_i3_matrix
     allocate (s%q(ncq), s%e%q(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
-              s%e%v(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%e%f(nv), &
+              s%e%v(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%e%dd(nv), s%e%f(nv), &
               s%corr(nv), s%w(nv), s%zero_nv(nv), s%lam(m), s%lam_old(m), s%ln(m), s%lst(m), &
-              s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%e%phi(m), s%e%gam(m), s%e%phit(m), &
-              s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
+              s%lstn(m), s%lst_old(m), s%lp(m), s%e%lt(m), s%e%phi(m), s%e%gam(m), s%e%phit(m), &
+              s%rc(m), s%mu(m), s%zero_m(m), s%e%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
               s%apn(nv), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 18.0_dp * nv + 14.0_dp * m + &
                            nk), stat, s%st%alloc_bytes)
@@ -1251,7 +1251,7 @@ contains
     do
       call evaluate_at(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%lt(:) = s%ln
+      s%e%lt(:) = s%ln
       phin = 0.0_dp
       if (m > 0) phin = maxval(abs(s%e%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
@@ -1263,7 +1263,7 @@ contains
                                                              frozen, upd_fresh, dnorm_old)
       if (.not. book) then
         if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%e%phi
-        s%lt(:) = s%ln + s%alpha * s%e%phi
+        s%e%lt(:) = s%ln + s%alpha * s%e%phi
       end if
       call residual(s, mech, sh)
       if (.not. s%have_lu) then
@@ -1272,14 +1272,14 @@ contains
         own = own .or. fresh
         reused = .false.
       end if
-      s%r(:) = -s%r
+      s%e%r(:) = -s%e%r
       if (s%fd_matrix) then
-        call mbdk_lu_solve(s%jm, s%ipiv, s%r, ierr)
+        call mbdk_lu_solve(s%jm, s%ipiv, s%e%r, ierr)
       else
-        call mech%i3_matrix_solve(s%aux, s%r, ierr)
+        call mech%i3_matrix_solve(s%aux, s%e, ierr)
       end if
       if (ierr /= MBDK_SUCCESS) return
-      if (.not. finite_all(s%r)) then
+      if (.not. finite_all(s%e%r)) then
         ierr = MBDK_ERR_NONFINITE
         return
       end if
@@ -1287,9 +1287,9 @@ contains
       k = k + 1
       s%st%newton_iterations = s%st%newton_iterations + 1
       if (s%identity) then
-        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%e%q)))
+        dnorm = maxval(abs(s%e%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%e%q)))
       else
-        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
+        dnorm = maxval(abs(s%e%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
       end if
       ! progress: the distance from convergence, in tolerances of the update and of Phi. A
       ! stall counts only after an update from a matrix built at its iterate (an old matrix
@@ -1305,8 +1305,8 @@ contains
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
       if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, stall_own)) then
         if (stall_own) s%noise = dnorm
-        s%dq(:) = s%dq + s%r(1:nv)
-        if (book) s%ln = s%ln + s%r(nv + 1:) / sh
+        s%dq(:) = s%dq + s%e%r(1:nv)
+        if (book) s%ln = s%ln + s%e%r(nv + 1:) / sh
         exit
       end if
       if (s%iters >= s%opt%newton_max_iter) then
@@ -1339,8 +1339,8 @@ contains
         upd_fresh = .false.
         cycle
       end if
-      s%dq(:) = s%dq + s%r(1:nv)
-      if (book) s%ln = s%ln + s%r(nv + 1:) / sh
+      s%dq(:) = s%dq + s%e%r(1:nv)
+      if (book) s%ln = s%ln + s%e%r(nv + 1:) / sh
       ! rebuild the matrix when two more iterations at this rate would not reach the
       ! options' tolerance (an iteration costs about as much as a factorisation)
       if (rate > REBUILD_RATE .or. dnorm * rate * rate > 1.0_dp) s%have_lu = .false.
@@ -1452,7 +1452,7 @@ contains
       converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
                   (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
                   s%iters >= s%opt%newton_max_iter .or. &
-                  maxval(abs(s%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
+                  maxval(abs(s%e%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
     end if
   end function newton_converged
 
@@ -1488,9 +1488,9 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: sh
-    s%dd(:) = s%dq - s%dqhat
-    call mech%i3_residual(s%aux, s%e, s%lt, sh, s%dd, s%r(1:s%nv))
-    if (s%book) s%r(s%nv + 1:) = s%e%phi
+    s%e%dd(:) = s%dq - s%dqhat
+    call mech%i3_residual(s%aux, s%e, sh)
+    if (s%book) s%e%r(s%nv + 1:) = s%e%phi
   end subroutine residual
 
   !> The Newton matrix at the current iterate: the mechanism's own (has_i3_matrix) or, for a
@@ -1512,7 +1512,7 @@ contains
     nv = s%nv
     m = s%m
     sh = s%cs
-    s%r0 = s%r
+    s%r0 = s%e%r
     s%f0 = s%e%f
     s%phi0 = s%e%phi
     s%gam0 = s%e%gam
@@ -1535,13 +1535,13 @@ contains
         return
       end if
       if (s%book) then
-        s%lt = s%ln
+        s%e%lt = s%ln
       else
-        s%lt = s%ln + s%alpha * s%e%phi
+        s%e%lt = s%ln + s%alpha * s%e%phi
       end if
       call residual(s, mech, sh)
       s%dq(j) = keep
-      s%jm(:, j) = (s%r - s%r0) / dlt
+      s%jm(:, j) = (s%e%r - s%r0) / dlt
     end do
     ! back to the iterate (its C for the multipliers' columns and the solves after)
     call evaluate_at(s, mech, ierr)
@@ -1550,16 +1550,16 @@ contains
     s%e%phi = s%phi0
     s%e%gam = s%gam0
     s%e%phit = s%phit0
-    s%r = s%r0
+    s%e%r = s%r0
     if (s%book) then
-      s%lt = s%ln
+      s%e%lt = s%ln
       do j = 1, m
         s%col(1:m) = 0.0_dp
         s%col(j) = 1.0_dp
         call mech%i3_ct_times(s%aux, s%col(1:m), s%jm(1:nv, nv + j))
       end do
     else
-      s%lt = s%ln + s%alpha * s%e%phi
+      s%e%lt = s%ln + s%alpha * s%e%phi
       ! what the penalty's renewal keeps: the matrix less cs alpha C^T C at this iterate (the
       ! rest of the penalty's derivative, the retraction's turn of C by about h |Omega|,
       ! changes slowly and stays in)

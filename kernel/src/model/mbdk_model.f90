@@ -276,13 +276,11 @@ module mbdk_model
       logical, intent(in) :: forces, same_q
       integer, intent(out) :: stat
     end subroutine model_i3_evaluate
-    module subroutine model_i3_residual(self, aux, e, lt, s, dd, r)
+    module subroutine model_i3_residual(self, aux, e, s)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      type(mbdk_i3_eval_t), intent(in) :: e
-      real(dp), intent(in), contiguous :: lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
-      real(dp), intent(out), contiguous :: r(:)
     end subroutine model_i3_residual
     module subroutine model_i3_c_times(self, aux, x, y)
       class(mbdk_model_t), intent(in) :: self
@@ -320,10 +318,10 @@ module mbdk_model
       real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine model_i3_matrix
-    module subroutine model_i3_matrix_solve(self, aux, r, stat)
+    module subroutine model_i3_matrix_solve(self, aux, e, stat)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(inout), contiguous :: r(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine model_i3_matrix_solve
   end interface

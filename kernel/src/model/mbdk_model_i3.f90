@@ -73,9 +73,10 @@ contains
     integer :: k
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, lt, aux%corr, self%nc, e%f)
+      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, e%lt, aux%corr, self%nc, &
+                                  e%f)
       do k = 1, self%nc
-        r(k) = self%mass(k) * dd(k) - s * aux%corr(k)
+        e%r(k) = self%mass(k) * e%dd(k) - s * aux%corr(k)
       end do
     end select
   end procedure model_i3_residual
@@ -127,7 +128,7 @@ contains
   module procedure model_i3_matrix_solve
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_index3_factors_solve(aux%fa, r, stat)
+      call mbdk_index3_factors_solve(aux%fa, e%r, stat)
     end select
   end procedure model_i3_matrix_solve
 

@@ -84,12 +84,14 @@ contains
   module procedure spatial_i3_residual
     select type (aux)
     type is (spatial_i3_aux_t)
-      call spatial_mass_times(self, dd, r)
-      if (self%m > 0) then
-        r = r - s * (e%f - matmul(lt, aux%c))
-      else
-        r = r - s * e%f
-      end if
+      associate (r => e%r(1:self%nvel))
+        call spatial_mass_times(self, e%dd, r)
+        if (self%m > 0) then
+          r = r - s * (e%f - matmul(e%lt, aux%c))
+        else
+          r = r - s * e%f
+        end if
+      end associate
     end select
   end procedure spatial_i3_residual
 
