@@ -1251,7 +1251,6 @@ contains
     do
       call evaluate_at(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%e%lt(:) = s%ln
       phin = 0.0_dp
       if (m > 0) phin = maxval(abs(s%e%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
@@ -1261,7 +1260,9 @@ contains
       alpha_upd = s%alpha
       if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
                                                              frozen, upd_fresh, dnorm_old)
-      if (.not. book) then
+      if (book) then
+        s%e%lt(:) = s%ln
+      else
         if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%e%phi
         s%e%lt(:) = s%ln + s%alpha * s%e%phi
       end if
@@ -1469,26 +1470,49 @@ contains
     end if
   end subroutine move_to
 
-  !> The evaluation at the iterate dq: qn = q (+) dq, vn = (2/h) dq - v, and f, Phi, gamma,
-  !> Phi_t there (C kept by the mechanism).
+  !> The evaluation at the iterate dq: qn = q (+) dq, vn from dq (velocity), the residual's
+  !> mass term dd = dq - dqhat, and f, Phi, gamma, Phi_t there (C kept by the mechanism).
   subroutine evaluate_at(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    call move_to(s, mech, ierr)
-    if (ierr /= MBDK_SUCCESS) return
-    call velocity(s)
+    integer :: k
+    real(dp) :: cv, kv1, kv2
+    if (s%identity) then
+      ! qn = q + dq: the three in one pass (the step's vectors are a few components long, and
+      ! a pass's set-up costs about as much as its arithmetic); as velocity's
+      cv = s%cv
+      kv1 = s%kv1
+      kv2 = s%kv2
+      if (kv2 == 0.0_dp) then
+        do k = 1, s%nv
+          s%e%q(k) = s%q(k) + s%dq(k)
+          s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k)
+          s%e%dd(k) = s%dq(k) - s%dqhat(k)
+        end do
+      else
+        do k = 1, s%nv
+          s%e%q(k) = s%q(k) + s%dq(k)
+          s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k) + kv2 * s%ap(k)
+          s%e%dd(k) = s%dq(k) - s%dqhat(k)
+        end do
+      end if
+    else
+      call move_to(s, mech, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      call velocity(s)
+      s%e%dd(:) = s%dq - s%dqhat
+    end if
     call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     s%st%nfev = s%st%nfev + 1
   end subroutine evaluate_at
 
   !> r = M (dq - dqhat) - s (f - C^T lt) at the last evaluation (the equations of motion at
-  !> t+ times s, (3.15)), and the book scheme's Phi rows.
+  !> t+ times s, (3.15); dd = dq - dqhat from evaluate_at), and the book scheme's Phi rows.
   subroutine residual(s, mech, sh)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: sh
-    s%e%dd(:) = s%dq - s%dqhat
     call mech%i3_residual(s%aux, s%e, sh)
     if (s%book) s%e%r(s%nv + 1:) = s%e%phi
   end subroutine residual
