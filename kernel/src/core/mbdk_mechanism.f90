@@ -47,10 +47,14 @@
 !>   i3_cs_factor, i3_cs_solve   M x + C^T mu = b, C x = c at the last evaluation (the
 !>                projections); on a regular path (an augmented Lagrangian iteration) where C
 !>                has lost a rank, when the caller allows it
+!>   i3_project_velocity   the evaluation's v onto C v + Phi_t = 0 through those (a default
+!>                here from i3_c_times and i3_cs_solve; a model may do it in one call of its own)
 !>   i3_matrix, i3_matrix_solve   the Newton matrix, where the model has its tangents
 !>                (has_i3_matrix); otherwise the integrator forms it by differences
 module mbdk_mechanism
   use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   implicit none
   private
@@ -116,6 +120,7 @@ module mbdk_mechanism
     procedure(i3_cs_solve_iface), deferred :: i3_cs_solve
     procedure(i3_matrix_iface), deferred :: i3_matrix
     procedure(i3_matrix_solve_iface), deferred :: i3_matrix_solve
+    procedure :: i3_project_velocity => mechanism_i3_project_velocity
   end type mbdk_mechanism_t
 
   abstract interface
@@ -320,5 +325,28 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_matrix_solve_iface
   end interface
+
+contains
+
+  !> e%v overwritten by its mass-orthogonal projection onto C v + Phi_t = 0 (Phi_t: e%phit) at
+  !> the last evaluation and factorisation: v - x, M x + C^T mu = 0, C x = C v + Phi_t.
+  !> MBDK_ERR_NO_MEMORY, or i3_cs_solve's failure (v then unchanged).
+  subroutine mechanism_i3_project_velocity(self, aux, e, stat)
+    class(mbdk_mechanism_t), intent(in) :: self
+    class(mbdk_i3_aux_t), intent(inout) :: aux
+    type(mbdk_i3_eval_t), intent(inout) :: e
+    integer, intent(out) :: stat
+    real(dp), allocatable :: cv(:), x(:), mu(:), zero(:)
+    integer :: astat
+    allocate (cv(self%m), x(self%nvel), mu(self%m), zero(self%nvel), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 2.0_dp * (self%m + self%nvel), stat)
+    if (stat /= MBDK_SUCCESS) return
+    zero = 0.0_dp
+    call self%i3_c_times(aux, e%v, cv)
+    cv = cv + e%phit
+    call self%i3_cs_solve(aux, zero, cv, x, mu, stat)
+    if (stat /= MBDK_SUCCESS) return
+    e%v = e%v - x
+  end subroutine mechanism_i3_project_velocity
 
 end module mbdk_mechanism

@@ -1067,11 +1067,8 @@ contains
       if (ierr /= MBDK_SUCCESS) return
     end do
     if (s%m > 0) then
-      call mech%i3_c_times(s%aux, s%e%v, s%rc)
-      s%rc = s%rc + s%e%phit
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+      call mech%i3_project_velocity(s%aux, s%e, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%e%v = s%e%v - s%corr
     end if
     call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
     if (ierr /= MBDK_SUCCESS) return
@@ -1658,11 +1655,8 @@ contains
         ! trapezoidal vn = (2/h) dq - v: Newton's last update, at the roundoff of Phi (about
         ! eps |q| across the joints), is in vn 2/h times larger, and f(vn) would carry it into
         ! a~ and v+ at every step: an error floor that does not shrink with h
-        call mech%i3_c_times(s%aux, s%e%v, s%rc)
-        s%rc(:) = s%rc + s%e%phit
-        call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+        call mech%i3_project_velocity(s%aux, s%e, ierr)
         if (ierr /= MBDK_SUCCESS) return
-        s%e%v(:) = s%e%v - s%corr
         call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
@@ -1680,11 +1674,8 @@ contains
                                  s%opt%alpha_m * s%ap) / (1.0_dp - s%opt%alpha_m)
       s%e%v(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
       ! vn onto C v + Phi_t = 0 (mass-orthogonal)
-      call mech%i3_c_times(s%aux, s%e%v, s%rc)
-      s%rc(:) = s%rc + s%e%phit
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+      call mech%i3_project_velocity(s%aux, s%e, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%e%v(:) = s%e%v - s%corr
       ! q+ is unchanged: C, Phi are the same; only gamma changes with v+
       if (s%m > 0) then
         call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .true., ierr)

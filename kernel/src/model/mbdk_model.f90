@@ -258,6 +258,7 @@ module mbdk_model
     procedure :: i3_cs_solve => model_i3_cs_solve
     procedure :: i3_matrix => model_i3_matrix
     procedure :: i3_matrix_solve => model_i3_matrix_solve
+    procedure :: i3_project_velocity => model_i3_project_velocity
   end type mbdk_model_t
 
   interface
@@ -324,6 +325,12 @@ module mbdk_model
       type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine model_i3_matrix_solve
+    module subroutine model_i3_project_velocity(self, aux, e, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      type(mbdk_i3_eval_t), intent(inout) :: e
+      integer, intent(out) :: stat
+    end subroutine model_i3_project_velocity
   end interface
 
 contains

@@ -15,8 +15,9 @@ submodule (mbdk_model) mbdk_model_i3
     !> the projections' solves (weight M^-1) and the Newton matrix's factors
     type(mbdk_constrained_t) :: cs
     type(mbdk_index3_factors_t) :: fa
-    !> the dense D (the book scheme's matrix only), and work of the residual and the matrix
-    real(dp), allocatable :: d(:, :), lw(:), corr(:), one_nc(:)
+    !> the dense D (the book scheme's matrix only), and work of the residual, the matrix and
+    !> the velocity projection
+    real(dp), allocatable :: d(:, :), lw(:), corr(:), one_nc(:), cv(:), mu(:), zero_nc(:)
   end type planar_i3_aux_t
 
 contains
@@ -45,11 +46,12 @@ contains
       if (stat /= MBDK_SUCCESS) return
       ! the dense D serves the book scheme's matrix only
       allocate (aux%d(merge(m, 0, book), merge(nc, 0, book)), aux%lw(m), aux%corr(nc), &
-                aux%one_nc(nc), stat=astat)
+                aux%one_nc(nc), aux%cv(m), aux%mu(m), aux%zero_nc(nc), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (merge(real(m, dp) * nc, 0.0_dp, book) + &
-                             m + 2.0_dp * nc), stat, asked)
+                             3.0_dp * m + 3.0_dp * nc), stat, asked)
       if (stat /= MBDK_SUCCESS) return
       aux%one_nc = 1.0_dp
+      aux%zero_nc = 0.0_dp
     end select
   end procedure model_i3_create
 
@@ -131,5 +133,19 @@ contains
       call mbdk_index3_factors_solve(aux%fa, e%r, stat)
     end select
   end procedure model_i3_matrix_solve
+
+  !> the default's C v, its Phi_t and the solve in one call (mbdk_mechanism), over the model's
+  !> own arrays
+  module procedure model_i3_project_velocity
+    select type (aux)
+    type is (planar_i3_aux_t)
+      call mbdk_sparse_d_times(self%sp, self%work%dz, e%v, aux%cv, .false.)
+      aux%cv(:) = aux%cv + e%phit
+      call mbdk_constrained_solve(aux%cs, self%sp, self%work%dz, self%blk, self%winv, &
+                                  aux%zero_nc, aux%cv, aux%corr, aux%mu, stat)
+      if (stat /= MBDK_SUCCESS) return
+      e%v(:) = e%v - aux%corr
+    end select
+  end procedure model_i3_project_velocity
 
 end submodule mbdk_model_i3
