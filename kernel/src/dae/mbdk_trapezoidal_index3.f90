@@ -335,6 +335,8 @@ module mbdk_trapezoidal_index3
     logical :: fd_matrix = .false.
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
+    !> max(1, max |qn|) at evaluate_at's iterate: the scale of Phi's roundoff there (newton)
+    real(dp) :: qn_size = 1.0_dp
     !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
     real(dp) :: tau = 1.0_dp
     !> the step's coefficients (set_coefficients): cs the Newton scale beta h^2 (1 - alpha_f) /
@@ -1150,7 +1152,8 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    real(dp) :: h
+    real(dp) :: h, c3, e3, wk
+    integer :: k
 
     h = s%h
     call set_coefficients(s, h)
@@ -1195,13 +1198,18 @@ contains
     s%noise = NOISE_DECAY * s%noise
     if (s%no_renewal > 0) s%no_renewal = s%no_renewal - 1
     if (.not. s%book .and. s%h_prev > 0.0_dp) then
-      if (s%identity) then
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
-                                                  (s%opt%newton_atol + s%opt%newton_rtol * abs(s%q))))
-      else
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
-                                                  (s%opt%newton_atol + s%opt%newton_rtol * s%w)))
-      end if
+      c3 = s%bh2 * (h / s%h_prev)
+      e3 = -huge(1.0_dp)
+      do k = 1, s%nv
+        if (s%identity) then
+          wk = abs(s%q(k))
+        else
+          wk = s%w(k)
+        end if
+        e3 = max(e3, abs(c3 * (s%ap(k) - s%ap_prev(k))) / &
+                     (s%opt%newton_atol + s%opt%newton_rtol * wk))
+      end do
+      s%tau = min(1.0_dp, LOCAL_SHARE * e3)
     end if
     call newton(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
@@ -1251,18 +1259,13 @@ contains
       phin = 0.0_dp
       if (m > 0) phin = maxval(abs(s%e%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
-      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
+      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * s%qn_size)
       ! the multiplier update takes the alpha that produced this Phi: with a stiffened one it
       ! would overshoot BOOST-fold and leave Phi where it was
       alpha_upd = s%alpha
       if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
                                                              frozen, upd_fresh, dnorm_old)
-      if (book) then
-        s%e%lt(:) = s%ln
-      else
-        if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%e%phi
-        s%e%lt(:) = s%ln + s%alpha * s%e%phi
-      end if
+      call residual_multipliers(s, k > 0 .and. .not. frozen, alpha_upd)
       call residual(s, mech, sh)
       if (.not. s%have_lu) then
         call new_matrix(s, mech, boosted, penalty_renewed, fresh, ierr)
@@ -1468,41 +1471,69 @@ contains
   end subroutine move_to
 
   !> The evaluation at the iterate dq: qn = q (+) dq, vn from dq (velocity), the residual's
-  !> mass term dd = dq - dqhat, and f, Phi, gamma, Phi_t there (C kept by the mechanism).
+  !> mass term dd = dq - dqhat, qn_size, and f, Phi, gamma, Phi_t there (C kept by the
+  !> mechanism).
   subroutine evaluate_at(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     integer :: k
-    real(dp) :: cv, kv1, kv2
+    real(dp) :: cv, kv1, kv2, qsize
     if (s%identity) then
-      ! qn = q + dq: the three in one pass (the step's vectors are a few components long, and
-      ! a pass's set-up costs about as much as its arithmetic); as velocity's
+      ! qn = q + dq: the four in one pass (the step's vectors are a few components long, and
+      ! a pass's set-up costs about as much as its arithmetic); vn as velocity's
       cv = s%cv
       kv1 = s%kv1
       kv2 = s%kv2
+      qsize = 1.0_dp
       if (kv2 == 0.0_dp) then
         do k = 1, s%nv
           s%e%q(k) = s%q(k) + s%dq(k)
           s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k)
           s%e%dd(k) = s%dq(k) - s%dqhat(k)
+          qsize = max(qsize, abs(s%e%q(k)))
         end do
       else
         do k = 1, s%nv
           s%e%q(k) = s%q(k) + s%dq(k)
           s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k) + kv2 * s%ap(k)
           s%e%dd(k) = s%dq(k) - s%dqhat(k)
+          qsize = max(qsize, abs(s%e%q(k)))
         end do
       end if
+      s%qn_size = qsize
     else
       call move_to(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
       call velocity(s)
       s%e%dd(:) = s%dq - s%dqhat
+      s%qn_size = max(1.0_dp, maxval(abs(s%e%q)))
     end if
     call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     s%st%nfev = s%st%nfev + 1
   end subroutine evaluate_at
+
+  !> The residual's multipliers lt at the iterate just evaluated: the book form's ln; the
+  !> augmented form's lam* + alpha Phi, after lam* <- lam* + alpha_upd Phi where update (the
+  !> two in one pass: a few components each)
+  subroutine residual_multipliers(s, update, alpha_upd)
+    type(mbdk_index3_t), intent(inout) :: s
+    logical, intent(in) :: update
+    real(dp), intent(in) :: alpha_upd
+    real(dp) :: alpha
+    integer :: i
+    alpha = s%alpha
+    if (s%book) then
+      s%e%lt(:) = s%ln
+    else if (update) then
+      do i = 1, s%m
+        s%ln(i) = s%ln(i) + alpha_upd * s%e%phi(i)
+        s%e%lt(i) = s%ln(i) + alpha * s%e%phi(i)
+      end do
+    else
+      s%e%lt(:) = s%ln + alpha * s%e%phi
+    end if
+  end subroutine residual_multipliers
 
   !> r = M (dq - dqhat) - s (f - C^T lt) at the last evaluation (the equations of motion at
   !> t+ times s, (3.15); dd = dq - dqhat from evaluate_at), and the book scheme's Phi rows.
