@@ -335,7 +335,7 @@ module mbdk_trapezoidal_index3
     logical :: fd_matrix = .false.
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
-    !> max(1, max |qn|) at evaluate_at's iterate: the scale of Phi's roundoff there (newton)
+    !> max(1, max |qn|), set with qn (move_point): the scale of Phi's roundoff there
     real(dp) :: qn_size = 1.0_dp
     !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
     real(dp) :: tau = 1.0_dp
@@ -1352,9 +1352,8 @@ contains
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
     s%stalled = frozen
-    call move_to(s, mech, ierr)
+    call move_point(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call velocity(s)
     if (.not. book) s%lstn = s%ln
 
   end subroutine newton
@@ -1470,15 +1469,15 @@ contains
     end if
   end subroutine move_to
 
-  !> The evaluation at the iterate dq: qn = q (+) dq, vn from dq (velocity), the residual's
-  !> mass term dd = dq - dqhat, qn_size, and f, Phi, gamma, Phi_t there (C kept by the
-  !> mechanism).
-  subroutine evaluate_at(s, mech, ierr)
+  !> The point of the increment dq: qn = q (+) dq, vn from dq (velocity), the residual's mass
+  !> term dd = dq - dqhat, and qn_size.
+  subroutine move_point(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
     integer :: k
     real(dp) :: cv, kv1, kv2, qsize
+    ierr = MBDK_SUCCESS
     if (s%identity) then
       ! qn = q + dq: the four in one pass (the step's vectors are a few components long, and
       ! a pass's set-up costs about as much as its arithmetic); vn as velocity's
@@ -1509,6 +1508,16 @@ contains
       s%e%dd(:) = s%dq - s%dqhat
       s%qn_size = max(1.0_dp, maxval(abs(s%e%q)))
     end if
+  end subroutine move_point
+
+  !> The evaluation at the iterate dq: its point (move_point), and f, Phi, gamma, Phi_t there
+  !> (C kept by the mechanism).
+  subroutine evaluate_at(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    call move_point(s, mech, ierr)
+    if (ierr /= MBDK_SUCCESS) return
     call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     s%st%nfev = s%st%nfev + 1
   end subroutine evaluate_at
@@ -1739,7 +1748,8 @@ contains
     real(dp) :: phi_tol
     ierr = MBDK_SUCCESS
     if (s%m == 0 .or. s%stalled) return
-    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
+    ! (qn is Newton's, whose qn_size newton's move_point set)
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * s%qn_size)
     if (maxval(abs(s%e%phi)) <= phi_tol) return
     call mech%i3_cs_solve(s%aux, s%zero_nv, s%e%phi, s%corr, s%mu, ierr)
     if (ierr /= MBDK_SUCCESS) return
