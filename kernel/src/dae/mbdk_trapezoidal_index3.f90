@@ -523,22 +523,29 @@ contains
     s%e%f = 0.0_dp
   end subroutine allocate_state
 
-  !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
+  !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state, the state the
+  !> history. (One pass per length: the vectors are a few components long, and a pass's set-up
+  !> costs about as much as its copies.)
   subroutine commit(s)
     type(mbdk_index3_t), intent(inout) :: s
-    s%a_prev2(:) = s%a_prev
+    integer :: k
     s%h_prev2 = s%h_prev
-    s%a_prev(:) = s%a
-    s%ap_prev(:) = s%ap
     s%h_prev = s%h
-    s%lam_old(:) = s%lam
-    s%lst_old(:) = s%lst
+    do k = 1, s%nv
+      s%a_prev2(k) = s%a_prev(k)
+      s%a_prev(k) = s%a(k)
+      s%ap_prev(k) = s%ap(k)
+      s%v(k) = s%e%v(k)
+      s%a(k) = s%an(k)
+      s%ap(k) = s%apn(k)
+    end do
     s%q(:) = s%e%q
-    s%v(:) = s%e%v
-    s%a(:) = s%an
-    s%ap(:) = s%apn
-    s%lam(:) = s%ln
-    s%lst(:) = s%lstn
+    do k = 1, s%m
+      s%lam_old(k) = s%lam(k)
+      s%lst_old(k) = s%lst(k)
+      s%lam(k) = s%ln(k)
+      s%lst(k) = s%lstn(k)
+    end do
     s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
