@@ -65,6 +65,9 @@ module mbdk_mechanism
 
   !> What a mechanism keeps for one index-3 solve; each model extends it (i3_create).
   type, abstract, public :: mbdk_i3_aux_t
+    !> the default i3_project_velocity's work (C v + Phi_t, the correction, its multipliers, a
+    !> zero right-hand side), allocated at its first call
+    real(dp), allocatable :: pv_c(:), pv_x(:), pv_mu(:), pv_zero(:)
   end type mbdk_i3_aux_t
 
   !> An index-3 evaluation and the Newton residual there, which the integrator owns: the point
@@ -338,15 +341,27 @@ contains
     integer, intent(out) :: stat
     real(dp), allocatable :: cv(:), x(:), mu(:), zero(:)
     integer :: astat
-    allocate (cv(self%m), x(self%nvel), mu(self%m), zero(self%nvel), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 2.0_dp * (self%m + self%nvel), stat)
-    if (stat /= MBDK_SUCCESS) return
-    zero = 0.0_dp
+    ! aux's work arrays are taken out of it for the calls below, which also take aux (a part
+    ! of aux changed through another argument would break the rules on arguments), and put
+    ! back after
+    call move_alloc(aux%pv_c, cv)
+    call move_alloc(aux%pv_x, x)
+    call move_alloc(aux%pv_mu, mu)
+    call move_alloc(aux%pv_zero, zero)
+    if (.not. allocated(zero)) then
+      allocate (cv(self%m), x(self%nvel), mu(self%m), zero(self%nvel), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 2.0_dp * (self%m + self%nvel), stat)
+      if (stat /= MBDK_SUCCESS) return
+      zero = 0.0_dp
+    end if
     call self%i3_c_times(aux, e%v, cv)
-    cv = cv + e%phit
+    cv(:) = cv + e%phit
     call self%i3_cs_solve(aux, zero, cv, x, mu, stat)
-    if (stat /= MBDK_SUCCESS) return
-    e%v = e%v - x
+    if (stat == MBDK_SUCCESS) e%v = e%v - x
+    call move_alloc(cv, aux%pv_c)
+    call move_alloc(x, aux%pv_x)
+    call move_alloc(mu, aux%pv_mu)
+    call move_alloc(zero, aux%pv_zero)
   end subroutine mechanism_i3_project_velocity
 
 end module mbdk_mechanism
