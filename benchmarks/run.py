@@ -14,10 +14,13 @@ the wall time beside it:
   - the minimal-coordinate double pendulum's rk4 step in the kernel against a plain scalar C
     loop doing the same arithmetic, compiled and timed in this run (studies/benchmark_rk4.py's
     yardstick), SciPy's solve_ivp RK45 on it, and the kernel's bdf against SUNDIALS CVODE
-    driven from C with a C right-hand side (studies/cvode_yardstick.c), both to 1e-6.
+    driven from C with a C right-hand side (studies/cvode_yardstick.c), both to 1e-6;
+  - mbdk's generalized_alpha against Exudyn's generalized-alpha index-3 solver on the same
+    scenes, steps and rho_inf, agreement and cost per step (benchmarks/exudyn_alpha.py, when
+    exudyn is installed).
 
-Writes benchmarks/out/ (or --out): size.csv/.md, peers.csv/.md, size.png and manifest.json
-(machine, versions, settings). `python benchmarks/run.py [--quick]`.
+Writes benchmarks/out/ (or --out): size.csv/.md, peers.csv/.md, size.png, exudyn_alpha*.csv/.md
+(with Exudyn) and manifest.json (machine, versions, settings). `python benchmarks/run.py [--quick]`.
 """
 from __future__ import annotations
 
@@ -196,6 +199,10 @@ def run(out: Path, quick: bool) -> dict:
           "mbdk against its peers (CPU time in us, per step or per whole solve as the row "
           "says; ratio = mbdk / peer)", "")
     plot(rows, out / "size.png")
+    if exu_version:
+        # the generalized-alpha scheme side by side: same scenes, steps and rho_inf
+        import exudyn_alpha
+        exudyn_alpha.run(out, quick)
     from mbdk.ode import build_info
     manifest = {"machine": machine(), "mbdk": build_info(), "exudyn": exu_version,
                 "h": H, "growth_exponents": exps, "date": time.strftime("%Y-%m-%d"),

@@ -212,7 +212,8 @@ def call_overhead(out: Path, quick: bool):
 
     def bare():
         stats = empty("mbdk_stats")
-        _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp, stats)
+        _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, np.zeros(0),
+                              solver._nsamp, stats)
         return unpack("mbdk_stats", stats)["cpu_time"]
 
     calls = {"solve_ode": lambda: mbdk.solve_ode("double_pendulum", "rk4", h=0.01, t_end=10.0,
@@ -233,8 +234,8 @@ def call_overhead(out: Path, quick: bool):
             gaps[k] += g
             round_medians[k].append(float(np.median(g)))
     # Python's share alone: the kernel entry answers at once with a real solve's outputs
-    canned = _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, solver._nsamp,
-                                   empty("mbdk_stats"))
+    canned = _kernel.solve_problem(*args, np.zeros(4, np.int32), solver._atol, np.zeros(0),
+                                   solver._nsamp, empty("mbdk_stats"))
 
     class Canned:
         def __getattr__(self, name):

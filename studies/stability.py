@@ -22,6 +22,18 @@
    1993; Hughes 9.3), their largest difference, the high-frequency limit against the published
    rho_inf ((1 + alpha)/(1 - alpha) for HHT), the CPU time of the measurement, and the cost of
    a step on the double pendulum relative to trapezoidal_index3's, measured in one run.
+6. Every fixed-step method on M q'' + K q = 0 (the ODE methods of sections 1-2 and the index-3
+   family of section 5), the same three quantities over methods x Omega measured the same way
+   from scene runs of the kernel's time loop, each beside its closed form (mbdk.oscillator_forms:
+   Taylor polynomials, Pade approximants, Euler-Cromer's matrix, BDF's rho - i Omega sigma from
+   Hairer, Norsett and Wanner's backward differences; mbdk.alpha_family), with the CPU time of
+   the row's runs; a figure of spectral radius and period error against Omega. Then the
+   pendulum (a point mass on a distance constraint) under the index-3 family in both
+   formulations: its free direction at Omega = sqrt(g/l) h against the oscillator's closed
+   form, its multiplier's oscillation (the square of the free direction's root), and its
+   constrained direction, driven through the rod's length, whose transient roots are those of
+   mbdk.alpha_family.constrained_amplification in the book form and absent in the projected
+   one.
 """
 from __future__ import annotations
 
@@ -377,6 +389,171 @@ def alpha_family(out: Path, quick: bool):
     return table, [f]
 
 
+#: every fixed-step method on M q'' + K q = 0 in section 6: label, method, options
+SPECTRA = [(m, m, {}) for m in METHODS] + FAMILY
+SPECTRA_OMEGAS = (0.1, 0.5, 1.0, 1.5, 2.5, 3.0, 10.0)
+PENDULUM_OMEGAS = (0.1, 0.5, 1.0, 3.0)
+#: the multiplier's oscillation is read where it is neither clustered with the static root at 1
+#: (small Omega) nor aliased (2 arg lambda beyond pi: Omega beyond about pi/2)
+MULTIPLIER_OMEGAS = (0.5, 1.0)
+
+
+def _nan_diff(a, b) -> float:
+    """|a - b|, 0 where both are NaN (no oscillation in either), inf where one is."""
+    if math.isnan(a) and math.isnan(b):
+        return 0.0
+    d = abs(a - b)
+    return math.inf if math.isnan(d) else d
+
+
+def spectra(out: Path, quick: bool):
+    """Section 6 (see the module docstring)."""
+    import matplotlib.pyplot as plt
+    from mbdk import alpha_family as AF, oscillator_forms as OF, spectral
+    rows = []
+    for label, method, opts in SPECTRA:
+        progress(f"spectrum from scene runs: {label}")
+        for w in SPECTRA_OMEGAS:
+            m = spectral.measure(method, w, **opts)
+            cf = spectral.closed_form(method, w, **opts)
+            rho_rel = abs(m.spectral_radius - cf[0]) / cf[0]
+            dom = OF.dominant(method, w) if method in OF.METHODS else ""
+            rows.append({"method": label, "Omega": w,
+                         "spectral_radius": m.spectral_radius, "spectral_radius_cf": cf[0],
+                         "damping_ratio": m.damping_ratio, "damping_ratio_cf": cf[1],
+                         "period_error": m.period_error, "period_error_cf": cf[2],
+                         "max_diff": max(rho_rel, _nan_diff(m.damping_ratio, cf[1]),
+                                         _nan_diff(m.period_error, cf[2])),
+                         "root_set_distance": m.root_distance, "dominant_root": dom,
+                         "steps": m.steps, "cpu_s": m.cpu_time})
+    t_osc = write_table(
+        rows, ["method", "Omega", "spectral_radius", "spectral_radius_cf", "damping_ratio",
+               "damping_ratio_cf", "period_error", "period_error_cf", "max_diff",
+               "root_set_distance", "dominant_root", "steps", "cpu_s"], out,
+        "oscillator_spectra",
+        "Every fixed-step method on q'' = -omega^2 q: measured from scene runs beside the "
+        "closed forms",
+        "Omega = omega h. Measured: Prony's fit to the kernel's runs of a body on a coordinate "
+        "spring (mbdk.spectral; order 2k for a k-step method, whose BDF start-up excites its "
+        "spurious roots); _cf: the closed forms (mbdk.oscillator_forms for the ODE methods, "
+        "mbdk.alpha_family for the index-3 family). spectral_radius: the largest modulus of "
+        "all roots; damping_ratio (negative: the step amplifies) and period_error (positive: "
+        "the motion lags) of the principal root, the one that tends to exp(i Omega) as Omega "
+        "-> 0, followed by continuation; nan where it is real (euler_cromer beyond Omega = 2). "
+        "max_diff: the largest of the relative difference of the radius and the absolute "
+        "differences of the other two. root_set_distance: the largest distance from a "
+        "measured root to the nearest closed-form root and back (a spurious root of bdf5-6 "
+        "barely excited at small Omega is fitted loosely; the principal root is not). "
+        "dominant_root: which root sets the radius (bdf6's spurious root beyond Omega = 1). "
+        "Beyond Omega = pi the samples of the exact motion alias too. cpu_s: the solving "
+        "thread's CPU time of the row's runs.")
+
+    omegas = np.geomspace(0.01, 100.0, 13 if quick else 33)
+    fine = np.geomspace(0.01, 100.0, 400)
+    cmap = plt.get_cmap("tab20")
+    fig, axes = plt.subplots(1, 2, figsize=(16, 6.5))
+    cpu_fig = 0.0
+    for i, (label, method, opts) in enumerate(SPECTRA):
+        meas = [spectral.measure(method, w, **opts) for w in omegas]
+        cpu_fig += sum(x.cpu_time for x in meas)
+        cf = spectral.closed_form(method, fine, **opts)
+        color = cmap(i % 20)
+        style = "-" if method in OF.METHODS else "--"
+        axes[0].loglog(fine, cf[:, 0], style, color=color, lw=1.2, label=label)
+        axes[0].loglog(omegas, [x.spectral_radius for x in meas], "o", color=color, ms=3)
+        axes[1].semilogx(fine, cf[:, 2], style, color=color, lw=1.2, label=label)
+        axes[1].semilogx(omegas, [x.period_error for x in meas], "o", color=color, ms=3)
+    axes[0].set_ylim(1e-2, 10.0)
+    axes[0].axhline(1.0, color="k", lw=0.5)
+    axes[0].set_ylabel("spectral radius")
+    axes[1].set_yscale("symlog", linthresh=1e-6)
+    axes[1].set_ylim(-1.0, 100.0)
+    axes[1].set_ylabel("relative period error (principal root)")
+    for ax in axes:
+        ax.set_xlabel("Omega = omega h")
+        ax.axvline(math.pi, color="0.6", lw=0.5, ls=":")
+    axes[0].legend(fontsize=7, ncol=2, loc="lower left")
+    fig.suptitle("Every fixed-step method on q'' = -omega^2 q: closed forms (lines; dashed: the "
+                 "index-3 family) and the kernel's scene runs (dots), "
+                 f"{cpu_fig:.2f} s CPU in the runs")
+    f_spec = plotting.save(fig, out, "spectra_vs_omega")
+
+    prow, crow = [], []
+    for label, method, opts in FAMILY:
+        progress(f"pendulum: {label}")
+        p = AF.parameters(method, **opts)
+        for form in ("index3", "augmented_lagrangian"):
+            for w in PENDULUM_OMEGAS:
+                fr = spectral.pendulum_free_direction(method, w, formulation=form, **opts)
+                cf = AF.closed_form_properties(p, w)
+                row = {"method": label, "formulation": form, "Omega": w,
+                       "spectral_radius": fr.spectral_radius, "spectral_radius_cf": cf[0],
+                       "damping_ratio": fr.damping_ratio, "damping_ratio_cf": cf[1],
+                       "period_error": fr.period_error, "period_error_cf": cf[2],
+                       "max_diff": max(abs(fr.spectral_radius - cf[0]),
+                                       _nan_diff(fr.damping_ratio, cf[1]),
+                                       _nan_diff(fr.period_error, cf[2])),
+                       "cpu_s": fr.cpu_time}
+                if w in MULTIPLIER_OMEGAS:
+                    ml = spectral.pendulum_multiplier(method, w, fr.principal,
+                                                      formulation=form, **opts)
+                    row.update({"multiplier_damping_ratio": ml.damping_ratio,
+                                "multiplier_period_error": ml.period_error})
+                    row["cpu_s"] += ml.cpu_time
+                prow.append(row)
+            c = spectral.pendulum_constrained_direction(method, formulation=form, **opts)
+            cf_roots = AF.constrained_roots(p) if form == "index3" else np.zeros(0)
+            cf_poly = (AF.constrained_polynomial(p) if form == "index3" else np.array([1.0]))
+            rho_cf = float(np.abs(cf_roots).max()) if cf_roots.size else 0.0
+            coef = (float(np.abs(c.quotient - cf_poly).max()) if c.quotient.size == cf_poly.size
+                    else math.inf)
+            growth = ""
+            if cf_roots.size and rho_cf >= 1 - 1e-12:
+                growth = "grows linearly (double root on the unit circle)"
+            crow.append({"method": label, "formulation": form,
+                         "roots": " ".join(f"{z.real:.6f}{z.imag:+.1e}j" for z in c.roots)
+                         or "none",
+                         "roots_cf": " ".join(f"{z.real:.6f}" for z in np.sort(cf_roots.real))
+                         or "none",
+                         "spectral_radius": c.spectral_radius, "spectral_radius_cf": rho_cf,
+                         "damping_ratio_cf": (-math.log(rho_cf) / math.pi if 0 < rho_cf
+                                              else math.inf),
+                         "polynomial_diff": coef, "note": growth, "cpu_s": c.cpu_time})
+    t_pend = write_table(
+        prow, ["method", "formulation", "Omega", "spectral_radius", "spectral_radius_cf",
+               "damping_ratio", "damping_ratio_cf", "period_error", "period_error_cf",
+               "max_diff", "multiplier_damping_ratio", "multiplier_period_error", "cpu_s"],
+        out, "pendulum_spectra",
+        "The pendulum's free direction and multiplier under the index-3 family",
+        f"A point mass on a distance constraint (l = {spectral.LENGTH:g} m, g = "
+        f"{spectral.G:g} m/s^2), Omega = sqrt(g/l) h. Free direction: x_n of a swing of "
+        f"{spectral.EPS_FREE:g} rad, fitted as the oscillator; _cf: the oscillator's closed "
+        "form (mbdk.alpha_family): the constraint leaves them unchanged to the swing's "
+        "O(eps^2) nonlinearity. multiplier_*: the multiplier's oscillation on a swing of "
+        f"{spectral.EPS_MULTIPLIER:g} rad, read from its root nearest the square of the free "
+        "direction's root, with its period against the exact 2 omega: the same damping ratio "
+        "and period error as the free direction's (to the swing's O(eps^2)), read at Omega = "
+        "0.5 and 1 only (smaller Omega clusters its roots at 1; larger aliases it). cpu_s: "
+        "the row's runs.")
+    t_con = write_table(
+        crow, ["method", "formulation", "roots", "roots_cf", "spectral_radius",
+               "spectral_radius_cf", "damping_ratio_cf", "polynomial_diff", "note", "cpu_s"],
+        out, "constrained_direction_spectra",
+        "The pendulum's constrained direction: the step's transient along the rod",
+        "The bob hangs at rest and the rod's length follows l + A sin(omega_d t) (A = "
+        f"{spectral.DRIVE_AMPLITUDE:g} m, omega_d = {spectral.DRIVE_OMEGA:g} rad/s, h = 0.1 s): "
+        "the multiplier's fitted recurrence divided by the drive's factor leaves the step's "
+        "transient along the constraint. roots_cf: mbdk.alpha_family.constrained_amplification "
+        "(the relations with the constraint's coordinate held: -rho_inf three times for "
+        "Chung-Hulbert's members, (1 + alpha)/(1 - alpha) twice and alpha/(1 + alpha) for HHT) "
+        "in the book form (index3); none in the projected form, whose v, a and lambda are "
+        "projected onto the constraints at every step. polynomial_diff: the largest "
+        "difference of the measured and closed-form polynomials' coefficients (a triple root "
+        "moves by the cube root of it, hence the radius' 1e-4). damping_ratio_cf: -ln(rho)/pi "
+        "(negative real roots: a period of two steps). cpu_s: the run.")
+    return [t_osc, t_pend, t_con], [f_spec]
+
+
 def run(out: Path, quick: bool = False) -> dict:
     out = Path(out)
     regs, intervals, t1, f1 = regions(out, quick)
@@ -385,8 +562,9 @@ def run(out: Path, quick: bool = False) -> dict:
     t3, f3 = practice(out, quick)
     t4 = book_claims(out, regs, intervals)
     t5, f5 = alpha_family(out, quick)
+    t6, f6 = spectra(out, quick)
     return {"title": "Stability regions and step limits, computed from the kernel's stepping code",
-            "tables": [t1, t4, t2, t3, t5], "figures": f1 + f2 + f3 + f5}
+            "tables": [t1, t4, t2, t3, t5] + t6, "figures": f1 + f2 + f3 + f5 + f6}
 
 
 if __name__ == "__main__":

@@ -198,18 +198,31 @@ def test_kernel_refuses_bad_tolerances_on_its_own():
         opt = ODEOptions(method=mbdk.methods()["bdf"].id, **fields)
         t, y, nw, status = _kernel.solve_problem(info.id, np.array([1.0]), 0.0, 1.0, pvec,
                                                  opt.pack(), _compiled.new_flag(), np.zeros(0),
-                                                 2, empty("mbdk_stats"))
+                                                 np.zeros(0), 2, empty("mbdk_stats"))
         assert status == mbdk.Status.ERR_INVALID_INPUT, fields
     opt = ODEOptions(method=mbdk.methods()["dopri54"].id)
     *_, status = _kernel.solve_problem(info.id, np.array([1.0]), 0.0, 1.0, pvec, opt.pack(),
-                                       _compiled.new_flag(), np.ones(2), 2,
+                                       _compiled.new_flag(), np.ones(2), np.zeros(0), 2,
                                        empty("mbdk_stats"))
     assert status == mbdk.Status.ERR_INVALID_INPUT    # atol of the wrong size
     opt = ODEOptions(method=mbdk.methods()["dopri54"].id, max_order=3)
     *_, status = _kernel.solve_problem(info.id, np.array([1.0]), 0.0, 1.0, pvec, opt.pack(),
-                                       _compiled.new_flag(), np.zeros(0), 2,
+                                       _compiled.new_flag(), np.zeros(0), np.zeros(0), 2,
                                        empty("mbdk_stats"))
     assert status == mbdk.Status.ERR_INVALID_INPUT    # an explicit pair has one order
+    # sample times the kernel cannot take: not from t0, not to t_end, not increasing, and any
+    # for a fixed-step method
+    opt = ODEOptions(method=mbdk.methods()["dopri54"].id)
+    for times in ([0.1, 1.0], [0.0, 0.9], [0.0, 0.5, 0.5, 1.0], [0.0, float("nan"), 1.0]):
+        *_, status = _kernel.solve_problem(info.id, np.array([1.0]), 0.0, 1.0, pvec, opt.pack(),
+                                           _compiled.new_flag(), np.zeros(0), np.array(times),
+                                           len(times), empty("mbdk_stats"))
+        assert status == mbdk.Status.ERR_INVALID_INPUT, times
+    opt = ODEOptions(method=mbdk.methods()["rk4"].id, h=0.5)
+    *_, status = _kernel.solve_problem(info.id, np.array([1.0]), 0.0, 1.0, pvec, opt.pack(),
+                                       _compiled.new_flag(), np.zeros(0), np.array([0.0, 1.0]),
+                                       3, empty("mbdk_stats"))
+    assert status == mbdk.Status.ERR_INVALID_INPUT
 
 
 @pytest.mark.parametrize("method", ADAPTIVE)

@@ -175,7 +175,10 @@ def test_the_damped_members_run_the_plain_index3_form_where_the_book_scheme_fail
     ("generalized_alpha", {"newmark_beta": 0.3, "newmark_gamma": 0.4, "alpha_m": 0.3,
                            "alpha_f": 0.2}, mbdk.InvalidInputError, "alpha_m <= alpha_f"),
     ("newmark", {"newmark_beta": float("nan")}, mbdk.InvalidInputError, "finite"),
-    ("generalized_alpha", {"adaptive": True}, mbdk.NotApplicableError, "trapezoidal rule's"),
+    ("generalized_alpha", {"adaptive": True}, mbdk.NotApplicableError,
+     "adaptive='estimated'"),
+    ("newmark", {"newmark_beta": 0.3025, "newmark_gamma": 0.6, "adaptive": "estimated"},
+     mbdk.NotApplicableError, "first order"),
 ])
 def test_bad_family_options_are_named(method, kw, error, text):
     with pytest.raises(error, match=text):
@@ -211,8 +214,8 @@ def test_the_stable_set_is_stable():
 
 def test_the_trapezoidal_members_take_step_size_control():
     """hht with alpha = 0 and newmark with its defaults are the trapezoidal rule: step-size
-    control runs them (the same steps as trapezoidal_index3's), while generalized_alpha at
-    rho_inf = 0.8 is refused by name."""
+    control runs them (the same steps as trapezoidal_index3's); extrapolation is theirs alone
+    (test_bad_family_options_are_named)."""
     sc = mbdk.scene("double_pendulum")
     kw = dict(h=1e-2, t_end=1.0, adaptive=True, err_rtol=1e-6, dt_out=0.1, outputs=())
     ref = mbdk.simulate(sc, "trapezoidal_index3", **kw)
@@ -251,3 +254,148 @@ def test_substep_retries_keep_the_pseudo_acceleration(method, opts):
     e_plain = np.abs(plain.q[-1] - ref.q[-1]).max()
     e_retried = np.abs(retried.q[-1] - ref.q[-1]).max()
     assert e_retried < 2 * e_plain
+
+
+def _moving_double_pendulum():
+    """The double pendulum started in motion (3 and -2 rad/s), where q''' != 0 at t0: a start
+    at rest hides the pseudo-acceleration's start-up error (q''' = 0 there)."""
+    sc = mbdk.scene("double_pendulum")
+    for b, w in zip(sc.bodies, (3.0, -2.0)):
+        b.omega = w
+        b.given = ["angle", "omega"]
+    return sc
+
+
+@pytest.mark.parametrize("method, opts", [("generalized_alpha", {"rho_inf": 0.5}),
+                                          ("generalized_alpha", {"rho_inf": 0.0}),
+                                          ("hht", {"alpha_hht": -0.3})])
+def test_the_pseudo_acceleration_starts_at_its_shifted_time(method, opts):
+    """Arnold and Bruls (2007): ap approximates q'' at t + (alpha_m - alpha_f) h, so a start
+    at ap = a(t0) is an O(h) error that decays only as the spurious root's powers. Started
+    there (the kernel's shifted_start), the first steps keep the local order of a second-order
+    step: after three steps the errors of v and of the projected form's multipliers fall
+    8-fold per halving of h (they fell about 3-fold, order 1.5-1.8, from ap = a(t0): v's first
+    step took h gamma times ap's O(h) error). Reference: rk4 at h / 200."""
+    sc = _moving_double_pendulum()
+    ev, el = [], []
+    for h in (2.5e-3, 1.25e-3, 6.25e-4):
+        ref = mbdk.simulate(sc, "rk4", h=h / 200, t_end=3 * h, every=200,
+                            outputs=("multipliers",))
+        r = mbdk.simulate(sc, method, formulation="augmented_lagrangian", h=h, t_end=3 * h,
+                          outputs=("multipliers",), **opts)
+        ev.append(np.abs(r.v[3] - ref.v[3]).max())
+        el.append(np.abs(r.multipliers[1] - ref.multipliers[1]).max())
+    for e in (ev, el):
+        assert 7.0 < e[0] / e[1] < 9.0 and 7.0 < e[1] / e[2] < 9.0, (ev, el)
+
+
+def test_the_book_forms_multipliers_from_a_start_in_motion():
+    """The plain index-3 form from a start in motion: the first steps' multipliers carry the
+    index-3 error O(h^3) / h^2 = O(h) of their positions, which generalized_alpha damps
+    (rho_inf^n): by t = 0.2 s they are second order; the trapezoidal member (rho_inf = 1) never
+    damps it and its multipliers do not converge at all (the book's scheme's weakness, the
+    module header's), while q and v stay second order in both."""
+    sc = _moving_double_pendulum()
+    ref = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.2, every=20000, outputs=("multipliers",))
+    ga, tr, qv = [], [], []
+    for h in (3.125e-3, 1.5625e-3):
+        r = mbdk.simulate(sc, "generalized_alpha", rho_inf=0.5, formulation="index3", h=h,
+                          t_end=0.2, every=round(0.2 / h), outputs=("multipliers",))
+        ga.append(np.abs(r.multipliers[-1] - ref.multipliers[-1]).max())
+        qv.append(np.abs(r.v[-1] - ref.v[-1]).max())
+        with pytest.warns(mbdk.AccuracyWarning):
+            t = mbdk.simulate(sc, "trapezoidal_index3", formulation="index3", h=h, t_end=0.2,
+                              every=round(0.2 / h), outputs=("multipliers",))
+        tr.append(np.abs(t.multipliers[-1] - ref.multipliers[-1]).max())
+    assert 3.5 < ga[0] / ga[1] < 4.5 and 3.5 < qv[0] / qv[1] < 4.5, (ga, qv)
+    assert tr[1] > 0.5 * tr[0] and tr[1] > 100 * ga[1], (tr, ga)
+
+
+@pytest.mark.parametrize("method, opts", [("generalized_alpha", {"rho_inf": 0.5}),
+                                          ("generalized_alpha", {"rho_inf": 0.0}),
+                                          ("hht", {"alpha_hht": -0.3}),
+                                          ("newmark", {"newmark_beta": 0.3025}),
+                                          ("trapezoidal_index3", {})])
+def test_the_local_error_constants_are_one_steps_error(method, opts):
+    """The kernel's constants of the estimated step-size control (index3_error_constants:
+    local errors lte_q h^3 q''' and lte_v h^3 q'''') against one step of the family's own
+    amplification matrix (mbdk.alpha_family.amplification, an independent numpy form of the
+    published relations) on q = sin(t + 0.7), started from the exact q, v and the
+    pseudo-acceleration at its shifted time (ap = q''(t + d h) + c h^2 q'''', Arnold and Bruls
+    2007): (q1 - q(h)) / (h^3 q'''(0)) -> lte_q and (v1 - v(h)) / (h^3 q''''(0)) -> lte_v as
+    h -> 0 (v's h^2 term vanishes for every second-order member)."""
+    from mbdk import _kernel
+    p = AF.parameters(method, **opts)
+    opt = mbdk.Index3Options(**p.as_options())
+    lte_q, lte_v, status = _kernel.index3_error_constants(opt.pack())
+    assert status == 0
+    am, af = p.alpha_m, p.alpha_f
+    d = am - af
+    c = 0.5 * (1 - af) - 0.5 * ((1 - am) * (1 + d) ** 2 + am * d * d)
+    phase = 0.7
+    for h in (1e-2, 5e-3):
+        ap0 = -math.sin(d * h + phase) + c * h * h * math.sin(phase)
+        x1 = AF.amplification(p, h) @ np.array([math.sin(phase), h * math.cos(phase),
+                                                h * h * ap0])
+        eq = (x1[0] - math.sin(h + phase)) / (h ** 3 * -math.cos(phase))
+        ev = (x1[1] / h - math.cos(h + phase)) / (h ** 3 * math.sin(phase))
+        assert eq == pytest.approx(lte_q, abs=2 * h), (h, eq, lte_q)
+        assert ev == pytest.approx(lte_v, abs=2 * h), (h, ev, lte_v)
+
+
+@pytest.mark.parametrize("method, opts", [("generalized_alpha", {"rho_inf": 0.8}),
+                                          ("hht", {"alpha_hht": -0.2})])
+def test_the_damped_members_take_estimated_step_size_control(method, opts):
+    """adaptive='estimated' on the damped members, planar and spatial: the run lands on its
+    dt_out grid, the joints hold, and the error against a tight reference falls as err_rtol
+    is tightened (each tenfold at least 3-fold: a second-order step under local error control
+    gives about tol^(2/3))."""
+    for name in ("double_pendulum", "heavy_top"):
+        sc = mbdk.scene(name)
+        ref = (mbdk.simulate(sc, "rk4", h=1e-5, t_end=1.0, every=100000)
+               if name == "double_pendulum" else
+               mbdk.simulate(sc, "dopri54", formulation="projection", rtol=1e-12, atol=1e-14,
+                             t_end=1.0, dt_out=1.0))
+        errs = []
+        for tol in (1e-4, 1e-5, 1e-6):
+            r = mbdk.simulate(sc, method, h=1e-3, t_end=1.0, adaptive="estimated",
+                              err_rtol=tol, err_atol=tol, dt_out=0.5, **opts)
+            assert r.success and np.allclose(r.t, [0.0, 0.5, 1.0], rtol=0, atol=1e-12)
+            assert r.residuals[:, 0].max() < 1e-10
+            assert r.manifest["step_control"]["mode"] == "estimated"
+            errs.append(max(np.abs(r.q[-1] - ref.q[-1]).max(),
+                            np.abs(r.v[-1] - ref.v[-1]).max()))
+        assert errs[0] > 3 * errs[1] > 9 * errs[2], (name, errs)
+
+
+def test_the_driven_slider_in_closed_form():
+    """mbdk.benchmarks.driven_slider: q is the joints' at every step, so every error is in the
+    constraint directions. Against the closed form (mbdk.benchmarks.driven_slider_exact: the
+    drive's force m x'' + k x, the guide's m g): the projected form's v, a and multipliers are
+    exact to roundoff for every member; in the book's form v is second order, and the damped
+    members' multipliers converge (rho_inf^n damps each step's index-3 error) while the
+    trapezoidal member's stay off by the same amount at every h."""
+    from mbdk.benchmarks import driven_slider, driven_slider_exact
+    sc = driven_slider()
+    for method, opts in MEMBERS[:1] + MEMBERS[2:6]:
+        r = mbdk.simulate(sc, method, h=1e-2, t_end=1.0, every=5, **opts)
+        ex = driven_slider_exact(r.t)
+        for key in ("q", "v", "a", "multipliers"):
+            assert np.abs(getattr(r, key) - ex[key]).max() < 1e-12, (method, opts, key)
+    lam = {}
+    for method, opts in (("trapezoidal_index3", {}), ("generalized_alpha", {"rho_inf": 0.5})):
+        for h in (5e-3, 2.5e-3):
+            with pytest.warns(mbdk.AccuracyWarning) if method == "trapezoidal_index3" else \
+                    _no_warning():
+                r = mbdk.simulate(sc, method, formulation="index3", h=h, t_end=1.0,
+                                  every=round(0.05 / h), **opts)
+            ex = driven_slider_exact(r.t)
+            lam[method, h] = np.abs(r.multipliers - ex["multipliers"]).max()
+            assert np.abs(r.q - ex["q"]).max() < 1e-12
+    assert lam["generalized_alpha", 5e-3] > 3.5 * lam["generalized_alpha", 2.5e-3]
+    assert lam["trapezoidal_index3", 2.5e-3] > 0.9 * lam["trapezoidal_index3", 5e-3] > 1.0
+
+
+def _no_warning():
+    import contextlib
+    return contextlib.nullcontext()

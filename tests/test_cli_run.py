@@ -37,13 +37,14 @@ def test_run_saves_what_simulate_returns_and_plot_draws_it(tmp_path):
     assert "status SUCCESS; 2000 steps; CPU" in r.stdout and f"wrote {out}" in r.stdout
     d = load_result(out)
     ref = mbdk.simulate(mbdk.load_scene(SCENE), "rk4", h=1e-3, t_end=2, every=10)
-    assert np.array_equal(d["t"], ref.t) and np.array_equal(d["q"], ref.q)
-    assert np.array_equal(d["velocities"], ref.v)
-    assert np.array_equal(d["energy_balance"], ref.energy_balance())
-    assert np.array_equal(d["work"], ref.energy_parts["work"])
+    assert isinstance(d, mbdk.SceneResult)
+    assert np.array_equal(d.t, ref.t) and np.array_equal(d.q, ref.q)
+    assert np.array_equal(d.v, ref.v)
+    assert np.array_equal(d.energy_balance(), ref.energy_balance())
+    assert np.array_equal(d.energy_parts["work"], ref.energy_parts["work"])
     assert "W, the work of dampers, loads and drivers integrated at every step" in r.stdout
-    assert d["manifest"]["method"] == "rk4" and d["manifest"]["h"] == 1e-3
-    assert d["status"] == "SUCCESS" and d["q_names"][:3] == ["bar1.x", "bar1.y", "bar1.angle"]
+    assert d.manifest["method"] == "rk4" and d.manifest["h"] == 1e-3
+    assert d.status.name == "SUCCESS" and d.q_names[:3] == ["bar1.x", "bar1.y", "bar1.angle"]
     p = mbdk_cli("plot", out)
     assert p.returncode == 0, p.stderr
     png = out.with_suffix(".png").read_bytes()
@@ -61,15 +62,24 @@ def test_every_format_holds_the_same_run(tmp_path, suffix):
             assert r.energy_parts["work"][-1] < 0
         a = load_result(save_result(r, tmp_path / "a.npz"))
         b = load_result(save_result(r, tmp_path / f"b{suffix}"))
-        for k in ("t", "q", "velocities", "energy", "work", "energy_balance", "residuals",
-                  "multipliers"):
-            assert np.array_equal(a[k], b[k]), (sc.name, k)
-        assert a["q_names"] == b["q_names"] and a["manifest"] == b["manifest"]
+        for x in (a, b):
+            for k in ("t", "q", "v", "a", "multipliers", "reactions", "energy", "residuals",
+                      "iterations"):
+                mine, theirs = getattr(r, k), getattr(x, k)
+                assert (mine is None and theirs is None) or np.array_equal(mine, theirs), \
+                    (sc.name, k)
+            assert x.energy_parts.keys() == r.energy_parts.keys()
+            for k, v in r.energy_parts.items():
+                assert np.array_equal(x.energy_parts[k], v), (sc.name, k)
+            assert np.array_equal(x.energy_balance(), r.energy_balance())
+            assert (x.q_names, x.v_names, x.manifest, x.stats, x.status, x.kind, x.bodies,
+                    x.joints, x.rotation) == (r.q_names, r.v_names, r.manifest, r.stats,
+                                              r.status, r.kind, r.bodies, r.joints, r.rotation)
 
 
 def test_check_prints_the_scene_report():
     r = mbdk_cli("check", "four_bar")
-    assert r.returncode == 0 and "1 degrees of freedom" in r.stdout
+    assert r.returncode == 0 and "1 degree of freedom" in r.stdout
 
 
 @pytest.mark.parametrize("args, text", [
@@ -224,7 +234,7 @@ def _result_files(folder):
     np.savez(folder / "scalar_names.npz", **{**d, "q_names": np.array("x")})
     csv_text = save_result(mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-2, t_end=1),
                            folder / "good.csv").read_text().splitlines()
-    (folder / "mangled.csv").write_text("\n".join(csv_text[:4] + ["1.0,2.0"]) + "\n")
+    (folder / "mangled.csv").write_text("\n".join(csv_text[:5] + ["1.0,2.0"]) + "\n")
     good.unlink()
     (folder / "good.csv").unlink()
     return sorted(p.name for p in folder.iterdir())
@@ -289,3 +299,89 @@ def test_a_closed_standard_output_ends_quietly():
     p.stdout.close()
     err = p.stderr.read()
     assert p.wait() == 141 and err == "", err
+
+
+INCLINE = """
+[scene]
+name = "worn_block"
+
+[[body]]
+name = "block"
+mass = 1.0
+inertia = 0.1
+x = 0.0
+y = 1.0e-5
+vx = 1.0
+
+[[force]]
+type = "gravity"
+g = [0.0, -9.81]
+
+[[force]]
+type = "contact"
+name = "floor"
+body1 = "block"
+shape1 = { type = "point" }
+shape2 = { type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }
+stiffness = 1.0e6
+damping = 200.0
+friction = { static = 0.5, dynamic = 0.5, stiction_speed = 1.0e-3, transition_speed = 2.0e-3 }
+
+[[wear]]
+name = "pad"
+law = "archard"
+load = "floor.normal_force"
+coefficient = 1.0e-9
+"""
+
+
+def test_wear_reaches_the_file_the_summary_the_plot_and_the_sweep(tmp_path):
+    """A block sliding to rest on a floor, its pad worn by Archard's law: the volume is in the
+    result file (every format, the same bits as the run's), in `mbdk run`'s summary, in
+    `mbdk plot`'s figure (a fourth panel) and in the sweep's wear column; and the file gives
+    back the run's other outputs (multipliers, reactions, accelerations, energy parts)."""
+    scene = tmp_path / "worn.toml"
+    scene.write_text(INCLINE)
+    sc = mbdk.load_scene(scene)
+    r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.3, every=100)
+    assert r.wear["pad"][-1] > 0
+    for suffix in (".npz", ".csv"):
+        back = load_result(save_result(r, tmp_path / f"w{suffix}"))
+        assert list(back.wear) == ["pad"] and np.array_equal(back.wear["pad"], r.wear["pad"])
+        assert np.array_equal(back.a, r.a) and np.array_equal(back.energy, r.energy)
+    out = tmp_path / "run.npz"
+    p = mbdk_cli("run", scene, "--method", "rk4", "--h", "1e-4", "--t-end", "0.3", "--every",
+                 "100", "--out", out)
+    assert p.returncode == 0, p.stderr
+    assert f"wear 'pad': {r.wear['pad'][-1]:.6g} m^3 worn by t = 0.3 s" in p.stdout
+    assert np.array_equal(load_result(out).wear["pad"], r.wear["pad"])
+    assert mbdk_cli("plot", out).returncode == 0
+    assert out.with_suffix(".png").read_bytes()[:4] == b"\x89PNG"
+    grid = tmp_path / "grid.toml"
+    grid.write_text(f'[sweep]\nscenes = ["{scene}"]\nmethods = ["rk4"]\nsteps = [1e-4]\n'
+                    't_end = 0.3\n')
+    table = sweep_module.sweep(sweep_module.load_grid(grid), workers=0)
+    wear = [row["wear"] for row in table.rows if row["method"] == "rk4"]
+    assert wear and all(w.startswith("pad ") for w in wear)
+    assert float(wear[0].split()[1]) == pytest.approx(r.wear["pad"][-1], rel=1e-12)
+
+
+def test_a_result_file_from_before_its_metadata_still_loads(tmp_path):
+    """A file of the former layout (t, q, velocities, names, status, manifest, the outputs; no
+    metadata) loads as a SceneResult with what it holds."""
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-2, t_end=0.5)
+    old = tmp_path / "old.npz"
+    np.savez(old, t=r.t, q=r.q, velocities=r.v, energy=r.energy,
+             work=r.energy_parts["work"], residuals=r.residuals, multipliers=r.multipliers,
+             q_names=np.array(r.q_names), velocity_names=np.array(r.v_names),
+             status=np.array("SUCCESS"), manifest=np.array('{"method": "rk4"}'))
+    back = load_result(old)
+    assert back.bodies == ["bar1", "bar2"] and back.kind == "planar"
+    assert np.array_equal(back.energy_balance(), r.energy_balance())
+    assert back.success and back.manifest == {"method": "rk4"} and back.a is None
+
+
+def test_a_wrong_joint_name_is_named():
+    r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-2, t_end=0.1)
+    with pytest.raises(mbdk.InvalidInputError, match="'hinge'.*its joints are"):
+        r.reaction("hinge")

@@ -156,12 +156,15 @@ TABLES = {
     "FORCE_CODES": (PLANAR_FORCES, None),
     "SPATIAL_FORCE_CODES": (SPATIAL_FORCES, None),
     "EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
+    "SPATIAL_EFFECT_CODES": ({"wear": "MBDK_EFFECT_WEAR"}, ("MBDK_EFFECT_", "MBDK_EFFECT_TYPES")),
     "FORCE_TABLE_CODES": ({**PLANAR_FORCES, **SPATIAL_FORCES, "wear": "MBDK_EFFECT_WEAR"},
                           "MBDK_FORCE_TYPES"),
     "BODY_CODES": (_named("MBDK_BODY_", ["planar", "spatial"]), "MBDK_BODY_KINDS"),
     "STRUCT_IDS": ({"mbdk_stats": "MBDK_STRUCT_STATS", "mbdk_options": "MBDK_STRUCT_OPTIONS",
                     "mbdk_index3_options": "MBDK_STRUCT_INDEX3_OPTIONS",
-                    "mbdk_model_options": "MBDK_STRUCT_MODEL_OPTIONS"}, "MBDK_STRUCT_COUNT"),
+                    "mbdk_model_options": "MBDK_STRUCT_MODEL_OPTIONS",
+                    "mbdk_spatial_options": "MBDK_STRUCT_SPATIAL_OPTIONS",
+                    "mbdk_watch_report": "MBDK_STRUCT_WATCH_REPORT"}, "MBDK_STRUCT_COUNT"),
     "FIELD_TYPE_CODES": (_named("MBDK_FIELD_", ["int", "int64", "double", "pointer"]),
                          ("MBDK_FIELD_",)),
     "METHOD_FAMILY_CODES": (_named("MBDK_FAMILY_", codes.METHOD_FAMILIES.values()),
@@ -185,7 +188,7 @@ TABLES = {
     "INDEX3_SCALINGS": ({"unscaled": "MBDK_INDEX3_UNSCALED", "book": "MBDK_INDEX3_SCALED_BOOK",
                          "scaled": "MBDK_INDEX3_SCALED"}, None),
     "STARTUP": (_named("MBDK_STARTUP_", ["rk4", "bdf"]), ("MBDK_STARTUP_",)),
-    "BDF_DAE_FORMS": (_named("MBDK_DAE_", ["i3", "si2"]), ("MBDK_DAE_",)),
+    "BDF_DAE_FORMS": (_named("MBDK_DAE_", ["none", "i3", "si2"]), ("MBDK_DAE_",)),
     "ROTATIONS": (_named("MBDK_ROT_", ["quaternion", "euler313", "cardan123"]), ("MBDK_ROT_",)),
     "NORMS": (_named("MBDK_NORM_", ["project", "stabilise", "none"]), ("MBDK_NORM_",)),
     "SPATIAL_FORMULATIONS": (_named("MBDK_FORM_", ["reduced", "baumgarte", "penalty",
@@ -208,7 +211,7 @@ def _python_table(name: str) -> dict:
     if name == "METHOD_FAMILY_CODES":
         return {v: k for k, v in codes.METHOD_FAMILIES.items()}
     if name == "BDF_DAE_FORMS":
-        return codes.SCENE_DAE_FORMS["bdf"]
+        return {**codes.DAE_FORMS["bdf"], "none": codes.DAE_NONE}
     if name == "ALL_JOINT_CODES":       # a name of both kinds with two codes: the last wins,
         return {**codes.JOINT_CODES, **codes.SPATIAL_JOINT_CODES}    # and its constant differs
     if name == "FORCE_TABLE_CODES":
@@ -299,7 +302,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     (the joints', or the force table's forces and effects), and every table of codes Python
     passes to either model gives a name the one code the registry gives it. The kinds both
     models have are one row each (revolute, prismatic and fixed joints; gravity, point forces,
-    torques, spring-dampers); the spatial model's others continue the codes after the planar
+    torques, spring-dampers; wear); the spatial model's others continue the codes after the planar
     ones'."""
     names = [e.name for e in codes.ELEMENT_KINDS]
     assert len(set(names)) == len(names)
@@ -310,7 +313,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     registry = {e.name: e.code for e in codes.ELEMENT_KINDS}
     python = {}
     for tab in (codes.JOINT_CODES, codes.SPATIAL_JOINT_CODES, codes.FORCE_CODES,
-                codes.SPATIAL_FORCE_CODES, codes.EFFECT_CODES):
+                codes.SPATIAL_FORCE_CODES, codes.EFFECT_CODES, codes.SPATIAL_EFFECT_CODES):
         for name, code in tab.items():
             python.setdefault(name, set()).add(code)
     assert {n: c for n, c in python.items() if len(c) > 1} == {}
@@ -319,7 +322,7 @@ def test_every_element_name_has_one_code_in_both_kinds_of_scene():
     assert set(python) - set(registry) == {"coordinate_spring", "coordinate_damper"}
     both = {e.name for e in codes.ELEMENT_KINDS if set(e.rows) == {"planar", "spatial"}}
     assert both == {"revolute", "prismatic", "fixed", "gravity", "point_force", "torque",
-                    "spring_damper"}
+                    "spring_damper", "wear"}
     for t in ("joints", "forces"):
         kinds = [e for e in codes.ELEMENT_KINDS if table[e.cls] == t]
         planar = max(e.code for e in kinds if "planar" in e.rows)
@@ -467,7 +470,7 @@ def _spatial_status(sc, jtype=None, ftype=None) -> int:
         ft[0] = ftype
     y0 = sc.state0()
     *_, status = _kernel.spatial_residuals(mass, inertia, nj, jt, jbody, jreal, nf, ft, fbody,
-                                           freal, float(codes.ROTATIONS[sc.rotation]), y0, 0.0,
+                                           freal, codes.ROTATIONS[sc.rotation], y0, 0.0,
                                            y0, 6)
     return int(status)
 
@@ -670,13 +673,15 @@ def test_the_dae_form_codes_are_the_kernels_forms(name, method, form):
         assert pos < 1e-8 and vel < 1e-7
 
 
-def test_the_spatial_index3_code_runs_the_trapezoidal_rule():
-    """spatial_run's dae_form for trapezoidal_index3: fixed steps of h, the constraints at
-    their projection's roundoff."""
+def test_the_index3_family_runs_with_no_dae_form_in_both_entries():
+    """The index-3 family takes dae_form MBDK_DAE_NONE in scene_run and spatial_run alike (one
+    rule, kernel/src/api/mbdk_entry.f90): fixed steps of h, the constraints at their
+    projection's roundoff."""
     r = mbdk.simulate(mbdk.scene("spatial_double_pendulum"), "trapezoidal_index3", h=1e-2,
                       t_end=1.0)
-    assert codes.SPATIAL_DAE_FORMS[("trapezoidal_index3", "augmented_lagrangian")] == 2
     assert r.stats.steps == 100 and r.residuals[:, 0].max() < 1e-12
+    p = mbdk.simulate(mbdk.scene("double_pendulum"), "trapezoidal_index3", h=1e-2, t_end=1.0)
+    assert p.stats.steps == 100
 
 
 def test_each_output_bit_is_the_output_the_kernel_computes():
@@ -702,12 +707,26 @@ def test_each_solver_code_is_the_linear_solve_the_kernel_takes(solver):
     assert took.startswith("revolute_schur:" if solver == "auto" else f"{solver}:"), took
 
 
-def test_the_spatial_options_are_where_the_f2py_entry_reads_them(root):
-    """spatial_run reads its options by position (sopt); SPATIAL_OPTIONS lists them in that
-    order, by the names of the kernel's mbdk_spatial_options_t."""
-    src = (root / "kernel" / "src" / "api" / "mbdk_f2py.f90").read_text()
-    body = src[src.index("subroutine spatial_run("):src.index("end subroutine spatial_run")]
-    read = {int(k): name for name, k in
-            re.findall(r"so%(\w+)\s*=\s*(?:nint\()?sopt\((\d+)\)", body)}
-    assert read == {k + 1: name for k, name in enumerate(codes.SPATIAL_OPTIONS)}
-    assert f"nso /= {len(codes.SPATIAL_OPTIONS)}" in body
+def test_spatial_run_refuses_a_dae_form_its_method_does_not_take():
+    """One rule for both entries: rk4 with a DAE form, ida without one, a form past SI2 and the
+    index-3 family with one are MBDK_ERR_INVALID_INPUT in spatial_run as in scene_run, before
+    anything runs."""
+    from mbdk import _compiled
+    from mbdk.options import SpatialOptions, empty
+    sc = mbdk.scene("heavy_top")
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
+    y0 = sc.state0()
+    ids = mbdk.methods()
+
+    def status(method, form):
+        out = _kernel.spatial_run(mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+                                  SpatialOptions().pack(), ids[method].id, form,
+                                  mbdk.ODEOptions(h=1e-3).pack(), mbdk.Index3Options().pack(),
+                                  _compiled.new_flag(), np.zeros(0), y0, 0, 0.0, 0.01, 11,
+                                  max(sc.rows, 1), empty("mbdk_stats"),
+                                  empty("mbdk_watch_report"))
+        return Status(int(out[-1]))
+
+    assert status("rk4", 0) == Status.SUCCESS
+    for method, form in (("rk4", 1), ("ida", 0), ("bdf", 3), ("trapezoidal_index3", 1)):
+        assert status(method, form) == Status.ERR_INVALID_INPUT, (method, form)

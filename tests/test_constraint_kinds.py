@@ -141,7 +141,7 @@ def test_scene_report_degrees_of_freedom(name):
     redundant = r.rows - r.rank
     assert redundant == (1 if name in ("parallelogram_redundant", "bricard") else 0)
     assert bool(r.redundant) == bool(redundant)
-    assert f"{r.dof} degrees of freedom" in str(r)
+    assert f"{r.dof} degree{'' if r.dof == 1 else 's'} of freedom" in str(r)
 
 
 def test_scene_report_classifies_the_book_examples():
@@ -565,8 +565,8 @@ function = { rate = 0.5 }
     r = subprocess.run([sys.executable, "-m", "mbdk", "scene", str(path), "--symbolic"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert "1 degrees of freedom" in r.stdout and "2 degrees of freedom of position" in r.stdout
-    assert "joint 'wheels' (knife_edge, 1 rows): nonholonomic" in r.stdout
+    assert "1 degree of freedom" in r.stdout and "2 degrees of freedom of position" in r.stdout
+    assert "joint 'wheels' (knife_edge, 1 row): nonholonomic" in r.stdout
     line = next(ln for ln in r.stdout.splitlines() if ln.startswith("symbolic cross-check"))
     assert float(line.split(" D ")[1].split(",")[0]) < 1e-13
     r = subprocess.run([sys.executable, "-m", "mbdk", "scene", str(tmp_path / "none.toml")],

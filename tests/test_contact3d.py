@@ -1,9 +1,12 @@
-"""Contacts and friction between spatial bodies (kernel/src/spatial/mbdk_contact3d.f90 over the
-laws of kernel/src/model/mbdk_contact_law.f90) against closed forms: a sphere's restitution and
-Hertz contact time on a plane and on another sphere, a sphere launched sliding that rolls at
-5/7 of its speed, a top spinning on its rounded tip that precesses as the heavy top on its
-fixed point, and the energy and momentum balances."""
+"""Contacts, friction and wear between spatial bodies (kernel/src/spatial/mbdk_contact3d.f90 over
+the laws of kernel/src/model/mbdk_contact_law.f90, wear by kernel/src/model/mbdk_wear.f90's laws)
+against closed forms: a sphere's restitution and Hertz contact time on a plane and on another
+sphere, a sphere launched sliding that rolls at 5/7 of its speed, and its Archard wear, a ball
+spun against a fixed sphere until friction stops it, and the wear it leaves, a top spinning on
+its rounded tip that precesses as the heavy top on its fixed point, and the energy and momentum
+balances."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,9 +14,11 @@ from scipy.optimize import brentq
 from scipy.special import beta
 
 import mbdk
+from mbdk import _kernel
 from mbdk.errors import EnergyDriftError
 from mbdk.scene import SceneError
 from mbdk.scene_file import scene_from_dict
+from mbdk.spatial_model import evaluate_spatial, spatial_tables
 
 G = 9.81
 
@@ -114,9 +119,10 @@ def test_hertz_contact_time(shape):
         assert np.allclose(r.v[-1, [0, 6]], [0.0, v0], rtol=0, atol=1e-8)
 
 
-def tilted(v0=2.0, mu=0.3, r=0.1, m=1.0, k=1e6, vs=1e-3):
+def tilted(v0=2.0, mu=0.3, r=0.1, m=1.0, k=1e6, vs=1e-3, wear=None):
     """A solid sphere resting (at its static penetration m g / k) on a plane through p with the
-    normal n = (1, 2, 2)/3, gravity along -n, launched along the plane at v0 without spin."""
+    normal n = (1, 2, 2)/3, gravity along -n, launched along the plane at v0 without spin; wear:
+    the [[wear]] entries of its contact "floor"."""
     n = np.array([1.0, 2.0, 2.0]) / 3
     t = np.array([2.0, -2.0, 1.0]) / 3           # along the plane
     p = np.array([0.3, -0.1, 0.2])
@@ -131,6 +137,8 @@ def tilted(v0=2.0, mu=0.3, r=0.1, m=1.0, k=1e6, vs=1e-3):
                            stiffness=k, damping=2 * math.sqrt(k * m),
                            friction={"static": mu, "dynamic": mu, "stiction_speed": vs,
                                      "transition_speed": 2 * vs})]}
+    if wear:
+        d["wear"] = wear
     return scene_from_dict(d), n, t
 
 
@@ -365,3 +373,263 @@ def test_contacts_changed_in_python_are_checked_by_name():
     f.reals = tuple(reals)
     with pytest.raises(SceneError, match="floor.*exponent"):
         mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.01)
+
+
+# ---- wear of spatial contacts ---------------------------------------------------------------
+
+#: Archard's law V' = K F |s| / H (K dimensionless, H the hardness): mbdk_wear's archard takes
+#: k = K / H, m^3/(N m); a steel-like pair
+ARCHARD_K, HARDNESS = 1e-3, 2e9
+
+
+def slip_bounds(s0, a0, vs, t_end):
+    """Bounds on the slip distance int |s| dt over [0, t_end] of a contact whose slip speed
+    falls from s0 at a0 = (friction force / mu) x mu / (effective mass), Coulomb's mu
+    regularised below vs (mbdk_contact_law with static = dynamic: mu(s) = mu phi(s / vs),
+    phi(x) = 3 x^2 - 2 x^3 for s < vs, mu above), t_end after s has reached vs. Down to vs the
+    slip falls linearly, int s dt = (s0^2 - vs^2) / (2 a0) (lo). Below vs, ds/dt = -a0 phi(x):
+    int s dt = (vs^2 / a0) int x dx / phi(x) = (vs^2 / (3 a0)) ln((3 - 2 x_e) / x_e) from x = 1
+    down to x_e = s(t_end) / vs, and phi(x) >= x^2 gives x(t) >= 1 / (1 + 3 a0 t / vs), so the
+    zone adds at most zone = (vs^2 / (3 a0)) ln(3 (1 + 3 a0 t_end / vs)). The unregularised
+    closed form s0^2 / (2 a0) lies in [lo, lo + zone]; (lo, zone, t_vs the time s reaches vs)."""
+    lo = (s0 * s0 - vs * vs) / (2 * a0)
+    zone = vs * vs / (3 * a0) * math.log(3 * (1 + 3 * a0 * t_end / vs))
+    return lo, zone, (s0 - vs) / a0
+
+
+def test_sliding_sphere_wears_as_archard_says():
+    """The sphere of test_sliding_sphere_rolls_at_five_sevenths (m, r, I = 2/5 m r^2, on a plane
+    with gravity along its normal: F = m g) with two wear elements on its contact, solved by
+    hand (Newton-Euler with Coulomb friction mu m g at the contact point; Routh, Dynamics of a
+    System of Rigid Bodies (1905) 223): its slip falls as v0 - (7/2) mu g t (a0 = mu g (1 +
+    m r^2 / I)), so until it rolls at t* = 2 v0 / (7 mu g) it slides S = v0^2 / (7 mu g), and
+    then slides no more:
+      archard on the normal force: V = k F S, k = K / H, and V(t) = k F (v0 t - 7/4 mu g t^2)
+        while it slides;
+      knee on the friction force mu F with S/R(t) = c0 + c1 t: V = k mu F (c0 S + c1 v0^3 /
+        (6 a0^2)) (int (v0 - a0 t) t dt over [0, t*]).
+    The regularisation (slip_bounds) moves the volumes by what it allows and no more; the
+    quadrature's own error is bounded by the change from h to h/2. After t* the volumes stay
+    put to the regularisation's share. Wear takes no energy: the balance E - E0 - W holds as
+    without it (the contact's friction dissipates m v0^2 / 7)."""
+    v0, mu, rad, m, vs = 2.0, 0.3, 0.1, 1.0, 1e-3
+    k, c0, c1 = ARCHARD_K / HARDNESS, 1.0, 0.5
+    wear = [{"name": "archard", "law": "archard", "load": "floor.normal_force",
+             "coefficient": k},
+            {"name": "knee", "law": "knee", "load": "floor.friction_force", "coefficient": k,
+             "slide_roll": [c0, c1, 0.0, 0.0]}]
+    sc, _n, t = tilted(v0, mu, rad, m, vs=vs, wear=wear)
+    t_end, f = 0.4, m * G
+    runs = [mbdk.simulate(sc, "rk4", h=h, t_end=t_end, every=every)
+            for h, every in ((1e-4, 10), (5e-5, 20))]
+    r = runs[1]
+    assert np.array_equal(r.t, runs[0].t)
+    a0 = 3.5 * mu * G
+    t_star, s_star = 2 * v0 / (7 * mu * G), v0 * v0 / (7 * mu * G)
+    lo, zone, t_vs = slip_bounds(v0, a0, vs, t_end)
+    assert lo < s_star < lo + zone
+    w = r.wear["archard"]
+    quad = abs(w[-1] - runs[0].wear["archard"][-1])
+    sliding = r.t < t_vs - 1e-3
+    closed = k * f * (v0 * r.t[sliding] - 1.75 * mu * G * r.t[sliding] ** 2)
+    assert np.abs(w[sliding] - closed).max() < 1e-9 * w[-1]
+    assert k * f * lo - quad <= w[-1] <= k * f * (lo + zone) + quad
+    print(f"archard: V = {w[-1]:.10e} m^3, k F S = {k * f * s_star:.10e} "
+          f"(relative {w[-1] / (k * f * s_star) - 1:.2e}; the regularisation allows "
+          f"{max(s_star - lo, lo + zone - s_star) / s_star:.2e}, the quadrature "
+          f"{quad / w[-1]:.1e})")
+    # rolling from t*: the volume no longer grows, but for the regularised tail of the slip
+    # (from the first sample at or after t*: the volume never falls)
+    after = w[-1] - w[np.searchsorted(r.t, t_star)]
+    assert -quad <= after <= k * f * zone + quad
+    v = r.v[:, :3] @ t
+    # m v r + I omega = m v0 r: v = 5/7 v0 + 2/7 s, the slip s below vs / (1 + a0 (t - t_vs) / vs)
+    tail = vs / (1 + a0 * (t_end - t_vs) / vs)
+    assert -1e-9 <= v[-1] - 5 / 7 * v0 <= 2 / 7 * tail + 1e-9
+    cw = r.wear["knee"]
+    quad_k = abs(cw[-1] - runs[0].wear["knee"][-1])
+    knee_lo = k * mu * f * (c0 * lo + c1 * (v0 * t_vs ** 2 / 2 - a0 * t_vs ** 3 / 3))
+    knee_closed = k * mu * f * (c0 * s_star + c1 * v0 ** 3 / (6 * a0 ** 2))
+    assert knee_lo - quad_k <= cw[-1] <= knee_lo + k * mu * f * (c0 + c1 * t_end) * zone + quad_k
+    assert knee_lo <= knee_closed
+    print(f"knee: V = {cw[-1]:.10e} m^3, closed form {knee_closed:.10e} "
+          f"(relative {cw[-1] / knee_closed - 1:.2e})")
+    lost = r.energy[0] - r.energy[-1]
+    assert abs(lost - m * v0 ** 2 / 7) < 1e-6
+    assert np.abs(r.energy_balance()).max() < 1e-6 * lost
+
+
+def brake(mu=0.3, omega0=20.0, k=1e5, delta0=1e-4, vs=1e-3, wear=None):
+    """A solid ball (m = 1, r = 0.05) held at its centre by a spherical joint, spinning at
+    omega0 about x, pressed into a ground sphere (R = 0.1) below it by delta0: a constant normal
+    force k delta0 through the centres (the joint takes it), and the friction at the contact
+    point brakes the spin."""
+    m, rad, big = 1.0, 0.05, 0.1
+    d = {"scene": {"name": "brake"},
+         "body": [{"name": "ball", "kind": "spatial", "mass": m,
+                   "shape": {"type": "sphere", "radius": rad}, "omega_body": [omega0, 0, 0]}],
+         "joint": [{"type": "spherical", "name": "pivot", "body1": "ball", "at": [0, 0, 0]}],
+         "force": [contact(shape1={"type": "sphere", "radius": rad},
+                           shape2={"type": "sphere", "radius": big,
+                                   "centre": [0, 0, -(rad + big - delta0)]},
+                           stiffness=k, friction={"static": mu, "dynamic": mu,
+                                                  "stiction_speed": vs,
+                                                  "transition_speed": 2 * vs})]}
+    if wear:
+        d["wear"] = wear
+    return scene_from_dict(d, "brake.toml")
+
+
+@pytest.mark.parametrize("formulation", ["reduced", "projection", "baumgarte"])
+def test_a_braked_ball_wears_the_energy_it_loses(formulation):
+    """Two spheres (sphere_sphere): the ball's slip speed at the contact is omega r, braked by
+    the friction moment mu F r: omega = omega0 - mu F r t / I until it stops (a0 = mu F r^2 /
+    I), having slid S = I omega0^2 / (2 mu F), where friction has taken its kinetic energy
+    I omega0^2 / 2 (= mu F S). Archard's volume is k F S; the bounds are slip_bounds'. The
+    formulations differ in how they keep the joint, not in the wear state they carry."""
+    mu, omega0, kc, delta0, vs = 0.3, 20.0, 1e5, 1e-4, 1e-3
+    m, rad = 1.0, 0.05
+    k = ARCHARD_K / HARDNESS
+    sc = brake(mu, omega0, kc, delta0, vs, [{"name": "pad", "law": "archard",
+                                             "load": "floor.normal_force", "coefficient": k}])
+    t_end = 0.3
+    runs = [mbdk.simulate(sc, "rk4", h=h, t_end=t_end, every=every, formulation=formulation)
+            for h, every in ((1e-4, 10), (5e-5, 20))]
+    r = runs[1]
+    f, inertia = kc * delta0, 0.4 * m * rad * rad
+    a0 = mu * f * rad * rad / inertia
+    lo, zone, t_vs = slip_bounds(omega0 * rad, a0, vs, t_end)
+    s_star = inertia * omega0 ** 2 / (2 * mu * f)
+    assert lo < s_star < lo + zone
+    braking = r.t < t_vs - 1e-3
+    om = r.omega_body("ball")[:, 0]
+    assert np.abs(om[braking] - (omega0 - mu * f * rad * r.t[braking] / inertia)).max() < 1e-9
+    w = r.wear["pad"]
+    quad = abs(w[-1] - runs[0].wear["pad"][-1])
+    assert k * f * lo - quad <= w[-1] <= k * f * (lo + zone) + quad
+    print(f"{formulation}: V = {w[-1]:.10e} m^3, k F S = {k * f * s_star:.10e} "
+          f"(relative {w[-1] / (k * f * s_star) - 1:.2e})")
+    lost = r.energy[0] - r.energy[-1]
+    assert abs(lost - inertia * omega0 ** 2 / 2) < 1e-3 * lost
+    assert np.abs(r.energy_balance()).max() < 1e-6 * lost
+
+
+def test_wear_is_a_state_of_its_own():
+    """The wear states do not act back: the same scene without them runs to the same bits
+    (fixed steps: the error-controlled methods' error norm counts the states, so their steps
+    may differ), its state is the body's 13 values and its result has no wear. The rate at a
+    state is the law's: at the start the sphere slides at v0 under F = m g, V' = k m g v0 (the
+    kernel's y', mbdk.spatial_model.evaluate_spatial); the scene report lists the effect."""
+    k, v0 = ARCHARD_K / HARDNESS, 2.0
+    wear = [{"name": "w", "law": "archard", "load": "floor.normal_force", "coefficient": k}]
+    with_wear, _n, _t = tilted(v0, wear=wear)
+    without, _n, _t = tilted(v0)
+    a = mbdk.simulate(with_wear, "rk4", h=1e-4, t_end=0.05)
+    b = mbdk.simulate(without, "rk4", h=1e-4, t_end=0.05)
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v)
+    assert b.wear == {} and b.q.shape[1] + b.v.shape[1] == 13 and a.wear["w"][0] == 0.0
+    assert a.manifest["wear"]["w"].startswith("archard on floor.normal_force")
+    rate = evaluate_spatial(with_wear)["ydot"][-1]
+    assert abs(rate - k * G * v0) < 1e-12 * k * G * v0
+    assert mbdk.scene_report(with_wear).effects == ["w"]
+
+
+@pytest.mark.parametrize("method, kw", [
+    ("trapezoidal_index3", dict(h=1e-4)), ("generalized_alpha", dict(h=1e-4)),
+    ("ida", dict(rtol=1e-6)), ("ida", dict(rtol=1e-6, formulation="ggl")),
+    ("bdf", dict(rtol=1e-6, formulation="i3")), ("bdf", dict(rtol=1e-6, formulation="si2"))])
+def test_forms_without_a_place_for_wear_refuse_it_by_name(method, kw):
+    """The index-3 family's state [q, v] and the DAE's [q, v, lambda] have no place for the
+    volumes: each refuses the scene naming its wear elements (as on planar scenes), before the
+    kernel, which would refuse it too (MBDK_ERR_NOT_APPLICABLE)."""
+    sc = brake(wear=[{"name": "pad", "law": "archard", "load": "floor.normal_force",
+                      "coefficient": 1e-13}])
+    with pytest.raises(mbdk.NotApplicableError, match=r"no place for the wear states \(pad\)"):
+        mbdk.simulate(sc, method, t_end=0.01, **kw)
+
+
+@pytest.mark.parametrize("wear, field", [
+    ({"law": "gear", "load": "floor.normal_force", "coefficient": 1.0, "radius": 1e-3,
+      "temperature": 300.0}, "field 'law' = 'gear'"),
+    ({"law": "paris", "load": "floor.normal_force", "coefficient": 1.0}, "law"),
+    ({"law": "archard", "load": "wall.normal_force", "coefficient": 1.0},
+     "'wall.normal_force' names no contact; contacts: floor"),
+    ({"law": "archard", "load": "floor.friction_force", "coefficient": 1.0}, "has no friction"),
+    ({"law": "archard", "load": "floor", "coefficient": 1.0}, "CONTACT.normal_force"),
+    ({"law": "archard", "load": "floor.normal_force", "coefficient": -1.0}, "coefficient"),
+    ({"law": "knee", "load": "floor.normal_force", "coefficient": 1.0,
+      "slide_roll": [1.0, 2.0]}, "slide_roll"),
+])
+def test_bad_spatial_wear_is_named(wear, field):
+    """The planar reader's fields and errors (tests/test_contact.py), each naming the file,
+    the element and the field; and the gear law, whose speed is a planar gear pair's."""
+    d = {"scene": {"name": "bad"},
+         "body": [{"name": "ball", "kind": "spatial", "mass": 1.0, "inertia": [0.01] * 3,
+                   "position": [0, 0, 0.2]}],
+         "force": [contact(stiffness=1e5)], "wear": [{"name": "w", **wear}]}
+    with pytest.raises(SceneError) as exc:
+        scene_from_dict(d, "bad.toml")
+    msg = str(exc.value)
+    assert "bad.toml" in msg and "wear 'w'" in msg and field in msg, msg
+
+
+def test_wear_changed_in_python_is_checked_by_name():
+    """A Wear edited after reading meets the reader's checks before the kernel does."""
+    sc = brake(wear=[{"name": "pad", "law": "archard", "load": "floor.normal_force",
+                      "coefficient": 1e-13}])
+    sc.wear[0].coefficient = -1.0
+    with pytest.raises(SceneError, match="wear 'pad': field 'coefficient'"):
+        mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.01)
+    sc.wear[0].coefficient = 1e-13
+    sc.wear[0].load = "floor.friction_force"
+    sc.forces[0].reals = sc.forces[0].reals[:15] + (0.0, 0.0) + sc.forces[0].reals[17:]
+    with pytest.raises(SceneError, match="contact 'floor' has no friction"):
+        mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.01)
+
+
+def test_the_kernel_refuses_bad_wear_entries():
+    """The tables from another door (a C embedder's): a wear entry whose column is not a
+    contact, whose law is gear or unknown, whose load code is neither 1 nor 2, whose friction
+    load has no friction, or whose k is negative, is invalid input; the scene's own entry
+    evaluates."""
+    sc = brake(wear=[{"name": "pad", "law": "archard", "load": "floor.normal_force",
+                      "coefficient": 1e-13}])
+    tab = spatial_tables(sc)
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = tab
+    y0 = np.concatenate([sc.state0(), [0.0]])
+
+    def status(fb=fbody, fr=freal):
+        *_, st = _kernel.spatial_residuals(mass, inertia, nj, jtype, jbody, jreal, nf, ftype,
+                                           fb, fr, 1, y0, 0.0, y0, max(sc.rows, 1))
+        return st
+
+    assert status() == mbdk.Status.SUCCESS
+    w = nf - 1
+    for row, value in ((0, 0), (0, 2), (0, w + 1), (1, 2), (1, 4)):
+        fb = fbody.copy()
+        fb[row, w] = value
+        assert status(fb=fb) == mbdk.Status.ERR_INVALID_INPUT, (row, value)
+    smooth = freal.copy()
+    smooth[5, w] = 2.0
+    smooth[15:17, 0] = 0.0
+    for fr_row, value, fr in ((5, 3.0, freal), (5, 1.5, freal), (0, -1e-13, freal)):
+        bad = fr.copy()
+        bad[fr_row, w] = value
+        assert status(fr=bad) == mbdk.Status.ERR_INVALID_INPUT, (fr_row, value)
+    assert status(fr=smooth) == mbdk.Status.ERR_INVALID_INPUT
+
+
+def test_switching_angle_sets_carries_the_wear():
+    """A sliding sphere in 1-2-3 angles rolls its beta through the set's lock: the run goes on
+    in the 3-1-3 set (switch_angles) and its volume goes on from where it was, ending where the
+    quaternion run's does (the same motion in other coordinates: to the integration's
+    accuracy)."""
+    k = ARCHARD_K / HARDNESS
+    wear = [{"name": "w", "law": "archard", "load": "floor.normal_force", "coefficient": k}]
+    sc, _n, _t = tilted(2.0, wear=wear)
+    quat = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.4, every=10)
+    angles = mbdk.simulate(replace(sc, rotation="cardan123"), "rk4", h=1e-4, t_end=0.4,
+                           every=10, switch_angles=0.1)
+    assert angles.manifest["switches"]
+    assert angles.t.shape == quat.t.shape and np.abs(angles.t - quat.t).max() < 1e-12
+    assert np.abs(angles.wear["w"] - quat.wear["w"]).max() < 1e-8 * quat.wear["w"][-1]

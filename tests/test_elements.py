@@ -55,7 +55,8 @@ def test_every_scene_type_is_a_kernel_kind_and_back():
     assert (set(SPATIAL_FORCE_TYPES) - {"spring", "damper", "contact"}) | {
         "sphere_plane", "sphere_sphere"} == set(C.SPATIAL_FORCE_CODES) == _kinds(C.FORCE_CLASS,
                                                                                  "spatial")
-    assert _kinds(C.EFFECT_CLASS, "spatial") == set()
+    # wear is both models': the spatial format's [[wear]] is the planar one's
+    assert _kinds(C.EFFECT_CLASS, "spatial") == {"wear"} == set(C.SPATIAL_EFFECT_CODES)
     assert C.VISIT_NAMES == [e.name for e in C.ELEMENT_KINDS]
 
 

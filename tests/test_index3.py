@@ -493,7 +493,7 @@ def test_index3_study(tmp_path):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
     import index3 as study
     summary = study.run(tmp_path, quick=True)
-    assert len(summary["tables"]) == 5 and all(Path(f).is_file() for f in summary["figures"])
+    assert len(summary["tables"]) == 6 and all(Path(f).is_file() for f in summary["figures"])
 
     def rows(name):
         with open(tmp_path / f"{name}.csv", newline="") as fh:
@@ -544,6 +544,25 @@ def test_index3_study(tmp_path):
             assert float(r["err_theta"]) < (1e-2 if "adaptive" in r["integration"] else 2e-4)
         if r["integration"] == "rk4, reduced":
             assert r["status"] == "ERR_SINGULAR_MATRIX" and float(r["reached_t"]) < 0.714
+    # the family's orders at the smallest step: the projected form's second-order members 2 in
+    # every quantity on the double pendulum (at rest and in motion), newmark (gamma = 0.6) 1;
+    # on the driven slider the book's trapezoidal member's multipliers do not converge while the
+    # projected form's are the closed form's to roundoff
+    fam = rows("index3_family_orders")
+    h_min = min(float(r["h"]) for r in fam)
+    for r in fam:
+        if float(r["h"]) != h_min or r["scene"] not in ("double_pendulum",
+                                                         "double_pendulum_moving"):
+            continue
+        want = 1.0 if r["method"] == "newmark" else 2.0
+        if r["formulation"] == "augmented_lagrangian":
+            for key in ("q", "v", "a", "multipliers"):
+                assert abs(float(r[f"order_{key}"]) - want) < 0.2, (r["method"], key, r)
+    slider = {(r["method"], r["formulation"]): r for r in fam
+              if r["scene"] == "driven_slider" and float(r["h"]) == h_min}
+    assert abs(float(slider["trapezoidal_index3", "index3"]["order_multipliers"])) < 0.1
+    assert float(slider["trapezoidal_index3", "index3"]["err_multipliers"]) > 1.0
+    assert float(slider["trapezoidal_index3", "augmented_lagrangian"]["err_multipliers"]) < 1e-12
 
 
 def test_a02_exact_crank_angle_solves_the_chains_equation_of_motion():

@@ -254,7 +254,7 @@ def test_stability_study(tmp_path, root):
     import csv
     import stability
     summary = stability.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 6 and all(f.exists() for f in summary["figures"])
+    assert len(summary["figures"]) == 7 and all(f.exists() for f in summary["figures"])
     family = list(csv.DictReader(open(tmp_path / "alpha_family_spectra.csv")))
     # the compiled steps against the closed forms, every member, over Omega in [0.05, 100]
     assert all(float(r["max_diff_closed_form"]) < 1e-8 for r in family)
@@ -265,3 +265,29 @@ def test_stability_study(tmp_path, root):
     heun = next(r for r in claims if r["equation"] == "(4.29)")
     assert heun["verdict"] == "FLAG" and "2.0000000000" in heun["computed"]
     assert all(float(r["cpu_s"]) > 0 for r in claims)
+    # section 6: the closed forms computed here independently (rk4's |R(3i)|, the trapezoidal
+    # period error at Omega = 1, Euler-Cromer's unit radius, -rho_inf along a constraint), the
+    # measured values beside them, and a CPU time on every row of its three tables
+    spectra = list(csv.DictReader(open(tmp_path / "oscillator_spectra.csv")))
+    osc = {(r["method"], float(r["Omega"])): r for r in spectra}
+    r = osc[("rk4", 3.0)]
+    z = 3j
+    assert float(r["spectral_radius_cf"]) == pytest.approx(
+        abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24), rel=1e-13)
+    assert float(r["spectral_radius"]) == pytest.approx(float(r["spectral_radius_cf"]),
+                                                        rel=1e-10)
+    assert float(osc[("trapezoidal", 1.0)]["period_error"]) == pytest.approx(
+        1 / (2 * math.atan(0.5)) - 1, abs=1e-9)
+    assert float(osc[("euler_cromer", 1.5)]["spectral_radius"]) == pytest.approx(1.0, abs=1e-12)
+    assert all(float(r["max_diff"]) < 1e-9 for r in spectra), \
+        [(r["method"], r["Omega"]) for r in spectra if not float(r["max_diff"]) < 1e-9]
+    pend = list(csv.DictReader(open(tmp_path / "pendulum_spectra.csv")))
+    assert all(float(r["max_diff"]) < 1e-9 for r in pend)
+    con = {(r["method"], r["formulation"]): r
+           for r in csv.DictReader(open(tmp_path / "constrained_direction_spectra.csv"))}
+    r = con[("generalized_alpha rho 0.8", "index3")]
+    assert float(r["spectral_radius_cf"]) == pytest.approx(0.8, abs=1e-5)
+    assert float(r["spectral_radius"]) == pytest.approx(0.8, abs=1e-3)
+    assert con[("generalized_alpha rho 0.8", "augmented_lagrangian")]["roots"] == "none"
+    for name in ("oscillator_spectra", "pendulum_spectra", "constrained_direction_spectra"):
+        assert all(float(r["cpu_s"]) > 0 for r in csv.DictReader(open(tmp_path / f"{name}.csv")))

@@ -42,7 +42,8 @@ def test_header_structs_name_the_same_fields(root):
     """mbdk.h's typedefs list the kernel's field names in the kernel's order (the offsets are
     the C test's business)."""
     text = (root / "kernel" / "include" / "mbdk.h").read_text()
-    for cname in ("mbdk_stats", "mbdk_options", "mbdk_index3_options", "mbdk_model_options"):
+    for cname in ("mbdk_stats", "mbdk_options", "mbdk_index3_options", "mbdk_model_options",
+                  "mbdk_spatial_options", "mbdk_watch_report"):
         assert header_fields(text, cname) == list(layout(cname).names), cname
 
 

@@ -170,7 +170,7 @@ def test_work_precision_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import work_precision
     summary = work_precision.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 3
+    assert len(summary["figures"]) == 4
     data = rows(tmp_path / "work_precision_riccati.csv")
     nominal = {"explicit_euler": 1, "heun": 2, "rk4": 4, "trapezoidal": 2, "bdf2": 2, "bdf3": 3}
     for m, p in nominal.items():
@@ -183,6 +183,35 @@ def test_work_precision_study(tmp_path, root):
     r = mbdk.solve_ode("riccati", "rk4", h=5.0 / n, t_end=5.0, every=n // 100)
     u = -r.t / 2 + 0.25 - 0.45 * np.exp(-2 * r.t)
     assert num(last["max_error"]) == pytest.approx(np.max(np.abs(r.y[:, 0] - 1 / u)), rel=1e-6)
+    # the index-3 DAE of P1 (issue 38): every run that gave a result carries its CPU time, a
+    # run without one says why; second order for the generalized-alpha members, first for the
+    # damped Newmark rule (gamma = 0.6)
+    scene = rows(tmp_path / "work_precision_scene_double_pendulum.csv")
+    assert {r["method"] for r in scene} == set(work_precision.SCENE_METHODS)
+    for r in scene:
+        assert (num(r["cpu_s"]) > 0 and num(r["max_error"]) > 0) if not r["note"] else \
+            r["cpu_s"] == "", r
+    for m, p in (("trapezoidal_index3", 2), ("generalized_alpha (rho_inf 0.5)", 2),
+                 ("hht (alpha -0.1)", 2), ("newmark (gamma 0.6)", 1)):
+        last = [r for r in scene if r["method"] == m][-1]
+        assert num(last["observed_order"]) == pytest.approx(p, abs=0.15), m
+    # the finest generalized-alpha run's error against an independent reference: rk4 on the
+    # reduced formulation at h = 1e-5 (not the study's dopri54)
+    ga = [r for r in scene if r["method"] == "generalized_alpha (rho_inf 0.8)"][-1]
+    h, t_end = num(ga["h"]), 1.0
+    sc = mbdk.scene("double_pendulum")
+    run = mbdk.simulate(sc, "generalized_alpha", rho_inf=0.8, h=h, t_end=t_end,
+                        every=round(t_end / h / 20), outputs=())
+    ref = mbdk.simulate(sc, "rk4", h=1e-5, t_end=t_end, every=5000, outputs=())
+    assert num(ga["max_error"]) == pytest.approx(np.max(np.abs(run.q - ref.q)), rel=1e-3)
+    # the cheapest-method table names, per target, a method whose own runs reach it
+    best = rows(tmp_path / "work_precision_scene_cheapest.csv")
+    assert [num(r["target_error"]) for r in best] == list(work_precision.TARGETS)
+    for r in best:
+        if r["cheapest_method"]:
+            errs = [num(x["max_error"]) for x in scene if x["method"] == r["cheapest_method"]
+                    and x["max_error"]]
+            assert min(errs) <= num(r["target_error"]) and num(r["cpu_s"]) > 0
 
 
 def test_benchmark_study(tmp_path, root):

@@ -242,7 +242,7 @@ def planar_kernel_doors(name, sc):
 def spatial_kernel_doors(name, sc):
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
     y0 = sc.state0()
-    rot = float(ROTATIONS[sc.rotation])
+    rot = ROTATIONS[sc.rotation]
     m = max(sc.rows, 1)
 
     def ev(label, **kw):

@@ -163,7 +163,8 @@ static void drifting_bar_is_stopped_by_the_watch(void)
     const int fint[4] = {1, 0, 0, 0};
     const double freal[12] = {0.0, -9.81};
     const double y0[6] = {-0.5, 0.0, 0.0, 0, 0, 0};       /* bar along -x from the hinge */
-    double report[8], t, y[6];
+    double t, y[6];
+    mbdk_watch_report report;
     mbdk_options opt;
     mbdk_model_options mopt;
     mbdk_stepper *s = NULL;
@@ -177,13 +178,13 @@ static void drifting_bar_is_stopped_by_the_watch(void)
     status = mbdk_stepper_advance(s, 20.0);
     check(status == MBDK_ERR_CONSTRAINT_DRIFT || status == MBDK_ERR_ENERGY_DRIFT,
           "explicit Euler's drift stops the run with a drift status");
-    check(mbdk_stepper_watch_report(s, report) == MBDK_SUCCESS && report[0] >= 1
-          && report[0] <= 3 && report[4] > report[5] && report[2] > report[3],
+    check(mbdk_stepper_watch_report(s, &report) == MBDK_SUCCESS && report.quantity >= 1
+          && report.quantity <= 3 && report.t > report.t_good && report.value > report.tol,
           "the report: quantity, value above tolerance, failed after the last good check");
     mbdk_stepper_state(s, &t, y, 6);
-    check(t == report[5] || t < report[4], "the state readable is the last good one");
-    printf("      stopped: quantity %g at t = %g (last good %g), %g of its scale\n", report[0],
-           report[4], report[5], report[2]);
+    check(t == report.t_good || t < report.t, "the state readable is the last good one");
+    printf("      stopped: quantity %d at t = %g (last good %g), %g of its scale\n",
+           report.quantity, report.t, report.t_good, report.value);
     mbdk_stepper_destroy(s);
 }
 

@@ -192,8 +192,61 @@ enum mbdk_force_kind { MBDK_FORCE_GRAVITY = 1, MBDK_FORCE_POINT = 2, MBDK_FORCE_
                        MBDK_FORCE_SPHERE_SPHERE = 12 };
 /* Effects share the force table and its codes, and carry states
  * (kernel/src/model/mbdk_wear.f90): a scene with nw wear elements has the state [q; v; w],
- * 6 nb + nw values per sample. */
+ * 6 nb + nw values per sample (a spatial scene: its bodies' state, then the nw volumes). */
 enum mbdk_effect_kind { MBDK_EFFECT_WEAR = 10 };
+
+/* The planar tables, field by field (their home: kernel/src/model/mbdk_joints.f90,
+ * mbdk_force_elements.f90, mbdk_contact.f90, mbdk_contact_law.f90, mbdk_wear.f90). Bodies are
+ * 1-based, 0 is the ground (its points and axes global); points s are body-fixed (x, y) from the
+ * centroid. A time function f is 5 reals (offset, rate, amplitude, omega, phase):
+ * f(t) = offset + rate t + amplitude sin(omega t + phase); a constant c is (c, 0, 0, 0, 0).
+ *
+ * jint[j] = (kind, body1, body2, k4), jreal[j][0..11] (C indices):
+ *   REVOLUTE    P1 = P2                  s1 = jreal[0..1], s2 = jreal[2..3]
+ *   PRISMATIC   n2.(P1 - P2) = 0, theta1 - theta2 = theta0: points as revolute, axis u2 =
+ *               jreal[4..5] fixed in body2, theta0 = jreal[6] (k4 = MBDK_FROM_POSE: from y0)
+ *   FIXED       the revolute rows and theta1 - theta2 = theta0 (jreal[6], or from y0)
+ *   DRIVER      coordinate k4 (1 x, 2 y, 3 angle) of body1 = f(t), f = jreal[7..11]
+ *   DISTANCE    |P1 - P2| = L(t), points as revolute, L = jreal[7..11] (k4 = MBDK_FROM_POSE:
+ *               L's offset from y0)
+ *   POINT_LINE  s1 of body1 on the line through s2 of body2 along jreal[4..5] (body2's frame)
+ *   POINT_CURVE s1 of body1 on the ground curve y = f(x), f = jreal[7..11] taken in x
+ *   COUPLING    a . q_body1 + b . q_body2 = c(t), a = jreal[0..2], b = jreal[3..5] on (x, y,
+ *               angle), c = jreal[7..11] (k4 = MBDK_FROM_POSE: c's offset from y0)
+ *   ROLLING     a disc of radius jreal[6] centred at body1's centroid rolls on the ground line
+ *               through jreal[2..3] along the unit jreal[4..5], on its left; no-slip offset c0 =
+ *               jreal[7] (k4 = MBDK_FROM_POSE: from y0)
+ *   KNIFE_EDGE  s1 = jreal[0..1] of body1 has no velocity across the blade jreal[4..5] (body1's
+ *               frame): a nonholonomic row
+ * fint[f] = (kind, body1, body2, k4), freal[f][0..11]:
+ *   GRAVITY     g = freal[0..1] on every body
+ *   POINT       F(t) = freal[2..3] f(t) (global) at s = freal[0..1] of body1, f = freal[7..11]
+ *   TORQUE      T(t) = freal[0] f(t) on body1, f = freal[7..11]
+ *   SPRING_DAMPER, SPRING, DAMPER  between s1 = freal[0..1] on body1 and s2 = freal[2..3] on
+ *               body2: tension k (L - L0) + c L', k = freal[4], L0 = freal[5] (k4 =
+ *               MBDK_FROM_POSE: from y0), c = freal[6] (SPRING: c = 0, DAMPER: k = 0)
+ *   COORDINATE  on coordinate k4 of body1: -k (q - q0) - c q', k = freal[0], c = freal[1],
+ *               q0 = freal[2]
+ *   CONTACT     geometry k4: 1 circle (radius r1, 0: a point) on the line through s2 with the
+ *               normal angle a (body2's frame), 2 circle on circle r2, 3 circle inside the hollow
+ *               circle r2, 4 involute gear pair; freal: s1 [0..1], r1 [2], s2 [3..4], a or r2 [5],
+ *               then the IMPACT law: k [6], exponent e >= 1 [7], cmax [8], dmax [9] (the gear
+ *               pair: base radii [0..1], tip radii [2..3], base pitch [4], mesh phase [5], the law
+ *               [6..9], flank phase [10], hand +1/-1 [11])
+ *   FRICTION    regularised Coulomb friction of the contact in column k4 (1-based) of this
+ *               table: freal = (mus, mud, vs, vd), 0 < vs < vd
+ *   EFFECT_WEAR jint-like fint = (kind, law, load, column): law 1 archard, 2 gear, 3 knee; load 1
+ *               the normal force of the contact in column, 2 the force of the friction element
+ *               in column; freal[0] = k; gear: freal[1..6] = R, Ts, a_x, t0, Ea, Rg; knee:
+ *               freal[1..4] = c0..c3 (S/R(t) = c0 + c1 t + c2 t^2 + c3 t^3). Each carries one
+ *               state, its worn volume, after the bodies' in y.
+ * The spatial tables (mbdk_stepper_create_spatial; kernel/src/spatial/mbdk_spatial_model.f90):
+ * jreal[j][0..16] = s_i (3), s_j (3), a_i (3, body i's frame), a_j (3, body j's frame), a time
+ * function (5; ANGLE_DRIVER and SLIDE_DRIVER); freal[f][0..18]: GRAVITY g (3); POINT s (3, body
+ * frame), F (3, global); TORQUE n (3, global); SPRING_DAMPER s_i (3), s_j (3), k, c, L0;
+ * SPHERE_PLANE, SPHERE_SPHERE s1 [0..2] on body i, r1 [3], s2 [4..6] on body j, the plane's
+ * normal n2 [7..9] (body j's frame), r2 [10], the IMPACT law (k, e >= 1, cmax, dmax) [11..14],
+ * friction (mus, mud, vs, vd) [15..18] (mus = mud = 0: none). */
 
 /* The 4th integer of a prismatic or fixed joint (jint[j][3]), of a distance joint, or of a
  * spring, damper or spring-damper (fint[f][3]): take the relative angle, the length L(0), or
@@ -202,8 +255,8 @@ enum { MBDK_FROM_POSE = 1 };
 
 /* Body kinds (the same file): the coordinates and velocities a body carries, and whether a model
  * of the kernel runs bodies of the kind (available). Planar bodies run in the planar model, the
- * one of this header's scene entries; spatial bodies (chapter 5) in the spatial model, which
- * Python reaches (python/mbdk/spatial_model.py) and this header does not yet. */
+ * one of this header's planar scene entries; spatial bodies (chapter 5) in the spatial model,
+ * which the spatial steppers below and Python (python/mbdk/spatial_model.py) reach. */
 enum mbdk_body_kind { MBDK_BODY_PLANAR = 1, MBDK_BODY_SPATIAL = 2 };
 enum { MBDK_BODY_KINDS = 2 };
 /* The body kinds an element kind applies to, as bits: bit k - 1 for body kind k. */
@@ -247,8 +300,57 @@ typedef struct mbdk_model_options {
 /* The defaults of every field; start from them and set what differs. */
 void mbdk_model_default_options(mbdk_model_options *opt);
 
+/* Options of a spatial scene's model (kernel/src/spatial/mbdk_spatial_model.f90, whose header
+ * is its manual): the formulation of the ODE methods (enum mbdk_formulation, as for planar
+ * scenes) with the same parameters, the orientation coordinates and how a quaternion keeps its
+ * unit norm, and the watch. Start from mbdk_spatial_default_options. */
+enum mbdk_rotation { MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, MBDK_ROT_CARDAN123 = 3 };
+enum mbdk_quaternion_norm { MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, MBDK_NORM_NONE = 3 };
+typedef struct mbdk_spatial_options {
+    double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
+    double penalty_alpha, penalty_omega, penalty_mu;     /* Jalon-Bayo (3.35)-(3.40) */
+    /* angle sets: an evaluation within this distance of the gimbal lock (|sin theta| for 3-1-3,
+     * |cos beta| for 1-2-3) is MBDK_ERR_SINGULAR_MATRIX; 0: off */
+    double lock_guard;
+    double norm_gain;             /* MBDK_NORM_STABILISE: k of p' = ... + k (1 - |p|^2) p / 2, 1/s */
+    double projection_tol;        /* max |Phi| after a projection */
+    /* as mbdk_model_options' (<= 0: off); watch_quaternion: | |p| - 1 | of every quaternion */
+    double watch_position, watch_velocity, watch_energy, watch_momentum, watch_quaternion;
+    int formulation;              /* enum mbdk_formulation */
+    int rotation;                 /* enum mbdk_rotation */
+    int norm;                     /* enum mbdk_quaternion_norm */
+    int watch_every;              /* steps between checks; 0: the default (16) */
+    int locate_events;            /* 1: dopri54 and bs32 end a step where a contact closes or opens */
+} mbdk_spatial_options;
+
+void mbdk_spatial_default_options(mbdk_spatial_options *opt);
+
+/* A spatial scene's tables (the f2py entry spatial_run's, mbdk_spatial_model.f90): nb bodies with
+ * mass[nb] and inertia[nb][3][3] (about the centre, body frame); nj joints, jtype[nj] (enum
+ * mbdk_joint_kind of a kind on spatial bodies), jbody[nj][2] (1-based, 0 = the ground),
+ * jreal[nj][MBDK_SPATIAL_JOINT_REALS] = (s_i, s_j, a_i, a_j, time function); nf forces,
+ * ftype[nf], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]. A wear element is an entry of
+ * the force table too (ftype MBDK_EFFECT_WEAR): fbody = (its contact's entry, 1-based; the
+ * law, 1 archard or 3 knee), freal = (k, the knee's c0..c3, the load: 1 the contact's normal
+ * force, 2 its friction force). The state, body by body: q_b = (r, p), p a quaternion (4,
+ * scalar first) or three angles as opt.rotation says, then w_b = (r', Omega), Omega in the
+ * body frame: nb (7 + 6) values with quaternions; then the worn volume of each wear element,
+ * in table order (none without). */
+enum { MBDK_SPATIAL_JOINT_REALS = 17, MBDK_SPATIAL_FORCE_REALS = 19 };
+
+/* The report of the watch's check that stopped a run (kernel/src/model/mbdk_watch.f90):
+ * quantity 1 position, 2 velocity, 3 energy, 4 momentum, 5 quaternion norm (0 while nothing
+ * failed); row 1-based: the constraint row, the conserved component or the body (0 for energy);
+ * value per its scale, the tolerance, t of the failed check, t_good of the last check passed, the
+ * value itself (absolute) and its scale. */
+typedef struct mbdk_watch_report {
+    double value, tol, t, t_good, absolute, scale;
+    int quantity, row;
+} mbdk_watch_report;
+
 /* The kernel's layout of the structs above, for checking a binding against it: struct id
- * 1 mbdk_stats, 2 mbdk_options, 3 mbdk_index3_options, 4 mbdk_model_options. Field types:
+ * 1 mbdk_stats, 2 mbdk_options, 3 mbdk_index3_options, 4 mbdk_model_options,
+ * 5 mbdk_spatial_options, 6 mbdk_watch_report. Field types:
  * 1 int, 2 int64_t, 3 double, 4 pointer. Both return MBDK_ERR_INVALID_INPUT past the end. */
 int mbdk_struct_info(int id, char *name, int namelen, int *nbytes, int *nfields);
 int mbdk_struct_field(int id, int i, char *name, int namelen, int *offset, int *type);
@@ -283,6 +385,24 @@ int mbdk_stepper_create_index3(int nb, const double *mass, const double *inertia
                                const int *jint, const double *jreal, int nf, const int *fint,
                                const double *freal, const mbdk_index3_options *opt, double t0,
                                const double *y0, mbdk_stepper **stepper);
+/* The same two on a spatial scene (its tables and state as above): an ODE method of opt on the
+ * model's formulation, y0 = (q, w) and the initial wear volumes after them, as
+ * mbdk_stepper_create_scene takes them; and the index-3 family (trapezoidal_index3, or newmark,
+ * hht, generalized_alpha by opt's beta, gamma, alpha_m, alpha_f; fixed step; a scene with wear
+ * is MBDK_ERR_NOT_APPLICABLE, its state [q; w] has no place for the volumes). The stepping is
+ * the planar steppers' own, over the mechanism interface. */
+int mbdk_stepper_create_spatial(int nb, const double *mass, const double *inertia, int nj,
+                                const int *jtype, const int *jbody, const double *jreal, int nf,
+                                const int *ftype, const int *fbody, const double *freal,
+                                const mbdk_spatial_options *spatial_opt, const mbdk_options *opt,
+                                double t0, const double *y0, mbdk_stepper **stepper);
+int mbdk_stepper_create_spatial_index3(int nb, const double *mass, const double *inertia, int nj,
+                                       const int *jtype, const int *jbody, const double *jreal,
+                                       int nf, const int *ftype, const int *fbody,
+                                       const double *freal,
+                                       const mbdk_spatial_options *spatial_opt,
+                                       const mbdk_index3_options *opt, double t0,
+                                       const double *y0, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
 /* up to t, landing on it; t before the stepper's time: MBDK_ERR_INVALID_INPUT */
 int mbdk_stepper_advance(mbdk_stepper *stepper, double t);
@@ -291,11 +411,9 @@ int mbdk_stepper_size(const mbdk_stepper *stepper, int *n, int *m);
 int mbdk_stepper_multipliers(mbdk_stepper *stepper, double *lam, int m);   /* scenes; evaluates */
 int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
 /* After MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT (scene and
- * index-3 steppers): what the watch found, report[8] = quantity (1 position, 2 velocity,
- * 3 energy, 4 momentum), row (1-based: the constraint row, or the conserved component; 0 for
- * energy), value per its scale, tolerance, time, time of the last check passed, the value
- * itself, its scale. ODE steppers: MBDK_ERR_NOT_APPLICABLE. */
-int mbdk_stepper_watch_report(const mbdk_stepper *stepper, double report[8]);
+ * index-3 steppers, planar or spatial): what the watch found. ODE steppers:
+ * MBDK_ERR_NOT_APPLICABLE. */
+int mbdk_stepper_watch_report(const mbdk_stepper *stepper, mbdk_watch_report *report);
 int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
 /* Copies the message of a status into buf (NUL-terminated). */

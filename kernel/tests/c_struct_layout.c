@@ -45,6 +45,21 @@ static const struct field model[] = {
     F(mbdk_model_options, watch_energy), F(mbdk_model_options, watch_every),
     F(mbdk_model_options, locate_events), F(mbdk_model_options, watch_momentum)};
 
+static const struct field spatial[] = {
+    F(mbdk_spatial_options, baumgarte_alpha), F(mbdk_spatial_options, baumgarte_beta),
+    F(mbdk_spatial_options, penalty_alpha), F(mbdk_spatial_options, penalty_omega),
+    F(mbdk_spatial_options, penalty_mu), F(mbdk_spatial_options, lock_guard),
+    F(mbdk_spatial_options, norm_gain), F(mbdk_spatial_options, projection_tol),
+    F(mbdk_spatial_options, watch_position), F(mbdk_spatial_options, watch_velocity),
+    F(mbdk_spatial_options, watch_energy), F(mbdk_spatial_options, watch_momentum),
+    F(mbdk_spatial_options, watch_quaternion), F(mbdk_spatial_options, formulation),
+    F(mbdk_spatial_options, rotation), F(mbdk_spatial_options, norm),
+    F(mbdk_spatial_options, watch_every), F(mbdk_spatial_options, locate_events)};
+static const struct field report[] = {
+    F(mbdk_watch_report, value), F(mbdk_watch_report, tol), F(mbdk_watch_report, t),
+    F(mbdk_watch_report, t_good), F(mbdk_watch_report, absolute), F(mbdk_watch_report, scale),
+    F(mbdk_watch_report, quantity), F(mbdk_watch_report, row)};
+
 struct table { const char *name; size_t size; const struct field *f; int n; };
 
 static const size_t type_size[] = {0, sizeof(int), sizeof(int64_t), sizeof(double), sizeof(void *)};
@@ -55,7 +70,10 @@ int main(void)
         {"mbdk_stats", sizeof(mbdk_stats), stats, sizeof stats / sizeof *stats},
         {"mbdk_options", sizeof(mbdk_options), options, sizeof options / sizeof *options},
         {"mbdk_index3_options", sizeof(mbdk_index3_options), index3, sizeof index3 / sizeof *index3},
-        {"mbdk_model_options", sizeof(mbdk_model_options), model, sizeof model / sizeof *model}};
+        {"mbdk_model_options", sizeof(mbdk_model_options), model, sizeof model / sizeof *model},
+        {"mbdk_spatial_options", sizeof(mbdk_spatial_options), spatial,
+         sizeof spatial / sizeof *spatial},
+        {"mbdk_watch_report", sizeof(mbdk_watch_report), report, sizeof report / sizeof *report}};
     int ntab = sizeof tables / sizeof *tables, bad = 0, checked = 0;
     char name[64];
     int nbytes, nfields, offset, type;

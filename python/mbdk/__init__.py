@@ -14,8 +14,9 @@ from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDri
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
 from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
+from .ivp import solve_ivp
 from .problems import ProblemInfo, problems
-from .options import Index3Options, ModelOptions, ODEOptions
+from .options import Index3Options, ModelOptions, ODEOptions, SpatialOptions
 from .result import ODEResult, Result, SceneResult, Stats
 from . import stability  # noqa: F401,E402
 from .stability import StabilityRegion, stability_region
@@ -26,14 +27,14 @@ from .simulate import evaluate, simulate
 from .watch import Watch
 
 __all__ = [
-    "solve_ode", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
+    "solve_ode", "solve_ivp", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
     "ProblemInfo", "Status", "MbdkError", "InvalidInputError", "UnknownMethodError",
     "UnknownProblemError", "UnknownParameterError", "NotApplicableError", "StepTooSmallError",
     "TooManyStepsError", "TooMuchAccuracyError",
     "NewtonDivergedError", "SingularMatrixError", "NonFiniteSolutionError", "CallbackError",
     "BackendError", "stability_region", "StabilityRegion", "Scene", "SceneError", "load_scene",
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
-    "ODEOptions", "Index3Options", "ModelOptions", "Result", "evaluate", "NoMemoryError",
+    "ODEOptions", "Index3Options", "ModelOptions", "SpatialOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
     "Watch", "AccuracyWarning",
 ]

@@ -198,3 +198,47 @@ def closed_form_properties(p: AlphaParameters, omega_h: float) -> tuple[float, f
         # ap = a = -Omega^2 q / h^2: the map on (q, hv) alone; its third root is 0
         roots = roots[np.argsort(-np.abs(roots))][:2]
     return properties_from_roots(roots, omega_h)
+
+
+def constrained_amplification(p: AlphaParameters) -> np.ndarray:
+    """The step's map of x = (h v, h^2 ap, h^2 a) along a constrained direction (3 x 3): the
+    book form (formulation index3) solves Phi(q+) = 0 with q+, so along the constraint's normal
+    the step's increment is the one the constraint prescribes, and the relations above become,
+    with that increment zero (what a prescribed motion adds is a forcing, not a root),
+        h^2 beta ap+ = -(h v + h^2 (1/2 - beta) ap),   h v+ = h v + h^2 ((1 - gamma) ap + gamma ap+),
+        (1 - alpha_f) h^2 a+ = (1 - alpha_m) h^2 ap+ + alpha_m h^2 ap - alpha_f h^2 a,
+    the multiplier following a+ (M a+ + C^T lambda+ = f). Its eigenvalues: the roots of
+    z^2 - (2 - (gamma + 1/2)/beta) z + (1/2 + beta - gamma)/beta (from the first two) and
+    -alpha_f / (1 - alpha_f). For Chung and Hulbert's members all three are -rho_inf, HHT's are
+    (1 + alpha)/(1 - alpha) twice and alpha/(1 + alpha), and the trapezoidal rule's -1 twice
+    with one eigenvector: a transient that grows linearly, the weak instability of the book's
+    index-3 scheme (Cardona and Geradin 1989). It is the family's amplification at Omega -> oo
+    with q held: a constraint is an infinitely stiff spring whose position the step keeps.
+    The projected form (augmented_lagrangian) projects v+ and a+ onto the constraints and
+    takes lambda+ with them, so it carries nothing along a constraint: no root."""
+    b, g, am, af = p.beta, p.gamma, p.alpha_m, p.alpha_f
+    ap_next = np.array([-1.0 / b, -(0.5 - b) / b, 0.0])
+    v_next = np.array([1.0, 1.0 - g, 0.0]) + g * ap_next
+    a_next = ((1.0 - am) * ap_next + np.array([0.0, am, -af])) / (1.0 - af)
+    return np.array([v_next, ap_next, a_next])
+
+
+def constrained_roots(p: AlphaParameters) -> np.ndarray:
+    """The roots of the multiplier's transient along a constraint from a consistent start (ap
+    = a): the nonzero eigenvalues of constrained_amplification (a zero one dies within the
+    first steps and leaves no rate to measure), less -alpha_f / (1 - alpha_f) where alpha_m =
+    alpha_f: there it is the rate of ap - a alone ((1 - alpha)(ap+ - a+) + alpha (ap - a) = 0),
+    which a consistent start never excites (generalized_alpha at rho_inf = 1)."""
+    ev = np.linalg.eigvals(constrained_amplification(p))
+    ev = ev[np.abs(ev) > 1e-12]
+    if p.alpha_m == p.alpha_f and p.alpha_f != 0.0 and ev.size:
+        k = np.argmin(np.abs(ev + p.alpha_f / (1.0 - p.alpha_f)))
+        ev = np.delete(ev, k)
+    return ev
+
+
+def constrained_polynomial(p: AlphaParameters) -> np.ndarray:
+    """The monic polynomial (numpy's order) of constrained_roots, real: [1.0] where there is
+    none."""
+    r = constrained_roots(p)
+    return np.real(np.poly(r)) if r.size else np.array([1.0])

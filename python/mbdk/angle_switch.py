@@ -38,13 +38,14 @@ MAX_SWITCHES = 1000
 
 def _restarted(sc: Scene, r: SceneResult, k: int, rotation: str) -> Scene:
     """sc with its bodies at sample k of r (position, orientation, velocity, body-frame
-    angular velocity), in the angle set rotation."""
+    angular velocity), in the angle set rotation, and its wear volumes there."""
     bodies = [replace(b, position=r.position(b.name)[k].copy(),
                       rotation=r.orientation(b.name)[k].copy(),
                       velocity=r.v[k, 6 * i:6 * i + 3].copy(),
                       omega_body=r.v[k, 6 * i + 3:6 * i + 6].copy())
               for i, b in enumerate(sc.bodies)]
-    return replace(sc, bodies=bodies, rotation=rotation)
+    wear = [replace(w, initial=float(r.wear[w.name][k])) for w in sc.wear]
+    return replace(sc, bodies=bodies, rotation=rotation, wear=wear)
 
 
 def _subsampled(r: SceneResult, idx) -> SceneResult:
@@ -53,6 +54,7 @@ def _subsampled(r: SceneResult, idx) -> SceneResult:
                    energy_parts={k: v[idx] for k, v in r.energy_parts.items()},
                    residuals=r.residuals[idx],
                    multipliers=None if r.multipliers is None else r.multipliers[idx],
+                   wear={k: v[idx] for k, v in r.wear.items()},
                    rotations=[r.rotations[i] for i in idx])
 
 
@@ -90,7 +92,7 @@ def _joined(segs, switches) -> SceneResult:
         residuals=cat(lambda r: r.residuals), stats=stats, status=last.status,
         message=last.message, manifest=manifest, bodies=first.bodies, joints=first.joints,
         assembly=first.assembly, drift=last.drift, kind="spatial", rotation=first.rotation,
-        rotations=rotations)
+        wear={k: cat(lambda r, k=k: r.wear[k]) for k in first.wear}, rotations=rotations)
 
 
 

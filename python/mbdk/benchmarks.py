@@ -25,6 +25,14 @@ sin^2 phi), so F(phi | m) = F(phi0 | m) - w k t and
     theta(t) = 2 am(u | m) - pi/2,   theta'(t) = -2 w k dn(u | m),   u = K(m) - w k t
 
 (phi0 = pi/2, F(pi/2 | m) = K(m); am, dn, K from scipy.special, accurate to roundoff).
+
+The driven slider (driven_slider): a block of mass m on a horizontal guide (a prismatic joint
+with the ground along x), its x driven as A sin(omega t) (a driver joint), pulled back to x = 0
+by a spring of stiffness k, under gravity. Its motion is the drive's, and every force is in
+closed form: x'' = -A omega^2 sin(omega t); the drive carries m x'' + k x = A (k - m omega^2)
+sin(omega t) (the multiplier of its row is the negative: M a + D^T lambda = f), the guide the
+weight m g. Every integrator meets the joints with q exactly: its errors in v, a and lambda are
+the constraint directions' alone (the index-3 form's weak spot), with nothing else in the way.
 """
 from __future__ import annotations
 
@@ -105,3 +113,45 @@ def a02_crank(n: int, t) -> tuple[np.ndarray, np.ndarray]:
     u = ellipk(m) - w * k * t
     _sn, _cn, dn, am = ellipj(u, m)
     return 2.0 * am - 0.5 * np.pi, -2.0 * w * k * dn
+
+
+#: the driven slider's parameters: mass (kg), inertia (kg m^2), spring (N/m), drive amplitude (m)
+#: and frequency (rad/s); k != m omega^2, so that the drive carries a force
+SLIDER = {"m": 2.0, "j": 0.05, "k": 20.0, "amplitude": 0.1, "omega": 5.0}
+
+
+def driven_slider():
+    """The driven slider of the module header (SLIDER's parameters), at x = 0 moving at
+    A omega."""
+    p = SLIDER
+    return scene_from_dict({
+        "scene": {"name": "driven_slider",
+                  "description": "a block on a guide, driven along it as A sin(omega t), with "
+                                 "a spring to x = 0 (mbdk.benchmarks: every force in closed "
+                                 "form)"},
+        "body": [{"name": "slider", "mass": p["m"], "inertia": p["j"], "x": 0.0, "y": 0.0,
+                  "vx": p["amplitude"] * p["omega"], "given": ["x", "y", "angle", "vx"]}],
+        "joint": [{"name": "guide", "type": "prismatic", "body1": "slider", "body2": "ground",
+                   "axis": [1.0, 0.0]},
+                  {"name": "drive", "type": "driver", "body1": "slider", "coordinate": "x",
+                   "function": {"amplitude": p["amplitude"], "omega": p["omega"]}}],
+        "force": [{"type": "gravity", "g": [0.0, -G]},
+                  {"type": "coordinate_spring_damper", "body": "slider", "coordinate": "x",
+                   "stiffness": p["k"], "damping": 0.0, "rest": 0.0}]})
+
+
+def driven_slider_exact(t) -> dict:
+    """The driven slider's exact q, v, a (one row per time: x, y, angle) and multipliers in the
+    scene's row order (the guide's angle and y rows, then the drive's x row; M a + D^T lambda
+    = f with those rows' D = the unit rows of angle, y and x): (0, -m g, -(m x'' + k x))."""
+    p = SLIDER
+    t = np.asarray(t, dtype=float)
+    a_, w = p["amplitude"], p["omega"]
+    zero = np.zeros_like(t)
+    x = a_ * np.sin(w * t)
+    acc = -a_ * w * w * np.sin(w * t)
+    return {"q": np.stack([x, zero, zero], axis=-1),
+            "v": np.stack([a_ * w * np.cos(w * t), zero, zero], axis=-1),
+            "a": np.stack([acc, zero, zero], axis=-1),
+            "multipliers": np.stack([zero, -p["m"] * G + zero, -(p["m"] * acc + p["k"] * x)],
+                                    axis=-1)}

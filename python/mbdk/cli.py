@@ -30,12 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from . import ode
+from .cli_options import (RUN_HELP, RUN_SKIP, SOLVE_HELP, SOLVE_SKIP, add_options, given)
 from .errors import InvalidInputError, MbdkError as MbdkErrorBase
 from .methods import methods
 from .problems import problems
 from .report import STUDIES, build_report
 from .results_io import check_writable, plot_result, save_result
-from .scene_file import scene_or_file
+from .model import assemble, build_tables
+from .scene_file import scene_or_file, scenes
 from .scene_report import scene_report
 from .simulate import simulate
 from .sweep import load_grid, one_line, sweep
@@ -43,6 +45,9 @@ from .symbolic import cross_check
 
 #: the commands that write their output file only when they succeed
 WRITERS = ("run", "sweep", "plot")
+#: the API whose keywords are `mbdk solve`'s options (taken at import: the call itself goes
+#: through ode.solve_ode, which a test may stand in for)
+_SOLVE_API = ode.solve_ode
 
 
 class _Parser(argparse.ArgumentParser):
@@ -72,35 +77,31 @@ def main(argv=None) -> int:
     sub.add_parser("methods", help="list the methods")
     sub.add_parser("problems", help="list the compiled problems")
     sp = sub.add_parser("solve", help="solve a compiled problem and print the last sample")
-    sp.add_argument("problem")
-    sp.add_argument("method")
-    sp.add_argument("--h", type=float, required=True)
-    sp.add_argument("--t-end", type=float, required=True)
-    sc = sub.add_parser("scene", aliases=["check"],
+    sp.add_argument("problem", help="a compiled problem of mbdk problems")
+    sp.add_argument("method", help="a method of mbdk methods")
+    add_options(sp, _SOLVE_API, SOLVE_HELP, SOLVE_SKIP)
+    sub.add_parser("scenes", help="list the built-in scenes")
+    sc = sub.add_parser("check", aliases=["scene"],
                         help="check a scene and print its report: coordinates, constraint rows, "
-                        "degrees of freedom, redundant joints, each joint's class, the index")
+                        "degrees of freedom, redundant joints, each joint's class, the index, "
+                        "and what the assembly of its initial state moves")
     sc.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
     sc.add_argument("--symbolic", action="store_true",
                     help="also derive its equations with SymPy and compare with the kernel")
     run = sub.add_parser("run", help="run a scene and save its samples with the manifest")
     run.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
     run.add_argument("--method", required=True, help="a method of mbdk methods")
-    run.add_argument("--formulation", default=None)
-    run.add_argument("--h", type=float, default=None, help="the step (fixed-step methods)")
-    run.add_argument("--rtol", type=float, default=None, help="error-controlled methods")
-    run.add_argument("--atol", type=float, default=None)
-    run.add_argument("--dt-out", type=float, default=None,
-                     help="the samples' spacing (error-controlled methods)")
-    run.add_argument("--t-end", type=float, required=True)
-    run.add_argument("--t0", type=float, default=0.0)
-    run.add_argument("--every", type=int, default=1, help="keep every k-th step (fixed step)")
     run.add_argument("--out", type=Path, required=True,
                      help="the result file: .npz, .csv or .h5 (h5py)")
+    add_options(run, simulate, RUN_HELP, RUN_SKIP)
+    run.add_argument("--no-watch", dest="watch", action="store_const", const=False,
+                     default=argparse.SUPPRESS, help="turn the watch's checks off (--watch off)")
     sw = sub.add_parser("sweep", help="run a grid of runs on Dask and write its table (CSV)")
     sw.add_argument("grid", type=Path,
                     help="a TOML file with a [sweep] table or [[sweep]] tables (mbdk.sweep)")
-    sw.add_argument("--workers", type=int, default=2,
-                    help="local worker processes (0: serially in this process)")
+    sw.add_argument("--workers", type=int, default=None,
+                    help="local worker processes (default 2; 0: serially in this process); "
+                    "not with --scheduler, whose cluster has its own")
     sw.add_argument("--scheduler", default=None,
                     help="the address of an existing Dask scheduler, tcp://host:port")
     sw.add_argument("--out", type=Path, required=True, help="the table (CSV)")
@@ -170,9 +171,15 @@ def _main(args) -> int:
         for p in problems().values():
             print(f"{p.name:18s} n={p.n or 'len(y0)'}  {p.equation}  params {p.params}  "
                   f"[{p.reference}]")
+    elif args.cmd == "scenes":
+        for kind in ("planar", "spatial"):
+            for name in scenes(kind):
+                sc = scene_or_file(name)
+                print(f"{name:26s} {kind:8s} {sc.description}")
     elif args.cmd in ("scene", "check"):
         sc = scene_or_file(args.scene)
         print(scene_report(sc))
+        print(_assembly_line(sc))
         if args.symbolic:
             r = cross_check(sc)
             print("symbolic cross-check (SymPy, max relative difference at 5 random "
@@ -188,22 +195,56 @@ def _main(args) -> int:
             raise InvalidInputError(f"{args.out}: a sweep's table is a CSV file; give a name "
                                     "ending in .csv")
         check_writable(args.out)
-        table = sweep(load_grid(args.grid), workers=args.workers, scheduler=args.scheduler)
+        if args.workers is not None and args.scheduler is not None:
+            raise InvalidInputError(f"--workers {args.workers} with --scheduler "
+                                    f"{args.scheduler}: the scheduler's cluster has its own "
+                                    "workers; give one of the two")
+        table = sweep(load_grid(args.grid), workers=2 if args.workers is None else args.workers,
+                      scheduler=args.scheduler)
         table.to_csv(args.out)
         args.written = args.out
         failed = [r for r in table.rows if r["error_message"]]
         kinds = sorted({r["status"] for r in failed})
-        print(f"{len(table.rows)} runs on {table.engine} in {table.wall_time:.3g} s "
-              f"({len(failed)} failed{': ' + ', '.join(kinds) if kinds else ''}); "
-              f"wrote {args.out}")
+        print(f"{plural(len(table.rows), 'run')} on {table.engine} in "
+              f"{seconds(table.wall_time)} ({len(failed)} failed"
+              f"{': ' + ', '.join(kinds) if kinds else ''}); wrote {args.out}")
     elif args.cmd == "plot":
         args.written = plot_result(args.result, args.out)
         print(f"wrote {args.written}")
     elif args.cmd == "solve":
-        r = ode.solve_ode(args.problem, args.method, h=args.h, t_end=args.t_end)
-        print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  steps = {r.stats.steps}  "
-              f"cpu = {r.cpu_time:.3g} s  status = {r.status.name}")
+        r = ode.solve_ode(args.problem, args.method, **given(args, _SOLVE_API, SOLVE_SKIP))
+        print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  {plural(r.stats.steps, 'step')}  "
+              f"CPU {seconds(r.cpu_time)}  status {r.status.name}")
     return 0
+
+
+def plural(n: int, word: str) -> str:
+    """'1 step', '2 steps'."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+
+
+def seconds(t: float) -> str:
+    """A time in plain units: 0.25 ms, 12.3 ms, 4.89 s, 2 min 3 s."""
+    if t < 1e-3:
+        return f"{1e6 * t:.3g} us"
+    if t < 1.0:
+        return f"{1e3 * t:.3g} ms"
+    if t < 120.0:
+        return f"{t:.3g} s"
+    return f"{int(t // 60)} min {t % 60:.0f} s"
+
+
+def _assembly_line(sc) -> str:
+    """What assembling the initial state onto the joints moves (a planar scene; a spatial
+    scene's own check, mbdk.spatial_model.check_initial, refuses a start off its joints)."""
+    if sc.kind == "spatial":
+        return "assembly: a spatial scene's start is checked against its joints when it runs"
+    _q, _v, rep = assemble(sc, build_tables(sc))
+    if not rep["changes"]:
+        return "assembly: the initial state meets every joint as given (nothing moved)"
+    moved = ", ".join(f"{k} by {v:+.3g}" for k, v in rep["changes"].items())
+    return (f"assembly: {plural(rep['iterations'], 'iteration')} moved {moved} onto the "
+            "joints (the coordinates not marked given)")
 
 
 def _run(args) -> None:
@@ -211,19 +252,18 @@ def _run(args) -> None:
     the run succeeded)."""
     out = check_writable(args.out)
     sc = scene_or_file(args.scene)
-    kw = {k: v for k, v in (("h", args.h), ("rtol", args.rtol), ("atol", args.atol),
-                            ("dt_out", args.dt_out), ("formulation", args.formulation))
-          if v is not None}
-    if args.every != 1:
-        kw["every"] = args.every
-    r = simulate(sc, args.method, t_end=args.t_end, t0=args.t0, **kw)
+    kw = given(args, simulate, RUN_SKIP)
+    r = simulate(sc, args.method, **kw)
     m = r.manifest
-    control = (f"h = {args.h:g}" if args.h else
-               f"rtol = {m.get('rtol', args.rtol)}, atol = {m.get('atol', args.atol)}")
+    sc_ = m.get("step_control")
+    control = (f"{sc_['mode']} step-size control, err_rtol = {sc_['err_rtol']:g}, err_atol = "
+               f"{sc_['err_atol']:g}" if sc_ else
+               f"rtol = {m['rtol']:g}, atol = {m.get('atol')}" if "rtol" in m else
+               f"h = {m.get('h', kw.get('h'))}")
     print(f"scene {sc.name!r}: {args.method}/{m.get('formulation', '')}, {control}, "
           f"t = {r.t[0]:g} .. {r.t[-1]:g}")
-    print(f"status {r.status.name}; {r.stats.steps} steps; CPU {1e3 * r.cpu_time:.3g} ms "
-          f"(the solving thread), wall {1e3 * r.stats.wall_time:.3g} ms")
+    print(f"status {r.status.name}; {plural(r.stats.steps, 'step')}; CPU "
+          f"{seconds(r.cpu_time)} (the solving thread), wall {seconds(r.stats.wall_time)}")
     if r.residuals is not None and len(r.residuals):
         res = np.max(np.abs(r.residuals), axis=0)
         print(f"residuals (max over the samples): |Phi| {res[0]:.2e}, |Phi'| {res[1]:.2e}")
@@ -236,6 +276,9 @@ def _run(args) -> None:
                   f"{work:.6g} J at the end)")
         except MbdkErrorBase:
             pass
+    for name, w in r.wear.items():
+        print(f"wear {name!r}: {w[-1]:.6g} m^3 worn by t = {r.t[-1]:g} s")
     save_result(r, out)
     args.written = out
-    print(f"wrote {out} ({len(r.t)} samples, with the manifest)")
+    print(f"wrote {out} ({len(r.t)} samples of every output the run has, with the "
+          "manifest)")

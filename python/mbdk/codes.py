@@ -95,12 +95,14 @@ SPATIAL_JOINT_CODES = _codes(JOINT_CLASS, "spatial")
 SPATIAL_JOINT_ROWS = {e.name: e.rows["spatial"] for e in ELEMENT_KINDS
                       if e.cls == JOINT_CLASS and "spatial" in e.rows}
 SPATIAL_FORCE_CODES = _codes(FORCE_CLASS, "spatial")
+#: effects of spatial scenes (wear), written in their force table after the forces
+SPATIAL_EFFECT_CODES = _codes(EFFECT_CLASS, "spatial")
 
 # ---- the kernel's structs (kernel/src/api/mbdk_structs.f90), laid out by mbdk.options ---------
 
 #: the structs' ids (MBDK_STRUCT_*); the kernel names each, and mbdk.options checks the name
 STRUCT_IDS = {"mbdk_stats": 1, "mbdk_options": 2, "mbdk_index3_options": 3,
-              "mbdk_model_options": 4}
+              "mbdk_model_options": 4, "mbdk_spatial_options": 5, "mbdk_watch_report": 6}
 #: a field's type code (MBDK_FIELD_INT, _INT64, _DOUBLE, _POINTER) -> its numpy type
 FIELD_TYPES = {1: np.intc, 2: np.int64, 3: np.float64, 4: np.uintp}
 
@@ -157,10 +159,12 @@ ADAPTIVE_MODES = {False: 0, True: 2, "extrapolated": 2, "estimated": 1}
 INDEX3_SCALINGS = {"unscaled": 0, "book": 1, "scaled": 2}
 #: the multistep methods' start-up (mbdk_options' startup)
 STARTUP = {"rk4": 0, "bdf": 1}
-#: scene_run's dae_form by method: ida's forms of the scene's DAE (kernel/src/sundials/
-#: mbdk_ida.f90) and bdf's (MBDK_DAE_I3, MBDK_DAE_SI2 of kernel/src/dae/mbdk_mechanism_dae.f90,
-#: as MSC Adams' GSTIFF I3 and SI2); 0 for every other run
-SCENE_DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
+#: the dae_form of scene_run and spatial_run by method (the same rule for both: kernel/src/api/
+#: mbdk_entry.f90): ida's forms of the scene's DAE (kernel/src/sundials/mbdk_ida.f90) and bdf's
+#: (MBDK_DAE_I3, MBDK_DAE_SI2 of kernel/src/dae/mbdk_mechanism_dae.f90, as MSC Adams' GSTIFF I3
+#: and SI2); MBDK_DAE_NONE (0) for every other run, the index-3 family's included
+DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
+DAE_NONE = 0
 
 # ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
 # (its joint and force codes are the element registry's, above)
@@ -178,15 +182,4 @@ ROTATION_PARAMETRISATIONS = {"angles": 1, "quaternion": 2, "axis_angle": 3}
 FRAMES = {"space": 0, "body": 1}
 #: the spatial model's formulations: the planar model's codes (MBDK_FORM_* of mbdk_mechanism)
 SPATIAL_FORMULATIONS = FORMULATIONS
-#: spatial_run's dae_form by (method family, formulation): 0 the ODE methods; 1 bdf on the
-#: index-3 DAE (mbdk_mechanism_dae); 2 the index-3 family (trapezoidal_index3, newmark, hht,
-#: generalized_alpha: mbdk_trapezoidal_index3, its formulation in mbdk_index3_options); 3, 4
-#: ida in its index1 and GGL forms (mbdk_ida); 5 bdf on the stabilised index-2 form
-SPATIAL_DAE_FORMS = {("bdf", "i3"): 1, ("trapezoidal_index3", "augmented_lagrangian"): 2,
-                     ("trapezoidal_index3", "index3"): 2,
-                     ("ida", "index1"): 3, ("ida", "ggl"): 4, ("bdf", "si2"): 5}
-#: the length of spatial_run's sopt, and each entry's position (the f2py entry's argument)
-SPATIAL_OPTIONS = ("formulation", "rotation", "norm", "alpha", "beta", "norm_gain",
-                   "projection_tol", "watch_position", "watch_velocity", "watch_energy",
-                   "watch_every", "pen_alpha", "pen_omega", "pen_mu", "lock_guard",
-                   "watch_momentum", "watch_quaternion", "locate_events")
+

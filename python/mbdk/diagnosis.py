@@ -377,7 +377,7 @@ def _spatial_stability_note(scene: Scene, plan: RunPlan, r: SceneResult) -> str:
 def _spatial_drift_message(scene: Scene, plan: RunPlan, run: KernelRun) -> str:
     r, status = run.result, run.result.status
     head = f"{plan.method}/{plan.formulation} on spatial scene {scene.name!r}"
-    if status == Status.ERR_CONSTRAINT_DRIFT and int(run.watch_report[0]) == 0:
+    if status == Status.ERR_CONSTRAINT_DRIFT and run.watch_report["quantity"] == 0:
         # not the watch: the kernel found the redundant joints' dependent rows independent
         return (f"{head} stopped at t = {r.t[-1] if len(r.t) else plan.t0:.6g}: the state left "
                 "the joints so far that the rows of its redundant joints, dependent on the "

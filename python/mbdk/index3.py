@@ -32,7 +32,10 @@ difference the error estimate, and the extrapolated, projected state the result 
 stats.steps counts macro steps, three trapezoidal solves each; PI control). adaptive="estimated"
 takes one step with its local error estimated from differences of the accelerations (second
 order: on motions about equally hard throughout, no distribution of its steps saves much over
-the best fixed step; studies/step_control.py). Samples every dt_out (default h * every), each
+the best fixed step; studies/step_control.py); it is also the step-size control of the
+second-order newmark, hht and generalized_alpha members, with each member's own local error
+constants (the kernel's mbdk_index3_error_constants), while extrapolation is the trapezoidal
+rule's alone. Samples every dt_out (default h * every), each
 one landed on exactly. Rejected steps and Newton failures (the step is retried at h/4) are
 counted in stats.
 """

@@ -75,7 +75,7 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
               y0=None, params: dict | None = None, every: int = 1, nq: int = 0,
               fd_jacobian: bool = False, startup: str = "rk4", rtol: float | None = None,
               atol=None, dt_out: float = 0.0, h_min: float = 0.0, h_max: float = 0.0,
-              max_steps: int = 0, max_order: int = 0, jac=None,
+              max_steps: int = 0, max_order: int = 0, jac=None, t_eval=None,
               raise_on_failure: bool = True) -> ODEResult:
     """Integrate a compiled textbook problem (by name) or a Python f(t, y), the time loop in the
     kernel: with a fixed step h, or with error control (mbdk.methods(step="adaptive")).
@@ -94,6 +94,8 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
              sqrt(mean((e_i / (atol_i + rtol |y_i|))^2)) <= 1 (defaults 1e-6 and 1e-8; atol a
              number or one value per state).
       dt_out: a sample every dt_out from the dense output (0: t0 and t_end only).
+      t_eval: the sample times themselves (increasing, within [t0, t_end]), each from the
+             method's dense output as dt_out's are; the result holds exactly these.
       h:     the first step (default: chosen by the method); h_min, h_max: bounds (0: none);
       max_steps: the most steps, rejected ones included (0: 10^8); max_order: bdf and
              cvode_bdf 1-5, cvode_adams 1-12 (0: the highest).
@@ -108,16 +110,57 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
         return ODESolver(problem, method, h=h, t_end=t_end, t0=t0, y0=y0, params=params,
                          every=every, fd_jacobian=fd_jacobian, startup=startup, rtol=rtol,
                          atol=atol, dt_out=dt_out, h_min=h_min, h_max=h_max,
-                         max_steps=max_steps, max_order=max_order, jac=jac,
+                         max_steps=max_steps, max_order=max_order, jac=jac, t_eval=t_eval,
                          raise_on_failure=raise_on_failure).solve()
     info_m, opt, nsteps, nsamp, control, t0, t_end = _plan_of(
         method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
         max_order, fd_jacobian)
+    times, keep = sample_times(t_eval, info_m, t0, t_end, dt_out)
+    if keep is not None:
+        nsamp, control = len(times), {**control, "t_eval": int(keep.sum())}
     if jac is not None and not callable(jac):
         raise InvalidInputError(f"jac = {jac!r} must be a function jac(t, y) returning the "
                                 "n x n Jacobian")
-    return _solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure,
-                           atol, control, jac)
+    return kept(_solve_callback(problem, info_m, opt, t0, t_end, y0, nq, nsamp,
+                                raise_on_failure, atol, control, jac, times), keep)
+
+
+def sample_times(t_eval, info_m, t0: float, t_end: float, dt_out) -> tuple:
+    """(the kernel's sample times, a mask of the requested ones among them) for t_eval;
+    (empty, None) without it. The kernel samples t0 and t_end too (its first and last
+    states)."""
+    if t_eval is None:
+        return np.zeros(0), None
+    if not info_m.adaptive:
+        raise InvalidInputError(f"t_eval: {info_m.name} takes a fixed step and samples its own "
+                                "grid (every); t_eval is for the error-controlled methods, "
+                                "which sample their dense output")
+    if dt_out:
+        raise InvalidInputError(f"t_eval and dt_out = {dt_out!r}: give one of the two")
+    try:
+        te = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"t_eval = {checks.show(t_eval)} must be a list of times") \
+            from None
+    if te.ndim != 1 or te.size == 0 or not np.all(np.isfinite(te)):
+        raise InvalidInputError(f"t_eval must be a non-empty list of finite times, got shape "
+                                f"{te.shape}")
+    if np.any(np.diff(te) <= 0):
+        raise InvalidInputError("t_eval must be strictly increasing")
+    if te[0] < t0 or te[-1] > t_end:
+        raise InvalidInputError(f"t_eval runs from {te[0]:g} to {te[-1]:g}, outside "
+                                f"[t0, t_end] = [{t0:g}, {t_end:g}]")
+    times = np.unique(np.concatenate([[t0], te, [t_end]]))
+    return times, np.isin(times, te)
+
+
+def kept(result: ODEResult, keep) -> ODEResult:
+    """The result's samples at the times asked for (keep: their mask among the kernel's; None:
+    all)."""
+    if keep is not None:
+        k = keep[:len(result.t)]
+        result.t, result.y = result.t[k], result.y[k]
+    return result
 
 
 def _plan_of(method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
@@ -191,11 +234,14 @@ class ODESolver:
                  t0: float = 0.0, y0=None, params: dict | None = None, every: int = 1,
                  fd_jacobian: bool = False, startup: str = "rk4", rtol: float | None = None,
                  atol=None, dt_out: float = 0.0, h_min: float = 0.0, h_max: float = 0.0,
-                 max_steps: int = 0, max_order: int = 0, jac=None,
+                 max_steps: int = 0, max_order: int = 0, jac=None, t_eval=None,
                  raise_on_failure: bool = True):
         info_m, opt, nsteps, nsamp, control, t0, t_end = _plan_of(
             method, h, t_end, t0, every, startup, rtol, atol, dt_out, h_min, h_max, max_steps,
             max_order, fd_jacobian)
+        self._times, self._keep = sample_times(t_eval, info_m, t0, t_end, dt_out)
+        if self._keep is not None:
+            nsamp, control = len(self._times), {**control, "t_eval": int(self._keep.sum())}
         if callable(problem):
             raise NotApplicableError("ODESolver runs compiled problems; a Python f(t, y) goes "
                                      "to solve_ode (the slow path)")
@@ -241,7 +287,7 @@ class ODESolver:
         y0 = self.y0 if y0 is None else state_vector("y0", y0, self._n)
         stats, flag = np.zeros(_STATS_WORDS), _compiled.new_flag()
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
-                self._nsamp, stats)
+                self._times, self._nsamp, stats)
         try:
             if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
                 (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
@@ -253,8 +299,9 @@ class ODESolver:
                                       change=SAMPLE_ADVICE) from None
         manifest = dict(self._manifest)
         manifest["y0"] = self._y0_list if y0 is self.y0 else y0.tolist()
-        return _finish(t, y, stats, nw, status, manifest, self.problem, self.method,
-                       dict(self.params), self.t0, y0, self._raise, None, interrupted)
+        return kept(_finish(t, y, stats, nw, status, manifest, self.problem, self.method,
+                            dict(self.params), self.t0, y0, self._raise, None, interrupted),
+                    self._keep)
 
 
 #: what to change when a solve's samples do not fit in memory
@@ -427,7 +474,7 @@ def _finish(t, y, stats, nw, status, manifest, problem, method, params, t0, y0,
 
 
 def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure, atol,
-                    control, jac=None):
+                    control, jac=None, times=None):
     if getattr(_IN_CALLBACK, "active", False):
         raise NotApplicableError(
             "solve_ode with a Python right-hand side was called from inside a Python right-hand "
@@ -489,8 +536,9 @@ def _solve_callback(fun, info_m, opt, t0, t_end, y0, nq, nsamp, raise_on_failure
     with _CALLBACK_LOCK:
         _IN_CALLBACK.active = True
         try:
-            t, y, nw, status = _kernel.solve_callback(cb, cb_jac, int(jac is not None), y0, t0,
-                                                      t_end, opt.pack(), atol_v, nsamp, stats)
+            t, y, nw, status = _kernel.solve_callback(
+                cb, cb_jac, int(jac is not None), y0, t0, t_end, opt.pack(), atol_v,
+                np.zeros(0) if times is None else times, nsamp, stats)
         except MemoryError as exc:   # the sample arrays, allocated by the f2py layer
             raise checks.memory_error(exc, nbytes, what=what, change=SAMPLE_ADVICE) from None
         finally:

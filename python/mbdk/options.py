@@ -119,7 +119,7 @@ def unpack(cname: str, words) -> dict:
 
 
 def empty(cname: str) -> np.ndarray:
-    """Zeroed words for a struct the kernel writes (statistics)."""
+    """Zeroed words for a struct the kernel writes (statistics, a watch report)."""
     return np.zeros(layout(cname).itemsize // 8)
 
 
@@ -209,6 +209,32 @@ class ModelOptions(_Struct):
     watch_momentum: float = 1e-2   # the momenta the scene conserves (mbdk_watch.f90)
 
 
+@dataclass(frozen=True)
+class SpatialOptions(_Struct):
+    """struct mbdk_spatial_options: a spatial scene's model (kernel/src/spatial/
+    mbdk_spatial_model.f90); the formulations' parameters carry ModelOptions' names."""
+
+    _cname = "mbdk_spatial_options"
+    baumgarte_alpha: float = 0.0
+    baumgarte_beta: float = 0.0
+    penalty_alpha: float = 1e7
+    penalty_omega: float = 10.0
+    penalty_mu: float = 1.0
+    lock_guard: float = 0.0        # angle sets: MBDK_ERR_SINGULAR_MATRIX this near the lock
+    norm_gain: float = 10.0        # the quaternion norm's stabilisation, 1/s
+    projection_tol: float = 1e-12
+    watch_position: float = 1e-2
+    watch_velocity: float = 1e-2
+    watch_energy: float = 0.1
+    watch_momentum: float = 1e-2
+    watch_quaternion: float = 0.1
+    formulation: int = 1           # MBDK_FORM_*, as ModelOptions'
+    rotation: int = 1              # 1 quaternion, 2 euler313, 3 cardan123
+    norm: int = 1                  # 1 project, 2 stabilise, 3 none
+    watch_every: int = 16
+    locate_events: int = 1
+
+
 #: the share of the smallest atol an error-controlled method's projection leaves in Phi when
 #: projection_tol is not given: a multistep method (bdf) keeps the projection's move in its
 #: history, and a leftover up to atol itself would enter its error estimate as noise of the
@@ -230,7 +256,7 @@ def projection_tol_for(given, atol=None) -> float:
 
 
 MIRRORS = {"mbdk_options": ODEOptions, "mbdk_index3_options": Index3Options,
-           "mbdk_model_options": ModelOptions}
+           "mbdk_model_options": ModelOptions, "mbdk_spatial_options": SpatialOptions}
 
 
 def field_names(cls) -> list[str]:

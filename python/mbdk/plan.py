@@ -20,22 +20,22 @@ import numpy as np
 
 from . import _kernel, alpha_family, checks
 from .checks import show
-from .codes import (ADAPTIVE_MODES, FORMULATIONS, INDEX3_FORMULATIONS, NORMS, OUTPUTS,
-                    ROTATIONS, SCENE_DAE_FORMS, SOLVERS, SPATIAL_DAE_FORMS,
-                    SPATIAL_FORMULATIONS, SPATIAL_OPTIONS, STARTUP)
+from .codes import (ADAPTIVE_MODES, DAE_FORMS, DAE_NONE, FORMULATIONS, INDEX3_FORMULATIONS, NORMS,
+                    OUTPUTS, ROTATIONS, SOLVERS, SPATIAL_FORMULATIONS, STARTUP)
 from .errors import InvalidInputError, NotApplicableError
 from .index3 import factorisation
 from .methods import MethodInfo, method as method_info
 from .model import model_options
 from .ode import DEFAULT_MAX_STEPS, RTOL_FLOOR, adaptive_options, plan as step_plan
-from .options import Index3Options, ModelOptions, ODEOptions, projection_tol_for
+from .options import (Index3Options, ModelOptions, ODEOptions, SpatialOptions,
+                      projection_tol_for)
 from .scene import Scene
 from .watch import Watch, as_watch
 
 _INT_MAX = 2**31 - 1
-#: ida's and bdf's forms of the planar scene's DAE (scene_run's dae_form)
-IDA_FORMULATIONS = SCENE_DAE_FORMS["ida"]
-BDF_DAE_FORMULATIONS = SCENE_DAE_FORMS["bdf"]
+#: ida's and bdf's forms of a scene's DAE (the f2py entries' dae_form)
+IDA_FORMULATIONS = DAE_FORMS["ida"]
+BDF_DAE_FORMULATIONS = DAE_FORMS["bdf"]
 BDF_DAE_FORMS = {"i3": "index 3 (GSTIFF I3): q' = v, M v' = f - D^T lam, 0 = Phi, index-scaled "
                        "Newton, error test on q and on h times v (index 2)",
                  "si2": "stabilised index 2 (GSTIFF SI2, GGL): q' = v - D^T mu, "
@@ -141,11 +141,11 @@ class RunPlan:
     index3: bool = False           # trapezoidal_index3
     ida: bool = False
     dae_bdf: bool = False          # bdf on the DAE itself (i3, si2)
-    dae_form: int = 0              # the f2py entry's dae_form
+    dae_form: int = DAE_NONE       # the f2py entry's dae_form
     ode_options: ODEOptions = field(default_factory=ODEOptions)
     index3_options: Index3Options = field(default_factory=Index3Options)
     model_options: ModelOptions | None = None      # planar
-    spatial_options: np.ndarray | None = None      # spatial: spatial_run's sopt
+    spatial_options: SpatialOptions | None = None  # spatial
     want: int = sum(OUTPUTS.values())
     watch: Watch = field(default_factory=Watch)
     projection_tol: float = 0.0
@@ -369,8 +369,8 @@ def _planar_plan(scene: Scene, req: Request) -> RunPlan:
     watch_ = as_watch(req.watch)
     h, rtol, atol, every = _step_and_tolerances(req, info_m)
     dae_bdf = info_m.family == "variable_bdf" and formulation in BDF_DAE_FORMULATIONS
-    dae_form = (IDA_FORMULATIONS.get(formulation, 0) if ida else
-                BDF_DAE_FORMULATIONS.get(formulation, 0) if dae_bdf else 0)
+    dae_form = (IDA_FORMULATIONS.get(formulation, DAE_NONE) if ida else
+                BDF_DAE_FORMULATIONS.get(formulation, DAE_NONE) if dae_bdf else DAE_NONE)
     projection_given = req.projection_tol is not None
     projection_tol = projection_tol_for(
         req.projection_tol,
@@ -426,7 +426,7 @@ def _spatial_formulation(info_m: MethodInfo, method: str, formulation, scene: Sc
     """The formulation of a spatial run: the method's default, or the one given if the spatial
     model runs it with this method (NotApplicableError otherwise)."""
     index3, ida = info_m.family == "dae_index3", info_m.family == "ida"
-    ida_forms = [form for (m, form) in SPATIAL_DAE_FORMS if m == "ida"]
+    ida_forms = list(IDA_FORMULATIONS)
     if formulation is not None and not isinstance(formulation, str):
         checks.choice("formulation", formulation,
                       list(INDEX3_FORMULATIONS) if index3 else ida_forms if ida else
@@ -566,21 +566,20 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
                          req.newton_rtol, req.newton_atol, adaptive)
     w = as_watch(req.watch)
     model_form = "reduced" if dae or ida else "projection" if index3 else formulation
-    values = {"formulation": SPATIAL_FORMULATIONS[model_form],
-              "rotation": ROTATIONS[scene.rotation], "norm": NORMS[scene.quaternion_norm],
-              "alpha": plan_["alpha"], "beta": plan_["beta"], "norm_gain": scene.norm_gain,
-              "projection_tol": projection_tol, "watch_position": w.position or 0.0,
-              "watch_velocity": w.velocity or 0.0, "watch_energy": w.energy or 0.0,
-              "watch_every": w.every, "pen_alpha": penalty[0], "pen_omega": penalty[1],
-              "pen_mu": penalty[2], "lock_guard": float(req.lock_guard),
-              "watch_momentum": w.momentum or 0.0, "watch_quaternion": w.quaternion or 0.0,
-              "locate_events": float(bool(req.locate_events))}
-    sopt = np.array([values[k] for k in SPATIAL_OPTIONS], dtype=float)
+    sopt = SpatialOptions(
+        formulation=SPATIAL_FORMULATIONS[model_form], rotation=ROTATIONS[scene.rotation],
+        norm=NORMS[scene.quaternion_norm], baumgarte_alpha=plan_["alpha"],
+        baumgarte_beta=plan_["beta"], norm_gain=scene.norm_gain, projection_tol=projection_tol,
+        watch_position=w.position or 0.0, watch_velocity=w.velocity or 0.0,
+        watch_energy=w.energy or 0.0, watch_every=w.every, penalty_alpha=penalty[0],
+        penalty_omega=penalty[1], penalty_mu=penalty[2], lock_guard=float(req.lock_guard),
+        watch_momentum=w.momentum or 0.0, watch_quaternion=w.quaternion or 0.0,
+        locate_events=int(bool(req.locate_events)))
     return RunPlan(kind="spatial", method=method, info=info_m, formulation=formulation,
                    request=req, h=req.h, rtol=rtol, every=int(req.every), index3=index3,
                    ida=ida, dae_bdf=dae,
-                   dae_form=SPATIAL_DAE_FORMS[("trapezoidal_index3" if index3 else method,
-                                               formulation)] if index3 or ida or dae else 0,
+                   dae_form=(IDA_FORMULATIONS[formulation] if ida else
+                             BDF_DAE_FORMULATIONS[formulation] if dae else DAE_NONE),
                    ode_options=replace(plan_["ode"], method=info_m.id), spatial_options=sopt,
                    index3_options=plan_.get("index3", Index3Options()),
                    adaptive=bool(plan_.get("adaptive", False)),
@@ -592,6 +591,14 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
 
 
 # ---- the option structs ----------------------------------------------------------------------
+
+def _estimate_text(opt: Index3Options) -> str:
+    """The estimated mode's local error in the manifest, with the member's constants (the
+    kernel's, mbdk_index3_error_constants: h^2/12 and h^3/12 for the trapezoidal rule)."""
+    lte_q, lte_v, _ = _kernel.index3_error_constants(opt.pack())
+    return (f"{lte_q:.6g} h^2 |a+ - a| on q, {lte_v:.6g} h^3 |a''| on v (the step's local "
+            "errors, the derivatives from divided differences of the accelerations)")
+
 
 def adaptive_mode(adaptive) -> int:
     """The kernel's code of an adaptive= value: a bool (numpy's too) or a mode's name; other
@@ -741,12 +748,19 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
             "local error, so an error test on q and v would shrink h without end (studies/"
             "index3.py, table index3_long_runs). Use formulation='augmented_lagrangian' for "
             "step-size control, or a fixed h")
-    if adaptive and family.as_options() != alpha_family.AlphaParameters().as_options():
+    trapezoidal = family.as_options() == alpha_family.AlphaParameters().as_options()
+    if adaptive and not family.second_order:
         raise NotApplicableError(
-            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): the step-size "
-            "control's error estimates are the trapezoidal rule's (its local error from the "
-            "accelerations, or Richardson extrapolation at its order); run "
-            "trapezoidal_index3 under step-size control, or this method at a fixed h")
+            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): this member is "
+            "first order (gamma != 1/2 - alpha_m + alpha_f), and the step-size control's "
+            "estimates are those of a second-order step; run it at a fixed h, or take "
+            "gamma = 1/2 - alpha_m + alpha_f")
+    if adaptive and not trapezoidal and mode == ADAPTIVE_MODES["extrapolated"]:
+        raise NotApplicableError(
+            f"adaptive={given3['adaptive']!r} with {method} ({family.spec}): Richardson "
+            "extrapolation's macro step is the trapezoidal rule's alone (an extrapolated "
+            "state would leave the pseudo-acceleration's history behind); use "
+            "adaptive='estimated', the member's own local error estimate")
     if adaptive:
         err_rtol, err_atol, dt_out, h_min, h_max = _index3_control(d, given3, h, every, t0,
                                                                    t_end)
@@ -790,8 +804,8 @@ def index3_plan(formulation, h, t_end, t0, every, alpha, newton_rtol, newton_ato
         manifest["step_control"] = {"err_rtol": err_rtol, "err_atol": err_atol,
                                     "dt_out": dt_out, "h0": h, "h_min": h_min, "h_max": h_max,
                                     "mode": "estimated" if estimated else "extrapolated",
-                                    "estimate": ("h^2/12 |a+ - a| on q, h^3/12 |a''| on v"
-                                                 if estimated else EXTRAPOLATED_TEXT)}
+                                    "estimate": (_estimate_text(opt) if estimated
+                                                 else EXTRAPOLATED_TEXT)}
     return {"ode": ODEOptions(), "index3": opt, "nsamp": int(nsamp),
             # adaptive: the steps are not known in advance, the run always counts as long
             # (a worker thread, interruptible)

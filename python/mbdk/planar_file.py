@@ -98,10 +98,11 @@ import math
 from pathlib import Path
 
 from .checks import NUMBER_MAX, NUMBER_MIN, length_scale, show
-from .codes import JOINT_ROWS, WEAR_LAWS, WEAR_LOADS
+from .codes import JOINT_ROWS
 from .scene import (FORCE_TYPES, GROUND, GROUND_JOINTS, JOINT_TYPES, Body, Force, Joint, Scene,
-                    SceneError, Wear, body_kind_problem)
-from .scene_fields import FieldReader, read_friction, section_items
+                    SceneError, body_kind_problem)
+from .scene_fields import (FieldReader, check_wear_contacts, read_friction, read_wear,
+                           section_items, wear_table)
 
 
 def _body(r: FieldReader) -> Body:
@@ -318,33 +319,6 @@ def _shape(r: FieldReader, fld: str, kinds: tuple) -> tuple:
     return out
 
 
-def _wear(r: FieldReader) -> Wear:
-    name = r.name("name", required=False, default=f"wear{r.index + 1}")
-    law = r.name("law")
-    if law not in WEAR_LAWS:
-        raise r.err("law", f"= {law!r} is not a wear law; known: {', '.join(WEAR_LAWS)}")
-    load = r.name("load")
-    contact, _, qty = load.rpartition(".")
-    if not contact or qty not in WEAR_LOADS:
-        raise r.err("load", f"= {load!r} must be CONTACT.normal_force or CONTACT.friction_force")
-    w = Wear(name, law, load, r.num("coefficient", required=True, nonneg=True),
-             initial=r.num("initial", 0.0, nonneg=True))
-    if law == "gear":
-        w.radius = r.num("radius", required=True, nonneg=True)
-        w.temperature = r.num("temperature", required=True, positive=True)
-        w.a_x = r.num("a_x", w.a_x, positive=True)
-        w.t0 = r.num("t0", w.t0, positive=True)
-        w.activation_energy = r.num("activation_energy", w.activation_energy, nonneg=True)
-        w.gas_constant = r.num("gas_constant", w.gas_constant, positive=True)
-    elif law == "knee":
-        c = r.get("slide_roll", required=True)
-        if not isinstance(c, list) or len(c) != 4:
-            raise r.err("slide_roll", f"= {show(c)} must be four finite numbers [c0, c1, c2, c3]")
-        w.slide_roll = tuple(r.entries("slide_roll", c, "four"))
-    r.done()
-    return w
-
-
 def planar_scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     """Builds and checks a Scene of planar bodies from the parsed TOML structure."""
     known = {"scene", "body", "joint", "force", "wear"}
@@ -365,7 +339,7 @@ def planar_scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     bodies = [_body(FieldReader(source, "body", i, t)) for i, t in enumerate(items("body"))]
     joints = [_joint(FieldReader(source, "joint", i, t)) for i, t in enumerate(items("joint"))]
     forces = [_force(FieldReader(source, "force", i, t)) for i, t in enumerate(items("force"))]
-    wear = [_wear(FieldReader(source, "wear", i, t)) for i, t in enumerate(items("wear"))]
+    wear = [read_wear(FieldReader(source, "wear", i, t)) for i, t in enumerate(items("wear"))]
     sc = Scene(name, bodies, joints, forces, desc, source, wear)
     check_scene(sc)
     sc._read_as = _snapshot(sc)   # what checked() compares against
@@ -459,16 +433,7 @@ def planar_scene_to_dict(sc: Scene) -> dict:
             if t != "coordinate_spring":
                 d["damping"] = f.damping
         forces.append(d)
-    wear = []
-    for w in sc.wear:
-        d = {"name": w.name, "law": w.law, "load": w.load, "coefficient": w.coefficient,
-             "initial": w.initial}
-        if w.law == "gear":
-            d.update(radius=w.radius, temperature=w.temperature, a_x=w.a_x, t0=w.t0,
-                     activation_energy=w.activation_energy, gas_constant=w.gas_constant)
-        elif w.law == "knee":
-            d["slide_roll"] = _seq(w.slide_roll)
-        wear.append(d)
+    wear = [wear_table(w) for w in sc.wear]
     out = {"scene": {"name": sc.name, "description": sc.description}, "body": bodies,
            "joint": joints, "force": forces}
     if wear:
@@ -626,18 +591,7 @@ def check_scene(sc: Scene) -> None:
         if f.body1 == f.body2:
             raise SceneError(f"{src}: force {f.name!r}: field 'body2' = {f.body2!r} is body1 "
                              "itself")
-    for w in sc.wear:
-        if ("wear", w.name) in seen:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'name' is used twice")
-        seen[("wear", w.name)] = True
-        c = contacts.get(w.contact)
-        if c is None:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r} names no contact"
-                             f"; contacts: {', '.join(contacts) or 'none'}")
-        if w.quantity == "friction_force" and c.friction is None:
-            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
-                             f"{c.name!r} has no friction; give it a friction table, or use "
-                             f"'{c.name}.normal_force'")
+    check_wear_contacts(sc, {f.name: f.friction is not None for f in contacts.values()}, seen)
     check_lengths(sc)
     rows = sum(JOINT_ROWS[j.type] for j in sc.joints)
     if rows > 3 * len(sc.bodies):

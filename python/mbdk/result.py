@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import NotApplicableError, Status
+from .errors import InvalidInputError, NotApplicableError, Status
 from .exact import exact_solution
 from .options import unpack
 from .problems import problems
@@ -164,6 +164,24 @@ class SceneResult(Result):
     def residual_names(self) -> tuple:
         return RESIDUAL_NAMES[self.kind]
 
+    @property
+    def q_names(self) -> list[str]:
+        """The columns of q, "body.coordinate": x, y, angle (planar); x, y, z and p0..p3 or
+        a1..a3 (spatial)."""
+        if self.kind == "spatial":
+            rot = (["p0", "p1", "p2", "p3"] if self.rotation == "quaternion"
+                   else ["a1", "a2", "a3"])
+            return [f"{b}.{c}" for b in self.bodies for c in ("x", "y", "z", *rot)]
+        return [f"{b}.{c}" for b in self.bodies for c in ("x", "y", "angle")]
+
+    @property
+    def v_names(self) -> list[str]:
+        """The columns of v: dx, dy, dangle (planar); vx, vy, vz, Wx, Wy, Wz (spatial)."""
+        if self.kind == "spatial":
+            return [f"{b}.{c}" for b in self.bodies for c in ("vx", "vy", "vz", "Wx", "Wy",
+                                                               "Wz")]
+        return [f"{b}.d{c}" for b in self.bodies for c in ("x", "y", "angle")]
+
     def reaction(self, joint: str) -> np.ndarray:
         """(nsamp, 3): Fx, Fy, moment of the named joint on its body1 (planar runs)."""
         if self.reactions is None:
@@ -172,6 +190,9 @@ class SceneResult(Result):
                                          "yet; its multipliers are in result.multipliers")
             raise NotApplicableError("this run did not compute reactions: pass outputs "
                                      "including 'reactions' to simulate")
+        if joint not in self.joints:
+            raise InvalidInputError(f"joint {joint!r}: the scene has no such joint; its joints "
+                                    f"are {', '.join(map(repr, self.joints)) or 'none'}")
         return self.reactions[:, self.joints.index(joint), :]
 
     def energy_balance(self) -> np.ndarray:
@@ -229,7 +250,7 @@ class KernelRun:
 
     result: SceneResult
     interrupted: bool
-    watch_report: np.ndarray
+    watch_report: dict              # mbdk_watch_report_t by name (mbdk.options.unpack)
     invariants: np.ndarray          # (ninv, 7)
     y0: np.ndarray
     tables: object = None

@@ -3,14 +3,16 @@ the leading comment lines) or .h5 / .hdf5 (h5py, where it is installed).
 
     >>> r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=10)
     >>> mbdk.results_io.save_result(r, "run.npz")
-    >>> d = mbdk.results_io.load_result("run.npz")     # d["t"], d["q"], d["manifest"], ...
+    >>> r2 = mbdk.results_io.load_result("run.npz")    # a SceneResult again: r2.t, r2.q, ...
 
 What is written: t; the coordinates q and the velocities v (of a spatial body the centre's
 velocity and the body-frame angular velocity) with their column names; where the run computed
-them, the energy, the work W of dampers, loads and drivers as the run integrated it at every
-step (not a quadrature over the samples), the energy balance E - E0 - W and the residuals
-(residual_names says which); the multipliers; the status and the manifest (version, method, formulation, step or tolerances,
-compiler flags). A file is written under a temporary name beside the target and renamed
+them, the accelerations, the multipliers, the joints' reactions, the energy and its parts, the
+work W of dampers, loads and drivers as the run integrated it at every step (not a quadrature
+over the samples), the energy balance E - E0 - W, the residuals (residual_names says which),
+the wear elements' volumes and the Newton iterations per sample; the status, the statistics,
+the names of bodies, joints and wear elements, and the manifest (version, method,
+formulation, step or tolerances, compiler flags). load_result gives back the SceneResult. A file is written under a temporary name beside the target and renamed
 when complete, so a failed or interrupted write leaves no partial file with the target's name.
 """
 from __future__ import annotations
@@ -19,17 +21,20 @@ import csv
 import json
 import os
 import zipfile
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InvalidInputError, NotApplicableError
+from .errors import InvalidInputError, Status, status_message
+from .result import SceneResult, Stats
 
 FORMATS = {".npz": "npz", ".csv": "csv", ".h5": "h5", ".hdf5": "h5"}
-_PLANAR = ("x", "y", "angle")
 #: the CSV columns of SceneResult.residuals, by SceneResult.residual_names
 _RESIDUAL_COLUMNS = {"position": "residual_position", "velocity": "residual_velocity",
                      "acceleration": "residual_acceleration", "quaternion_norm": "quaternion_norm"}
+#: a reaction's three columns (Fx, Fy and the moment on the joint's body1)
+_REACTION = ("Fx", "Fy", "M")
 
 
 def _format(path: Path) -> str:
@@ -67,42 +72,38 @@ def _h5py():
     return h5py
 
 
-def _columns(r) -> tuple[list, list]:
-    """The names of q's and of the velocities' columns."""
-    bodies = list(r.bodies or [])
-    if r.kind == "spatial":
-        nqb = r.q.shape[1] // max(len(bodies), 1)
-        rot = (["p0", "p1", "p2", "p3"] if nqb == 7 else ["a1", "a2", "a3"])
-        qn = [f"{b}.{c}" for b in bodies for c in ("x", "y", "z", *rot)]
-        vn = [f"{b}.{c}" for b in bodies for c in ("vx", "vy", "vz", "Wx", "Wy", "Wz")]
-        return qn, vn
-    qn = [f"{b}.{c}" for b in bodies for c in _PLANAR]
-    vn = [f"{b}.d{c}" for b in bodies for c in _PLANAR]
-    if len(qn) != r.q.shape[1]:
-        qn = [f"q{k}" for k in range(r.q.shape[1])]
-        vn = [f"v{k}" for k in range(r.q.shape[1])]
-    return qn, vn
+def _array(x):
+    return None if x is None else np.asarray(x)
 
 
 def result_arrays(r) -> dict:
-    """The arrays and names save_result writes (None where the run did not compute them)."""
-    qn, vn = _columns(r)
-    energy = r.energy
-    balance = work = None
-    if energy is not None:
-        try:
-            balance = r.energy_balance()
-            work = np.asarray(r.energy_parts["work"])
-        except NotApplicableError:       # an output the run was not asked for
-            balance = None
-    return {"t": np.asarray(r.t), "q": np.asarray(r.q), "velocities": np.asarray(r.v),
-            "q_names": qn, "velocity_names": vn,
-            "energy": None if energy is None else np.asarray(energy),
-            "work": work, "energy_balance": balance,
-            "residuals": None if r.residuals is None else np.asarray(r.residuals),
+    """The arrays save_result writes, one row per sample (None where the run did not compute
+    them), and "meta": what else rebuilds the result (names, kind, status, statistics)."""
+    parts = dict(r.energy_parts or {})
+    balance = None
+    if r.energy is not None and "work" in parts:
+        balance = r.energy_balance()
+    wear_names = list(r.wear)
+    meta = {"status": r.status.name, "message": r.message, "kind": r.kind,
+            "rotation": r.rotation, "rotations": r.rotations, "bodies": list(r.bodies),
+            "joints": list(r.joints), "q_names": r.q_names, "velocity_names": r.v_names,
+            "wear_names": wear_names, "energy_part_names": list(parts),
             "residual_names": [_RESIDUAL_COLUMNS[n] for n in r.residual_names],
-            "multipliers": None if r.multipliers is None else np.asarray(r.multipliers),
-            "status": r.status.name, "manifest": r.manifest}
+            "stats": asdict(r.stats), "drift": r.drift, "assembly": r.assembly,
+            "visits": r.visits}
+    arrays = {"t": np.asarray(r.t), "q": np.asarray(r.q), "velocities": np.asarray(r.v),
+              "accelerations": _array(r.a), "multipliers": _array(r.multipliers),
+              "reactions": _array(r.reactions), "energy": _array(r.energy),
+              "energy_balance": balance, "residuals": _array(r.residuals),
+              "iterations": _array(r.iterations),
+              "wear": (np.column_stack([np.asarray(r.wear[k]) for k in wear_names])
+                       if wear_names else None)}
+    for k, v in parts.items():
+        arrays[f"energy_{k}"] = np.asarray(v)
+    arrays["work"] = arrays.get("energy_work")
+    arrays.pop("energy_work", None)
+    return {"arrays": {k: v for k, v in arrays.items() if v is not None}, "meta": meta,
+            "manifest": r.manifest}
 
 
 def write_atomic(path: Path, write) -> None:
@@ -123,52 +124,71 @@ def write_atomic(path: Path, write) -> None:
         raise
 
 
+def _csv_columns(arrays: dict, meta: dict) -> tuple[list, list]:
+    """(column names, blocks of columns) of the CSV layout: t, q, v, then every output with
+    a prefix that names it (a:, reaction:, energy:, wear:) so that the reader can sort them."""
+    cols, blocks = ["t"], [arrays["t"][:, None]]
+    cols += meta["q_names"] + meta["velocity_names"]
+    blocks += [arrays["q"], arrays["velocities"]]
+    named = {"accelerations": [f"a:{n}" for n in meta["velocity_names"]],
+             "residuals": meta["residual_names"],
+             "wear": [f"wear:{n}" for n in meta["wear_names"]]}
+    for name, a in arrays.items():
+        if name in ("t", "q", "velocities") or a.size == 0 and a.ndim > 1:
+            continue
+        if name == "reactions":
+            cols += [f"reaction:{j}.{c}" for j in meta["joints"] for c in _REACTION]
+            blocks.append(a.reshape(len(a), -1))
+        elif name == "multipliers":
+            cols += [f"lambda{k + 1}" for k in range(a.shape[1])]
+            blocks.append(a)
+        elif a.ndim == 2:
+            cols += named[name][:a.shape[1]]
+            blocks.append(a)
+        else:
+            cols.append(name)
+            blocks.append(a[:, None].astype(float))
+    return cols, blocks
+
+
 def save_result(r, path) -> Path:
-    """Writes the run r (a SceneResult) to path, by its suffix."""
+    """Writes the run r (a SceneResult) to path, by its suffix: every output it has (q, v, a,
+    the multipliers, the joints' reactions, the energy and its parts, W, the balance, the
+    residuals, the wear volumes, the Newton iterations), its statistics, status and manifest."""
     path = check_writable(path)
     a = result_arrays(r)
+    arrays, meta = a["arrays"], a["meta"]
     manifest = json.dumps(a["manifest"], default=str)
+    meta_text = json.dumps(meta, default=str)
     fmt = _format(path)
     if fmt == "npz":
         def write(tmp):
-            arrays = {k: v for k, v in a.items() if isinstance(v, np.ndarray)}
             with open(tmp, "wb") as fh:
-                np.savez(fh, **arrays, q_names=np.array(a["q_names"]),
-                         velocity_names=np.array(a["velocity_names"]),
-                         status=np.array(a["status"]), manifest=np.array(manifest))
+                np.savez(fh, **arrays, q_names=np.array(meta["q_names"]),
+                         velocity_names=np.array(meta["velocity_names"]),
+                         status=np.array(meta["status"]), manifest=np.array(manifest),
+                         meta=np.array(meta_text))
     elif fmt == "h5":
         h5py = _h5py()
 
         def write(tmp):
             with h5py.File(tmp, "w") as fh:
-                for k, v in a.items():
-                    if isinstance(v, np.ndarray):
-                        fh.create_dataset(k, data=v)
-                fh.attrs["q_names"] = json.dumps(a["q_names"])
-                fh.attrs["velocity_names"] = json.dumps(a["velocity_names"])
-                fh.attrs["status"] = a["status"]
+                for k, v in arrays.items():
+                    fh.create_dataset(k, data=v)
+                fh.attrs["q_names"] = json.dumps(meta["q_names"])
+                fh.attrs["velocity_names"] = json.dumps(meta["velocity_names"])
+                fh.attrs["status"] = meta["status"]
                 fh.attrs["manifest"] = manifest
+                fh.attrs["meta"] = meta_text
     else:
         def write(tmp):
-            cols, blocks = ["t"], [a["t"][:, None]]
-            cols += a["q_names"] + a["velocity_names"]
-            blocks += [a["q"], a["velocities"]]
-            for name in ("energy", "work", "energy_balance"):
-                if a[name] is not None:
-                    cols.append(name)
-                    blocks.append(a[name][:, None])
-            if a["residuals"] is not None:
-                res = a["residuals"]
-                cols += a["residual_names"][:res.shape[1]]
-                blocks.append(res)
-            if a["multipliers"] is not None and a["multipliers"].size:
-                cols += [f"lambda{k + 1}" for k in range(a["multipliers"].shape[1])]
-                blocks.append(a["multipliers"])
+            cols, blocks = _csv_columns(arrays, meta)
             data = np.hstack(blocks)
             with open(tmp, "w", newline="") as fh:
-                fh.write(f"# status: {a['status']}\n# manifest: {manifest}\n"
-                         f"# columns: t, {len(a['q_names'])} coordinates, "
-                         f"{len(a['velocity_names'])} velocities, then the outputs\n")
+                fh.write(f"# status: {meta['status']}\n# manifest: {manifest}\n"
+                         f"# meta: {meta_text}\n"
+                         f"# columns: t, {len(meta['q_names'])} coordinates, "
+                         f"{len(meta['velocity_names'])} velocities, then the outputs\n")
                 w = csv.writer(fh)
                 w.writerow(cols)
                 for row in data:
@@ -177,16 +197,57 @@ def save_result(r, path) -> Path:
     return path
 
 
-def load_result(path) -> dict:
-    """What save_result wrote: t, q, velocities, q_names, velocity_names, energy, work,
-    energy_balance, residuals, multipliers (None where absent), status, manifest."""
+def _read_csv(path: Path) -> tuple[dict, dict]:
+    """(arrays, header) of a CSV result: the header lines by key (status, manifest, meta,
+    columns), the columns sorted back into save_result's arrays by their names."""
+    header = {}
+    with open(path, newline="") as fh:
+        pos = fh.tell()
+        line = fh.readline()
+        while line.startswith("# "):
+            key, _, value = line[2:].partition(": ")
+            header[key] = value.strip()
+            pos = fh.tell()
+            line = fh.readline()
+        fh.seek(pos)
+        rows = list(csv.reader(fh))
+    layout = header["columns"].split()
+    nq, nv = int(layout[1]), int(layout[3])
+    cols, data = rows[0], np.array(rows[1:], dtype=float).reshape(-1, len(rows[0]))
+    arrays = {"t": data[:, 0], "q": data[:, 1:1 + nq], "velocities": data[:, 1 + nq:1 + nq + nv]}
+    header["q_names"], header["velocity_names"] = cols[1:1 + nq], cols[1 + nq:1 + nq + nv]
+    groups: dict = {}
+    for k, c in enumerate(cols[1 + nq + nv:], start=1 + nq + nv):
+        if c.startswith("a:"):
+            groups.setdefault("accelerations", []).append(data[:, k])
+        elif c.startswith("reaction:"):
+            groups.setdefault("reactions", []).append(data[:, k])
+        elif c.startswith("wear:"):
+            groups.setdefault("wear", []).append(data[:, k])
+        elif c.startswith("lambda"):
+            groups.setdefault("multipliers", []).append(data[:, k])
+        elif c in _RESIDUAL_COLUMNS.values():
+            groups.setdefault("residuals", []).append(data[:, k])
+        else:
+            arrays[c] = data[:, k]
+    for name, columns in groups.items():
+        arrays[name] = np.stack(columns, axis=1)
+    if "reactions" in arrays:
+        arrays["reactions"] = arrays["reactions"].reshape(len(data), -1, 3)
+    if "iterations" in arrays:
+        arrays["iterations"] = arrays["iterations"].astype(int)
+    return arrays, header
+
+
+def load_result(path) -> SceneResult:
+    """The run save_result wrote, as the SceneResult a run returns (a file written before the
+    result files held their metadata gives what it has: its outputs, status and manifest)."""
     path = Path(path)
     fmt = _format(path)
     if not path.is_file():
         raise InvalidInputError(f"{path}: no such result file")
     if path.stat().st_size == 0:
         raise _not_a_result(path, "an empty file")
-    out = {k: None for k in ("energy", "work", "energy_balance", "residuals", "multipliers")}
     try:
         if fmt == "npz":
             if not zipfile.is_zipfile(path):
@@ -196,39 +257,23 @@ def load_result(path) -> dict:
                 if missing:
                     raise _not_a_result(path, f"no {missing[0]!r} array; it holds "
                                         f"{', '.join(z.files) or 'nothing'}")
-                for k in z.files:
-                    out[k] = z[k]
-            out["q_names"] = [str(x) for x in out["q_names"]]
-            out["velocity_names"] = [str(x) for x in out["velocity_names"]]
-            out["status"] = str(out["status"])
-            out["manifest"] = json.loads(str(out["manifest"]))
+                arrays = {k: z[k] for k in z.files}
+            header = {k: str(arrays.pop(k)) for k in ("status", "manifest", "meta")
+                      if k in arrays}
+            header["q_names"] = [str(x) for x in arrays.pop("q_names")]
+            header["velocity_names"] = [str(x) for x in arrays.pop("velocity_names")]
         elif fmt == "h5":
             with _h5py().File(path, "r") as fh:
-                for k in fh:
-                    out[k] = fh[k][()]
-                out["q_names"] = json.loads(fh.attrs["q_names"])
-                out["velocity_names"] = json.loads(fh.attrs["velocity_names"])
-                out["status"] = str(fh.attrs["status"])
-                out["manifest"] = json.loads(fh.attrs["manifest"])
+                arrays = {k: fh[k][()] for k in fh}
+                header = {k: str(fh.attrs[k]) for k in ("status", "manifest", "meta")
+                          if k in fh.attrs}
+                header["q_names"] = json.loads(fh.attrs["q_names"])
+                header["velocity_names"] = json.loads(fh.attrs["velocity_names"])
         else:
-            with open(path, newline="") as fh:
-                status = fh.readline().partition(": ")[2].strip()
-                manifest = json.loads(fh.readline().partition(": ")[2])
-                layout = fh.readline().split()
-                nq, nv = int(layout[3]), int(layout[5])
-                rows = list(csv.reader(fh))
-            cols, data = rows[0], np.array(rows[1:], dtype=float).reshape(-1, len(rows[0]))
-            out.update(t=data[:, 0], q=data[:, 1:1 + nq], velocities=data[:, 1 + nq:1 + nq + nv],
-                       q_names=cols[1:1 + nq], velocity_names=cols[1 + nq:1 + nq + nv],
-                       status=status, manifest=manifest)
-            rest = {c: data[:, k] for k, c in enumerate(cols) if k >= 1 + nq + nv}
-            for name in ("energy", "work", "energy_balance"):
-                out[name] = rest.get(name)
-            res = [rest[c] for c in ("residual_position", "residual_velocity",
-                                     "residual_acceleration", "quaternion_norm") if c in rest]
-            out["residuals"] = np.stack(res, axis=1) if res else None
-            lam = [rest[c] for c in rest if c.startswith("lambda")]
-            out["multipliers"] = np.stack(lam, axis=1) if lam else None
+            arrays, header = _read_csv(path)
+        manifest = json.loads(header["manifest"])
+        meta = json.loads(header["meta"]) if "meta" in header else {}
+        status = header["status"]
     except InvalidInputError:
         raise
     except zipfile.BadZipFile as exc:
@@ -237,8 +282,40 @@ def load_result(path) -> dict:
         raise _not_a_result(path, "a truncated file") from None
     except (OSError, ValueError, KeyError, IndexError, TypeError, json.JSONDecodeError) as exc:
         raise _not_a_result(path, f"{type(exc).__name__}: {exc}") from None
-    _check_layout(path, out)
-    return out
+    _check_layout(path, arrays, header, manifest)
+    return _result(path, arrays, header, meta, manifest, status)
+
+
+def _result(path, arrays: dict, header: dict, meta: dict, manifest: dict,
+            status: str) -> SceneResult:
+    q_names = header["q_names"]
+    if status not in Status.__members__:
+        raise _not_a_result(path, f"its status {status!r} is not one of mbdk's")
+    spatial = any(n.endswith(".z") for n in q_names)
+    bodies = meta.get("bodies") or list(dict.fromkeys(n.rsplit(".", 1)[0] for n in q_names))
+    parts = {k[len("energy_"):]: v for k, v in arrays.items()
+             if k.startswith("energy_") and k != "energy_balance"}
+    if "work" in arrays:
+        parts["work"] = arrays["work"]
+    wear_names = meta.get("wear_names", [])
+    wear = ({n: arrays["wear"][:, k] for k, n in enumerate(wear_names)}
+            if "wear" in arrays else {})
+    stats = Stats(**{k: v for k, v in meta.get("stats", {}).items()
+                     if k in Stats.__dataclass_fields__})
+    return SceneResult(
+        t=arrays["t"], q=arrays["q"], v=arrays["velocities"], a=arrays.get("accelerations"),
+        multipliers=arrays.get("multipliers"), reactions=arrays.get("reactions"),
+        energy=arrays.get("energy"), energy_parts=parts or None,
+        residuals=arrays.get("residuals"), stats=stats, status=Status[status],
+        message=meta.get("message") or status_message(Status[status]), manifest=manifest,
+        visits=meta.get("visits") or {}, assembly=meta.get("assembly") or {},
+        joints=meta.get("joints") or [], bodies=bodies, iterations=arrays.get("iterations"),
+        drift=meta.get("drift"), wear=wear,
+        kind=meta.get("kind") or ("spatial" if spatial else "planar"),
+        rotation=meta.get("rotation") or (("quaternion" if any(n.endswith(".p0")
+                                                               for n in q_names)
+                                           else "euler313") if spatial else None),
+        rotations=meta.get("rotations"))
 
 
 #: what every result file holds (save_result)
@@ -250,40 +327,43 @@ def _not_a_result(path, why: str) -> InvalidInputError:
                              "`mbdk run` or mbdk.results_io.save_result wrote")
 
 
-def _check_layout(path, d: dict) -> None:
+def _check_layout(path, arrays: dict, header: dict, manifest) -> None:
     """The arrays' shapes agree with each other, as save_result writes them: a file that
     reads but does not (edited, or another program's) is named rather than plotted wrong."""
     def bad(why):
         return _not_a_result(path, why)
-    for k in _REQUIRED:
-        if d.get(k) is None:
+    for k in ("t", "q", "velocities"):
+        if arrays.get(k) is None:
             raise bad(f"no {k!r}")
-    t = d["t"]
+    t = arrays["t"]
     if not (isinstance(t, np.ndarray) and t.ndim == 1 and t.size
             and np.issubdtype(t.dtype, np.floating)):
         raise bad(f"'t' is not a non-empty list of times (shape {np.shape(t)})")
     n = t.size
     for k, names in (("q", "q_names"), ("velocities", "velocity_names")):
-        a = d[k]
-        if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.shape == (n, len(d[names]))):
-            raise bad(f"{k!r} has shape {np.shape(a)}, not ({n}, {len(d[names])}): a row per "
-                      f"time and a column per name of {names!r}")
+        a = arrays[k]
+        if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.shape == (n, len(header[names]))):
+            raise bad(f"{k!r} has shape {np.shape(a)}, not ({n}, {len(header[names])}): a row "
+                      f"per time and a column per name of {names!r}")
         if not np.issubdtype(a.dtype, np.number):
             raise bad(f"{k!r} holds {a.dtype}, not numbers")
-    for k, ndim in (("energy", 1), ("work", 1), ("energy_balance", 1), ("residuals", 2),
-                    ("multipliers", 2)):
-        a = d.get(k)
-        if a is not None and not (isinstance(a, np.ndarray) and a.ndim == ndim
-                                  and a.shape[0] == n and np.issubdtype(a.dtype, np.number)):
+    ndims = {"accelerations": 2, "multipliers": 2, "reactions": 3, "residuals": 2, "wear": 2,
+             "iterations": 1}
+    for k, a in arrays.items():
+        if k in ("t", "q", "velocities"):
+            continue
+        ndim = ndims.get(k, 1)
+        if not (isinstance(a, np.ndarray) and a.ndim == ndim and a.shape[0] == n
+                and np.issubdtype(a.dtype, np.number)):
             raise bad(f"{k!r} has shape {np.shape(a)}: not {ndim}-D numbers, a row per time")
-    if not isinstance(d["manifest"], dict):
+    if not isinstance(manifest, dict):
         raise bad("its manifest is not a table")
 
 
 def plot_result(path, out=None) -> Path:
-    """A PNG of a saved run: the coordinates, the energy balance and the residuals against t
-    (out: default the result's name with .png)."""
-    data = load_result(path)
+    """A PNG of a saved run: the coordinates, the energy balance, the residuals and the wear
+    volumes against t, each where the run has it (out: default the result's name with .png)."""
+    r = load_result(path)
     out = Path(out) if out is not None else Path(path).with_suffix(".png")
     if out.suffix.lower() != ".png":
         raise InvalidInputError(f"{out}: plots are PNG files; give a name ending in .png")
@@ -294,27 +374,28 @@ def plot_result(path, out=None) -> Path:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # after use("Agg"): plots without a screen
-    panels = 1 + (data["energy_balance"] is not None) + (data["residuals"] is not None)
+    balance = (r.energy_balance() if r.energy is not None and r.energy_parts
+               and "work" in r.energy_parts else None)
+    panels = 1 + (balance is not None) + (r.residuals is not None) + bool(r.wear)
     fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels + 0.6), sharex=True,
                              squeeze=False)
     axes = axes[:, 0]
-    t = data["t"]
+    t = r.t
     ax = axes[0]
-    for k, name in enumerate(data["q_names"]):
-        ax.plot(t, data["q"][:, k], label=name, lw=1)
+    for k, name in enumerate(r.q_names):
+        ax.plot(t, r.q[:, k], label=name, lw=1)
     ax.set_ylabel("coordinates")
-    if len(data["q_names"]) <= 12:
+    if len(r.q_names) <= 12:
         ax.legend(fontsize=7, ncol=3)
     i = 1
-    if data["energy_balance"] is not None:
+    if balance is not None:
         # W: the work of dampers, loads and drivers as the run integrated it, at every step
-        axes[i].plot(t, data["energy_balance"], lw=1)
+        axes[i].plot(t, balance, lw=1)
         axes[i].set_ylabel("E - E0 - W [J]")
         i += 1
-    m = data["manifest"]
-    if data["residuals"] is not None:
-        res = np.abs(np.asarray(data["residuals"], float))
-        names = (("|Phi|", "|C w + Phi_t|", "||p| - 1|") if m.get("kind") == "spatial" else
+    if r.residuals is not None:
+        res = np.abs(np.asarray(r.residuals, float))
+        names = (("|Phi|", "|C w + Phi_t|", "||p| - 1|") if r.kind == "spatial" else
                  ("|Phi|", "|D v + Phi_t|", "|D a - gamma|"))
         for k, name in enumerate(names[:res.shape[1]]):
             if np.any(res[:, k] > 0):     # exact zeros (the assembled start) are left out
@@ -322,9 +403,16 @@ def plot_result(path, out=None) -> Path:
                                  lw=1)
         axes[i].set_ylabel("residuals")
         axes[i].legend(fontsize=7)
+        i += 1
+    if r.wear:
+        for name, w in r.wear.items():
+            axes[i].plot(t, w, label=name, lw=1)
+        axes[i].set_ylabel("worn volume [m^3]")
+        axes[i].legend(fontsize=7)
     axes[-1].set_xlabel("t [s]")
+    m = r.manifest
     fig.suptitle(f"{m.get('scene', '')}: {m.get('method', '')}/{m.get('formulation', '')} "
-                 f"({data['status']})", fontsize=10)
+                 f"({r.status.name})", fontsize=10)
     fig.tight_layout()
 
     def write(tmp):

@@ -16,7 +16,7 @@ from .errors import InvalidInputError, Status, status_message
 from .model import (assemble, assembly_error, assembly_report, build_tables, given_mask,
                     pose_error)
 from .ode import build_info
-from .options import empty
+from .options import empty, unpack
 from .plan import RunPlan
 from .result import KernelRun, SceneResult, Stats
 from .scene import Scene, SceneError
@@ -91,14 +91,15 @@ def run_planar(scene: Scene, plan: RunPlan) -> KernelRun:
     nbytes, arrays = _output_arrays(plan, tab, y0, what)
     a_out, lam_out, iters, reac, energy, resid = arrays
     stats, visits, flag = empty("mbdk_stats"), np.zeros(len(VISIT_NAMES)), _compiled.new_flag()
+    watch_words = empty("mbdk_watch_report")
     req = plan.request
     args = (*tab.args(), plan.model_options.pack(), plan.info.id, plan.dae_form,
             plan.ode_options.pack(), plan.index3_options.pack(), flag, y0, given,
             int(bool(req.assemble_initial)), req.t0, req.t_end, plan.want, plan.nsamp,
-            *arrays, stats, visits)
+            *arrays, stats, visits, watch_words)
     try:
-        (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, watch_report,
-         invariants, ninv, status), interrupted = _compiled.call(
+        (t, y, nw, path, asm_iters, asm_resid, asm_velocity, bad_joint, bad_force, invariants,
+         ninv, status), interrupted = _compiled.call(
              _kernel.scene_run, args, flag, plan.steps * y0.size, span=(req.t0, req.t_end))
     except MemoryError as exc:   # t and y, allocated by the f2py layer
         raise checks.memory_error(exc, nbytes, what=what, change=SCENE_SAMPLE_ADVICE) from None
@@ -136,7 +137,8 @@ def run_planar(scene: Scene, plan: RunPlan) -> KernelRun:
             "power": pl + pc - pd, "work": wl + wc - wd,
             "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
             "dissipated_dampers": wd, "work_constraints": wc, "work_loads": wl}
-    return KernelRun(result, bool(interrupted), watch_report, inv, y0, tab)
+    return KernelRun(result, bool(interrupted), unpack("mbdk_watch_report", watch_words), inv, y0,
+                     tab)
 
 
 def _check_start(scene, plan, tab, status, nw, bad_joint, bad_force, asm_resid, asm_velocity):

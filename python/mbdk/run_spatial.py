@@ -10,12 +10,12 @@ from . import _compiled, _kernel
 from .checks import check_memory, memory_error
 from .errors import Status, status_message
 from .ode import build_info
-from .options import empty
+from .options import empty, unpack
 from .plan import SPATIAL_IDA_FORMS, RunPlan
 from .result import KernelRun, SceneResult, Stats
 from .run_planar import SCENE_SAMPLE_ADVICE
 from .scene import Scene
-from .spatial_model import spatial_tables
+from .spatial_model import spatial_tables, wear0
 from .watch import invariant_names
 
 #: what to change when a spatial run's samples do not fit in memory (it has no outputs to drop)
@@ -38,34 +38,36 @@ BDF_NEWTON = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
 def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     """One call of spatial_run: the scene's run as planned."""
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(scene)
-    y0 = scene.state0()
+    # the state [q; w; V]: the wear elements' volumes after the bodies' coordinates and rates
+    y0 = np.concatenate([scene.state0(), wear0(scene)])
     req = plan.request
     stats, flag = empty("mbdk_stats"), _compiled.new_flag()
     m1 = max(scene.rows, 1)
     nsamp = plan.nsamp
+    watch_words = empty("mbdk_watch_report")
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-            plan.spatial_options, plan.ode_options.pack(), plan.index3_options.pack(), flag,
-            np.zeros(0), y0,
-            int(bool(req.assemble_initial)), plan.dae_form, float(req.t0), float(req.t_end),
-            nsamp, m1, stats)
+            plan.spatial_options.pack(), plan.info.id, plan.dae_form, plan.ode_options.pack(),
+            plan.index3_options.pack(), flag, np.zeros(0), y0, int(bool(req.assemble_initial)),
+            float(req.t0), float(req.t_end), nsamp, m1, stats, watch_words)
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
     # before they are allocated where the machine has not that much memory
     nbytes = 8.0 * nsamp * (1 + len(y0) + 8 + m1)   # spatial_run's out(8, nsamp)
     what = f"{plan.method} on spatial scene {scene.name!r} ({nsamp} samples)"
     check_memory(nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE)
     try:
-        (t, y, out, lam, nw, moved, report, invariants, ninv, status), interrupted = \
+        (t, y, out, lam, nw, moved, invariants, ninv, status), interrupted = \
             _compiled.call(_kernel.spatial_run, args, flag, plan.steps * len(y0),
                            span=(req.t0, req.t_end))
     except MemoryError as exc:
         raise memory_error(exc, nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE) from None
     status = Status(int(status))
     nq = nb * (7 if scene.rotation == "quaternion" else 6)
+    nv = nq + 6 * nb
     ys = y[:, :nw].T
     o = out[:, :nw].T
     inv = invariants[:, :int(ninv)].T
     result = SceneResult(
-        t=t[:nw], q=ys[:, :nq], v=ys[:, nq:], a=None,
+        t=t[:nw], q=ys[:, :nq], v=ys[:, nq:nv], a=None,
         multipliers=lam[:scene.rows, :nw].T if scene.rows else None, reactions=None,
         energy=o[:, 0] + o[:, 1] + o[:, 2],
         energy_parts={"kinetic": o[:, 0], "potential_gravity": o[:, 1],
@@ -73,8 +75,11 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
         residuals=o[:, 4:7], stats=Stats.from_words(stats), status=status,
         message=status_message(status), manifest=_manifest(scene, plan, inv),
         bodies=[b.name for b in scene.bodies], joints=[j.name for j in scene.joints],
-        assembly={"moved": float(moved)}, kind="spatial", rotation=scene.rotation)
-    return KernelRun(result, bool(interrupted), report, inv, y0)
+        assembly={"moved": float(moved)}, wear={w.name: ys[:, nv + k] for k, w in
+                                               enumerate(scene.wear)},
+        kind="spatial", rotation=scene.rotation)
+    return KernelRun(result, bool(interrupted), unpack("mbdk_watch_report", watch_words), inv,
+                     y0)
 
 
 def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
@@ -94,6 +99,9 @@ def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
                           "energy": w.energy, "every": w.every, "momentum": w.momentum,
                           "quaternion": w.quaternion},
                 "invariants": invariant_names(inv)}
+    if scene.wear:
+        manifest["wear"] = {w.name: f"{w.law} on {w.load}, k = {w.coefficient:g} m^3/(N m), "
+                                    "integrated with the motion" for w in scene.wear}
     if formulation in ("projection", "projected"):
         manifest["projection_tol"] = plan.projection_tol
     if plan.multipliers_note:

@@ -2,8 +2,9 @@
 
 One Scene holds bodies of either kind: planar bodies (x, y, angle; chapters 2-4 of the book)
 with the planar joints, forces, contacts and wear, or spatial bodies (a centre and an
-orientation; chapter 5) with the spatial joints and forces. A scene's bodies are of one kind
-(Scene.kind); a scene that mixes them is refused by name where it is read or run. The scene
+orientation; chapter 5) with the spatial joints, forces, contacts and wear. A scene's bodies
+are of one kind (Scene.kind); a scene that mixes them is refused by name where it is read or
+run. The scene
 file format and its reader are python/mbdk/planar_file.py and spatial_file.py, reached through
 python/mbdk/scene_file.py (mbdk.load_scene, mbdk.scene, mbdk.scenes).
 """
@@ -156,7 +157,7 @@ class SpatialForce:
 @dataclass
 class Scene:
     """A mechanism: bodies of one kind (planar Body or SpatialBody), the joints and forces of
-    that kind, and (planar) wear. rotation, quaternion_norm and norm_gain are the spatial
+    that kind, and the wear of its contacts. rotation, quaternion_norm and norm_gain are the spatial
     bodies' orientation coordinates and how their quaternions keep |p| = 1
     (python/mbdk/spatial_file.py); planar scenes ignore them."""
 

@@ -1,13 +1,13 @@
 """The scene reader's field access: one element's table read field by field, every error naming
 the file, the element and the field (planar_file.py and spatial_file.py read their elements
-with it)."""
+with it), and the tables both readers share: a contact's friction and a wear element."""
 from __future__ import annotations
 
 import math
 
 from .checks import number_problem, show
-from .codes import COORDS
-from .scene import SceneError
+from .codes import COORDS, WEAR_LAWS, WEAR_LOADS
+from .scene import SceneError, Wear
 
 
 class FieldReader:
@@ -152,3 +152,65 @@ def read_friction(r: FieldReader) -> tuple:
         raise r.err("friction", f"entry {extra[0]!r} is not known; known: static, dynamic, "
                                 "stiction_speed, transition_speed")
     return (st, dy, vs, vd)
+
+
+def read_wear(r: FieldReader) -> Wear:
+    """A [[wear]] entry (planar_file.py's docstring shows it), as both readers take it; the
+    contact it names is checked against the scene's (check_wear_contacts)."""
+    name = r.name("name", required=False, default=f"wear{r.index + 1}")
+    law = r.name("law")
+    if law not in WEAR_LAWS:
+        raise r.err("law", f"= {law!r} is not a wear law; known: {', '.join(WEAR_LAWS)}")
+    load = r.name("load")
+    contact, _, qty = load.rpartition(".")
+    if not contact or qty not in WEAR_LOADS:
+        raise r.err("load", f"= {load!r} must be CONTACT.normal_force or CONTACT.friction_force")
+    w = Wear(name, law, load, r.num("coefficient", required=True, nonneg=True),
+             initial=r.num("initial", 0.0, nonneg=True))
+    if law == "gear":
+        w.radius = r.num("radius", required=True, nonneg=True)
+        w.temperature = r.num("temperature", required=True, positive=True)
+        w.a_x = r.num("a_x", w.a_x, positive=True)
+        w.t0 = r.num("t0", w.t0, positive=True)
+        w.activation_energy = r.num("activation_energy", w.activation_energy, nonneg=True)
+        w.gas_constant = r.num("gas_constant", w.gas_constant, positive=True)
+    elif law == "knee":
+        c = r.get("slide_roll", required=True)
+        if not isinstance(c, list) or len(c) != 4:
+            raise r.err("slide_roll", f"= {show(c)} must be four finite numbers [c0, c1, c2, c3]")
+        w.slide_roll = tuple(r.entries("slide_roll", c, "four"))
+    r.done()
+    return w
+
+
+def wear_table(w: Wear) -> dict:
+    """A wear element as the file writes it (read_wear's inverse): its values as they are, so
+    that read_wear checks one changed in Python with the file's errors."""
+    d = {"name": w.name, "law": w.law, "load": w.load, "coefficient": w.coefficient,
+         "initial": w.initial}
+    if w.law == "gear":
+        d.update(radius=w.radius, temperature=w.temperature, a_x=w.a_x, t0=w.t0,
+                 activation_energy=w.activation_energy, gas_constant=w.gas_constant)
+    elif w.law == "knee":
+        # a copy, so that a snapshot does not change with the scene's own list
+        d["slide_roll"] = list(w.slide_roll) if isinstance(w.slide_roll, (tuple, list)) \
+            else w.slide_roll
+    return d
+
+
+def check_wear_contacts(sc, contacts: dict, seen: dict) -> None:
+    """Each wear element of sc: a name of its own (seen: the (kind, name) pairs so far) and a
+    load on a contact of the scene (contacts: name -> whether it has friction), the friction
+    force only where there is friction."""
+    src = sc.source
+    for w in sc.wear:
+        if ("wear", w.name) in seen:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'name' is used twice")
+        seen[("wear", w.name)] = True
+        if w.contact not in contacts:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r} names no contact"
+                             f"; contacts: {', '.join(contacts) or 'none'}")
+        if w.quantity == "friction_force" and not contacts[w.contact]:
+            raise SceneError(f"{src}: wear {w.name!r}: field 'load' = {w.load!r}: contact "
+                             f"{w.contact!r} has no friction; give it a friction table, or use "
+                             f"'{w.contact}.normal_force'")

@@ -71,19 +71,21 @@ class SceneReport:
     configuration_dof: int = 0
 
     def __str__(self) -> str:
-        lines = [f"scene {self.scene!r} ({self.kind}): {self.bodies} bodies, "
-                 f"{self.coordinates} coordinates, {self.velocities} velocities",
-                 f"constraint rows {self.rows}, rank {self.rank}: {self.dof} degrees of freedom"]
+        lines = [f"scene {self.scene!r} ({self.kind}): {_n(self.bodies, 'body', 'bodies')}, "
+                 f"{_n(self.coordinates, 'coordinate')}, {_n(self.velocities, 'velocity', 'velocities')}",
+                 f"constraint rows {self.rows}, rank {self.rank}: "
+                 f"{_n(self.dof, 'degree')} of freedom"]
         if self.configuration_dof != self.dof:
-            lines.append(f"nonholonomic: {self.configuration_dof} degrees of freedom of position "
-                         f"(coordinates less the holonomic rows' rank), {self.dof} of velocity")
+            lines.append(f"nonholonomic: {_n(self.configuration_dof, 'degree')} of freedom of "
+                         f"position (coordinates less the holonomic rows' rank), {self.dof} of "
+                         "velocity")
         if self.redundant:
             lines.append(f"redundant: {self.rows - self.rank} row(s) among the joints "
                          f"{', '.join(self.redundant)} (their rows are dependent; leaving out "
                          f"{self.rows - self.rank} of them leaves the rest independent, and the "
                          "freedom unchanged)")
         for c in self.constraints:
-            lines.append(f"  joint {c.name!r} ({c.type}, {c.rows} rows): {c.kind()}")
+            lines.append(f"  joint {c.name!r} ({c.type}, {_n(c.rows, 'row')}): {c.kind()}")
         for name in self.contacts:
             lines.append(f"  contact {name!r}: unilateral, compliant (a force; no rows)")
         for name in self.effects:
@@ -190,4 +192,9 @@ def _spatial_report(sc) -> SceneReport:
     return SceneReport(sc.name, "spatial", nb, coords, 6 * nb, rows, rank, 6 * nb - rank,
                        redundant, constraints,
                        [f.name for f in sc.forces if f.type in ("sphere_plane", "sphere_sphere")],
-                       [], index, reason, 6 * nb - rank)
+                       [w.name for w in sc.wear], index, reason, 6 * nb - rank)
+
+
+def _n(count: int, one: str, many: str | None = None) -> str:
+    """'1 body', '3 bodies': the count with its noun in the right number."""
+    return f"{count} {one if count == 1 else (many or one + 's')}"

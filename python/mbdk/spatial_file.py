@@ -83,8 +83,23 @@ slip of the two bodies' material points there. Their potential is part of the en
 and bs32 end a step where a contact closes, where it lets go and where the surfaces of a contact
 that let go part. A contact is stored as a SpatialForce of type sphere_plane or sphere_sphere
 with the kernel's 19 reals (centre 1, radius 1, point or centre 2, normal, radius 2, stiffness,
-exponent, damping, damping_depth, static, dynamic, stiction_speed, transition_speed). Wear of
-spatial contacts is not there yet.
+exponent, damping, damping_depth, static, dynamic, stiction_speed, transition_speed).
+
+Wear of a contact (kernel/src/model/mbdk_wear.f90's laws, the planar scenes' code): a state of
+its own, the worn volume, integrated with the motion after the bodies' states; the result's
+wear[name] is the volume against time. The entry is a planar scene's ([[wear]] in
+python/mbdk/planar_file.py, with its fields and errors)::
+
+    [[wear]]
+    name = "ball"
+    law = "archard"                # archard | knee: V' = k F |s| (times S/R(t) for knee)
+    load = "floor.normal_force"    # CONTACT.normal_force or CONTACT.friction_force (mu F)
+    coefficient = 5e-13            # k: volume per newton and metre of slip (m^3/(N m)), K/H
+                                   # in Archard's form K F s / H
+
+with |s| the slip speed at the contact point. The gear law is the planar gear pairs' (its speed
+is R |omega1 - omega2|, not a slip): a spatial contact refuses it by name. Wear takes no energy
+of its own (the contact's friction dissipates what the energy balance counts).
 
 Bad scenes raise SceneError naming the file, the element and the field.
 """
@@ -94,11 +109,12 @@ import numpy as np
 
 from .checks import NUMBER_MAX, NUMBER_MIN, number_problem, show
 from .codes import (NORMS, ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS,
-                    SPATIAL_JOINT_CODES)
+                    SPATIAL_JOINT_CODES, WEAR_LAWS)
 from .rotations import from_angles, from_quaternion
 from .scene import (DRIVERS, GROUND, SPATIAL_FORCE_TYPES, SPATIAL_TWO_BODY_FORCES, Body, Scene,
-                    SceneError, SpatialBody, SpatialForce, SpatialJoint)
-from .scene_fields import FieldReader, read_friction, section_items
+                    SceneError, SpatialBody, SpatialForce, SpatialJoint, Wear)
+from .scene_fields import (FieldReader, check_wear_contacts, read_friction, read_wear,
+                           section_items, wear_table)
 
 
 #: how far from 1 the norm of a given quaternion may be (the kernel's MBDK_UNIT_TOL)
@@ -424,11 +440,11 @@ def is_spatial(data: dict) -> bool:
 
 def spatial_scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     """Builds and checks a Scene of spatial bodies from the parsed TOML structure."""
-    known = {"scene", "body", "joint", "force"}
+    known = {"scene", "body", "joint", "force", "wear"}
     extra = [k for k in data if k not in known]
     if extra:
         raise SceneError(f"{source}: unknown section {extra[0]!r}; a scene has "
-                         "[scene], [[body]], [[joint]] and [[force]]")
+                         "[scene], [[body]], [[joint]], [[force]] and [[wear]]")
     hr = _SpatialReader(source, "scene", 0, data.get("scene", {}))
     name = hr.name("name", required=False, default=source.rsplit("/", 1)[-1].removesuffix(".toml"))
     desc = hr.get("description", "")
@@ -472,12 +488,41 @@ def spatial_scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
               for i, t in enumerate(items("joint"))]
     forces = [_spatial_force(_SpatialReader(source, "force", i, t), bodies)
               for i, t in enumerate(items("force"))]
+    wear = [read_wear(FieldReader(source, "wear", i, t)) for i, t in enumerate(items("wear"))]
     names = [j.name for j in joints]
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup is not None:
         raise SceneError(f"{source}: joint name {dup!r} is used twice")
-    return Scene(name, list(bodies.values()), joints, forces, description=desc, source=source,
-                 rotation=rotation, quaternion_norm=norm, norm_gain=gain)
+    sc = Scene(name, list(bodies.values()), joints, forces, description=desc, source=source,
+               wear=wear, rotation=rotation, quaternion_norm=norm, norm_gain=gain)
+    _check_wear(sc)
+    return sc
+
+
+#: the force types of spatial contacts, the ones wear can name
+CONTACT_TYPES = ("sphere_plane", "sphere_sphere")
+
+
+def _check_wear(sc: Scene) -> None:
+    """The wear elements against the scene's contacts (as a planar scene's, check_wear_contacts)
+    and the laws a spatial contact takes; a contact that wear names has a name of its own."""
+    contacts = {}
+    for f in sc.forces:
+        if isinstance(f, SpatialForce) and f.type in CONTACT_TYPES:
+            if f.name in contacts and any(w.contact == f.name for w in sc.wear):
+                raise SceneError(f"{sc.source}: force {f.name!r}: field 'name' is used by two "
+                                 "contacts, and a wear element names it; give each contact a "
+                                 "name of its own")
+            # mus or mud > 0 (mbdk_contact3d_rough): the contact has friction
+            contacts[f.name] = len(f.reals) == SPATIAL_FORCE_REALS and \
+                (f.reals[15] > 0 or f.reals[16] > 0)
+    for w in sc.wear:
+        if w.law == "gear":
+            raise SceneError(f"{sc.source}: wear {w.name!r}: field 'law' = 'gear': the gear "
+                             "law's speed is a planar gear pair's R |omega1 - omega2| (Fekete "
+                             "(2023) (6.9)), which a sphere contact has not; use archard or knee, "
+                             "whose speed is the contact's slip")
+    check_wear_contacts(sc, contacts, {})
 
 
 def validate_spatial(sc: Scene) -> None:
@@ -489,9 +534,14 @@ def validate_spatial(sc: Scene) -> None:
         if not isinstance(getattr(sc, fld), list):
             raise SceneError(f"{sc.source}: scene: field {fld!r} = {getattr(sc, fld)!r} must "
                              "be a list")
-    if sc.wear:
-        raise SceneError(f"{sc.source}: scene: field 'wear' lists {len(sc.wear)} element(s): "
-                         "wear is an effect of planar contacts; spatial scenes have none")
+    if not isinstance(sc.wear, list):
+        raise SceneError(f"{sc.source}: scene: field 'wear' = {sc.wear!r} must be a list")
+    for i, w in enumerate(sc.wear):
+        if not isinstance(w, Wear):
+            raise SceneError(f"{sc.source}: wear #{i + 1} = {w!r} is not a Wear (known laws: "
+                             f"{', '.join(WEAR_LAWS)})")
+        # the file's own checks and errors, field by field
+        read_wear(FieldReader(sc.source, "wear", i, wear_table(w)))
     if not isinstance(sc.rotation, str) or not isinstance(sc.quaternion_norm, str) or \
             sc.rotation not in ROTATIONS or sc.quaternion_norm not in NORMS:
         raise SceneError(f"{sc.source}: scene: rotation = {sc.rotation!r} (known: "
@@ -586,6 +636,7 @@ def validate_spatial(sc: Scene) -> None:
                 (len(ends) == 2 and ends[0] == ends[1])):
             raise SceneError(f"{sc.source}: {label}: its bodies {ends} are not two (or one) "
                              "distinct bodies of this scene")
+    _check_wear(sc)
 
 
 def _validate_contact(sc: Scene, label: str, typ: str, r: np.ndarray) -> None:

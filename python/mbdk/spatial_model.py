@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from . import _kernel
-from .codes import (ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS, SPATIAL_JOINT_CODES,
-                    SPATIAL_JOINT_REALS)
+from .codes import (ROTATIONS, SPATIAL_EFFECT_CODES, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS,
+                    SPATIAL_JOINT_CODES, SPATIAL_JOINT_REALS, WEAR_LAWS, WEAR_LOADS)
 from .errors import (InvalidInputError, NoMemoryError, Status, exception_for, format_bytes,
                      no_memory_message, status_message)
 from .scene import DRIVERS, SPATIAL_TWO_BODY_FORCES, Scene, SceneError
@@ -23,11 +23,12 @@ ASSEMBLY_TOL = 1e-6
 
 def spatial_tables(sc: Scene):
     """The spatial model's tables (kernel/src/spatial/mbdk_spatial_model.f90): nb, mass,
-    inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal."""
+    inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal; the force table holds the
+    forces, then the wear elements (each naming its contact's column)."""
     nb = len(sc.bodies)
     mass = np.array([b.mass for b in sc.bodies])
     inertia = np.asfortranarray(np.stack([b.inertia for b in sc.bodies], axis=2))
-    nj, nf = len(sc.joints), len(sc.forces)
+    nj, nf = len(sc.joints), len(sc.forces) + len(sc.wear)
     jtype = np.zeros(max(nj, 1), dtype=np.int32)
     jbody = np.zeros((2, max(nj, 1)), dtype=np.int32, order="F")
     jreal = np.zeros((SPATIAL_JOINT_REALS, max(nj, 1)), order="F")
@@ -43,15 +44,29 @@ def spatial_tables(sc: Scene):
         fbody[:, k] = (sc.body_index(f.body1) if f.body1 else 0,
                        sc.body_index(f.body2) if f.type in SPATIAL_TWO_BODY_FORCES else 0)
         freal[:len(f.reals), k] = f.reals
+    column = {f.name: k + 1 for k, f in enumerate(sc.forces)}     # 1-based, as the kernel's
+    for k, w in enumerate(sc.wear, len(sc.forces)):
+        ftype[k] = SPATIAL_EFFECT_CODES["wear"]
+        fbody[:, k] = column[w.contact], WEAR_LAWS[w.law]
+        freal[0, k] = w.coefficient
+        if w.law == "knee":
+            freal[1:5, k] = w.slide_roll
+        freal[5, k] = WEAR_LOADS[w.quantity]
     return nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal
 
 
+def wear0(sc: Scene) -> np.ndarray:
+    """The initial worn volumes of the scene's wear elements, the state's last values."""
+    return np.array([w.initial for w in sc.wear], float)
+
+
 def evaluate_spatial(sc: Scene, y=None, t: float = 0.0) -> dict:
-    """At the state y (default: the scene's initial state) and time t: the energy parts and
-    residuals of the outputs, Phi, C (rows x 6 bodies), gamma, Phi_t (a driver's rows), the
-    rank of the joints' rows at the initial state (below the row count: redundant joints), the
-    reduced formulation's multipliers and y' (ydot), and the status of that solve (SINGULAR
-    at a singular pose)."""
+    """At the state y of the bodies (default: the scene's initial state) and time t: the energy
+    parts and residuals of the outputs, Phi, C (rows x 6 bodies), gamma, Phi_t (a driver's
+    rows), the rank of the joints' rows at the initial state (below the row count: redundant
+    joints), the reduced formulation's multipliers and y' (ydot; with wear, the volumes' rates
+    after the bodies', the volumes at their initial values), and the status of that solve
+    (SINGULAR at a singular pose)."""
     validate_spatial(sc)
     nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
     y0 = sc.state0()
@@ -69,7 +84,8 @@ def evaluate_spatial(sc: Scene, y=None, t: float = 0.0) -> dict:
     try:
         out, phi, c, gam, phit, lam, ydot, rank, asked, status = _kernel.spatial_residuals(
             mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
-            float(ROTATIONS[sc.rotation]), y0, float(t), y, max(m, 1))
+            ROTATIONS[sc.rotation], np.concatenate([y0, wear0(sc)]), float(t),
+            np.concatenate([y, wear0(sc)]), max(m, 1))
     except MemoryError as exc:   # the arrays f2py allocates, C (rows x 6 nb) the largest
         raise NoMemoryError(f"{run}: its arrays ({format_bytes(8.0 * max(m, 1) * 6 * nb)} for C "
                             f"alone, {m} x {6 * nb}) could not be allocated ({exc}); fewer "

@@ -40,6 +40,8 @@ Each task is one run; its row (the columns of COLUMNS, in this order in the CSV)
   steps, nfev, cpu_time (the solving thread's, per repetition), wall_time, rejected, njev,
   nlu, orders (the steps taken at each order, "1:12 2:40", for the variable-order methods),
   reps: the run's counters (0 and "" for a failed run);
+  wear: a scene's worn volumes at the end of the run, "name volume" per wear element (m^3),
+         separated by "; " (empty without wear elements, and for a failed run);
   error_message: empty where the run and its reference gave results; otherwise the message, on
          one line ("the reference run: ..." for a failed reference).
 Every case gives its rows: a case that fails when loaded or run stops only its own runs, never
@@ -77,7 +79,7 @@ FIELDS = {"t_end", "t0", "scenes", "problems", "params", "label", "methods", "fo
           "max_reps"}
 REFERENCE_FIELDS = {"method", "h", "step_count", "rtol"}
 COLUMNS = ["case", "method", "formulation", "control", "status", "error", "steps", "nfev",
-           "cpu_time", "wall_time", "rejected", "njev", "nlu", "orders", "reps",
+           "cpu_time", "wall_time", "rejected", "njev", "nlu", "orders", "reps", "wear",
            "error_message"]
 
 
@@ -107,7 +109,7 @@ class SweepResult:
 
 #: the columns that are the same bits on every engine (the times and repetitions are not)
 RESULT_KEYS = ("case", "method", "formulation", "control", "status", "error", "steps", "nfev",
-               "rejected", "njev", "nlu", "orders", "error_message")
+               "rejected", "njev", "nlu", "orders", "wear", "error_message")
 
 
 def same_rows(a: SweepResult, b: SweepResult) -> bool:
@@ -325,7 +327,7 @@ def _failed(row: dict, status: str, message: str) -> dict:
     """The row of a run that gave no result: its status and message, no error, no counts."""
     return {**row, "status": status, "error": math.nan, "steps": 0, "nfev": 0,
             "cpu_time": 0.0, "wall_time": 0.0, "rejected": 0, "njev": 0, "nlu": 0,
-            "orders": "", "reps": 0, "error_message": message, "states": None}
+            "orders": "", "reps": 0, "wear": "", "error_message": message, "states": None}
 
 
 def run_task(task: dict, ref_states=None) -> dict:
@@ -373,7 +375,9 @@ def _run(task: dict, ref_states, row: dict) -> dict:
     st = r.stats
     counts = {"steps": st.steps, "nfev": st.nfev, "cpu_time": cpu / reps,
               "wall_time": wall / reps, "rejected": st.rejected_steps, "njev": st.njev,
-              "nlu": st.nlu, "orders": order_histogram(st), "reps": reps}
+              "nlu": st.nlu, "orders": order_histogram(st), "reps": reps,
+              "wear": "; ".join(f"{name} {float(w[-1])!r}"
+                                for name, w in getattr(r, "wear", {}).items())}
     if isinstance(ref_states, tuple):     # the reference run failed: no error to give
         status, message = ref_states
         return {**row, "status": f"reference {status}", "error": math.nan, **counts,

@@ -17,6 +17,7 @@ from .spatial_model import check_initial, evaluate_spatial
 def check_applicable(scene: Scene, plan: RunPlan) -> None:
     """Refuses, by name, a scene the plan cannot run."""
     if plan.kind == "spatial":
+        _check_wear_states(scene, plan)
         check_initial(scene, scene.state0(), plan.request.assemble_initial, float(plan.t0))
         if plan.index3 and plan.formulation == "index3" and scene.rows:
             rank = evaluate_spatial(scene, scene.state0(), float(plan.t0))["rank"]
@@ -96,8 +97,22 @@ def _check_elements(scene: Scene, plan: RunPlan) -> None:
             f"and velocities, which has no place for the wear states "
             f"({', '.join(w.name for w in scene.wear)}); use rk4, heun or an error-controlled "
             "method")
-    if plan.dae_form and scene.wear:
+    _check_wear_states(scene, plan)
+
+
+def _check_wear_states(scene: Scene, plan: RunPlan) -> None:
+    """The forms whose state has no place for wear states, planar or spatial: the DAE's [q, v,
+    lambda] and the index-3 family's [q, v] (a planar scene's contacts have refused it first)."""
+    if not scene.wear:
+        return
+    names = ", ".join(w.name for w in scene.wear)
+    if plan.dae_form:
         raise NotApplicableError(
-            f"{method}/{formulation} on scene {scene.name!r}: the DAE's state [q, v, lambda] has "
-            f"no place for the wear states ({', '.join(w.name for w in scene.wear)}); use an ODE "
-            "method with formulation reduced, baumgarte or projection")
+            f"{plan.method}/{plan.formulation} on scene {scene.name!r}: the DAE's state [q, v, "
+            f"lambda] has no place for the wear states ({names}); use an ODE method with "
+            "formulation reduced, baumgarte or projection")
+    if plan.index3:
+        raise NotApplicableError(
+            f"{plan.method} on scene {scene.name!r}: the index-3 family's state [q, v] (Newton "
+            f"on its increment) has no place for the wear states ({names}); use an ODE method "
+            "with formulation reduced, baumgarte or projection")

@@ -119,7 +119,7 @@ def invariant_names(invariants) -> list[str]:
 def _row_name(report, joint_rows, invariants, bodies):
     """What the report's row counts, in words: (joint, its row) for a constraint row, the
     conserved component for momentum, the body for a quaternion."""
-    what, row = int(report[0]), int(report[1])
+    what, row = report["quantity"], report["row"]
     if row <= 0:
         return None
     if what == 4:
@@ -135,19 +135,20 @@ def _row_name(report, joint_rows, invariants, bodies):
 
 
 def drift_report(report, joint_rows, invariants=(), bodies=()) -> dict:
-    """The kernel's report of a failed check as a dict: quantity ("position", "velocity",
-    "energy", "momentum", "quaternion"), t (of the failed check), t_good (of the last check
-    passed), value (relative to its scale), tolerance, absolute (the residual, |E - E0 - W|,
-    |c - c0| or | |p| - 1 | itself), scale, for a constraint row the joint and its row
-    (1-based), for momentum the invariant (its name), for a quaternion the body."""
-    what, row, value, tol, t_bad, t_good, absolute, scale = (float(x) for x in report)
-    out = {"quantity": QUANTITIES.get(int(what), "?"), "t": t_bad, "t_good": t_good,
-           "value": value, "tolerance": tol, "absolute": absolute, "scale": scale,
-           "joint": None, "row": None}
+    """The kernel's report of a failed check (mbdk_watch_report_t, by name) in the result's
+    words: quantity ("position", "velocity", "energy", "momentum", "quaternion"), t (of the
+    failed check), t_good (of the last check passed), value (relative to its scale), tolerance,
+    absolute (the residual, |E - E0 - W|, |c - c0| or | |p| - 1 | itself), scale, for a
+    constraint row the joint and its row (1-based), for momentum the invariant (its name), for
+    a quaternion the body."""
+    what = report["quantity"]
+    out = {"quantity": QUANTITIES.get(what, "?"), "t": report["t"], "t_good": report["t_good"],
+           "value": report["value"], "tolerance": report["tol"],
+           "absolute": report["absolute"], "scale": report["scale"], "joint": None, "row": None}
     name = _row_name(report, joint_rows, invariants, bodies)
-    if int(what) == 4:
+    if what == 4:
         out["invariant"] = name
-    elif int(what) == 5:
+    elif what == 5:
         out["body"] = name
     elif name is not None:
         out["joint"], out["row"] = name[0], name[1]
@@ -155,11 +156,12 @@ def drift_report(report, joint_rows, invariants=(), bodies=()) -> dict:
 
 
 def drift_message(report, joint_rows, invariants=(), bodies=()) -> str:
-    """The kernel's report of a failed check (what, row, value, tol, t, t_good, the value itself,
-    its scale) in words. joint_rows: (joint name, first row, count) of the scene's joints;
-    invariants: the kernel's conserved components; bodies: the bodies' names."""
-    what, row, value, tol, t_bad, t_good, absolute, scale = (float(x) for x in report)
-    name = QUANTITIES.get(int(what), "?")
+    """The kernel's report of a failed check (mbdk_watch_report_t, by name) in words.
+    joint_rows: (joint name, first row, count) of the scene's joints; invariants: the kernel's
+    conserved components; bodies: the bodies' names."""
+    value, tol, t_bad, t_good = report["value"], report["tol"], report["t"], report["t_good"]
+    absolute, scale = report["absolute"], report["scale"]
+    name = QUANTITIES.get(report["quantity"], "?")
     where = ""
     row_name = _row_name(report, joint_rows, invariants, bodies)
     if name in ("position", "velocity") and row_name is not None:

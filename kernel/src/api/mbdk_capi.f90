@@ -21,6 +21,7 @@ module mbdk_capi
   use mbdk_elements, only: mbdk_element_kind, mbdk_body_kind, MBDK_ELEMENT_NAME_LEN, &
     MBDK_BODY_KINDS
   use mbdk_c_tables, only: mbdk_c_tables_read
+  use mbdk_spatial_model, only: mbdk_spatial_options_t
   implicit none
   private
 
@@ -37,6 +38,12 @@ contains
     type(mbdk_model_options_t) :: d
     if (present(opt)) opt = d
   end subroutine mbdk_c_model_default_options
+
+  subroutine mbdk_c_spatial_default_options(opt) bind(C, name='mbdk_spatial_default_options')
+    type(mbdk_spatial_options_t), intent(out), optional :: opt
+    type(mbdk_spatial_options_t) :: d
+    if (present(opt)) opt = d
+  end subroutine mbdk_c_spatial_default_options
 
   integer(c_int) function mbdk_c_index3_sample_count(opt, t0, t_end, nsamp) &
       bind(C, name='mbdk_index3_sample_count')

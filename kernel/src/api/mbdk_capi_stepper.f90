@@ -4,7 +4,9 @@
 !>   mbdk_stepper *s;
 !>   mbdk_stepper_create_ode(f, jac, user_data, n, t0, y0, &opt, &s)        or
 !>   mbdk_stepper_create_scene(nb, mass, ..., &model_opt, &opt, t0, y0, &s)  or
-!>   mbdk_stepper_create_index3(nb, mass, ..., &index3_opt, t0, y0, &s)
+!>   mbdk_stepper_create_index3(nb, mass, ..., &index3_opt, t0, y0, &s)           or
+!>   mbdk_stepper_create_spatial(nb, mass, ..., &spatial_opt, &opt, t0, y0, &s)    or
+!>   mbdk_stepper_create_spatial_index3(nb, mass, ..., &spatial_opt, &index3_opt, t0, y0, &s)
 !>   mbdk_stepper_step(s)              one step of opt.h
 !>   mbdk_stepper_advance(s, t)        steps of opt.h up to t, the last one shortened to land on t
 !>   mbdk_stepper_state(s, &t, y, n)   mbdk_stepper_multipliers(s, lam, m)   mbdk_stepper_stats(s, &st)
@@ -13,7 +15,10 @@
 !> A scene stepper integrates the model's formulation (reduced, baumgarte, penalty, projection:
 !> model_opt.formulation) with any ODE method; an index-3 stepper runs trapezoidal_index3 (the
 !> book's scheme or the augmented Lagrangian, fixed step: its opt.adaptive must be 0) with the
-!> substep retries of mbdk_index3_advance, and its multipliers are the integrator's own. Steps
+!> substep retries of mbdk_index3_advance, and its multipliers are the integrator's own. The
+!> spatial pair does the same on a spatial scene (mbdk_spatial_model; its tables as the f2py
+!> entry spatial_run takes them): the stepping above the mechanism interface is one code for
+!> both kinds of scene, and only the model behind b%mech differs. Steps
 !> land on t0 + k h as in the whole-interval drivers, so a stepper and mbdk_solve_ode (or
 !> mbdk_index3_solve) give the same bits.
 !>
@@ -43,17 +48,26 @@ module mbdk_capi_stepper
   use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
     mbdk_index3_advance
   use mbdk_c_tables, only: mbdk_c_tables_read
+  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_PROJECTION
+  use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
+    mbdk_spatial_options_t, mbdk_spatial_init, MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS
+  use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
+  use mbdk_elements, only: MBDK_EFFECT_WEAR
   implicit none
   private
 
   integer, parameter :: KIND_ODE = 1, KIND_SCENE = 2, KIND_INDEX3 = 3
 
-  !> What a handle points to. Allocated through a pointer, so the model may point at its work.
+  !> What a handle points to. Allocated through a pointer, so the model may point at its work
+  !> and mech at the model of the scene's kind (planar or spatial) that it holds.
   type :: stepper_box
     integer :: kind = 0
     type(mbdk_c_problem_t) :: cprob
     type(mbdk_model_t) :: model
     type(mbdk_model_work_t) :: work
+    type(mbdk_spatial_model_t) :: smodel
+    type(mbdk_spatial_work_t) :: swork
+    class(mbdk_mechanism_t), pointer :: mech => null()
     type(mbdk_stepper_t) :: s
     type(mbdk_index3_t) :: i3
     real(dp) :: h = 0.0_dp          !< the grid's step
@@ -63,6 +77,7 @@ module mbdk_capi_stepper
     real(dp) :: t_good = 0.0_dp     !< the last good state (kept across a failed step)
     real(dp), allocatable :: y_good(:)
     logical :: failed_i3 = .false.  !< an index-3 step failed: no further steps
+    logical :: spatial = .false.    !< the scene's model is smodel (else model)
   end type stepper_box
 
 contains
@@ -166,19 +181,146 @@ contains
     b%kind = KIND_INDEX3
     ! the model's defaults: its reduced formulation gives only the consistent a, lambda at t0
     call build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
-    if (stat == MBDK_SUCCESS) then
-      call mbdk_index3_init(b%i3, b%model, opt, t0, y0(1:6 * nb), stat)
-      b%h = opt%h
-      b%t0 = t0
-      b%t_good = t0
-      if (stat == MBDK_SUCCESS) call keep_y0(b, y0(1:6 * nb), stat)
-    end if
+    if (stat == MBDK_SUCCESS) call start_index3(b, opt, t0, y0(1:6 * nb), stat)
     mbdk_c_stepper_create_index3 = finish_create(b, stat, handle)
   end function mbdk_c_stepper_create_index3
 
+  !> Stepper for a spatial scene (mbdk_spatial_model) given by its tables, as the f2py entry
+  !> spatial_run takes them (C row-major: inertia[nb][3][3], jbody[nj][2],
+  !> jreal[nj][MBDK_SPATIAL_JOINT_REALS], fbody[nf][2], freal[nf][MBDK_SPATIAL_FORCE_REALS]),
+  !> and its options (formulation, rotation, the norm's keeping, the watch), integrated by the
+  !> ODE method of opt from (t0, y0 = (q, w, V)): per body q_b = (r, p), p 4 or 3 values as
+  !> sopt%rotation says, then w_b = (r', Omega) per body, then the initial volumes V of the
+  !> table's wear elements (MBDK_EFFECT_WEAR entries, in table order; none without).
+  integer(c_int) function mbdk_c_stepper_create_spatial(nb, mass, inertia, nj, jtype, jbody, &
+      jreal, nf, ftype, fbody, freal, sopt, opt, t0, y0, handle) &
+      bind(C, name='mbdk_stepper_create_spatial')
+    integer(c_int), value :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jtype(*), jbody(*), ftype(*), fbody(*)
+    type(mbdk_spatial_options_t), intent(in), optional :: sopt
+    type(mbdk_options_t), intent(in), optional :: opt
+    real(c_double), value :: t0
+    type(c_ptr), intent(out), optional :: handle
+    type(stepper_box), pointer :: b
+    integer :: stat, n
+
+    mbdk_c_stepper_create_spatial = MBDK_ERR_INVALID_INPUT
+    if (.not. present(handle)) return
+    handle = c_null_ptr
+    if (.not. (present(sopt) .and. present(opt) .and. present(y0))) return
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_spatial = MBDK_ERR_NO_MEMORY
+      return
+    end if
+    b%kind = KIND_SCENE
+    call build_spatial(b, nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, &
+                       sopt, t0, y0, n, stat)
+    if (stat == MBDK_SUCCESS) call check_start_mech(b, t0, y0(1:n), stat)
+    if (stat == MBDK_SUCCESS) call start(b, opt, t0, y0(1:n), stat)
+    mbdk_c_stepper_create_spatial = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_spatial
+
+  !> Stepper running a member of the index-3 family (trapezoidal_index3 with opt's defaults,
+  !> or newmark, hht, generalized_alpha by opt's beta, gamma, alpha_m, alpha_f) on a spatial
+  !> scene, fixed step (opt.adaptive must be 0: MBDK_ERR_NOT_APPLICABLE otherwise); tables,
+  !> options and y0 as mbdk_stepper_create_spatial's (a table with wear elements:
+  !> MBDK_ERR_NOT_APPLICABLE, the family's state [q; v] has no place for their volumes). The
+  !> model's formulation plays no part in the index-3 step; the model is built with the
+  !> projection formulation's, as simulate builds it, so that the two give the same bits.
+  integer(c_int) function mbdk_c_stepper_create_spatial_index3(nb, mass, inertia, nj, jtype, &
+      jbody, jreal, nf, ftype, fbody, freal, sopt, opt, t0, y0, handle) &
+      bind(C, name='mbdk_stepper_create_spatial_index3')
+    integer(c_int), value :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jtype(*), jbody(*), ftype(*), fbody(*)
+    type(mbdk_spatial_options_t), intent(in), optional :: sopt
+    type(mbdk_index3_options_t), intent(in), optional :: opt
+    real(c_double), value :: t0
+    type(c_ptr), intent(out), optional :: handle
+    type(stepper_box), pointer :: b
+    type(mbdk_spatial_options_t) :: so
+    integer :: stat, n
+
+    mbdk_c_stepper_create_spatial_index3 = MBDK_ERR_INVALID_INPUT
+    if (.not. present(handle)) return
+    handle = c_null_ptr
+    if (.not. (present(sopt) .and. present(opt) .and. present(y0))) return
+    if (opt%adaptive /= 0) then
+      mbdk_c_stepper_create_spatial_index3 = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    if (.not. (opt%h > 0.0_dp .and. opt%h <= huge(1.0_dp))) return
+    allocate (b, stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_create_spatial_index3 = MBDK_ERR_NO_MEMORY
+      return
+    end if
+    b%kind = KIND_INDEX3
+    so = sopt
+    so%formulation = MBDK_FORM_PROJECTION
+    call build_spatial(b, nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, &
+                       so, t0, y0, n, stat)
+    if (stat == MBDK_SUCCESS) call check_start_mech(b, t0, y0(1:n), stat)
+    if (stat == MBDK_SUCCESS) call start_index3(b, opt, t0, y0(1:n), stat)
+    mbdk_c_stepper_create_spatial_index3 = finish_create(b, stat, handle)
+  end function mbdk_c_stepper_create_spatial_index3
+
+  !> b%smodel from the C tables (copied into Fortran's column order) and b%mech pointing at
+  !> it; n the state's length (the bodies', then one per wear element).
+  subroutine build_spatial(b, nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, &
+                           freal, so, t0, y0, n, stat)
+    type(stepper_box), intent(inout), target :: b
+    integer(c_int), intent(in) :: nb, nj, nf
+    real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
+    integer(c_int), intent(in), optional :: jtype(*), jbody(*), ftype(*), fbody(*)
+    type(mbdk_spatial_options_t), intent(in) :: so
+    real(dp), intent(in) :: t0
+    integer, intent(out) :: n
+    integer, intent(out) :: stat
+    integer, parameter :: NJR = MBDK_SPATIAL_JOINT_REALS, NFR = MBDK_SPATIAL_FORCE_REALS
+    integer, allocatable :: jt(:), jb(:, :), ft(:), fb(:, :)
+    real(dp), allocatable :: jr(:, :), fr(:, :), inert(:, :, :)
+    integer :: astat
+    n = 0
+    stat = MBDK_ERR_INVALID_INPUT
+    ! counts whose tables no default integer indexes are refused before anything is allocated
+    if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nb > huge(1) / 13 .or. nj > huge(1) / NJR .or. &
+        nf > huge(1) / NFR) return
+    if (.not. (present(mass) .and. present(inertia))) return
+    if (nj > 0 .and. .not. (present(jtype) .and. present(jbody) .and. present(jreal))) return
+    if (nf > 0 .and. .not. (present(ftype) .and. present(fbody) .and. present(freal))) return
+    n = nb * (merge(7, 6, so%rotation == 1) + 6)
+    if (nf > 0) n = n + count(ftype(1:nf) == MBDK_EFFECT_WEAR)
+    allocate (jt(nj), jb(2, nj), jr(NJR, nj), ft(nf), fb(2, nf), fr(NFR, nf), &
+              inert(3, 3, nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (NJR * real(nj, dp) + NFR * real(nf, dp) &
+                           + 9.0_dp * nb) + 12.0_dp * (nj + nf), stat)
+    if (stat /= MBDK_SUCCESS) return
+    ! C's inertia[b][i][j] is Fortran's (j, i, b): the transpose, which a symmetric J does not
+    ! see (and an asymmetric one is refused by the model either way)
+    inert = reshape(inertia(1:9 * nb), [3, 3, nb])
+    if (nj > 0) then
+      jt = jtype(1:nj)
+      jb = reshape(jbody(1:2 * nj), [2, nj])
+      jr = reshape(jreal(1:NJR * nj), [NJR, nj])
+    end if
+    if (nf > 0) then
+      ft = ftype(1:nf)
+      fb = reshape(fbody(1:2 * nf), [2, nf])
+      fr = reshape(freal(1:NFR * nf), [NFR, nf])
+    end if
+    call mbdk_spatial_init(b%smodel, b%swork, so, mass(1:nb), inert, jt, jb, jr, ft, fb, fr, &
+                           t0, y0(1:n), stat)
+    if (stat /= MBDK_SUCCESS) return
+    b%spatial = .true.
+    b%mech => b%smodel
+  end subroutine build_spatial
+
   !> b%model from the C tables, their pose values taken at y0 (mbdk_c_tables).
   subroutine build_model(b, nb, mass, inertia, nj, jint, jreal, nf, fint, freal, mopt, y0, stat)
-    type(stepper_box), intent(inout) :: b
+    type(stepper_box), intent(inout), target :: b
     integer(c_int), intent(in) :: nb, nj, nf
     real(c_double), intent(in), optional :: mass(*), inertia(*), jreal(*), freal(*), y0(*)
     integer(c_int), intent(in), optional :: jint(*), fint(*)
@@ -190,6 +332,7 @@ contains
                             fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call mbdk_model_init(b%model, mass(1:nb), inertia(1:nb), ji, jr, fi, fr, mopt, b%work, stat)
+    if (stat == MBDK_SUCCESS) b%mech => b%model
   end subroutine build_model
 
   !> A scene stepper's initial state (q, v) against its joints: |Phi| within START_TOL of the
@@ -236,6 +379,39 @@ contains
     stat = MBDK_SUCCESS
   end subroutine check_start
 
+  !> check_start's test on any mechanism (a spatial scene), from its dense evaluation: |Phi|
+  !> within START_TOL of the scene's size (the largest |q|, at least the model's length scale),
+  !> |C v + Phi_t| within START_TOL of its terms.
+  subroutine check_start_mech(b, t0, y, stat)
+    type(stepper_box), intent(inout) :: b
+    real(dp), intent(in) :: t0, y(:)
+    integer, intent(out) :: stat
+    real(dp), parameter :: START_TOL = 1.0e-6_dp
+    real(dp), allocatable :: f(:), phi(:), c(:, :), gam(:), phit(:)
+    real(dp) :: size_
+    integer :: nq, nv, m, k
+    stat = MBDK_SUCCESS
+    m = b%mech%m
+    if (m == 0) return
+    nq = b%mech%ncoord
+    nv = b%mech%nvel
+    stat = MBDK_ERR_NONFINITE
+    if (.not. all(abs(y) <= huge(1.0_dp))) return
+    allocate (f(nv), phi(m), gam(m), phit(m), c(m, nv), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (nv + 3.0_dp * m + real(m, dp) * nv), stat)
+    if (stat /= MBDK_SUCCESS) return
+    associate (q => y(1:nq), v => y(nq + 1:nq + nv))
+      call b%mech%evaluate(t0, q, v, f, phi, c, gam, phit, stat)
+      if (stat /= MBDK_SUCCESS) return
+      size_ = max(1.0_dp, maxval(abs(q)), b%smodel%length)
+      stat = MBDK_ERR_INCONSISTENT_INITIAL
+      if (.not. all(abs(phi) <= START_TOL * size_)) return
+      if (.not. all(abs(matmul(c, v) + phit) <= START_TOL * &
+                    max(matmul(abs(c), abs(v)) + abs(phit), size_))) return
+    end associate
+    stat = MBDK_SUCCESS
+  end subroutine check_start_mech
+
   subroutine start(b, opt, t0, y0, stat)
     type(stepper_box), intent(inout) :: b
     type(mbdk_options_t), intent(in) :: opt
@@ -249,7 +425,7 @@ contains
     case (KIND_ODE)
       call mbdk_stepper_init(b%s, b%cprob, opt, t0, y0, stat)
     case default
-      call mbdk_stepper_init(b%s, b%model, opt, t0, y0, stat)
+      call mbdk_stepper_init(b%s, b%mech, opt, t0, y0, stat)
     end select
     if (stat /= MBDK_SUCCESS) return
     b%h = opt%h
@@ -263,6 +439,19 @@ contains
       b%equal_steps = lmm%k > 1
     end if
   end subroutine start
+
+  !> The index-3 family's solve on b%mech from (t0, y0), on the grid of opt%h.
+  subroutine start_index3(b, opt, t0, y0, stat)
+    type(stepper_box), intent(inout) :: b
+    type(mbdk_index3_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t0, y0(:)
+    integer, intent(out) :: stat
+    call mbdk_index3_init(b%i3, b%mech, opt, t0, y0, stat)
+    b%h = opt%h
+    b%t0 = t0
+    b%t_good = t0
+    if (stat == MBDK_SUCCESS) call keep_y0(b, y0, stat)
+  end subroutine start_index3
 
   !> b%y_good = y0, allocated with its status (MBDK_ERR_NO_MEMORY)
   subroutine keep_y0(b, y0, stat)
@@ -298,11 +487,11 @@ contains
     case (KIND_ODE)
       call mbdk_stepper_step(b%s, b%cprob, t_next, stat)
     case (KIND_SCENE)
-      call mbdk_stepper_step(b%s, b%model, t_next, stat)
+      call mbdk_stepper_step(b%s, b%mech, t_next, stat)
     case default
       stat = MBDK_ERR_NOT_APPLICABLE
       if (b%failed_i3) return
-      call mbdk_index3_advance(b%i3, b%model, t_next, stat)
+      call mbdk_index3_advance(b%i3, b%mech, t_next, stat)
       b%failed_i3 = stat /= MBDK_SUCCESS
     end select
     if (stat /= MBDK_SUCCESS) return
@@ -408,7 +597,7 @@ contains
     if (.not. (associated(b) .and. present(n) .and. present(m))) return
     n = int(size(b%y_good), c_int)
     m = 0
-    if (b%kind /= KIND_ODE) m = int(b%model%m, c_int)
+    if (b%kind /= KIND_ODE) m = int(b%mech%m, c_int)
     mbdk_c_stepper_size = MBDK_SUCCESS
   end function mbdk_c_stepper_size
 
@@ -421,7 +610,7 @@ contains
     integer(c_int), value :: m
     type(stepper_box), pointer :: b
     real(dp), allocatable :: a(:), l(:)
-    integer :: stat, nc
+    integer :: stat, nq, nv
     mbdk_c_stepper_multipliers = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. associated(b)) return
@@ -429,20 +618,20 @@ contains
       mbdk_c_stepper_multipliers = MBDK_ERR_NOT_APPLICABLE
       return
     end if
-    if (m /= b%model%m .or. (m > 0 .and. .not. present(lam))) return
+    if (m /= b%mech%m .or. (m > 0 .and. .not. present(lam))) return
     if (b%kind == KIND_INDEX3) then
       if (m > 0) lam(1:m) = b%i3%lam
       mbdk_c_stepper_multipliers = MBDK_SUCCESS
       return
     end if
-    nc = b%model%nc
-    allocate (a(nc), l(m), stat=stat)
+    nq = b%mech%ncoord
+    nv = b%mech%nvel
+    allocate (a(nv), l(m), stat=stat)
     if (stat /= 0) then
       mbdk_c_stepper_multipliers = MBDK_ERR_NO_MEMORY
       return
     end if
-    call mbdk_model_accelerations(b%model, b%t_good, b%y_good(1:nc), b%y_good(nc + 1:2 * nc), a, &
-                                  l, stat)
+    call b%mech%accelerations(b%t_good, b%y_good(1:nq), b%y_good(nq + 1:nq + nv), a, l, stat)
     if (stat == MBDK_SUCCESS .and. m > 0) lam(1:m) = l
     mbdk_c_stepper_multipliers = int(stat, c_int)
   end function mbdk_c_stepper_multipliers
@@ -463,26 +652,24 @@ contains
   end function mbdk_c_stepper_stats
 
   !> The report of the watch's check that stopped a scene or index-3 stepper with
-  !> MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT
-  !> (kernel/src/model/mbdk_watch.f90): report(1:8) = quantity (1 position, 2 velocity,
-  !> 3 energy, 4 momentum; 0 while nothing failed), row (1-based: the constraint row, or the
-  !> conserved component; 0 for energy), value per its scale, tolerance, time, time of the last
-  !> check passed, the value itself, its scale. An ODE stepper has no watch:
+  !> MBDK_ERR_CONSTRAINT_DRIFT, MBDK_ERR_ENERGY_DRIFT or MBDK_ERR_INVARIANT_DRIFT, by name
+  !> (mbdk_watch_report_t; quantity 0 while nothing failed). An ODE stepper has no watch:
   !> MBDK_ERR_NOT_APPLICABLE.
   integer(c_int) function mbdk_c_stepper_watch_report(handle, report) &
       bind(C, name='mbdk_stepper_watch_report')
     type(c_ptr), value :: handle
-    real(c_double), intent(out), optional :: report(8)
+    type(mbdk_watch_report_t), intent(out), optional :: report
     type(stepper_box), pointer :: b
     mbdk_c_stepper_watch_report = MBDK_ERR_INVALID_INPUT
     b => box_of(handle)
     if (.not. (associated(b) .and. present(report))) return
     mbdk_c_stepper_watch_report = MBDK_ERR_NOT_APPLICABLE
     if (b%kind == KIND_ODE) return
-    associate (w => b%work%watch)
-      report = [real(w%what, dp), real(w%row, dp), w%value, w%tol, w%t_bad, w%t_good, &
-                w%absolute, w%scale]
-    end associate
+    if (b%spatial) then
+      report = mbdk_watch_report_of(b%swork%watch)
+    else
+      report = mbdk_watch_report_of(b%work%watch)
+    end if
     mbdk_c_stepper_watch_report = MBDK_SUCCESS
   end function mbdk_c_stepper_watch_report
 

@@ -14,8 +14,10 @@
 ! aligns its arrays), where the solve stores the time it has reached (the progress field). The callback solve keeps the GIL: it calls Python.
 
 subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf, interrupt, &
-                         natol, atol, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
-  ! atol: empty, or one absolute tolerance per state for an error-controlled method
+                         natol, atol, ntimes, times, nsamp, t_out, y_out, nstatw, statbuf, &
+                         nwritten, status)
+  ! atol: empty, or one absolute tolerance per state for an error-controlled method; times:
+  ! empty, or its sample times (mbdk_solve_ode), nsamp of them
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
@@ -23,8 +25,9 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   use mbdk_textbook, only: mbdk_textbook_t, mbdk_textbook_init
   use mbdk_solve, only: mbdk_solve_ode
   implicit none
-  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol
-  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol)
+  integer, intent(in) :: problem_id, n, np, noptw, nsamp, nstatw, natol, ntimes
+  double precision, intent(in) :: y0(n), t0, t_end, params(np), optbuf(noptw), atol(natol), &
+    times(ntimes)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
@@ -34,6 +37,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
 !f2py integer intent(hide), depend(params) :: np = len(params)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   type(mbdk_textbook_t) :: prob
   type(mbdk_options_t) :: opt
@@ -49,7 +53,7 @@ subroutine solve_problem(problem_id, n, y0, t0, t_end, np, params, noptw, optbuf
   opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
   call mbdk_textbook_init(prob, problem_id, n, params, status)
   if (status /= MBDK_SUCCESS) return
-  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol, times)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_problem
 
@@ -72,11 +76,12 @@ subroutine eval_problem(problem_id, n, np, params, t, y, f, status)
 end subroutine eval_problem
 
 subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, natol, atol, &
-                          nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
+                          ntimes, times, nsamp, t_out, y_out, nstatw, statbuf, nwritten, status)
   ! The slow path: F is a Python function fun(t, y, dydt, flag) filling dydt in place
   ! (f2py hides n); flag(1) = 1 reports a failure. With use_jac /= 0, jfun(t, y, dfdy, flag)
   ! fills its Jacobian dfdy (n x n) in place for the implicit methods' Newton (else jfun is
-  ! never called: finite differences). Not threadsafe: it calls Python.
+  ! never called: finite differences). times: as solve_problem's. Not threadsafe: it calls
+  ! Python.
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_options, only: mbdk_options_t
@@ -85,14 +90,15 @@ subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, n
   use mbdk_solve, only: mbdk_solve_ode
   implicit none
   external fun, jfun
-  integer, intent(in) :: n, noptw, nsamp, nstatw, natol, use_jac
-  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol)
+  integer, intent(in) :: n, noptw, nsamp, nstatw, natol, use_jac, ntimes
+  double precision, intent(in) :: y0(n), t0, t_end, optbuf(noptw), atol(natol), times(ntimes)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: statbuf(nstatw)
   integer, intent(out) :: nwritten, status
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
   ! The callback's signature for f2py: its first argument is named n so that the bounds of
   ! cb_y and cb_dydt refer to the callback's own argument.
@@ -116,7 +122,7 @@ subroutine solve_callback(fun, jfun, use_jac, n, y0, t0, t_end, noptw, optbuf, n
   else
     call mbdk_proc_problem_init(prob, fun, n, int(opt%nq))
   end if
-  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol)
+  call mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, status, atol, times)
   statbuf = transfer(st, statbuf, nstatw)
 end subroutine solve_callback
 
@@ -271,49 +277,37 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
                      t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
                      a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
                      nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
-                     bad_force, watch_report, invariants, ninv, status)
-  ! The one entry that runs a scene. The tables' pose defaults are filled in at y0 and the model
-  ! built (mbdk_assembly, mbdk_model); with assemble /= 0 the initial state is assembled (the
-  ! coordinates whose given(:) is 0 move; asm_iters corrections; on failure,
-  ! MBDK_ERR_INCONSISTENT_INITIAL, asm_resid holds the residual rows, of the velocities when
-  ! asm_velocity /= 0) and the pose defaults taken again at the assembled
-  ! pose; then the method integrates it (an ODE method on the model's formulation,
-  ! trapezoidal_index3 with its own options, or, with dae_form 1 or 2, ida or bdf on the scene's
-  ! DAE: ida 1 index1, 2 ggl; bdf 1 i3, 2 si2; 0 otherwise) from the assembled state (the first
-  ! sample), and the
-  ! outputs asked for (want: MBDK_OUT_* bits of mbdk_model) are computed at the samples in the
-  ! same call. bad_joint, bad_force: the element a pose default failed on (1-based), else 0. An output array not asked for may
-  ! have one column; trapezoidal_index3 writes a_out, lam_out and iters_out whatever want says
-  ! (they are its own). Samples whose outputs cannot be computed (the state a failed run stopped
-  ! at) get NaN there. visits: the model's visit counters over the whole call (steps and
-  ! outputs); linear_solve: the path the model's solves take (MBDK_SOLVE_*). watch_report: a
-  ! drift failure's report (mbdk_watch): quantity, row, value, tolerance, time, last good time,
-  ! the value itself and its scale. invariants(:, 1:ninv): the components of the momentum and
-  ! angular momentum the scene conserves (mbdk_watch: kind, direction, point), which a
-  ! momentum failure's row counts. energy(9, :): kinetic, gravity and spring energy, the powers
-  ! of dampers (dissipated), constraints and loads, and their work as the run integrated it at
-  ! every step (mbdk_watch_work_at).
+                     bad_force, nwrw, wrbuf, invariants, ninv, status)
+  ! The one entry that runs a planar scene. The model is built and its initial state assembled
+  ! (mbdk_entry_planar_start: the coordinates whose given(:) is 0 move; asm_iters corrections;
+  ! on failure, MBDK_ERR_INCONSISTENT_INITIAL, asm_resid holds the residual rows, of the
+  ! velocities when asm_velocity /= 0; bad_joint, bad_force: the element a pose default failed
+  ! on), the method integrates it on the route of (method_id, dae_form) (mbdk_entry) from the
+  ! assembled state (the first sample), and the outputs want asks for (MBDK_OUT_* bits) are
+  ! computed at the samples (mbdk_entry_planar_outputs; energy(9, :): kinetic, gravity and
+  ! spring energy, the powers of dampers, constraints and loads, and their work). An output
+  ! array not asked for may have one column. visits: the model's visit counters over the call;
+  ! linear_solve: the path of the model's solves (MBDK_SOLVE_*); wrbuf: a drift failure's
+  ! report (mbdk_watch_report_t); invariants(:, 1:ninv): the components of the momentum and
+  ! angular momentum the scene conserves (mbdk_watch), which a momentum failure's row counts.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_FAMILY_IDA, &
-    MBDK_FAMILY_VARIABLE_BDF, MBDK_METHOD_NAME_LEN, MBDK_TRAPEZOIDAL_INDEX3
-  use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
-    mbdk_model_outputs, mbdk_model_linear_solve, MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, &
-    MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, MBDK_OUT_RESIDUALS, MBDK_OUT_ALL, MBDK_VISIT_COUNT
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
-  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
-    mbdk_index3_is_trapezoidal
+  use mbdk_model, only: mbdk_model_t, mbdk_model_work_t, mbdk_model_options_t, &
+    mbdk_model_linear_solve, MBDK_OUT_ALL, MBDK_VISIT_COUNT
+  use mbdk_trapezoidal_index3, only: mbdk_index3_options_t
+  use mbdk_entry, only: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
+    mbdk_entry_planar_start, mbdk_entry_planar_sizes_ok, mbdk_entry_planar_outputs, &
+    MBDK_ROUTE_DAE, MBDK_ROUTE_INDEX3
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_OUTPUT_SIZE, &
     MBDK_ERR_NO_MEMORY, mbdk_is_failure
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
-  use mbdk_assembly, only: mbdk_model_start
-  use mbdk_watch, only: mbdk_watch_work_at, mbdk_watch_reserve
+  use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want
   integer, intent(in) :: nsamp
-  integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis
+  integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis, nwrw
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1)
   integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
@@ -324,10 +318,11 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp)
   double precision, intent(inout) :: a_out(nc, na), lam_out(m1, nl), reac(3, nj1, nr)
   double precision, intent(inout) :: energy(9, ne), resid(3, nrs), statbuf(nstatw), visits(nvis)
+  double precision, intent(inout) :: wrbuf(nwrw)
   integer, intent(inout) :: iters_out(ni)
   integer, intent(out) :: nwritten, linear_solve, status, asm_iters, asm_velocity, bad_joint
   integer, intent(out) :: bad_force
-  double precision, intent(out) :: asm_resid(m1), watch_report(8), invariants(7, 6)
+  double precision, intent(out) :: asm_resid(m1), invariants(7, 6)
   integer, intent(out) :: ninv
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
@@ -347,23 +342,21 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
 !f2py integer intent(hide), depend(resid) :: nrs = shape(resid, 1)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
 !f2py integer intent(hide), depend(visits) :: nvis = len(visits)
+!f2py integer intent(hide), depend(wrbuf) :: nwrw = len(wrbuf)
   type(mbdk_model_t) :: model
   type(mbdk_model_work_t), target :: work
   type(mbdk_model_options_t) :: mopt
   type(mbdk_options_t) :: opt
   type(mbdk_index3_options_t) :: i3
   type(mbdk_stats_t) :: st
-  character(len=MBDK_METHOD_NAME_LEN) :: name
-  integer :: family, order, m, k, ostat, astat, krec
-  logical :: index3, dae
-  double precision :: nan
-  double precision, allocatable :: a_s(:), lam_s(:), reac_s(:, :), en_s(:), res_s(:)
+  type(mbdk_watch_report_t) :: wr
+  integer :: m, astat, route, ka, ki
+  logical :: index3
   double precision, allocatable :: ys(:)
   logical :: vel
 
   nwritten = 0
   linear_solve = -1
-  watch_report = 0.0d0
   invariants = 0.0d0
   ninv = 0
   asm_iters = 0
@@ -374,17 +367,18 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   t_out = 0.0d0
   y_out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * nmow /= c_sizeof(mopt) .or. 8 * noptw /= c_sizeof(opt) .or. &
-      8 * ni3w /= c_sizeof(i3) .or. 8 * nstatw /= c_sizeof(st)) return
+  if (8 * nmow /= c_sizeof(mopt) .or. 8 * nstatw /= c_sizeof(st) .or. &
+      8 * nwrw /= c_sizeof(wr)) return
+  wrbuf = transfer(wr, wrbuf, nwrw)
   ! y = [q; v; w]: the effects' states w after the bodies' (mbdk_model), checked once it is built
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1 .or. n < 6 * nb .or. nc /= 3 * nb) return
   if (want < 0 .or. want > MBDK_OUT_ALL .or. nvis /= MBDK_VISIT_COUNT) return
-  call mbdk_method_info(method_id, name, family, order)
-  index3 = family == MBDK_FAMILY_DAE_INDEX3
-  ! ida always, bdf with a DAE form: the scene's DAE itself, its own multipliers
-  dae = family == MBDK_FAMILY_IDA .or. (family == MBDK_FAMILY_VARIABLE_BDF .and. dae_form > 0)
-  if (dae .and. dae_form /= 1 .and. dae_form /= 2) return
-  if (family == MBDK_FAMILY_IDA .and. dae_form == 0) return
+  route = mbdk_entry_route(method_id, dae_form)
+  if (route == 0) return
+  index3 = route == MBDK_ROUTE_INDEX3
+  call mbdk_entry_options(method_id, optbuf, i3buf, transfer(c_loc(interrupt), 0_c_intptr_t), &
+                          transfer(c_loc(interrupt(3)), 0_c_intptr_t), opt, i3, status)
+  if (status /= MBDK_SUCCESS) return
   mopt = transfer(mobuf, mopt)
   ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
   allocate (ys(n), stat=astat)
@@ -394,112 +388,38 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
     return
   end if
   ys = y0
-  call mbdk_model_start(model, work, mass, inertia, jint(:, 1:nj), jreal(:, 1:nj), &
-                        fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys(1:2 * nc), given(1:nc) /= 0, &
-                        given(nc + 1:2 * nc) /= 0, assemble /= 0, asm_iters, asm_resid, vel, &
-                        bad_joint, bad_force, status, bkind, st%alloc_bytes)
+  call mbdk_entry_planar_start(model, work, mass, inertia, bkind, jint(:, 1:nj), jreal(:, 1:nj), &
+                               fint(:, 1:nf), freal(:, 1:nf), mopt, t0, ys, given /= 0, &
+                               assemble /= 0, want, nsamp, m1, asm_iters, asm_resid, vel, &
+                               bad_joint, bad_force, st, status)
   asm_velocity = merge(1, 0, vel)
   if (status /= MBDK_SUCCESS) then
     statbuf = transfer(st, statbuf, nstatw)
     return
   end if
-  status = MBDK_ERR_INVALID_INPUT
-  if (n /= model%n) return
-  m = model%m
-  status = MBDK_ERR_OUTPUT_SIZE
-  if (m1 < max(m, 1)) return
   linear_solve = mbdk_model_linear_solve(model)
   ninv = model%ninv
   invariants = model%inv
-  ! the energy asked for: the watch integrates the work at every step, and the samples take it
-  model%record_work = iand(want, MBDK_OUT_ENERGY) /= 0
-  model%has_watch = model%has_watch .or. model%record_work
-  if (model%record_work) then
-    call mbdk_watch_reserve(work%watch, nsamp, status)
-    if (status /= MBDK_SUCCESS) then
-      statbuf = transfer(st, statbuf, nstatw)
-      return
-    end if
-    status = MBDK_ERR_OUTPUT_SIZE
-  end if
-  if ((index3 .or. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) .and. na < nsamp) return
-  if ((index3 .or. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) .and. nl < nsamp) return
-  if (index3 .and. ni < nsamp) return
-  if (iand(want, MBDK_OUT_REACTIONS) /= 0 .and. nr < nsamp) return
-  if (iand(want, MBDK_OUT_ENERGY) /= 0 .and. ne < nsamp) return
-  if (iand(want, MBDK_OUT_RESIDUALS) /= 0 .and. nrs < nsamp) return
+  m = model%m
+  status = MBDK_ERR_OUTPUT_SIZE
+  if (.not. mbdk_entry_planar_sizes_ok(route, want, nsamp, na, nl, ni, nr, ne, nrs)) return
 
-  if (index3) then
-    i3 = transfer(i3buf, i3)
-    ! trapezoidal_index3 is the family's member with its own parameters (newmark, hht and
-    ! generalized_alpha carry theirs: mbdk_index3_options)
-    if (method_id == MBDK_TRAPEZOIDAL_INDEX3 .and. .not. mbdk_index3_is_trapezoidal(i3)) then
-      status = MBDK_ERR_INVALID_INPUT
-      return
-    end if
-    i3%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    i3%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-    call mbdk_index3_solve(model, i3, t0, t_end, ys, t_out, y_out, a_out(:, 1:nsamp), &
-                           lam_out(1:m, 1:nsamp), iters_out(1:nsamp), nwritten, st, status)
-  else if (dae) then
-    ! ida, or bdf, on the DAE itself, in form dae_form (ida: 1 index1, 2 ggl; bdf: 1 i3, 2 si2)
-    opt = transfer(optbuf, opt)
-    opt%method = method_id
-    opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-    call mbdk_solve_dae(model, opt, dae_form, t0, t_end, ys, t_out, y_out, &
-                              lam_out(1:m, :), nwritten, st, status)
-  else
-    opt = transfer(optbuf, opt)
-    opt%method = method_id
-    opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-    opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-    call mbdk_solve_ode(model, opt, t0, t_end, ys, t_out, y_out, nwritten, st, status)
-  end if
-
-  if (want /= 0 .and. nwritten > 0) then
-    nan = ieee_value(nan, ieee_quiet_nan)
-    allocate (a_s(nc), lam_s(m), reac_s(3, max(nj, 1)), en_s(6), res_s(3), stat=astat)
-    ! the run's own status first: the outputs are missing only where it succeeded
-    if (astat /= 0 .and. .not. mbdk_is_failure(status)) &
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (nc + m + 3.0d0 * max(nj, 1) + 9), &
-                             status, st%alloc_bytes)
-  end if
-  if (want /= 0 .and. nwritten > 0 .and. astat == 0) then
-    krec = 0
-    do k = 1, nwritten
-      if (index3) then
-        a_s = a_out(:, k)
-        lam_s = lam_out(1:m, k)
-      end if
-      call mbdk_model_outputs(model, t_out(k), y_out(:, k), index3, want, a_s, lam_s, &
-                              reac_s(:, 1:nj), en_s, res_s, ostat)
-      if (ostat /= MBDK_SUCCESS) then
-        a_s = nan; lam_s = nan; reac_s = nan; en_s = nan; res_s = nan
-        ! NaN stands for a state that has no outputs, not for memory that was not there
-        if (ostat == MBDK_ERR_NO_MEMORY .and. .not. mbdk_is_failure(status)) status = ostat
-      end if
-      if (.not. index3 .and. iand(want, MBDK_OUT_ACCELERATIONS) /= 0) a_out(:, k) = a_s
-      ! a DAE integrator's multipliers are its own (like trapezoidal_index3's); the reactions
-      ! come from the model's solve at the sampled state
-      if (.not. (index3 .or. dae) .and. iand(want, MBDK_OUT_MULTIPLIERS) /= 0) &
-        lam_out(1:m, k) = lam_s
-      if (iand(want, MBDK_OUT_REACTIONS) /= 0) reac(:, 1:nj, k) = reac_s(:, 1:nj)
-      if (iand(want, MBDK_OUT_ENERGY) /= 0) then
-        energy(1:6, k) = en_s
-        call mbdk_watch_work_at(work%watch, t_out(k), krec, energy(7:9, k))
-      end if
-      if (iand(want, MBDK_OUT_RESIDUALS) /= 0) resid(:, k) = res_s
-    end do
-  end if
+  ! the index-3 family writes its a, lam and iterations at every sample, a DAE its lam, an ODE
+  ! method none of them
+  ka = merge(nsamp, min(na, 1), index3)
+  ki = merge(nsamp, min(ni, 1), index3)
+  call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, ys, t_out, y_out, a_out(:, 1:ka), &
+                            lam_out(1:m, 1:merge(nsamp, nl, index3)), iters_out(1:ki), nwritten, &
+                            st, status)
+  if (want /= 0 .and. nwritten > 0) &
+    call mbdk_entry_planar_outputs(model, work, t_out, y_out, nwritten, want, index3, &
+                                   route == MBDK_ROUTE_DAE, nj, a_out, lam_out, reac, energy, &
+                                   resid, status, st)
   ! a record of the work that could not be allocated: the samples' W is incomplete
   if (work%watch%rec_lost .and. .not. mbdk_is_failure(status)) status = MBDK_ERR_NO_MEMORY
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
-  associate (w => work%watch)
-    watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
-                    w%scale]
-  end associate
+  wrbuf = transfer(mbdk_watch_report_of(work%watch), wrbuf, nwrw)
 
 end subroutine scene_run
 
@@ -784,6 +704,28 @@ subroutine model_constants(near_pivot)
   near_pivot = MBDK_MODEL_NEAR_PIVOT
 end subroutine model_constants
 
+subroutine index3_error_constants(ni3w, i3buf, lte_q, lte_v, status)
+  ! The constants of the index-3 family's local errors in q and v (h^3 q''' lte_q, h^3 q''''
+  ! lte_v) for the options' parameters: what its step-size control estimates with.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_trapezoidal_index3, only: mbdk_index3_error_constants, mbdk_index3_options_t
+  implicit none
+  integer, intent(in) :: ni3w
+  double precision, intent(in) :: i3buf(ni3w)
+  double precision, intent(out) :: lte_q, lte_v
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
+  type(mbdk_index3_options_t) :: opt
+  lte_q = 0.0d0
+  lte_v = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * ni3w /= c_sizeof(opt)) return
+  opt = transfer(i3buf, opt)
+  call mbdk_index3_error_constants(opt, lte_q, lte_v)
+  status = MBDK_SUCCESS
+end subroutine index3_error_constants
+
 subroutine index3_plan(ni3w, i3buf, t0, t_end, nsteps, nsamp, status)
   ! Steps (fixed) or sample intervals (adaptive) and samples of a trapezoidal_index3 solve.
   use, intrinsic :: iso_c_binding, only: c_sizeof
@@ -913,129 +855,106 @@ subroutine quaternion_omega(q, qd, body, w, status)
 end subroutine quaternion_omega
 
 subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
-                       freal, nso, sopt, noptw, optbuf, ni3w, i3buf, interrupt, natol, atol, n, &
-                       y0, assemble, &
-                       dae_form, t0, t_end, nsamp, m1, t_out, y_out, out, lam_out, nwritten, &
-                       nstatw, statbuf, moved, watch_report, invariants, ninv, status)
-  ! A spatial scene (mbdk_spatial_model) run by an ODE method (optbuf: mbdk_options_t). sopt:
-  ! formulation, rotation, norm, alpha, beta, norm_gain, projection_tol, watch_position,
-  ! watch_velocity, watch_energy, watch_every, pen_alpha, pen_omega, pen_mu, lock_guard,
-  ! watch_momentum, watch_quaternion, locate_events (the contacts' events, for dopri54 and
-  ! bs32). The tables have nj1 = max(nj, 1) columns (nf1 likewise). With assemble /= 0 the
-  ! initial state is projected onto the constraints first (moved: the largest change of a
-  ! state). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
+                       freal, nsow, sobuf, method_id, dae_form, noptw, optbuf, ni3w, i3buf, &
+                       interrupt, natol, atol, n, y0, assemble, t0, t_end, nsamp, m1, t_out, &
+                       y_out, out, lam_out, nwritten, nstatw, statbuf, nwrw, wrbuf, moved, &
+                       invariants, ninv, status)
+  ! A spatial scene (mbdk_spatial_model, its options sobuf: mbdk_spatial_options_t) run by
+  ! method_id as scene_run runs a planar one, by the same rule (mbdk_entry): the ODE of the
+  ! model's formulation (optbuf: mbdk_options_t), the index-3 family (i3buf:
+  ! mbdk_index3_options_t) or, with dae_form MBDK_DAE_I3 or MBDK_DAE_SI2, bdf or ida on the
+  ! scene's DAE. The tables have nj1 = max(nj, 1) columns (nf1 likewise). y0 (n): the bodies'
+  ! state, then the initial volume of each wear entry of the force table. With assemble /= 0
+  ! the initial state is projected onto the constraints first (moved: the largest change of a
+  ! state; the volumes are not moved). out(MBDK_SPATIAL_NOUT + 1, nsamp) and lam_out(m1, nsamp): the outputs and
   ! multipliers at the samples (NaN where a failed run's last state has none), the last row
   ! the work of dampers, loads and drivers as the run integrated it at every step
-  ! (mbdk_watch_work_at). dae_form 1: bdf on the scene's index-3 DAE (mbdk_mechanism_dae;
-  ! the multipliers are the DAE's own); 2: trapezoidal_index3 or another member of the
-  ! generalized-alpha family (mbdk_trapezoidal_index3, with i3buf: mbdk_index3_options_t, its
-  ! formulation, step or step-size control and parameters; multipliers its own; i3buf is read
-  ! only then); 3, 4: ida in its index1
-  ! and GGL forms (mbdk_ida; multipliers its own); 5: bdf on the stabilised index-2 form (SI2).
-  ! watch_report, invariants and ninv as scene_run's.
+  ! (mbdk_watch_work_at). The multipliers are the integrator's own where it has them (a DAE,
+  ! the index-3 family), else the reduced form's at the sample. wrbuf (mbdk_watch_report_t),
+  ! invariants and ninv as scene_run's.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
-  use mbdk_watch, only: mbdk_watch_work_at, mbdk_watch_reserve
+  use mbdk_watch, only: mbdk_watch_reserve, mbdk_watch_report_t, mbdk_watch_report_of
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_solve, only: mbdk_solve_ode, mbdk_solve_dae
-  use mbdk_trapezoidal_index3, only: mbdk_index3_solve, mbdk_index3_options_t, &
-    mbdk_index3_is_trapezoidal, MBDK_INDEX3_BOOK
-  use mbdk_methods, only: MBDK_TRAPEZOIDAL_INDEX3
+  use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, MBDK_INDEX3_BOOK
+  use mbdk_entry, only: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
+    mbdk_entry_spatial_outputs, MBDK_ROUTE_ODE, MBDK_ROUTE_INDEX3
   use mbdk_spatial_model
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, nso, noptw, natol, n, assemble, nsamp, m1, nstatw
-  integer, intent(in) :: dae_form, ni3w
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nsow, noptw, natol, n, assemble, nsamp, m1, nstatw
+  integer, intent(in) :: method_id, dae_form, ni3w, nwrw
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
-  double precision, intent(in) :: sopt(nso), optbuf(noptw), atol(natol), y0(n), t0, t_end, &
+  double precision, intent(in) :: sobuf(nsow), optbuf(noptw), atol(natol), y0(n), t0, t_end, &
     i3buf(ni3w)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(8, nsamp), &
-    lam_out(m1, nsamp), moved, watch_report(8), invariants(7, 6)
-  double precision, intent(inout) :: statbuf(nstatw)
+    lam_out(m1, nsamp), moved, invariants(7, 6)
+  double precision, intent(inout) :: statbuf(nstatw), wrbuf(nwrw)
   integer, intent(out) :: nwritten, status, ninv
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
 !f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
-!f2py integer intent(hide), depend(sopt) :: nso = len(sopt)
+!f2py integer intent(hide), depend(sobuf) :: nsow = len(sobuf)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
+!f2py integer intent(hide), depend(wrbuf) :: nwrw = len(wrbuf)
   type(mbdk_spatial_model_t) :: model
   type(mbdk_spatial_work_t), target :: work
   type(mbdk_spatial_options_t) :: so
   type(mbdk_options_t) :: opt
+  type(mbdk_index3_options_t) :: i3
   type(mbdk_stats_t) :: st
-  double precision :: nan, parts(3)
-  double precision, allocatable :: y(:)
-  integer :: k, s, krec
-  logical :: book_i3
+  type(mbdk_watch_report_t) :: wr
+  double precision :: before
+  double precision, allocatable :: y(:), a_out(:, :)
+  integer, allocatable :: iters(:)
+  integer :: k, s, route, na
 
   nwritten = 0
-  book_i3 = .false.
   t_out = 0.0d0
   y_out = 0.0d0
-  nan = ieee_value(0.0d0, ieee_quiet_nan)
-  out = nan
-  lam_out = nan
+  out = ieee_value(0.0d0, ieee_quiet_nan)
+  lam_out = ieee_value(0.0d0, ieee_quiet_nan)
   moved = 0.0d0
-  watch_report = 0.0d0
   invariants = 0.0d0
   ninv = 0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * noptw /= c_sizeof(opt) .or. 8 * nstatw /= c_sizeof(st) .or. nso /= 18) return
+  if (8 * nstatw /= c_sizeof(st) .or. 8 * nsow /= c_sizeof(so) .or. 8 * nwrw /= c_sizeof(wr)) &
+    return
+  wrbuf = transfer(wr, wrbuf, nwrw)
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
-  opt = transfer(optbuf, opt)
-  opt%interrupt = transfer(c_loc(interrupt), 0_c_intptr_t)
-  opt%progress = transfer(c_loc(interrupt(3)), 0_c_intptr_t)
-  so%formulation = nint(sopt(1))
-  so%rotation = nint(sopt(2))
-  so%norm = nint(sopt(3))
-  so%alpha = sopt(4)
-  so%beta = sopt(5)
-  so%norm_gain = sopt(6)
-  so%projection_tol = sopt(7)
-  so%watch_position = sopt(8)
-  so%watch_velocity = sopt(9)
-  so%watch_energy = sopt(10)
-  so%watch_every = nint(sopt(11))
-  so%pen_alpha = sopt(12)
-  so%pen_omega = sopt(13)
-  so%pen_mu = sopt(14)
-  so%lock_guard = sopt(15)
-  so%watch_momentum = sopt(16)
-  so%watch_quaternion = sopt(17)
-  so%locate_events = nint(sopt(18))
+  route = mbdk_entry_route(method_id, dae_form)
+  if (route == 0) return
+  call mbdk_entry_options(method_id, optbuf, i3buf, transfer(c_loc(interrupt), 0_c_intptr_t), &
+                          transfer(c_loc(interrupt(3)), 0_c_intptr_t), opt, i3, status)
+  if (status /= MBDK_SUCCESS) return
+  so = transfer(sobuf, so)
   ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
                          y0, status, st%alloc_bytes)
-  if (status /= MBDK_SUCCESS) then
-    statbuf = transfer(st, statbuf, nstatw)
-    return
-  end if
   ninv = model%ninv
   invariants = model%inv
   ! a spatial run samples its energy: the watch integrates the work at every step
   model%record_work = .true.
   model%has_watch = .true.
-  call mbdk_watch_reserve(work%watch, nsamp, status)
-  if (status /= MBDK_SUCCESS) then
-    statbuf = transfer(st, statbuf, nstatw)
-    return
+  if (status == MBDK_SUCCESS) call mbdk_watch_reserve(work%watch, nsamp, status)
+  if (status == MBDK_SUCCESS .and. m1 < max(model%m, 1)) status = MBDK_ERR_INVALID_INPUT
+  if (status == MBDK_SUCCESS) then
+    ! the index-3 family's accelerations and Newton iterations, which this entry does not return
+    na = merge(nsamp, 1, route == MBDK_ROUTE_INDEX3)
+    allocate (y(n), a_out(model%nvel, na), iters(na), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (n + real(model%nvel, kind(1.0d0)) * na) + &
+                           MBDK_INT_BYTES * na, status, st%alloc_bytes)
   end if
-  if (m1 < max(model%m, 1)) then
-    status = MBDK_ERR_INVALID_INPUT
-    return
-  end if
-  allocate (y(n), stat=k)
-  call mbdk_alloc_status(k, MBDK_REAL_BYTES * n, status, st%alloc_bytes)
   if (status /= MBDK_SUCCESS) then
     statbuf = transfer(st, statbuf, nstatw)
     return
@@ -1045,84 +964,23 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
     call mbdk_spatial_assemble(model, t0, y, moved, status)
     if (status /= MBDK_SUCCESS) return
   end if
-  if (dae_form == 1 .or. (dae_form >= 3 .and. dae_form <= 5)) then
-    ! bdf in its I3 (1) or SI2 (5) form, ida in its index1 (3) or GGL (4) form
-    call mbdk_solve_dae(model, opt, merge(2, 1, dae_form == 4 .or. dae_form == 5), t0, &
-                                t_end, y, t_out, y_out, lam_out, nwritten, st, status)
-    lam_out(:, nwritten + 1:) = nan
-  else if (dae_form == 0) then
-    call mbdk_solve_ode(model, opt, t0, t_end, y, t_out, y_out, nwritten, st, status, atol)
-  else if (dae_form == 2) then
-    call index3_run(status)
-  else
-    status = MBDK_ERR_INVALID_INPUT
-    return
-  end if
+  ! the index-3 solve's statistics replace st: what was asked here is added back
+  before = st%alloc_bytes
+  call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, y, t_out, y_out, a_out, &
+                            lam_out(1:model%m, :), iters, nwritten, st, status, atol)
+  if (route == MBDK_ROUTE_INDEX3) st%alloc_bytes = st%alloc_bytes + before
   s = status
-  krec = 0
-  do k = 1, nwritten
-    call mbdk_watch_work_at(work%watch, t_out(k), krec, parts)
-    out(8, k) = parts(3)
-    ! the drivers' power with the integrator's own multipliers, but the book scheme's (index3
-    ! form of the index-3 family: not accurate enough, they grow as h shrinks) are solved for
-    if (dae_form >= 1 .and. .not. book_i3) then
-      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status, &
-                                lam_in=lam_out(1:model%m, k))
-    else
-      call mbdk_spatial_outputs(model, t_out(k), y_out(:, k), out(1:7, k), status)
-    end if
-    if (status /= MBDK_SUCCESS) then
-      out(1:7, k) = nan
-      cycle
-    end if
-    if (dae_form == 0) call spatial_lambda(y_out(:, k))
-  end do
+  ! the drivers' power with the integrator's own multipliers, but the book scheme's (the index3
+  ! form of the index-3 family: not accurate enough, they grow as h shrinks) are solved for
+  call mbdk_entry_spatial_outputs(model, work, t_out, y_out, nwritten, own_lam=route /= &
+                                  MBDK_ROUTE_ODE .and. .not. (route == MBDK_ROUTE_INDEX3 .and. &
+                                  i3%formulation == MBDK_INDEX3_BOOK), &
+                                  solve_lam=route == MBDK_ROUTE_ODE, out=out, lam_out=lam_out)
   status = s
   ! a record of the work that could not be allocated: the samples' W is incomplete
   if (work%watch%rec_lost .and. status >= 0) status = MBDK_ERR_NO_MEMORY
   statbuf = transfer(st, statbuf, nstatw)
-  associate (w => work%watch)
-    watch_report = [dble(w%what), dble(w%row), w%value, w%tol, w%t_bad, w%t_good, w%absolute, &
-                    w%scale]
-  end associate
-
-contains
-
-  !> the index-3 family as i3buf asks (mbdk_trapezoidal_index3); the multipliers are its own
-  subroutine index3_run(stat_r)
-    integer, intent(out) :: stat_r
-    type(mbdk_index3_options_t) :: i3
-    double precision, allocatable :: a_out(:, :)
-    integer, allocatable :: iters(:)
-    integer :: astat
-    double precision :: before
-    stat_r = MBDK_ERR_INVALID_INPUT
-    if (8 * ni3w /= c_sizeof(i3)) return
-    i3 = transfer(i3buf, i3)
-    if (opt%method == MBDK_TRAPEZOIDAL_INDEX3 .and. .not. mbdk_index3_is_trapezoidal(i3)) return
-    book_i3 = i3%formulation == MBDK_INDEX3_BOOK
-    i3%interrupt = opt%interrupt
-    i3%progress = opt%progress
-    allocate (a_out(model%nvel, nsamp), iters(nsamp), stat=astat)
-    call mbdk_alloc_status(astat, (MBDK_REAL_BYTES * real(model%nvel, kind(1.0d0)) + &
-                           MBDK_INT_BYTES) * nsamp, stat_r, st%alloc_bytes)
-    if (stat_r /= MBDK_SUCCESS) return
-    ! the solve's statistics replace st: what was asked here is added back
-    before = st%alloc_bytes
-    call mbdk_index3_solve(model, i3, t0, t_end, y, t_out, y_out, a_out, lam_out, iters, &
-                           nwritten, st, stat_r)
-    st%alloc_bytes = st%alloc_bytes + before
-    if (nwritten < nsamp) lam_out(:, nwritten + 1:) = nan
-  end subroutine index3_run
-
-  subroutine spatial_lambda(ys)
-    double precision, intent(in) :: ys(:)
-    integer :: stat_l
-    if (model%m == 0) return
-    call mbdk_spatial_multipliers(model, t_out(k), ys, lam_out(1:model%m, k), stat_l)
-    if (stat_l /= MBDK_SUCCESS) lam_out(:, k) = nan
-  end subroutine spatial_lambda
-
+  wrbuf = transfer(mbdk_watch_report_of(work%watch), wrbuf, nwrw)
 end subroutine spatial_run
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
@@ -1137,10 +995,10 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_spatial_model
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1, rotation
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
-  double precision, intent(in) :: rotation, y0(n), t, y(n)
+  double precision, intent(in) :: y0(n), t, y(n)
   double precision, intent(out) :: out(7), phi(m1), c(m1, 6 * nb), gam(m1), phit(m1), lam(m1)
   double precision, intent(out) :: ydot(n), asked
   integer, intent(out) :: rank, status
@@ -1162,7 +1020,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   rank = 0
   status = MBDK_ERR_INVALID_INPUT
   if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
-  so%rotation = nint(rotation)
+  so%rotation = rotation
   call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
                          y0, status, asked)

@@ -10,12 +10,15 @@ module mbdk_structs
   use mbdk_options, only: mbdk_options_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t
   use mbdk_model, only: mbdk_model_options_t
+  use mbdk_spatial_model, only: mbdk_spatial_options_t
+  use mbdk_watch, only: mbdk_watch_report_t
   implicit none
   private
   public :: mbdk_struct_info, mbdk_struct_field, mbdk_struct_defaults
 
   integer, parameter, public :: MBDK_STRUCT_STATS = 1, MBDK_STRUCT_OPTIONS = 2, &
-    MBDK_STRUCT_INDEX3_OPTIONS = 3, MBDK_STRUCT_MODEL_OPTIONS = 4, MBDK_STRUCT_COUNT = 4
+    MBDK_STRUCT_INDEX3_OPTIONS = 3, MBDK_STRUCT_MODEL_OPTIONS = 4, &
+    MBDK_STRUCT_SPATIAL_OPTIONS = 5, MBDK_STRUCT_WATCH_REPORT = 6, MBDK_STRUCT_COUNT = 6
   integer, parameter, public :: MBDK_STRUCT_NAME_LEN = 32
   !> field types: C int, int64_t, double, a pointer
   integer, parameter, public :: MBDK_FIELD_INT = 1, MBDK_FIELD_INT64 = 2, MBDK_FIELD_DOUBLE = 3, &
@@ -66,6 +69,8 @@ contains
     type(mbdk_options_t) :: op
     type(mbdk_index3_options_t) :: i3
     type(mbdk_model_options_t) :: mo
+    type(mbdk_spatial_options_t) :: so
+    type(mbdk_watch_report_t) :: wr
     buf = 0.0_c_double
     select case (id)
     case (MBDK_STRUCT_STATS)
@@ -76,6 +81,10 @@ contains
       buf = transfer(i3, buf, size(buf))
     case (MBDK_STRUCT_MODEL_OPTIONS)
       buf = transfer(mo, buf, size(buf))
+    case (MBDK_STRUCT_SPATIAL_OPTIONS)
+      buf = transfer(so, buf, size(buf))
+    case (MBDK_STRUCT_WATCH_REPORT)
+      buf = transfer(wr, buf, size(buf))
     end select
   end subroutine mbdk_struct_defaults
 
@@ -88,6 +97,8 @@ contains
     type(mbdk_options_t), target :: op
     type(mbdk_index3_options_t), target :: i3
     type(mbdk_model_options_t), target :: mo
+    type(mbdk_spatial_options_t), target :: so
+    type(mbdk_watch_report_t), target :: wr
     integer(c_intptr_t) :: base
     nf = 0
     nbytes = 0
@@ -180,6 +191,40 @@ contains
       call add('watch_every', transfer(c_loc(mo%watch_every), base), MBDK_FIELD_INT)
       call add('locate_events', transfer(c_loc(mo%locate_events), base), MBDK_FIELD_INT)
       call add('watch_momentum', transfer(c_loc(mo%watch_momentum), base), MBDK_FIELD_DOUBLE)
+    case (MBDK_STRUCT_SPATIAL_OPTIONS)
+      cname = 'mbdk_spatial_options'
+      nbytes = int(c_sizeof(so))
+      base = transfer(c_loc(so), base)
+      call add('baumgarte_alpha', transfer(c_loc(so%baumgarte_alpha), base), MBDK_FIELD_DOUBLE)
+      call add('baumgarte_beta', transfer(c_loc(so%baumgarte_beta), base), MBDK_FIELD_DOUBLE)
+      call add('penalty_alpha', transfer(c_loc(so%penalty_alpha), base), MBDK_FIELD_DOUBLE)
+      call add('penalty_omega', transfer(c_loc(so%penalty_omega), base), MBDK_FIELD_DOUBLE)
+      call add('penalty_mu', transfer(c_loc(so%penalty_mu), base), MBDK_FIELD_DOUBLE)
+      call add('lock_guard', transfer(c_loc(so%lock_guard), base), MBDK_FIELD_DOUBLE)
+      call add('norm_gain', transfer(c_loc(so%norm_gain), base), MBDK_FIELD_DOUBLE)
+      call add('projection_tol', transfer(c_loc(so%projection_tol), base), MBDK_FIELD_DOUBLE)
+      call add('watch_position', transfer(c_loc(so%watch_position), base), MBDK_FIELD_DOUBLE)
+      call add('watch_velocity', transfer(c_loc(so%watch_velocity), base), MBDK_FIELD_DOUBLE)
+      call add('watch_energy', transfer(c_loc(so%watch_energy), base), MBDK_FIELD_DOUBLE)
+      call add('watch_momentum', transfer(c_loc(so%watch_momentum), base), MBDK_FIELD_DOUBLE)
+      call add('watch_quaternion', transfer(c_loc(so%watch_quaternion), base), MBDK_FIELD_DOUBLE)
+      call add('formulation', transfer(c_loc(so%formulation), base), MBDK_FIELD_INT)
+      call add('rotation', transfer(c_loc(so%rotation), base), MBDK_FIELD_INT)
+      call add('norm', transfer(c_loc(so%norm), base), MBDK_FIELD_INT)
+      call add('watch_every', transfer(c_loc(so%watch_every), base), MBDK_FIELD_INT)
+      call add('locate_events', transfer(c_loc(so%locate_events), base), MBDK_FIELD_INT)
+    case (MBDK_STRUCT_WATCH_REPORT)
+      cname = 'mbdk_watch_report'
+      nbytes = int(c_sizeof(wr))
+      base = transfer(c_loc(wr), base)
+      call add('value', transfer(c_loc(wr%value), base), MBDK_FIELD_DOUBLE)
+      call add('tol', transfer(c_loc(wr%tol), base), MBDK_FIELD_DOUBLE)
+      call add('t', transfer(c_loc(wr%t), base), MBDK_FIELD_DOUBLE)
+      call add('t_good', transfer(c_loc(wr%t_good), base), MBDK_FIELD_DOUBLE)
+      call add('absolute', transfer(c_loc(wr%absolute), base), MBDK_FIELD_DOUBLE)
+      call add('scale', transfer(c_loc(wr%scale), base), MBDK_FIELD_DOUBLE)
+      call add('quantity', transfer(c_loc(wr%quantity), base), MBDK_FIELD_INT)
+      call add('row', transfer(c_loc(wr%row), base), MBDK_FIELD_INT)
     end select
 
   contains

@@ -33,7 +33,10 @@ module mbdk_mechanism_dae
   private
   public :: mbdk_mechanism_dae_init
 
-  integer, parameter, public :: MBDK_DAE_I3 = 1, MBDK_DAE_SI2 = 2
+  !> the forms of a mechanism's DAE (the f2py entries' dae_form, mbdk_entry): none (an ODE
+  !> method, or the index-3 family with its own), index 3, stabilised index 2 (ida's index1 and
+  !> GGL forms take the codes 1 and 2)
+  integer, parameter, public :: MBDK_DAE_NONE = 0, MBDK_DAE_I3 = 1, MBDK_DAE_SI2 = 2
 
   !> evaluation buffers (the problem is intent(in) in rhs: they live behind a pointer)
   type :: dae_work_t

@@ -39,8 +39,11 @@
 !>                        (rho + 1), gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m +
 !>                        alpha_f)^2 / 4; rho_inf = 1 is the trapezoidal rule again (ap = a
 !>                        from a consistent start), to roundoff
-!> Second order in q and v for gamma = 1/2 - alpha_m + alpha_f. Step-size control
-!> (opt%adaptive) is the trapezoidal rule's only (its error estimates are the rule's).
+!> Second order in q and v for gamma = 1/2 - alpha_m + alpha_f. The pseudo-acceleration starts
+!> at its shifted time (shifted_start), and moves with it where h changes (attempt). Step-size
+!> control: the estimated mode (opt%adaptive = 1) on every second-order member, with the
+!> member's own local error constants (mbdk_index3_error_constants); the extrapolated mode on the
+!> trapezoidal rule alone.
 !>
 !> Formulations (mbdk_index3_options_t%formulation):
 !>   1 index3     the book's scheme: Newton-Raphson (3.16) on (dq, lambda+) for r = 0 and
@@ -240,7 +243,8 @@ module mbdk_trapezoidal_index3
   implicit none
   private
   public :: mbdk_index3_solve, mbdk_index3_plan, mbdk_index3_init, mbdk_index3_step, &
-    mbdk_index3_advance, mbdk_index3_is_trapezoidal
+    mbdk_index3_advance, mbdk_index3_is_trapezoidal, mbdk_index3_is_second_order, &
+    mbdk_index3_error_constants
 
   integer, parameter, public :: MBDK_INDEX3_BOOK = 1, MBDK_INDEX3_AUGMENTED = 2
   !> opt%adaptive: 1 the local error estimate from differences, 2 local Richardson extrapolation
@@ -348,6 +352,9 @@ module mbdk_trapezoidal_index3
                 kv2 = 0.0_dp, ca = 0.0_dp, ka1 = 0.0_dp, ka2 = 0.0_dp, cg = 0.0_dp, ra = 0.0_dp
     !> alpha_m or alpha_f nonzero: the pseudo-acceleration ap differs from a
     logical :: alpha_terms = .false.
+    !> the local errors' constants of q and v (error_estimate): h^3 q''' times lte_q, h^3 q''''
+    !> times lte_v
+    real(dp) :: lte_q = 0.0_dp, lte_v = 0.0_dp
     !> the update's norm where a matrix built in its step last stalled (roundoff), decaying
     real(dp) :: noise = 0.0_dp
     !> the matrix was built with a stiffened alpha (a stalled step's): no other step takes it
@@ -414,8 +421,8 @@ contains
   !> A solver at (t0, y0 = [q; v]) with options opt: validates them, allocates the work arrays
   !> and the mechanism's part, and computes the consistent a and lambda at t0 (the constrained
   !> solve there; where C has lost a rank, the augmented form's regular path).
-  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme, or a
-  !> mechanism that cannot take the scheme), or the failure of that first solve
+  !> MBDK_ERR_INVALID_INPUT, MBDK_ERR_NOT_APPLICABLE (adaptive with the book's scheme, a
+  !> mechanism with effect states (wear), or one that cannot take the scheme), or the failure of that first solve
   !> (MBDK_ERR_SINGULAR_MATRIX with dependent constraints in the book's scheme).
   subroutine mbdk_index3_init(s, mech, opt, t0, y0, stat)
     type(mbdk_index3_t), intent(out) :: s
@@ -433,11 +440,20 @@ contains
                opt%gamma <= huge(1.0_dp) .and. opt%alpha_m < 1.0_dp .and. &
                opt%alpha_m >= -huge(1.0_dp) .and. opt%alpha_f < 1.0_dp .and. &
                opt%alpha_f >= -huge(1.0_dp))) return
-    if (size(y0) /= mech%ncoord + mech%nvel .or. mech%ns > 0) return
+    if (mech%ns > 0) then
+      ! the family's state [q; v] (Newton on its increment) has no place for effect states
+      stat = MBDK_ERR_NOT_APPLICABLE
+      return
+    end if
+    if (size(y0) /= mech%ncoord + mech%nvel) return
     if (.not. all(abs(y0) <= huge(1.0_dp)) .or. .not. abs(t0) <= huge(1.0_dp)) return
     if (opt%adaptive < 0 .or. opt%adaptive > MBDK_INDEX3_EXTRAPOLATED) return
-    if (opt%adaptive /= 0 .and. (opt%formulation == MBDK_INDEX3_BOOK .or. .not. &
-        mbdk_index3_is_trapezoidal(opt))) then
+    ! step-size control: the estimated local error holds for the second-order members, the
+    ! extrapolation's macro step for the trapezoidal rule alone (its extrapolated state would
+    ! leave the pseudo-acceleration's history behind), neither for the book's scheme
+    if (opt%adaptive /= 0 .and. (opt%formulation == MBDK_INDEX3_BOOK .or. &
+        (opt%adaptive == MBDK_INDEX3_EXTRAPOLATED .and. .not. mbdk_index3_is_trapezoidal(opt)) &
+        .or. .not. mbdk_index3_is_second_order(opt))) then
       stat = MBDK_ERR_NOT_APPLICABLE
       return
     end if
@@ -471,11 +487,47 @@ contains
     s%ap = s%a
     s%ap_prev = s%a
     s%alpha_terms = opt%alpha_m /= 0.0_dp .or. opt%alpha_f /= 0.0_dp
+    call mbdk_index3_error_constants(opt, s%lte_q, s%lte_v)
     s%st%nfev = 1
+    if (opt%alpha_m /= opt%alpha_f) call shifted_start(s, mech, t0, stat)
+    if (stat /= MBDK_SUCCESS) return
     s%y(1:s%ncq) = s%q
     s%y(s%ncq + 1:) = s%v
     call mech%watch_begin(s%t, s%y, .not. s%book, stat)
   end subroutine mbdk_index3_init
+
+  !> The start of the pseudo-acceleration (Arnold and Bruls 2007, "perturbed starting values"):
+  !> ap approximates the acceleration at t + (alpha_m - alpha_f) h, and started from a(t0) its
+  !> O(h) error (alpha_m - alpha_f) h q''' dies out only as the powers of the spurious root
+  !> -alpha_m / (1 - alpha_m): the first steps' v then carry O(h^2) local errors and their a
+  !> and lambda O(h) ones, which a start at rest (q''' = 0 there) does not show. The
+  !> acceleration of the constrained solve at the Taylor state (q (+) (d v + d^2/2 a), v + d a)
+  !> at t0 + d, d = (alpha_m - alpha_f) opt%h, is that value to O(h^2). The evaluation at t0
+  !> is made again afterwards (the step's first iterations use its C); where the shifted state
+  !> has no regular solve, ap stays a(t0).
+  subroutine shifted_start(s, mech, t0, stat)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: t0
+    integer, intent(out) :: stat
+    real(dp) :: d
+    integer :: ierr
+    d = (s%opt%alpha_m - s%opt%alpha_f) * s%opt%h
+    s%dq(:) = d * s%v + (0.5_dp * d * d) * s%a
+    s%e%q(:) = s%q
+    call move_by(s, mech, s%e%q, s%dq, ierr)
+    s%e%v(:) = s%v + d * s%a
+    if (ierr == MBDK_SUCCESS) call mech%i3_evaluate(s%aux, t0 + d, s%e, .true., .false., ierr)
+    if (ierr == MBDK_SUCCESS) call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, ierr)
+    if (ierr == MBDK_SUCCESS) call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
+    if (ierr == MBDK_SUCCESS .and. finite_all(s%an)) s%ap(:) = s%an
+    s%st%nfev = s%st%nfev + 2
+    s%e%q(:) = s%q
+    s%e%v(:) = s%v
+    call mech%i3_evaluate(s%aux, t0, s%e, .true., .false., stat)
+    if (stat /= MBDK_SUCCESS) return
+    call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, stat)
+  end subroutine shifted_start
 
   !> The work arrays of a solve (and, for a mechanism without its own Newton matrix, the
   !> differences' matrix), sized from the mechanism; the mass scale of the default alpha.
@@ -1105,9 +1157,9 @@ contains
     end if
   end subroutine move_by
 
-  !> Weighted RMS over q and v (multipliers excluded) of the local errors of the trapezoidal
-  !> rule, -h^3/12 q(3) and -h^3/12 q(4) (in the velocities' coordinates: a spatial body's
-  !> rotation in radians). The derivatives are divided differences of the step mean
+  !> Weighted RMS over q and v (multipliers excluded) of the step's local errors, lte_q h^3 q(3)
+  !> and lte_v h^3 q(4) (the trapezoidal rule's 1/12 and 1/12; mbdk_index3_error_constants), in the
+  !> velocities' coordinates (a spatial body's rotation in radians). The derivatives are divided differences of the step mean
   !> accelerations (a_k + a_k+1)/2, placed at the step midpoints: the mean cancels the
   !> period-2 oscillation of the book scheme's accelerations, which would otherwise dominate.
   !> The first two steps have no q(4) from history: it is taken as q(3) / (h + h_prev)
@@ -1129,13 +1181,13 @@ contains
         b1 = 0.0_dp                     ! (unused: no h_prev2 without h_prev)
         d1 = (s%an(k) - s%a(k)) / h
       end if
-      eq = h**3 / 12.0_dp * d1
+      eq = h**3 * s%lte_q * d1
       if (s%h_prev2 > 0.0_dp) then
         b0 = 0.5_dp * (s%a_prev2(k) + s%a_prev(k))
         d0 = (b1 - b0) / (0.5_dp * (s%h_prev + s%h_prev2))
-        ev = h**3 / 12.0_dp * (d1 - d0) / (0.5_dp * h + s%h_prev + 0.5_dp * s%h_prev2) * 2.0_dp
+        ev = h**3 * s%lte_v * (d1 - d0) / (0.5_dp * h + s%h_prev + 0.5_dp * s%h_prev2) * 2.0_dp
       else
-        ev = h**3 / 12.0_dp * d1 / (h + s%h_prev)
+        ev = h**3 * s%lte_v * d1 / (h + s%h_prev)
       end if
       if (s%identity) then
         wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%e%q(k)))
@@ -1803,6 +1855,42 @@ contains
   end subroutine set_coefficients
 
   !> The options' parameters are the trapezoidal rule's (beta 1/4, gamma 1/2, no alphas)
+  !> The options' parameters give a second-order member: gamma = 1/2 - alpha_m + alpha_f (to
+  !> the roundoff of the members' formulas)
+  logical function mbdk_index3_is_second_order(opt) result(yes)
+    type(mbdk_index3_options_t), intent(in) :: opt
+    yes = abs(opt%gamma - (0.5_dp - opt%alpha_m + opt%alpha_f)) <= 64.0_dp * epsilon(1.0_dp)
+  end function mbdk_index3_is_second_order
+
+  !> The constants of the step's local errors in q and v, from the Taylor expansion of one step
+  !> from the exact solution with the pseudo-acceleration at its shift d = alpha_m - alpha_f,
+  !> ap = q''(t + d h) + c h^2 q'''' (the alpha relation fixes c = (1 - alpha_f)/2 -
+  !> ((1 - alpha_m)(1 + d)^2 + alpha_m d^2)/2):
+  !>   q: h^3 q''' (beta + d/2 - 1/6)
+  !>   v: h^3 q'''' ((1 - gamma) d^2/2 + gamma (1 + d)^2/2 + c - 1/6)
+  !> (Geradin and Cardona's estimate h^2 (beta - 1/6)(a+ - a) of Newmark's rule is the first
+  !> with d = 0). generalized_alpha's q constant is 1/12 + d^2/4. The trapezoidal rule's are
+  !> 1/12 and 1/12, taken as written so that its estimate keeps its bits.
+  subroutine mbdk_index3_error_constants(opt, lte_q, lte_v)
+    type(mbdk_index3_options_t), intent(in) :: opt
+    real(dp), intent(out) :: lte_q, lte_v
+    real(dp) :: d, c, am, af, beta, gamma
+    if (mbdk_index3_is_trapezoidal(opt)) then
+      lte_q = 1.0_dp / 12.0_dp
+      lte_v = 1.0_dp / 12.0_dp
+      return
+    end if
+    am = opt%alpha_m
+    af = opt%alpha_f
+    beta = opt%beta
+    gamma = opt%gamma
+    d = am - af
+    c = 0.5_dp * (1.0_dp - af) - 0.5_dp * ((1.0_dp - am) * (1.0_dp + d)**2 + am * d * d)
+    lte_q = beta + 0.5_dp * d - 1.0_dp / 6.0_dp
+    lte_v = 0.5_dp * (1.0_dp - gamma) * d * d + 0.5_dp * gamma * (1.0_dp + d)**2 + c - &
+            1.0_dp / 6.0_dp
+  end subroutine mbdk_index3_error_constants
+
   logical function mbdk_index3_is_trapezoidal(opt) result(yes)
     type(mbdk_index3_options_t), intent(in) :: opt
     yes = opt%beta == 0.25_dp .and. opt%gamma == 0.5_dp .and. opt%alpha_m == 0.0_dp .and. &

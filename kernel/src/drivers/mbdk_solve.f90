@@ -58,8 +58,12 @@ contains
   !> Integrates prob from (t0, y0) to t_end with opt%method. t_out(nsamp), y_out(n, nsamp)
   !> receive the samples (nsamp from mbdk_sample_plan); nwritten: how many were written (fewer
   !> only on failure). atol (optional, error-controlled methods): one absolute tolerance per
-  !> state instead of opt%atol.
-  subroutine mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, stat, atol)
+  !> state instead of opt%atol. times (optional, error-controlled methods; size 0: absent): the
+  !> sample times themselves instead of opt%dt_out's grid, strictly increasing from t0 to
+  !> t_end (nsamp = size(times)), each written from the method's dense output as the grid's
+  !> are; MBDK_ERR_INVALID_INPUT otherwise, and for a fixed-step method.
+  subroutine mbdk_solve_ode(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, stat, atol, &
+                            times)
     class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end
@@ -69,19 +73,23 @@ contains
     integer, intent(out) :: nwritten
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
-    real(dp), intent(in), optional :: atol(:)
+    real(dp), intent(in), optional :: atol(:), times(:)
 
     character(len=MBDK_METHOD_NAME_LEN) :: name
     integer :: family, order, nsamp, astat
     real(dp), allocatable :: atol_v(:)
     type(mbdk_timer_t) :: timer
+    logical :: given
 
+    given = .false.
+    if (present(times)) given = size(times) > 0
     if (.not. mbdk_method_adaptive(opt%method)) then
       stat = MBDK_ERR_INVALID_INPUT
       nwritten = 0
       if (present(atol)) then
         if (size(atol) > 0) return   ! a tolerance means nothing to a fixed step
       end if
+      if (given) return              ! its samples are on its grid of steps
       call mbdk_fixed_step_solve(prob, opt, t0, t_end, y0, t_out, y_out, nwritten, st, stat)
       return
     end if
@@ -100,7 +108,13 @@ contains
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(atol_v), stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     if (present(atol)) atol_v = atol
-    call prologue(prob, opt, t0, t_end, y0, atol_v, t_out, y_out, nwritten, nsamp, timer, stat)
+    if (given) then
+      call prologue(prob, opt, t0, t_end, y0, atol_v, t_out, y_out, nwritten, nsamp, timer, &
+                    stat, times)
+    else
+      call prologue(prob, opt, t0, t_end, y0, atol_v, t_out, y_out, nwritten, nsamp, timer, &
+                    stat)
+    end if
     if (stat /= MBDK_SUCCESS .or. nwritten == 0) return
     select case (family)
     case (MBDK_FAMILY_EMBEDDED_RK)
@@ -243,13 +257,15 @@ contains
 
   !> What every error-controlled solve does before its first step (the module header); on
   !> success nwritten = 1 and the timer runs.
-  subroutine prologue(prob, opt, t0, t_end, y0, atol, t_out, y_out, nwritten, nsamp, timer, stat)
+  subroutine prologue(prob, opt, t0, t_end, y0, atol, t_out, y_out, nwritten, nsamp, timer, &
+                      stat, times)
     class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end, y0(:), atol(:)
     real(dp), intent(out) :: t_out(:), y_out(:, :)
     integer, intent(out) :: nwritten, nsamp, stat
     type(mbdk_timer_t), intent(out) :: timer
+    real(dp), intent(in), optional :: times(:)
     integer :: n
     nwritten = 0
     nsamp = 0
@@ -259,12 +275,25 @@ contains
     if (.not. all(abs(y0) <= huge(1.0_dp))) return
     stat = mbdk_adaptive_check(opt, n, atol)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_adaptive_plan(t0, t_end, opt%dt_out, nsamp, stat)
-    if (stat /= MBDK_SUCCESS) return
+    if (present(times)) then
+      ! the caller's sample times: t0 first, t_end last, strictly increasing (so finite)
+      stat = MBDK_ERR_INVALID_INPUT
+      nsamp = size(times)
+      if (nsamp < 2) return
+      if (times(1) /= t0 .or. times(nsamp) /= t_end) return
+      if (.not. all(times(2:) > times(:nsamp - 1))) return
+    else
+      call mbdk_adaptive_plan(t0, t_end, opt%dt_out, nsamp, stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
     stat = MBDK_ERR_OUTPUT_SIZE
     if (size(t_out) < nsamp .or. size(y_out, 1) /= n .or. size(y_out, 2) < nsamp) return
     call mbdk_timer_start(timer)
-    call mbdk_adaptive_times(t0, t_end, opt%dt_out, t_out(1:nsamp))
+    if (present(times)) then
+      t_out(1:nsamp) = times
+    else
+      call mbdk_adaptive_times(t0, t_end, opt%dt_out, t_out(1:nsamp))
+    end if
     stat = MBDK_SUCCESS
     if (prob%has_watch) call prob%watch_start(t0, y0, stat)
     if (stat /= MBDK_SUCCESS) return

@@ -111,7 +111,7 @@ module mbdk_elements
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_DAMPER, 'damper', MBDK_ON_PLANAR, [0, 0], 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_CONTACT, 'contact', MBDK_ON_PLANAR, [0, 0], 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_FRICTION, 'friction', MBDK_ON_PLANAR, [0, 0], 0), &
-    kind_entry(MBDK_CLASS_EFFECT, MBDK_EFFECT_WEAR, 'wear', MBDK_ON_PLANAR, [0, 0], 1), &
+    kind_entry(MBDK_CLASS_EFFECT, MBDK_EFFECT_WEAR, 'wear', MBDK_ON_BOTH, [0, 0], 1), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPHERE_PLANE, 'sphere_plane', MBDK_ON_SPATIAL, &
                [0, 0], 0), &
     kind_entry(MBDK_CLASS_FORCE, MBDK_FORCE_SPHERE_SPHERE, 'sphere_sphere', MBDK_ON_SPATIAL, &

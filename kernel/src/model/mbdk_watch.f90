@@ -104,13 +104,15 @@
 !> good one. Samples are checked before they are written, so every sample of a failed run passed
 !> its checks.
 module mbdk_watch
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
   private
   public :: mbdk_watch_start, mbdk_watch_start_invariants, mbdk_watch_due, mbdk_watch_power, &
-    mbdk_watch_test, mbdk_watch_work_at, mbdk_watch_nodes, mbdk_watch_reserve
+    mbdk_watch_test, mbdk_watch_work_at, mbdk_watch_nodes, mbdk_watch_reserve, &
+    mbdk_watch_report_of
   public :: mbdk_inv_external, mbdk_inv_gravity, mbdk_inv_force, mbdk_inv_moment, &
     mbdk_inv_pivot, mbdk_inv_result
 
@@ -122,8 +124,6 @@ module mbdk_watch
   !> steps between checks by default: a check costs about a third of an rk4 step of a small
   !> scene, so every 16 steps adds a few per cent
   integer, parameter, public :: MBDK_WATCH_EVERY = 16
-  !> the report of a failed check, as scene_run returns it (MBDK_WATCH_REPORT words)
-  integer, parameter, public :: MBDK_WATCH_REPORT = 8
   !> the conserved components (mbdk_inv_result): at most 3 of p and 3 of H, each described by
   !> MBDK_INV_WORDS words: kind (MBDK_INV_*), the unit direction e (3), the fixed point P (3)
   integer, parameter, public :: MBDK_INV_MAX = 6, MBDK_INV_WORDS = 7
@@ -139,6 +139,19 @@ module mbdk_watch
   integer, parameter :: REC_WORDS = 17
   !> the weights of the three-point Gauss-Legendre rule (nodes: MBDK_GAUSS3 of mbdk_problem)
   real(dp), parameter :: GAUSS_W(3) = [5.0_dp, 8.0_dp, 5.0_dp] / 18.0_dp
+
+  !> The report of the check that stopped a run, by name (mbdk_watch_report_of): quantity
+  !> (MBDK_WATCH_* kind: 1 position, 2 velocity, 3 energy, 4 momentum, 5 quaternion; 0 while
+  !> nothing failed), row (1-based: the constraint row, the conserved component, the body; 0 for
+  !> energy), value relative to its scale, tolerance, t (of the failed check), t_good (of the
+  !> last check passed), the value itself and its scale. bind(C): struct mbdk_watch_report in
+  !> mbdk.h, read by name in Python (mbdk.options.unpack; tests/test_structs.py and
+  !> kernel/tests/c_struct_layout.c check the mirrors).
+  type, bind(C), public :: mbdk_watch_report_t
+    real(c_double) :: value = 0.0_dp, tol = 0.0_dp, t = 0.0_dp, t_good = 0.0_dp, &
+      absolute = 0.0_dp, scale = 0.0_dp
+    integer(c_int) :: quantity = 0, row = 0
+  end type mbdk_watch_report_t
 
   !> What the scene's elements leave conserved, gathered element by element (mbdk_inv_*) and
   !> turned into the components to watch by mbdk_inv_result (the module header gives the rule).
@@ -199,6 +212,14 @@ module mbdk_watch
   end type mbdk_watch_t
 
 contains
+
+  !> The watch's report of its failed check (all 0 while none failed).
+  function mbdk_watch_report_of(w) result(r)
+    type(mbdk_watch_t), intent(in) :: w
+    type(mbdk_watch_report_t) :: r
+    r = mbdk_watch_report_t(value=w%value, tol=w%tol, t=w%t_bad, t_good=w%t_good, &
+                            absolute=w%absolute, scale=w%scale, quantity=w%what, row=w%row)
+  end function mbdk_watch_report_of
 
   !> Starts watching at the initial state. row_angular(i): row i is an angle; length: L;
   !> energy parts at t0: kinetic, gravity and spring potential, the powers of the work parts

@@ -20,6 +20,12 @@
 !> Table entries in the scene's force table: fint = (MBDK_EFFECT_WEAR, law, load, column of the
 !> contact (load 1) or of the friction element (load 2)); freal(1) = k; gear: freal(2:7) = R, Ts,
 !> a_x, t0, Ea, Rg; knee: freal(2:5) = c0..c3.
+!>
+!> The laws themselves (mbdk_wear_law: the rate from a load F and a speed u) are one code for
+!> both models: the planar contacts take F and u here (mbdk_wear_rate), the spatial model its
+!> spheres' normal force and slip speed (mbdk_spatial_model, whose table keeps the reals above;
+!> the gear law's u is a planar gear pair's R |omega1 - omega2|, so spatial contacts take
+!> archard and knee).
 module mbdk_wear
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE
@@ -27,7 +33,7 @@ module mbdk_wear
   use mbdk_contact_law, only: mbdk_friction_mu
   implicit none
   private
-  public :: mbdk_wear_rate, mbdk_wear_rates, mbdk_wear_psi
+  public :: mbdk_wear_rate, mbdk_wear_rates, mbdk_wear_psi, mbdk_wear_law
 
   integer, parameter, public :: MBDK_WEAR_ARCHARD = 1, MBDK_WEAR_GEAR = 2, MBDK_WEAR_KNEE = 3, &
     MBDK_WEAR_LAWS = 3
@@ -79,22 +85,33 @@ contains
       load = ct%weight(k) * ct%force
       if (fi(3) == MBDK_WEAR_LOAD_FRICTION) &
         load = abs(mbdk_friction_mu(ct%slip(k), freal(:, c))) * load
-      select case (fi(2))
-      case (MBDK_WEAR_GEAR)
+      if (fi(2) == MBDK_WEAR_GEAR) then
         w1 = 0.0_dp
         w2 = 0.0_dp
         if (fint(2, cc) > 0) w1 = v(3 * fint(2, cc))
         if (fint(3, cc) > 0) w2 = v(3 * fint(3, cc))
         u = fr(2) * abs(w1 - w2)
-        rate = rate + fr(1) * load * mbdk_wear_psi(u, fr) * u
-      case (MBDK_WEAR_KNEE)
+      else
         u = abs(ct%slip(k))
-        rate = rate + fr(1) * load * u * (fr(2) + t * (fr(3) + t * (fr(4) + t * fr(5))))
-      case default
-        rate = rate + fr(1) * load * abs(ct%slip(k))
-      end select
+      end if
+      rate = rate + mbdk_wear_law(fi(2), fr, load, u, t)
     end do
   end subroutine mbdk_wear_rate
+
+  !> dW/dt of the law (MBDK_WEAR_*) with the reals fr of its entry (k first) at the load F
+  !> and the speed u >= 0 (the sliding speed; the gear law's R |omega1 - omega2|) at time t.
+  pure real(dp) function mbdk_wear_law(law, fr, load, u, t) result(rate)
+    integer, intent(in) :: law
+    real(dp), intent(in) :: fr(:), load, u, t
+    select case (law)
+    case (MBDK_WEAR_GEAR)
+      rate = fr(1) * load * mbdk_wear_psi(u, fr) * u
+    case (MBDK_WEAR_KNEE)
+      rate = fr(1) * load * u * (fr(2) + t * (fr(3) + t * (fr(4) + t * fr(5))))
+    case default
+      rate = fr(1) * load * u
+    end select
+  end function mbdk_wear_law
 
   !> rates(e) = dW/dt of every wear entry (eint, ereal) at (q, v, t); (fint, freal) the table
   !> their columns refer to, rot the bodies' (cos, sin) at q. MBDK_ERR_NONFINITE where a

@@ -41,10 +41,12 @@ contains
     if (astat /= 0) return
     select type (aux)
     type is (spatial_i3_aux_t)
-      allocate (aux%c(m, nv), aux%mc(nv, m), aux%s(m, m), aux%al(nv, nv), aux%y(self%n), &
-                aux%x(nv), aux%r(m), aux%muk(m), aux%rows(m), stat=astat)
+      allocate (aux%c(m, nv), aux%mc(nv, m), aux%s(m, m), aux%al(nv, nv), &
+                aux%y(last_velocity(self)), aux%x(nv), aux%r(m), aux%muk(m), aux%rows(m), &
+                stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (2 * nv + m + 2) + &
-                             real(nv, dp) * (nv + 1) + self%n) + MBDK_INT_BYTES * m, stat, asked)
+                             real(nv, dp) * (nv + 1) + last_velocity(self)) + MBDK_INT_BYTES * m, &
+                             stat, asked)
       if (stat /= MBDK_SUCCESS) return
       aux%c = 0.0_dp
     end select

@@ -2,11 +2,12 @@
 !> integrator of the kernel. Planar scenes never come here (mbdk_model): they keep their own
 !> path and pay nothing for 3D.
 !>
-!> State, body by body: y = [q_1 .. q_nb, w_1 .. w_nb] with
+!> State, body by body: y = [q_1 .. q_nb, w_1 .. w_nb, V_1 .. V_ns] with
 !>   q_b = (r, p)  r the centre of mass in the space frame, p the orientation: a quaternion
 !>                 (4, scalar first; rotation = quaternion) or three angles of the 3-1-3 Euler or
 !>                 1-2-3 Cardan sequence (rotation = euler313 | cardan123; mbdk_rotations);
-!>   w_b = (v, W)  v = r', W the angular velocity in the body frame.
+!>   w_b = (v, W)  v = r', W the angular velocity in the body frame;
+!>   V_e           the worn volume of the scene's wear element e (none in a scene without).
 !> Velocities are not q' (the orientation's rates follow from W, (5.43) and (5.95)), so the mass
 !> matrix is constant and block diagonal, M = diag(m I, J) per body, J the inertia about the
 !> centre in the body frame, and the equations of motion are Newton-Euler's (5.1)-(5.3):
@@ -70,8 +71,20 @@
 !>   sphere_plane,  compliant contact with friction between a sphere on body i and a plane or
 !>   sphere_sphere  a sphere on body j (the ground or a body): mbdk_contact3d (geometry, reals)
 !>                  over mbdk_contact_law (the IMPACT normal force, regularised Coulomb friction)
-!> Only the elements a scene declares are visited. A contact's potential is part of the spring
-!> energy, the power its damping and friction dissipate part of the dampers' power; with
+!>   wear           an effect (mbdk_elements' third class) with a state of its own, the worn
+!>                  volume V of a contact of this table: V' = the law of mbdk_wear (archard or
+!>                  knee, the planar contacts' code: mbdk_wear_law) at the contact's normal
+!>                  force, or its friction force mu F, and its slip speed |s|. Its entry: fbody =
+!>                  (the contact's column in this table, the law MBDK_WEAR_ARCHARD or
+!>                  MBDK_WEAR_KNEE), freal = (k, knee: c0 .. c3 (S/R(t) = c0 + c1 t + c2 t^2 +
+!>                  c3 t^3), the load: 1 normal force (MBDK_WEAR_LOAD_NORMAL), 2 friction force);
+!>                  k >= 0, a friction load on a contact with friction. Wear takes no energy of
+!>                  its own: the contact's friction dissipates what the balance counts, as on
+!>                  planar scenes. The gear law (its speed R |omega1 - omega2| is a planar gear
+!>                  pair's) is MBDK_ERR_INVALID_INPUT here.
+!> Only the elements a scene declares are visited (a scene without wear has ns = 0 states after
+!> its bodies' and its evaluation never reaches the wear code). A contact's potential is part of
+!> the spring energy, the power its damping and friction dissipate part of the dampers' power; with
 !> locate_events, dopri54 and bs32 end a step where a contact closes or lets go (spatial_events:
 !> the law's event function and the penetration per contact, in table order).
 !>
@@ -81,6 +94,7 @@
 !> in the mechanism's length scale. Outputs (mbdk_spatial_outputs): kinetic, gravity and spring
 !> energy, the power of dampers, loads and drivers, max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
 module mbdk_spatial_model
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
@@ -106,7 +120,9 @@ module mbdk_spatial_model
     MBDK_JOINT_UNIVERSAL, MBDK_JOINT_CYLINDRICAL, MBDK_JOINT_PRISMATIC, MBDK_JOINT_FIXED, &
     MBDK_JOINT_ANGLE_DRIVER, MBDK_JOINT_SLIDE_DRIVER, MBDK_FORCE_GRAVITY, MBDK_FORCE_POINT, &
     MBDK_FORCE_TORQUE, MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPHERE_PLANE, &
-    MBDK_FORCE_SPHERE_SPHERE
+    MBDK_FORCE_SPHERE_SPHERE, MBDK_EFFECT_WEAR
+  use mbdk_wear, only: mbdk_wear_law, MBDK_WEAR_ARCHARD, MBDK_WEAR_KNEE, &
+    MBDK_WEAR_LOAD_NORMAL, MBDK_WEAR_LOAD_FRICTION
   implicit none
   private
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
@@ -114,7 +130,8 @@ module mbdk_spatial_model
     mbdk_spatial_watch_nodes
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
-  public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces
+  public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces, &
+    last_velocity
 
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
@@ -145,24 +162,28 @@ module mbdk_spatial_model
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
 
-  type, public :: mbdk_spatial_options_t
-    integer :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
-    integer :: rotation = MBDK_ROT_QUATERNION
-    integer :: norm = MBDK_NORM_PROJECT
-    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp    !< Baumgarte
+  !> Options of a spatial model, by name with defaults. bind(C): the same struct is struct
+  !> mbdk_spatial_options in mbdk.h and mbdk.options.SpatialOptions in Python (tests/
+  !> test_structs.py and kernel/tests/c_struct_layout.c check that the three agree field by
+  !> field); the formulations' parameters carry the planar mbdk_model_options_t's names.
+  type, bind(C), public :: mbdk_spatial_options_t
+    real(c_double) :: baumgarte_alpha = 0.0_dp, baumgarte_beta = 0.0_dp   !< (3.29)
     !> Jalon-Bayo's penalty (3.35)-(3.40): alpha_p, omega_p, mu_p
-    real(dp) :: pen_alpha = 1.0e7_dp, pen_omega = 10.0_dp, pen_mu = 1.0_dp
+    real(c_double) :: penalty_alpha = 1.0e7_dp, penalty_omega = 10.0_dp, penalty_mu = 1.0_dp
     !> angle sets: an evaluation within this distance of the set's gimbal lock (|sin theta| for
     !> 3-1-3, |cos beta| for 1-2-3) returns MBDK_ERR_SINGULAR_MATRIX, so that the caller can
-    !> switch to the other set before the rates blow up (mbdk.spatial's switch_angles); 0: off
-    real(dp) :: lock_guard = 0.0_dp
-    real(dp) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
-    real(dp) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
-    real(dp) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
+    !> switch to the other set before the rates blow up (mbdk.angle_switch); 0: off
+    real(c_double) :: lock_guard = 0.0_dp
+    real(c_double) :: norm_gain = 10.0_dp               !< norm = stabilise, 1/s
+    real(c_double) :: projection_tol = 1.0e-12_dp       !< |Phi| (m, or rad) a projection reaches
+    real(c_double) :: watch_position = 1.0e-2_dp, watch_velocity = 1.0e-2_dp, &
       watch_energy = 1.0e-1_dp, watch_momentum = 1.0e-2_dp, watch_quaternion = 1.0e-1_dp
-    integer :: watch_every = MBDK_WATCH_EVERY
+    integer(c_int) :: formulation = MBDK_FORM_REDUCED   !< the codes of mbdk_mechanism
+    integer(c_int) :: rotation = MBDK_ROT_QUATERNION
+    integer(c_int) :: norm = MBDK_NORM_PROJECT
+    integer(c_int) :: watch_every = MBDK_WATCH_EVERY
     !> /= 0: the contacts' events, for the error-controlled Runge-Kutta pairs (mbdk_problem)
-    integer :: locate_events = 1
+    integer(c_int) :: locate_events = 1
   end type mbdk_spatial_options_t
 
   !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
@@ -196,6 +217,8 @@ module mbdk_spatial_model
     logical, allocatable :: row_angular(:)
     integer, allocatable :: ftype(:), fbody(:, :)
     real(dp), allocatable :: freal(:, :)
+    !> the force table's columns of the wear elements, whose states are y's last ns
+    integer, allocatable :: wear(:)
     logical :: has_power = .false.
     logical :: has_drivers = .false.   !< rheonomic rows: Phi_t and the drivers' power
     real(dp) :: length = 1.0_dp, gscale = 0.0_dp
@@ -320,8 +343,9 @@ contains
 
   !> Builds the model. mass(nb), inertia(3, 3, nb) (symmetric positive definite), joints:
   !> jtype(nj), jbody(2, nj), jreal(MBDK_SPATIAL_JOINT_REALS, nj); forces: ftype(nf), fbody(2,
-  !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state (its orientations fix the
-  !> reference of prismatic and fixed joints). work: owned by the caller, outliving the model's
+  !> nf), freal(MBDK_SPATIAL_FORCE_REALS, nf); y0 the initial state, the bodies' and then one
+  !> volume per wear entry of the force table (its orientations fix the reference of prismatic
+  !> and fixed joints). work: owned by the caller, outliving the model's
   !> use. MBDK_ERR_INVALID_INPUT for a bad table entry (the Python layer names it first), or for
   !> counts whose sizes (13 nb, 5 nj) no default integer holds; MBDK_ERR_NO_MEMORY (asked: the
   !> bytes, mbdk_memory). The steps check and allocate in one fixed order, so that an input
@@ -342,7 +366,7 @@ contains
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. spatial_tables_ok(mass, inertia, jtype, jbody, jreal, ftype, fbody, freal)) return
     if (.not. spatial_options_ok(opt)) return
-    call lay_out_spatial_state(model, opt, size(mass))
+    call lay_out_spatial_state(model, opt, size(mass), count(ftype == MBDK_EFFECT_WEAR))
     if (size(y0) /= model%n .or. .not. all(abs(y0) <= huge(1.0_dp))) return
     call take_bodies(model, mass, inertia, y0, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -380,7 +404,7 @@ contains
   end subroutine mbdk_spatial_init
 
   !> The tables' shapes and finite reals, at least one body, and counts that default integers
-  !> hold (the state: 13 nb values; the primitives: 5 a joint).
+  !> hold (the state: 13 nb values and a wear element's; the primitives: 5 a joint).
   pure logical function spatial_tables_ok(mass, inertia, jtype, jbody, jreal, ftype, fbody, &
                                           freal) result(ok)
     real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :)
@@ -390,7 +414,8 @@ contains
     nb = size(mass)
     nj = size(jtype)
     if (nb < 1 .or. any(shape(inertia) /= [3, 3, nb])) return
-    if (.not. (mbdk_count_fits(13.0_dp * nb) .and. mbdk_count_fits(5.0_dp * nj))) return
+    if (.not. (mbdk_count_fits(13.0_dp * nb + size(ftype)) .and. mbdk_count_fits(5.0_dp * nj))) &
+      return
     if (size(jbody, 1) /= 2 .or. size(jbody, 2) /= nj .or. size(jreal, 1) /= &
         MBDK_SPATIAL_JOINT_REALS .or. size(jreal, 2) /= nj) return
     if (size(fbody, 1) /= 2 .or. size(fbody, 2) /= size(ftype) .or. size(freal, 1) /= &
@@ -405,28 +430,36 @@ contains
     ok = .false.
     if (opt%formulation < MBDK_FORM_REDUCED .or. opt%formulation > &
         MBDK_FORM_PROJECTION) return
-    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%pen_alpha > 0.0_dp .and. &
-        opt%pen_omega > 0.0_dp .and. opt%pen_mu > 0.0_dp .and. opt%pen_alpha <= huge(1.0_dp) &
-        .and. opt%pen_omega <= huge(1.0_dp) .and. opt%pen_mu <= huge(1.0_dp))) return
+    if (opt%formulation == MBDK_FORM_PENALTY .and. .not. (opt%penalty_alpha > 0.0_dp .and. &
+        opt%penalty_omega > 0.0_dp .and. opt%penalty_mu > 0.0_dp .and. &
+        opt%penalty_alpha <= huge(1.0_dp) .and. opt%penalty_omega <= huge(1.0_dp) .and. &
+        opt%penalty_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
-    ok = opt%alpha >= 0.0_dp .and. opt%beta >= 0.0_dp .and. opt%norm_gain >= 0.0_dp .and. &
-         opt%projection_tol > 0.0_dp .and. opt%lock_guard >= 0.0_dp .and. &
+    ok = opt%baumgarte_alpha >= 0.0_dp .and. opt%baumgarte_beta >= 0.0_dp .and. &
+         opt%norm_gain >= 0.0_dp .and. opt%projection_tol > 0.0_dp .and. &
+         all(abs([opt%watch_position, opt%watch_velocity, opt%watch_energy, &
+                  opt%watch_momentum, opt%watch_quaternion, opt%norm_gain]) <= huge(1.0_dp)) &
+         .and. opt%watch_every >= 0 .and. opt%lock_guard >= 0.0_dp .and. &
          opt%lock_guard < 1.0_dp
   end function spatial_options_ok
 
   !> The options into the model and the state's layout: nqb coordinates per body (7 for a
-  !> quaternion, 6 for angles; seq the angle sequence), 6 velocities.
-  subroutine lay_out_spatial_state(model, opt, nb)
+  !> quaternion, 6 for angles; seq the angle sequence), 6 velocities, then the ns states of the
+  !> effects (wear).
+  subroutine lay_out_spatial_state(model, opt, nb, ns)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(mbdk_spatial_options_t), intent(in) :: opt
-    integer, intent(in) :: nb
+    integer, intent(in) :: nb, ns
     model%opt = opt
+    ! 0: the default, as in mbdk_model_options_t
+    if (opt%watch_every == 0) model%opt%watch_every = MBDK_WATCH_EVERY
     model%nb = nb
     model%nqb = merge(7, 6, opt%rotation == MBDK_ROT_QUATERNION)
     if (opt%rotation == MBDK_ROT_EULER313) model%seq = MBDK_SEQ_EULER313
     if (opt%rotation == MBDK_ROT_CARDAN123) model%seq = MBDK_SEQ_CARDAN123
-    model%n = nb * (model%nqb + 6)
+    model%ns = ns
+    model%n = nb * (model%nqb + 6) + ns
     model%ncoord = nb * model%nqb
     model%nvel = 6 * nb
     model%formulation = opt%formulation
@@ -593,7 +626,7 @@ contains
   end subroutine add_joint_primitives
 
   !> The force table, checked, into the model (planes' normals made unit), whether the scene
-  !> has power to integrate, and its contacts (events with locate_events).
+  !> has power to integrate, its contacts (events with locate_events) and its wear elements.
   subroutine take_forces(model, ftype, fbody, freal, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
     integer, intent(in) :: ftype(:), fbody(:, :)
@@ -603,15 +636,17 @@ contains
     integer :: k, astat
     model%nf = size(ftype)
     allocate (model%ftype(model%nf), model%fbody(2, model%nf), &
-              model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf), stat=astat)
+              model%freal(MBDK_SPATIAL_FORCE_REALS, model%nf), model%wear(model%ns), stat=astat)
     call mbdk_alloc_status(astat, (3.0_dp * MBDK_INT_BYTES + MBDK_SPATIAL_FORCE_REALS * &
-                                   MBDK_REAL_BYTES) * model%nf, stat, asked)
+                                   MBDK_REAL_BYTES) * model%nf + MBDK_INT_BYTES * model%ns, &
+                           stat, asked)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. spatial_forces_ok(model%nb, ftype, fbody, freal)) return
     ! loads and springs; of the contacts, those with damping or friction (an undamped,
-    ! frictionless contact does no net work)
-    model%has_power = any(ftype /= MBDK_FORCE_GRAVITY .and. .not. is_contact(ftype))
+    ! frictionless contact does no net work); wear exerts no force
+    model%has_power = any(ftype /= MBDK_FORCE_GRAVITY .and. .not. is_contact(ftype) .and. &
+                          ftype /= MBDK_EFFECT_WEAR)
     do k = 1, model%nf
       if (is_contact(ftype(k)) .and. (freal(14, k) /= 0.0_dp .or. &
           mbdk_contact3d_rough(freal(:, k)))) model%has_power = .true.
@@ -626,11 +661,13 @@ contains
     end do
     model%ncontacts = count(is_contact(ftype))
     if (model%opt%locate_events /= 0) model%nevents = 2 * model%ncontacts
+    model%wear = pack([(k, k = 1, model%nf)], ftype == MBDK_EFFECT_WEAR)
     stat = MBDK_SUCCESS
   end subroutine take_forces
 
   !> Each force's type and bodies (a point force or torque on a body; a spring-damper between
-  !> two, one of them possibly the ground, with k, c, l0 >= 0; contacts: spatial_contact_ok).
+  !> two, one of them possibly the ground, with k, c, l0 >= 0; contacts: spatial_contact_ok;
+  !> wear: spatial_wear_ok).
   pure logical function spatial_forces_ok(nb, ftype, fbody, freal) result(ok)
     integer, intent(in) :: nb
     integer, intent(in) :: ftype(:), fbody(:, :)
@@ -648,10 +685,32 @@ contains
         if (.not. all(freal(7:9, k) >= 0.0_dp)) return
       case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
         if (.not. spatial_contact_ok(nb, ftype(k), fbody(:, k), freal(:, k))) return
+      case (MBDK_EFFECT_WEAR)
+        if (.not. spatial_wear_ok(ftype, fbody(:, k), freal, k)) return
       end select
     end do
     ok = .true.
   end function spatial_forces_ok
+
+  !> Wear entry k (the model's header): its column a contact of the table, its law archard or
+  !> knee, its load a normal force or, on a contact with friction, a friction force; k >= 0.
+  pure logical function spatial_wear_ok(ftype, fb, freal, k) result(ok)
+    integer, intent(in) :: ftype(:), fb(2), k
+    real(dp), intent(in) :: freal(:, :)
+    integer :: c
+    ok = .false.
+    c = fb(1)
+    if (c < 1 .or. c > size(ftype)) return
+    if (.not. is_contact(ftype(c))) return
+    if (fb(2) /= MBDK_WEAR_ARCHARD .and. fb(2) /= MBDK_WEAR_KNEE) return
+    if (.not. freal(1, k) >= 0.0_dp) return
+    if (freal(6, k) == real(MBDK_WEAR_LOAD_FRICTION, dp)) then
+      if (.not. mbdk_contact3d_rough(freal(:, c))) return
+    else if (freal(6, k) /= real(MBDK_WEAR_LOAD_NORMAL, dp)) then
+      return
+    end if
+    ok = .true.
+  end function spatial_wear_ok
 
   !> A contact of type ft (sphere_plane, sphere_sphere) between bodies fb, reals r: body1 a
   !> body, body2 the ground or another body; radii >= 0 (two spheres: not both 0), a plane's
@@ -793,6 +852,8 @@ contains
         call mbdk_inv_force(rule, freal(4:6, k))
       case (MBDK_FORCE_TORQUE)
         call mbdk_inv_moment(rule)
+      case (MBDK_EFFECT_WEAR)
+        cycle              ! a state of its own, no force
       case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
         ! between two bodies: equal and opposite at one point, internal; to the ground without
         ! friction: along the ground plane's normal, or through the ground sphere's centre
@@ -882,6 +943,12 @@ contains
     integer, intent(in) :: b
     wi = model%nb * model%nqb + (b - 1) * 6 + 1
   end function wi
+
+  !> index in y of the bodies' last velocity: the effects' states (wear) follow it
+  pure integer function last_velocity(model)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    last_velocity = model%ncoord + model%nvel
+  end function last_velocity
 
   !> The rotation matrix of body b's orientation coordinates (a quaternion taken as p / |p|).
   pure subroutine orientation(model, p, rot, stat)
@@ -1563,6 +1630,8 @@ contains
 
   ! ---- the problem ---------------------------------------------------------------------------
 
+  !> F(t, y): the bodies' rates and accelerations, then, in a scene with wear, the rates of the
+  !> worn volumes
   subroutine spatial_rhs(self, t, y, f, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t
@@ -1570,7 +1639,40 @@ contains
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     call spatial_accelerations(self, t, y, f, stat)
+    if (self%ns > 0 .and. stat == MBDK_SUCCESS) &
+      call wear_rates(self, t, y, f(last_velocity(self) + 1:), stat)
   end subroutine spatial_rhs
+
+  !> rates(e) = V_e' of every wear element at (t, y): the law (mbdk_wear_law) at its contact's
+  !> normal force F, or friction force mu F, and slip speed; 0 where the contact is apart.
+  !> MBDK_ERR_NONFINITE where the contact has no normal (two penetrating spheres' centres
+  !> coincide).
+  subroutine wear_rates(self, t, y, rates, stat)
+    type(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: rates(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    type(mbdk_contact3d_t) :: ct
+    real(dp) :: load
+    logical :: ok
+    integer :: e, k
+    rates = 0.0_dp
+    call frames(self, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do e = 1, self%ns
+      k = self%wear(e)
+      call contact_at(self, fr, self%fbody(1, k), ct, ok)
+      if (.not. ok) then
+        stat = MBDK_ERR_NONFINITE
+        return
+      end if
+      if (.not. ct%touching) cycle
+      load = ct%force
+      if (self%freal(6, k) == real(MBDK_WEAR_LOAD_FRICTION, dp)) load = ct%mu * ct%force
+      rates(e) = mbdk_wear_law(self%fbody(2, k), self%freal(:, k), load, ct%speed, t)
+    end do
+  end subroutine wear_rates
 
   !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
   !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
@@ -1620,8 +1722,9 @@ contains
     else if (self%m > 0) then
       call constraints(self, fr, t, phi, c, gam, phit)
       if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
-        gam = gam - 2.0_dp * self%opt%alpha * (matmul(c, y(wi(self, 1):)) + phit) - &
-              self%opt%beta**2 * phi
+        gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
+              (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
+              self%opt%baumgarte_beta**2 * phi
       if (self%opt%formulation == MBDK_FORM_REDUCED) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
@@ -1632,9 +1735,10 @@ contains
       if (present(lam)) lam = l
     end if
     ! the kinematic equations
-    call body_rates(self, y(1:self%ncoord), y(self%ncoord + 1:), f(1:self%ncoord), stat)
+    call body_rates(self, y(1:self%ncoord), y(self%ncoord + 1:last_velocity(self)), &
+                    f(1:self%ncoord), stat)
     if (stat /= MBDK_SUCCESS) return
-    f(wi(self, 1):) = acc
+    f(wi(self, 1):last_velocity(self)) = acc
     stat = MBDK_SUCCESS
 
   contains
@@ -1649,8 +1753,9 @@ contains
       allocate (a(6 * nb, 6 * nb), r(m), stat=kk)
       call mbdk_alloc_status(kk, MBDK_REAL_BYTES * (36.0_dp * nb * nb + m), st)
       if (st /= MBDK_SUCCESS) return
-      associate (ap => self%opt%pen_alpha, om => self%opt%pen_omega, mu => self%opt%pen_mu)
-        r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):)) + phit) + om**2 * phi
+      associate (ap => self%opt%penalty_alpha, om => self%opt%penalty_omega, mu => self%opt%penalty_mu)
+        r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) + &
+            om**2 * phi
         ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
         ! status
         a = matmul(transpose(c), c)
@@ -1775,9 +1880,9 @@ contains
       end do
     end do
     ! velocities: w - M^-1 C^T S^-1 (C w + Phi_t)
-    call schur_solve(self, c, matmul(c, y(wi(self, 1):)) + phit, l, mc, stat)
+    call schur_solve(self, c, matmul(c, y(wi(self, 1):last_velocity(self))) + phit, l, mc, stat)
     if (stat /= MBDK_SUCCESS) return
-    y(wi(self, 1):) = y(wi(self, 1):) - matmul(mc, l)
+    y(wi(self, 1):last_velocity(self)) = y(wi(self, 1):last_velocity(self)) - matmul(mc, l)
   end subroutine spatial_project
 
   subroutine normalise(self, y)
@@ -1878,7 +1983,7 @@ contains
     if (present(mom) .and. present(msc)) call spatial_momenta(model, fr, mom, msc)
     if (model%m > 0) then
       call constraints(model, fr, t, phi, c, gam, phit)
-      w = y(wi(model, 1):)
+      w = y(wi(model, 1):last_velocity(model))
       out(5) = maxval(abs(phi))
       out(6) = maxval(abs(matmul(c, w) + phit))
       if (present(phi_out)) phi_out = phi
@@ -2194,8 +2299,9 @@ contains
     integer :: astat
     stat = MBDK_ERR_NONFINITE
     if (.not. (all(abs(q) <= huge(1.0_dp)) .and. all(abs(v) <= huge(1.0_dp)))) return
-    allocate (y(self%n), fw(3, self%nb), nbd(3, self%nb), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (self%n + 6.0_dp * self%nb), stat)
+    allocate (y(last_velocity(self)), fw(3, self%nb), nbd(3, self%nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (last_velocity(self) + 6.0_dp * self%nb), &
+                           stat)
     if (stat /= MBDK_SUCCESS) return
     y(1:self%ncoord) = q
     y(self%ncoord + 1:) = v
@@ -2264,8 +2370,8 @@ contains
     integer, intent(out) :: stat
     real(dp), allocatable :: y(:), f(:)
     integer :: astat
-    allocate (y(self%n), f(self%n), stat=astat)
-    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * self%n, stat)
+    allocate (y(last_velocity(self)), f(last_velocity(self)), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_REAL_BYTES * last_velocity(self), stat)
     if (stat /= MBDK_SUCCESS) return
     y(1:self%ncoord) = q
     y(self%ncoord + 1:) = v
