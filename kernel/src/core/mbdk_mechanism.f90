@@ -39,16 +39,22 @@
 !>                on increments
 !> and for the index-3 integrator (mbdk_trapezoidal_index3), with an mbdk_i3_aux_t the model
 !> creates for each solve (i3_create: its constrained-solve object and Newton factors):
-!>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v), C kept for the products and solves below
-!>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion
+!>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v) into an mbdk_i3_eval_t, C kept for the
+!>                products and solves below
+!>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion (in the
+!>                mbdk_i3_eval_t)
 !>   i3_c_times, i3_ct_times   C x and C^T x
 !>   i3_cs_factor, i3_cs_solve   M x + C^T mu = b, C x = c at the last evaluation (the
 !>                projections); on a regular path (an augmented Lagrangian iteration) where C
 !>                has lost a rank, when the caller allows it
+!>   i3_project_velocity   the evaluation's v onto C v + Phi_t = 0 through those (a default
+!>                here from i3_c_times and i3_cs_solve; a model may do it in one call of its own)
 !>   i3_matrix, i3_matrix_solve   the Newton matrix, where the model has its tangents
 !>                (has_i3_matrix); otherwise the integrator forms it by differences
 module mbdk_mechanism
   use mbdk_kinds, only: dp
+  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   implicit none
   private
@@ -59,7 +65,20 @@ module mbdk_mechanism
 
   !> What a mechanism keeps for one index-3 solve; each model extends it (i3_create).
   type, abstract, public :: mbdk_i3_aux_t
+    !> the default i3_project_velocity's work (C v + Phi_t, the correction, its multipliers, a
+    !> zero right-hand side), allocated at its first call
+    real(dp), allocatable :: pv_c(:), pv_x(:), pv_mu(:), pv_zero(:)
   end type mbdk_i3_aux_t
+
+  !> An index-3 evaluation and the Newton residual there, which the integrator owns: the point
+  !> it sets (q of ncoord, v of nvel), what i3_evaluate gives there (f of nvel; phi, gam, phit
+  !> of m), the residual's multipliers lt (m) and mass term dd (nvel) it sets, and r (the
+  !> Newton unknowns': the residual, i3_residual's in its first nvel, then the Newton update).
+  !> Allocatable components, so that a model hands them on to its own routines as they are: a
+  !> dummy array handed on takes a new descriptor at every call, several per Newton iteration.
+  type, public :: mbdk_i3_eval_t
+    real(dp), allocatable :: q(:), v(:), f(:), phi(:), gam(:), phit(:), lt(:), dd(:), r(:)
+  end type mbdk_i3_eval_t
 
   type, abstract, extends(mbdk_problem_t), public :: mbdk_mechanism_t
     integer :: nb = 0        !< bodies
@@ -104,6 +123,7 @@ module mbdk_mechanism
     procedure(i3_cs_solve_iface), deferred :: i3_cs_solve
     procedure(i3_matrix_iface), deferred :: i3_matrix
     procedure(i3_matrix_solve_iface), deferred :: i3_matrix_solve
+    procedure :: i3_project_velocity => mechanism_i3_project_velocity
   end type mbdk_mechanism_t
 
   abstract interface
@@ -232,28 +252,25 @@ module mbdk_mechanism
       real(dp), intent(inout), optional :: asked
     end subroutine i3_create_iface
 
-    !> Phi, gamma, Phi_t (m) and, with forces, f (nvel; else left as it is) at (t, q, v); C
-    !> kept in aux. same_q: q is that of the last evaluation (only v changed)
-    subroutine i3_evaluate_iface(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> e%phi, e%gam, e%phit and, with forces, e%f (else left as it is) at (t, e%q, e%v); C
+    !> kept in aux. same_q: e%q is that of the last evaluation (only e%v changed)
+    subroutine i3_evaluate_iface(self, aux, t, e, forces, same_q, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in) :: t
-      real(dp), intent(in), contiguous :: q(:), v(:)
-      real(dp), intent(inout), contiguous :: f(:)
-      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       logical, intent(in) :: forces, same_q
       integer, intent(out) :: stat
     end subroutine i3_evaluate_iface
 
-    !> r = M dd - s (f - C^T lt) at the last evaluation
-    subroutine i3_residual_iface(self, aux, f, lt, s, dd, r)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> e%r(1:nvel) = M e%dd - s (e%f - C^T e%lt) at the last evaluation (e)
+    subroutine i3_residual_iface(self, aux, e, s)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
-      real(dp), intent(out), contiguous :: r(:)
     end subroutine i3_residual_iface
 
     !> y = C x (i3_c_times: x of nvel, y of m) or C^T x (i3_ct_times) at the last evaluation
@@ -288,27 +305,63 @@ module mbdk_mechanism
       integer, intent(out) :: stat
     end subroutine i3_cs_solve_iface
 
-    !> builds and factorises the Newton matrix M + ck (K + alpha C^T C) + cd D_f at (t, q, v,
-    !> lam) of the last evaluation (book: [.., C^T; C, 0] with the multipliers' rows and no
-    !> alpha; ck, cd: the step's coefficients, h^2/4 and h/2 for the trapezoidal rule)
-    subroutine i3_matrix_iface(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> builds and factorises the Newton matrix M + ck (K + alpha C^T C) + cd D_f at (t, e%q,
+    !> e%v, lam) of the last evaluation (book: [.., C^T; C, 0] with the multipliers' rows and
+    !> no alpha; ck, cd: the step's coefficients, h^2/4 and h/2 for the trapezoidal rule)
+    subroutine i3_matrix_iface(self, aux, book, t, e, lam, ck, cd, alpha, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
       real(dp), intent(in) :: t, ck, cd, alpha
-      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      type(mbdk_i3_eval_t), intent(in) :: e
+      real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine i3_matrix_iface
 
-    !> r overwritten by the solution of the Newton matrix's system
-    subroutine i3_matrix_solve_iface(self, aux, r, stat)
-      import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
+    !> e%r overwritten by the solution of the Newton matrix's system
+    subroutine i3_matrix_solve_iface(self, aux, e, stat)
+      import :: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(inout), contiguous :: r(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine i3_matrix_solve_iface
   end interface
+
+contains
+
+  !> e%v overwritten by its mass-orthogonal projection onto C v + Phi_t = 0 (Phi_t: e%phit) at
+  !> the last evaluation and factorisation: v - x, M x + C^T mu = 0, C x = C v + Phi_t.
+  !> MBDK_ERR_NO_MEMORY, or i3_cs_solve's failure (v then unchanged).
+  subroutine mechanism_i3_project_velocity(self, aux, e, stat)
+    class(mbdk_mechanism_t), intent(in) :: self
+    class(mbdk_i3_aux_t), intent(inout) :: aux
+    type(mbdk_i3_eval_t), intent(inout) :: e
+    integer, intent(out) :: stat
+    real(dp), allocatable :: cv(:), x(:), mu(:), zero(:)
+    integer :: astat
+    ! aux's work arrays are taken out of it for the calls below, which also take aux (a part
+    ! of aux changed through another argument would break the rules on arguments), and put
+    ! back after
+    call move_alloc(aux%pv_c, cv)
+    call move_alloc(aux%pv_x, x)
+    call move_alloc(aux%pv_mu, mu)
+    call move_alloc(aux%pv_zero, zero)
+    if (.not. allocated(zero)) then
+      allocate (cv(self%m), x(self%nvel), mu(self%m), zero(self%nvel), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 2.0_dp * (self%m + self%nvel), stat)
+      if (stat /= MBDK_SUCCESS) return
+      zero = 0.0_dp
+    end if
+    call self%i3_c_times(aux, e%v, cv)
+    cv(:) = cv + e%phit
+    call self%i3_cs_solve(aux, zero, cv, x, mu, stat)
+    if (stat == MBDK_SUCCESS) e%v = e%v - x
+    call move_alloc(cv, aux%pv_c)
+    call move_alloc(x, aux%pv_x)
+    call move_alloc(mu, aux%pv_mu)
+    call move_alloc(zero, aux%pv_zero)
+  end subroutine mechanism_i3_project_velocity
 
 end module mbdk_mechanism

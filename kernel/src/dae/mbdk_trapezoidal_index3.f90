@@ -222,8 +222,9 @@
 !> step-size controller is mbdk_step_controller_t. Here, once for both: the solver's state
 !> between steps (mbdk_index3_t), one step (mbdk_index3_step: from t to a given tn, not
 !> retried; attempt = predictors, newton, finish_step), a fixed-step advance with the substep
-!> retries (mbdk_index3_advance), and the whole-interval driver with sampling, fixed or
-!> adaptive (mbdk_index3_solve). An embedder steps through mbdk_index3_init and
+!> retries (mbdk_index3_advance), and the whole-interval driver (mbdk_index3_solve: set-up,
+!> then fixed_loop or adaptive_loop, each writing its samples, and the sample where a failed
+!> solve stopped). An embedder steps through mbdk_index3_init and
 !> mbdk_index3_advance (or the C stepper, mbdk_stepper_create_index3).
 module mbdk_trapezoidal_index3
   use mbdk_kinds, only: dp, i8
@@ -233,7 +234,7 @@ module mbdk_trapezoidal_index3
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_clock, only: mbdk_timer_t, mbdk_timer_start, mbdk_timer_stop
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
-  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_step_controller, only: mbdk_step_controller_t, mbdk_controller_init, &
     mbdk_controller_next_step, mbdk_controller_accept, mbdk_controller_reject, &
@@ -338,6 +339,8 @@ module mbdk_trapezoidal_index3
     logical :: fd_matrix = .false.
     real(dp) :: t = 0.0_dp, tn = 0.0_dp, h = 0.0_dp, h_prev = 0.0_dp, h_prev2 = 0.0_dp
     real(dp) :: alpha = 0.0_dp, h_lu = 0.0_dp, mmax = 0.0_dp
+    !> max(1, max |qn|), set with qn (move_point): the scale of Phi's roundoff there
+    real(dp) :: qn_size = 1.0_dp
     !> the update's target within the options' tolerance: min(1, LOCAL_SHARE e) (newton)
     real(dp) :: tau = 1.0_dp
     !> the step's coefficients (set_coefficients): cs the Newton scale beta h^2 (1 - alpha_f) /
@@ -368,15 +371,18 @@ module mbdk_trapezoidal_index3
     real(dp) :: retries = RETRY_BUDGET  !< what is left of the retry budget
     type(mbdk_stats_t) :: st
     class(mbdk_i3_aux_t), allocatable :: aux
-    real(dp), allocatable :: q(:), qn(:), qs(:)
-    real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), vn(:), an(:), dq(:), dqhat(:), &
-      dqp(:), dd(:), f(:), corr(:), w(:), zero_nv(:)
+    !> the point the mechanism evaluates, the attempted step's end (qn = e%q, vn = e%v), what
+    !> it gives there (f, phi, gam, phit), and the residual there (lt, dd, r)
+    type(mbdk_i3_eval_t) :: e
+    real(dp), allocatable :: q(:), qs(:)
+    real(dp), allocatable :: v(:), a(:), a_prev(:), a_prev2(:), an(:), dq(:), dqhat(:), &
+      dqp(:), corr(:), w(:), zero_nv(:)
     !> the generalized-alpha family's pseudo-acceleration (= a for the trapezoidal rule), of the
     !> state, the last state and the attempted step
     real(dp), allocatable :: ap(:), ap_prev(:), apn(:)
     real(dp), allocatable :: lam(:), lam_old(:), ln(:), lst(:), lstn(:), lst_old(:), lp(:), &
-      lt(:), phi(:), gam(:), phit(:), rc(:), mu(:), zero_m(:)
-    real(dp), allocatable :: r(:), y(:)
+      rc(:), mu(:), zero_m(:)
+    real(dp), allocatable :: y(:)
     !> fd_matrix: the matrix and its LU, and the evaluation it was built around
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
     !> fd_matrix, augmented form: the matrix by differences less the penalty's cs alpha C^T C
@@ -400,6 +406,15 @@ module mbdk_trapezoidal_index3
     real(dp), allocatable :: q(:), v(:), a(:), lam(:), lst(:), lam_old(:), lst_old(:), &
       a_prev(:), a_prev2(:), qf(:), vf(:)
   end type mbdk_index3_snapshot_t
+
+  !> The samples of a whole-interval solve: the caller's output arrays (mbdk_index3_solve's
+  !> t_out, y_out, a_out, lam_out, iters_out) and how many rows are written (n)
+  type :: samples_t
+    real(dp), pointer :: t(:) => null(), y(:, :) => null(), a(:, :) => null(), &
+      lam(:, :) => null()
+    integer, pointer :: iters(:) => null()
+    integer :: n = 0
+  end type samples_t
 
 contains
 
@@ -455,11 +470,13 @@ contains
     ! consistent a and lambda at t0: the constrained solve; where C has lost a rank (redundant
     ! joints, or a start at a singular configuration) the augmented form takes the regular
     ! path of its projections instead (lambda is then one of many)
-    call mech%i3_evaluate(s%aux, s%t, s%q, s%v, s%f, s%phi, s%gam, s%phit, .true., .false., stat)
+    s%e%q(:) = s%q
+    s%e%v(:) = s%v
+    call mech%i3_evaluate(s%aux, s%t, s%e, .true., .false., stat)
     if (stat /= MBDK_SUCCESS) return
     call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, stat)
     if (stat /= MBDK_SUCCESS) return
-    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%a, s%lam, stat)
+    call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%a, s%lam, stat)
     if (stat /= MBDK_SUCCESS) return
     s%lam_old = s%lam
     s%lst = s%lam
@@ -497,16 +514,17 @@ contains
     integer :: ierr
     d = (s%opt%alpha_m - s%opt%alpha_f) * s%opt%h
     s%dq(:) = d * s%v + (0.5_dp * d * d) * s%a
-    s%qn(:) = s%q
-    call move_by(s, mech, s%qn, s%dq, ierr)
-    s%vn(:) = s%v + d * s%a
-    if (ierr == MBDK_SUCCESS) call mech%i3_evaluate(s%aux, t0 + d, s%qn, s%vn, s%f, s%phi, &
-                                                    s%gam, s%phit, .true., .false., ierr)
+    s%e%q(:) = s%q
+    call move_by(s, mech, s%e%q, s%dq, ierr)
+    s%e%v(:) = s%v + d * s%a
+    if (ierr == MBDK_SUCCESS) call mech%i3_evaluate(s%aux, t0 + d, s%e, .true., .false., ierr)
     if (ierr == MBDK_SUCCESS) call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, ierr)
-    if (ierr == MBDK_SUCCESS) call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+    if (ierr == MBDK_SUCCESS) call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
     if (ierr == MBDK_SUCCESS .and. finite_all(s%an)) s%ap(:) = s%an
     s%st%nfev = s%st%nfev + 2
-    call mech%i3_evaluate(s%aux, t0, s%q, s%v, s%f, s%phi, s%gam, s%phit, .true., .false., stat)
+    s%e%q(:) = s%q
+    s%e%v(:) = s%v
+    call mech%i3_evaluate(s%aux, t0, s%e, .true., .false., stat)
     if (stat /= MBDK_SUCCESS) return
     call mech%i3_cs_factor(s%aux, 0.0_dp, .not. s%book, s%regular, stat)
   end subroutine shifted_start
@@ -529,11 +547,11 @@ contains
     s%nk = nk
     s%identity = mech%identity_kinematics
     s%fd_matrix = .not. mech%has_i3_matrix
-    allocate (s%q(ncq), s%qn(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
-              s%vn(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%dd(nv), s%f(nv), &
+    allocate (s%q(ncq), s%e%q(ncq), s%qs(ncq), s%v(nv), s%a(nv), s%a_prev(nv), s%a_prev2(nv), &
+              s%e%v(nv), s%an(nv), s%dq(nv), s%dqhat(nv), s%dqp(nv), s%e%dd(nv), s%e%f(nv), &
               s%corr(nv), s%w(nv), s%zero_nv(nv), s%lam(m), s%lam_old(m), s%ln(m), s%lst(m), &
-              s%lstn(m), s%lst_old(m), s%lp(m), s%lt(m), s%phi(m), s%gam(m), s%phit(m), &
-              s%rc(m), s%mu(m), s%zero_m(m), s%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
+              s%lstn(m), s%lst_old(m), s%lp(m), s%e%lt(m), s%e%phi(m), s%e%gam(m), s%e%phit(m), &
+              s%rc(m), s%mu(m), s%zero_m(m), s%e%r(nk), s%y(ncq + nv), s%ap(nv), s%ap_prev(nv), &
               s%apn(nv), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (4.0_dp * ncq + 18.0_dp * nv + 14.0_dp * m + &
                            nk), stat, s%st%alloc_bytes)
@@ -548,31 +566,38 @@ contains
     end if
     s%zero_nv = 0.0_dp
     s%zero_m = 0.0_dp
-    s%phi = 0.0_dp
-    s%gam = 0.0_dp
-    s%phit = 0.0_dp
-    s%f = 0.0_dp
-    call mech%mass_diagonal(s%f)
-    s%mmax = maxval(s%f)
-    s%f = 0.0_dp
+    s%e%phi = 0.0_dp
+    s%e%gam = 0.0_dp
+    s%e%phit = 0.0_dp
+    s%e%f = 0.0_dp
+    call mech%mass_diagonal(s%e%f)
+    s%mmax = maxval(s%e%f)
+    s%e%f = 0.0_dp
   end subroutine allocate_state
 
-  !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state.
+  !> Accepts the attempted step: (qn, vn, an, ln) at tn becomes the state, the state the
+  !> history. (One pass per length: the vectors are a few components long, and a pass's set-up
+  !> costs about as much as its copies.)
   subroutine commit(s)
     type(mbdk_index3_t), intent(inout) :: s
-    s%a_prev2(:) = s%a_prev
+    integer :: k
     s%h_prev2 = s%h_prev
-    s%a_prev(:) = s%a
-    s%ap_prev(:) = s%ap
     s%h_prev = s%h
-    s%lam_old(:) = s%lam
-    s%lst_old(:) = s%lst
-    s%q(:) = s%qn
-    s%v(:) = s%vn
-    s%a(:) = s%an
-    s%ap(:) = s%apn
-    s%lam(:) = s%ln
-    s%lst(:) = s%lstn
+    do k = 1, s%nv
+      s%a_prev2(k) = s%a_prev(k)
+      s%a_prev(k) = s%a(k)
+      s%ap_prev(k) = s%ap(k)
+      s%v(k) = s%e%v(k)
+      s%a(k) = s%an(k)
+      s%ap(k) = s%apn(k)
+    end do
+    s%q(:) = s%e%q
+    do k = 1, s%m
+      s%lam_old(k) = s%lam(k)
+      s%lst_old(k) = s%lst(k)
+      s%lam(k) = s%ln(k)
+      s%lst(k) = s%lstn(k)
+    end do
     s%regular = s%regular_n
     s%t = s%tn
     s%st%steps = s%st%steps + 1
@@ -686,16 +711,17 @@ contains
     class(mbdk_mechanism_t), intent(in) :: mech
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(in) :: t0, t_end, y0(:)
-    real(dp), intent(out) :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
-    integer, intent(out) :: iters_out(:), nwritten
+    real(dp), intent(out), target :: t_out(:), y_out(:, :), a_out(:, :), lam_out(:, :)
+    integer, intent(out), target :: iters_out(:)
+    integer, intent(out) :: nwritten
     type(mbdk_stats_t), intent(out) :: st
     integer, intent(out) :: stat
-    integer(i8) :: nsteps, i
-    integer :: nsamp, plan_stat, wstat
-    logical :: shortened, sample
-    real(dp) :: t_s
+    integer(i8) :: nsteps
+    integer :: nsamp, plan_stat
+    logical :: shortened
     type(mbdk_timer_t) :: timer
     type(mbdk_index3_t) :: s
+    type(samples_t) :: out
 
     nwritten = 0
     call mbdk_index3_plan(opt, t0, t_end, nsteps, nsamp, shortened, plan_stat)
@@ -712,149 +738,185 @@ contains
       st = s%st
       return
     end if
-    call write_sample()
+    out%t => t_out
+    out%y => y_out
+    out%a => a_out
+    out%lam => lam_out
+    out%iters => iters_out
+    call put_sample(out, s)
     if (opt%adaptive /= 0) then
-      call adaptive_loop(stat)
+      call adaptive_loop(s, mech, t0, t_end, nsamp, out, stat)
     else
-      do i = 1, nsteps
-        t_s = t0 + real(i, dp) * opt%h
-        if (i == nsteps) t_s = t_end
-        if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-          stat = MBDK_ERR_INTERRUPTED
-          exit
-        end if
-        if (opt%progress /= 0) call mbdk_progress(opt%progress, t_s)
-        sample = mod(i, int(opt%every, i8)) == 0 .or. i == nsteps
-        call mbdk_index3_advance(s, mech, t_s, stat, sample)
-        if (stat /= MBDK_SUCCESS) exit
-        if (sample) call write_sample()
-      end do
+      call fixed_loop(s, mech, t0, t_end, nsteps, out, stat)
       if (stat == MBDK_SUCCESS .and. shortened) stat = MBDK_NOTE_LAST_STEP_SHORTENED
     end if
-    ! on failure the last sample is the state the failed step started from (where it stopped);
-    ! a state the watch refused is not a sample (the last sample passed its checks; adaptive,
-    ! extrapolated: the start of the refused macro step, written by adaptive_loop)
-    if (mbdk_is_failure(stat) .and. nwritten < size(t_out) .and. .not. watch_status(stat)) then
-      if (s%t > t_out(nwritten)) then
-        ! the watch checks every few steps: the state where it stopped is checked before it
-        ! becomes a sample (a step that blew up just before a failed one is named as such)
-        call watch_step(s, mech, .true., wstat)
-        if (watch_status(wstat)) then
-          stat = wstat
-        else
-          call write_sample()
-        end if
-      end if
-    end if
+    if (mbdk_is_failure(stat)) call sample_where_stopped(s, mech, out, stat)
+    nwritten = out%n
     st = s%st
     call mbdk_timer_stop(timer, st)
+  end subroutine mbdk_index3_solve
 
-  contains
-
-    subroutine write_sample()
-      call write_row(s%t, s%q, s%v, s%a, s%lam, s%iters)
-    end subroutine write_sample
-
-    !> A saved state as the next sample (its Newton iterations unknown: 0).
-    subroutine write_state(x)
-      type(mbdk_index3_snapshot_t), intent(in) :: x
-      call write_row(x%t, x%q, x%v, x%a, x%lam, 0)
-    end subroutine write_state
-
-    subroutine write_row(t, q, v, a, lam, iters)
-      real(dp), intent(in) :: t, q(:), v(:), a(:), lam(:)
-      integer, intent(in) :: iters
-      nwritten = nwritten + 1
-      t_out(nwritten) = t
-      y_out(1:s%ncq, nwritten) = q
-      y_out(s%ncq + 1:s%ncq + s%nv, nwritten) = v
-      a_out(1:s%nv, nwritten) = a
-      if (s%m > 0) lam_out(1:s%m, nwritten) = lam
-      iters_out(nwritten) = iters
-    end subroutine write_row
-
-    !> The step-size controller (see the module header and mbdk_step_controller). Samples land
-    !> on t0 + k dt_out.
-    subroutine adaptive_loop(ierr)
-      integer, intent(out) :: ierr
-      integer :: k
-      real(dp) :: err, h_ctl
-      logical :: extrapolated
-      type(mbdk_step_controller_t) :: ctl
-      type(mbdk_index3_snapshot_t) :: x0
-      extrapolated = opt%adaptive == MBDK_INDEX3_EXTRAPOLATED
-      call mbdk_controller_init(ctl, opt%h, opt%h_min, opt%h_max, t0, t_end, 2)
-      if (extrapolated) then
-        ctl%ki = 0.7_dp
-        ctl%kp = 0.4_dp
+  !> Fixed step: nsteps steps of opt%h from t0, the last one ending at t_end; a sample every
+  !> opt%every steps and after the last. The interrupt flag is polled before every step.
+  subroutine fixed_loop(s, mech, t0, t_end, nsteps, out, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: t0, t_end
+    integer(i8), intent(in) :: nsteps
+    type(samples_t), intent(inout) :: out
+    integer, intent(out) :: ierr
+    integer(i8) :: i
+    real(dp) :: t_s
+    logical :: sample
+    ierr = MBDK_SUCCESS
+    do i = 1, nsteps
+      t_s = t0 + real(i, dp) * s%opt%h
+      if (i == nsteps) t_s = t_end
+      if (s%opt%interrupt /= 0 .and. mbdk_interrupted(s%opt%interrupt)) then
+        ierr = MBDK_ERR_INTERRUPTED
+        return
       end if
-      if (extrapolated) then
-        call snapshot_init(x0, s%ncq, s%nv, s%m, ierr, s%st%alloc_bytes)
-        if (ierr /= MBDK_SUCCESS) return
-      end if
-      ierr = MBDK_SUCCESS
-      do k = 1, nsamp - 1
-        t_s = t0 + real(k, dp) * opt%dt_out
-        if (k == nsamp - 1) t_s = t_end
-        do while (s%t < t_s)
-          if (opt%interrupt /= 0 .and. mbdk_interrupted(opt%interrupt)) then
-            ierr = MBDK_ERR_INTERRUPTED
+      if (s%opt%progress /= 0) call mbdk_progress(s%opt%progress, t_s)
+      sample = mod(i, int(s%opt%every, i8)) == 0 .or. i == nsteps
+      call mbdk_index3_advance(s, mech, t_s, ierr, sample)
+      if (ierr /= MBDK_SUCCESS) return
+      if (sample) call put_sample(out, s)
+    end do
+  end subroutine fixed_loop
+
+  !> The step-size controller (see the module header and mbdk_step_controller) over nsamp - 1
+  !> sample intervals; samples land on t0 + k dt_out and t_end.
+  subroutine adaptive_loop(s, mech, t0, t_end, nsamp, out, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    real(dp), intent(in) :: t0, t_end
+    integer, intent(in) :: nsamp
+    type(samples_t), intent(inout) :: out
+    integer, intent(out) :: ierr
+    integer :: k
+    real(dp) :: err, h_ctl, t_s
+    logical :: extrapolated
+    type(mbdk_step_controller_t) :: ctl
+    type(mbdk_index3_snapshot_t) :: x0
+    extrapolated = s%opt%adaptive == MBDK_INDEX3_EXTRAPOLATED
+    call mbdk_controller_init(ctl, s%opt%h, s%opt%h_min, s%opt%h_max, t0, t_end, 2)
+    if (extrapolated) then
+      ctl%ki = 0.7_dp
+      ctl%kp = 0.4_dp
+    end if
+    if (extrapolated) then
+      call snapshot_init(x0, s%ncq, s%nv, s%m, ierr, s%st%alloc_bytes)
+      if (ierr /= MBDK_SUCCESS) return
+    end if
+    ierr = MBDK_SUCCESS
+    do k = 1, nsamp - 1
+      t_s = t0 + real(k, dp) * s%opt%dt_out
+      if (k == nsamp - 1) t_s = t_end
+      do while (s%t < t_s)
+        if (s%opt%interrupt /= 0 .and. mbdk_interrupted(s%opt%interrupt)) then
+          ierr = MBDK_ERR_INTERRUPTED
+          return
+        end if
+        if (s%opt%progress /= 0) call mbdk_progress(s%opt%progress, s%t)
+        s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
+        s%h = s%tn - s%t
+        ! the controller judges the step from t to tn (extrapolated: the macro step, whose
+        ! half-steps leave their own h in s%h for the predictors' history)
+        h_ctl = s%h
+        if (extrapolated) then
+          call extrapolated_attempt(s, mech, x0, err, ierr)
+        else
+          call hold_matrix(s)
+          call attempt(s, mech, ierr)
+          if (ierr == MBDK_SUCCESS) err = error_estimate(s, mech)
+        end if
+        ! (an extrapolated step judged next to a rank loss exhausted the budget)
+        if (ierr == MBDK_ERR_NEWTON_DIVERGED .and. s%retries < 0.0_dp) return
+        if (newton_failed(ierr)) then
+          if (.not. retry_allowed(s)) then
+            ierr = MBDK_ERR_NEWTON_DIVERGED
             return
           end if
-          if (opt%progress /= 0) call mbdk_progress(opt%progress, s%t)
-          s%tn = mbdk_controller_next_step(ctl, s%t, t_s)
-          s%h = s%tn - s%t
-          ! the controller judges the step from t to tn (extrapolated: the macro step, whose
-          ! half-steps leave their own h in s%h for the predictors' history)
-          h_ctl = s%h
-          if (extrapolated) then
-            call extrapolated_attempt(s, mech, x0, err, ierr)
-          else
-            call hold_matrix(s)
-            call attempt(s, mech, ierr)
-            if (ierr == MBDK_SUCCESS) err = error_estimate(s, mech)
-          end if
-          ! (an extrapolated step judged next to a rank loss exhausted the budget)
-          if (ierr == MBDK_ERR_NEWTON_DIVERGED .and. s%retries < 0.0_dp) return
-          if (newton_failed(ierr)) then
-            if (.not. retry_allowed(s)) then
-              ierr = MBDK_ERR_NEWTON_DIVERGED
+          s%have_lu = .false.
+          call mbdk_controller_newton_failure(ctl, h_ctl)
+        else if (ierr /= MBDK_SUCCESS) then
+          return
+        else
+          if (err <= 1.0_dp) then
+            call commit(s)
+            call mbdk_controller_accept(ctl, h_ctl, err)
+            ! extrapolated: the watch checks every macro step (three solves make a check
+            ! cheap beside it), so that the macro step's start passed when it refuses the
+            ! end; the samples then end there, where the run stopped (next to a dead point
+            ! the last sample on the dt_out grid can be far from it)
+            call watch_step(s, mech, extrapolated .or. s%t >= t_s, ierr)
+            if (ierr /= MBDK_SUCCESS) then
+              ! the macro step's start as the last sample (its Newton iterations unknown: 0)
+              if (extrapolated .and. out%n < size(out%t)) then
+                if (x0%t > out%t(out%n)) call put_row(out, x0%t, x0%q, x0%v, x0%a, x0%lam, 0)
+              end if
               return
             end if
-            s%have_lu = .false.
-            call mbdk_controller_newton_failure(ctl, h_ctl)
-          else if (ierr /= MBDK_SUCCESS) then
-            return
-          else
-            if (err <= 1.0_dp) then
-              call commit(s)
-              call mbdk_controller_accept(ctl, h_ctl, err)
-              ! extrapolated: the watch checks every macro step (three solves make a check
-              ! cheap beside it), so that the macro step's start passed when it refuses the
-              ! end; the samples then end there, where the run stopped (next to a dead point
-              ! the last sample on the dt_out grid can be far from it)
-              call watch_step(s, mech, extrapolated .or. s%t >= t_s, ierr)
-              if (ierr /= MBDK_SUCCESS) then
-                if (extrapolated .and. nwritten < size(t_out) .and. x0%t > t_out(nwritten)) &
-                  call write_state(x0)
-                return
-              end if
-              cycle
-            end if
-            s%st%rejected_steps = s%st%rejected_steps + 1
-            call mbdk_controller_reject(ctl, h_ctl, err)
+            cycle
           end if
-          ierr = MBDK_SUCCESS
-          if (mbdk_controller_too_small(ctl)) then
-            ierr = MBDK_ERR_STEP_TOO_SMALL
-            return
-          end if
-        end do
-        call write_sample()
+          s%st%rejected_steps = s%st%rejected_steps + 1
+          call mbdk_controller_reject(ctl, h_ctl, err)
+        end if
+        ierr = MBDK_SUCCESS
+        if (mbdk_controller_too_small(ctl)) then
+          ierr = MBDK_ERR_STEP_TOO_SMALL
+          return
+        end if
       end do
-    end subroutine adaptive_loop
+      call put_sample(out, s)
+    end do
+  end subroutine adaptive_loop
 
-  end subroutine mbdk_index3_solve
+  !> After a failure (stat), the state where the solve stopped as the last sample: the state
+  !> the failed step started from. A state the watch refused is not a sample (the last sample
+  !> passed its checks; adaptive, extrapolated: the start of the refused macro step, written by
+  !> adaptive_loop).
+  subroutine sample_where_stopped(s, mech, out, stat)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    type(samples_t), intent(inout) :: out
+    integer, intent(inout) :: stat
+    integer :: wstat
+    if (out%n >= size(out%t) .or. watch_status(stat)) return
+    if (.not. s%t > out%t(out%n)) return
+    ! the watch checks every few steps: the state where it stopped is checked before it
+    ! becomes a sample (a step that blew up just before a failed one is named as such)
+    call watch_step(s, mech, .true., wstat)
+    if (watch_status(wstat)) then
+      stat = wstat
+    else
+      call put_sample(out, s)
+    end if
+  end subroutine sample_where_stopped
+
+  !> The solver's state as the next sample (with the Newton iterations of its step).
+  subroutine put_sample(out, s)
+    type(samples_t), intent(inout) :: out
+    type(mbdk_index3_t), intent(in) :: s
+    call put_row(out, s%t, s%q, s%v, s%a, s%lam, s%iters)
+  end subroutine put_sample
+
+  subroutine put_row(out, t, q, v, a, lam, iters)
+    type(samples_t), intent(inout) :: out
+    real(dp), intent(in) :: t, q(:), v(:), a(:), lam(:)
+    integer, intent(in) :: iters
+    integer :: ncq, nv, m
+    ncq = size(q)
+    nv = size(v)
+    m = size(lam)
+    out%n = out%n + 1
+    out%t(out%n) = t
+    out%y(1:ncq, out%n) = q
+    out%y(ncq + 1:ncq + nv, out%n) = v
+    out%a(1:nv, out%n) = a
+    if (m > 0) out%lam(1:m, out%n) = lam
+    out%iters(out%n) = iters
+  end subroutine put_row
 
   subroutine snapshot_init(x, ncq, nv, m, stat, asked)
     type(mbdk_index3_snapshot_t), intent(out) :: x
@@ -941,8 +1003,8 @@ contains
     call hold_matrix(s)
     call attempt(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    x%qf = s%qn
-    x%vf = s%vn
+    x%qf = s%e%q
+    x%vf = s%e%v
     iters = s%iters
     near = s%stalled
     ! two half-steps
@@ -1001,9 +1063,9 @@ contains
     end if
     ! (extrapolated coordinates leave a quaternion's unit norm: normalised before the
     ! projection)
-    s%qn = s%qn + (s%qn - x%qf) / 3.0_dp
-    s%vn = s%vn + (s%vn - x%vf) / 3.0_dp
-    if (.not. s%identity) call mech%normalise(s%qn)
+    s%e%q = s%e%q + (s%e%q - x%qf) / 3.0_dp
+    s%e%v = s%e%v + (s%e%v - x%vf) / 3.0_dp
+    if (.not. s%identity) call mech%normalise(s%e%q)
     call consistent_end(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) call snapshot(s, x, .false.)
   end subroutine extrapolated_attempt
@@ -1018,12 +1080,12 @@ contains
     sum2 = 0.0_dp
     do k = 1, max(s%ncq, s%nv)
       if (k <= s%ncq) then
-        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%qn(k)))
-        sum2 = sum2 + ((s%qn(k) - x%qf(k)) / (3.0_dp * wq))**2
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(x%q(k)), abs(s%e%q(k)))
+        sum2 = sum2 + ((s%e%q(k) - x%qf(k)) / (3.0_dp * wq))**2
       end if
       if (k <= s%nv) then
-        wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%vn(k)))
-        sum2 = sum2 + ((s%vn(k) - x%vf(k)) / (3.0_dp * wv))**2
+        wv = s%opt%err_atol + s%opt%err_rtol * max(abs(x%v(k)), abs(s%e%v(k)))
+        sum2 = sum2 + ((s%e%v(k) - x%vf(k)) / (3.0_dp * wv))**2
       end if
     end do
     err = sqrt(sum2 / real(s%ncq + s%nv, dp))
@@ -1046,41 +1108,36 @@ contains
     integer, intent(out) :: ierr
     integer :: it
     real(dp) :: phi_tol
-    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%e%q))))
     do it = 0, PROJECT_MAX_ITER
-      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                            .false., ierr)
+      call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .false., ierr)
       if (ierr /= MBDK_SUCCESS) return
       call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
       if (ierr /= MBDK_SUCCESS) return
       if (s%m == 0) exit
-      if (maxval(abs(s%phi)) <= phi_tol) exit
+      if (maxval(abs(s%e%phi)) <= phi_tol) exit
       ! at a rank loss the part of Phi that C cannot reach stays, as in a frozen Newton step
-      if (s%regular_n .and. it > 0 .and. maxval(abs(s%phi)) <= FROZEN_PHI * phi_tol) exit
+      if (s%regular_n .and. it > 0 .and. maxval(abs(s%e%phi)) <= FROZEN_PHI * phi_tol) exit
       if (it == PROJECT_MAX_ITER) then
         ierr = MBDK_ERR_NEWTON_DIVERGED
         return
       end if
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
+      call mech%i3_cs_solve(s%aux, s%zero_nv, s%e%phi, s%corr, s%mu, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      call move_by(s, mech, s%qn, -s%corr, ierr)
+      call move_by(s, mech, s%e%q, -s%corr, ierr)
       if (ierr /= MBDK_SUCCESS) return
     end do
     if (s%m > 0) then
-      call mech%i3_c_times(s%aux, s%vn, s%rc)
-      s%rc = s%rc + s%phit
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+      call mech%i3_project_velocity(s%aux, s%e, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%vn = s%vn - s%corr
     end if
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .true., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%st%nfev = s%st%nfev + 1
-    call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+    call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%apn(:) = s%an
-    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+    if (.not. (finite_all(s%e%q) .and. finite_all(s%e%v) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine consistent_end
 
@@ -1114,7 +1171,7 @@ contains
     integer :: k
     h = s%h
     sum2 = 0.0_dp
-    if (.not. s%identity) call mech%coord_weights(s%qn, s%w)
+    if (.not. s%identity) call mech%coord_weights(s%e%q, s%w)
     do k = 1, s%nv
       b2 = 0.5_dp * (s%a(k) + s%an(k))
       if (s%h_prev > 0.0_dp) then
@@ -1133,11 +1190,11 @@ contains
         ev = h**3 * s%lte_v * d1 / (h + s%h_prev)
       end if
       if (s%identity) then
-        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%qn(k)))
+        wq = s%opt%err_atol + s%opt%err_rtol * max(abs(s%q(k)), abs(s%e%q(k)))
       else
         wq = s%opt%err_atol + s%opt%err_rtol * s%w(k)
       end if
-      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%vn(k)))
+      wv = s%opt%err_atol + s%opt%err_rtol * max(abs(s%v(k)), abs(s%e%v(k)))
       sum2 = sum2 + (eq / wq)**2 + (ev / wv)**2
     end do
     error_estimate = sqrt(sum2 / real(2 * s%nv, dp))
@@ -1154,7 +1211,8 @@ contains
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    real(dp) :: h
+    real(dp) :: h, c3, e3, wk
+    integer :: k
 
     h = s%h
     call set_coefficients(s, h)
@@ -1199,13 +1257,18 @@ contains
     s%noise = NOISE_DECAY * s%noise
     if (s%no_renewal > 0) s%no_renewal = s%no_renewal - 1
     if (.not. s%book .and. s%h_prev > 0.0_dp) then
-      if (s%identity) then
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
-                                                  (s%opt%newton_atol + s%opt%newton_rtol * abs(s%q))))
-      else
-        s%tau = min(1.0_dp, LOCAL_SHARE * maxval(abs(s%bh2 * (h / s%h_prev) * (s%ap - s%ap_prev)) / &
-                                                  (s%opt%newton_atol + s%opt%newton_rtol * s%w)))
-      end if
+      c3 = s%bh2 * (h / s%h_prev)
+      e3 = -huge(1.0_dp)
+      do k = 1, s%nv
+        if (s%identity) then
+          wk = abs(s%q(k))
+        else
+          wk = s%w(k)
+        end if
+        e3 = max(e3, abs(c3 * (s%ap(k) - s%ap_prev(k))) / &
+                     (s%opt%newton_atol + s%opt%newton_rtol * wk))
+      end do
+      s%tau = min(1.0_dp, LOCAL_SHARE * e3)
     end if
     call newton(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
@@ -1243,7 +1306,7 @@ contains
     dnorm_old = huge(1.0_dp)
     s%iters = 0
     k = 0
-    s%phi(:) = 0.0_dp
+    s%e%phi(:) = 0.0_dp
     frozen = .false.
     boosted = .false.
     stalls = 0
@@ -1252,20 +1315,16 @@ contains
     do
       call evaluate_at(s, mech, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%lt(:) = s%ln
       phin = 0.0_dp
-      if (m > 0) phin = maxval(abs(s%phi))
+      if (m > 0) phin = maxval(abs(s%e%phi))
       ! max |Phi| accepted: atol, but not below the roundoff of the coordinates
-      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
+      phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * s%qn_size)
       ! the multiplier update takes the alpha that produced this Phi: with a stiffened one it
       ! would overshoot BOOST-fold and leave Phi where it was
       alpha_upd = s%alpha
       if (stalls > 0 .and. .not. frozen) call stall_response(s, phin, phi_tol, stalls, boosted, &
                                                              frozen, upd_fresh, dnorm_old)
-      if (.not. book) then
-        if (k > 0 .and. .not. frozen) s%ln = s%ln + alpha_upd * s%phi
-        s%lt(:) = s%ln + s%alpha * s%phi
-      end if
+      call residual_multipliers(s, k > 0 .and. .not. frozen, alpha_upd)
       call residual(s, mech, sh)
       if (.not. s%have_lu) then
         call new_matrix(s, mech, boosted, penalty_renewed, fresh, ierr)
@@ -1273,14 +1332,14 @@ contains
         own = own .or. fresh
         reused = .false.
       end if
-      s%r(:) = -s%r
+      s%e%r(:) = -s%e%r
       if (s%fd_matrix) then
-        call mbdk_lu_solve(s%jm, s%ipiv, s%r, ierr)
+        call mbdk_lu_solve(s%jm, s%ipiv, s%e%r, ierr)
       else
-        call mech%i3_matrix_solve(s%aux, s%r, ierr)
+        call mech%i3_matrix_solve(s%aux, s%e, ierr)
       end if
       if (ierr /= MBDK_SUCCESS) return
-      if (.not. finite_all(s%r)) then
+      if (.not. finite_all(s%e%r)) then
         ierr = MBDK_ERR_NONFINITE
         return
       end if
@@ -1288,9 +1347,9 @@ contains
       k = k + 1
       s%st%newton_iterations = s%st%newton_iterations + 1
       if (s%identity) then
-        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%qn)))
+        dnorm = maxval(abs(s%e%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * abs(s%e%q)))
       else
-        dnorm = maxval(abs(s%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
+        dnorm = maxval(abs(s%e%r(1:nv)) / (s%opt%newton_atol + s%opt%newton_rtol * s%w))
       end if
       ! progress: the distance from convergence, in tolerances of the update and of Phi. A
       ! stall counts only after an update from a matrix built at its iterate (an old matrix
@@ -1306,8 +1365,8 @@ contains
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
       if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, stall_own)) then
         if (stall_own) s%noise = dnorm
-        s%dq(:) = s%dq + s%r(1:nv)
-        if (book) s%ln = s%ln + s%r(nv + 1:) / sh
+        s%dq(:) = s%dq + s%e%r(1:nv)
+        if (book) s%ln = s%ln + s%e%r(nv + 1:) / sh
         exit
       end if
       if (s%iters >= s%opt%newton_max_iter) then
@@ -1340,8 +1399,8 @@ contains
         upd_fresh = .false.
         cycle
       end if
-      s%dq(:) = s%dq + s%r(1:nv)
-      if (book) s%ln = s%ln + s%r(nv + 1:) / sh
+      s%dq(:) = s%dq + s%e%r(1:nv)
+      if (book) s%ln = s%ln + s%e%r(nv + 1:) / sh
       ! rebuild the matrix when two more iterations at this rate would not reach the
       ! options' tolerance (an iteration costs about as much as a factorisation)
       if (rate > REBUILD_RATE .or. dnorm * rate * rate > 1.0_dp) s%have_lu = .false.
@@ -1352,9 +1411,8 @@ contains
     ! a matrix carried over from an earlier step served the whole step: reuse pays again
     if (reused) s%cool_len = COOL_START
     s%stalled = frozen
-    call move_to(s, mech, ierr)
+    call move_point(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call velocity(s)
     if (.not. book) s%lstn = s%ln
 
   end subroutine newton
@@ -1440,7 +1498,7 @@ contains
       ! last iteration allowed; or an update within the roundoff of the coordinates (16 eps
       ! of their size: what Phi's roundoff moves them by, which no matrix removes)
       if (s%identity) then
-        qsize = max(1.0_dp, maxval(abs(s%qn)))
+        qsize = max(1.0_dp, maxval(abs(s%e%q)))
       else
         qsize = max(1.0_dp, maxval(s%w))
       end if
@@ -1453,7 +1511,7 @@ contains
       converged = left <= max(s%tau, TAU_MIN) .or. stall_own .or. &
                   (dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= STALL_ACCEPT * s%noise) .or. &
                   s%iters >= s%opt%newton_max_iter .or. &
-                  maxval(abs(s%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
+                  maxval(abs(s%e%r(1:s%nv))) <= 16.0_dp * epsilon(1.0_dp) * qsize
     end if
   end function newton_converged
 
@@ -1464,35 +1522,95 @@ contains
     integer, intent(out) :: ierr
     ierr = MBDK_SUCCESS
     if (s%identity) then
-      s%qn(:) = s%q + s%dq
+      s%e%q(:) = s%q + s%dq
     else
-      call mech%retract(s%q, s%dq, s%qn, ierr)
+      call mech%retract(s%q, s%dq, s%e%q, ierr)
     end if
   end subroutine move_to
 
-  !> The evaluation at the iterate dq: qn = q (+) dq, vn = (2/h) dq - v, and f, Phi, gamma,
-  !> Phi_t there (C kept by the mechanism).
+  !> The point of the increment dq: qn = q (+) dq, vn from dq (velocity), the residual's mass
+  !> term dd = dq - dqhat, and qn_size.
+  subroutine move_point(s, mech, ierr)
+    type(mbdk_index3_t), intent(inout) :: s
+    class(mbdk_mechanism_t), intent(in) :: mech
+    integer, intent(out) :: ierr
+    integer :: k
+    real(dp) :: cv, kv1, kv2, qsize
+    ierr = MBDK_SUCCESS
+    if (s%identity) then
+      ! qn = q + dq: the four in one pass (the step's vectors are a few components long, and
+      ! a pass's set-up costs about as much as its arithmetic); vn as velocity's
+      cv = s%cv
+      kv1 = s%kv1
+      kv2 = s%kv2
+      qsize = 1.0_dp
+      if (kv2 == 0.0_dp) then
+        do k = 1, s%nv
+          s%e%q(k) = s%q(k) + s%dq(k)
+          s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k)
+          s%e%dd(k) = s%dq(k) - s%dqhat(k)
+          qsize = max(qsize, abs(s%e%q(k)))
+        end do
+      else
+        do k = 1, s%nv
+          s%e%q(k) = s%q(k) + s%dq(k)
+          s%e%v(k) = cv * s%dq(k) + kv1 * s%v(k) + kv2 * s%ap(k)
+          s%e%dd(k) = s%dq(k) - s%dqhat(k)
+          qsize = max(qsize, abs(s%e%q(k)))
+        end do
+      end if
+      s%qn_size = qsize
+    else
+      call move_to(s, mech, ierr)
+      if (ierr /= MBDK_SUCCESS) return
+      call velocity(s)
+      s%e%dd(:) = s%dq - s%dqhat
+      s%qn_size = max(1.0_dp, maxval(abs(s%e%q)))
+    end if
+  end subroutine move_point
+
+  !> The evaluation at the iterate dq: its point (move_point), and f, Phi, gamma, Phi_t there
+  !> (C kept by the mechanism).
   subroutine evaluate_at(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     integer, intent(out) :: ierr
-    call move_to(s, mech, ierr)
+    call move_point(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call velocity(s)
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     s%st%nfev = s%st%nfev + 1
   end subroutine evaluate_at
 
+  !> The residual's multipliers lt at the iterate just evaluated: the book form's ln; the
+  !> augmented form's lam* + alpha Phi, after lam* <- lam* + alpha_upd Phi where update (the
+  !> two in one pass: a few components each)
+  subroutine residual_multipliers(s, update, alpha_upd)
+    type(mbdk_index3_t), intent(inout) :: s
+    logical, intent(in) :: update
+    real(dp), intent(in) :: alpha_upd
+    real(dp) :: alpha
+    integer :: i
+    alpha = s%alpha
+    if (s%book) then
+      s%e%lt(:) = s%ln
+    else if (update) then
+      do i = 1, s%m
+        s%ln(i) = s%ln(i) + alpha_upd * s%e%phi(i)
+        s%e%lt(i) = s%ln(i) + alpha * s%e%phi(i)
+      end do
+    else
+      s%e%lt(:) = s%ln + alpha * s%e%phi
+    end if
+  end subroutine residual_multipliers
+
   !> r = M (dq - dqhat) - s (f - C^T lt) at the last evaluation (the equations of motion at
-  !> t+ times s, (3.15)), and the book scheme's Phi rows.
+  !> t+ times s, (3.15); dd = dq - dqhat from evaluate_at), and the book scheme's Phi rows.
   subroutine residual(s, mech, sh)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
     real(dp), intent(in) :: sh
-    s%dd(:) = s%dq - s%dqhat
-    call mech%i3_residual(s%aux, s%f, s%lt, sh, s%dd, s%r(1:s%nv))
-    if (s%book) s%r(s%nv + 1:) = s%phi
+    call mech%i3_residual(s%aux, s%e, sh)
+    if (s%book) s%e%r(s%nv + 1:) = s%e%phi
   end subroutine residual
 
   !> The Newton matrix at the current iterate: the mechanism's own (has_i3_matrix) or, for a
@@ -1508,17 +1626,17 @@ contains
     real(dp) :: sh, dlt, keep, wmax
     integer :: j, nv, m
     if (.not. s%fd_matrix) then
-      call mech%i3_matrix(s%aux, s%book, s%tn, s%qn, s%vn, s%ln, s%cs, s%cd, s%alpha, ierr)
+      call mech%i3_matrix(s%aux, s%book, s%tn, s%e, s%ln, s%cs, s%cd, s%alpha, ierr)
       return
     end if
     nv = s%nv
     m = s%m
     sh = s%cs
-    s%r0 = s%r
-    s%f0 = s%f
-    s%phi0 = s%phi
-    s%gam0 = s%gam
-    s%phit0 = s%phit
+    s%r0 = s%e%r
+    s%f0 = s%e%f
+    s%phi0 = s%e%phi
+    s%gam0 = s%e%gam
+    s%phit0 = s%e%phit
     s%jm = 0.0_dp
     wmax = max(1.0_dp, maxval(s%w))
     do j = 1, nv
@@ -1537,31 +1655,31 @@ contains
         return
       end if
       if (s%book) then
-        s%lt = s%ln
+        s%e%lt = s%ln
       else
-        s%lt = s%ln + s%alpha * s%phi
+        s%e%lt = s%ln + s%alpha * s%e%phi
       end if
       call residual(s, mech, sh)
       s%dq(j) = keep
-      s%jm(:, j) = (s%r - s%r0) / dlt
+      s%jm(:, j) = (s%e%r - s%r0) / dlt
     end do
     ! back to the iterate (its C for the multipliers' columns and the solves after)
     call evaluate_at(s, mech, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    s%f = s%f0
-    s%phi = s%phi0
-    s%gam = s%gam0
-    s%phit = s%phit0
-    s%r = s%r0
+    s%e%f = s%f0
+    s%e%phi = s%phi0
+    s%e%gam = s%gam0
+    s%e%phit = s%phit0
+    s%e%r = s%r0
     if (s%book) then
-      s%lt = s%ln
+      s%e%lt = s%ln
       do j = 1, m
         s%col(1:m) = 0.0_dp
         s%col(j) = 1.0_dp
         call mech%i3_ct_times(s%aux, s%col(1:m), s%jm(1:nv, nv + j))
       end do
     else
-      s%lt = s%ln + s%alpha * s%phi
+      s%e%lt = s%ln + s%alpha * s%e%phi
       ! what the penalty's renewal keeps: the matrix less cs alpha C^T C at this iterate (the
       ! rest of the penalty's derivative, the retraction's turn of C by about h |Omega|,
       ! changes slowly and stays in)
@@ -1623,8 +1741,7 @@ contains
         s%an(:) = s%apn
       end if
     else
-      call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                            .false., ierr)
+      call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .false., ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! at a rank loss of C (a singular crossing, redundant joints) the projections take the
       ! regular augmented Lagrangian path instead of failing
@@ -1637,13 +1754,9 @@ contains
         ! trapezoidal vn = (2/h) dq - v: Newton's last update, at the roundoff of Phi (about
         ! eps |q| across the joints), is in vn 2/h times larger, and f(vn) would carry it into
         ! a~ and v+ at every step: an error floor that does not shrink with h
-        call mech%i3_c_times(s%aux, s%vn, s%rc)
-        s%rc(:) = s%rc + s%phit
-        call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+        call mech%i3_project_velocity(s%aux, s%e, ierr)
         if (ierr /= MBDK_SUCCESS) return
-        s%vn(:) = s%vn - s%corr
-        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., &
-                              .true., ierr)
+        call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .true., ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
       ! v+ = P (v + (h/2)(a + a~)), P the projection onto C v + Phi_t = 0 and a~ any
@@ -1653,25 +1766,21 @@ contains
       ! Then a+ and lambda+ from M a + C^T lambda = f, C a = gamma(q+, v+): the projection
       ! of a+ onto the acceleration constraints, with its multipliers, free of the Newton
       ! error (4/h^2) that a+ = (4/h^2) dq - .. would carry.
-      call mech%i3_cs_solve(s%aux, s%f, s%zero_m, s%an, s%ln, ierr)
+      call mech%i3_cs_solve(s%aux, s%e%f, s%zero_m, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! v+ = v + h ((1 - gamma) ap + gamma ap~), ap~ the pseudo-acceleration of a~
       if (s%alpha_terms) s%an = ((1.0_dp - s%opt%alpha_f) * s%an + s%opt%alpha_f * s%a - &
                                  s%opt%alpha_m * s%ap) / (1.0_dp - s%opt%alpha_m)
-      s%vn(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
+      s%e%v(:) = s%v + (s%opt%gamma * h) * (s%cg * s%ap + s%an)
       ! vn onto C v + Phi_t = 0 (mass-orthogonal)
-      call mech%i3_c_times(s%aux, s%vn, s%rc)
-      s%rc(:) = s%rc + s%phit
-      call mech%i3_cs_solve(s%aux, s%zero_nv, s%rc, s%corr, s%mu, ierr)
+      call mech%i3_project_velocity(s%aux, s%e, ierr)
       if (ierr /= MBDK_SUCCESS) return
-      s%vn(:) = s%vn - s%corr
       ! q+ is unchanged: C, Phi are the same; only gamma changes with v+
       if (s%m > 0) then
-        call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .false., &
-                              .true., ierr)
+        call mech%i3_evaluate(s%aux, s%tn, s%e, .false., .true., ierr)
         if (ierr /= MBDK_SUCCESS) return
       end if
-      call mech%i3_cs_solve(s%aux, s%f, s%gam, s%an, s%ln, ierr)
+      call mech%i3_cs_solve(s%aux, s%e%f, s%e%gam, s%an, s%ln, ierr)
       if (ierr /= MBDK_SUCCESS) return
       ! the pseudo-acceleration of the projected a+ (the alpha relation)
       if (s%alpha_terms) then
@@ -1681,7 +1790,7 @@ contains
         s%apn(:) = s%an
       end if
     end if
-    if (.not. (finite_all(s%qn) .and. finite_all(s%vn) .and. finite_all(s%an))) &
+    if (.not. (finite_all(s%e%q) .and. finite_all(s%e%v) .and. finite_all(s%an))) &
       ierr = MBDK_ERR_NONFINITE
   end subroutine finish_step
 
@@ -1698,14 +1807,14 @@ contains
     real(dp) :: phi_tol
     ierr = MBDK_SUCCESS
     if (s%m == 0 .or. s%stalled) return
-    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * max(1.0_dp, maxval(abs(s%qn))))
-    if (maxval(abs(s%phi)) <= phi_tol) return
-    call mech%i3_cs_solve(s%aux, s%zero_nv, s%phi, s%corr, s%mu, ierr)
+    ! (qn is Newton's, whose qn_size newton's move_point set)
+    phi_tol = max(s%opt%newton_atol, 64.0_dp * epsilon(1.0_dp) * s%qn_size)
+    if (maxval(abs(s%e%phi)) <= phi_tol) return
+    call mech%i3_cs_solve(s%aux, s%zero_nv, s%e%phi, s%corr, s%mu, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call move_by(s, mech, s%qn, -s%corr, ierr)
+    call move_by(s, mech, s%e%q, -s%corr, ierr)
     if (ierr /= MBDK_SUCCESS) return
-    call mech%i3_evaluate(s%aux, s%tn, s%qn, s%vn, s%f, s%phi, s%gam, s%phit, .true., .false., &
-                          ierr)
+    call mech%i3_evaluate(s%aux, s%tn, s%e, .true., .false., ierr)
     if (ierr /= MBDK_SUCCESS) return
     s%st%nfev = s%st%nfev + 1
     call mech%i3_cs_factor(s%aux, NEAR_PIVOT, .true., s%regular_n, ierr)
@@ -1716,9 +1825,9 @@ contains
   subroutine velocity(s)
     type(mbdk_index3_t), intent(inout) :: s
     if (s%kv2 == 0.0_dp) then
-      s%vn(:) = s%cv * s%dq + s%kv1 * s%v
+      s%e%v(:) = s%cv * s%dq + s%kv1 * s%v
     else
-      s%vn(:) = s%cv * s%dq + s%kv1 * s%v + s%kv2 * s%ap
+      s%e%v(:) = s%cv * s%dq + s%kv1 * s%v + s%kv2 * s%ap
     end if
   end subroutine velocity
 

@@ -55,7 +55,7 @@ module mbdk_model
   use mbdk_kinds, only: dp, i8
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
-  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
     MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
@@ -258,6 +258,7 @@ module mbdk_model
     procedure :: i3_cs_solve => model_i3_cs_solve
     procedure :: i3_matrix => model_i3_matrix
     procedure :: i3_matrix_solve => model_i3_matrix_solve
+    procedure :: i3_project_velocity => model_i3_project_velocity
   end type mbdk_model_t
 
   interface
@@ -268,23 +269,19 @@ module mbdk_model
       integer, intent(out) :: stat
       real(dp), intent(inout), optional :: asked
     end subroutine model_i3_create
-    module subroutine model_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
-                                        stat)
+    module subroutine model_i3_evaluate(self, aux, t, e, forces, same_q, stat)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in) :: t
-      real(dp), intent(in), contiguous :: q(:), v(:)
-      real(dp), intent(inout), contiguous :: f(:)
-      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       logical, intent(in) :: forces, same_q
       integer, intent(out) :: stat
     end subroutine model_i3_evaluate
-    module subroutine model_i3_residual(self, aux, f, lt, s, dd, r)
+    module subroutine model_i3_residual(self, aux, e, s)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
-      real(dp), intent(out), contiguous :: r(:)
     end subroutine model_i3_residual
     module subroutine model_i3_c_times(self, aux, x, y)
       class(mbdk_model_t), intent(in) :: self
@@ -313,20 +310,27 @@ module mbdk_model
       real(dp), intent(out), contiguous :: x(:), mu(:)
       integer, intent(out) :: stat
     end subroutine model_i3_cs_solve
-    module subroutine model_i3_matrix(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
+    module subroutine model_i3_matrix(self, aux, book, t, e, lam, ck, cd, alpha, stat)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
       real(dp), intent(in) :: t, ck, cd, alpha
-      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      type(mbdk_i3_eval_t), intent(in) :: e
+      real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine model_i3_matrix
-    module subroutine model_i3_matrix_solve(self, aux, r, stat)
+    module subroutine model_i3_matrix_solve(self, aux, e, stat)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(inout), contiguous :: r(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine model_i3_matrix_solve
+    module subroutine model_i3_project_velocity(self, aux, e, stat)
+      class(mbdk_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      type(mbdk_i3_eval_t), intent(inout) :: e
+      integer, intent(out) :: stat
+    end subroutine model_i3_project_velocity
   end interface
 
 contains

@@ -15,8 +15,9 @@ submodule (mbdk_model) mbdk_model_i3
     !> the projections' solves (weight M^-1) and the Newton matrix's factors
     type(mbdk_constrained_t) :: cs
     type(mbdk_index3_factors_t) :: fa
-    !> the dense D (the book scheme's matrix only), and work of the residual and the matrix
-    real(dp), allocatable :: d(:, :), lw(:), corr(:), one_nc(:)
+    !> the dense D (the book scheme's matrix only), and work of the residual, the matrix and
+    !> the velocity projection
+    real(dp), allocatable :: d(:, :), lw(:), corr(:), one_nc(:), cv(:), mu(:), zero_nc(:)
   end type planar_i3_aux_t
 
 contains
@@ -45,25 +46,26 @@ contains
       if (stat /= MBDK_SUCCESS) return
       ! the dense D serves the book scheme's matrix only
       allocate (aux%d(merge(m, 0, book), merge(nc, 0, book)), aux%lw(m), aux%corr(nc), &
-                aux%one_nc(nc), stat=astat)
+                aux%one_nc(nc), aux%cv(m), aux%mu(m), aux%zero_nc(nc), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (merge(real(m, dp) * nc, 0.0_dp, book) + &
-                             m + 2.0_dp * nc), stat, asked)
+                             3.0_dp * m + 3.0_dp * nc), stat, asked)
       if (stat /= MBDK_SUCCESS) return
       aux%one_nc = 1.0_dp
+      aux%zero_nc = 0.0_dp
     end select
   end procedure model_i3_create
 
-  !> the rotations (unless same_q) and the joints at (t, q, v) into work%rot and work%dz, and
-  !> the force elements' f (gravity among them, counted at every evaluation)
+  !> the rotations (unless same_q) and the joints at (t, e%q, e%v) into work%rot and work%dz,
+  !> and the force elements' f (gravity among them, counted at every evaluation)
   module procedure model_i3_evaluate
-    if (.not. same_q) call mbdk_body_rotations(q, self%work%rot)
-    if (self%m > 0) call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, q, &
-                                          v, t, phi, self%work%dz, gam, phit, &
+    if (.not. same_q) call mbdk_body_rotations(e%q, self%work%rot)
+    if (self%m > 0) call mbdk_joints_eval(self%jint, self%jreal, self%row0, self%work%rot, e%q, &
+                                          e%v, t, e%phi, self%work%dz, e%gam, e%phit, &
                                           self%work%visits(1:MBDK_JOINT_TYPES))
     stat = MBDK_SUCCESS
     if (forces) then
-      f = 0.0_dp
-      call mbdk_forces_eval(self%fint, self%freal, self%mass, self%work%rot, q, v, t, f, &
+      e%f = 0.0_dp
+      call mbdk_forces_eval(self%fint, self%freal, self%mass, self%work%rot, e%q, e%v, t, e%f, &
                             self%work%visits(MBDK_JOINT_TYPES + 1:), stat)
     end if
   end procedure model_i3_evaluate
@@ -73,9 +75,10 @@ contains
     integer :: k
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, lt, aux%corr, self%nc, f)
+      call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, e%lt, aux%corr, self%nc, &
+                                  e%f)
       do k = 1, self%nc
-        r(k) = self%mass(k) * dd(k) - s * aux%corr(k)
+        e%r(k) = self%mass(k) * e%dd(k) - s * aux%corr(k)
       end do
     end select
   end procedure model_i3_residual
@@ -119,16 +122,30 @@ contains
   module procedure model_i3_matrix
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_index3_factor(aux%fa, self, book, t, q, v, lam, ck, cd, alpha, aux%d, aux%lw, &
-                              stat)
+      call mbdk_index3_factor(aux%fa, self, book, t, e%q, e%v, lam, ck, cd, alpha, aux%d, &
+                              aux%lw, stat)
     end select
   end procedure model_i3_matrix
 
   module procedure model_i3_matrix_solve
     select type (aux)
     type is (planar_i3_aux_t)
-      call mbdk_index3_factors_solve(aux%fa, r, stat)
+      call mbdk_index3_factors_solve(aux%fa, e%r, stat)
     end select
   end procedure model_i3_matrix_solve
+
+  !> the default's C v, its Phi_t and the solve in one call (mbdk_mechanism), over the model's
+  !> own arrays
+  module procedure model_i3_project_velocity
+    select type (aux)
+    type is (planar_i3_aux_t)
+      call mbdk_sparse_d_times(self%sp, self%work%dz, e%v, aux%cv, .false.)
+      aux%cv(:) = aux%cv + e%phit
+      call mbdk_constrained_solve(aux%cs, self%sp, self%work%dz, self%blk, self%winv, &
+                                  aux%zero_nc, aux%cv, aux%corr, aux%mu, stat)
+      if (stat /= MBDK_SUCCESS) return
+      e%v(:) = e%v - aux%corr
+    end select
+  end procedure model_i3_project_velocity
 
 end submodule mbdk_model_i3

@@ -61,8 +61,8 @@ contains
     integer :: astat
     select type (aux)
     type is (spatial_i3_aux_t)
-      aux%y(1:self%ncoord) = q
-      aux%y(self%ncoord + 1:) = v
+      aux%y(1:self%ncoord) = e%q
+      aux%y(self%ncoord + 1:) = e%v
       call frames(self, aux%y, fr, stat)
       if (stat /= MBDK_SUCCESS) return
       if (forces) then
@@ -71,14 +71,14 @@ contains
         if (stat /= MBDK_SUCCESS) return
         call forces(self, fr, fw, nbd, vg, vs, power, stat)
         if (stat /= MBDK_SUCCESS) return
-        call generalized_forces(self, fr, fw, nbd, f)
+        call generalized_forces(self, fr, fw, nbd, e%f)
       end if
       if (self%m > 0) then
-        phi = 0.0_dp
+        e%phi = 0.0_dp
         aux%c = 0.0_dp
-        gam = 0.0_dp
-        phit = 0.0_dp
-        call constraints(self, fr, t, phi, aux%c, gam, phit)
+        e%gam = 0.0_dp
+        e%phit = 0.0_dp
+        call constraints(self, fr, t, e%phi, aux%c, e%gam, e%phit)
       end if
     end select
   end procedure spatial_i3_evaluate
@@ -86,12 +86,14 @@ contains
   module procedure spatial_i3_residual
     select type (aux)
     type is (spatial_i3_aux_t)
-      call spatial_mass_times(self, dd, r)
-      if (self%m > 0) then
-        r = r - s * (f - matmul(lt, aux%c))
-      else
-        r = r - s * f
-      end if
+      associate (r => e%r(1:self%nvel))
+        call spatial_mass_times(self, e%dd, r)
+        if (self%m > 0) then
+          r = r - s * (e%f - matmul(e%lt, aux%c))
+        else
+          r = r - s * e%f
+        end if
+      end associate
     end select
   end procedure spatial_i3_residual
 

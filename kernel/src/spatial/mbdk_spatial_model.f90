@@ -98,7 +98,7 @@ module mbdk_spatial_model
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
-  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, MBDK_FORM_REDUCED, &
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
     MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
@@ -276,23 +276,19 @@ module mbdk_spatial_model
       integer, intent(out) :: stat
       real(dp), intent(inout), optional :: asked
     end subroutine spatial_i3_create
-    module subroutine spatial_i3_evaluate(self, aux, t, q, v, f, phi, gam, phit, forces, same_q, &
-                                          stat)
+    module subroutine spatial_i3_evaluate(self, aux, t, e, forces, same_q, stat)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in) :: t
-      real(dp), intent(in), contiguous :: q(:), v(:)
-      real(dp), intent(inout), contiguous :: f(:)
-      real(dp), intent(out), contiguous :: phi(:), gam(:), phit(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       logical, intent(in) :: forces, same_q
       integer, intent(out) :: stat
     end subroutine spatial_i3_evaluate
-    module subroutine spatial_i3_residual(self, aux, f, lt, s, dd, r)
+    module subroutine spatial_i3_residual(self, aux, e, s)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(in), contiguous :: f(:), lt(:), dd(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
-      real(dp), intent(out), contiguous :: r(:)
     end subroutine spatial_i3_residual
     module subroutine spatial_i3_c_times(self, aux, x, y)
       class(mbdk_spatial_model_t), intent(in) :: self
@@ -321,18 +317,19 @@ module mbdk_spatial_model
       real(dp), intent(out), contiguous :: x(:), mu(:)
       integer, intent(out) :: stat
     end subroutine spatial_i3_cs_solve
-    module subroutine spatial_i3_matrix(self, aux, book, t, q, v, lam, ck, cd, alpha, stat)
+    module subroutine spatial_i3_matrix(self, aux, book, t, e, lam, ck, cd, alpha, stat)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       logical, intent(in) :: book
       real(dp), intent(in) :: t, ck, cd, alpha
-      real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+      type(mbdk_i3_eval_t), intent(in) :: e
+      real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine spatial_i3_matrix
-    module subroutine spatial_i3_matrix_solve(self, aux, r, stat)
+    module subroutine spatial_i3_matrix_solve(self, aux, e, stat)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
-      real(dp), intent(inout), contiguous :: r(:)
+      type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine spatial_i3_matrix_solve
   end interface
