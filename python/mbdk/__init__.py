@@ -13,7 +13,7 @@ from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDri
                      TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
-from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
+from .ode import ODESolver, build_info, evaluate_rhs, package_version, solve_ode
 from .ivp import solve_ivp
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions, SpatialOptions
@@ -38,3 +38,11 @@ __all__ = [
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
     "Watch", "AccuracyWarning",
 ]
+
+
+def __getattr__(name: str):
+    # __version__ is read from the package metadata when first asked for: importlib.metadata
+    # is slow to import, and `import mbdk` need not pay for it
+    if name == "__version__":
+        return package_version()
+    raise AttributeError(f"module 'mbdk' has no attribute {name!r}")

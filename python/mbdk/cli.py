@@ -1,4 +1,4 @@
-"""The `mbdk` command: `mbdk report`, `mbdk methods`, `mbdk problems`, `mbdk solve`,
+"""The `mbdk` command: `mbdk --version`, `mbdk report`, `mbdk methods`, `mbdk problems`, `mbdk solve`,
 `mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`, `mbdk plot FILE`,
 `mbdk sweep GRID --out TABLE.csv`.
 
@@ -57,6 +57,18 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
+class _Version(argparse.Action):
+    """--version: mbdk's version from the package metadata, read only when asked for (reading
+    it costs the import of importlib.metadata, which no other command needs)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"mbdk {ode.package_version()}")
+        parser.exit(0)
+
+
 def _describe(exc: BaseException) -> str:
     """An exception as 'ClassName: message' on one line; an OSError names its file."""
     if isinstance(exc, OSError) and exc.strerror:
@@ -68,6 +80,7 @@ def _describe(exc: BaseException) -> str:
 def main(argv=None) -> int:
     ap = _Parser(prog="mbdk", description="mbdk: compiled multibody-dynamics kernel and its "
                  "integrator studies")
+    ap.add_argument("--version", action=_Version, help="print mbdk's version and exit")
     sub = ap.add_subparsers(dest="cmd", required=True)
     rp = sub.add_parser("report", help="run every study and write one HTML report")
     rp.add_argument("--out", type=Path, default=Path("report"))

@@ -38,15 +38,23 @@ _STATS_WORDS = empty("mbdk_stats").size
 
 
 @lru_cache(maxsize=1)
-def build_info() -> dict:
-    compiler, options = _kernel.build_info()
+def package_version() -> str:
+    """mbdk's version, from the installed package's metadata (pyproject.toml's ``version``):
+    ``mbdk.__version__``, ``mbdk --version`` and every manifest's ``version``."""
     try:
-        # importlib.metadata is slow to import, and only the manifest's version needs it
+        # importlib.metadata is slow to import, and only the version needs it
         from importlib.metadata import version
-        ver = version("mbdk")
+        return version("mbdk")
     except Exception:  # pragma: no cover - running from a source tree without metadata
-        ver = "0+unknown"
-    return {"version": ver, "compiler": decode_text(compiler),
+        return "0+unknown"
+
+
+@lru_cache(maxsize=1)
+def build_info() -> dict:
+    """What built and runs this copy: mbdk's version, the Fortran compiler and its flags, the
+    numpy and Python versions and the machine (every result's manifest carries them)."""
+    compiler, options = _kernel.build_info()
+    return {"version": package_version(), "compiler": decode_text(compiler),
             "compiler_flags": decode_text(options),
             "numpy": np.__version__, "python": platform.python_version(),
             "machine": platform.machine()}
