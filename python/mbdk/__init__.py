@@ -1,8 +1,14 @@
 """mbdk: a compiled multibody-dynamics kernel (Fortran) for benchmark studies of integrators.
 
-    >>> import mbdk
-    >>> r = mbdk.solve_ode("damped_oscillator", "rk4", h=0.01, t_end=10)
-    >>> r.y[-1], r.stats.steps, r.cpu_time
+>>> import mbdk
+>>> r = mbdk.solve_ode("damped_oscillator", "rk4", h=0.01, t_end=10)
+>>> r.y.shape, r.stats.steps, r.success
+((1001, 2), 1000, True)
+>>> r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=1)
+>>> r.q.shape
+(1001, 6)
+
+``mbdk.__version__`` is the installed package's version.
 """
 from . import exact  # noqa: F401
 from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError,
