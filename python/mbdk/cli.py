@@ -1,6 +1,6 @@
 """The `mbdk` command: `mbdk --version`, `mbdk report`, `mbdk methods`, `mbdk problems`,
-`mbdk solve`, `mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`,
-`mbdk plot FILE`, `mbdk sweep GRID --out TABLE.csv`::
+`mbdk solve`, `mbdk scenes`, `mbdk check|scene NAME|FILE [--symbolic]`,
+`mbdk run SCENE ... --out FILE`, `mbdk plot FILE`, `mbdk sweep GRID --out TABLE.csv`::
 
     mbdk run my_scene.toml --method rk4 --h 1e-3 --t-end 10 --out run.npz
     mbdk plot run.npz                     # run.png: coordinates, energy balance, residuals
