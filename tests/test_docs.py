@@ -11,8 +11,8 @@ import pytest
 import mbdk
 
 #: the modules whose docstrings carry >>> examples
-DOCTESTED = ["mbdk", "mbdk.simulate", "mbdk.ode", "mbdk.scene_file", "mbdk.scene_report",
-             "mbdk.results_io", "mbdk.symbolic", "mbdk.sweep"]
+DOCTESTED = ["mbdk", "mbdk.simulate", "mbdk.ode", "mbdk.ivp", "mbdk.scene_file",
+             "mbdk.scene_report", "mbdk.results_io", "mbdk.symbolic", "mbdk.sweep"]
 
 
 def test_every_public_name_is_in_the_api_reference(root):

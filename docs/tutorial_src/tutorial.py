@@ -214,9 +214,8 @@ cli.main(["run", "my_pendulum.toml", "--method", "rk4", "--h", "1e-3", "--t-end"
 
 from mbdk.results_io import load_result
 
-saved = load_result("run.npz")
-print(np.array_equal(saved["q"], r.q), saved["manifest"]["method"],
-      saved["manifest"]["version"])
+saved = load_result("run.npz")      # a SceneResult again
+print(np.array_equal(saved.q, r.q), saved.manifest["method"], saved.manifest["version"])
 
 # %%
 # The saved samples are the same bits as the run in Python, and the manifest says which
