@@ -1,8 +1,14 @@
 """mbdk: a compiled multibody-dynamics kernel (Fortran) for benchmark studies of integrators.
 
-    >>> import mbdk
-    >>> r = mbdk.solve_ode("damped_oscillator", "rk4", h=0.01, t_end=10)
-    >>> r.y[-1], r.stats.steps, r.cpu_time
+>>> import mbdk
+>>> r = mbdk.solve_ode("damped_oscillator", "rk4", h=0.01, t_end=10)
+>>> r.y.shape, r.stats.steps, r.success
+((1001, 2), 1000, True)
+>>> r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=1)
+>>> r.q.shape
+(1001, 6)
+
+``mbdk.__version__`` is the installed package's version.
 """
 from . import exact  # noqa: F401
 from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDriftError,
@@ -13,7 +19,7 @@ from .errors import (AccuracyWarning, BackendError, CallbackError, ConstraintDri
                      TooManyStepsError, TooMuchAccuracyError,
                      UnknownMethodError, UnknownParameterError, UnknownProblemError)
 from .methods import MethodInfo, methods
-from .ode import ODESolver, build_info, evaluate_rhs, solve_ode
+from .ode import ODESolver, build_info, evaluate_rhs, package_version, solve_ode
 from .ivp import solve_ivp
 from .problems import ProblemInfo, problems
 from .options import Index3Options, ModelOptions, ODEOptions, SpatialOptions
@@ -38,3 +44,11 @@ __all__ = [
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
     "Watch", "AccuracyWarning",
 ]
+
+
+def __getattr__(name: str):
+    # __version__ is read from the package metadata when first asked for: importlib.metadata
+    # is slow to import, and `import mbdk` need not pay for it
+    if name == "__version__":
+        return package_version()
+    raise AttributeError(f"module 'mbdk' has no attribute {name!r}")

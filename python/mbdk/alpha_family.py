@@ -3,13 +3,13 @@ options, and the family's closed-form amplification on the undamped oscillator.
 
 One stepping routine integrates every member (kernel/src/dae/mbdk_trapezoidal_index3.f90, whose
 header is the manual: Chung and Hulbert (1993) in the form of Arnold and Bruls (2007), with a
-pseudo-acceleration ap):
+pseudo-acceleration ap)::
 
     dq  = h v + h^2 (1/2 - beta) ap + h^2 beta ap+
     v+  = v + h (1 - gamma) ap + h gamma ap+
     (1 - alpha_m) ap+ + alpha_m ap = (1 - alpha_f) a+ + alpha_f a
 
-and the members differ only in (beta, gamma, alpha_m, alpha_f):
+and the members differ only in (beta, gamma, alpha_m, alpha_f)::
 
     trapezoidal_index3   1/4, 1/2, 0, 0
     newmark              newmark_beta, newmark_gamma (default 1/4, 1/2), 0, 0

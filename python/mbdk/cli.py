@@ -1,6 +1,6 @@
-"""The `mbdk` command: `mbdk report`, `mbdk methods`, `mbdk problems`, `mbdk solve`,
-`mbdk scene|check NAME|FILE [--symbolic]`, `mbdk run SCENE ... --out FILE`, `mbdk plot FILE`,
-`mbdk sweep GRID --out TABLE.csv`.
+"""The `mbdk` command: `mbdk --version`, `mbdk report`, `mbdk methods`, `mbdk problems`,
+`mbdk solve`, `mbdk scenes`, `mbdk check|scene NAME|FILE [--symbolic]`,
+`mbdk run SCENE ... --out FILE`, `mbdk plot FILE`, `mbdk sweep GRID --out TABLE.csv`::
 
     mbdk run my_scene.toml --method rk4 --h 1e-3 --t-end 10 --out run.npz
     mbdk plot run.npz                     # run.png: coordinates, energy balance, residuals
@@ -8,14 +8,18 @@
 Every failure ends the command with one line on standard error that names the command, the
 kind of failure and what it concerns, and a non-zero status; no traceback (--traceback shows
 it):
-  status 2: bad arguments (argparse's usage error, on one line), mbdk's named errors
-         (`mbdk run: SceneError: my.toml: ...`), a file that cannot be read or written, a full
-         disk (`mbdk run: OSError: run.npz: No space left on device; no file written`), and
-         any other exception, by its class name and message;
-  status 130 (128 + SIGINT, the shell's convention): Ctrl-C, `mbdk run: interrupted after
-         t = 1.23 s (Ctrl-C); no file written` (the run's last sample);
-  status 141 (128 + SIGPIPE): standard output closed early (`mbdk methods | head -3`),
-         quietly.
+
+status 2
+    bad arguments (argparse's usage error, on one line), mbdk's named errors
+    (`mbdk run: SceneError: my.toml: ...`), a file that cannot be read or written, a full
+    disk (`mbdk run: OSError: run.npz: No space left on device; no file written`), and any
+    other exception, by its class name and message;
+status 130 (128 + SIGINT, the shell's convention)
+    Ctrl-C, `mbdk run: interrupted after t = 1.23 s (Ctrl-C); no file written` (the run's
+    last sample);
+status 141 (128 + SIGPIPE)
+    standard output closed early (`mbdk methods | head -3`), quietly.
+
 The commands that write a file (run, sweep, plot) write it under a temporary name and rename
 it when complete, so a failure leaves no file, not even a partial one, and the line says "no
 file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
@@ -57,6 +61,18 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
+class _Version(argparse.Action):
+    """--version: mbdk's version from the package metadata, read only when asked for (reading
+    it costs the import of importlib.metadata, which no other command needs)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"mbdk {ode.package_version()}")
+        parser.exit(0)
+
+
 def _describe(exc: BaseException) -> str:
     """An exception as 'ClassName: message' on one line; an OSError names its file."""
     if isinstance(exc, OSError) and exc.strerror:
@@ -65,9 +81,12 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {one_line(exc) or '(no message)'}"
 
 
-def main(argv=None) -> int:
+def parser() -> argparse.ArgumentParser:
+    """The command line's parser: every command and option (the documentation prints its
+    help)."""
     ap = _Parser(prog="mbdk", description="mbdk: compiled multibody-dynamics kernel and its "
                  "integrator studies")
+    ap.add_argument("--version", action=_Version, help="print mbdk's version and exit")
     sub = ap.add_subparsers(dest="cmd", required=True)
     rp = sub.add_parser("report", help="run every study and write one HTML report")
     rp.add_argument("--out", type=Path, default=Path("report"))
@@ -110,9 +129,17 @@ def main(argv=None) -> int:
     pl.add_argument("--out", type=Path, default=None, help="the PNG (default: beside the result)")
     for p in (rp, sp, sc, run, pl, sw):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
+    ap.commands = sub.choices      # name -> the command's parser, aliases included
+    return ap
+
+
+def main(argv=None) -> int:
+    """Runs the command line with these arguments (default sys.argv[1:]); returns the exit
+    status (module docstring)."""
+    ap = parser()
     args, extra = ap.parse_known_args(argv)
     if extra:       # named by the command they were given to
-        sub.choices[args.cmd].error(f"unrecognized arguments: {' '.join(extra)}")
+        ap.commands[args.cmd].error(f"unrecognized arguments: {' '.join(extra)}")
 
     try:
         status = _main(args)

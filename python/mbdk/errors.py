@@ -61,6 +61,9 @@ class InvalidInputError(MbdkError, ValueError):
 
 
 class UnknownMethodError(InvalidInputError, KeyError):
+    """A method name the kernel does not have; the message lists the known ones
+    (``mbdk.methods()``)."""
+
     status = Status.ERR_UNKNOWN_METHOD
 
     def __str__(self) -> str:  # KeyError would quote the message
@@ -68,6 +71,9 @@ class UnknownMethodError(InvalidInputError, KeyError):
 
 
 class UnknownProblemError(InvalidInputError, KeyError):
+    """A compiled problem's name the kernel does not have; the message lists the known ones
+    (``mbdk.problems()``)."""
+
     status = Status.ERR_UNKNOWN_PROBLEM
 
     def __str__(self) -> str:
@@ -75,15 +81,25 @@ class UnknownProblemError(InvalidInputError, KeyError):
 
 
 class UnknownParameterError(InvalidInputError, KeyError):
+    """A parameter (``params=``) the problem does not have; the message lists its parameters."""
+
     def __str__(self) -> str:
         return self.args[0]
 
 
 class NotApplicableError(InvalidInputError):
+    """An option, formulation or element that exists but does not apply here: a method on a
+    formulation it cannot integrate, a joint the method cannot keep (a knife edge under
+    trapezoidal_index3), an option of another method; the message says what does apply."""
+
     status = Status.ERR_NOT_APPLICABLE
 
 
 class StepTooSmallError(MbdkError):
+    """Error control cut the step below its smallest (``h_min``, or the roundoff of t): the
+    solution changes faster than the tolerances can follow there (a singularity, a
+    discontinuity, or tolerances near double precision)."""
+
     status = Status.ERR_STEP_TOO_SMALL
 
 
@@ -100,10 +116,18 @@ class TooMuchAccuracyError(MbdkError, ArithmeticError):
 
 
 class NewtonDivergedError(MbdkError, ArithmeticError):
+    """An implicit method's Newton iteration did not converge (also at the smallest steps an
+    error-controlled method tried): reduce h or loosen the tolerances, or the model is singular
+    there; the message says where the run stopped."""
+
     status = Status.ERR_NEWTON_DIVERGED
 
 
 class SingularMatrixError(MbdkError, ArithmeticError):
+    """A matrix the run must factorise is singular: the mechanism at a singular configuration
+    (D loses rank), an angle set at its gimbal lock, or a Newton matrix without inverse; the
+    message names the joints or the pose."""
+
     status = Status.ERR_SINGULAR_MATRIX
 
 
@@ -154,10 +178,16 @@ class InvariantDriftError(MbdkError, ArithmeticError):
 
 
 class CallbackError(MbdkError):
+    """A user's right-hand side or Jacobian (a Python function, or a C callback returning
+    non-zero) failed; a Python exception raised in it is chained as the cause."""
+
     status = Status.ERR_CALLBACK_FAILED
 
 
 class BackendError(MbdkError):
+    """SUNDIALS (cvode_*, ida) failed in a way no other status names (its constraint,
+    nonlinear-solver or linear-solver set-up failures, an interpolation it refused)."""
+
     status = Status.ERR_BACKEND
 
 

@@ -1,6 +1,6 @@
 """trapezoidal_index3: direct integration of a scene's index-3 DAE by the implicit trapezoidal
 rule with Newton-Raphson (Fekete 2023, 3.2.1), in the kernel
-(kernel/src/dae/mbdk_trapezoidal_index3.f90 is its manual).
+(kernel/src/dae/mbdk_trapezoidal_index3.f90 is its manual)::
 
     mbdk.simulate(scene, "trapezoidal_index3", formulation="index3", h=..., t_end=...)
 
@@ -9,15 +9,15 @@ formulation codes, the description of its factorisations for the manifest, and i
 matrix at a state (for studies and tests).
 
 Formulations:
-  index3                the book's scheme: Newton on (q, lambda), multiplier predictor (3.11);
-                        v and a come from the trapezoidal relations and drift off Phi' = 0,
-                        Phi'' = 0.
-  augmented_lagrangian  the index-3 augmented Lagrangian with mass-orthogonal projections of
-                        v and a (ALI3-P); alpha is its penalty factor (default 0: at every
-                        step 1e3 max(M) / (h^2/4), so the penalty outweighs the mass matrix
-                        1000-fold whatever h). v and a come from the equations of
-                        motion (projected), so the Newton tolerance does not limit the
-                        accuracy.
+
+index3
+    the book's scheme: Newton on (q, lambda), multiplier predictor (3.11); v and a come from
+    the trapezoidal relations and drift off Phi' = 0, Phi'' = 0.
+augmented_lagrangian
+    the index-3 augmented Lagrangian with mass-orthogonal projections of v and a (ALI3-P);
+    alpha is its penalty factor (default 0: at every step 1e3 max(M) / (h^2/4), so the penalty
+    outweighs the mass matrix 1000-fold whatever h). v and a come from the equations of motion
+    (projected), so the Newton tolerance does not limit the accuracy.
 
 Newton: converged when the update computed at an iterate is within rtol/atol (defaults 1e-10,
 1e-12; simulate's newton_rtol/newton_atol) and max |Phi| <= atol there; max_iter updates

@@ -1,12 +1,12 @@
 """solve_ivp: SciPy's front (scipy.integrate.solve_ivp's arguments and result) over mbdk's
 compiled integrators, for a user who has SciPy code to port or compare.
 
-    >>> import mbdk
-    >>> sol = mbdk.solve_ivp(lambda t, y: -0.5 * y, [0, 10], [2, 4, 8], t_eval=[0, 5, 10])
-    >>> sol.y.shape                       # (states, points), as SciPy's
-    (3, 3)
+>>> import mbdk
+>>> sol = mbdk.solve_ivp(lambda t, y: -0.5 * y, [0, 10], [2, 4, 8], t_eval=[0, 5, 10])
+>>> sol.y.shape                       # (states, points), as SciPy's
+(3, 3)
 
-fun is f(t, y, *args) (the slow path: Python is called at every evaluation) or the name of a
+fun is ``f(t, y, *args)`` (the slow path: Python is called at every evaluation) or the name of a
 compiled problem (mbdk.problems(); then the whole solve stays in Fortran). method: SciPy's
 names map onto mbdk's pairs and formulas, RK45 -> dopri54 (the same Dormand-Prince pair),
 RK23 -> bs32 (Bogacki-Shampine), BDF -> bdf (mbdk's variable-order BDF), LSODA ->
@@ -16,19 +16,21 @@ given as first_step (its samples are then its steps). Radau and DOP853 have no c
 here: NotApplicableError names the nearest.
 
 What differs from SciPy, and why:
-  - the kernel returns the states at the times asked for, not at its own steps: with t_eval
-    None, t holds one evenly spaced point per step the method took over t_span (a second run
-    samples them from the method's dense output), not the step points themselves;
-  - sol (dense_output=True) evaluates by running the solve again with samples at the times
-    asked for: the same steps (the solve is deterministic) and the method's own continuous
-    extension, so sol(t) equals what t_eval=t gives; each call is one run (microseconds for a
-    compiled problem, the Python evaluations again for a callable);
-  - events are located on that dense output: sign changes of each event function on a grid of
-    four points per step, each refined to the root by repeated subdivision of its cell (a
-    root that enters and leaves within a quarter step is missed, as SciPy misses one within a
-    step); terminal events end the result there (status 1), as SciPy's do;
-  - a failed solve (a blow-up, a step size too small) returns status -1 with the kernel's
-    message and the samples up to where it stopped, as SciPy does; it does not raise.
+
+- the kernel returns the states at the times asked for, not at its own steps: with t_eval
+  None, t holds one evenly spaced point per step the method took over t_span (a second run
+  samples them from the method's dense output), not the step points themselves;
+- sol (dense_output=True) evaluates by running the solve again with samples at the times
+  asked for: the same steps (the solve is deterministic) and the method's own continuous
+  extension, so sol(t) equals what t_eval=t gives; each call is one run (microseconds for a
+  compiled problem, the Python evaluations again for a callable);
+- events are located on that dense output: sign changes of each event function on a grid of
+  four points per step, each refined to the root by repeated subdivision of its cell (a
+  root that enters and leaves within a quarter step is missed, as SciPy misses one within a
+  step); terminal events end the result there (status 1), as SciPy's do;
+- a failed solve (a blow-up, a step size too small) returns status -1 with the kernel's
+  message and the samples up to where it stopped, as SciPy does; it does not raise.
+
 Backward integration (t_span decreasing) runs s = -t forwards: callables only (a compiled
 problem's right-hand side cannot be turned around from here).
 """

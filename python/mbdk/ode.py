@@ -38,15 +38,23 @@ _STATS_WORDS = empty("mbdk_stats").size
 
 
 @lru_cache(maxsize=1)
-def build_info() -> dict:
-    compiler, options = _kernel.build_info()
+def package_version() -> str:
+    """mbdk's version, from the installed package's metadata (pyproject.toml's ``version``):
+    ``mbdk.__version__``, ``mbdk --version`` and every manifest's ``version``."""
     try:
-        # importlib.metadata is slow to import, and only the manifest's version needs it
+        # importlib.metadata is slow to import, and only the version needs it
         from importlib.metadata import version
-        ver = version("mbdk")
+        return version("mbdk")
     except Exception:  # pragma: no cover - running from a source tree without metadata
-        ver = "0+unknown"
-    return {"version": ver, "compiler": decode_text(compiler),
+        return "0+unknown"
+
+
+@lru_cache(maxsize=1)
+def build_info() -> dict:
+    """What built and runs this copy: mbdk's version, the Fortran compiler and its flags, the
+    numpy and Python versions and the machine (every result's manifest carries them)."""
+    compiler, options = _kernel.build_info()
+    return {"version": package_version(), "compiler": decode_text(compiler),
             "compiler_flags": decode_text(options),
             "numpy": np.__version__, "python": platform.python_version(),
             "machine": platform.machine()}
@@ -80,31 +88,68 @@ def solve_ode(problem, method: str, *, h: float | None = None, t_end: float, t0:
     """Integrate a compiled textbook problem (by name) or a Python f(t, y), the time loop in the
     kernel: with a fixed step h, or with error control (mbdk.methods(step="adaptive")).
 
-    problem: a name from mbdk.problems(), or a callable f(t, y) -> dy/dt (slow path; y0 needed,
-             nq > 0 declares y = [q; v] for euler_cromer).
-    method:  a name from mbdk.methods("ode").
-    Fixed step (rk4, bdf4, ...):
-      h:     step; every: keep every k-th step (and the last) as a sample.
-      startup: how bdf2..bdf6 get their first values: "rk4" (RK4 steps, the book's (4.80),
-             Richardson-extrapolated so that bdf6 keeps order 6) or "bdf" (BDF steps of rising
-             order 1..k-1: stable on stiff problems, where RK4 steps blow up, but the order-1
-             first step limits the global order to 2).
-    Error-controlled (dopri54, bs32, bdf, cvode_bdf, cvode_adams):
-      rtol, atol: each step's local error estimate e is kept at
-             sqrt(mean((e_i / (atol_i + rtol |y_i|))^2)) <= 1 (defaults 1e-6 and 1e-8; atol a
-             number or one value per state).
-      dt_out: a sample every dt_out from the dense output (0: t0 and t_end only).
-      t_eval: the sample times themselves (increasing, within [t0, t_end]), each from the
-             method's dense output as dt_out's are; the result holds exactly these.
-      h:     the first step (default: chosen by the method); h_min, h_max: bounds (0: none);
-      max_steps: the most steps, rejected ones included (0: 10^8); max_order: bdf and
-             cvode_bdf 1-5, cvode_adams 1-12 (0: the highest).
-    params:  overrides of the problem's parameters, by name.
-    jac:     with a Python f, its Jacobian jac(t, y) -> n x n array dF_i/dy_j, used by the
-             implicit methods' Newton iterations instead of finite differences (compiled
-             problems carry their own where they have one).
-    raise_on_failure: a failure inside the kernel raises its named exception (default); with
-             False the partial result is returned with its status.
+    Parameters
+    ----------
+    problem : str or callable
+        A name from mbdk.problems(), or a callable f(t, y) -> dy/dt (the slow path: y0
+        needed; nq > 0 declares y = [q; v] for euler_cromer).
+    method : str
+        A name from mbdk.methods("ode").
+    h : float, optional
+        Fixed step (rk4, bdf4, ...): the step. Error-controlled: the first step (default:
+        chosen by the method).
+    t_end, t0 : float
+        The interval (t0 default 0).
+    y0 : array_like, optional
+        The initial state (default: the problem's).
+    params : dict, optional
+        Overrides of the problem's parameters, by name.
+    every : int
+        Fixed step: keep every k-th step (and the last) as a sample.
+    nq : int
+        With a Python f: the number of positions q in y = [q; v] (euler_cromer needs it).
+    fd_jacobian : bool
+        Take the Jacobian of a compiled problem by differences even where it has its own.
+    startup : str
+        How bdf2..bdf6 get their first values: "rk4" (RK4 steps, the book's (4.80),
+        Richardson-extrapolated so that bdf6 keeps order 6) or "bdf" (BDF steps of rising
+        order 1..k-1: stable on stiff problems, where RK4 steps blow up, but the order-1 first
+        step limits the global order to 2).
+    rtol, atol : float or array_like, optional
+        Error-controlled (dopri54, bs32, bdf, cvode_bdf, cvode_adams): each step's local error
+        estimate e is kept at sqrt(mean((e_i / (atol_i + rtol abs(y_i)))^2)) <= 1 (defaults
+        1e-6 and 1e-8; atol a number or one value per state).
+    dt_out : float
+        Error-controlled: a sample every dt_out from the dense output (0: t0 and t_end only).
+    t_eval : array_like, optional
+        Error-controlled: the sample times themselves (increasing, within [t0, t_end]), each
+        from the method's dense output as dt_out's are; the result holds exactly these.
+    h_min, h_max : float
+        Error-controlled: bounds of the step (0: none).
+    max_steps : int
+        Error-controlled: the most steps, rejected ones included (0: 10^8).
+    max_order : int
+        bdf and cvode_bdf 1-5, cvode_adams 1-12 (0: the highest).
+    jac : callable, optional
+        With a Python f, its Jacobian jac(t, y) -> n x n array dF_i/dy_j, used by the implicit
+        methods' Newton iterations instead of finite differences (compiled problems carry their
+        own where they have one).
+    raise_on_failure : bool
+        A failure inside the kernel raises its named exception (default); with False the
+        partial result is returned with its status.
+
+    Returns
+    -------
+    ODEResult
+        ``t``, ``y`` (samples x states), ``stats``, ``cpu_time``, ``status``, ``message``,
+        ``success``, ``manifest``; ``exact()`` and ``max_error()`` where the problem has an
+        exact solution.
+
+    Examples
+    --------
+    >>> r = mbdk.solve_ode("pendulum", "rk4", h=0.01, t_end=5)
+    >>> r.y.shape, r.max_error() < 1e-6
+    ((501, 2), True)
     """
     if not callable(problem):
         return ODESolver(problem, method, h=h, t_end=t_end, t0=t0, y0=y0, params=params,

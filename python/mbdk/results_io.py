@@ -1,9 +1,13 @@
 """A scene run's samples and manifest in a file, and back: .npz (numpy), .csv (the manifest in
 the leading comment lines) or .h5 / .hdf5 (h5py, where it is installed).
 
-    >>> r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=10)
-    >>> mbdk.results_io.save_result(r, "run.npz")
-    >>> r2 = mbdk.results_io.load_result("run.npz")    # a SceneResult again: r2.t, r2.q, ...
+>>> import mbdk.results_io
+>>> r = mbdk.simulate(mbdk.scene("double_pendulum"), "rk4", h=1e-3, t_end=10)
+>>> mbdk.results_io.save_result(r, "run.npz")     # doctest: +ELLIPSIS
+PosixPath('run.npz')
+>>> r2 = mbdk.results_io.load_result("run.npz")    # a SceneResult again: r2.t, r2.q, ...
+>>> bool((r2.q == r.q).all()), r2.manifest["method"]
+(True, 'rk4')
 
 What is written: t; the coordinates q and the velocities v (of a spatial body the centre's
 velocity and the body-frame angular velocity) with their column names; where the run computed

@@ -1,7 +1,8 @@
 """Scene files: TOML -> dicts -> a Scene of either body kind, and the built-in scenes.
 
-    >>> sc = mbdk.load_scene("my_scene.toml")     # or mbdk.scene("double_pendulum")
-    >>> sc.kind                                   # "planar" or "spatial", by its bodies
+>>> sc = mbdk.scene("double_pendulum")        # or mbdk.load_scene("my_scene.toml")
+>>> sc.kind                                   # "planar" or "spatial", by its bodies
+'planar'
 
 A file whose bodies say kind = "spatial" is read by python/mbdk/spatial_file.py (its docstring
 gives that format), any other by python/mbdk/planar_file.py (likewise). checked() runs the
@@ -95,7 +96,34 @@ def read_scene_bytes(path) -> bytes:
 
 
 def load_scene(path) -> Scene:
-    """Reads a scene file (TOML)."""
+    """Reads and checks a scene file (TOML), of planar or of spatial bodies.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The scene file: UTF-8 TOML, at most 64 MiB, a regular file.
+
+    Returns
+    -------
+    Scene
+        Its bodies, joints, forces and wear; ``kind`` is "planar" or "spatial", by its bodies.
+
+    Raises
+    ------
+    SceneError
+        A file that cannot be read or is not a scene: the message names the file, the element,
+        the field and its value, and what to change.
+
+    See Also
+    --------
+    scene : a built-in scene by name.
+
+    Notes
+    -----
+    The format, every element and field: ``help(mbdk.planar_file)`` for planar bodies,
+    ``help(mbdk.spatial_file)`` for spatial ones (a scene whose bodies say ``kind =
+    "spatial"``), and the documentation's scene format page.
+    """
     raw = read_scene_bytes(path)
     path = Path(path)
     try:
@@ -121,8 +149,8 @@ SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
 
 def scenes(kind: str = "planar") -> list[str]:
-    """Names of the built-in scenes of a kind: "planar" (python/mbdk/scenes/*.toml), "spatial"
-    (python/mbdk/scenes/spatial/*.toml) or "all"."""
+    """Names of the built-in scenes of a kind: "planar" (``python/mbdk/scenes/*.toml``),
+    "spatial" (``python/mbdk/scenes/spatial/*.toml``) or "all"."""
     dirs = {"planar": [SCENE_DIR], "spatial": [SCENE_DIR / "spatial"],
             "all": [SCENE_DIR, SCENE_DIR / "spatial"]}
     if not isinstance(kind, str) or kind not in dirs:
@@ -144,7 +172,29 @@ def scene_or_file(arg):
 
 def scene(name: str):
     """A built-in scene by name (python/mbdk/scenes/NAME.toml, or scenes/spatial/NAME.toml: a
-    scene of spatial bodies)."""
+    scene of spatial bodies).
+
+    Parameters
+    ----------
+    name : str
+        One of ``mbdk.scenes("all")``.
+
+    Returns
+    -------
+    Scene
+        The scene, read as ``load_scene`` reads a file.
+
+    See Also
+    --------
+    load_scene : your own scene file; its Notes say where the format is described.
+    scenes : the built-in scenes' names.
+
+    Examples
+    --------
+    >>> sc = mbdk.scene("four_bar")
+    >>> sc.kind, [b.name for b in sc.bodies]
+    ('planar', ['crank', 'coupler', 'rocker'])
+    """
     if isinstance(name, str):
         for p in (SCENE_DIR / f"{name}.toml", SCENE_DIR / "spatial" / f"{name}.toml"):
             if p.is_file():

@@ -3,7 +3,12 @@ constraint rows and degrees of freedom (1.26), (2.141), the redundant joints nam
 constraint classified as table 1.1 does (holonomic or not, scleronomic or rheonomic, bilateral
 or unilateral), and the differentiation index of its DAE.
 
-    >>> print(mbdk.scene_report(mbdk.scene("four_bar")))
+>>> rep = mbdk.scene_report(mbdk.scene("four_bar"))
+>>> rep.coordinates, rep.rows, rep.rank, rep.dof, rep.redundant, rep.index
+(9, 8, 8, 1, [], 3)
+>>> print(rep)                      # doctest: +ELLIPSIS
+scene 'four_bar' (planar): 3 bodies, 9 coordinates, 9 velocities
+...
 
 The degrees of freedom are the coordinates' velocities less the rank of the constraint
 Jacobian at the assembled initial pose (D for planar scenes, C on the bodies' velocities for

@@ -1,8 +1,8 @@
-"""simulate(scene, method, formulation=..., h=..., t_end=...): the one entry that runs a scene,
-of planar or of spatial bodies, for every method and formulation. The kernel builds the model
-once, integrates it with the whole time loop compiled, and computes the outputs asked for at the
-samples, all in one call (kernel/src/api/mbdk_f2py.f90: scene_run for planar bodies, spatial_run
-for spatial ones).
+"""simulate(scene, method, ...): the one entry that runs a scene, of planar or of spatial bodies,
+for every method and formulation (its docstring, ``help(mbdk.simulate)``, is the manual). The
+kernel builds the model once, integrates it with the whole time loop compiled, and computes the
+outputs asked for at the samples, all in one call (kernel/src/api/mbdk_f2py.f90: scene_run for
+planar bodies, spatial_run for spatial ones).
 
 A run goes through four steps, each a module: the scene is checked (mbdk.scene_file.checked)
 and the arguments planned (mbdk.plan: the method, its formulation, the options, named errors
@@ -10,54 +10,6 @@ before the kernel runs); the scene is checked against the plan (mbdk.validate); 
 it (mbdk.run_planar, mbdk.run_spatial); and its status is told in words (mbdk.diagnosis), raised
 as a named exception where it failed. Spatial scenes in angle coordinates pass their gimbal lock
 in segments (switch_angles, mbdk.angle_switch).
-
-Methods and formulations (mbdk.methods() lists the methods):
-  the ODE methods (rk4, bdf4, ...) on the DAE reduced to an ODE (Fekete 2023, section 3;
-  kernel/src/model/mbdk_model.f90 is their manual):
-    reduced     [M D^T; D 0][q''; lambda] = [f; gamma] at every evaluation (the default)
-    baumgarte   gamma - 2 alpha Phi' - beta^2 Phi (defaults alpha = 1/h, beta = sqrt(2)/h, (3.34))
-    penalty     Jalon-Bayo (3.35)-(3.40): alpha_p, omega_p, mu_p = 1e7, 10, 1
-    projection  reduced + projection of q onto Phi = 0 and of v onto Phi' = 0 after every step
-  trapezoidal_index3 on the index-3 DAE itself (kernel/src/dae/mbdk_trapezoidal_index3.f90),
-  and the other members of its family, newmark, hht and generalized_alpha (mbdk.alpha_family):
-    augmented_lagrangian  ALI3-P, the augmented Lagrangian with projections (the default)
-    index3                the book's scheme (3.11)-(3.16), no projections (as HHT-I3 in MSC
-                          Adams and Chrono, and Arnold and Bruls' generalized-alpha)
-    with a fixed step, or adaptive=True (local extrapolation, third order) or "estimated"
-    (second order), with err_rtol, err_atol, dt_out, h_min, h_max; and Newton's max_iter
-    (default 20).
-
-Linear solves (solver=; the manifest's linear_solve says which one ran):
-  auto            revolute_schur when every joint is revolute (up to 12 constraint rows), else
-                  schur when every body has mass and inertia (in-house dense up to 12 rows,
-                  sparse above), else kkt
-  revolute_schur  S = D M^-1 D^T in closed 2 x 2 blocks from the joint points, block LDL^T
-  schur           S from the nonzeros of D (any joint type), dense at any size: in-house block
-                  LDL^T up to 12 rows (small_dense=False or more rows: LAPACK dpotrf/dpotrs)
-  sparse          the same S kept sparse and factorised by SuiteSparse's AMD + LDL, O(N) for a
-                  chain or tree; trapezoidal_index3's augmented Newton matrix likewise (its
-                  symmetric part), and the assembly of the initial state
-  kkt             [M D^T; D 0] by LAPACK's LU
-
-Outputs (outputs=, default all; outputs=() gives t, q, v only and costs nothing per sample):
-  "a" accelerations, "multipliers", "reactions" (per joint: Fx, Fy and the moment about the
-  joint point (a driver's, a coupling's: the centroid), exerted by the joint on its body1, global
-  frame: -D_body1^T lambda), "energy"
-  (kinetic + potential, its parts, and the work of dampers, constraints and loads as the run
-  integrated it, at every step whatever the samples (the watch's quadrature,
-  kernel/src/model/mbdk_watch.f90); "work" their sum W, which energy_balance() takes),
-  "residuals" (max |Phi|, max |Phi'|, max |D a - gamma|). An output not asked for is None in
-  the result.
-
-Spatial scenes (python/mbdk/spatial_file.py gives their format and formulations) run the same
-methods but euler_cromer, the index-3 family in both formulations (its Newton matrix by
-differences, a body's rotation turned by the exponential map: the Lie-group form); their runs
-compute energy, residuals and multipliers at every sample (outputs is checked, not used), and
-the planar model's options (solver, small_dense) are refused by name.
-
-What a run must keep (watch=, mbdk.watch): the constraint residuals, the energy balance and the
-momenta the scene conserves are checked while it runs; leaving them ends the run with
-ConstraintDriftError, EnergyDriftError or InvariantDriftError.
 """
 from __future__ import annotations
 
@@ -100,43 +52,158 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              alpha_hht: float | None = None, newmark_beta: float | None = None,
              newmark_gamma: float | None = None, alpha_m: float | None = None,
              alpha_f: float | None = None, **unknown) -> SceneResult:
-    """Integrate a scene. See the module docstring for methods, formulations and outputs.
+    """Integrate a scene with any method and formulation, the time loop compiled.
 
-    formulation: default "reduced" for the ODE methods, "augmented_lagrangian" for
-    trapezoidal_index3. alpha: Baumgarte's alpha, or the augmented Lagrangian's penalty factor
-    (default 0: 1e3 max(M) / (h^2/4) per step).
+    Parameters
+    ----------
+    scene : Scene
+        A scene of planar or of spatial bodies (``mbdk.scene(name)``, ``mbdk.load_scene(path)``);
+        it is checked again before the run, so fields changed in Python get the errors a file
+        would.
+    method : str
+        A method of ``mbdk.methods()``: a fixed-step ODE method (rk4, bdf4, ...), an
+        error-controlled one (dopri54, bs32, bdf, cvode_bdf, cvode_adams), ida, or the index-3
+        family (trapezoidal_index3, newmark, hht, generalized_alpha).
+    h : float, optional
+        The step of the fixed-step methods (required for them); for the error-controlled ones
+        the first step (optional).
+    t_end : float
+        The end of the interval.
+    formulation : str, optional
+        How the constrained equations reach the method. The ODE methods (Fekete 2023, section 3;
+        kernel/src/model/mbdk_model.f90 is their manual): ``"reduced"`` (the default:
+        [M D^T; D 0][q''; lambda] = [f; gamma] at every evaluation), ``"baumgarte"`` (gamma -
+        2 alpha Phi' - beta^2 Phi), ``"penalty"`` (Jalon-Bayo (3.35)-(3.40)) or
+        ``"projection"`` (reduced, then q projected onto Phi = 0 and v onto Phi' = 0 after
+        every step). The index-3 family (kernel/src/dae/mbdk_trapezoidal_index3.f90):
+        ``"augmented_lagrangian"`` (ALI3-P, the augmented Lagrangian with projections, the
+        default) or ``"index3"`` (the book's scheme (3.11)-(3.16), no projections, as HHT-I3 in
+        MSC Adams and Chrono). bdf on the DAE itself: ``"i3"`` (the index-3 form, as Adams'
+        GSTIFF I3) or ``"si2"`` (the stabilised index-2 form, as its SI2). ida: ``"index1"``
+        (the default) or ``"ggl"``. cvode_* run every ODE formulation but projection.
+    t0 : float
+        The start of the interval (default 0).
+    every : int
+        Keep every k-th step as a sample (fixed step; default 1).
+    outputs : sequence of str
+        What to compute at the samples, default all: ``"a"`` accelerations, ``"multipliers"``,
+        ``"reactions"`` (per joint: Fx, Fy and the moment about the joint point (a driver's, a
+        coupling's: the centroid), exerted by the joint on its body1, global frame: -D_body1^T
+        lambda), ``"energy"`` (kinetic + potential, its parts, and the work of dampers,
+        constraints and loads as the run integrated it at every step whatever the samples (the
+        watch's quadrature, kernel/src/model/mbdk_watch.f90); ``"work"`` their sum W, which
+        ``energy_balance()`` takes), ``"residuals"`` (max |Phi|, max |Phi'|, max
+        |D a - gamma|). An output not asked for is None in the result; ``outputs=()`` gives
+        t, q, v only and costs nothing per sample. Spatial runs compute energy, residuals and
+        multipliers at every sample (outputs is checked, not used).
+    alpha, beta : float, optional
+        Baumgarte's alpha and beta (defaults 1/h and sqrt(2)/h, (3.34); they must be given
+        under error control, where there is no fixed h). For the index-3 family's augmented
+        Lagrangian, alpha is the penalty factor (default 0: 1e3 max(M) / (h^2/4) per step).
+    penalty : tuple of float
+        The penalty formulation's (alpha_p, omega_p, mu_p), default (1e7, 10, 1).
+    projection_tol : float, optional
+        The projection formulation's tolerance (under error control a thousandth of atol by
+        default).
+    solver : str
+        The linear solve of the constrained accelerations (the manifest's ``linear_solve``
+        says which one ran): ``"auto"`` (revolute_schur when every joint is revolute, up to 12
+        constraint rows, else schur when every body has mass and inertia (in-house dense up to
+        12 rows, sparse above), else kkt); ``"revolute_schur"`` (S = D M^-1 D^T in closed 2 x 2
+        blocks from the joint points, block LDL^T); ``"schur"`` (S from the nonzeros of D, any
+        joint type, dense at any size: in-house block LDL^T up to 12 rows, LAPACK dpotrf/dpotrs
+        with small_dense=False or more rows); ``"sparse"`` (the same S kept sparse and
+        factorised by SuiteSparse's AMD + LDL, O(N) for a chain or tree; trapezoidal_index3's
+        augmented Newton matrix likewise, and the assembly of the initial state); ``"kkt"``
+        ([M D^T; D 0] by LAPACK's LU). Planar scenes only.
+    small_dense : bool
+        The in-house factorisations of small matrices (default True); False takes LAPACK's.
+        Planar scenes only.
+    assemble_initial : bool
+        Move the coordinates not marked ``given`` onto the joints before the run (Gauss-Newton;
+        default True).
+    startup : str
+        The start-up of the multistep methods bdf2-bdf6: ``"rk4"`` (the book's, extrapolated)
+        or ``"bdf"`` (a ramp of BDF steps, for stiff scenes).
+    newton_rtol, newton_atol : float, optional
+        The implicit ODE methods' Newton tolerances: 1e-10/1e-12, but 1e-7/1e-9 for the penalty
+        formulation, whose accelerations carry roundoff amplified by alpha_p (~1e-9 at 1e7): a
+        tighter test would never pass. The index-3 family: 1e-10/1e-12, and adaptive a hundredth
+        of err_rtol/err_atol where that is tighter (Newton then does not cap the accuracy asked
+        for).
+    max_iter : int, optional
+        The index-3 family's Newton iteration limit (default 20).
+    adaptive : bool or str, optional
+        trapezoidal_index3's step-size control: False (fixed h), True = ``"extrapolated"``
+        (local extrapolation, third order) or ``"estimated"`` (second order; also the other
+        second-order members'). ``help(mbdk.index3)`` says what they do.
+    err_rtol, err_atol, dt_out, h_min, h_max : float, optional
+        The index-3 family's step-size control: its tolerances, the samples' spacing and the
+        step's bounds. ``dt_out``, ``h_min`` and ``h_max`` are also the error-controlled ODE
+        methods' (as in ``mbdk.solve_ode``).
+    rtol, atol : float, optional
+        The error-controlled methods' tolerances (dopri54, bs32, bdf, cvode_*, ida); atol a
+        number.
+    max_steps, max_order : int, optional
+        The error-controlled methods' step limit (default 10^8) and bdf's highest order.
+    watch : bool, Watch or dict
+        What the run must keep (``mbdk.Watch``): True for the kernel's tolerances, False to
+        turn the checks off, or a Watch or a dict with other tolerances. The constraint
+        residuals, the energy balance and the momenta the scene conserves are checked while it
+        runs; leaving them ends the run with ConstraintDriftError, EnergyDriftError or
+        InvariantDriftError at the check where it happened.
+    locate_events : bool
+        dopri54 and bs32 end a step where a contact closes or lets go (its force before the
+        clip at zero changes sign), so that no step straddles the kink in the force (default
+        True; the manifest says whether the run's method located them).
+    raise_on_failure : bool
+        True (the default) raises a failure as its named exception, carrying the partial
+        result (``err.result``); False returns the partial result, ``success`` False.
+    switch_angles : float, optional
+        Spatial scenes in angle coordinates: stop within this distance of the gimbal lock
+        (|sin theta| for 3-1-3, |cos beta| for 1-2-3) and go on in the other angle set.
+    rho_inf, alpha_hht, newmark_beta, newmark_gamma, alpha_m, alpha_f : float, optional
+        The index-3 family's parameters (``help(mbdk.alpha_family)``): newmark takes
+        newmark_beta, newmark_gamma (default 1/4, 1/2); hht alpha_hht in [-1/3, 0] (default
+        -0.05); generalized_alpha rho_inf in [0, 1] (default 0.8), or newmark_beta,
+        newmark_gamma, alpha_m, alpha_f given directly. They take trapezoidal_index3's
+        formulations, Newton options and, with ``adaptive="estimated"``, its step-size
+        control.
 
-    newton_rtol/atol: the ODE methods' Newton (implicit ones) default to 1e-10/1e-12, but
-    1e-7/1e-9 for the penalty formulation, whose accelerations carry roundoff amplified by
-    alpha_p (~1e-9 at 1e7): a tighter test would never pass. trapezoidal_index3: 1e-10/1e-12,
-    adaptive: a hundredth of err_rtol/err_atol where that is tighter (Newton then does not cap
-    the accuracy asked for).
+    Returns
+    -------
+    SceneResult
+        ``t``, ``q``, ``v``, the outputs asked for, ``stats``, ``cpu_time``, ``status``,
+        ``message``, ``success``, ``manifest``, ``visits``, ``assembly`` and ``drift``.
 
-    adaptive (False, True = "extrapolated", "estimated"), err_rtol, err_atol, dt_out, h_min,
-    h_max, max_iter: trapezoidal_index3 only (step-size control and Newton's iteration limit;
-    mbdk.index3 says what they do; max_iter also the other index-3 methods').
+    Raises
+    ------
+    InvalidInputError
+        A bad argument (an unknown option, a value out of range), before the kernel runs;
+        NotApplicableError for an option or form this method or scene does not have.
+    SceneError
+        A scene that cannot be run (an initial state that cannot be assembled names the joints).
+    MbdkError
+        A failure inside the kernel, as its named subclass (``mbdk.Status`` lists them), with
+        the partial result.
 
-    The index-3 methods newmark (newmark_beta, newmark_gamma; default 1/4, 1/2), hht
-    (alpha_hht in [-1/3, 0], default -0.05) and generalized_alpha (rho_inf in [0, 1], default
-    0.8; or newmark_beta, newmark_gamma, alpha_m, alpha_f given directly) take
-    trapezoidal_index3's formulations, step and Newton options at a fixed h; they are members
-    of one family with it (mbdk.alpha_family, whose docstring gives the parameters).
+    Notes
+    -----
+    Spatial scenes (``help(mbdk.spatial_file)`` gives their format and formulations) run the
+    same methods but euler_cromer, the index-3 family in both formulations (its Newton matrix
+    by differences, a body's rotation turned by the exponential map: the Lie-group form); the
+    planar model's options (solver, small_dense) are refused by name.
 
-    The error-controlled ODE methods (dopri54, bs32, bdf, cvode_bdf, cvode_adams) run every
-    formulation but cvode_* the projection one: rtol, atol (a number), dt_out, h (the first
-    step, optional), h_min, h_max, max_steps and max_order as in mbdk.solve_ode. Baumgarte's
-    alpha and beta must then be given (their default, 1/h and sqrt(2)/h, needs a fixed step).
-    ida integrates the scene's DAE itself (formulation "index1", the default, or "ggl") with
-    the same options, and so does bdf with formulation "i3" (the index-3 form, as MSC Adams'
-    GSTIFF I3) or "si2" (the stabilised index-2 form, as its SI2).
-
-    watch: what the run must keep (mbdk.watch): True for the kernel's tolerances, False to turn
-    the checks off, or a mbdk.Watch / dict with other tolerances. A run that leaves them raises
-    ConstraintDriftError or EnergyDriftError at the check where it happened.
-
-    locate_events: dopri54 and bs32 end a step where a contact closes or lets go (its force
-    before the clip at zero changes sign), so that no step straddles the kink in the force
-    (default True; the manifest says whether the run's method located them)."""
+    Examples
+    --------
+    >>> sc = mbdk.scene("double_pendulum")
+    >>> r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=1.0)
+    >>> r.q.shape, r.status.name
+    ((1001, 6), 'SUCCESS')
+    >>> r = mbdk.simulate(sc, "dopri54", rtol=1e-8, atol=1e-10, t_end=1.0, dt_out=0.1)
+    >>> r.t.round(2)
+    array([0. , 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1. ])
+    """
     if unknown:
         raise InvalidInputError(f"{', '.join(sorted(unknown))}: not an option of simulate; "
                                 f"trapezoidal_index3 also takes {', '.join(INDEX3_ONLY)}; "

@@ -2,48 +2,73 @@
 tolerances) as independent tasks on Dask, gathered into one table with each run's error
 against its reference, CPU time and counters.
 
-    >>> grid = {"t_end": 10.0, "scenes": ["double_pendulum"], "methods": ["rk4", "dopri54"],
-    ...         "steps": [1e-2, 1e-3], "tolerances": [1e-6, 1e-9]}
-    >>> table = mbdk.sweep.sweep(grid)                   # a local cluster of 2 processes
-    >>> table = mbdk.sweep.sweep(grid, scheduler="tcp://10.0.0.5:8786")   # an existing one
-    >>> table = mbdk.sweep.sweep(grid, workers=0)        # serially, in this process
+>>> import mbdk.sweep
+>>> grid = {"t_end": 1.0, "problems": ["pendulum"], "methods": ["rk4", "heun"],
+...         "steps": [1e-2, 5e-3]}
+>>> table = mbdk.sweep.sweep(grid, workers=0)        # serially, in this process
+>>> [(r["method"], r["control"], r["status"]) for r in table.rows]    # doctest: +NORMALIZE_WHITESPACE
+[('rk4', 0.01, 'SUCCESS'), ('rk4', 0.005, 'SUCCESS'), ('heun', 0.01, 'SUCCESS'),
+ ('heun', 0.005, 'SUCCESS')]
 
-A grid is a dict (the [sweep] table of a TOML file for `mbdk sweep GRID.toml`), or a list of
-them (an array of [[sweep]] tables), run as one set of tasks: a study whose cases differ in
-interval or steps (studies/grids/work_precision.toml) is one sweep. Its fields:
-  t_end, t0 (default 0)
-  scenes (built-in names or scene files) and/or problems (compiled problems' names)
-  params: a table of the problems' parameters (default theirs); label: the name of the case
-         in the table (default the scene's or problem's name)
-  methods; formulations (scenes; default ["reduced"])
-  steps: h for the fixed-step methods, or step_counts: numbers of steps over the interval;
-         tolerances: rtol for the error-controlled ones (atol = rtol * atol_ratio, default
-         1e-2)
-  samples: the error is the largest over this many equal intervals of [t0, t_end] (their
-         ends; a fixed-step run must land on them when compared with a reference run);
-         default: at t_end only
-  reference: {method, h, step_count or rtol} for a scene's (and a problem without a closed
-         form's) states, default {method = "dopri54", rtol = 1e-12}; problems with an exact
-         solution use it
-  min_cpu, max_reps: a run shorter than min_cpu seconds of CPU (default 0) is repeated, at
-         most max_reps times (default 20), and its times are the mean per run (the kernel's
-         clock ticks in microseconds; every repetition gives the same numbers)
-Each task is one run; its row (the columns of COLUMNS, in this order in the CSV):
-  case, method, formulation, control (h or rtol);
-  status: the method's status name (SUCCESS, NOTE_LAST_STEP_SHORTENED) for a run that gave a
-         result; the class name of the exception that stopped it otherwise (ConstraintDriftError,
-         SceneError for a scene file that is missing or does not build, or any other
-         exception's class, ZeroDivisionError say); "reference <class name>" where the run
-         gave a result but its case's reference run failed;
-  error: max |y - y_ref| over the coordinates (over the state for a problem) and the samples;
-         NaN where there is no error to give (a failed run or reference);
-  steps, nfev, cpu_time (the solving thread's, per repetition), wall_time, rejected, njev,
-  nlu, orders (the steps taken at each order, "1:12 2:40", for the variable-order methods),
-  reps: the run's counters (0 and "" for a failed run);
-  wear: a scene's worn volumes at the end of the run, "name volume" per wear element (m^3),
-         separated by "; " (empty without wear elements, and for a failed run);
-  error_message: empty where the run and its reference gave results; otherwise the message, on
-         one line ("the reference run: ..." for a failed reference).
+On Dask (``workers`` local processes, or an existing cluster's scheduler)::
+
+    table = mbdk.sweep.sweep(grid)                   # a local cluster of 2 processes
+    table = mbdk.sweep.sweep(grid, scheduler="tcp://10.0.0.5:8786")   # an existing one
+
+A grid is a dict (the ``[sweep]`` table of a TOML file for ``mbdk sweep GRID.toml``), or a list
+of them (an array of ``[[sweep]]`` tables), run as one set of tasks: a study whose cases differ
+in interval or steps (studies/grids/work_precision.toml) is one sweep. Its fields:
+
+t_end, t0
+    the interval (t0 default 0)
+scenes, problems
+    built-in scene names or scene files, and/or compiled problems' names
+params
+    a table of the problems' parameters (default theirs)
+label
+    the name of the case in the table (default the scene's or problem's name)
+methods, formulations
+    the methods; the formulations of scenes (default ``["reduced"]``)
+steps, step_counts, tolerances
+    ``steps``: h for the fixed-step methods, or ``step_counts``: numbers of steps over the
+    interval; ``tolerances``: rtol for the error-controlled ones (atol = rtol * atol_ratio,
+    default 1e-2)
+samples
+    the error is the largest over this many equal intervals of [t0, t_end] (their ends; a
+    fixed-step run must land on them when compared with a reference run); default: at t_end
+    only
+reference
+    {method, h, step_count or rtol} for a scene's (and a problem without a closed form's)
+    states, default {method = "dopri54", rtol = 1e-12}; problems with an exact solution use it
+min_cpu, max_reps
+    a run shorter than min_cpu seconds of CPU (default 0) is repeated, at most max_reps times
+    (default 20), and its times are the mean per run (the kernel's clock ticks in
+    microseconds; every repetition gives the same numbers)
+
+Each task is one run; its row has the columns of COLUMNS, in this order in the CSV:
+
+case, method, formulation, control
+    the case's label, the method, the formulation and the run's h or rtol
+status
+    the method's status name (SUCCESS, NOTE_LAST_STEP_SHORTENED) for a run that gave a
+    result; the class name of the exception that stopped it otherwise (ConstraintDriftError,
+    SceneError for a scene file that is missing or does not build, or any other exception's
+    class, ZeroDivisionError say); "reference <class name>" where the run gave a result but its
+    case's reference run failed
+error
+    max |y - y_ref| over the coordinates (over the state for a problem) and the samples; NaN
+    where there is no error to give (a failed run or reference)
+steps, nfev, cpu_time, wall_time, rejected, njev, nlu, orders, reps
+    the run's counters (0 and "" for a failed run): cpu_time is the solving thread's, per
+    repetition; orders the steps taken at each order, "1:12 2:40", for the variable-order
+    methods
+wear
+    a scene's worn volumes at the end of the run, "name volume" per wear element (m^3),
+    separated by "; " (empty without wear elements, and for a failed run)
+error_message
+    empty where the run and its reference gave results; otherwise the message, on one line
+    ("the reference run: ..." for a failed reference)
+
 Every case gives its rows: a case that fails when loaded or run stops only its own runs, never
 the sweep, serially and on Dask alike. Ctrl-C (KeyboardInterrupt, SolveInterrupted) stops the
 sweep. A run is deterministic, so a task gives the same bits on any worker as in a serial loop
@@ -455,12 +480,31 @@ def _tick(bar, n: int) -> None:
 
 def sweep(grid, workers: int = 2, scheduler: str | None = None,
           batches_per_worker: int = 8) -> SweepResult:
-    """Runs the grid, or the list of grids (module docstring): on the Dask scheduler at
-    address scheduler, else on a local cluster of workers processes (one thread each), else
-    (workers = 0) serially here, with a bar of the runs done on a terminal after a second
-    (MBDK_PROGRESS as for a solve). The runs go to the workers in batches_per_worker batches per
-    worker thread, dealt round-robin: a Dask task's scheduling costs milliseconds
-    (studies/sweep_scaling.py measures it), more than most runs of a work-precision grid."""
+    """Runs the grid, or the list of grids (the module docstring, ``help(mbdk.sweep)``, gives
+    their fields and the table's columns).
+
+    Parameters
+    ----------
+    grid : dict or list of dict
+        The ``[sweep]`` table (or ``[[sweep]]`` tables) as parsed TOML; ``load_grid`` reads a
+        file.
+    workers : int
+        Local worker processes (one thread each) when no scheduler is given; 0 runs the grid
+        serially in this process, with a bar of the runs done on a terminal after a second
+        (MBDK_PROGRESS as for a solve).
+    scheduler : str, optional
+        The address of an existing Dask scheduler, ``tcp://host:port``.
+    batches_per_worker : int
+        The runs go to the workers in this many batches per worker thread, dealt round-robin: a
+        Dask task's scheduling costs milliseconds (studies/sweep_scaling.py measures it), more
+        than most runs of a work-precision grid.
+
+    Returns
+    -------
+    SweepResult
+        ``rows`` (one dict per run, the columns of COLUMNS), ``engine``, ``wall_time`` and the
+        ``manifest``; ``to_csv(path)`` writes the table.
+    """
     refs, tasks = tasks_of(grid)
     if not (isinstance(batches_per_worker, int) and batches_per_worker > 0):
         raise InvalidInputError(f"batches_per_worker = {batches_per_worker!r} must be a whole "

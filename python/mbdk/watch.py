@@ -2,7 +2,7 @@
 (kernel/src/model/mbdk_watch.f90).
 
 Every run checks, every few steps and at every sample, that the state stays on the constraint
-manifold, that the energy balance holds and that what the scene conserves stays conserved:
+manifold, that the energy balance holds and that what the scene conserves stays conserved::
 
     position   |Phi_i| <= position * L_i         (L_i: the mechanism's length scale L, or 1 rad)
     velocity   |D v + Phi_t|_i <= velocity * V_i (V_i: the largest size its terms reached)
