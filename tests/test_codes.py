@@ -722,7 +722,8 @@ def test_spatial_run_refuses_a_dae_form_its_method_does_not_take():
         out = _kernel.spatial_run(mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
                                   SpatialOptions().pack(), ids[method].id, form,
                                   mbdk.ODEOptions(h=1e-3).pack(), mbdk.Index3Options().pack(),
-                                  _compiled.new_flag(), np.zeros(0), y0, 0, 0.0, 0.01, 11,
+                                  np.zeros(0), _compiled.new_flag(), np.zeros(0), y0, 0, 0.0,
+                                  0.01, 11,
                                   max(sc.rows, 1), empty("mbdk_stats"),
                                   empty("mbdk_watch_report"))
         return Status(int(out[-1]))

@@ -19,8 +19,9 @@ import inspect
 from .errors import InvalidInputError
 
 #: simulate's keywords the command line does not take: the scene and method are positional,
-#: a command line run always raises on failure (and says so on one line)
-RUN_SKIP = {"scene", "method", "raise_on_failure", "unknown"}
+#: a command line run always raises on failure (and says so on one line), events are Python
+#: functions
+RUN_SKIP = {"scene", "method", "raise_on_failure", "unknown", "events"}
 #: solve_ode's: the problem and method are positional; jac is a Python callable
 SOLVE_SKIP = {"problem", "method", "raise_on_failure", "jac"}
 
@@ -63,6 +64,7 @@ RUN_HELP = {
     "newmark_gamma": "the index-3 family's gamma",
     "alpha_m": "generalized_alpha's alpha_m (with alpha_f, beta, gamma)",
     "alpha_f": "generalized_alpha's alpha_f",
+    "t_eval": "the sample times themselves (error-controlled ODE methods)",
 }
 
 SOLVE_HELP = {

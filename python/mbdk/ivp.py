@@ -165,11 +165,11 @@ def solve_ivp(fun, t_span, y0, method: str = "RK45", t_eval=None, dense_output: 
     t_events = y_events = None
     if events is not None:
         evs = [events] if callable(events) else list(events)
-        found = _events(evs, args, sign, run, s0, reached, max(main.stats.steps, 1))
+        found = locate_events(evs, args, sign, run, s0, reached, max(main.stats.steps, 1))
         t_events = [np.array([sign * s for s, _ in f]) for f in found]
         y_events = [np.array([y for _, y in f]).reshape(-1, len(ys[0]) if len(ys) else 0)
                     for f in found]
-        stop = _terminal_stop(evs, found)
+        stop = terminal_stop(evs, found)
         if stop is not None:
             s_stop, y_stop = stop
             # the integration ends there, as SciPy's: no event after it
@@ -237,7 +237,7 @@ def _wrapped(fun, args, sign: float):
     return lambda s, y: -np.asarray(fun(-s, y, *extra), dtype=float)
 
 
-def _events(evs, args, sign, run, s0, s1, steps):
+def locate_events(evs, args, sign, run, s0, s1, steps):
     """Per event function, the (s, y) of its roots over [s0, s1] in run time s, in order, each
     on its direction (module docstring)."""
     extra = tuple(args) if args is not None else ()
@@ -282,7 +282,7 @@ def _refine(ev, extra, sign, run, lo, hi, g_lo, g_hi):
     return s, run(np.array([s])).y[0]
 
 
-def _terminal_stop(evs, found):
+def terminal_stop(evs, found):
     """(s, y) of the first root of a terminal event function (terminal True, or a count of
     roots to pass), or None."""
     stops = []

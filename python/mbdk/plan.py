@@ -26,7 +26,8 @@ from .errors import InvalidInputError, NotApplicableError
 from .index3 import factorisation
 from .methods import MethodInfo, method as method_info
 from .model import model_options
-from .ode import DEFAULT_MAX_STEPS, RTOL_FLOOR, adaptive_options, plan as step_plan
+from .ode import (DEFAULT_MAX_STEPS, RTOL_FLOOR, adaptive_options, plan as step_plan,
+                  sample_times)
 from .options import (Index3Options, ModelOptions, ODEOptions, SpatialOptions,
                       projection_tol_for)
 from .scene import Scene
@@ -100,6 +101,7 @@ class Request:
     err_rtol: float | None = None
     err_atol: float | None = None
     dt_out: float | None = None
+    t_eval: object = None
     h_min: float | None = None
     h_max: float | None = None
     rtol: float | None = None
@@ -152,6 +154,10 @@ class RunPlan:
     nsamp: int = 0
     steps: float = 0.0
     adaptive: bool = False         # trapezoidal_index3 under step-size control
+    #: t_eval: the kernel's sample times (t0, the times asked for, t_end) and the mask of the
+    #: asked ones among them; empty and None without it
+    times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    keep: np.ndarray | None = None
     manifest: dict = field(default_factory=dict)
     #: what the manifest and a warning say of multipliers the run does not give to its
     #: tolerance (the book's index-3 scheme, ida's GGL form at a tight rtol); None elsewhere
@@ -228,9 +234,24 @@ def ggl_multipliers(method: str, formulation: str, rtol) -> str | None:
 def make_plan(scene: Scene, req: Request) -> RunPlan:
     """The run plan of a checked scene (mbdk.scene_file.checked) for the request: named errors
     for every argument that does not fit the method, the formulation or the scene's kind."""
-    if scene.kind == "spatial":
-        return _spatial_plan(scene, req)
-    return _planar_plan(scene, req)
+    plan = _spatial_plan(scene, req) if scene.kind == "spatial" else _planar_plan(scene, req)
+    if req.t_eval is not None:
+        _sample_times(plan, req)
+    return plan
+
+
+def _sample_times(plan: RunPlan, req: Request) -> None:
+    """t_eval into the plan: the kernel's sample times and the mask of those asked for (an
+    error-controlled ODE method's: its dense output samples them; the DAE methods and the
+    index-3 family land on their own grid)."""
+    if plan.index3 or plan.ida or plan.dae_bdf:
+        raise NotApplicableError(f"t_eval with {plan.method}/{plan.formulation}: sample times "
+                                 "are the error-controlled ODE methods' (dopri54, bs32, bdf, "
+                                 "cvode_*, on a formulation); give dt_out")
+    plan.times, plan.keep = sample_times(req.t_eval, plan.info, req.t0, req.t_end,
+                                         req.dt_out or 0.0)
+    plan.nsamp = len(plan.times)
+    plan.manifest["t_eval"] = int(plan.keep.sum())
 
 
 # ---- planar scenes ---------------------------------------------------------------------------

@@ -154,6 +154,9 @@ class SceneResult(Result):
     #: sample's angle set where a run switched sets near a lock (switch_angles)
     rotation: str | None = None
     rotations: list | None = None
+    #: simulate's events: per event function, the times of its zeros and the states there
+    t_events: list | None = None
+    y_events: list | None = None
 
     @property
     def y(self) -> np.ndarray:
@@ -254,3 +257,22 @@ class KernelRun:
     invariants: np.ndarray          # (ninv, 7)
     y0: np.ndarray
     tables: object = None
+
+
+def keep_samples(result: SceneResult, keep) -> SceneResult:
+    """The result's samples at the times asked for (keep: their mask among the run's samples,
+    which hold t0 and t_end too; None: all), every per-sample output with them."""
+    if keep is None:
+        return result
+    k = np.asarray(keep)[:len(result.t)]
+    for name in ("t", "q", "v", "a", "multipliers", "reactions", "energy", "residuals",
+                 "iterations"):
+        value = getattr(result, name)
+        if value is not None:
+            setattr(result, name, value[k])
+    if result.energy_parts:
+        result.energy_parts = {n: v[k] for n, v in result.energy_parts.items()}
+    result.wear = {n: v[k] for n, v in result.wear.items()}
+    if result.rotations is not None:
+        result.rotations = [r for r, kept in zip(result.rotations, k) if kept]
+    return result

@@ -94,7 +94,7 @@ def run_planar(scene: Scene, plan: RunPlan) -> KernelRun:
     watch_words = empty("mbdk_watch_report")
     req = plan.request
     args = (*tab.args(), plan.model_options.pack(), plan.info.id, plan.dae_form,
-            plan.ode_options.pack(), plan.index3_options.pack(), flag, y0, given,
+            plan.ode_options.pack(), plan.index3_options.pack(), plan.times, flag, y0, given,
             int(bool(req.assemble_initial)), req.t0, req.t_end, plan.want, plan.nsamp,
             *arrays, stats, visits, watch_words)
     try:

@@ -47,7 +47,8 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     watch_words = empty("mbdk_watch_report")
     args = (mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
             plan.spatial_options.pack(), plan.info.id, plan.dae_form, plan.ode_options.pack(),
-            plan.index3_options.pack(), flag, np.zeros(0), y0, int(bool(req.assemble_initial)),
+            plan.index3_options.pack(), plan.times, flag, np.zeros(0), y0,
+            int(bool(req.assemble_initial)),
             float(req.t0), float(req.t_end), nsamp, m1, stats, watch_words)
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
     # before they are allocated where the machine has not that much memory

@@ -13,6 +13,8 @@ in segments (switch_angles, mbdk.angle_switch).
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import warnings
 
 import numpy as np
@@ -27,7 +29,9 @@ from .model import evaluate as evaluate_model
 from .alpha_family import OPTIONS as FAMILY_OPTIONS
 from .plan import INDEX3_ONLY, Request, make_plan
 from .angle_switch import switching_run
-from .result import SceneResult
+from .ivp import locate_events, terminal_stop
+from .methods import method as method_info
+from .result import SceneResult, keep_samples
 from .run_planar import prepared, run_planar
 from .run_spatial import run_spatial
 from .scene import Scene
@@ -51,7 +55,8 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              switch_angles: float | None = None, rho_inf: float | None = None,
              alpha_hht: float | None = None, newmark_beta: float | None = None,
              newmark_gamma: float | None = None, alpha_m: float | None = None,
-             alpha_f: float | None = None, **unknown) -> SceneResult:
+             alpha_f: float | None = None, t_eval=None, events=None,
+             **unknown) -> SceneResult:
     """Integrate a scene with any method and formulation, the time loop compiled.
 
     Parameters
@@ -144,6 +149,17 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     rtol, atol : float, optional
         The error-controlled methods' tolerances (dopri54, bs32, bdf, cvode_*, ida); atol a
         number.
+    t_eval : sequence of float, optional
+        The error-controlled ODE methods' sample times themselves (increasing, within [t0,
+        t_end]; instead of dt_out), each from the method's dense output; the result holds
+        exactly these.
+    events : callable or list of callables, optional
+        SciPy's events, for the error-controlled ODE methods: each ``g(t, y)`` of the time and
+        the state y = [q, v], its zeros located on the method's dense output (as
+        ``mbdk.solve_ivp`` locates them: ``help(mbdk.ivp)``), with SciPy's ``terminal`` (True,
+        or the count of zeros to pass) and ``direction`` attributes; the result's
+        ``t_events`` and ``y_events`` list them per function, and a terminal event ends the
+        run there (the run is made again to that time, every output with it).
     max_steps, max_order : int, optional
         The error-controlled methods' step limit (default 10^8) and bdf's highest order.
     watch : bool, Watch or dict
@@ -220,19 +236,68 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                   projection_tol=projection_tol, solver=solver, small_dense=small_dense,
                   assemble_initial=assemble_initial, startup=startup, newton_rtol=newton_rtol,
                   newton_atol=newton_atol, max_iter=max_iter, adaptive=adaptive,
-                  err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, h_min=h_min,
+                  err_rtol=err_rtol, err_atol=err_atol, dt_out=dt_out, t_eval=t_eval,
+                  h_min=h_min,
                   h_max=h_max, rtol=rtol, atol=atol, max_steps=max_steps, max_order=max_order,
                   watch=watch, locate_events=locate_events, raise_on_failure=raise_on_failure,
                   switch_angles=switch_angles, rho_inf=rho_inf, alpha_hht=alpha_hht,
                   newmark_beta=newmark_beta, newmark_gamma=newmark_gamma, alpha_m=alpha_m,
                   alpha_f=alpha_f)
+    if events is not None:
+        check_events(events, method, formulation)
     if scene.kind == "spatial" and switch_angles is not None:
+        if events is not None:
+            raise NotApplicableError("events with switch_angles: the angle sets' switches "
+                                     "split the run; events take one run")
         result, warning = switching_run(scene, req, run_scene)
     else:
         result, warning = run_scene(scene, req)
+    if events is not None:
+        result, warning = scene_events(scene, req, result, warning, events)
     if warning:
         warnings.warn(warning, AccuracyWarning, stacklevel=2)
     return result
+
+
+def check_events(events, method: str, formulation) -> None:
+    """simulate's events, before the run: functions, and a method with a dense output."""
+    evs = [events] if callable(events) else events
+    if not isinstance(evs, (list, tuple)) or not evs or not all(callable(e) for e in evs):
+        raise InvalidInputError("events must be a function g(t, y) or a list of them")
+    info = method_info(method)
+    if not info.adaptive or info.family in ("ida", "dae_index3") or formulation in ("i3", "si2"):
+        raise NotApplicableError(f"events with {method}: they are located on the dense "
+                                 "output of the error-controlled ODE methods (dopri54, bs32, "
+                                 "bdf, cvode_*, on a formulation)")
+
+
+def scene_events(scene: Scene, req: Request, result: SceneResult, warning, events):
+    """The run with its events (simulate's events): their zeros located on the method's dense
+    output by runs of the same request sampled where the search looks (mbdk.ivp's
+    locate_events), t_events and y_events set; a terminal event's run made again to its time."""
+    evs = [events] if callable(events) else list(events)
+
+    def run(times):
+        r, _ = run_scene(scene, replace(req, t_eval=np.asarray(times), dt_out=None,
+                                        raise_on_failure=False))
+        return r
+
+    s_end = result.t[-1] if len(result.t) else req.t0
+    found = locate_events(evs, None, 1.0, run, req.t0, s_end, max(result.stats.steps, 1))
+    stop = terminal_stop(evs, found)
+    if stop is not None and stop[0] < s_end:
+        found = [[(s, y) for s, y in f if s <= stop[0]] for f in found]
+        kept = (None if req.t_eval is None else
+                [t for t in np.asarray(req.t_eval, float) if t < stop[0]] or None)
+        result, warning = run_scene(scene, replace(req, t_end=float(stop[0]), t_eval=kept))
+    if stop is not None:
+        # SciPy's status 1, "a termination event occurred": which function ended the run
+        result.manifest["terminal_event"] = next(
+            k for k, f in enumerate(found) if f and f[-1][0] == stop[0])
+    result.t_events = [np.array([s for s, _ in f]) for f in found]
+    result.y_events = [np.array([y for _, y in f]).reshape(-1, result.y.shape[1])
+                       for f in found]
+    return result, warning
 
 
 def run_scene(scene: Scene, req: Request) -> tuple[SceneResult, str | None]:
@@ -245,7 +310,8 @@ def run_scene(scene: Scene, req: Request) -> tuple[SceneResult, str | None]:
     else:
         scene = prepared(scene, plan)
         run = run_planar(scene, plan)
-    return diagnose(scene, plan, run)
+    result, warning = diagnose(scene, plan, run)
+    return keep_samples(result, plan.keep), warning
 
 
 def evaluate(scene: Scene, q=None, v=None, t: float = 0.0, formulation: str = "reduced",

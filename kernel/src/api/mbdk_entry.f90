@@ -97,9 +97,10 @@ contains
   !> mech integrated from (t0, y) to t_end on the route of (opt%method, dae_form); the samples
   !> in t_out, y_out, and where the integrator has its own, a_out, lam_out and iters_out (the
   !> index-3 family: all three; a DAE: lam_out, NaN past the samples written). atol: the ODE
-  !> methods' per-state absolute tolerances, where given.
+  !> methods' per-state absolute tolerances, where given; times: the ODE methods' sample times
+  !> (mbdk_solve_ode), where given (size 0: opt's grid; the other routes take none).
   subroutine mbdk_entry_integrate(mech, opt, i3, dae_form, t0, t_end, y, t_out, y_out, a_out, &
-                                  lam_out, iters_out, nwritten, st, stat, atol)
+                                  lam_out, iters_out, nwritten, st, stat, atol, times)
     class(mbdk_mechanism_t), intent(in), target :: mech
     type(mbdk_options_t), intent(in) :: opt
     type(mbdk_index3_options_t), intent(in) :: i3
@@ -112,10 +113,15 @@ contains
     integer, intent(out) :: nwritten
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
-    real(dp), intent(in), optional :: atol(:)
+    real(dp), intent(in), optional :: atol(:), times(:)
+    integer :: route
     nwritten = 0
     stat = MBDK_ERR_INVALID_INPUT
-    select case (mbdk_entry_route(opt%method, dae_form))
+    route = mbdk_entry_route(opt%method, dae_form)
+    if (present(times)) then
+      if (size(times) > 0 .and. route /= MBDK_ROUTE_ODE) return
+    end if
+    select case (route)
     case (MBDK_ROUTE_INDEX3)
       ! trapezoidal_index3 is the family's member with its own parameters (newmark, hht and
       ! generalized_alpha carry theirs: mbdk_index3_options)
@@ -129,7 +135,8 @@ contains
       if (nwritten < size(lam_out, 2)) &
         lam_out(:, nwritten + 1:) = ieee_value(0.0_dp, ieee_quiet_nan)
     case (MBDK_ROUTE_ODE)
-      call mbdk_solve_ode(mech, opt, t0, t_end, y, t_out, y_out, nwritten, st, stat, atol)
+      call mbdk_solve_ode(mech, opt, t0, t_end, y, t_out, y_out, nwritten, st, stat, atol, &
+                          times)
     end select
   end subroutine mbdk_entry_integrate
 

@@ -272,21 +272,23 @@ end subroutine build_info
 ! Scenes (kernel/src/model): the tables of mbdk_joints and mbdk_force_elements, built by
 ! python/mbdk/model.py. nj and nf may be 0; the tables then have one unused column.
 
-subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, mobuf, &
-                     method_id, dae_form, noptw, optbuf, ni3w, i3buf, interrupt, n, y0, given, assemble, &
-                     t0, t_end, want, nsamp, nc, m1, na, nl, ni, nr, ne, nrs, t_out, y_out, &
-                     a_out, lam_out, iters_out, reac, energy, resid, nwritten, nstatw, statbuf, &
-                     nvis, visits, linear_solve, asm_iters, asm_resid, asm_velocity, bad_joint, &
-                     bad_force, nwrw, wrbuf, invariants, ninv, status)
+subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, nmow, &
+                     mobuf, method_id, dae_form, noptw, optbuf, ni3w, i3buf, ntimes, times, &
+                     interrupt, n, y0, given, assemble, t0, t_end, want, nsamp, nc, m1, na, nl, &
+                     ni, nr, ne, nrs, t_out, y_out, a_out, lam_out, iters_out, reac, energy, &
+                     resid, nwritten, nstatw, statbuf, nvis, visits, linear_solve, asm_iters, &
+                     asm_resid, asm_velocity, bad_joint, bad_force, nwrw, wrbuf, invariants, &
+                     ninv, status)
   ! The one entry that runs a planar scene. The model is built and its initial state assembled
   ! (mbdk_entry_planar_start: the coordinates whose given(:) is 0 move; asm_iters corrections;
   ! on failure, MBDK_ERR_INCONSISTENT_INITIAL, asm_resid holds the residual rows, of the
   ! velocities when asm_velocity /= 0; bad_joint, bad_force: the element a pose default failed
   ! on), the method integrates it on the route of (method_id, dae_form) (mbdk_entry) from the
-  ! assembled state (the first sample), and the outputs want asks for (MBDK_OUT_* bits) are
-  ! computed at the samples (mbdk_entry_planar_outputs; energy(9, :): kinetic, gravity and
-  ! spring energy, the powers of dampers, constraints and loads, and their work). An output
-  ! array not asked for may have one column. visits: the model's visit counters over the call;
+  ! assembled state (the first sample; times: an ODE method's sample times, none: opt's grid),
+  ! and the outputs want asks for (MBDK_OUT_* bits) are computed at the samples
+  ! (mbdk_entry_planar_outputs; energy(9, :): kinetic, gravity and spring energy, the powers of
+  ! dampers, constraints and loads, and their work). An output array not asked for may have
+  ! one column. visits: the model's visit counters over the call;
   ! linear_solve: the path of the model's solves (MBDK_SOLVE_*); wrbuf: a drift failure's
   ! report (mbdk_watch_report_t); invariants(:, 1:ninv): the components of the momentum and
   ! angular momentum the scene conserves (mbdk_watch), which a momentum failure's row counts.
@@ -305,13 +307,13 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
   implicit none
-  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nmow, method_id, dae_form, noptw, ni3w, n, want, ntimes
   integer, intent(in) :: nsamp
   integer, intent(in) :: nc, m1, na, nl, ni, nr, ne, nrs, nstatw, nvis, nwrw
   double precision, intent(in) :: mass(nb), inertia(nb), jreal(12, nj1), freal(12, nf1)
   integer, intent(in) :: bkind(nb)
   integer, intent(in) :: jint(4, nj1), fint(4, nf1)
-  double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w)
+  double precision, intent(in) :: mobuf(nmow), optbuf(noptw), i3buf(ni3w), times(ntimes)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(in) :: y0(n), t0, t_end
   integer, intent(in) :: given(n), assemble
@@ -331,6 +333,7 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
 !f2py integer intent(hide), depend(mobuf) :: nmow = len(mobuf)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(a_out) :: nc = shape(a_out, 0)
 !f2py integer intent(hide), depend(a_out) :: na = shape(a_out, 1)
@@ -403,14 +406,12 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   m = model%m
   status = MBDK_ERR_OUTPUT_SIZE
   if (.not. mbdk_entry_planar_sizes_ok(route, want, nsamp, na, nl, ni, nr, ne, nrs)) return
-
-  ! the index-3 family writes its a, lam and iterations at every sample, a DAE its lam, an ODE
-  ! method none of them
+  ! the index-3 family writes its a, lam and iterations at every sample, a DAE its lam
   ka = merge(nsamp, min(na, 1), index3)
   ki = merge(nsamp, min(ni, 1), index3)
   call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, ys, t_out, y_out, a_out(:, 1:ka), &
                             lam_out(1:m, 1:merge(nsamp, nl, index3)), iters_out(1:ki), nwritten, &
-                            st, status)
+                            st, status, times=times)
   if (want /= 0 .and. nwritten > 0) &
     call mbdk_entry_planar_outputs(model, work, t_out, y_out, nwritten, want, index3, &
                                    route == MBDK_ROUTE_DAE, nj, a_out, lam_out, reac, energy, &
@@ -420,7 +421,6 @@ subroutine scene_run(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fi
   statbuf = transfer(st, statbuf, nstatw)
   visits = dble(work%visits)
   wrbuf = transfer(mbdk_watch_report_of(work%watch), wrbuf, nwrw)
-
 end subroutine scene_run
 
 subroutine tables_resolve(nb, nj, nj1, jint, jreal, nf, nf1, fint, freal, nc, q, bad_joint, &
@@ -856,7 +856,8 @@ end subroutine quaternion_omega
 
 subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, fbody, &
                        freal, nsow, sobuf, method_id, dae_form, noptw, optbuf, ni3w, i3buf, &
-                       interrupt, natol, atol, n, y0, assemble, t0, t_end, nsamp, m1, t_out, &
+                       ntimes, times, interrupt, natol, atol, n, y0, assemble, t0, t_end, nsamp, &
+                       m1, t_out, &
                        y_out, out, lam_out, nwritten, nstatw, statbuf, nwrw, wrbuf, moved, &
                        invariants, ninv, status)
   ! A spatial scene (mbdk_spatial_model, its options sobuf: mbdk_spatial_options_t) run by
@@ -885,11 +886,11 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nsow, noptw, natol, n, assemble, nsamp, m1, nstatw
-  integer, intent(in) :: method_id, dae_form, ni3w, nwrw
+  integer, intent(in) :: method_id, dae_form, ni3w, nwrw, ntimes
   double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
   integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
   double precision, intent(in) :: sobuf(nsow), optbuf(noptw), atol(natol), y0(n), t0, t_end, &
-    i3buf(ni3w)
+    i3buf(ni3w), times(ntimes)
   integer, intent(in), target :: interrupt(4)
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(8, nsamp), &
     lam_out(m1, nsamp), moved, invariants(7, 6)
@@ -902,6 +903,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
 !f2py integer intent(hide), depend(sobuf) :: nsow = len(sobuf)
 !f2py integer intent(hide), depend(optbuf) :: noptw = len(optbuf)
 !f2py integer intent(hide), depend(i3buf) :: ni3w = len(i3buf)
+!f2py integer intent(hide), depend(times) :: ntimes = len(times)
 !f2py integer intent(hide), depend(atol) :: natol = len(atol)
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
@@ -967,7 +969,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! the index-3 solve's statistics replace st: what was asked here is added back
   before = st%alloc_bytes
   call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, y, t_out, y_out, a_out, &
-                            lam_out(1:model%m, :), iters, nwritten, st, status, atol)
+                            lam_out(1:model%m, :), iters, nwritten, st, status, atol, times)
   if (route == MBDK_ROUTE_INDEX3) st%alloc_bytes = st%alloc_bytes + before
   s = status
   ! the drivers' power with the integrator's own multipliers, but the book scheme's (the index3
