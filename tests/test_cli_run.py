@@ -348,12 +348,19 @@ def test_wear_reaches_the_file_the_summary_the_plot_and_the_sweep(tmp_path):
     for suffix in (".npz", ".csv"):
         back = load_result(save_result(r, tmp_path / f"w{suffix}"))
         assert list(back.wear) == ["pad"] and np.array_equal(back.wear["pad"], r.wear["pad"])
+        assert np.array_equal(back.contacts["floor"]["normal_force"],
+                              r.contacts["floor"]["normal_force"])
         assert np.array_equal(back.a, r.a) and np.array_equal(back.energy, r.energy)
     out = tmp_path / "run.npz"
     p = mbdk_cli("run", scene, "--method", "rk4", "--h", "1e-4", "--t-end", "0.3", "--every",
                  "100", "--out", out)
     assert p.returncode == 0, p.stderr
     assert f"wear 'pad': {r.wear['pad'][-1]:.6g} m^3 worn by t = 0.3 s" in p.stdout
+    assert "contact 'floor': largest penetration" in p.stdout
+    floor = load_result(out).contacts["floor"]
+    for field, values in r.contacts["floor"].items():
+        assert np.array_equal(floor[field], values), field
+    assert floor["friction_force"].max() > 0          # the pad slides: Coulomb friction
     assert np.array_equal(load_result(out).wear["pad"], r.wear["pad"])
     assert mbdk_cli("plot", out).returncode == 0
     assert out.with_suffix(".png").read_bytes()[:4] == b"\x89PNG"

@@ -520,3 +520,24 @@ def test_gears_that_do_not_mesh_are_named(change, field):
         M.build_tables(scene_from_dict(d, "bad.toml"))
     msg = str(exc.value)
     assert "bad.toml" in msg and field in msg and "mesh" in msg, msg
+
+
+def test_contact_outputs_of_a_dropped_ball_in_closed_form():
+    """SceneResult.contacts: a ball dropped 1 m onto a linear floor (k = 1e6, no damping):
+    normal force = k delta at every sample; the deepest penetration is the root of
+    k delta^2 / 2 = m g (1 + delta) (energy, closed form), to the sampling's 1e-5 s; no
+    friction element, no friction force; the energy with the contact's potential k delta^2 / 2
+    is conserved but for the step that straddles the contact's start (a kink of the force that
+    a fixed step does not locate): 2e-6 of E here."""
+    m, k = 1.0, 1e6
+    sc = ball(k=k, v0=0.0, r=0.1, m=m, gravity=True)
+    sc.bodies[0].y = 1.1
+    r = mbdk.simulate(sc, "rk4", h=1e-5, t_end=0.5, every=1, outputs=("energy",))
+    c = r.contacts["floor"]
+    delta = np.maximum(c["penetration"], 0.0)
+    assert np.allclose(c["normal_force"], k * delta, rtol=1e-12, atol=1e-9)
+    exact = (m * G + math.sqrt((m * G) ** 2 + 2 * k * m * G * 1.0)) / k
+    assert c["penetration"].max() == pytest.approx(exact, rel=1e-4)
+    assert np.all(c["friction_force"] == 0.0)
+    e = 0.5 * m * r.v[:, 1] ** 2 + m * G * r.q[:, 1] + 0.5 * k * delta ** 2
+    assert np.abs(e - e[0]).max() < 1e-5 * abs(e[0])

@@ -303,6 +303,10 @@ def _run(args) -> None:
                   f"{work:.6g} J at the end)")
         except MbdkErrorBase:
             pass
+    for name, c in r.contacts.items():
+        print(f"contact {name!r}: largest penetration {np.nanmax(c['penetration']):.3g} m, "
+              f"normal force {np.nanmax(c['normal_force']):.6g} N, friction force "
+              f"{np.nanmax(c['friction_force']):.6g} N (over the samples)")
     for name, w in r.wear.items():
         print(f"wear {name!r}: {w[-1]:.6g} m^3 worn by t = {r.t[-1]:g} s")
     save_result(r, out)

@@ -106,6 +106,9 @@ class ODEResult(Result):
         return info.energy(self.y, self.params)
 
 
+#: what SceneResult.contacts holds per contact, in the kernel's order (mbdk_contact_states)
+CONTACT_FIELDS = ("penetration", "penetration_rate", "normal_force", "friction_force")
+
 #: what the three columns of SceneResult.residuals hold, by the scene's body kind
 RESIDUAL_NAMES = {"planar": ("position", "velocity", "acceleration"),
                   "spatial": ("position", "velocity", "quaternion_norm")}
@@ -157,6 +160,9 @@ class SceneResult(Result):
     #: simulate's events: per event function, the times of its zeros and the states there
     t_events: list | None = None
     y_events: list | None = None
+    #: each contact's penetration, its rate, normal force and friction force per sample, by the
+    #: contact's name (planar scenes with contacts: CONTACT_FIELDS)
+    contacts: dict = field(default_factory=dict)
 
     @property
     def y(self) -> np.ndarray:
@@ -273,6 +279,7 @@ def keep_samples(result: SceneResult, keep) -> SceneResult:
     if result.energy_parts:
         result.energy_parts = {n: v[k] for n, v in result.energy_parts.items()}
     result.wear = {n: v[k] for n, v in result.wear.items()}
+    result.contacts = {n: {f: v[k] for f, v in c.items()} for n, c in result.contacts.items()}
     if result.rotations is not None:
         result.rotations = [r for r, kept in zip(result.rotations, k) if kept]
     return result

@@ -14,7 +14,8 @@ velocity and the body-frame angular velocity) with their column names; where the
 them, the accelerations, the multipliers, the joints' reactions, the energy and its parts, the
 work W of dampers, loads and drivers as the run integrated it at every step (not a quadrature
 over the samples), the energy balance E - E0 - W, the residuals (residual_names says which),
-the wear elements' volumes and the Newton iterations per sample; the status, the statistics,
+the wear elements' volumes, each contact's penetration, its rate, normal and friction force,
+and the Newton iterations per sample; the status, the statistics,
 the names of bodies, joints and wear elements, and the manifest (version, method,
 formulation, step or tolerances, compiler flags). load_result gives back the SceneResult. A file is written under a temporary name beside the target and renamed
 when complete, so a failed or interrupted write leaves no partial file with the target's name.
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InvalidInputError, Status, status_message
-from .result import SceneResult, Stats
+from .result import CONTACT_FIELDS, SceneResult, Stats
 
 FORMATS = {".npz": "npz", ".csv": "csv", ".h5": "h5", ".hdf5": "h5"}
 #: the CSV columns of SceneResult.residuals, by SceneResult.residual_names
@@ -88,10 +89,12 @@ def result_arrays(r) -> dict:
     if r.energy is not None and "work" in parts:
         balance = r.energy_balance()
     wear_names = list(r.wear)
+    contact_names = list(r.contacts)
     meta = {"status": r.status.name, "message": r.message, "kind": r.kind,
             "rotation": r.rotation, "rotations": r.rotations, "bodies": list(r.bodies),
             "joints": list(r.joints), "q_names": r.q_names, "velocity_names": r.v_names,
-            "wear_names": wear_names, "energy_part_names": list(parts),
+            "wear_names": wear_names, "contact_names": contact_names,
+            "energy_part_names": list(parts),
             "residual_names": [_RESIDUAL_COLUMNS[n] for n in r.residual_names],
             "stats": asdict(r.stats), "drift": r.drift, "assembly": r.assembly,
             "visits": r.visits}
@@ -101,7 +104,11 @@ def result_arrays(r) -> dict:
               "energy_balance": balance, "residuals": _array(r.residuals),
               "iterations": _array(r.iterations),
               "wear": (np.column_stack([np.asarray(r.wear[k]) for k in wear_names])
-                       if wear_names else None)}
+                       if wear_names else None),
+              # CONTACT_FIELDS' four columns per contact, in the contacts' order
+              "contacts": (np.column_stack([np.asarray(r.contacts[k][f]) for k in contact_names
+                                            for f in CONTACT_FIELDS])
+                           if contact_names else None)}
     for k, v in parts.items():
         arrays[f"energy_{k}"] = np.asarray(v)
     arrays["work"] = arrays.get("energy_work")
@@ -136,7 +143,9 @@ def _csv_columns(arrays: dict, meta: dict) -> tuple[list, list]:
     blocks += [arrays["q"], arrays["velocities"]]
     named = {"accelerations": [f"a:{n}" for n in meta["velocity_names"]],
              "residuals": meta["residual_names"],
-             "wear": [f"wear:{n}" for n in meta["wear_names"]]}
+             "wear": [f"wear:{n}" for n in meta["wear_names"]],
+             "contacts": [f"contact:{n}.{f}" for n in meta["contact_names"]
+                          for f in CONTACT_FIELDS]}
     for name, a in arrays.items():
         if name in ("t", "q", "velocities") or a.size == 0 and a.ndim > 1:
             continue
@@ -228,6 +237,8 @@ def _read_csv(path: Path) -> tuple[dict, dict]:
             groups.setdefault("reactions", []).append(data[:, k])
         elif c.startswith("wear:"):
             groups.setdefault("wear", []).append(data[:, k])
+        elif c.startswith("contact:"):
+            groups.setdefault("contacts", []).append(data[:, k])
         elif c.startswith("lambda"):
             groups.setdefault("multipliers", []).append(data[:, k])
         elif c in _RESIDUAL_COLUMNS.values():
@@ -304,6 +315,10 @@ def _result(path, arrays: dict, header: dict, meta: dict, manifest: dict,
     wear_names = meta.get("wear_names", [])
     wear = ({n: arrays["wear"][:, k] for k, n in enumerate(wear_names)}
             if "wear" in arrays else {})
+    names = meta.get("contact_names", [])
+    nf = len(CONTACT_FIELDS)
+    contacts = ({n: {f: arrays["contacts"][:, nf * k + i] for i, f in enumerate(CONTACT_FIELDS)}
+                 for k, n in enumerate(names)} if "contacts" in arrays else {})
     stats = Stats(**{k: v for k, v in meta.get("stats", {}).items()
                      if k in Stats.__dataclass_fields__})
     return SceneResult(
@@ -314,7 +329,7 @@ def _result(path, arrays: dict, header: dict, meta: dict, manifest: dict,
         message=meta.get("message") or status_message(Status[status]), manifest=manifest,
         visits=meta.get("visits") or {}, assembly=meta.get("assembly") or {},
         joints=meta.get("joints") or [], bodies=bodies, iterations=arrays.get("iterations"),
-        drift=meta.get("drift"), wear=wear,
+        drift=meta.get("drift"), wear=wear, contacts=contacts,
         kind=meta.get("kind") or ("spatial" if spatial else "planar"),
         rotation=meta.get("rotation") or (("quaternion" if any(n.endswith(".p0")
                                                                for n in q_names)
@@ -352,7 +367,7 @@ def _check_layout(path, arrays: dict, header: dict, manifest) -> None:
         if not np.issubdtype(a.dtype, np.number):
             raise bad(f"{k!r} holds {a.dtype}, not numbers")
     ndims = {"accelerations": 2, "multipliers": 2, "reactions": 3, "residuals": 2, "wear": 2,
-             "iterations": 1}
+             "contacts": 2, "iterations": 1}
     for k, a in arrays.items():
         if k in ("t", "q", "velocities"):
             continue
@@ -380,7 +395,8 @@ def plot_result(path, out=None) -> Path:
     import matplotlib.pyplot as plt  # after use("Agg"): plots without a screen
     balance = (r.energy_balance() if r.energy is not None and r.energy_parts
                and "work" in r.energy_parts else None)
-    panels = 1 + (balance is not None) + (r.residuals is not None) + bool(r.wear)
+    panels = 1 + (balance is not None) + (r.residuals is not None) + bool(r.wear) + \
+        bool(r.contacts)
     fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels + 0.6), sharex=True,
                              squeeze=False)
     axes = axes[:, 0]
@@ -406,6 +422,14 @@ def plot_result(path, out=None) -> Path:
                 axes[i].semilogy(t, np.where(res[:, k] > 0, res[:, k], np.nan), label=name,
                                  lw=1)
         axes[i].set_ylabel("residuals")
+        axes[i].legend(fontsize=7)
+        i += 1
+    if r.contacts:
+        for name, c in r.contacts.items():
+            axes[i].plot(t, c["normal_force"], label=f"{name} normal", lw=1)
+            if np.any(c["friction_force"]):
+                axes[i].plot(t, c["friction_force"], label=f"{name} friction", lw=1, ls="--")
+        axes[i].set_ylabel("contact forces [N]")
         axes[i].legend(fontsize=7)
         i += 1
     if r.wear:

@@ -18,7 +18,7 @@ from .model import (assemble, assembly_error, assembly_report, build_tables, giv
 from .ode import build_info
 from .options import empty, unpack
 from .plan import RunPlan
-from .result import KernelRun, SceneResult, Stats
+from .result import CONTACT_FIELDS, KernelRun, SceneResult, Stats
 from .scene import Scene, SceneError
 from .watch import invariant_names
 
@@ -137,8 +137,25 @@ def run_planar(scene: Scene, plan: RunPlan) -> KernelRun:
             "power": pl + pc - pd, "work": wl + wc - wd,
             "power_dampers": pd, "power_constraints": pc, "power_loads": pl,
             "dissipated_dampers": wd, "work_constraints": wc, "work_loads": wl}
+    result.contacts = contact_outputs(scene, y, nw)
     return KernelRun(result, bool(interrupted), unpack("mbdk_watch_report", watch_words), inv, y0,
                      tab)
+
+
+def contact_outputs(scene: Scene, y: np.ndarray, nw: int) -> dict:
+    """Each contact's penetration, its rate, normal force and friction force at the run's nw
+    samples (y: the kernel's (states, samples) array), by name, from the kernel
+    (contact_states); the tables' pose values taken at the first sample, as the run's."""
+    names = [f.name for f in scene.forces if f.type == "contact"]
+    if not names or nw == 0:
+        return {}
+    nc = 3 * len(scene.bodies)
+    tab = build_tables(scene, y[:nc, 0])
+    out, status = _kernel.contact_states(tab.nf, tab.fint, tab.freal, nc, y[:, :nw], len(names))
+    if status != Status.SUCCESS:
+        return {}
+    return {n: {f: out[i, k, :] for i, f in enumerate(CONTACT_FIELDS)}
+            for k, n in enumerate(names)}
 
 
 def _check_start(scene, plan, tab, status, nw, bad_joint, bad_force, asm_resid, asm_velocity):

@@ -588,6 +588,42 @@ subroutine model_eval(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, f
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
 
+subroutine contact_states(nj1, nf, nf1, fint, freal, nc, nsamp, y, nct, out, status)
+  ! Each contact's penetration, its rate, normal force and friction force at the samples y(:,
+  ! k) = [q; v; ...] of a planar run (mbdk_contact_states; fint, freal: the scene's force table
+  ! as the run's model took it, pose values resolved): out(4, nct, nsamp), nct contacts in table
+  ! order. NaN where a sample has none (a penetrating contact without a normal).
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use mbdk_contact, only: mbdk_contact_states
+  use mbdk_elements, only: MBDK_FORCE_CONTACT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NONFINITE
+  implicit none
+  integer, intent(in) :: nj1, nf, nf1, nc, nsamp, nct
+  integer, intent(in) :: fint(4, nf1)
+  double precision, intent(in) :: freal(12, nf1), y(nj1, nsamp)
+  double precision, intent(out) :: out(4, nct, nsamp)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
+!f2py integer intent(hide), depend(y) :: nj1 = shape(y, 0)
+!f2py integer intent(hide), depend(y) :: nsamp = shape(y, 1)
+  integer :: k, s
+  out = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nf < 0 .or. nf > nf1 .or. nc < 3 .or. 2 * nc > nj1 .or. nct < 0) return
+  if (count(fint(1, 1:nf) == MBDK_FORCE_CONTACT) /= nct) return
+  status = MBDK_SUCCESS
+  do k = 1, nsamp
+    call mbdk_contact_states(fint(:, 1:nf), freal(:, 1:nf), y(1:nc, k), y(nc + 1:2 * nc, k), &
+                             out(:, :, k), s)
+    if (s == MBDK_ERR_NONFINITE) then
+      out(:, :, k) = ieee_value(0.0d0, ieee_quiet_nan)
+    else if (s /= MBDK_SUCCESS) then
+      status = s
+      return
+    end if
+  end do
+end subroutine contact_states
+
 subroutine model_profile(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, fint, freal, &
                          nmow, mobuf, nc, t, y, nrep, seconds, status)
   ! Where an evaluation's time goes: seconds(1) = nrep evaluations of the assembly alone

@@ -67,12 +67,14 @@
 module mbdk_contact
   use mbdk_kinds, only: dp, i8
   use mbdk_joints, only: mbdk_body_point
-  use mbdk_elements, only: FRICTION => MBDK_FORCE_FRICTION
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE, MBDK_ERR_CONTACT_OVERRUN
+  use mbdk_elements, only: FRICTION => MBDK_FORCE_FRICTION, MBDK_FORCE_CONTACT
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NONFINITE, MBDK_ERR_CONTACT_OVERRUN, &
+    MBDK_ERR_NO_MEMORY
   use mbdk_contact_law, only: mbdk_step3, mbdk_contact_normal, mbdk_contact_potential, &
     mbdk_friction_mu
   implicit none
   private
+  public :: mbdk_contact_states
   public :: mbdk_contact_t, mbdk_contact_eval, mbdk_contact_apply, mbdk_contact_forces, &
     mbdk_contact_forces_all
 
@@ -344,5 +346,56 @@ contains
       if (stat /= MBDK_SUCCESS) return
     end do
   end subroutine mbdk_contact_forces_all
+
+  !> What each contact of a force table carries at one state, for the outputs:
+  !> out(:, k) of the table's k-th contact entry (in table order) = (penetration delta, its rate,
+  !> the normal force, the friction force of the friction elements on it), the forces summed
+  !> over a gear mesh's pairs in contact, each |mu(slip)| w F. Entries of other kinds are
+  !> skipped. stat: MBDK_ERR_NONFINITE where a penetrating contact has no normal.
+  subroutine mbdk_contact_states(fint, freal, q, v, out, stat)
+    integer, intent(in) :: fint(:, :)
+    real(dp), intent(in) :: freal(:, :), q(:), v(:)
+    real(dp), intent(out) :: out(:, :)
+    integer, intent(out) :: stat
+    real(dp), allocatable :: rot(:, :)
+    integer, allocatable :: slot(:)
+    type(mbdk_contact_t) :: ct
+    logical :: ok
+    integer :: e, b, k, c, n
+    out = 0.0_dp
+    stat = MBDK_ERR_NO_MEMORY
+    allocate (rot(2, size(q) / 3), slot(size(fint, 2)), stat=k)
+    if (k /= 0) return
+    do b = 1, size(rot, 2)
+      rot(:, b) = [cos(q(3 * b)), sin(q(3 * b))]
+    end do
+    stat = MBDK_SUCCESS
+    n = 0
+    slot = 0
+    do e = 1, size(fint, 2)
+      if (fint(1, e) /= MBDK_FORCE_CONTACT) cycle
+      n = n + 1
+      slot(e) = n
+      call mbdk_contact_eval(fint(:, e), freal(:, e), rot, q, v, ct, ok)
+      if (.not. ok) then
+        stat = MBDK_ERR_NONFINITE
+        return
+      end if
+      out(1:2, n) = [ct%delta, ct%rate]
+      out(3, n) = ct%force * sum(ct%weight(1:ct%npair))
+    end do
+    do e = 1, size(fint, 2)
+      if (fint(1, e) /= FRICTION) cycle
+      c = fint(4, e)
+      if (c < 1 .or. c > size(fint, 2)) cycle
+      if (slot(c) == 0) cycle
+      call mbdk_contact_eval(fint(:, c), freal(:, c), rot, q, v, ct, ok)
+      if (.not. ok) cycle
+      do k = 1, ct%npair
+        out(4, slot(c)) = out(4, slot(c)) + &
+          abs(mbdk_friction_mu(ct%slip(k), freal(:, e))) * ct%weight(k) * ct%force
+      end do
+    end do
+  end subroutine mbdk_contact_states
 
 end module mbdk_contact
