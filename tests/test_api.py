@@ -75,3 +75,27 @@ def test_newton_statistics_are_counted():
     fd = mbdk.solve_ode("damped_oscillator", "implicit_euler", h=0.01, t_end=1.0,
                         fd_jacobian=True)
     assert np.allclose(fd.y, r.y, rtol=1e-7) and fd.stats.nfev > s.nfev
+
+
+def test_a_short_error_controlled_solve_stays_in_the_calling_thread(monkeypatch):
+    """An error-controlled solve is tried in the calling thread within a short budget of steps
+    (its steps are not known before), so a tiny dopri54 solve costs no hand-off to the worker
+    thread; one that needs more steps than the budget runs again, whole, in the worker, with
+    the bits a solve in this thread gives (a solve is deterministic)."""
+    from mbdk import _compiled
+    calls = []
+    real = _compiled.call
+
+    def spy(*a, **kw):
+        calls.append(a[0])
+        return real(*a, **kw)
+    monkeypatch.setattr(_compiled, "call", spy)
+    r = mbdk.solve_ode("decay", "dopri54", t_end=1.0, rtol=1e-6, atol=1e-8)
+    assert r.success and not calls
+    monkeypatch.setattr(_compiled, "LONG_WORK", 200)     # a budget of 200 state-steps
+    long = mbdk.ODESolver("double_pendulum", "dopri54", t_end=2.0, rtol=1e-9, atol=1e-11)
+    a = long.solve()
+    assert calls and a.stats.steps > 200 // 4 and a.success
+    monkeypatch.setattr(_compiled, "LONG_WORK", 10**9)   # the whole solve in this thread
+    b = mbdk.ODESolver("double_pendulum", "dopri54", t_end=2.0, rtol=1e-9, atol=1e-11).solve()
+    assert np.array_equal(a.y, b.y) and a.stats.steps == b.stats.steps

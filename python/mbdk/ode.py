@@ -316,6 +316,16 @@ class ODESolver:
         self._n, self._nsteps, self._raise = len(y0), nsteps, raise_on_failure
         self._bytes = sample_bytes(nsamp, len(y0), method)
         self._work = nsteps * len(y0)
+        # an error-controlled solve's steps are not known before it runs: it is tried in this
+        # thread within a budget of steps whose work is short (LONG_WORK), and only a solve that
+        # needs more is run again, whole, in the worker thread (the same bits: a solve is
+        # deterministic); a tiny solve then costs no thread hand-off. A budget the caller set
+        # that is smaller needs no probe.
+        self._probe = None
+        if math.isinf(nsteps):
+            budget = max(1, _compiled.LONG_WORK // len(y0))
+            if not opt.max_steps or opt.max_steps > budget:
+                self._probe = replace(opt, max_steps=budget).pack()
         self._y0_list = y0.tolist()
         self._manifest = {
             **build_info(), "problem": problem, "method": method, "t0": t0, "t_end": t_end,
@@ -334,7 +344,17 @@ class ODESolver:
         args = (self._id, y0, self.t0, self.t_end, self._pvec, self._opt, flag, self._atol,
                 self._times, self._nsamp, stats)
         try:
-            if self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
+            done = False
+            if self._probe is not None:
+                probe = (*args[:5], self._probe, *args[6:])
+                (t, y, nw, status), interrupted = _kernel.solve_problem(*probe), False
+                done = status != Status.ERR_TOO_MANY_STEPS
+                if not done:
+                    stats = np.zeros(_STATS_WORDS)
+                    args = (*args[:-1], stats)
+            if done:
+                pass
+            elif self._work < _compiled.LONG_WORK:      # short: in this thread (as call() would)
                 (t, y, nw, status), interrupted = _kernel.solve_problem(*args), False
             else:
                 (t, y, nw, status), interrupted = _compiled.call(
