@@ -633,3 +633,20 @@ def test_switching_angle_sets_carries_the_wear():
     assert angles.manifest["switches"]
     assert angles.t.shape == quat.t.shape and np.abs(angles.t - quat.t).max() < 1e-12
     assert np.abs(angles.wear["w"] - quat.wear["w"]).max() < 1e-8 * quat.wear["w"][-1]
+
+
+def test_contact_outputs_of_the_sliding_sphere():
+    """SceneResult.contacts on a spatial contact (the sphere sliding to its rolling speed, the
+    test above): the normal force is m g (the sphere rests on the plane at its static
+    penetration) and, while it slides, the friction force is mu m g; once it rolls the friction
+    falls to what keeps it rolling (none on a level plane: below 1e-3 of mu m g at the end)."""
+    v0, mu, rad = 2.0, 0.3, 0.1
+    sc, n, t = tilted(v0, mu, rad)
+    r = mbdk.simulate(sc, "rk4", t_end=0.4, h=1e-4, every=10)
+    (name, c), = r.contacts.items()
+    m = sc.bodies[0].mass
+    assert np.allclose(c["normal_force"], m * G, rtol=1e-6)
+    sliding = r.t < (v0 - 2e-3) / (3.5 * mu * G) - 2e-3
+    assert np.allclose(c["friction_force"][sliding][1:], mu * m * G, rtol=1e-6)
+    assert c["friction_force"][-1] < 1e-3 * mu * m * G
+    assert np.all(c["penetration"] > 0)

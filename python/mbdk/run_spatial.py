@@ -12,7 +12,7 @@ from .errors import Status, status_message
 from .ode import build_info
 from .options import empty, unpack
 from .plan import SPATIAL_IDA_FORMS, RunPlan
-from .result import KernelRun, SceneResult, Stats
+from .result import CONTACT_FIELDS, KernelRun, SceneResult, Stats
 from .run_planar import SCENE_SAMPLE_ADVICE
 from .scene import Scene
 from .spatial_model import spatial_tables, wear0
@@ -79,8 +79,26 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
         assembly={"moved": float(moved)}, wear={w.name: ys[:, nv + k] for k, w in
                                                enumerate(scene.wear)},
         kind="spatial", rotation=scene.rotation)
+    result.contacts = _contacts(scene, plan, y0, y[:, :nw], float(req.t0))
     return KernelRun(result, bool(interrupted), unpack("mbdk_watch_report", watch_words), inv,
                      y0)
+
+
+def _contacts(scene: Scene, plan: RunPlan, y0, y, t0: float) -> dict:
+    """Each contact's penetration, its rate, normal force and friction force at the samples
+    (y: states x samples), by name, from the kernel (spatial_contact_states, the model built
+    as the run's)."""
+    names = [f.name for f in scene.forces if f.type in ("sphere_plane", "sphere_sphere")]
+    if not names or not y.shape[1]:
+        return {}
+    _nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(scene)
+    out, status = _kernel.spatial_contact_states(
+        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
+        plan.spatial_options.pack(), y0, t0, np.asfortranarray(y), len(names))
+    if status != Status.SUCCESS:
+        return {}
+    return {n: {f: out[i, k, :] for i, f in enumerate(CONTACT_FIELDS)}
+            for k, n in enumerate(names)}
 
 
 def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:

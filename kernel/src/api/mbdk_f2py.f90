@@ -1021,6 +1021,48 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   wrbuf = transfer(mbdk_watch_report_of(work%watch), wrbuf, nwrw)
 end subroutine spatial_run
 
+subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, &
+                                  ftype, fbody, freal, nsow, sobuf, n, y0, t0, nsamp, y, nct, &
+                                  out, status)
+  ! Each contact's penetration, its rate, normal force and friction force at the samples y(:,
+  ! k) of a spatial run (mbdk_spatial_contact_states), the model built as the run's (its options
+  ! sobuf, y0 its initial state at t0): out(4, nct, nsamp), nct contacts in table order.
+  use, intrinsic :: iso_c_binding, only: c_sizeof
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_spatial_model
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, nsow, n, nsamp, nct
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
+  integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
+  double precision, intent(in) :: sobuf(nsow), y0(n), t0, y(n, nsamp)
+  double precision, intent(out) :: out(4, nct, nsamp)
+  integer, intent(out) :: status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
+!f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
+!f2py integer intent(hide), depend(sobuf) :: nsow = len(sobuf)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+!f2py integer intent(hide), depend(y) :: nsamp = shape(y, 1)
+  type(mbdk_spatial_model_t) :: model
+  type(mbdk_spatial_work_t), target :: work
+  type(mbdk_spatial_options_t) :: so
+  integer :: k
+  out = 0.0d0
+  status = MBDK_ERR_INVALID_INPUT
+  if (8 * nsow /= c_sizeof(so) .or. nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  so = transfer(sobuf, so)
+  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
+                         y0, status)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (model%ncontacts /= nct) return
+  do k = 1, nsamp
+    call mbdk_spatial_contact_states(model, y(:, k), out(:, :, k), status)
+    if (status /= MBDK_SUCCESS) return
+  end do
+end subroutine spatial_contact_states
+
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &
                              phit, lam, ydot, rank, asked, status)

@@ -95,6 +95,7 @@
 !> energy, the power of dampers, loads and drivers, max |Phi|, max |C w + Phi_t|, max ||p| - 1|.
 module mbdk_spatial_model
   use, intrinsic :: iso_c_binding, only: c_int, c_double
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_kinds, only: dp
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
@@ -125,6 +126,7 @@ module mbdk_spatial_model
     MBDK_WEAR_LOAD_NORMAL, MBDK_WEAR_LOAD_FRICTION
   implicit none
   private
+  public :: mbdk_spatial_contact_states
   public :: mbdk_spatial_init, mbdk_spatial_outputs, mbdk_spatial_assemble, &
     mbdk_spatial_multipliers, mbdk_spatial_constraints, mbdk_spatial_dae_rhs, mbdk_spatial_watch, &
     mbdk_spatial_watch_nodes
@@ -1627,6 +1629,35 @@ contains
       g(e - 1:e) = mbdk_contact3d_events(ct, ok, self%freal(:, k))
     end do
   end subroutine spatial_events
+
+  !> What each contact carries at (t, y), for the outputs: out(:, k) of the k-th contact in
+  !> table order = (penetration delta, its rate, the normal force, the friction force's
+  !> magnitude, |f - (f . n) n| of the contact's force f on body i). stat: the frames' failure
+  !> (a gimbal lock); NaN in a contact's column where a penetrating contact has no normal.
+  subroutine mbdk_spatial_contact_states(model, y, out, stat)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(out) :: out(:, :)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    type(mbdk_contact3d_t) :: ct
+    logical :: ok
+    integer :: k, e
+    out = 0.0_dp
+    call frames(model, y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    e = 0
+    do k = 1, model%nf
+      if (.not. is_contact(model%ftype(k))) cycle
+      e = e + 1
+      call contact_at(model, fr, k, ct, ok)
+      if (.not. ok) then
+        out(:, e) = ieee_value(0.0_dp, ieee_quiet_nan)
+        cycle
+      end if
+      out(:, e) = [ct%delta, ct%rate, ct%force, norm2(ct%f - dot_product(ct%f, ct%n) * ct%n)]
+    end do
+  end subroutine mbdk_spatial_contact_states
 
   ! ---- the problem ---------------------------------------------------------------------------
 
