@@ -588,7 +588,7 @@ subroutine model_eval(nb, mass, inertia, bkind, nj, nj1, jint, jreal, nf, nf1, f
   call mbdk_model_accelerations(model, t, y(1:nc), y(nc + 1:), acc, lam, status)
 end subroutine model_eval
 
-subroutine contact_states(nj1, nf, nf1, fint, freal, nc, nsamp, y, nct, out, status)
+subroutine contact_states(ny, nf, nf1, fint, freal, nc, nsamp, y, nct, out, status)
   ! Each contact's penetration, its rate, normal force and friction force at the samples y(:,
   ! k) = [q; v; ...] of a planar run (mbdk_contact_states; fint, freal: the scene's force table
   ! as the run's model took it, pose values resolved): out(4, nct, nsamp), nct contacts in table
@@ -598,18 +598,18 @@ subroutine contact_states(nj1, nf, nf1, fint, freal, nc, nsamp, y, nct, out, sta
   use mbdk_elements, only: MBDK_FORCE_CONTACT
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NONFINITE
   implicit none
-  integer, intent(in) :: nj1, nf, nf1, nc, nsamp, nct
+  integer, intent(in) :: ny, nf, nf1, nc, nsamp, nct
   integer, intent(in) :: fint(4, nf1)
-  double precision, intent(in) :: freal(12, nf1), y(nj1, nsamp)
+  double precision, intent(in) :: freal(12, nf1), y(ny, nsamp)
   double precision, intent(out) :: out(4, nct, nsamp)
   integer, intent(out) :: status
 !f2py integer intent(hide), depend(fint) :: nf1 = shape(fint, 1)
-!f2py integer intent(hide), depend(y) :: nj1 = shape(y, 0)
+!f2py integer intent(hide), depend(y) :: ny = shape(y, 0)
 !f2py integer intent(hide), depend(y) :: nsamp = shape(y, 1)
   integer :: k, s
   out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
-  if (nf < 0 .or. nf > nf1 .or. nc < 3 .or. 2 * nc > nj1 .or. nct < 0) return
+  if (nf < 0 .or. nf > nf1 .or. nc < 3 .or. 2 * nc > ny .or. nct < 0) return
   if (count(fint(1, 1:nf) == MBDK_FORCE_CONTACT) /= nct) return
   status = MBDK_SUCCESS
   do k = 1, nsamp
