@@ -122,7 +122,8 @@ def test_pendulum_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import pendulum
     summary = pendulum.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 3 and all(p.exists() for p in summary["figures"])
+    assert len(summary["figures"]) == 3 and all(f["path"].exists() and f["caption"]
+                                                for f in summary["figures"])
     drift = [r for r in rows(tmp_path / "pendulum_drift.csv") if r["method"] == "explicit_euler"]
     d = [num(r["max_rel_energy_error_5s"]) for r in drift]
     assert d[-1] < d[0] / 8                     # falls as h falls: no divergence at fixed T
@@ -233,7 +234,9 @@ def test_report_assembles_html(tmp_path, root):
     r = subprocess.run([sys.executable, "-m", "mbdk", "report", "--quick", "--out", str(tmp_path),
                         "--studies", str(root / "studies"), "--only", "ch4_tables"],
                        capture_output=True, text=True, check=True)
-    page = (tmp_path / "index.html").read_text()
+    front = (tmp_path / "index.html").read_text()
+    page = (tmp_path / "ch4_tables.html").read_text()
+    assert "href='ch4_tables.html'" in front and "class='flag'" not in front
     assert "class='flag'" in page and "ch4_convergence.png" in page
     assert (tmp_path / "manifest.json").exists() and "[1/1] ch4_tables" in r.stdout
 
