@@ -610,8 +610,8 @@ CAPTIONS = {
         "that damping costs in accuracy."),
     "spectra_vs_omega": (
         "Every fixed-step method on q'' = -omega^2 q: closed-form spectral radius and period "
-        "error (lines; dashed: methods outside the one-step family) against the measured "
-        "ones (markers), over Omega = omega h. Read: markers on their line confirm the "
+        "error (lines; dashed: the index-3 family) against the kernel's runs (markers), over "
+        "Omega = omega h. Read: markers on their line confirm the "
         "closed form; a radius above 1 marks the step limit; the dotted line is Omega = pi, "
         "beyond which samples alias."),
 }

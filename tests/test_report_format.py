@@ -69,11 +69,12 @@ def test_flagged_rows_are_found_once_and_head_the_findings():
     bad = {"quantity": "y(1)", "verdict": "FLAG"}
     ok = {"quantity": "y(2)", "verdict": "agrees"}
     tables = [{"rows": [bad, ok, {"eq": "(2.93)", "verdict": "book wrong: a sign"}]},
-              {"rows": [dict(bad)]}]
+              {"rows": [dict(bad), {"eq": "(2.93)", "term": 2, "verdict": "WRONG"}]}]
     assert [is_flagged(r) for r in tables[0]["rows"]] == [True, False, True]
-    assert len(flagged_rows(tables)) == 2                 # a table of flags repeats them
+    assert len(flagged_rows(tables)) == 3                 # a table of flags repeats them
     got = findings({"tables": tables, "findings": ["x is y"], "verdict": "all fine"})
-    assert got == ["2 printed values of the book flagged: y(1); (2.93)", "x is y", "all fine"]
+    assert got == ["3 printed values of the book flagged: y(1); (2.93) (x2)", "x is y",
+                   "all fine"]
     assert findings({"tables": [{"rows": [ok]}]}) == []
 
 

@@ -10,6 +10,7 @@ import json
 import numbers
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from ._compiled import print_line, progress_bar
@@ -37,6 +38,8 @@ td.n{text-align:right;white-space:nowrap}img{max-width:100%}figure{margin:1em 0}
 pre.doc{white-space:pre-wrap;background:#fafafa;padding:0.5em;font-size:12px}
 table.front{width:100%;table-layout:fixed}table.front td{white-space:nowrap;overflow:hidden;
 text-overflow:ellipsis}table.front td.n{text-align:right}table.front td.what{color:#777}
+table.front td div{white-space:normal;display:-webkit-box;-webkit-line-clamp:2;
+-webkit-box-orient:vertical;overflow:hidden}
 table.manifest{font-size:11px}p.intro{font-size:13px;margin:0.3em 0}"""
 
 
@@ -100,8 +103,11 @@ def findings(summary: dict) -> list[str]:
     flags = flagged_rows(summary["tables"])
     if flags:
         n = len(flags)
+        # one entry per flagged item, with how many rows flag it (an equation checked term
+        # by term flags several rows)
+        labels = Counter(_row_label(r) for r in flags)
         lines.insert(0, f"{n} printed value{'s' if n != 1 else ''} of the book flagged: "
-                     + "; ".join(_row_label(r) for r in flags))
+                     + "; ".join(k + (f" (x{c})" if c > 1 else "") for k, c in labels.items()))
     return lines
 
 
@@ -211,7 +217,8 @@ def _front_page(entries: list[dict], manifest: dict) -> str:
             full = first
         rows.append(f"<tr><td><a href='{e['name']}.html'>{html.escape(e['title'])}</a></td>"
                     f"<td class='n'>{e['flagged'] or ''}</td>"
-                    f"<td{cls} title='{html.escape(full)}'>{html.escape(first + rest)}</td>"
+                    f"<td{cls} title='{html.escape(full)}'><div>{html.escape(first + rest)}"
+                    "</div></td>"
                     "</tr>")
     body = f"""<h1>mbdk study report</h1>
 <p class='intro'>Every number was computed by the kernel in this run. Each study has a page of
