@@ -153,7 +153,7 @@ def test_phase_portraits_study_against_scipy(tmp_path, root):
     import phase_portraits
     from test_problems import book_3_64
     summary = phase_portraits.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     row = rows(tmp_path / "double_pendulum.csv")[0]
     # independent reference: scipy's DOP853 on (3.64) as printed
     p = dict(m1=1.0, m2=2.0, l1=1.0, l2=2.0, g=9.81)
