@@ -231,7 +231,12 @@ def run(out: Path, quick: bool = False) -> dict:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return {"title": "Benchmark: rk4 on the double pendulum", "tables": [table],
-            "figures": [fig_path], "rows": rows}
+            "figures": [{"path": fig_path, "caption": (
+                "Nanoseconds per rk4 step on the double pendulum, log scale: the kernel, a "
+                "plain C loop of the same arithmetic (the yardstick, where a C compiler is "
+                "found), pure Python and Python with numpy. Read: the shorter the bar, "
+                "the cheaper the step; the kernel's bar against the C loop's is what its "
+                "generality costs.")}], "rows": rows}
 
 
 if __name__ == "__main__":

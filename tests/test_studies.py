@@ -318,7 +318,7 @@ def test_step_control_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import step_control
     summary = step_control.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 1 and summary["figures"][0].exists()
+    assert len(summary["figures"]) == 1 and summary["figures"][0]["path"].exists()
     (row,) = rows(tmp_path / "step_control.csv")
     assert num(row["fixed error"]) <= num(row["target"])
     assert num(row["estimated error"]) <= num(row["target"])
@@ -460,7 +460,7 @@ def test_ch3_pendulum_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import ch3_pendulum
     summary = ch3_pendulum.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     sym = rows(tmp_path / "ch3_pendulum_symbolic.csv")
     flagged = {(r["equation"], r["item"].split(" (")[0]) for r in sym if r["verdict"] == "FLAG"}
     results = ("x''", "y''", "phi''", "F_Ax", "F_Ay")
