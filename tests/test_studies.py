@@ -342,7 +342,7 @@ def test_rigid_body_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import rigid_body
     summary = rigid_body.run(tmp_path, quick=True)
-    assert summary["figures"][0].exists()
+    assert summary["figures"][0]["path"].exists() and summary["figures"][0]["caption"]
     data = rows(tmp_path / "rigid_body_invariants.csv")
     nominal = {"explicit_euler": 1, "implicit_euler": 1, "heun": 2, "trapezoidal": 2,
                "bdf2": 2, "rk4": 4}
@@ -384,7 +384,7 @@ def test_spatial_scenes_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import spatial_scenes
     summary = spatial_scenes.run(tmp_path, quick=True)
-    assert summary["figures"][0].exists()
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     data = rows(tmp_path / "spatial_formulations.csv")
     assert all(r["status"] == "ok" for r in data)
 
@@ -588,7 +588,7 @@ def test_symbolic_check_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import symbolic_check
     summary = symbolic_check.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     table = rows(tmp_path / "scenes.csv")
     assert {r["scene"] for r in table} >= set(mbdk.scenes("all"))
     assert all(num(r["Phi, D, gamma, Phi_t"]) < 1e-13 for r in table)
