@@ -477,8 +477,16 @@ def run(out: Path, quick: bool = False) -> dict:
         "a run stops. Read: a run that stops at a flat pose names the singularity instead of "
         "continuing on the wrong branch; among the runs that pass, the lower curve is the "
         "more accurate."]
+    stopped = [f"{r['integration']} on {r['scene']} stops at t = {r['reached_t']:.3g} s "
+               f"({r['status']})" for r in t3["rows"] if r["status"] != "SUCCESS"]
+    crossing = [f"N = {r['N']} {r['integration']}: {r['status']} at {r['reached_t']:.3g} s"
+                for r in t5["rows"] if r["status"] != "SUCCESS"]
+    found = (["long runs: " + ("; ".join(stopped) if stopped else "every integration reaches "
+                               "the end")]
+             + (["A02 flat poses, runs that stop with a named error: " + "; ".join(crossing)]
+                if crossing else []))
     return {"title": "Direct index-3 integration: the book's scheme, the projected form and the "
-                     "reductions", "tables": [t1, t2, t3, t4, t5, t6],
+                     "reductions", "tables": [t1, t2, t3, t4, t5, t6], "findings": found,
             "figures": [{"path": f, "caption": c} for f, c in zip([f2, f3, f5], caps)]}
 
 

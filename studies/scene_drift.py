@@ -193,7 +193,13 @@ def run(out: Path, quick: bool = False) -> dict:
            "to the largest kinetic energy (bottom) over time, log scale; legend: CPU time of the "
            "kernel loop. Read: a curve that climbs drifts off the constraints (or gains energy) "
            "and will not stop; a flat low curve holds them; the legend says what that costs.")
+    worst = max(t1["rows"], key=lambda r: r["max_phi"])
+    best = min(t1["rows"], key=lambda r: r["max_phi"])
+    found = [f"largest constraint drift: {worst['formulation']} on {worst['scene']} (max |Phi| "
+             f"{worst['max_phi']:.1e}); smallest: {best['formulation']} on {best['scene']} "
+             f"({best['max_phi']:.1e})"]
     return {"title": "Planar scenes: drift, energy and cost", "tables": [t1, t2],
+            "findings": found,
             "figures": [{"path": f1, "caption": cap}]}
 
 
