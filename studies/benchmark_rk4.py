@@ -230,8 +230,19 @@ def run(out: Path, quick: bool = False) -> dict:
         fig_path = plotting.save(fig, out, "benchmark_rk4")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    found = ["ns per rk4 step: " + "; ".join(
+        f"{r['implementation']} {r['ns_per_step']:.0f}"
+        + (f" ({r['ratio_to_C']:.3g}x the C loop)"
+           if r.get("ratio_to_C") and not r["implementation"].startswith("C ") else "")
+        for r in rows)]
     return {"title": "Benchmark: rk4 on the double pendulum", "tables": [table],
-            "figures": [fig_path], "rows": rows}
+            "findings": found,
+            "figures": [{"path": fig_path, "caption": (
+                "Nanoseconds per rk4 step on the double pendulum, log scale: the kernel, a "
+                "plain C loop of the same arithmetic (the yardstick, where a C compiler is "
+                "found), pure Python and Python with numpy. Read: the shorter the bar, "
+                "the cheaper the step; the kernel's bar against the C loop's is what its "
+                "generality costs.")}], "rows": rows}
 
 
 if __name__ == "__main__":

@@ -332,7 +332,12 @@ def run(out: Path, quick: bool = False) -> dict:
         "assumptions. Figures 6.3-6.10 and 6.15-6.19 (the wear curves and the 37.6/7.8/3.2 % "
         "reductions) cannot be recomputed without the ADAMS contact forces.")]
     return {"title": "Chapter 6: the printed numbers of the wear case studies",
-            "tables": tables, "figures": [figure(out)]}
+            "tables": tables, "figures": [{"path": figure(out), "caption": (
+                "Left: the lubrication factor psi (6.8) against the sliding speed with table "
+                "6.4's constants, one curve per temperature; right: table 6.7's polynomials "
+                "over the knee's flexion cycle. Read: psi's curves show over which speeds the "
+                "printed constants keep the factor sensible; on the right, S/R above the dashed "
+                "line at 1 means the printed polynomial leaves its physical range.")}]}
 
 
 if __name__ == "__main__":

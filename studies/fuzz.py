@@ -482,8 +482,12 @@ def run(out: Path, quick: bool = False) -> dict:
                      ["door", "case", "outcome", "detail", "seconds"], out, "fuzz_defects",
                      "Cases that got a generic exception or a non-finite success",
                      "Each is a defect to fix; the test suite runs a subset and fails on any.")
+    named = sum(r["named"] for r in summary)
+    found = (f"{len(rows)} bad inputs from {len(DOORS)} doors: {named} named errors, "
+             f"{len(defects)} defect{'s' if len(defects) != 1 else ''} (generic exception or "
+             "non-finite success)")
     return {"title": "Fuzzing: broken scenes and bad arguments", "tables": [t1, t2],
-            "figures": []}
+            "figures": [], "findings": [found]}
 
 
 if __name__ == "__main__":

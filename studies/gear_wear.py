@@ -247,7 +247,13 @@ def run(out: Path, quick: bool = False) -> dict:
         ax.set_xlabel("t [s]")
         ax.set_ylabel("W [mm^3]")
         ax.legend(fontsize=7)
-    figs.append(plotting.save(fig, out, "gear_wear"))
+    figs.append({"path": plotting.save(fig, out, "gear_wear"), "caption": (
+        "Wear volume of the PLA gear pair over time: under condition 1 at each temperature by "
+        "the gear wear law (left, as the book's figure 6.3), at 293 K under the four "
+        "conditions (middle, as figure 6.7), and by Archard's law with the pairs' computed "
+        "slip (right). Read: the slope is the wear rate; compare the curves' order and "
+        "spacing with the book's figures, and the right panel with the middle for what the "
+        "true slip changes.")})
     return {"title": "PLA gear wear (chapter 6.1)", "tables": tables, "figures": figs}
 
 

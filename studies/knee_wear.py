@@ -230,7 +230,13 @@ def run(out: Path, quick: bool = False) -> dict:
     axes[2].set_ylabel("mean WIB [%]")
     axes[2].set_title("imbalance against misalignment")
     axes[2].legend(fontsize=7)
-    figs = [plotting.save(fig, out, "knee_wear")]
+    figs = [{"path": plotting.save(fig, out, "knee_wear"), "caption": (
+        "Knee prosthesis wear over a flexion cycle, one curve per design: the wear volume "
+        "index WVL (6.14) (left, as the book's figure 6.18) and the imbalance index WIB "
+        "(6.17) (middle, as figure 6.19) against the flexion angle, and the mean imbalance "
+        "against varus misalignment (right; dashed: the 5 % threshold). Read: a design whose "
+        "right-hand curve crosses the dashed line at a small misalignment is the one the "
+        "threshold flags first.")}]
     return {"title": "Knee prosthesis wear (chapter 6.2)", "tables": tables, "figures": figs}
 
 

@@ -237,7 +237,13 @@ def run(out: Path, quick: bool = False) -> dict:
     axes[1].set_ylabel("|q| - 1")
     axes[1].set_title(f"Drift of the quaternion's norm, h = {steps[-1]:g}")
     axes[1].legend()
-    figs = [plotting.save(fig, out, "rigid_body_flip")]
+    figs = [{"path": plotting.save(fig, out, "rigid_body_flip"), "caption": (
+        "Top: the angular velocities of the torque-free asymmetric body in the reference run, "
+        "flipping about its intermediate axis; bottom: how far each method lets the "
+        "quaternion's norm leave 1 at the finest step (signed, symmetric log scale). Read: "
+        "explicit Euler inflates |q| and implicit Euler shrinks it; the nearer a curve "
+        "stays to 0, the better the method keeps the rotation a rotation (the table gives "
+        "each method's largest drift at every step).")}]
     return {"title": "The torque-free rigid body: flip, invariants, |q|", "tables": tables,
             "figures": figs}
 

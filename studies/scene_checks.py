@@ -286,7 +286,21 @@ def run(out: Path, quick: bool = False) -> dict:
     t2, f2 = coordinate_forms(out, quick)
     t3, f3 = baumgarte_map(out, quick)
     return {"title": "Planar scenes against the book: elements, coordinate sets, Baumgarte map",
-            "tables": [t1, t2, t3], "figures": [f2, f3]}
+            "tables": [t1, t2, t3], "figures": [
+                {"path": f2, "caption": (
+                    "The four-bar in absolute (1.27), relative (1.29) and natural (1.31) "
+                    "coordinates by rk4 at h = 1e-3: the position error of joints B and C against "
+                    "a relative-coordinate run at h = 1e-4 (left; legend: CPU time) and the "
+                    "crank angle (right). Read: the lower curve is the more accurate coordinate "
+                    "set at this step, the legend what each costs; the table adds the "
+                    "constraint residual and the energy drift.")},
+                {"path": f3, "caption": (
+                    "Baumgarte stabilisation of the double pendulum by rk4 over a grid of step h "
+                    "(across) and alpha = beta (up): the largest |Phi| (left) and energy error "
+                    "(right), colour on a log scale; x: the run became unbounded; dashed: "
+                    "alpha h = 2.785, rk4's stability limit on the real axis. Read: below the "
+                    "dashed line larger alpha holds the constraints tighter; beyond it the "
+                    "stabilisation itself makes the run blow up.")}]}
 
 
 if __name__ == "__main__":

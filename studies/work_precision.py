@@ -118,9 +118,9 @@ def figure(problem: str, rows, out: Path):
         if not pts:
             continue
         st = styles[infos[name].family]
-        kw = dict(ms=3, label=name, color=plt.cm.tab20(i))
-        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
-        ax[1].loglog([p["h"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
+        kw = dict(ms=4, mfc="none", label=name, ls=st, **plotting.line_style(i))
+        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], **kw)
+        ax[1].loglog([p["h"] for p in pts], [p["max_error"] for p in pts], **kw)
     ax[0].set_xlabel("CPU time of the kernel loop (s)")
     ax[0].set_ylabel("max |error| over the interval")
     ax[0].set_title(f"{problem}: what accuracy costs")
@@ -306,9 +306,9 @@ def scene_figure(case: str, rows, out: Path, slug: str):
         if not pts:
             continue
         st = "--" if SCENE_METHODS[m][0] in ERROR_CONTROLLED else "-"
-        kw = dict(ms=3, label=m, color=plt.cm.tab10(i))
-        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
-        ax[1].loglog([p["steps"] for p in pts], [p["max_error"] for p in pts], "o" + st, **kw)
+        kw = dict(ms=4, mfc="none", label=m, ls=st, **plotting.line_style(i))
+        ax[0].loglog([p["cpu_s"] for p in pts], [p["max_error"] for p in pts], **kw)
+        ax[1].loglog([p["steps"] for p in pts], [p["max_error"] for p in pts], **kw)
     from matplotlib.ticker import NullFormatter
     for a in ax:
         for t in TARGETS:
@@ -323,7 +323,29 @@ def scene_figure(case: str, rows, out: Path, slug: str):
     return plotting.save(fig, out, f"work_precision_scene_{slug}")
 
 
-def run_scenes(out: Path, quick: bool) -> tuple[list, list]:
+SCENE_CAPTION = (
+    "{case}, index-3 DAE. Left: the largest coordinate error against the solving thread's CPU "
+    "time, one curve per method (solid: fixed step, swept over the step count; dashed: "
+    "error-controlled, swept over rtol); right: the same error against the steps taken. Grey "
+    "lines: the target errors 1e-2..1e-8. Read: at a target, the leftmost curve on the left is "
+    "the cheapest method (the table 'cheapest method per target' gives it); on the right the "
+    "slope of a fixed-step curve is its order.")
+PROBLEM_CAPTION = (
+    "{problem}: every fixed-step ODE method over a step sweep. Left: the largest error over "
+    "the interval against the kernel loop's CPU time; right: against h (solid: explicit "
+    "Runge-Kutta, dash-dot: Euler-Cromer, dashed: implicit multistep). Read: lower-left is "
+    "better on the left (the cheapest method for an accuracy is the leftmost at that height); "
+    "on the right a curve's slope is the method's observed order.")
+
+
+def cheapest_finding(best: list[dict], target: float) -> str:
+    """One line: the cheapest method per case at one target error."""
+    hits = [f"{r['case']}: {r['cheapest_method']}" for r in best
+            if r["target_error"] == target and r.get("cheapest_method")]
+    return f"cheapest to error {target:g}: " + "; ".join(hits) if hits else ""
+
+
+def run_scenes(out: Path, quick: bool) -> tuple[list, list, list]:
     cases = QUICK_SCENES if quick else SCENES
     tols = QUICK_TOLERANCES if quick else TOLERANCES
     tables, figures, best, damping = [], [], [], []
@@ -331,7 +353,8 @@ def run_scenes(out: Path, quick: bool) -> tuple[list, list]:
         progress(f"work-precision on the index-3 DAE: {label}")
         rows, floor, ref_kind = scene_rows(label, name, t_end, counts, tols)
         slug = name
-        figures.append(scene_figure(label, rows, out, slug))
+        figures.append({"path": scene_figure(label, rows, out, slug),
+                        "caption": SCENE_CAPTION.format(case=label)})
         tables.append(write_table(
             rows, ["scene", "method", "h", "rtol", "steps", "max_error", "observed_order",
                    "cpu_s", "wall_s", "note"], out, f"work_precision_scene_{slug}",
@@ -358,7 +381,7 @@ def run_scenes(out: Path, quick: bool) -> tuple[list, list]:
         "work_precision_scene_damping",
         "What numerical damping costs: error over the trapezoidal rule's at the same h",
         sentence))
-    return tables, figures
+    return tables, figures, best
 
 
 def run(out: Path, quick: bool = False) -> dict:
@@ -373,7 +396,8 @@ def run(out: Path, quick: bool = False) -> dict:
     for g in gs:
         p = g["problems"][0]
         rows = [r for r in every if r["problem"] == p]
-        figures.append(figure(p, rows, out))
+        figures.append({"path": figure(p, rows, out),
+                        "caption": PROBLEM_CAPTION.format(problem=p)})
         tables.append(write_table(rows, list(rows[0]), out, f"work_precision_{p}",
                                   f"Work-precision: {p}",
                                   f"{len(result.rows)} runs of one sweep on {result.engine}; "
@@ -387,9 +411,10 @@ def run(out: Path, quick: bool = False) -> dict:
         "The least CPU time at which each method's curve reaches the target, interpolated "
         "linearly in log(cpu) against log(error) between neighbouring swept steps, or a run's "
         "own; never extrapolated: a finer sweep moves the numbers, rarely the ranking."))
-    scene_tables, scene_figures = run_scenes(out, quick)
+    scene_tables, scene_figures, scene_best = run_scenes(out, quick)
+    found = [f for f in (cheapest_finding(scene_best, 1e-6), cheapest_finding(best, 1e-6)) if f]
     return {"title": "What accuracy costs in time", "tables": scene_tables + tables,
-            "figures": scene_figures + figures}
+            "figures": scene_figures + figures, "findings": found}
 
 
 if __name__ == "__main__":

@@ -38,8 +38,8 @@ def test_every_row_is_well_formed(table):
         if r["verdict"] in ("WRONG", "notation"):
             assert r["reason"], r                                # a flag always says why
     assert sum(r["verdict"] == "WRONG" for r in table["rows"]) >= 15
-    png = table["summary"]["figures"][0]
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = table["summary"]["figures"][0]
+    assert fig["caption"] and fig["path"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_table_6_2_gear_geometry(table):

@@ -493,7 +493,8 @@ def test_index3_study(tmp_path):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
     import index3 as study
     summary = study.run(tmp_path, quick=True)
-    assert len(summary["tables"]) == 6 and all(Path(f).is_file() for f in summary["figures"])
+    assert len(summary["tables"]) == 6 and all(Path(f["path"]).is_file() and f["caption"]
+                                                for f in summary["figures"])
 
     def rows(name):
         with open(tmp_path / f"{name}.csv", newline="") as fh:

@@ -517,7 +517,7 @@ def test_scene_drift_study(tmp_path):
     import csv
     import scene_drift
     summary = scene_drift.run(tmp_path, quick=True)
-    assert all(f.exists() for f in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     rows = list(csv.DictReader(open(tmp_path / "scene_drift.csv")))
     by = {(r["scene"], r["formulation"]): r for r in rows}
     for sc in ("double_pendulum", "four_bar"):
@@ -577,7 +577,7 @@ def test_scene_checks_study(tmp_path):
     import csv
     import scene_checks
     summary = scene_checks.run(tmp_path, quick=True)
-    assert all(f.exists() for f in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     book = {r["eq"]: r for r in csv.DictReader(open(tmp_path / "book_elements.csv"))}
     assert book["(2.96)-(2.98)"]["verdict"] == "agree"
     assert book["(2.120)-(2.121)"]["verdict"] == "agree"

@@ -254,7 +254,8 @@ def test_stability_study(tmp_path, root):
     import csv
     import stability
     summary = stability.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 7 and all(f.exists() for f in summary["figures"])
+    assert len(summary["figures"]) == 7 and all(f["path"].exists() and f["caption"]
+                                                for f in summary["figures"])
     family = list(csv.DictReader(open(tmp_path / "alpha_family_spectra.csv")))
     # the compiled steps against the closed forms, every member, over Omega in [0.05, 100]
     assert all(float(r["max_diff_closed_form"]) < 1e-8 for r in family)

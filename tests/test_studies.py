@@ -122,7 +122,8 @@ def test_pendulum_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import pendulum
     summary = pendulum.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 3 and all(p.exists() for p in summary["figures"])
+    assert len(summary["figures"]) == 3 and all(f["path"].exists() and f["caption"]
+                                                for f in summary["figures"])
     drift = [r for r in rows(tmp_path / "pendulum_drift.csv") if r["method"] == "explicit_euler"]
     d = [num(r["max_rel_energy_error_5s"]) for r in drift]
     assert d[-1] < d[0] / 8                     # falls as h falls: no divergence at fixed T
@@ -152,7 +153,7 @@ def test_phase_portraits_study_against_scipy(tmp_path, root):
     import phase_portraits
     from test_problems import book_3_64
     summary = phase_portraits.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     row = rows(tmp_path / "double_pendulum.csv")[0]
     # independent reference: scipy's DOP853 on (3.64) as printed
     p = dict(m1=1.0, m2=2.0, l1=1.0, l2=2.0, g=9.81)
@@ -233,7 +234,9 @@ def test_report_assembles_html(tmp_path, root):
     r = subprocess.run([sys.executable, "-m", "mbdk", "report", "--quick", "--out", str(tmp_path),
                         "--studies", str(root / "studies"), "--only", "ch4_tables"],
                        capture_output=True, text=True, check=True)
-    page = (tmp_path / "index.html").read_text()
+    front = (tmp_path / "index.html").read_text()
+    page = (tmp_path / "ch4_tables.html").read_text()
+    assert "href='ch4_tables.html'" in front and "class='flag'" not in front
     assert "class='flag'" in page and "ch4_convergence.png" in page
     assert (tmp_path / "manifest.json").exists() and "[1/1] ch4_tables" in r.stdout
 
@@ -315,7 +318,7 @@ def test_step_control_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import step_control
     summary = step_control.run(tmp_path, quick=True)
-    assert len(summary["figures"]) == 1 and summary["figures"][0].exists()
+    assert len(summary["figures"]) == 1 and summary["figures"][0]["path"].exists()
     (row,) = rows(tmp_path / "step_control.csv")
     assert num(row["fixed error"]) <= num(row["target"])
     assert num(row["estimated error"]) <= num(row["target"])
@@ -339,7 +342,7 @@ def test_rigid_body_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import rigid_body
     summary = rigid_body.run(tmp_path, quick=True)
-    assert summary["figures"][0].exists()
+    assert summary["figures"][0]["path"].exists() and summary["figures"][0]["caption"]
     data = rows(tmp_path / "rigid_body_invariants.csv")
     nominal = {"explicit_euler": 1, "implicit_euler": 1, "heun": 2, "trapezoidal": 2,
                "bdf2": 2, "rk4": 4}
@@ -381,7 +384,7 @@ def test_spatial_scenes_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import spatial_scenes
     summary = spatial_scenes.run(tmp_path, quick=True)
-    assert summary["figures"][0].exists()
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     data = rows(tmp_path / "spatial_formulations.csv")
     assert all(r["status"] == "ok" for r in data)
 
@@ -457,7 +460,7 @@ def test_ch3_pendulum_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import ch3_pendulum
     summary = ch3_pendulum.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     sym = rows(tmp_path / "ch3_pendulum_symbolic.csv")
     flagged = {(r["equation"], r["item"].split(" (")[0]) for r in sym if r["verdict"] == "FLAG"}
     results = ("x''", "y''", "phi''", "F_Ax", "F_Ay")
@@ -585,7 +588,7 @@ def test_symbolic_check_study(tmp_path, root):
     sys.path.insert(0, str(root / "studies"))
     import symbolic_check
     summary = symbolic_check.run(tmp_path, quick=True)
-    assert all(p.exists() for p in summary["figures"])
+    assert all(f["path"].exists() and f["caption"] for f in summary["figures"])
     table = rows(tmp_path / "scenes.csv")
     assert {r["scene"] for r in table} >= set(mbdk.scenes("all"))
     assert all(num(r["Phi, D, gamma, Phi_t"]) < 1e-13 for r in table)

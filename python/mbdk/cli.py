@@ -88,7 +88,8 @@ def parser() -> argparse.ArgumentParser:
                  "integrator studies")
     ap.add_argument("--version", action=_Version, help="print mbdk's version and exit")
     sub = ap.add_subparsers(dest="cmd", required=True)
-    rp = sub.add_parser("report", help="run every study and write one HTML report")
+    rp = sub.add_parser("report", help="run every study and write the HTML report: a front "
+                        "page of findings and one page per study")
     rp.add_argument("--out", type=Path, default=Path("report"))
     rp.add_argument("--quick", action="store_true", help="coarser, faster runs")
     rp.add_argument("--studies", type=Path, default=None, help="the studies/ folder")
