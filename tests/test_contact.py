@@ -434,6 +434,15 @@ def test_gear_train_spins_up_as_a_rigid_train():
     static = (j2 * 2 * 0.1 / (j1 + 4 * j2) / rb2 / 1e8) ** (2 / 3)
     assert np.abs(r.q[:, 5] + 2 * r.q[:, 2]).max() * rb2 < 10 * static
     assert np.abs(r.energy_balance()).max() < 1e-6 * r.energy[-1]
+    # the contact outputs: the drive flanks carry the mesh force F = J2 alpha2 / rb2 (ringing
+    # about it: its mean over the second half, where the ringing has had many periods), the
+    # coast flanks, the backlash apart, none
+    assert set(r.contacts) == {"mesh", "mesh.coast"}
+    force = j2 * 2 * 0.1 / (j1 + 4 * j2) / rb2
+    late = r.t > 0.05
+    assert r.contacts["mesh"]["normal_force"][late].mean() == pytest.approx(force, rel=0.02)
+    assert not r.contacts["mesh.coast"]["normal_force"].any()
+    assert r.contacts["mesh.coast"]["penetration"].max() < -0.5e-4
 
 
 def test_reversing_load_meets_the_coast_flanks_across_the_backlash():

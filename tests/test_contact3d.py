@@ -633,6 +633,21 @@ def test_switching_angle_sets_carries_the_wear():
     assert angles.manifest["switches"]
     assert angles.t.shape == quat.t.shape and np.abs(angles.t - quat.t).max() < 1e-12
     assert np.abs(angles.wear["w"] - quat.wear["w"]).max() < 1e-8 * quat.wear["w"][-1]
+    # the contact outputs go on across the switches too: the same as the quaternion run's at
+    # every sample (they depend on the motion, not on its coordinates), to the integration's
+    # accuracy on each field's scale: the static penetration, the sliding speed v0 for its rate
+    # (roundoff in both runs: the sphere stays on the plane), m g for the forces
+    scale = {"penetration": 1e-5, "penetration_rate": 2.0, "normal_force": 9.81,
+             "friction_force": 9.81}
+    assert angles.contacts.keys() == quat.contacts.keys()
+    for name, c in quat.contacts.items():
+        assert c.keys() == scale.keys()
+        for field, v in c.items():
+            assert angles.contacts[name][field].shape == v.shape, (name, field)
+            assert np.abs(angles.contacts[name][field] - v).max() < 1e-7 * scale[field], field
+    with pytest.raises(mbdk.NotApplicableError, match="t_eval with switch_angles"):
+        mbdk.simulate(replace(sc, rotation="cardan123"), "rk45", t_end=0.4,
+                      t_eval=[0.1, 0.2], switch_angles=0.1)
 
 
 def test_contact_outputs_of_the_sliding_sphere():
@@ -650,3 +665,21 @@ def test_contact_outputs_of_the_sliding_sphere():
     assert np.allclose(c["friction_force"][sliding][1:], mu * m * G, rtol=1e-6)
     assert c["friction_force"][-1] < 1e-3 * mu * m * G
     assert np.all(c["penetration"] > 0)
+
+
+def test_contact_outputs_name_a_sample_without_frames_as_nan():
+    """A sample whose frames cannot be built (a NaN quaternion, as a blown-up run's last
+    sample) has NaN contact outputs; the samples around it keep theirs (the static normal
+    force m g of the sliding sphere): one bad sample loses nothing else."""
+    from mbdk.plan import Request, make_plan
+    from mbdk.run_spatial import _contacts
+    sc, _n, _t = tilted(2.0)
+    r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.01, every=10)
+    y = np.concatenate([r.q, r.v], axis=1).T.copy()
+    y0 = y[:, 0].copy()
+    y[3:7, 2] = np.nan
+    plan = make_plan(sc, Request(method="rk4", t_end=0.01, h=1e-4))
+    (_name, c), = _contacts(sc, plan, y0, y, 0.0).items()
+    assert np.all(np.isnan([v[2] for v in c.values()]))
+    keep = np.arange(y.shape[1]) != 2
+    assert np.allclose(c["normal_force"][keep], sc.bodies[0].mass * G, rtol=1e-6)

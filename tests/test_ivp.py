@@ -154,3 +154,39 @@ def test_events_after_a_terminal_one_are_not_reported():
     s = scipy_integrate.solve_ivp(f, [0, 5], [0.0, 1.0], events=[level, ground], rtol=1e-9,
                                   atol=1e-12)
     assert [e.size for e in s.t_events] == [e.size for e in r.t_events]
+
+
+def test_a_failed_solve_returns_status_minus_one_as_scipy_does():
+    """y' = y^2 from y(0) = 1 blows up at t = 1 (closed form y = 1/(1 - t)): both SciPy and
+    mbdk return status -1 with the samples up to where the step size vanished, just before
+    t = 1, also with t_eval (the times before the blow-up). A right-hand side that is NaN at
+    once fails in the first step: status -1 with y0 alone."""
+    blow = lambda t, y: y ** 2  # noqa: E731
+    for kw in ({}, {"t_eval": np.linspace(0, 2, 5)}):
+        ours = mbdk.solve_ivp(blow, (0, 2), [1.0], **kw)
+        theirs = scipy_integrate.solve_ivp(blow, (0, 2), [1.0], **kw)
+        assert ours.status == theirs.status == -1 and not ours.success
+        assert ours.t[-1] == pytest.approx(theirs.t[-1], abs=1e-3) and ours.t[-1] < 1.0
+    assert list(ours.t) == [0.0, 0.5]
+    nan = mbdk.solve_ivp(lambda t, y: np.array([np.nan]), (0, 1), [1.0])
+    assert nan.status == -1 and list(nan.t) == [0.0] and nan.y.tolist() == [[1.0]]
+    assert "NaN" in nan.message
+
+
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_event_direction_on_a_backward_span_agrees_with_scipy(direction):
+    """From t = 10 back to 0 on the harmonic oscillator (y = cos(t - 10)), y[0] = 0 at
+    t = 10 - pi/2 - k pi. SciPy reads direction along the integration (rising as it runs,
+    here as t decreases), and so does mbdk: the same roots for either direction."""
+    osc = lambda t, y: [y[1], -y[0]]  # noqa: E731
+
+    def height(t, y):
+        return y[0]
+    height.direction = direction
+    kw = dict(events=height, rtol=1e-10, atol=1e-12)
+    ours = mbdk.solve_ivp(osc, (10, 0), [1.0, 0.0], **kw)
+    theirs = scipy_integrate.solve_ivp(osc, (10, 0), [1.0, 0.0], **kw)
+    assert len(ours.t_events[0]) == len(theirs.t_events[0]) >= 1
+    assert np.allclose(ours.t_events[0], theirs.t_events[0], atol=1e-7)
+    exact = [10 - math.pi / 2 - k * math.pi for k in range(4)]
+    assert all(min(abs(t - e) for e in exact) < 1e-8 for t in ours.t_events[0])

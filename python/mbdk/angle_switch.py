@@ -55,6 +55,8 @@ def _subsampled(r: SceneResult, idx) -> SceneResult:
                    residuals=r.residuals[idx],
                    multipliers=None if r.multipliers is None else r.multipliers[idx],
                    wear={k: v[idx] for k, v in r.wear.items()},
+                   contacts={n: {f: v[idx] for f, v in c.items()}
+                             for n, c in r.contacts.items()},
                    rotations=[r.rotations[i] for i in idx])
 
 
@@ -92,7 +94,10 @@ def _joined(segs, switches) -> SceneResult:
         residuals=cat(lambda r: r.residuals), stats=stats, status=last.status,
         message=last.message, manifest=manifest, bodies=first.bodies, joints=first.joints,
         assembly=first.assembly, drift=last.drift, kind="spatial", rotation=first.rotation,
-        wear={k: cat(lambda r, k=k: r.wear[k]) for k in first.wear}, rotations=rotations)
+        wear={k: cat(lambda r, k=k: r.wear[k]) for k in first.wear},
+        contacts={n: {f: cat(lambda r, n=n, f=f: r.contacts[n][f]) for f in c}
+                  for n, c in first.contacts.items()},
+        rotations=rotations)
 
 
 

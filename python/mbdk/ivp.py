@@ -151,7 +151,21 @@ def solve_ivp(fun, t_span, y0, method: str = "RK45", t_eval=None, dense_output: 
         return solve_ode(call, name, t0=s0, t_end=s1, raise_on_failure=False, **kw, **extra)
 
     main = run()
-    reached = main.t[-1] if len(main.t) else s0
+    # a failed solve ends after its last accepted step; one that failed in its first step has
+    # only y0 to give (status -1 with that sample, as SciPy's)
+    reached = (main.t[-1] if len(main.t) else s0) if main.success else main.stats.t_reached
+    if reached == s0:
+        y0v = np.atleast_1d(np.asarray(y0, dtype=float))
+        st = main.stats
+        return OdeResult(t=np.array([t0]), y=y0v.reshape(-1, 1), sol=None,
+                         t_events=None if events is None else
+                         [np.zeros(0) for _ in ([events] if callable(events) else events)],
+                         y_events=None if events is None else
+                         [np.zeros((0, y0v.size)) for _ in
+                          ([events] if callable(events) else events)],
+                         nfev=st.nfev, njev=st.njev, nlu=st.nlu, status=-1,
+                         message=main.message, success=False, stats=st,
+                         manifest={**main.manifest, "scipy_method": method})
     if info.adaptive:
         grid = np.linspace(s0, reached, max(main.stats.steps, 1) + 1)
         sampled = run(grid)
@@ -247,7 +261,9 @@ def locate_events(evs, args, sign, run, s0, s1, steps):
              for ev in evs]
     found = []
     for ev, g in zip(evs, g_all):
-        direction = float(getattr(ev, "direction", 0.0)) * sign
+        # SciPy's direction is that of g along the integration (rising as it runs, whichever
+        # way t goes), and g is sampled here in the run's order: no sign to apply
+        direction = float(getattr(ev, "direction", 0.0))
         roots = []
         for k in range(len(g) - 1):
             a, b = g[k], g[k + 1]
@@ -279,7 +295,11 @@ def _refine(ev, extra, sign, run, lo, hi, g_lo, g_hi):
         k = int(change[0])
         lo, hi, g_lo, g_hi = pts[k], pts[k + 1], g[k], g[k + 1]
     s = hi if g_hi == 0 else lo - g_lo * (hi - lo) / (g_hi - g_lo)
-    return s, run(np.array([s])).y[0]
+    at = run(np.array([s]))
+    if not len(at.y):
+        raise MbdkError(f"event search: the solve, run again, failed before t = "
+                          f"{sign * s:.17g}, which the first run passed ({at.message})")
+    return s, at.y[0]
 
 
 def terminal_stop(evs, found):

@@ -161,7 +161,8 @@ class SceneResult(Result):
     t_events: list | None = None
     y_events: list | None = None
     #: each contact's penetration, its rate, normal force and friction force per sample, by the
-    #: contact's name (planar scenes with contacts: CONTACT_FIELDS)
+    #: contact's name (scenes with contacts, planar and spatial: CONTACT_FIELDS); a gear mesh's
+    #: drive flanks under its name, its coast flanks under '<name>.coast'
     contacts: dict = field(default_factory=dict)
 
     @property

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _compiled, _kernel, checks
 from .codes import LINEAR_SOLVES, OUTPUTS, PLANAR_VISITS, VISIT_NAMES
-from .errors import InvalidInputError, Status, status_message
+from .errors import InvalidInputError, Status, exception_for, status_message
 from .model import (assemble, assembly_error, assembly_report, build_tables, given_mask,
                     pose_error)
 from .ode import build_info
@@ -146,14 +146,21 @@ def contact_outputs(scene: Scene, y: np.ndarray, nw: int) -> dict:
     """Each contact's penetration, its rate, normal force and friction force at the run's nw
     samples (y: the kernel's (states, samples) array), by name, from the kernel
     (contact_states); the tables' pose values taken at the first sample, as the run's."""
+    # the kernel's contact columns: the scene's contacts, then each gear mesh's coast flanks
+    # (mbdk.model.build_tables), named '<mesh>.coast'
     names = [f.name for f in scene.forces if f.type == "contact"]
+    names += [f"{f.name}.coast" for f in scene.forces
+              if f.type == "contact" and f.shape1[0] == "gear"]
     if not names or nw == 0:
         return {}
     nc = 3 * len(scene.bodies)
     tab = build_tables(scene, y[:nc, 0])
     out, status = _kernel.contact_states(tab.nf, tab.fint, tab.freal, nc, y[:, :nw], len(names))
     if status != Status.SUCCESS:
-        return {}
+        # the run's own tables refused: a defect of mbdk, not of the scene
+        raise exception_for(Status(status))(
+            f"contact_states: the contact outputs of scene {scene.name!r} failed: "
+            f"{status_message(status)}")
     return {n: {f: out[i, k, :] for i, f in enumerate(CONTACT_FIELDS)}
             for k, n in enumerate(names)}
 

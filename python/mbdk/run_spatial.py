@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .checks import check_memory, memory_error
-from .errors import Status, status_message
+from .errors import Status, exception_for, status_message
 from .ode import build_info
 from .options import empty, unpack
 from .plan import SPATIAL_IDA_FORMS, RunPlan
@@ -53,6 +53,8 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     # the samples (t, y, the outputs and the multipliers, allocated by the f2py layer): refused
     # before they are allocated where the machine has not that much memory
     nbytes = 8.0 * nsamp * (1 + len(y0) + 8 + m1)   # spatial_run's out(8, nsamp)
+    if plan.index3:   # and the index-3 family's accelerations and Newton counts per sample
+        nbytes += nsamp * (8.0 * 6 * nb + 4)
     what = f"{plan.method} on spatial scene {scene.name!r} ({nsamp} samples)"
     check_memory(nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE)
     try:
@@ -96,7 +98,10 @@ def _contacts(scene: Scene, plan: RunPlan, y0, y, t0: float) -> dict:
         mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal,
         plan.spatial_options.pack(), y0, t0, np.asfortranarray(y), len(names))
     if status != Status.SUCCESS:
-        return {}
+        # the run's own tables refused: a defect of mbdk, not of the scene
+        raise exception_for(Status(status))(
+            f"spatial_contact_states: the contact outputs of scene {scene.name!r} failed: "
+            f"{status_message(status)}")
     return {n: {f: out[i, k, :] for i, f in enumerate(CONTACT_FIELDS)}
             for k, n in enumerate(names)}
 

@@ -246,9 +246,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     if events is not None:
         check_events(events, method, formulation)
     if scene.kind == "spatial" and switch_angles is not None:
-        if events is not None:
-            raise NotApplicableError("events with switch_angles: the angle sets' switches "
-                                     "split the run; events take one run")
+        if events is not None or t_eval is not None:
+            what = "events" if events is not None else "t_eval"
+            raise NotApplicableError(f"{what} with switch_angles: the angle sets' switches "
+                                     f"split the run into segments and {what} takes one run; "
+                                     "use dt_out for the samples, or a quaternion rotation "
+                                     "(no switches)")
         result, warning = switching_run(scene, req, run_scene)
     else:
         result, warning = run_scene(scene, req)

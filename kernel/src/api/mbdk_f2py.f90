@@ -1028,6 +1028,7 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
   ! k) of a spatial run (mbdk_spatial_contact_states), the model built as the run's (its options
   ! sobuf, y0 its initial state at t0): out(4, nct, nsamp), nct contacts in table order.
   use, intrinsic :: iso_c_binding, only: c_sizeof
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
   use mbdk_spatial_model
   implicit none
@@ -1046,7 +1047,7 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
   type(mbdk_spatial_model_t) :: model
   type(mbdk_spatial_work_t), target :: work
   type(mbdk_spatial_options_t) :: so
-  integer :: k
+  integer :: k, s
   out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
   if (8 * nsow /= c_sizeof(so) .or. nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
@@ -1057,9 +1058,12 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%ncontacts /= nct) return
+  ! a sample whose frames fail (non-finite, as a blown-up run's last one, or an angle set at its
+  ! lock) has no contact state: NaN there, the other samples kept
+  status = MBDK_SUCCESS
   do k = 1, nsamp
-    call mbdk_spatial_contact_states(model, y(:, k), out(:, :, k), status)
-    if (status /= MBDK_SUCCESS) return
+    call mbdk_spatial_contact_states(model, y(:, k), out(:, :, k), s)
+    if (s /= MBDK_SUCCESS) out(:, :, k) = ieee_value(0.0d0, ieee_quiet_nan)
   end do
 end subroutine spatial_contact_states
 

@@ -1870,7 +1870,9 @@ contains
   !>   v: h^3 q'''' ((1 - gamma) d^2/2 + gamma (1 + d)^2/2 + c - 1/6)
   !> (Geradin and Cardona's estimate h^2 (beta - 1/6)(a+ - a) of Newmark's rule is the first
   !> with d = 0). generalized_alpha's q constant is 1/12 + d^2/4. The trapezoidal rule's are
-  !> 1/12 and 1/12, taken as written so that its estimate keeps its bits.
+  !> 1/12 and 1/12, taken as written so that its estimate keeps its bits. Newmark's linear
+  !> acceleration rule (beta 1/6, gamma 1/2) has lte_q = 0: its q is third order per step, and
+  !> the step is controlled by the v error alone (whose constant, 1/12, is not zero).
   subroutine mbdk_index3_error_constants(opt, lte_q, lte_v)
     type(mbdk_index3_options_t), intent(in) :: opt
     real(dp), intent(out) :: lte_q, lte_v

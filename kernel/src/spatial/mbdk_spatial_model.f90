@@ -205,6 +205,11 @@ module mbdk_spatial_model
     !> set changed
     integer, allocatable :: active(:)
     integer :: switches = 0
+    !> spatial_accelerations' arrays, sized once at init: an evaluation allocates none (ten
+    !> allocations per evaluation cost about a sixth of an rk4 step of the heavy top). That
+    !> routine is the only user, and never runs inside itself.
+    real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
+      l(:), mc(:, :), phit(:)
   end type mbdk_spatial_work_t
 
   !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
@@ -395,6 +400,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     work%active = model%active
     work%switches = 0
+    call accelerations_scratch(model, work, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     model%nq = 0
     model%has_post_step = opt%formulation == MBDK_FORM_PROJECTION .or. &
       (opt%rotation == MBDK_ROT_QUATERNION .and. opt%norm == MBDK_NORM_PROJECT)
@@ -1709,6 +1716,24 @@ contains
   !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
   !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
   !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
+  !> work's arrays of spatial_accelerations, for nb bodies and m rows
+  subroutine accelerations_scratch(model, work, stat, asked)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(mbdk_spatial_work_t), intent(inout) :: work
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nb, m, k
+    nb = model%nb
+    m = model%m
+    if (allocated(work%fw)) deallocate (work%fw, work%nbd, work%acc, work%gen, work%phi, &
+                                        work%c, work%gam, work%l, work%mc, work%phit)
+    allocate (work%fw(3, nb), work%nbd(3, nb), work%acc(6 * nb), work%gen(6 * nb), &
+              work%phi(m), work%c(m, 6 * nb), work%gam(m), work%l(m), work%mc(6 * nb, m), &
+              work%phit(m), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (18.0_dp * nb + real(m, dp) * (12.0_dp * nb + 4)), &
+                           stat, asked)
+  end subroutine accelerations_scratch
+
   subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
@@ -1718,18 +1743,15 @@ contains
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
     type(frames_t) :: fr
-    real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
-      l(:), mc(:, :), phit(:)
     real(dp) :: vg, vs, power
     integer :: k, nb, m
     f = 0.0_dp
     nb = self%nb
     m = self%m
-    allocate (fw(3, nb), nbd(3, nb), acc(6 * nb), gen(6 * nb), phi(m), c(m, 6 * nb), gam(m), &
-              l(m), mc(6 * nb, m), phit(m), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (18.0_dp * nb + real(m, dp) * (12.0_dp * nb + 4)), &
-                           stat)
-    if (stat /= MBDK_SUCCESS) return
+    associate (fw => self%work%fw, nbd => self%work%nbd, acc => self%work%acc, &
+               gen => self%work%gen, phi => self%work%phi, c => self%work%c, &
+               gam => self%work%gam, l => self%work%l, mc => self%work%mc, &
+               phit => self%work%phit)
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power, stat)
@@ -1771,6 +1793,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     f(wi(self, 1):last_velocity(self)) = acc
     stat = MBDK_SUCCESS
+    end associate
 
   contains
 
@@ -1784,7 +1807,10 @@ contains
       allocate (a(6 * nb, 6 * nb), r(m), stat=kk)
       call mbdk_alloc_status(kk, MBDK_REAL_BYTES * (36.0_dp * nb * nb + m), st)
       if (st /= MBDK_SUCCESS) return
-      associate (ap => self%opt%penalty_alpha, om => self%opt%penalty_omega, mu => self%opt%penalty_mu)
+      associate (ap => self%opt%penalty_alpha, om => self%opt%penalty_omega, &
+                 mu => self%opt%penalty_mu, c => self%work%c, gam => self%work%gam, &
+                 phit => self%work%phit, phi => self%work%phi, acc => self%work%acc, &
+                 gen => self%work%gen, l => self%work%l)
         r = -gam + 2.0_dp * mu * om * (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) + &
             om**2 * phi
         ! formed in place: an expression's temporary of 6 nb x 6 nb would be taken without a
