@@ -1,5 +1,5 @@
 """The study report: runs every script in studies/ and writes one page per study (its findings,
-figures with captions, short tables inline and long ones as a head with a link to the CSV)
+figures with captions, a study's own HTML (animations), short tables inline and long ones as a head with a link to the CSV)
 under a front page that fits one screen: per study its title, what it found and a link, and the
 build manifest."""
 from __future__ import annotations
@@ -18,7 +18,7 @@ from .analysis.tables import format_rows
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
-STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
+STUDIES = ["scene_motion", "ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
            "benchmark_rk4", "stability", "scene_drift", "scene_checks", "ch3_pendulum", "index3",
            "pipeline_cost", "step_control", "ch5_formulas", "ch6_numbers", "gear_wear",
            "knee_wear", "rigid_body", "spatial_scenes", "symbolic_check", "sweep_scaling", "fuzz"]
@@ -195,6 +195,8 @@ def _study_page(name: str, summary: dict, doc: str, seconds: float, out: Path) -
                                                        for f in found) + "</ul>")
     parts.append(f"<details><summary>What the study does</summary><pre class='doc'>"
                  f"{html.escape(doc)}</pre></details>")
+    # a study's own HTML (scene_motion's animations), as it wrote it
+    parts += [str(h) for h in summary.get("html", [])]
     for fig in figures(summary, out):
         rel = _rel(fig["path"], out)
         parts.append(f"<figure><img src='{rel}' alt='{html.escape(fig['path'].stem)}'>"
