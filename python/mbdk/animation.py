@@ -212,9 +212,10 @@ def animation_html(result: SceneResult, scene, max_frames: int = MAX_FRAMES,
     # JSON inside a <script> element: "</" is written as "<\/" so no value can close it
     blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     hint = " (drag to turn)" if data["dim"] == 3 else ""
-    return (f"<figure class='mbdk-anim' style='margin:0'><canvas width='{WIDTH}' height='{HEIGHT}' "
-            f"data-frame='0' data-t='{data['t'][0]}' style='border:1px solid #ccc;"
-            f"touch-action:none'></canvas><div class='mbdk-controls' style='font-size:12px'>"
+    return (f"<figure class='mbdk-anim' style='margin:0'><canvas width='{WIDTH}' "
+            f"height='{HEIGHT}' data-frame='0' data-t='{data['t'][0]}' "
+            "style='border:1px solid #ccc;touch-action:none'></canvas>"
+            "<div class='mbdk-controls' style='font-size:12px'>"
             "<button type='button' class='play'>pause</button> "
             f"<input type='range' class='slider' min='0' max='{len(data['t']) - 1}' value='0' "
             "style='width:200px;vertical-align:middle'> <span class='time'></span> "

@@ -22,8 +22,8 @@ status 130 (128 + SIGINT, the shell's convention)
 status 141 (128 + SIGPIPE)
     standard output closed early (`mbdk methods | head -3`), quietly.
 
-The commands that write a file (run, sweep, plot, animate) write it under a temporary name and rename
-it when complete, so a failure leaves no file, not even a partial one, and the line says "no
+The commands that write a file (run, sweep, plot, animate) write it under a temporary name and
+rename it when complete, so a failure leaves no file, not even a partial one, and the line says "no
 file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
 """
 from __future__ import annotations
