@@ -48,6 +48,7 @@ def run(out: Path, quick: bool = False) -> dict:
                      "wall_ms": 1e3 * (time.perf_counter() - t0),
                      "page_kB": len(fragment.encode()) / 1e3})
         parts.append(fragment)
+    redundant = redundant_line()
     table = write_table(rows, list(rows[0]), out, "scene_motion",
                         "The runs animated", "cpu_ms: the solving thread's CPU time; wall_ms: "
                         "the run and its drawing's data; page_kB: the animation's HTML "
@@ -56,10 +57,25 @@ def run(out: Path, quick: bool = False) -> dict:
     found = [f"{len(rows)} built-in scenes animated from their own samples ({spatial} spatial, "
              f"turned by dragging); play, pause, a time slider, loop"]
     return {"title": "Every built-in scene in motion (animations)", "tables": [table],
-            "figures": [], "findings": found,
+            "figures": [], "findings": found, "hard_cases": {"redundant joints": redundant},
             # the player after the animations: it starts those already on the page
             "html": ["<div style='display:flex;flex-wrap:wrap;gap:8px'>" + "".join(parts)
                      + "</div>" + player_script()]}
+
+
+def redundant_line() -> str:
+    """What the redundant parallelogram meets: an ODE formulation refuses it by name, the
+    index-3 family runs it (its animation above) and holds its joints."""
+    sc = mbdk.scene("parallelogram_redundant")
+    try:
+        mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.01, formulation="projection")
+        refused = "rk4/projection runs it"
+    except mbdk.MbdkError as err:
+        refused = f"rk4/projection refused by name ({type(err).__name__})"
+    method, kw = INDEX3["parallelogram_redundant"]
+    r = mbdk.simulate(sc, method, t_end=T_END, outputs=("residuals",), **kw)
+    return (f"parallelogram_redundant: {refused}; {method} runs it, max |Phi| "
+            f"{float(r.residuals[:, 0].max()):.1e} over {T_END:g} s")
 
 
 if __name__ == "__main__":

@@ -144,3 +144,23 @@ def test_the_animation_plays_and_draws_in_headless_chromium(name, tmp_path):
     # joints) other than its one-pixel grey border
     inner = pixels[100:380, 20:400]
     assert np.mean(np.any(inner < 0.6, axis=-1)) > 0.002
+
+
+@needs_browser
+def test_the_reports_scene_motion_page_plays_every_built_in_scene(tmp_path, root):
+    """The report's animations page: one animation per built-in scene, each advanced after 2 s
+    of virtual time (a run of 3 s: t near 2), and the front page links it and names the hard
+    case it met (the redundant parallelogram)."""
+    out = tmp_path / "report"
+    subprocess.run([sys.executable, "-m", "mbdk", "report", "--quick", "--out", out,
+                    "--studies", root / "studies", "--only", "scene_motion"], check=True,
+                   capture_output=True)
+    dom = subprocess.run([BROWSER, *FLAGS, "--virtual-time-budget=2000", "--dump-dom",
+                          (out / "scene_motion.html").as_uri()], check=True,
+                         capture_output=True, text=True, timeout=120).stdout
+    shown = _canvases(dom)
+    assert len(shown) == len(mbdk.scenes("all")) == 15
+    assert all(f > 0 and 1.0 < t < 3.0 for f, t in shown), shown
+    front = (out / "index.html").read_text()
+    assert "href='scene_motion.html'>redundant joints</a>" in front
+    assert "RedundantConstraintsError" in front

@@ -207,6 +207,22 @@ def _study_page(name: str, summary: dict, doc: str, seconds: float, out: Path) -
     return _page(summary["title"], "\n".join(parts))
 
 
+def _hard_cases_html(entries: list[dict]) -> str:
+    """The hard cases the studies met (drift, stiffness, singular poses, redundant joints,
+    gimbal lock), a line each with a link to the study that met it: what a reader who doubts
+    the kernel looks for first. Each study names its own (its summary's "hard_cases")."""
+    rows = [(case, line, e["name"]) for e in entries
+            for case, line in (e.get("hard_cases") or {}).items()]
+    if not rows:
+        return ""
+    body = "".join(f"<tr><td><a href='{n}.html'>{html.escape(c)}</a></td>"
+                   f"<td title='{html.escape(str(x))}'>{html.escape(str(x))}</td></tr>"
+                   for c, x, n in rows)
+    return ("<table class='front hard'><colgroup><col style='width:15%'><col></colgroup>"
+            f"<thead><tr><th>hard case</th><th>what the runs met</th></tr></thead>"
+            f"<tbody>{body}</tbody></table>")
+
+
 def _front_page(entries: list[dict], manifest: dict) -> str:
     rows = []
     for e in entries:
@@ -230,6 +246,7 @@ rounding are highlighted there, with why. "flagged": printed values the study fo
 <table class='front'><colgroup><col style='width:30%'><col style='width:5%'><col></colgroup>
 <thead><tr><th>study</th><th>flagged</th><th>what it found</th></tr></thead>
 <tbody>{''.join(rows)}</tbody></table>
+{_hard_cases_html(entries)}
 {_manifest_html(manifest)}"""
     return _page("mbdk study report", body)
 
@@ -259,6 +276,7 @@ def build_report(out: Path, quick: bool = False, studies: Path | None = None,
         (out / f"{name}.html").write_text(_study_page(name, summary, doc, dt, out))
         entries.append({"name": name, "title": summary["title"], "findings": findings(summary),
                         "flagged": len(flagged_rows(summary["tables"])),
+                        "hard_cases": summary.get("hard_cases") or {},
                         "what": " ".join(doc.split("\n\n")[0].split())})
     manifest = {**build_info(), "quick": quick,
                 "generated": time.strftime("%Y-%m-%d %H:%M:%S"),
