@@ -28,6 +28,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .result import SceneResult, keep_samples
+from .results_io import write_atomic
 from .scene import GROUND
 
 #: at most this many frames: enough for smooth motion at a few seconds of run, few enough
@@ -247,7 +248,6 @@ def animation_page(result: SceneResult, scene, max_frames: int = MAX_FRAMES,
 def write_animation(result: SceneResult, scene, path, max_frames: int = MAX_FRAMES,
                     title: str | None = None) -> Path:
     """The animation page written to path (.html), whole or not at all."""
-    from .results_io import write_atomic
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise InvalidInputError(f"{path}: an animation is an HTML page; give a name ending "
