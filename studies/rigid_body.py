@@ -245,7 +245,22 @@ def run(out: Path, quick: bool = False) -> dict:
         "stays to 0, the better the method keeps the rotation a rotation (the table gives "
         "each method's largest drift at every step).")}]
     return {"title": "The torque-free rigid body: flip, invariants, |q|", "tables": tables,
-            "figures": figs}
+            "figures": figs, "hard_cases": {"gimbal lock": gimbal_line(tables[-1]["rows"])}}
+
+
+def gimbal_line(rows: list[dict]) -> str:
+    """The closest pass to the lock in a line: each parametrisation's outcome by method."""
+    e = min(r["e"] for r in rows)
+
+    def outcome(r):
+        err = r["orientation_error"]
+        return f"{r['method']} " + (r["status"] if err is None else f"error {err:.1e}")
+    parts = {}
+    for r in rows:
+        if r["e"] == e:
+            parts.setdefault(r["parametrisation"], []).append(outcome(r))
+    return f"passing within {e:g} of the 3-1-3 lock: " + "; ".join(
+        f"{k}: {', '.join(v)}" for k, v in parts.items())
 
 
 if __name__ == "__main__":

@@ -199,7 +199,7 @@ def run(out: Path, quick: bool = False) -> dict:
              f"{worst['max_phi']:.1e}); smallest: {best['formulation']} on {best['scene']} "
              f"({best['max_phi']:.1e})"]
     return {"title": "Planar scenes: drift, energy and cost", "tables": [t1, t2],
-            "findings": found,
+            "findings": found, "hard_cases": {"constraint drift": found[0]},
             "figures": [{"path": f1, "caption": cap}]}
 
 

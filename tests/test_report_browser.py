@@ -74,6 +74,10 @@ def test_a_front_page_of_every_study_with_long_findings_fits_one_screen(tmp_path
     entries = [{"name": n, "title": f"{n}: " + "a long title of a study " * 5, "flagged": 3,
                 "findings": ["a finding much longer than a line " * 8, "a second one"]}
                for n in STUDIES]
+    # and the hard cases' lines, each far longer than a line too (five, as the studies name)
+    for e, case in zip(entries, ("drift", "stiffness", "singular poses", "redundant joints",
+                                 "gimbal lock")):
+        e["hard_cases"] = {case: "a hard case met at length " * 12}
     manifest = {"version": "0", "compiler": "gfortran " * 10, "compiler_flags": "-O2 " * 30,
                 "numpy": "2", "python": "3", "machine": "x86_64", "quick": False,
                 "generated": "now", "total_seconds": 1.0}
@@ -81,6 +85,11 @@ def test_a_front_page_of_every_study_with_long_findings_fits_one_screen(tmp_path
     page.write_text(_front_page(entries, manifest))
     pixels = _shot(page, tmp_path / "front.png", 3000)
     assert 400 < _content_bottom(pixels) <= 1200
+    dom = _dom(page)
+    hard = dom.split("class=\"front hard\"")[1].split("</table>")[0]
+    assert re.findall(r"<a href=\"(\w+)\.html\">([\w ]+)</a>", hard) == [
+        (STUDIES[0], "drift"), (STUDIES[1], "stiffness"), (STUDIES[2], "singular poses"),
+        (STUDIES[3], "redundant joints"), (STUDIES[4], "gimbal lock")]
 
 
 @needs_browser

@@ -1,9 +1,11 @@
 """The `mbdk` command: `mbdk --version`, `mbdk report`, `mbdk methods`, `mbdk problems`,
 `mbdk solve`, `mbdk scenes`, `mbdk check|scene NAME|FILE [--symbolic]`,
-`mbdk run SCENE ... --out FILE`, `mbdk plot FILE`, `mbdk sweep GRID --out TABLE.csv`::
+`mbdk run SCENE ... --out FILE`, `mbdk plot FILE`, `mbdk animate SCENE ... --out PAGE.html`,
+`mbdk sweep GRID --out TABLE.csv`::
 
     mbdk run my_scene.toml --method rk4 --h 1e-3 --t-end 10 --out run.npz
     mbdk plot run.npz                     # run.png: coordinates, energy balance, residuals
+    mbdk animate four_bar --method dopri54 --t-end 5 --out four_bar.html   # the motion
 
 Every failure ends the command with one line on standard error that names the command, the
 kind of failure and what it concerns, and a non-zero status; no traceback (--traceback shows
@@ -20,8 +22,8 @@ status 130 (128 + SIGINT, the shell's convention)
 status 141 (128 + SIGPIPE)
     standard output closed early (`mbdk methods | head -3`), quietly.
 
-The commands that write a file (run, sweep, plot) write it under a temporary name and rename
-it when complete, so a failure leaves no file, not even a partial one, and the line says "no
+The commands that write a file (run, sweep, plot, animate) write it under a temporary name and
+rename it when complete, so a failure leaves no file, not even a partial one, and the line says "no
 file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
 """
 from __future__ import annotations
@@ -39,6 +41,7 @@ from .errors import InvalidInputError, MbdkError as MbdkErrorBase
 from .methods import methods
 from .problems import problems
 from .report import STUDIES, build_report
+from .animation import MAX_FRAMES, write_animation
 from .results_io import check_writable, plot_result, save_result
 from .model import assemble, build_tables
 from .scene_file import scene_or_file, scenes
@@ -48,7 +51,7 @@ from .sweep import load_grid, one_line, sweep
 from .symbolic import cross_check
 
 #: the commands that write their output file only when they succeed
-WRITERS = ("run", "sweep", "plot")
+WRITERS = ("run", "sweep", "plot", "animate")
 #: the API whose keywords are `mbdk solve`'s options (taken at import: the call itself goes
 #: through ode.solve_ode, which a test may stand in for)
 _SOLVE_API = ode.solve_ode
@@ -128,7 +131,17 @@ def parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="plot a saved result (PNG)")
     pl.add_argument("result", type=Path)
     pl.add_argument("--out", type=Path, default=None, help="the PNG (default: beside the result)")
-    for p in (rp, sp, sc, run, pl, sw):
+    an = sub.add_parser("animate", help="run a scene and write an animation of its motion "
+                        "from the run's samples: an HTML page that plays in a browser, offline "
+                        "(planar in the plane, spatial in a view turned by dragging)")
+    an.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
+    an.add_argument("--method", required=True, help="a method of mbdk methods")
+    an.add_argument("--out", type=Path, required=True, help="the page (.html)")
+    an.add_argument("--frames", type=int, default=MAX_FRAMES,
+                    help=f"at most this many of the run's samples are shown (default "
+                    f"{MAX_FRAMES}; the first and last always)")
+    add_options(an, simulate, RUN_HELP, RUN_SKIP)
+    for p in (rp, sp, sc, run, pl, sw, an):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
     ap.commands = sub.choices      # name -> the command's parser, aliases included
     return ap
@@ -239,6 +252,8 @@ def _main(args) -> int:
     elif args.cmd == "plot":
         args.written = plot_result(args.result, args.out)
         print(f"wrote {args.written}")
+    elif args.cmd == "animate":
+        _animate(args)
     elif args.cmd == "solve":
         r = ode.solve_ode(args.problem, args.method, **given(args, _SOLVE_API, SOLVE_SKIP))
         print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  {plural(r.stats.steps, 'step')}  "
@@ -314,3 +329,24 @@ def _run(args) -> None:
     args.written = out
     print(f"wrote {out} ({len(r.t)} samples of every output the run has, with the "
           "manifest)")
+
+
+def _animate(args) -> None:
+    """mbdk animate: the scene run, then its motion as a page (written only when the run
+    succeeded)."""
+    if args.frames < 2:
+        raise InvalidInputError(f"--frames {args.frames}: give at least 2 (the first and the "
+                                "last sample)")
+    out = check_writable(args.out, (".html", ".htm"))
+    sc = scene_or_file(args.scene)
+    kw = given(args, simulate, RUN_SKIP)
+    info = methods().get(args.method)
+    if info is not None and info.adaptive and "dt_out" not in kw and "t_eval" not in kw:
+        # an error-controlled run samples only its ends unless told: spread the frames'
+        # samples over the run (simulate's own default otherwise)
+        kw["dt_out"] = (kw.get("t_end", 1.0) - kw.get("t0", 0.0)) / args.frames
+    r = simulate(sc, args.method, **kw)
+    args.written = write_animation(r, sc, out, max_frames=args.frames)
+    print(f"scene {sc.name!r}: {args.method}, t = {r.t[0]:g} .. {r.t[-1]:g} s, "
+          f"{plural(len(r.t), 'sample')}, {plural(min(len(r.t), args.frames), 'frame')} at "
+          f"most; wrote {out} (open it in a browser)")

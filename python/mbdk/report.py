@@ -1,7 +1,7 @@
 """The study report: runs every script in studies/ and writes one page per study (its findings,
-figures with captions, short tables inline and long ones as a head with a link to the CSV)
-under a front page that fits one screen: per study its title, what it found and a link, and the
-build manifest."""
+figures with captions, a study's own HTML (animations), short tables inline and long ones as a
+head with a link to the CSV) under a front page that fits one screen: per study its title, what
+it found and a link, the hard cases the studies met, and the build manifest."""
 from __future__ import annotations
 
 import html
@@ -18,10 +18,11 @@ from .analysis.tables import format_rows
 from .ode import build_info
 
 #: the studies in report order (file names in studies/)
-STUDIES = ["ch4_tables", "pendulum", "phase_portraits", "work_precision", "error_control",
-           "benchmark_rk4", "stability", "scene_drift", "scene_checks", "ch3_pendulum", "index3",
-           "pipeline_cost", "step_control", "ch5_formulas", "ch6_numbers", "gear_wear",
-           "knee_wear", "rigid_body", "spatial_scenes", "symbolic_check", "sweep_scaling", "fuzz"]
+STUDIES = ["scene_motion", "ch4_tables", "pendulum", "phase_portraits", "work_precision",
+           "error_control", "benchmark_rk4", "stability", "scene_drift", "scene_checks",
+           "ch3_pendulum", "index3", "pipeline_cost", "step_control", "ch5_formulas",
+           "ch6_numbers", "gear_wear", "knee_wear", "rigid_body", "spatial_scenes",
+           "symbolic_check", "sweep_scaling", "fuzz"]
 
 #: tables longer than this are shown as their head (and flagged rows) with a link to the CSV:
 #: a reader scans a few dozen rows, the rest is data for a script
@@ -195,6 +196,8 @@ def _study_page(name: str, summary: dict, doc: str, seconds: float, out: Path) -
                                                        for f in found) + "</ul>")
     parts.append(f"<details><summary>What the study does</summary><pre class='doc'>"
                  f"{html.escape(doc)}</pre></details>")
+    # a study's own HTML (scene_motion's animations), as it wrote it
+    parts += [str(h) for h in summary.get("html", [])]
     for fig in figures(summary, out):
         rel = _rel(fig["path"], out)
         parts.append(f"<figure><img src='{rel}' alt='{html.escape(fig['path'].stem)}'>"
@@ -202,6 +205,22 @@ def _study_page(name: str, summary: dict, doc: str, seconds: float, out: Path) -
     for t in summary["tables"]:
         parts.append(_table_html(t, out))
     return _page(summary["title"], "\n".join(parts))
+
+
+def _hard_cases_html(entries: list[dict]) -> str:
+    """The hard cases the studies met (drift, stiffness, singular poses, redundant joints,
+    gimbal lock), a line each with a link to the study that met it: what a reader who doubts
+    the kernel looks for first. Each study names its own (its summary's "hard_cases")."""
+    rows = [(case, line, e["name"]) for e in entries
+            for case, line in (e.get("hard_cases") or {}).items()]
+    if not rows:
+        return ""
+    body = "".join(f"<tr><td><a href='{n}.html'>{html.escape(c)}</a></td>"
+                   f"<td title='{html.escape(str(x))}'>{html.escape(str(x))}</td></tr>"
+                   for c, x, n in rows)
+    return ("<table class='front hard'><colgroup><col style='width:15%'><col></colgroup>"
+            f"<thead><tr><th>hard case</th><th>what the runs met</th></tr></thead>"
+            f"<tbody>{body}</tbody></table>")
 
 
 def _front_page(entries: list[dict], manifest: dict) -> str:
@@ -227,6 +246,7 @@ rounding are highlighted there, with why. "flagged": printed values the study fo
 <table class='front'><colgroup><col style='width:30%'><col style='width:5%'><col></colgroup>
 <thead><tr><th>study</th><th>flagged</th><th>what it found</th></tr></thead>
 <tbody>{''.join(rows)}</tbody></table>
+{_hard_cases_html(entries)}
 {_manifest_html(manifest)}"""
     return _page("mbdk study report", body)
 
@@ -256,6 +276,7 @@ def build_report(out: Path, quick: bool = False, studies: Path | None = None,
         (out / f"{name}.html").write_text(_study_page(name, summary, doc, dt, out))
         entries.append({"name": name, "title": summary["title"], "findings": findings(summary),
                         "flagged": len(flagged_rows(summary["tables"])),
+                        "hard_cases": summary.get("hard_cases") or {},
                         "what": " ".join(doc.split("\n\n")[0].split())})
     manifest = {**build_info(), "quick": quick,
                 "generated": time.strftime("%Y-%m-%d %H:%M:%S"),

@@ -50,11 +50,17 @@ def _format(path: Path) -> str:
     return fmt
 
 
-def check_writable(path) -> Path:
-    """The output path, checked before a run: a known format, and a folder that exists and
-    can be written (named errors otherwise)."""
+def check_writable(path, suffixes: tuple | None = None) -> Path:
+    """The output path, checked before a run: a known format (a result file's, or one of
+    suffixes: an animation's page), and a folder that exists and can be written (named errors
+    otherwise)."""
     path = Path(path)
-    fmt = _format(path)
+    if suffixes is None:
+        fmt = _format(path)
+    elif path.suffix.lower() in suffixes:
+        fmt = path.suffix.lower()
+    else:
+        raise InvalidInputError(f"{path}: give a file ending in {', '.join(suffixes)}")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InvalidInputError(f"{path}: the folder {str(folder)!r} does not exist")
