@@ -16,7 +16,7 @@ def _tool(name):
 
 
 @pytest.mark.parametrize("example", ["c_embedding.c", "c_index3.c", "c_stepper.c",
-                                     "c_spatial.c", "fortran_embedding.f90"])
+                                     "c_spatial.c", "c_scene_file.c", "fortran_embedding.f90"])
 def test_c_example_builds_against_the_installed_copy(tmp_path, root, example):
     """The C examples, and the Fortran one (its `use mbdk_...` statements read the module
     files installed into includedir/mbdk, which pkg-config's cflags name)."""
@@ -44,5 +44,9 @@ def test_c_example_builds_against_the_installed_copy(tmp_path, root, example):
     exe = tmp_path / "example"
     subprocess.run([cc, str(root / "kernel" / "examples" / example), *flags.split(), "-o",
                     str(exe)], check=True, capture_output=True, text=True)
-    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+    # c_scene_file reads a scene's tables file (meson's own check, on the double pendulum)
+    args = (["check", str(root / "kernel" / "examples" / "double_pendulum.tables.toml")]
+            if example == "c_scene_file.c" else [])
+    run = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr

@@ -403,6 +403,36 @@ int mbdk_stepper_create_spatial_index3(int nb, const double *mass, const double 
                                        const mbdk_spatial_options *spatial_opt,
                                        const mbdk_index3_options *opt, double t0,
                                        const double *y0, mbdk_stepper **stepper);
+/* A scene's tables from its file (kernel/src/api/mbdk_scene_tables.c): the scene file (TOML, by
+ * name) is read by mbdk's one scene reader, whose checks name the file, element, field and value;
+ * `mbdk tables SCENE -o FILE` writes its tables and the initial state its runs start from
+ * (assembled) as a small TOML file (python/mbdk/tables_file.py lists the keys), which
+ * mbdk_scene_tables_read reads into the arrays the stepper constructors above take: planar
+ * scenes jint, jreal, fint, freal; spatial scenes jtype, jbody, jreal, ftype, fbody, freal and
+ * the rotation (enum mbdk_rotation) of y0's orientation coordinates. n = len(y0): the bodies'
+ * coordinates, their rates, then the wear elements' volumes. A malformed file is
+ * MBDK_ERR_INVALID_INPUT (a missing one too) and message (NUL-terminated, message_len bytes)
+ * names the file, the line, the key and the value; nothing stays allocated after a failure.
+ * mbdk_scene_tables_free frees what a successful read allocated. */
+enum mbdk_scene_kind { MBDK_SCENE_PLANAR = 1, MBDK_SCENE_SPATIAL = 2 };
+typedef struct mbdk_scene_tables {
+    int kind;                   /* enum mbdk_scene_kind */
+    int rotation;               /* spatial: enum mbdk_rotation; planar: 0 */
+    int nb, nj, nf, n;          /* bodies, joint rows, force rows (wear entries too), len(y0) */
+    double t0;                  /* the time y0 is at */
+    double *mass, *inertia, *jreal, *freal, *y0;
+    int *jint, *fint;                       /* planar scenes (NULL on spatial ones) */
+    int *jtype, *jbody, *ftype, *fbody;     /* spatial scenes (NULL on planar ones) */
+    char name[128];             /* the scene's name */
+} mbdk_scene_tables;
+int mbdk_scene_tables_read(const char *path, mbdk_scene_tables *tables, char *message,
+                           int message_len);
+void mbdk_scene_tables_free(mbdk_scene_tables *tables);
+/* A stepper for an ODE method (opt) on the tables' scene from (t0, y0), the model's default
+ * options but the formulation (enum mbdk_formulation; 0: the default); the index-3 family:
+ * mbdk_stepper_create_index3 / _spatial_index3 with the tables' arrays. */
+int mbdk_stepper_create_tables(const mbdk_scene_tables *tables, int formulation,
+                               const mbdk_options *opt, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */
 /* up to t, landing on it; t before the stepper's time: MBDK_ERR_INVALID_INPUT */
 int mbdk_stepper_advance(mbdk_stepper *stepper, double t);

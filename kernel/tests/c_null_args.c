@@ -169,6 +169,24 @@ int main(void)
         expect("stepper_create_scene, nj huge", mbdk_stepper_create_scene(1, mass, inertia, 2000000000, &jint[0][0], &jreal[0][0], 1, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
         expect("stepper_create_scene, nf huge", mbdk_stepper_create_scene(1, mass, inertia, 1, &jint[0][0], &jreal[0][0], 2000000000, &fint[0][0], &freal[0][0], &mopt, &opt, 0, yp, &s3), MBDK_ERR_INVALID_INPUT);
     }
+    {   /* the tables file's reader and its stepper: NULL anywhere is refused, nothing kept */
+        mbdk_scene_tables t;
+        mbdk_stepper *s4 = NULL;
+        mbdk_options o;
+        char msg[256];
+        mbdk_default_options(&o);
+        o.method = mbdk_method_id("rk4");
+        o.h = 1e-3;
+        expect("scene_tables_read, path NULL", mbdk_scene_tables_read(NULL, &t, msg, sizeof msg), MBDK_ERR_INVALID_INPUT);
+        expect("scene_tables_read, tables NULL", mbdk_scene_tables_read("x.toml", NULL, msg, sizeof msg), MBDK_ERR_INVALID_INPUT);
+        expect("scene_tables_read, message NULL", mbdk_scene_tables_read("no_such.toml", &t, NULL, 0), MBDK_ERR_INVALID_INPUT);
+        expect("scene_tables_read, no arrays after a failure", t.mass == NULL && t.y0 == NULL, 1);
+        mbdk_scene_tables_free(NULL);
+        expect("stepper_create_tables, tables NULL", mbdk_stepper_create_tables(NULL, 0, &o, &s4), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_tables, empty tables", mbdk_stepper_create_tables(&t, 0, &o, &s4), MBDK_ERR_INVALID_INPUT);
+        expect("stepper_create_tables, handle NULL", mbdk_stepper_create_tables(&t, 0, &o, NULL), MBDK_ERR_INVALID_INPUT);
+        expect("a refused create_tables leaves a NULL handle", s4 == NULL, 1);
+    }
     printf("%d checks, %d failed\n", checks, bad);
     return bad != 0;
 }

@@ -49,9 +49,10 @@ from .scene_report import scene_report
 from .simulate import simulate
 from .sweep import load_grid, one_line, sweep
 from .symbolic import cross_check
+from .tables_file import write_tables
 
 #: the commands that write their output file only when they succeed
-WRITERS = ("run", "sweep", "plot", "animate")
+WRITERS = ("run", "sweep", "plot", "animate", "tables")
 #: the API whose keywords are `mbdk solve`'s options (taken at import: the call itself goes
 #: through ode.solve_ode, which a test may stand in for)
 _SOLVE_API = ode.solve_ode
@@ -141,7 +142,13 @@ def parser() -> argparse.ArgumentParser:
                     help=f"at most this many of the run's samples are shown (default "
                     f"{MAX_FRAMES}; the first and last always)")
     add_options(an, simulate, RUN_HELP, RUN_SKIP)
-    for p in (rp, sp, sc, run, pl, sw, an):
+    tb = sub.add_parser("tables", help="write a scene's kernel tables and initial state "
+                        "(assembled) as a file a C program reads with mbdk_scene_tables_read "
+                        "(mbdk.h) to step the scene without Python")
+    tb.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
+    tb.add_argument("--out", type=Path, required=True, help="the tables file (.toml)")
+    tb.add_argument("--t0", type=float, default=0.0, help="the initial time (default 0)")
+    for p in (rp, sp, sc, run, pl, sw, an, tb):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
     ap.commands = sub.choices      # name -> the command's parser, aliases included
     return ap
@@ -254,6 +261,11 @@ def _main(args) -> int:
         print(f"wrote {args.written}")
     elif args.cmd == "animate":
         _animate(args)
+    elif args.cmd == "tables":
+        sc = scene_or_file(args.scene)
+        args.written = write_tables(sc, args.out, args.t0)
+        print(f"wrote {args.written}: the tables of {sc.kind} scene {sc.name!r} for "
+              "mbdk_scene_tables_read (mbdk.h)")
     elif args.cmd == "solve":
         r = ode.solve_ode(args.problem, args.method, **given(args, _SOLVE_API, SOLVE_SKIP))
         print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  {plural(r.stats.steps, 'step')}  "
