@@ -53,10 +53,12 @@ def test_kelvin_voigt_restitution():
 
 
 def test_error_control_locates_where_the_contact_closes_and_lets_go():
-    """dopri54 ends a step where the ball touches (delta = 0, where the damping force jumps in)
-    and where the clipped force lets go (k delta + c delta' = 0): at rtol 1e-10 its restitution
-    is then within 1e-9 of the closed form (test above), several times closer than with the
-    kinks inside steps, for about the same number of steps."""
+    """dopri54 ends a step where the ball touches (delta = 0, where the damping force jumps in),
+    where the clipped force lets go (k delta + c delta' = 0) and where the surfaces part: its
+    restitution's error against the closed form (test above) is then a few times rtol, not the
+    hundred times rtol of the kinks inside steps. Measured over 17 tolerances from 1e-12 to 1e-8
+    (the error of one tolerance depends on where its steps happen to fall): the median of
+    error / rtol is 15 with the events located and 110 without, for about the same steps."""
     m, k, c, v0 = 1.0, 1e5, 20.0, 2.0
     w, z = math.sqrt(k / m), c / (2 * math.sqrt(k * m))
     wd = w * math.sqrt(1 - z * z)
@@ -65,14 +67,17 @@ def test_error_control_locates_where_the_contact_closes_and_lets_go():
                                                      - z * w * math.sin(wd * t))
     ts = brentq(lambda t: k * x(t) + c * xd(t), 0.5 * math.pi / wd, math.pi / wd, xtol=1e-15)
     e_closed = -xd(ts) / v0
-    err, steps = {}, {}
+    ratio, steps = {True: [], False: []}, {True: 0, False: 0}
     for located in (True, False):
-        r = mbdk.simulate(ball(k, c, v0=v0), "dopri54", rtol=1e-10, atol=1e-12, t_end=0.03,
-                          dt_out=0.03, locate_events=located)
-        err[located], steps[located] = abs(r.v[-1, 1] / v0 - e_closed), r.stats.steps
-        assert r.manifest["locate_events"] is located
-    assert err[True] < 1e-9 and err[True] < err[False] / 5, err
-    assert steps[True] < 1.2 * steps[False]
+        for rtol in np.logspace(-12, -8, 17):
+            r = mbdk.simulate(ball(k, c, v0=v0), "dopri54", rtol=rtol, atol=1e-12, t_end=0.03,
+                              dt_out=0.03, locate_events=located)
+            ratio[located].append(abs(r.v[-1, 1] / v0 - e_closed) / rtol)
+            steps[located] += r.stats.steps
+            assert r.manifest["locate_events"] is located
+    med = {key: float(np.median(v)) for key, v in ratio.items()}
+    assert med[True] < 30 and med[True] < med[False] / 4, med
+    assert steps[True] < 1.2 * steps[False], steps
 
 
 def test_hertz_contact_time_and_restitution():
@@ -550,3 +555,19 @@ def test_contact_outputs_of_a_dropped_ball_in_closed_form():
     assert np.all(c["friction_force"] == 0.0)
     e = 0.5 * m * r.v[:, 1] ** 2 + m * G * r.q[:, 1] + 0.5 * k * delta ** 2
     assert np.abs(e - e[0]).max() < 1e-5 * abs(e[0])
+
+
+def test_the_energy_balance_of_bouncing_converges_with_the_tolerance():
+    """A damped ball bouncing under gravity (Kelvin-Voigt, c = 20 N s/m), dopri54: between
+    letting go (k delta + c delta' = 0) and parting (delta = 0) the contact dissipates its
+    potential, a power with a kink at the parting; with the parting as an event of its own
+    (as spatial contacts have it) no step holds that kink, and the run's energy balance
+    |E - E0 - W| (W the work integrated at every step) falls with rtol: at 1e-10 within 1e-8
+    of E0 (with the kink inside a step it stayed near 1e-4 of E0 at every rtol)."""
+    sc = ball(1e5, 20.0, v0=2.0, gravity=True)
+    worst = {}
+    for rtol in (1e-8, 1e-10):
+        r = mbdk.simulate(sc, "dopri54", rtol=rtol, atol=1e-14, t_end=1.0, dt_out=1e-4)
+        assert np.sum(np.diff(np.sign(0.1 - r.q[:, 1])) > 0) >= 3      # three bounces at least
+        worst[rtol] = np.abs(r.energy_balance()).max() / r.energy[0]
+    assert worst[1e-10] < 1e-8 and worst[1e-10] < worst[1e-8] / 100, worst
