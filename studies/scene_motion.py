@@ -1,9 +1,9 @@
 """Every built-in scene in motion: a short run of each, replayed from its own samples.
 
-Each built-in scene (mbdk.scenes()) runs for a few seconds and its samples are drawn as an
-animation (mbdk.animation): planar scenes in their plane, spatial ones in an orthographic view
-the reader turns by dragging; bodies as lines from their centres to their joints' points,
-joints as dots, ground points as squares. Nothing is interpolated: a frame is a sample, shown
+Each built-in scene (mbdk.scenes("all"): planar and spatial) runs for a few seconds and its
+samples are drawn as an animation (mbdk.animation): planar scenes in their plane, spatial ones
+in an orthographic view the reader turns by dragging; bodies as lines from their centres to
+their joints' points, joints as dots, ground points as squares. Nothing is interpolated: a frame is a sample, shown
 at its time. The runs are dopri54 at rtol 1e-8 sampled every t_end / 200, except the
 redundant parallelogram, which only the index-3 family runs (its joints' rows are dependent:
 the ODE formulations refuse it by name) and runs by trapezoidal_index3 at h = 1e-2. The table

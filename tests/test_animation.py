@@ -80,6 +80,14 @@ def test_the_fragment_carries_the_frames_as_json_and_the_page_is_self_contained(
     t, xyz, _d = frames(r, sc, max_frames=50)
     assert data["t"] == pytest.approx(t.tolist(), rel=1e-6)
     assert np.abs(np.array(data["xyz"]) - xyz[:, :, :2].reshape(len(t), -1)).max() < 1e-5
+    # late times keep every digit: a run from t0 = 1000 s shows each of its frames at its own
+    # time (rounded, many would share one and never play)
+    late = mbdk.simulate(sc, "rk4", h=1e-3, t0=1000.0, t_end=1000.5)
+    frag = animation_html(late, sc, title="</script><!--")
+    data = json.loads(re.search(r"class='mbdk-anim-data'>(.*?)</script>", frag, re.S).group(1))
+    t_late, _xyz, _d = frames(late, sc)
+    assert data["t"] == t_late.tolist() and len(set(data["t"])) == len(t_late)
+    assert data["title"] == "</script><!--"          # escaped in the page, itself in the data
     page = write_animation(r, sc, tmp_path / "dp.html").read_text()
     # nothing loaded from elsewhere: no script or style sheet by address
     assert "<script>" in page and not re.search(r"<(script|link)[^>]+(src|href)=", page)

@@ -45,6 +45,9 @@ CASES = [
     ("heavy_top", "rk4", "projection", 1e-3, 0.2),
     ("flyball_governor", "rk4", "reduced", 1e-4, 0.05),
     ("spatial_double_pendulum", "trapezoidal_index3", "augmented_lagrangian", 1e-3, 0.2),
+    ("double_pendulum", "rk4", "baumgarte", 1e-3, 0.2),       # gains 1/h, sqrt(2)/h as simulate's
+    ("heavy_top", "rk4", "baumgarte", 1e-3, 0.2),
+    ("parallelogram_redundant", "trapezoidal_index3", "augmented_lagrangian", 1e-3, 0.2),
 ]
 
 
@@ -130,3 +133,55 @@ def test_mbdk_tables_writes_the_file_or_nothing(tmp_path, capsys):
     assert main(["tables", "heavy_top", "--out", str(tmp_path / "top.txt")]) != 0
     assert "ending in .toml" in capsys.readouterr().err
     assert not (tmp_path / "top.txt").exists()
+
+
+@pytest.mark.parametrize("norm", ["stabilise", "none"])
+def test_a_spatial_scenes_quaternion_norm_travels_with_its_tables(exe, tmp_path, norm):
+    """quaternion_norm and norm_gain are the scene's (they change the run): the file carries
+    them and the C stepper keeps simulate's bits with them."""
+    sc = replace(mbdk.scene("heavy_top"), quaternion_norm=norm, norm_gain=25.0)
+    path = write_tables(sc, tmp_path / "top.toml")
+    assert read_tables(path)["norm"] == {"stabilise": 2, "none": 3}[norm]
+    assert read_tables(path)["norm_gain"] == 25.0
+    t, y = c_final(exe, path, "rk4", 1e-3, 0.2, FORMULATIONS["projection"])
+    r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=0.2, formulation="projection")
+    assert np.array_equal(y, np.concatenate([r.q[-1], r.v[-1]]))
+
+
+def test_the_start_at_any_t0_and_on_redundant_joints(tmp_path):
+    """y0 at a t0 where t0 + h rounds (12345.678) and on the redundant parallelogram (which the
+    ODE formulations refuse): the assembled state either way, at the file's t0."""
+    keys = read_tables(write_tables(mbdk.scene("double_pendulum"), tmp_path / "a.toml",
+                                    t0=12345.678))
+    assert keys["t0"] == 12345.678
+    sc = mbdk.scene("parallelogram_redundant")
+    keys = read_tables(write_tables(sc, tmp_path / "b.toml"))
+    r = mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=1e-3)
+    assert np.array_equal(keys["y0"], np.concatenate([r.q[0], r.v[0]]))
+
+
+def test_comments_and_what_mbdk_tables_does_not_write(exe, tmp_path):
+    """Trailing comments are read past (TOML's); a list over several lines, a scene file given
+    by mistake and a state length that its bodies do not have are refused with what to do."""
+    good = write_tables(mbdk.scene("double_pendulum"), tmp_path / "dp.toml").read_text()
+
+    def run(text):
+        bad = tmp_path / "x.toml"
+        bad.write_text(text)
+        return subprocess.run([str(exe), str(bad), "rk4", "1e-3", "0.01"], capture_output=True,
+                              text=True, timeout=60)
+    commented = good.replace("nb = 2", "nb = 2   # bodies").replace(
+        'kind = "planar"', 'kind = "planar"  # "spatial" is the other')
+    assert run(commented).returncode == 0
+    lines = good.replace("mass = [1.0, 2.0]", "mass = [1.0,\n  2.0]")
+    assert "several lines" in run(lines).stderr
+    scene_file = (mbdk.scene("double_pendulum").source)
+    assert "scene file?" in run(open(scene_file).read()).stderr
+    short = good.replace("n = 12", "n = 11").replace(
+        "y0 = [", "y0 = [").rsplit(",", 1)[0] + "]\n"
+    out = run(short).stderr
+    assert "'n' = 11" in out and "has 12 values" in out, out
+    empty = good.replace("mass = [1.0, 2.0]", "mass = [1.0,, 2.0]")
+    assert "value 2 is empty" in run(empty).stderr
+    hexa = good.replace("mass = [1.0, 2.0]", "mass = [1.0, 0x1p1]")
+    assert "'0x1p1' is not a finite decimal number" in run(hexa).stderr

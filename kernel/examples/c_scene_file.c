@@ -3,8 +3,8 @@
  * reads them with mbdk_scene_tables_read and steps them.
  *
  *   c_scene_file FILE METHOD H T_END [FORMULATION]
- *       steps the scene of FILE (planar or spatial) by METHOD (an ODE method: rk4, dopri54, ...,
- *       on FORMULATION, 1 reduced .. 4 projection, 0 the default; or trapezoidal_index3, on 1
+ *       steps the scene of FILE (planar or spatial) by METHOD (a fixed-step ODE method: rk4, heun,
+ *       ..., on FORMULATION, 1 reduced .. 4 projection, 0 the default; or trapezoidal_index3, on 1
  *       index3 or 2 augmented_lagrangian) with step
  *       H to T_END and prints `final t y...` (every digit: %.17g). A bad file: its message on
  *       stderr, exit 2; a failed step: the status's message, exit 3.
@@ -58,6 +58,8 @@ static int run(const char *path, const char *method, double h, double t_end, int
             mbdk_spatial_options so;
             mbdk_spatial_default_options(&so);
             so.rotation = sc.rotation;
+            so.norm = sc.norm;
+            so.norm_gain = sc.norm_gain;
             status = mbdk_stepper_create_spatial_index3(sc.nb, sc.mass, sc.inertia, sc.nj,
                                                         sc.jtype, sc.jbody, sc.jreal, sc.nf,
                                                         sc.ftype, sc.fbody, sc.freal, &so, &opt,
@@ -72,7 +74,8 @@ static int run(const char *path, const char *method, double h, double t_end, int
     }
     if (status == MBDK_SUCCESS) status = mbdk_stepper_advance(s, t_end);
     y = malloc(sizeof(double) * (size_t)sc.n);
-    if (status == MBDK_SUCCESS && y) status = mbdk_stepper_state(s, &t, y, sc.n);
+    if (status == MBDK_SUCCESS && !y) status = MBDK_ERR_NO_MEMORY;
+    if (status == MBDK_SUCCESS) status = mbdk_stepper_state(s, &t, y, sc.n);
     if (status == MBDK_SUCCESS && print) {
         printf("final %.17g", t);
         for (i = 0; i < sc.n; i++) printf(" %.17g", y[i]);

@@ -410,14 +410,17 @@ int mbdk_stepper_create_spatial_index3(int nb, const double *mass, const double 
  * mbdk_scene_tables_read reads into the arrays the stepper constructors above take: planar
  * scenes jint, jreal, fint, freal; spatial scenes jtype, jbody, jreal, ftype, fbody, freal and
  * the rotation (enum mbdk_rotation) of y0's orientation coordinates. n = len(y0): the bodies'
- * coordinates, their rates, then the wear elements' volumes. A malformed file is
- * MBDK_ERR_INVALID_INPUT (a missing one too) and message (NUL-terminated, message_len bytes)
- * names the file, the line, the key and the value; nothing stays allocated after a failure.
+ * coordinates, their rates, then the wear elements' volumes (its length checked against the
+ * tables). A malformed file is MBDK_ERR_INVALID_INPUT (a missing one too), memory short of its
+ * arrays MBDK_ERR_NO_MEMORY, and message (NUL-terminated, message_len bytes) names the file, the
+ * line, the key and the value; nothing stays allocated after a failure.
  * mbdk_scene_tables_free frees what a successful read allocated. */
 enum mbdk_scene_kind { MBDK_SCENE_PLANAR = 1, MBDK_SCENE_SPATIAL = 2 };
 typedef struct mbdk_scene_tables {
     int kind;                   /* enum mbdk_scene_kind */
     int rotation;               /* spatial: enum mbdk_rotation; planar: 0 */
+    int norm;                   /* spatial: enum mbdk_quaternion_norm, the scene's; planar: 0 */
+    double norm_gain;           /* spatial: the scene's MBDK_NORM_STABILISE gain, 1/s */
     int nb, nj, nf, n;          /* bodies, joint rows, force rows (wear entries too), len(y0) */
     double t0;                  /* the time y0 is at */
     double *mass, *inertia, *jreal, *freal, *y0;
@@ -428,9 +431,12 @@ typedef struct mbdk_scene_tables {
 int mbdk_scene_tables_read(const char *path, mbdk_scene_tables *tables, char *message,
                            int message_len);
 void mbdk_scene_tables_free(mbdk_scene_tables *tables);
-/* A stepper for an ODE method (opt) on the tables' scene from (t0, y0), the model's default
- * options but the formulation (enum mbdk_formulation; 0: the default); the index-3 family:
- * mbdk_stepper_create_index3 / _spatial_index3 with the tables' arrays. */
+/* A stepper for a fixed-step ODE method (opt: method, h, ...) on the tables' scene from (t0,
+ * y0) with the options simulate takes by default: the model's defaults, the formulation given
+ * (enum mbdk_formulation; 0: the default), Baumgarte's gains 1/h and sqrt(2)/h, a spatial
+ * scene's rotation and quaternion norm as its file says; its steps are simulate's to the bit.
+ * Other options: the constructors above with the tables' arrays (the index-3 family:
+ * mbdk_stepper_create_index3 / _spatial_index3). */
 int mbdk_stepper_create_tables(const mbdk_scene_tables *tables, int formulation,
                                const mbdk_options *opt, mbdk_stepper **stepper);
 int mbdk_stepper_step(mbdk_stepper *stepper);                 /* to the next grid point */

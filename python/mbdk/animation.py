@@ -199,7 +199,8 @@ def _data(result, scene, max_frames, title) -> dict:
     lo, hi = xyz.reshape(-1, d.dim).min(axis=0), xyz.reshape(-1, d.dim).max(axis=0)
     span = float(np.max(hi - lo)) or 1.0
     digits = max(0, 5 - int(math.floor(math.log10(span))))
-    return {"title": title, "dim": d.dim, "t": [float(f"{x:.6g}") for x in t],
+    # the times in full: each frame plays at its own sample's time, whatever t0 is
+    return {"title": title, "dim": d.dim, "t": [float(x) for x in t],
             "xyz": np.round(xyz, digits).reshape(len(t), -1).tolist(),
             "segments": d.segments, "dots": d.dots, "up": _up(scene)}
 
@@ -210,8 +211,9 @@ def animation_html(result: SceneResult, scene, max_frames: int = MAX_FRAMES,
     fragments needs the player once (player_script(); animation_page includes it)."""
     title = scene.name if title is None and hasattr(scene, "name") else (title or "")
     data = _data(result, scene, max_frames, title)
-    # JSON inside a <script> element: "</" is written as "<\/" so no value can close it
-    blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    # JSON inside a <script> element: every "<" as the escape \u003c, so that no value (a title
+    # with "</script>" or "<!--") can close or comment out the element
+    blob = json.dumps(data, separators=(",", ":")).replace("<", "\\u003c")
     hint = " (drag to turn)" if data["dim"] == 3 else ""
     return (f"<figure class='mbdk-anim' style='margin:0'><canvas width='{WIDTH}' "
             f"height='{HEIGHT}' data-frame='0' data-t='{data['t'][0]}' "

@@ -22,7 +22,7 @@ status 130 (128 + SIGINT, the shell's convention)
 status 141 (128 + SIGPIPE)
     standard output closed early (`mbdk methods | head -3`), quietly.
 
-The commands that write a file (run, sweep, plot, animate) write it under a temporary name and
+The commands that write a file (run, sweep, plot, animate, tables) write it under a temporary name and
 rename it when complete, so a failure leaves no file, not even a partial one, and the line says "no
 file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
 """
@@ -142,6 +142,8 @@ def parser() -> argparse.ArgumentParser:
                     help=f"at most this many of the run's samples are shown (default "
                     f"{MAX_FRAMES}; the first and last always)")
     add_options(an, simulate, RUN_HELP, RUN_SKIP)
+    an.add_argument("--no-watch", dest="watch", action="store_const", const=False,
+                    default=argparse.SUPPRESS, help="turn the watch's checks off (--watch off)")
     tb = sub.add_parser("tables", help="write a scene's kernel tables and initial state "
                         "(assembled) as a file a C program reads with mbdk_scene_tables_read "
                         "(mbdk.h) to step the scene without Python")
@@ -356,7 +358,10 @@ def _animate(args) -> None:
     if info is not None and info.adaptive and "dt_out" not in kw and "t_eval" not in kw:
         # an error-controlled run samples only its ends unless told: spread the frames'
         # samples over the run (simulate's own default otherwise)
-        kw["dt_out"] = (kw.get("t_end", 1.0) - kw.get("t0", 0.0)) / args.frames
+        # (frames - 1 intervals: the first and the last sample are frames)
+        kw["dt_out"] = (kw.get("t_end", 1.0) - kw.get("t0", 0.0)) / (args.frames - 1)
+    # the frames need the coordinates only, unless other outputs are asked for
+    kw.setdefault("outputs", ())
     r = simulate(sc, args.method, **kw)
     args.written = write_animation(r, sc, out, max_frames=args.frames)
     print(f"scene {sc.name!r}: {args.method}, t = {r.t[0]:g} .. {r.t[-1]:g} s, "

@@ -21,8 +21,9 @@ coordinates (1 quaternion, 2 euler313, 3 cardan123; 0 on planar scenes); ``nb``,
 planar: ``jint`` (nj x 4), ``jreal`` (nj x 12), ``fint`` (nf x 4), ``freal`` (nf x 12), values
 the scene leaves to the pose marked as the kernel's MBDK_FROM_POSE, filled in by the stepper at
 y0; spatial: ``jtype`` (nj), ``jbody`` (nj x 2), ``jreal`` (nj x 17), ``ftype`` (nf),
-``fbody`` (nf x 2), ``freal`` (nf x 19); every table row-major, one row per element, as mbdk.h
-documents its fields;
+``fbody`` (nf x 2), ``freal`` (nf x 19), ``norm`` how its quaternions keep |p| = 1 (1 project,
+2 stabilise, 3 none) and ``norm_gain`` the stabilisation's gain; every table row-major, one row
+per element, as mbdk.h documents its fields;
 ``y0`` (n): the bodies' coordinates, their rates, then the wear elements' volumes, at the pose
 the run starts from (the scene's assembled, as ``simulate`` assembles it by default).
 """
@@ -33,12 +34,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .errors import InvalidInputError
+from . import __version__, checks
+from .codes import NORMS
+from .errors import InvalidInputError, RedundantConstraintsError
 from .model import build_tables
 from .results_io import check_writable, write_atomic
 from .run_planar import gears_at_assembled_pose
 from .scene import Scene
+from .scene_file import checked
 from .simulate import simulate
 from .spatial_model import ROTATIONS, spatial_tables
 
@@ -51,9 +54,10 @@ def scene_tables(scene: Scene, t0: float = 0.0) -> dict:
     the run builds them, and the assembled initial state at t0."""
     if not isinstance(scene, Scene):
         raise InvalidInputError(f"scene must be an mbdk Scene, got {type(scene).__name__}")
-    # the state a run starts from: one tiny step's first sample is the kernel's assembly
-    h = 1e-9 * max(1.0, abs(t0))
-    start = simulate(scene, "rk4", h=h, t0=t0, t_end=t0 + h, outputs=(), watch=False)
+    t0 = checks.real("t0", t0)
+    # the scene's fields through the reader's checks, as simulate takes them
+    scene = checked(scene)
+    start = _start(scene, t0)
     wear = [start.wear[w.name][0] for w in scene.wear]
     y0 = np.concatenate([start.q[0], start.v[0], np.array(wear, float)])
     head = {"format": FORMAT, "version": VERSION, "scene": scene.name,
@@ -61,7 +65,8 @@ def scene_tables(scene: Scene, t0: float = 0.0) -> dict:
     if scene.kind == "spatial":
         nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = \
             spatial_tables(scene)
-        return {**head, "rotation": ROTATIONS[scene.rotation], "nb": nb, "nj": nj, "nf": nf,
+        return {**head, "rotation": ROTATIONS[scene.rotation], "norm": NORMS[scene.quaternion_norm],
+                "norm_gain": float(scene.norm_gain), "nb": nb, "nj": nj, "nf": nf,
                 "n": y0.size, "t0": float(t0), "mass": mass,
                 "inertia": np.transpose(inertia, (2, 0, 1)),
                 "jtype": jtype[:nj], "jbody": jbody[:, :nj].T, "jreal": jreal[:, :nj].T,
@@ -76,9 +81,24 @@ def scene_tables(scene: Scene, t0: float = 0.0) -> dict:
             "fint": tab.fint[:, :tab.nf].T, "freal": tab.freal[:, :tab.nf].T, "y0": y0}
 
 
+def _start(scene: Scene, t0: float):
+    """The state a run starts from at t0: the first sample of one tiny step, the kernel's own
+    assembly (by rk4; on a scene whose joints are redundant, which the ODE formulations refuse,
+    by trapezoidal_index3)."""
+    t_end = t0 + 1e-9 * max(1.0, abs(t0))
+    h = t_end - t0          # what t0 + h is in floating point: exactly one step
+    try:
+        return simulate(scene, "rk4", h=h, t0=t0, t_end=t_end, outputs=(), watch=False)
+    except RedundantConstraintsError:
+        return simulate(scene, "trapezoidal_index3", h=h, t0=t0, t_end=t_end, outputs=(),
+                        watch=False)
+
+
 def _source(scene: Scene) -> str:
     """The scene's file; a built-in scene's relative to the package (the same on every
     machine)."""
+    if scene.source is None:
+        return "<python>"
     src = Path(str(scene.source))
     package = Path(__file__).resolve().parent
     try:
@@ -114,7 +134,7 @@ def write_tables(scene: Scene, path, t0: float = 0.0) -> Path:
              f"({_source(scene)}),",
              "# read from C by mbdk_scene_tables_read (mbdk.h); keys: python/mbdk/tables_file.py",
              *(f"{k} = {_toml(v)}" for k, v in keys.items())]
-    write_atomic(path, lambda tmp: tmp.write_text("\n".join(lines) + "\n"))
+    write_atomic(path, lambda tmp: tmp.write_text("\n".join(lines) + "\n", encoding="utf-8"))
     return path
 
 

@@ -8,15 +8,19 @@
  * (mbdk_stepper_create_scene, _index3, _spatial, _spatial_index3, or mbdk_stepper_create_tables):
  * no second scene reader in the kernel whose checks could drift from the first.
  *
- * What this file reads is that subset of TOML: comment lines, and `key = value` lines where
- * value is a number, a "string" without escapes, or a one-line [list of numbers]. Every key is
- * required once (kind-specific keys for their kind only). A malformed file is
- * MBDK_ERR_INVALID_INPUT with a message naming the file, the line, the key and the value; no
- * array is left allocated after a failure. It never prints.
+ * What this file reads is that subset of TOML: comments, and `key = value` lines where value
+ * is a number (decimal: digits, sign, point, exponent), a "string" without escapes, or a
+ * one-line [list of numbers]. Every key is required once (kind-specific keys for their kind
+ * only), and the state's length must be the one its bodies, rotation and wear entries give: the
+ * steppers take y0 without a length. Numbers are read in the "C" locale, whatever the host
+ * program set. A malformed file is MBDK_ERR_INVALID_INPUT with a message naming the file, the
+ * line, the key and the value; a list is counted before its array is allocated; no array is
+ * left allocated after a failure. It never prints.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <limits.h>
+#include <locale.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -70,6 +74,7 @@ static const struct key KEYS[] = {
     {"jint", MBDK_SCENE_PLANAR, K_LIST, 1}, {"fint", MBDK_SCENE_PLANAR, K_LIST, 1},
     {"jtype", MBDK_SCENE_SPATIAL, K_LIST, 1}, {"jbody", MBDK_SCENE_SPATIAL, K_LIST, 1},
     {"ftype", MBDK_SCENE_SPATIAL, K_LIST, 1}, {"fbody", MBDK_SCENE_SPATIAL, K_LIST, 1},
+    {"norm", MBDK_SCENE_SPATIAL, K_SCALAR, 1}, {"norm_gain", MBDK_SCENE_SPATIAL, K_SCALAR, 0},
 };
 #define NKEYS ((int)(sizeof KEYS / sizeof KEYS[0]))
 
@@ -100,7 +105,8 @@ static int parse_number(const char *s, int integer, double *x)
 {
     char *end;
     errno = 0;
-    if (*s == 0) return 0;
+    /* decimal numbers only: no hex, inf or nan, which TOML writes otherwise or not at all */
+    if (*s == 0 || s[strspn(s, integer ? "+-0123456789" : "+-0123456789.eE")] != 0) return 0;
     if (integer) {
         long v = strtol(s, &end, 10);
         if (errno || *end || v < INT_MIN || v > INT_MAX) return 0;
@@ -111,49 +117,68 @@ static int parse_number(const char *s, int integer, double *x)
     return !(errno == ERANGE && fabs(*x) > 1.0) && *end == 0 && isfinite(*x);
 }
 
-/* count (want < 0) or read the list text of key k into out[want] */
+/* the list text of key k: its values counted first (each item a number, none empty), checked
+ * against want, then read into a new array (*dout or *iout, want values) */
 static int parse_list(struct reader *r, const struct key *k, const struct value *v, int want,
-                      double *dout, int *iout)
+                      double **dout, int **iout)
 {
     char buf[64];
-    char *s = v->text, *item, *save = NULL, *copy;
+    const char *s = v->text, *p;
     size_t len = strlen(s);
-    int count = 0;
+    int pass, count = 0;
     r->line = v->line;
     if (len < 2 || s[0] != '[' || s[len - 1] != ']')
         return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s' = %s must be a list [x, y, ...] on "
-                    "one line", k->name, shown(s, buf, sizeof buf));
-    copy = malloc(len);
-    if (!copy) return fail(r, MBDK_ERR_NO_MEMORY, "no memory for key '%s'", k->name);
-    memcpy(copy, s + 1, len - 2);
-    copy[len - 2] = 0;
-    if (*trim(copy) == 0) {            /* [] */
-        free(copy);
-        if (want > 0)
-            return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s' has 0 values, %d expected",
-                        k->name, want);
-        return 0;
-    }
-    for (item = strtok_r(copy, ",", &save); item; item = strtok_r(NULL, ",", &save)) {
-        double x;
-        char *t = trim(item);
-        if (!parse_number(t, k->integer, &x)) {
-            int status = fail(r, MBDK_ERR_INVALID_INPUT, "key '%s', value %d = '%s' is not %s",
-                              k->name, count + 1, shown(t, buf, sizeof buf),
-                              k->integer ? "an integer" : "a finite number");
-            free(copy);
-            return status;
+                    "one line%s", k->name, shown(s, buf, sizeof buf),
+                    s[0] == '[' && !strchr(s, ']') ? " (a list over several lines is TOML, but "
+                    "not what `mbdk tables` writes)" : "");
+    for (pass = 0; pass < 2; pass++) {
+        int n = 0;
+        p = s + 1;
+        if (pass == 1) {
+            size_t bytes = (size_t)(want > 0 ? want : 1) * (dout ? sizeof(double) : sizeof(int));
+            void *a = calloc(1, bytes);
+            if (!a) return fail(r, MBDK_ERR_NO_MEMORY, "no memory for key '%s' (%d values)",
+                                k->name, want);
+            if (dout) *dout = a;
+            else *iout = a;
         }
-        if (count < want) {
-            if (iout) iout[count] = (int)x;
-            else dout[count] = x;
+        while (1) {
+            char item[128];
+            const char *end = p;
+            size_t m;
+            double x;
+            while (*end && *end != ',' && *end != ']') end++;
+            m = (size_t)(end - p);
+            snprintf(item, sizeof item, "%.*s", (int)(m < sizeof item ? m : sizeof item - 1), p);
+            if (m >= sizeof item) snprintf(item + sizeof item - 4, 4, "...");
+            {
+                char *t = trim(item);
+                if (*t == 0 && *end == ']' && n == 0) break;       /* [] */
+                if (*t == 0)
+                    return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s', value %d is empty",
+                                k->name, n + 1);
+                if (m >= sizeof item || !parse_number(t, k->integer, &x))
+                    return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s', value %d = '%s' is not "
+                                "%s", k->name, n + 1, t,
+                                k->integer ? "an integer" : "a finite decimal number");
+            }
+            if (pass == 1) {
+                if (dout) (*dout)[n] = x;
+                else (*iout)[n] = (int)x;
+            }
+            n++;
+            if (*end == ']') break;
+            p = end + 1;
         }
-        count++;
+        if (p && strchr(p, ']') != s + len - 1)
+            return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s' = %s: text after the list's ']'",
+                        k->name, shown(s, buf, sizeof buf));
+        count = n;
+        if (pass == 0 && count != want)
+            return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s' has %d value%s, %d expected",
+                        k->name, count, count == 1 ? "" : "s", want);
     }
-    free(copy);
-    if (count != want)
-        return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s' has %d values, %d expected", k->name,
-                    count, want);
     return 0;
 }
 
@@ -200,6 +225,21 @@ void mbdk_scene_tables_free(mbdk_scene_tables *t)
     memset(t, 0, sizeof *t);
 }
 
+/* the value text of a line: up to a comment (a '#' outside a string) */
+static char *value_text(char *s)
+{
+    int in_string = 0;
+    char *p;
+    for (p = s; *p; p++) {
+        if (*p == '"') in_string = !in_string;
+        else if (*p == '#' && !in_string) {
+            *p = 0;
+            break;
+        }
+    }
+    return trim(s);
+}
+
 /* the lines of the file into vals (each key once, every key known) */
 static int read_lines(struct reader *r, FILE *f, struct value *vals)
 {
@@ -207,11 +247,18 @@ static int read_lines(struct reader *r, FILE *f, struct value *vals)
     size_t cap = 0;
     int status = 0;
     r->line = 0;
+    errno = 0;
     while (getline(&line, &cap, f) != -1) {
         char *s = trim(line), *eq, *name;
         int i;
         r->line++;
         if (*s == 0 || *s == '#') continue;
+        if (*s == '[') {
+            status = fail(r, MBDK_ERR_INVALID_INPUT, "'%s' is a TOML table: a scene file? a C "
+                          "program reads the tables `mbdk tables SCENE --out FILE` writes",
+                          shown(s, buf, sizeof buf));
+            break;
+        }
         eq = strchr(s, '=');
         if (!eq) {
             status = fail(r, MBDK_ERR_INVALID_INPUT, "'%s' is not a line key = value",
@@ -232,33 +279,44 @@ static int read_lines(struct reader *r, FILE *f, struct value *vals)
                           name, vals[i].line);
             break;
         }
-        vals[i].text = strdup(trim(eq + 1));
+        vals[i].text = strdup(value_text(eq + 1));
+        if (vals[i].text && vals[i].text[0] == '[' && !strchr(vals[i].text, ']')) {
+            status = fail(r, MBDK_ERR_INVALID_INPUT, "key '%s': its list goes on over several "
+                          "lines, which is TOML but not what `mbdk tables` writes: one line per "
+                          "list", name);
+            break;
+        }
         if (!vals[i].text) {
             status = fail(r, MBDK_ERR_NO_MEMORY, "no memory for key '%s'", name);
             break;
         }
         vals[i].line = r->line;
     }
+    if (!status && ferror(f)) {
+        r->line = 0;
+        status = fail(r, MBDK_ERR_INVALID_INPUT, "cannot read: %s", strerror(errno));
+    }
     free(line);
-    if (!status && ferror(f)) status = fail(r, MBDK_ERR_INVALID_INPUT, "read error");
     return status;
 }
 
-static int alloc(struct reader *r, void **p, size_t count, size_t size, const char *name)
+/* the state's length its bodies, rotation and wear entries give */
+static int state_length(const mbdk_scene_tables *t)
 {
-    *p = calloc(count ? count : 1, size);
-    if (!*p) return fail(r, MBDK_ERR_NO_MEMORY, "no memory for key '%s' (%zu values)", name,
-                         count);
-    return 0;
+    int k, nw = 0;
+    for (k = 0; k < t->nf; k++)
+        if ((t->kind == MBDK_SCENE_PLANAR ? t->fint[4 * k] : t->ftype[k]) == MBDK_EFFECT_WEAR)
+            nw++;
+    if (t->kind == MBDK_SCENE_PLANAR) return 6 * t->nb + nw;
+    return (t->rotation == MBDK_ROT_QUATERNION ? 13 : 12) * t->nb + nw;
 }
 
 static int read_tables(struct reader *r, struct value *vals, mbdk_scene_tables *t)
 {
     char text[64];
     double x;
-    int status, i, planar;
+    int status, i, planar, na = 0;
     struct { const char *name; double **d; int **n; long count; } arrays[12];
-    int na = 0;
 
     for (i = 0; i < NKEYS; i++) {       /* the keys every scene has, before any is read */
         if (KEYS[i].kind == 0 && !vals[i].line) {
@@ -276,6 +334,11 @@ static int read_tables(struct reader *r, struct value *vals, mbdk_scene_tables *
         return fail(r, MBDK_ERR_INVALID_INPUT, "key 'version' = %g: this mbdk reads version %d "
                     "(write the file again with this mbdk's `mbdk tables`)", x, FORMAT_VERSION);
     if ((status = string(r, vals, "scene", t->name, sizeof t->name))) return status;
+    if (strlen(vals[key_index("scene")].text) - 2 >= sizeof t->name)
+        return fail(r, MBDK_ERR_INVALID_INPUT, "key 'scene': a name of %zu characters, "
+                    "mbdk_scene_tables.name holds %zu", strlen(vals[key_index("scene")].text) - 2,
+                    sizeof t->name - 1);
+    if ((status = string(r, vals, "source", text, sizeof text))) return status;
     if ((status = string(r, vals, "kind", text, sizeof text))) return status;
     if (strcmp(text, "planar") == 0) t->kind = MBDK_SCENE_PLANAR;
     else if (strcmp(text, "spatial") == 0) t->kind = MBDK_SCENE_SPATIAL;
@@ -303,16 +366,19 @@ static int read_tables(struct reader *r, struct value *vals, mbdk_scene_tables *
         }
     }
     if ((status = scalar(r, vals, "t0", &t->t0))) return status;
-    if (planar != (t->rotation == 0)) {
+    if (planar != (t->rotation == 0) || t->rotation > 3) {
         r->line = vals[key_index("rotation")].line;
         return fail(r, MBDK_ERR_INVALID_INPUT, "key 'rotation' = %d: %s", t->rotation,
                     planar ? "a planar scene has none (0)" : "a spatial scene's is 1 (quaternion), "
                     "2 (euler313) or 3 (cardan123)");
     }
-    if (!planar && t->rotation > 3) {
-        r->line = vals[key_index("rotation")].line;
-        return fail(r, MBDK_ERR_INVALID_INPUT, "key 'rotation' = %d: 1 (quaternion), 2 "
-                    "(euler313) or 3 (cardan123)", t->rotation);
+    if (!planar) {
+        if ((status = scalar(r, vals, "norm", &x))) return status;
+        if (x < 1 || x > 3)
+            return fail(r, MBDK_ERR_INVALID_INPUT, "key 'norm' = %g: 1 (project), 2 "
+                        "(stabilise) or 3 (none)", x);
+        t->norm = (int)x;
+        if ((status = scalar(r, vals, "norm_gain", &t->norm_gain))) return status;
     }
 #define ARRAY(NAME, D, N, COUNT) do { arrays[na].name = NAME; arrays[na].d = D; \
         arrays[na].n = N; arrays[na].count = (COUNT); na++; } while (0)
@@ -320,7 +386,6 @@ static int read_tables(struct reader *r, struct value *vals, mbdk_scene_tables *
     ARRAY("inertia", &t->inertia, NULL, planar ? (long)t->nb : 9L * t->nb);
     ARRAY("jreal", &t->jreal, NULL, (long)(planar ? 12 : MBDK_SPATIAL_JOINT_REALS) * t->nj);
     ARRAY("freal", &t->freal, NULL, (long)(planar ? 12 : MBDK_SPATIAL_FORCE_REALS) * t->nf);
-    ARRAY("y0", &t->y0, NULL, t->n);
     if (planar) {
         ARRAY("jint", NULL, &t->jint, 4L * t->nj);
         ARRAY("fint", NULL, &t->fint, 4L * t->nf);
@@ -330,19 +395,24 @@ static int read_tables(struct reader *r, struct value *vals, mbdk_scene_tables *
         ARRAY("ftype", NULL, &t->ftype, t->nf);
         ARRAY("fbody", NULL, &t->fbody, 2L * t->nf);
     }
+    ARRAY("y0", &t->y0, NULL, t->n);      /* last: its length is checked against the tables */
 #undef ARRAY
     for (i = 0; i < na; i++) {
         int k = key_index(arrays[i].name);
-        if (arrays[i].count > INT_MAX / 8)
+        if (arrays[i].count > INT_MAX / 32) {
+            r->line = vals[k].line;
             return fail(r, MBDK_ERR_INVALID_INPUT, "key '%s': %ld values are too many",
                         arrays[i].name, arrays[i].count);
-        status = arrays[i].d ? alloc(r, (void **)arrays[i].d, (size_t)arrays[i].count,
-                                     sizeof(double), arrays[i].name)
-                             : alloc(r, (void **)arrays[i].n, (size_t)arrays[i].count,
-                                     sizeof(int), arrays[i].name);
-        if (status) return status;
-        status = parse_list(r, &KEYS[k], &vals[k], (int)arrays[i].count,
-                            arrays[i].d ? *arrays[i].d : NULL, arrays[i].n ? *arrays[i].n : NULL);
+        }
+        if (arrays[i].d == &t->y0 && t->n != state_length(t)) {
+            r->line = vals[key_index("n")].line;
+            return fail(r, MBDK_ERR_INVALID_INPUT, "key 'n' = %d: the state of %d bodies%s and "
+                        "the wear entries of the force table has %d values", t->n, t->nb,
+                        planar ? "" : (t->rotation == MBDK_ROT_QUATERNION ? " (quaternions)" :
+                                       " (angles)"), state_length(t));
+        }
+        status = parse_list(r, &KEYS[k], &vals[k], (int)arrays[i].count, arrays[i].d,
+                            arrays[i].n);
         if (status) return status;
     }
     return 0;
@@ -364,7 +434,16 @@ int mbdk_scene_tables_read(const char *path, mbdk_scene_tables *tables, char *me
     memset(vals, 0, sizeof vals);
     status = read_lines(&r, f, vals);
     fclose(f);
-    if (!status) status = read_tables(&r, vals, tables);
+    if (!status) {
+        /* numbers in the "C" locale, for this thread only, whatever the host program set */
+        locale_t c = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0), old = (locale_t)0;
+        if (c) old = uselocale(c);
+        status = read_tables(&r, vals, tables);
+        if (c) {
+            uselocale(old);
+            freelocale(c);
+        }
+    }
     for (i = 0; i < NKEYS; i++) free(vals[i].text);
     if (status) mbdk_scene_tables_free(tables);
     return status;
@@ -379,6 +458,11 @@ int mbdk_stepper_create_tables(const mbdk_scene_tables *t, int formulation,
         mbdk_model_options mopt;
         mbdk_model_default_options(&mopt);
         if (formulation) mopt.formulation = formulation;
+        /* Baumgarte's gains as simulate's defaults: 1/h and sqrt(2)/h */
+        if (opt->h > 0) {
+            mopt.baumgarte_alpha = 1.0 / opt->h;
+            mopt.baumgarte_beta = sqrt(2.0) / opt->h;
+        }
         return mbdk_stepper_create_scene(t->nb, t->mass, t->inertia, t->nj, t->jint, t->jreal,
                                          t->nf, t->fint, t->freal, &mopt, opt, t->t0, t->y0,
                                          stepper);
@@ -387,7 +471,13 @@ int mbdk_stepper_create_tables(const mbdk_scene_tables *t, int formulation,
         mbdk_spatial_options sopt;
         mbdk_spatial_default_options(&sopt);
         if (formulation) sopt.formulation = formulation;
+        if (opt->h > 0) {
+            sopt.baumgarte_alpha = 1.0 / opt->h;
+            sopt.baumgarte_beta = sqrt(2.0) / opt->h;
+        }
         sopt.rotation = t->rotation;
+        sopt.norm = t->norm;
+        sopt.norm_gain = t->norm_gain;
         return mbdk_stepper_create_spatial(t->nb, t->mass, t->inertia, t->nj, t->jtype, t->jbody,
                                            t->jreal, t->nf, t->ftype, t->fbody, t->freal, &sopt,
                                            opt, t->t0, t->y0, stepper);
