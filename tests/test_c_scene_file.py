@@ -47,6 +47,8 @@ CASES = [
     ("spatial_double_pendulum", "trapezoidal_index3", "augmented_lagrangian", 1e-3, 0.2),
     ("double_pendulum", "rk4", "baumgarte", 1e-3, 0.2),       # gains 1/h, sqrt(2)/h as simulate's
     ("heavy_top", "rk4", "baumgarte", 1e-3, 0.2),
+    ("four_bar", "rk4", "penalty", 1e-3, 0.2),
+    ("spatial_double_pendulum", "rk4", "penalty", 1e-3, 0.2),
     ("parallelogram_redundant", "trapezoidal_index3", "augmented_lagrangian", 1e-3, 0.2),
 ]
 
