@@ -63,14 +63,18 @@ def run(k):
     SC, mbs = build()
     s = exu.SimulationSettings()
     ti = s.timeIntegration
-    ti.numberOfSteps = k; ti.endTime = k * h; ti.verboseMode = 0; ti.stepInformation = 0
+    # the settings of benchmarks/exudyn_chain.py (the planar chains' run)
+    ti.numberOfSteps = k; ti.endTime = k * h; ti.adaptiveStep = False
+    ti.verboseMode = 0; ti.verboseModeFile = 0; ti.stepInformation = 0
     ti.generalizedAlpha.spectralRadius = 0.8
     ti.generalizedAlpha.useIndex2Constraints = False; ti.generalizedAlpha.useNewmark = False
-    s.linearSolverType = exu.LinearSolverType.EigenSparse
-    s.solutionSettings.writeSolutionToFile = False
-    s.solutionSettings.sensorsWritePeriod = 1e30
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    s.solution.file.write = False
+    s.solution.sensors.active = False
+    s.solution.sensors.writePeriod = 1e30
+    s.solution.restart.write = False
+    s.show.computationTime = False; s.show.statistics = False; s.show.globalTimers = False
     s.parallel.numberOfThreads = 1
-    s.displayComputationTime = False; s.displayStatistics = False
     t = time.thread_time()
     mbs.SolveDynamic(s)
     return time.thread_time() - t

@@ -13,22 +13,21 @@
 !> S x = b, and mbdk_compact_schur_spread for W C^T x (the correction of the velocities or
 !> accelerations a multiplier vector makes). A pivot |d_k| at or below tol times S's own
 !> diagonal entry of that row is MBDK_ERR_SINGULAR_MATRIX (mbdk_sparse_ldlt_factor): dependent
-!> rows, or, with the caller's wider tol, rows near dependence. The pivots are taken in AMD's
-!> order, not C's, so such a test judges the same matrix as a dense Cholesky in C's order does
-!> but may name another row.
+!> rows. With near, a least pivot ratio inside that wider window counts too, against the
+!> ratios met before (mbdk_sparse_ldlt_near). The pivots are taken in AMD's order, not C's:
+!> the ratios, and so where a near test trips on the way to a rank loss, differ from a dense
+!> Cholesky's in C's order (on an RSSR loop driven to its dead centre the sparse test stopped
+!> a little earlier).
 module mbdk_compact_schur
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_near
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_near, &
+    MBDK_SPARSE_NEAR_BASELINE
   implicit none
   private
 
-  !> the near test's baseline and narrowest window (mbdk_sparse_ldlt_near), as the planar sparse
-  !> path's (mbdk_constrained)
-  real(dp), parameter :: NEAR_BASELINE = 0.5_dp
-  integer, parameter :: NEAR_MIN_ROWS = 12
   public :: mbdk_compact_schur_init, mbdk_compact_schur_factor, mbdk_compact_schur_solve, &
     mbdk_compact_schur_spread
 
@@ -126,7 +125,8 @@ contains
       integer, intent(in) :: jj
       logical, intent(in) :: count_only
       integer :: bj, node, ii, ai_, slot, col0
-      col0 = e
+      col0 = 0
+      if (.not. count_only) col0 = e
       do bj = 1, 2
         body = rbody(bj, jj)
         if (body == 0) cycle
@@ -166,14 +166,16 @@ contains
   !> S = C W C^T from C's compact rows cc(m, 2 nd) and W's blocks w(nd, nd, nb), factorised;
   !> a pivot at or below tol of its row's diagonal entry: MBDK_ERR_SINGULAR_MATRIX (rmin: the
   !> least ratio).
-  subroutine mbdk_compact_schur_factor(s, cc, w, tol, stat, rmin, rigid, near)
+  subroutine mbdk_compact_schur_factor(s, cc, w, tol, stat, rmin, rigid, near, near_rows)
     type(mbdk_compact_schur_t), intent(inout) :: s
     real(dp), intent(in) :: cc(:, :), w(:, :, :), tol
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: rmin
     !> a window wider than tol in which the least pivot ratio also counts as singular (a pose
-    !> near a rank loss), taken against the ratios met before (mbdk_sparse_ldlt_near)
+    !> near a rank loss), taken against the ratios met before (mbdk_sparse_ldlt_near, whose
+    !> narrowest window is near_rows / m of it: the caller's sparse threshold)
     real(dp), intent(in), optional :: near
+    integer, intent(in), optional :: near_rows
     !> W's blocks are a rigid body's (nd = 6): diagonal in the translations, nothing between
     !> translations and rotations; only those entries are read
     logical, intent(in), optional :: rigid
@@ -249,7 +251,9 @@ contains
     if (stat /= MBDK_SUCCESS .or. .not. present(near)) return
     ! the record is of the factorisations tested for nearness (one W, the caller's choice)
     s%rmin_max = max(s%rmin_max, r)
-    if (mbdk_sparse_ldlt_near(r, s%rmin_max, near, s%m, NEAR_MIN_ROWS, NEAR_BASELINE)) &
+    k = s%m
+    if (present(near_rows)) k = near_rows
+    if (mbdk_sparse_ldlt_near(r, s%rmin_max, near, s%m, k, MBDK_SPARSE_NEAR_BASELINE)) &
       stat = MBDK_ERR_SINGULAR_MATRIX
   end subroutine mbdk_compact_schur_factor
 

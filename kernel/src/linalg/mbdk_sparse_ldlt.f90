@@ -31,6 +31,9 @@ module mbdk_sparse_ldlt
   public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, &
     mbdk_sparse_ldlt_near
 
+  !> the least pivot ratio at which mbdk_sparse_ldlt_near keeps a caller's window whole
+  real(dp), parameter, public :: MBDK_SPARSE_NEAR_BASELINE = 0.5_dp
+
   !> n, the pattern (0-based CSC, both triangles) and its values, the ordering and the factors
   type, public :: mbdk_sparse_ldlt_t
     integer :: n = 0

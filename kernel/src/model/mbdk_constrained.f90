@@ -55,7 +55,8 @@ module mbdk_constrained
     mbdk_sparse_d_times, mbdk_sparse_w_residual, mbdk_sparse_schur_csc, &
     mbdk_sparse_schur_assemble_csc
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_near
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_near, &
+    MBDK_SPARSE_NEAR_BASELINE
   implicit none
   private
   public :: mbdk_constrained_init, mbdk_constrained_factor, mbdk_constrained_solve, &
@@ -77,9 +78,6 @@ module mbdk_constrained
   integer, parameter, public :: MBDK_CONSTRAINED_AL_ITER = 30
   !> the largest nc whose dense regular-path matrix a sparse-path scene forms (72 MB)
   integer, parameter :: REGULAR_DENSE_MAX = 3000
-  !> the least pivot ratio of a regular mechanism's first factorisation at which the sparse
-  !> path keeps a caller's near window whole (see factor_exact)
-  real(dp), parameter :: NEAR_BASELINE = 0.5_dp
 
   type, public :: mbdk_constrained_t
     integer :: path = MBDK_SOLVE_NONE
@@ -312,7 +310,7 @@ contains
       cs%rmin_max = max(cs%rmin_max, rmin)
       if (tol > MBDK_CONSTRAINED_SINGULAR_TOL) then
         if (mbdk_sparse_ldlt_near(rmin, cs%rmin_max, tol, m, MBDK_SPARSE_MIN_ROWS, &
-                                  NEAR_BASELINE)) stat = MBDK_ERR_SINGULAR_MATRIX
+                                  MBDK_SPARSE_NEAR_BASELINE)) stat = MBDK_ERR_SINGULAR_MATRIX
       end if
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)

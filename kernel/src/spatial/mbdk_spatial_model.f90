@@ -21,9 +21,9 @@
 !> (at most MBDK_SPATIAL_SPARSE_ROWS); above, with no row redundant and not the penalty
 !> formulation, by C in compact rows (each row's twelve columns on its two bodies) and the
 !> sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that an
-!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py: N^1.05 from 8
-!> to 1024 bodies); a joint tree's rows are then checked for independence joint by joint
-!> (tree_rows) instead of on the whole dense C. The manifest names the path. Redundant joints
+!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py: N^1.0 from 8
+!> to 1024 bodies); a joint tree's rows are then checked for independence connection by
+!> connection (tree_rows) instead of on the whole dense C (a loop's still are on C). The manifest names the path. Redundant joints
 !> (rows found dependent at the start, on the geometry: select_rows) keep the dense path and
 !> are passed, a fixed set of independent rows carrying the multipliers (schur_solve); on the
 !> reduced form a rank lost along the motion (a singular pose) stops the run with
@@ -172,8 +172,8 @@ module mbdk_spatial_model
   !> above this many constraint rows (and none redundant, and not the penalty formulation) the
   !> constrained solves of the ODE formulations go by compact rows and the sparse LDL^T of
   !> S = C M^-1 C^T (mbdk_compact_schur), whose cost grows as the rows do; at or below it, by
-  !> the dense Cholesky, which is cheaper on a few rows (measured crossover:
-  !> benchmarks/spatial_chain.py)
+  !> the dense Cholesky (on a spherical chain the two cost the same at 12 rows, the sparse
+  !> one less from 15; the planar model's threshold is the same)
   integer, parameter, public :: MBDK_SPATIAL_SPARSE_ROWS = 12
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
@@ -209,6 +209,7 @@ module mbdk_spatial_model
     !> PRIM_ANGLE: the second reference vector on body j (a_j x uj) and the time function;
     !> PRIM_SLIDE: the time function
     real(dp) :: wj(3) = 0.0_dp, fn(5) = 0.0_dp
+    integer :: joint = 0      !< the joint (table column) it belongs to
   end type prim_t
 
   !> what the caller owns and the model points to (rhs receives the model read-only)
@@ -564,7 +565,7 @@ contains
     type(frames_t), intent(in) :: fr
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nj, j, row, astat
+    integer :: nj, j, row, astat, first
     nj = size(jtype)
     ! prismatic: 5 primitives
     allocate (model%prim(5 * nj), model%row_angular(model%m), stat=astat)
@@ -574,9 +575,11 @@ contains
     model%row_angular = .false.
     row = 1
     do j = 1, nj
+      first = model%nprim + 1
       call add_joint_primitives(model, jtype(j), jbody(1, j), jbody(2, j), jreal(:, j), fr, &
                                 row, stat)
       if (stat /= MBDK_SUCCESS) return
+      model%prim(first:model%nprim)%joint = j
     end do
   end subroutine build_primitives
 
@@ -817,7 +820,8 @@ contains
     integer :: k, astat
     integer, allocatable :: rows(:)
     real(dp), allocatable :: phi(:), c(:, :), gam(:)
-    logical :: independent
+    integer, allocatable :: edge(:)
+    logical :: independent, tree
     allocate (model%all_rows(model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -828,8 +832,10 @@ contains
     ! many rows on a tree of joints: each joint's rows on its own (the whole C has the rank of
     ! its joints' then), so that neither a dense C nor its factorisation is ever formed
     independent = .false.
-    if (model%m > MBDK_SPATIAL_SPARSE_ROWS .and. joint_tree(jbody, model%nb)) then
-      call tree_rows(model, fr, t0, independent, stat, asked)
+    if (model%m > MBDK_SPATIAL_SPARSE_ROWS) then
+      call joint_edges(jbody, model%nb, edge, tree, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      if (tree) call tree_rows(model, fr, t0, edge, independent, stat, asked)
       if (stat /= MBDK_SUCCESS) return
     end if
     if (independent) then
@@ -854,74 +860,136 @@ contains
     end if
   end subroutine choose_active_rows
 
-  !> Whether the joints jbody(2, nj) (0: the ground) form a tree (a forest): no joint closes a
-  !> loop of the ones before it (union-find over the bodies and the ground).
-  pure logical function joint_tree(jbody, nb) result(tree)
+  !> The joints jbody(2, nj) (0: the ground) as edges between bodies: edge(k) of joint k, the
+  !> same for joints on the same two bodies (a driver and the joint it drives: one connection),
+  !> and whether the edges form a tree (a forest: none closes a loop of the others; union-find
+  !> over the bodies and the ground). A joint's partner bodies are looked up in per-body lists,
+  !> so the cost grows as the joints do.
+  subroutine joint_edges(jbody, nb, edge, tree, stat, asked)
     integer, intent(in) :: jbody(:, :), nb
-    integer :: parent(0:nb), k, a, b
-    parent = [(k, k = 0, nb)]
+    integer, allocatable, intent(out) :: edge(:)
+    logical, intent(out) :: tree
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, allocatable :: parent(:), head(:), nxt(:), partner(:), pedge(:)
+    integer :: nj, k, a, b, x, y, node, ne, astat
+    nj = size(jbody, 2)
     tree = .false.
-    do k = 1, size(jbody, 2)
-      a = root(jbody(1, k))
-      b = root(jbody(2, k))
-      if (a == b) return
-      parent(a) = b
+    allocate (edge(nj), parent(0:nb), head(0:nb), nxt(nj), partner(nj), pedge(nj), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (5.0_dp * nj + 2.0_dp * (nb + 1)), stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
+    parent = [(k, k = 0, nb)]
+    head = 0
+    ne = 0
+    do k = 1, nj
+      a = min(jbody(1, k), jbody(2, k))
+      b = max(jbody(1, k), jbody(2, k))
+      ! a connection a-b made before: this joint is part of it
+      edge(k) = 0
+      node = head(b)
+      do while (node /= 0)
+        if (partner(node) == a) then
+          edge(k) = pedge(node)
+          exit
+        end if
+        node = nxt(node)
+      end do
+      if (edge(k) /= 0) cycle
+      x = root(a)
+      y = root(b)
+      if (x == y) return                   ! a loop
+      parent(x) = y
+      ne = ne + 1
+      edge(k) = ne
+      nxt(k) = head(b)
+      partner(k) = a
+      pedge(k) = ne
+      head(b) = k
     end do
     tree = .true.
   contains
-    pure integer function root(x) result(r)
-      integer, intent(in) :: x
-      r = x
+    integer function root(z) result(r)
+      integer, intent(in) :: z
+      r = z
       do while (parent(r) /= r)
         r = parent(r)
       end do
     end function root
-  end function joint_tree
+  end subroutine joint_edges
 
-  !> On a tree of joints, whether each joint's rows are independent (then all the rows are): the
-  !> rows of one joint are the consecutive ones on the same two bodies, judged as select_rows
+  !> On a tree of joints, whether each connection's rows (a joint's, with a driver's on the
+  !> same two bodies; edge) are independent (then all the rows are), judged as select_rows
   !> judges the whole C (the geometry's Gram matrix at unit diagonal, pivoted Cholesky,
-  !> REDUNDANT_RTOL). A vanishing row is MBDK_ERR_SINGULAR_MATRIX, as there.
-  subroutine tree_rows(model, fr, t0, independent, stat, asked)
+  !> REDUNDANT_RTOL). A connection of more than 6 rows, or dependent ones, leaves the verdict
+  !> to the dense test (independent false); a vanishing row is MBDK_ERR_SINGULAR_MATRIX, as
+  !> there.
+  subroutine tree_rows(model, fr, t0, edge, independent, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(in) :: t0
+    integer, intent(in) :: edge(:)
     logical, intent(out) :: independent
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     real(dp), allocatable :: phi(:), cc(:, :), gam(:)
-    integer, allocatable :: pair(:, :)
-    real(dp) :: g(6, 6), w(12), d(6)
-    integer :: piv(6), k, r1, r2, n, i, j, astat, rk
+    integer, allocatable :: redge(:), start(:), list(:), rbody(:, :)
+    real(dp) :: g(6, 6), w(6), d(6)
+    integer :: piv(6), rows(6), k, n, i, j, e, ne, astat, rk, a, b
     independent = .false.
-    allocate (phi(model%m), cc(model%m, 12), gam(model%m), pair(2, model%m), stat=astat)
+    ne = 0
+    if (size(edge) > 0) ne = maxval(edge)
+    allocate (phi(model%m), cc(model%m, 12), gam(model%m), redge(model%m), start(ne + 1), &
+              list(model%m), rbody(2, model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 14.0_dp * model%m + &
-                           MBDK_INT_BYTES * 2.0_dp * model%m, stat, asked)
+                           MBDK_INT_BYTES * (4.0_dp * model%m + ne + 1), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     call constraints(model, fr, t0, phi, cc, gam, compact=.true.)
     do k = 1, model%nprim
       n = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
       do i = model%prim(k)%row, model%prim(k)%row + n - 1
-        pair(:, i) = [model%prim(k)%bi, model%prim(k)%bj]
+        redge(i) = edge(model%prim(k)%joint)
+        rbody(:, i) = [model%prim(k)%bi, model%prim(k)%bj]
       end do
     end do
+    ! the rows of each connection, bucketed (a driver's row need not follow its joint's)
+    start = 0
+    do i = 1, model%m
+      start(redge(i) + 1) = start(redge(i) + 1) + 1
+    end do
+    start(1) = 1
+    do e = 1, ne
+      start(e + 1) = start(e + 1) + start(e)
+    end do
+    do i = 1, model%m
+      list(start(redge(i))) = i
+      start(redge(i)) = start(redge(i)) + 1
+    end do
+    do e = ne, 1, -1                     ! back to each bucket's first entry
+      start(e + 1) = start(e)
+    end do
+    start(1) = 1
     ! the geometry's weight: rotations as the displacements they give at the length scale
     w = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp / model%length**2, 1.0_dp / model%length**2, &
-         1.0_dp / model%length**2, 1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp / model%length**2, &
-         1.0_dp / model%length**2, 1.0_dp / model%length**2]
-    r1 = 1
-    do while (r1 <= model%m)
-      r2 = r1
-      do while (r2 < model%m)
-        if (any(pair(:, r2 + 1) /= pair(:, r1))) exit
-        r2 = r2 + 1
-      end do
-      n = r2 - r1 + 1
+         1.0_dp / model%length**2]
+    do e = 1, ne
+      n = start(e + 1) - start(e)
       stat = MBDK_SUCCESS
-      if (n > 6) return                  ! not one joint's rows: the dense test decides
+      if (n == 0) cycle
+      if (n > 6) return                  ! more than a joint can hold: the dense test decides
+      rows(1:n) = list(start(e):start(e + 1) - 1)
+      ! G's entries body by body: the rows of one connection are on its two bodies, in either
+      ! slot (a driver may list them the other way round from the joint it drives)
+      g = 0.0_dp
       do j = 1, n
         do i = 1, n
-          g(i, j) = sum(cc(r1 + i - 1, :) * w * cc(r1 + j - 1, :))
+          do a = 1, 2
+            do b = 1, 2
+              if (rbody(a, rows(i)) == 0 .or. rbody(a, rows(i)) /= rbody(b, rows(j))) cycle
+              g(i, j) = g(i, j) + sum(cc(rows(i), 6 * a - 5:6 * a) * w * &
+                                      cc(rows(j), 6 * b - 5:6 * b))
+            end do
+          end do
         end do
       end do
       stat = MBDK_ERR_SINGULAR_MATRIX
@@ -936,10 +1004,10 @@ contains
       if (stat /= MBDK_SUCCESS) return
       stat = MBDK_SUCCESS
       if (rk < n) return                 ! dependent rows: the dense test chooses among them
-      r1 = r2 + 1
     end do
     independent = .true.
     stat = MBDK_SUCCESS
+
   end subroutine tree_rows
 
   !> The components of the momentum and angular momentum a spatial scene conserves, from its
@@ -1856,11 +1924,6 @@ contains
     end do
   end subroutine wear_rates
 
-  !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
-  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
-  !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
-  !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
-  !> work's arrays of spatial_accelerations, for nb bodies and m rows
   !> The sparse path (model%sparse) where the rows are many (MBDK_SPATIAL_SPARSE_ROWS), none
   !> redundant (a redundant set keeps the dense path, whose row selection it needs) and the
   !> formulation not the penalty one (its matrix is M + alpha C^T C, not S): S's pattern from
@@ -1962,7 +2025,8 @@ contains
     dx = 0.0_dp
     if (present(near)) then
       call mbdk_compact_schur_factor(model%work%cs, cc, model%geo_blk, SOLVE_RTOL, stat, &
-                                     rigid=.true., near=near)
+                                     rigid=.true., near=near, &
+                                     near_rows=MBDK_SPATIAL_SPARSE_ROWS)
       if (stat /= MBDK_SUCCESS) return
     end if
     call mbdk_compact_schur_factor(model%work%cs, cc, model%minv_blk, SOLVE_RTOL, stat, &
@@ -1973,6 +2037,7 @@ contains
     call mbdk_compact_schur_spread(model%work%cs, lam, dx)
   end subroutine sparse_schur
 
+  !> work's arrays of spatial_accelerations, for nb bodies and m rows
   subroutine accelerations_scratch(model, work, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(mbdk_spatial_work_t), intent(inout) :: work
@@ -1994,6 +2059,10 @@ contains
                                                  4.0_dp * m + 12.0_dp * cc_), stat, asked)
   end subroutine accelerations_scratch
 
+  !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
+  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
+  !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
+  !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
   subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
