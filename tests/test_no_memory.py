@@ -101,10 +101,12 @@ def test_penalty_matrix_of_a_large_planar_scene_is_named_from_the_model_build():
 
 def test_a_spatial_model_too_large_to_check_is_no_memory_not_degenerate_joints():
     """simulate checks a spatial scene's initial state by one evaluation of its model before the
-    run (evaluate_spatial); a model too large for memory there is named as such (it read as
-    degenerate joints, SingularMatrixError, when the failed build left the rank at 0). A chain
-    of 3000 bodies on spherical joints: C alone is 9000 x 18 000 doubles (1.3 GB), the rank
-    test's matrices 3 x 9000^2 (1.9 GB) more."""
+    run; a model too large for memory there is named as such (it read as degenerate joints,
+    SingularMatrixError, when the failed build left the rank at 0). A chain of 3000 bodies on
+    spherical joints closed into a loop by a last joint to the ground: a loop's rows are
+    checked for redundancy on the whole C (a tree's, joint by joint, in memory that grows as
+    its rows do), 9003 x 18 000 doubles (1.3 GB), the rank test's matrices 3 x 9003^2 (1.9 GB)
+    more."""
     rep = run_child('''
         from mbdk.scene_file import scene_from_dict
         nb = 3000
@@ -112,7 +114,9 @@ def test_a_spatial_model_too_large_to_check_is_no_memory_not_degenerate_joints()
                    "position": [i + 0.5, 0.0, 0.0]} for i in range(nb)]
         joints = [{"name": "j0", "type": "spherical", "body1": "b0", "at": [0.0, 0.0, 0.0]}] + [
             {"name": f"j{i}", "type": "spherical", "body1": f"b{i}", "body2": f"b{i - 1}",
-             "at": [float(i), 0.0, 0.0]} for i in range(1, nb)]
+             "at": [float(i), 0.0, 0.0]} for i in range(1, nb)] + [
+            {"name": "close", "type": "spherical", "body1": f"b{nb - 1}",
+             "at": [float(nb), 0.0, 0.0]}]
         sc = scene_from_dict({"scene": {"name": "chain"}, "body": bodies,
                                       "joint": joints}, "chain.toml")
         try:
@@ -121,5 +125,32 @@ def test_a_spatial_model_too_large_to_check_is_no_memory_not_degenerate_joints()
             err = e
     ''')
     assert rep["no_memory"] and rep["status"] == -7, rep["message"]
-    assert "spatial scene 'chain' (3000 bodies, 9000 constraint rows)" in rep["message"]
+    assert "spatial scene 'chain' (3000 bodies, 9003 constraint rows)" in rep["message"]
+    assert rep["after"]
+
+
+def test_a_driven_spatial_tree_is_checked_in_memory_that_grows_as_its_rows_do():
+    """A chain of 3000 bodies on revolute joints (about z), its root held by an angle driver
+    (f = 0; 15 001 rows): a tree, whose rows are checked connection by connection (the driver's
+    with the revolute it drives, one connection of 6 rows), so it starts and runs within the
+    child's 3 GB, where a dense C alone would take 2.2 GB and the rank test's matrices 5.4 GB
+    more."""
+    rep = run_child('''
+        from mbdk.scene_file import scene_from_dict
+        nb = 3000
+        bodies = [{"name": f"b{i}", "kind": "spatial", "mass": 1.0, "inertia": [0.1, 0.2, 0.3],
+                   "position": [i + 0.5, 0.0, 0.0]} for i in range(nb)]
+        joints = [{"name": "j0", "type": "revolute", "body1": "b0", "at": [0.0, 0.0, 0.0],
+                   "axis": [0, 0, 1]},
+                  {"name": "drive", "type": "angle_driver", "body1": "b0", "axis": [0, 0, 1],
+                   "function": {"rate": 0.0, "amplitude": 0.0, "omega": 2.0}}] + [
+            {"name": f"j{i}", "type": "revolute", "body1": f"b{i}", "body2": f"b{i - 1}",
+             "at": [float(i), 0.0, 0.0], "axis": [0, 0, 1]} for i in range(1, nb)]
+        sc = scene_from_dict({"scene": {"name": "driven"}, "body": bodies,
+                              "joint": joints}, "driven.toml")
+        r = mbdk.simulate(sc, "rk4", h=1e-3, t_end=5e-3)
+        assert r.success and "sparse" in r.manifest["linear_solve"]
+        assert sc.rows == 5 * nb + 1
+    ''')
+    assert rep["type"] == "NoneType", rep["message"]
     assert rep["after"]

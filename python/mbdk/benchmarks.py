@@ -67,6 +67,40 @@ def bar_chain(n: int, angle_deg: float = 0.0):
         "body": bodies, "joint": joints, "force": [{"type": "gravity", "g": [0.0, -G]}]})
 
 
+def spatial_chain(n: int, bend: float = 0.3):
+    """An open chain of n uniform spatial bars (1 m, 1 kg) on spherical joints under gravity
+    (-9.81 m/s^2 along y), released at rest from a zigzag out of the x-y plane: bar i points
+    along (cos a, sin(a)/2, sin(a)/2) normalised, a = +-bend alternating; bar b0's first end is
+    at the origin (a spherical joint with the ground), bar b{i}'s first end at the far end of
+    b{i-1}. 3 n constraint rows, none redundant: the scaling benchmark of the spatial model's
+    sparse path (benchmarks/spatial_chain.py)."""
+    if isinstance(n, bool) or not (isinstance(n, int) and n >= 1):
+        raise InvalidInputError(f"spatial_chain: n = {n!r}; the chain needs a whole number of "
+                                "bars, 1 or more")
+    ex = np.array([1.0, 0.0, 0.0])
+    bodies, joints, p = [], [], np.zeros(3)
+    for i in range(n):
+        a = bend if i % 2 else -bend
+        d = np.array([np.cos(a), 0.5 * np.sin(a), 0.5 * np.sin(a)])
+        d /= np.linalg.norm(d)
+        half = (ex + d) / np.linalg.norm(ex + d)     # the quaternion turning x onto d
+        bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
+                       "shape": {"type": "bar", "length": 1.0},
+                       "position": (p + 0.5 * d).tolist(),
+                       "quaternion": [float(half @ ex), *np.cross(ex, half).tolist()]})
+        joint = {"name": f"S{i}", "type": "spherical", "body1": f"b{i}",
+                 "point1": [-0.5, 0.0, 0.0]}
+        if i:
+            joint.update(body2=f"b{i - 1}", point2=[0.5, 0.0, 0.0])
+        joints.append(joint)
+        p = p + d
+    return scene_from_dict({
+        "scene": {"name": f"spatial_chain_n{n}", "rotation": "quaternion",
+                  "description": f"an open chain of {n} spatial bars (1 m, 1 kg) on spherical "
+                                 "joints, released from a zigzag"},
+        "body": bodies, "joint": joints, "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]})
+
+
 def a02_chain(n: int):
     """The IFToMM A02 chain of n four-bar loops as a scene: bodies crank0..crank{n} and
     coupler0..coupler{n-1}, revolute joints G{i} (crank i to the ground), L{i} and R{i} (coupler

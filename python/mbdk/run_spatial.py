@@ -58,7 +58,7 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     what = f"{plan.method} on spatial scene {scene.name!r} ({nsamp} samples)"
     check_memory(nbytes, what=what, change=SPATIAL_SAMPLE_ADVICE)
     try:
-        (t, y, out, lam, nw, moved, invariants, ninv, status), interrupted = \
+        (t, y, out, lam, nw, moved, invariants, ninv, sparse, status), interrupted = \
             _compiled.call(_kernel.spatial_run, args, flag, plan.steps * len(y0),
                            span=(req.t0, req.t_end))
     except MemoryError as exc:
@@ -76,7 +76,7 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
         energy_parts={"kinetic": o[:, 0], "potential_gravity": o[:, 1],
                       "potential_springs": o[:, 2], "power": o[:, 3], "work": o[:, 7]},
         residuals=o[:, 4:7], stats=Stats.from_words(stats), status=status,
-        message=status_message(status), manifest=_manifest(scene, plan, inv),
+        message=status_message(status), manifest=_manifest(scene, plan, inv, bool(sparse)),
         bodies=[b.name for b in scene.bodies], joints=[j.name for j in scene.joints],
         assembly={"moved": float(moved)}, wear={w.name: ys[:, nv + k] for k, w in
                                                enumerate(scene.wear)},
@@ -106,7 +106,14 @@ def _contacts(scene: Scene, plan: RunPlan, y0, y, t0: float) -> dict:
             for k, n in enumerate(names)}
 
 
-def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
+#: the constrained solves of the ODE formulations by the model's path (kernel/src/spatial/
+#: mbdk_spatial_model.f90, MBDK_SPATIAL_SPARSE_ROWS)
+SPATIAL_SCHUR = {False: "dense Schur complement (LAPACK dpotrf)",
+                 True: "compact rows and the sparse Schur complement S = C M^-1 C^T "
+                       "(SuiteSparse AMD + LDL, kernel/src/linalg/mbdk_compact_schur.f90)"}
+
+
+def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
     formulation, w, req = plan.formulation, plan.watch, plan.request
     manifest = {**build_info(), "scene": scene.name, "kind": "spatial", "method": plan.method,
                 "formulation": formulation, "rotation": scene.rotation,
@@ -116,8 +123,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv) -> dict:
                                     else scene.quaternion_norm), "t0": req.t0,
                 "t_end": req.t_end, **plan.manifest,
                 "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
-                                 if formulation == "penalty" else
-                                 "dense Schur complement (LAPACK dpotrf)"),
+                                 if formulation == "penalty" else SPATIAL_SCHUR[sparse]),
                 "locate_events": bool(req.locate_events) and plan.method in ("dopri54", "bs32"),
                 "watch": {"position": w.position, "velocity": w.velocity,
                           "energy": w.energy, "every": w.every, "momentum": w.momentum,

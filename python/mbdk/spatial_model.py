@@ -99,6 +99,24 @@ def evaluate_spatial(sc: Scene, y=None, t: float = 0.0) -> dict:
             "rank": int(rank), "status": Status(int(status))}
 
 
+def start_residuals(sc: Scene, t0: float = 0.0) -> dict:
+    """At the scene's initial state: Phi, C w + Phi_t (vres) and its terms' size |C| |w| +
+    |Phi_t| (vterm) per row, the rank of the joints' rows and the status, from the kernel
+    (spatial_start_residuals), in memory that grows as the rows do (evaluate_spatial also
+    returns C, rows x 6 bodies)."""
+    nb, mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal = spatial_tables(sc)
+    m = sc.rows
+    y0 = np.concatenate([sc.state0(), wear0(sc)])
+    phi, vres, vterm, rank, asked, status = _kernel.spatial_start_residuals(
+        mass, inertia, nj, jtype, jbody, jreal, nf, ftype, fbody, freal, ROTATIONS[sc.rotation],
+        y0, float(t0), max(m, 1))
+    if status == Status.ERR_NO_MEMORY:
+        raise NoMemoryError(f"checking the start of spatial scene {sc.name!r} ({nb} bodies, "
+                            f"{m} constraint rows): " + no_memory_message(asked, samples=False))
+    return {"phi": phi[:m], "vres": vres[:m], "vterm": vterm[:m], "rank": int(rank),
+            "status": Status(int(status))}
+
+
 #: what measures the distance from each angle set's gimbal lock
 LOCK_MEASURE = {"euler313": "min |sin(theta)|", "cardan123": "min |cos(beta)|"}
 
@@ -113,7 +131,7 @@ def lock_distance(sc: Scene, q) -> float | None:
                                else np.cos(a[:, 1]))))
 
 
-def check_initial(sc: Scene, y0, assemble: bool, t0: float = 0.0) -> None:
+def check_initial(sc: Scene, assemble: bool, t0: float = 0.0) -> None:
     """Refuses, naming the joint, an initial state off its joints by more than the assembly
     should move (ASSEMBLY_TOL of the scene's size); without assembly, by more than roundoff."""
     if not sc.joints:
@@ -127,7 +145,7 @@ def check_initial(sc: Scene, y0, assemble: bool, t0: float = 0.0) -> None:
                     f"{sc.source}: joint {j.name!r}: field 'function' gives f(t0) = {f0:.6g} at "
                     f"t0 = {t0:g}: a driver {DRIVERS[j.type]} by f(t) from where it starts, so "
                     "f(t0) must be 0 (shift the offset or the phase)")
-    ev = evaluate_spatial(sc, y0, t0)
+    ev = start_residuals(sc, t0)
     if ev["rank"] == 0 and sc.rows:
         raise exception_for(Status.ERR_SINGULAR_MATRIX)(
             f"{sc.source}: the joints' rows are degenerate at the initial state (a row vanishes: "
@@ -140,12 +158,11 @@ def check_initial(sc: Scene, y0, assemble: bool, t0: float = 0.0) -> None:
     phi = ev["phi"]
     size = max(1.0, max(float(np.max(np.abs(j.point1))) for j in sc.joints))
     tol = ASSEMBLY_TOL * size if assemble else 1e-10 * size
-    w = y0[len(y0) - 6 * len(sc.bodies):]
-    cw = ev["C"] @ w + ev["phi_t"]
+    cw = ev["vres"]
     # the velocity rows: against the size of the terms that must cancel (|C| |w|), with a floor
     # of the speeds the scene's size gives to 1 rad/s
-    vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(
-        np.abs(ev["C"]) @ np.abs(w) + np.abs(ev["phi_t"]), initial=0.0)), size)
+    vtol = (ASSEMBLY_TOL if assemble else 1e-10) * max(float(np.max(ev["vterm"],
+                                                                     initial=0.0)), size)
     for name, first, count in sc.joint_rows():
         worst = float(np.max(np.abs(cw[first:first + count])))
         if worst > vtol:

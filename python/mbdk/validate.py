@@ -18,7 +18,7 @@ def check_applicable(scene: Scene, plan: RunPlan) -> None:
     """Refuses, by name, a scene the plan cannot run."""
     if plan.kind == "spatial":
         _check_wear_states(scene, plan)
-        check_initial(scene, scene.state0(), plan.request.assemble_initial, float(plan.t0))
+        check_initial(scene, plan.request.assemble_initial, float(plan.t0))
         if plan.index3 and plan.formulation == "index3" and scene.rows:
             rank = evaluate_spatial(scene, scene.state0(), float(plan.t0))["rank"]
             if rank < scene.rows:

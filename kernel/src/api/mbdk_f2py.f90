@@ -895,7 +895,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
                        ntimes, times, interrupt, natol, atol, n, y0, assemble, t0, t_end, nsamp, &
                        m1, t_out, &
                        y_out, out, lam_out, nwritten, nstatw, statbuf, nwrw, wrbuf, moved, &
-                       invariants, ninv, status)
+                       invariants, ninv, sparse, status)
   ! A spatial scene (mbdk_spatial_model, its options sobuf: mbdk_spatial_options_t) run by
   ! method_id as scene_run runs a planar one, by the same rule (mbdk_entry): the ODE of the
   ! model's formulation (optbuf: mbdk_options_t), the index-3 family (i3buf:
@@ -908,7 +908,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! the work of dampers, loads and drivers as the run integrated it at every step
   ! (mbdk_watch_work_at). The multipliers are the integrator's own where it has them (a DAE,
   ! the index-3 family), else the reduced form's at the sample. wrbuf (mbdk_watch_report_t),
-  ! invariants and ninv as scene_run's.
+  ! invariants and ninv as scene_run's. sparse: 1 where the model's constrained solves go by
+  ! compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), else 0.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
@@ -931,7 +932,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   double precision, intent(out) :: t_out(nsamp), y_out(n, nsamp), out(8, nsamp), &
     lam_out(m1, nsamp), moved, invariants(7, 6)
   double precision, intent(inout) :: statbuf(nstatw), wrbuf(nwrw)
-  integer, intent(out) :: nwritten, status, ninv
+  integer, intent(out) :: nwritten, status, ninv, sparse
 !f2py threadsafe
 !f2py integer intent(hide), depend(mass) :: nb = len(mass)
 !f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
@@ -964,6 +965,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   moved = 0.0d0
   invariants = 0.0d0
   ninv = 0
+  sparse = 0
   status = MBDK_ERR_INVALID_INPUT
   if (8 * nstatw /= c_sizeof(st) .or. 8 * nsow /= c_sizeof(so) .or. 8 * nwrw /= c_sizeof(wr)) &
     return
@@ -980,6 +982,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
                          jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
                          y0, status, st%alloc_bytes)
   ninv = model%ninv
+  sparse = merge(1, 0, model%sparse)
   invariants = model%inv
   ! a spatial run samples its energy: the watch integrates the work at every step
   model%record_work = .true.
@@ -1066,6 +1069,54 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
     if (s /= MBDK_SUCCESS) out(:, :, k) = ieee_value(0.0d0, ieee_quiet_nan)
   end do
 end subroutine spatial_contact_states
+
+subroutine spatial_start_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, &
+                                   ftype, fbody, freal, rotation, n, y0, t, m1, phi, vres, &
+                                   vterm, rank, asked, status)
+  ! What a spatial scene's start is checked on, in memory and time that grow as its rows do
+  ! (spatial_residuals' C is m x 6 nb): at its initial state (t, y0), Phi, C w + Phi_t and the
+  ! size of that sum's terms |C| |w| + |Phi_t| (rows 1..m), the rank of the joints' rows
+  ! (below m: redundant joints; 0 with status MBDK_ERR_SINGULAR_MATRIX: a row vanishes), and
+  ! asked: MBDK_ERR_NO_MEMORY's bytes.
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
+  use mbdk_spatial_model
+  implicit none
+  integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1, rotation
+  double precision, intent(in) :: mass(nb), inertia(3, 3, nb), jreal(17, nj1), freal(19, nf1)
+  integer, intent(in) :: jtype(nj1), jbody(2, nj1), ftype(nf1), fbody(2, nf1)
+  double precision, intent(in) :: y0(n), t
+  double precision, intent(out) :: phi(m1), vres(m1), vterm(m1), asked
+  integer, intent(out) :: rank, status
+!f2py integer intent(hide), depend(mass) :: nb = len(mass)
+!f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
+!f2py integer intent(hide), depend(ftype) :: nf1 = len(ftype)
+!f2py integer intent(hide), depend(y0) :: n = len(y0)
+  type(mbdk_spatial_model_t) :: model
+  type(mbdk_spatial_work_t), target :: work
+  type(mbdk_spatial_options_t) :: so
+  double precision :: out(MBDK_SPATIAL_NOUT)
+  asked = 0.0d0
+  phi = 0.0d0
+  vres = 0.0d0
+  vterm = 0.0d0
+  rank = 0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  so%rotation = rotation
+  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
+                         y0, status, asked)
+  if (status /= MBDK_SUCCESS) return
+  status = MBDK_ERR_INVALID_INPUT
+  if (m1 < model%m) return
+  rank = model%rank0
+  if (model%m == 0) then
+    status = MBDK_SUCCESS
+    return
+  end if
+  call mbdk_spatial_outputs(model, t, y0, out, status, phi_out=phi(1:model%m), &
+                            vres_out=vres(1:model%m), vterm_out=vterm(1:model%m))
+end subroutine spatial_start_residuals
 
 subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, ftype, &
                              fbody, freal, rotation, n, y0, t, y, m1, out, phi, c, gam, &

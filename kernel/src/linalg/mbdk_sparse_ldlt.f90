@@ -28,7 +28,11 @@ module mbdk_sparse_ldlt
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   implicit none
   private
-  public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
+  public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, &
+    mbdk_sparse_ldlt_near
+
+  !> the least pivot ratio at which mbdk_sparse_ldlt_near keeps a caller's window whole
+  real(dp), parameter, public :: MBDK_SPARSE_NEAR_BASELINE = 0.5_dp
 
   !> n, the pattern (0-based CSC, both triangles) and its values, the ordering and the factors
   type, public :: mbdk_sparse_ldlt_t
@@ -185,5 +189,24 @@ contains
     call ldl_ltsolve(f%n, f%y, f%lp, f%li, f%lx)
     call ldl_permt(f%n, b, f%y, f%p)
   end subroutine mbdk_sparse_ldlt_solve
+
+  !> Whether a factorisation's least pivot ratio rmin is near singular for a caller's window
+  !> tol, judged against the largest least ratio met so far (rmin_max, the caller's record,
+  !> this factorisation's included): a pivot's ratio to its row's diagonal depends on the
+  !> elimination order, and in the order AMD picks, a long regular chain's least ratio is about
+  !> 2 / m (a tail of k rows eliminated before a joint leaves it 2 / k), which a fixed window
+  !> would call near singular beyond a few thousand bodies. A mechanism whose least ratio
+  !> reaches baseline (the small ones, loops of any size, away from their singular poses) keeps
+  !> the full window; a rank loss drives its pivot to zero, like the square of the distance to
+  !> it, from whatever baseline. The window is never narrower than min_rows / m of tol: a run
+  !> that starts near a singular pose has that narrow window until it has moved away, and the
+  !> full one from then on.
+  pure logical function mbdk_sparse_ldlt_near(rmin, rmin_max, tol, m, min_rows, baseline) &
+      result(near)
+    real(dp), intent(in) :: rmin, rmin_max, tol, baseline
+    integer, intent(in) :: m, min_rows
+    near = .not. (rmin > tol * min(1.0_dp, max(real(min_rows, dp) / real(m, dp), &
+                                               rmin_max / baseline)))
+  end function mbdk_sparse_ldlt_near
 
 end module mbdk_sparse_ldlt

@@ -55,7 +55,8 @@ module mbdk_constrained
     mbdk_sparse_d_times, mbdk_sparse_w_residual, mbdk_sparse_schur_csc, &
     mbdk_sparse_schur_assemble_csc
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_near, &
+    MBDK_SPARSE_NEAR_BASELINE
   implicit none
   private
   public :: mbdk_constrained_init, mbdk_constrained_factor, mbdk_constrained_solve, &
@@ -77,9 +78,6 @@ module mbdk_constrained
   integer, parameter, public :: MBDK_CONSTRAINED_AL_ITER = 30
   !> the largest nc whose dense regular-path matrix a sparse-path scene forms (72 MB)
   integer, parameter :: REGULAR_DENSE_MAX = 3000
-  !> the least pivot ratio of a regular mechanism's first factorisation at which the sparse
-  !> path keeps a caller's near window whole (see factor_exact)
-  real(dp), parameter :: NEAR_BASELINE = 0.5_dp
 
   type, public :: mbdk_constrained_t
     integer :: path = MBDK_SOLVE_NONE
@@ -307,20 +305,13 @@ contains
       call mbdk_sparse_ldlt_factor(cs%ldl, MBDK_CONSTRAINED_SINGULAR_TOL, stat, rmin)
       if (stat /= MBDK_SUCCESS) return
       ! A caller's near test (a window wider than the singular one) is taken relative to the
-      ! largest least pivot ratio the object has met so far (its baseline, rmin_max): a
-      ! pivot's ratio to its row's diagonal depends on the elimination order, and in the order
-      ! AMD picks, a long regular chain's least ratio is about 2 / m (a tail of k rows
-      ! eliminated before a joint leaves it 2 / k), which a fixed window would call near
-      ! singular beyond a few thousand bodies. A mechanism whose least ratio reaches
-      ! NEAR_BASELINE (the small ones, loops of any size, away from their singular poses)
-      ! keeps the full window; a rank loss drives its pivot to zero, like the square of the
-      ! distance to it, from whatever baseline. The window is never narrower than
-      ! MBDK_SPARSE_MIN_ROWS / m of the caller's: a run that starts near a singular pose has
-      ! that narrow window until it has moved away, and the full one from then on.
+      ! largest least pivot ratio the object has met so far (its baseline, rmin_max; the rule
+      ! and its why: mbdk_sparse_ldlt_near)
       cs%rmin_max = max(cs%rmin_max, rmin)
-      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL .and. .not. (rmin > tol * min(1.0_dp, &
-          max(real(MBDK_SPARSE_MIN_ROWS, dp) / real(m, dp), cs%rmin_max / NEAR_BASELINE)))) &
-        stat = MBDK_ERR_SINGULAR_MATRIX
+      if (tol > MBDK_CONSTRAINED_SINGULAR_TOL) then
+        if (mbdk_sparse_ldlt_near(rmin, cs%rmin_max, tol, m, MBDK_SPARSE_MIN_ROWS, &
+                                  MBDK_SPARSE_NEAR_BASELINE)) stat = MBDK_ERR_SINGULAR_MATRIX
+      end if
     case (MBDK_SOLVE_KKT)
       call mbdk_joints_scatter(col, dz, cs%d)
       nk = nc + m

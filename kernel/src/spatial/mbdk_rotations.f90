@@ -51,7 +51,16 @@ contains
   pure function mbdk_skew(w) result(k)
     real(dp), intent(in) :: w(3)
     real(dp) :: k(3, 3)
-    k = reshape([0.0_dp, w(3), -w(2), -w(3), 0.0_dp, w(1), w(2), -w(1), 0.0_dp], [3, 3])
+    ! element by element: a reshape of a constructor is a library call in the inner loops
+    k(1, 1) = 0.0_dp
+    k(2, 1) = w(3)
+    k(3, 1) = -w(2)
+    k(1, 2) = -w(3)
+    k(2, 2) = 0.0_dp
+    k(3, 2) = w(1)
+    k(1, 3) = w(2)
+    k(2, 3) = -w(1)
+    k(3, 3) = 0.0_dp
   end function mbdk_skew
 
   !> The vector of the skew-symmetric part of k: w with skew(w) = (k - k^T) / 2.

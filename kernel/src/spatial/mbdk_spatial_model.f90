@@ -17,8 +17,14 @@
 !> with f and n the applied force (space frame) and moment (body frame), C the constraint
 !> Jacobian in the velocities w (Phi' = C w: a rotation R -> R (I + skew(dtheta)) in the body
 !> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
-!> multipliers come from the Schur complement S = C M^-1 C^T, dense (a small spatial scene), by
-!> Cholesky. Redundant joints (rows found dependent at the start, on the geometry: select_rows)
+!> multipliers come from the Schur complement S = C M^-1 C^T: dense, by Cholesky, on a few rows
+!> (at most MBDK_SPATIAL_SPARSE_ROWS); above, with no row redundant and not the penalty
+!> formulation, by C in compact rows (each row's twelve columns on its two bodies) and the
+!> sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that an
+!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py: N^1.0 from 8
+!> to 1024 bodies); a joint tree's rows are then checked for independence connection by
+!> connection (tree_rows) instead of on the whole dense C (a loop's still are on C). The manifest names the path. Redundant joints
+!> (rows found dependent at the start, on the geometry: select_rows) keep the dense path and
 !> are passed, a fixed set of independent rows carrying the multipliers (schur_solve); on the
 !> reduced form a rank lost along the motion (a singular pose) stops the run with
 !> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
@@ -102,6 +108,8 @@ module mbdk_spatial_model
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
     MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
+  use mbdk_compact_schur, only: mbdk_compact_schur_t, mbdk_compact_schur_init, &
+    mbdk_compact_schur_factor, mbdk_compact_schur_solve, mbdk_compact_schur_spread
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
     mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_time_function, only: mbdk_time_fn
@@ -161,6 +169,12 @@ module mbdk_spatial_model
   !> planar model's window (MBDK_MODEL_NEAR_PIVOT, whose comment says why it is this wide); the
   !> stabilised formulations keep the constraints through such a step, and test REDUNDANT_RTOL.
   real(dp), parameter, public :: MBDK_SPATIAL_NEAR_PIVOT = 1.0e-4_dp
+  !> above this many constraint rows (and none redundant, and not the penalty formulation) the
+  !> constrained solves of the ODE formulations go by compact rows and the sparse LDL^T of
+  !> S = C M^-1 C^T (mbdk_compact_schur), whose cost grows as the rows do; at or below it, by
+  !> the dense Cholesky (on a spherical chain the two cost the same at 12 rows, the sparse
+  !> one less from 15; the planar model's threshold is the same)
+  integer, parameter, public :: MBDK_SPATIAL_SPARSE_ROWS = 12
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
 
@@ -195,6 +209,7 @@ module mbdk_spatial_model
     !> PRIM_ANGLE: the second reference vector on body j (a_j x uj) and the time function;
     !> PRIM_SLIDE: the time function
     real(dp) :: wj(3) = 0.0_dp, fn(5) = 0.0_dp
+    integer :: joint = 0      !< the joint (table column) it belongs to
   end type prim_t
 
   !> what the caller owns and the model points to (rhs receives the model read-only)
@@ -210,6 +225,10 @@ module mbdk_spatial_model
     !> routine is the only user, and never runs inside itself.
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
       l(:), mc(:, :), phit(:)
+    !> the sparse path (model%sparse): C in compact rows (m, 12), a correction W C^T lam (6 nb)
+    !> and S's pattern and factors; c and mc are then empty
+    real(dp), allocatable :: cc(:, :), dx(:)
+    type(mbdk_compact_schur_t) :: cs
   end type mbdk_spatial_work_t
 
   !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
@@ -239,6 +258,10 @@ module mbdk_spatial_model
     !> Cholesky): below m, the joints are redundant, and these rows alone are solved
     integer :: rank0 = 0
     integer, allocatable :: active(:)
+    !> the constrained solves by compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), with
+    !> the blocks of M^-1 and of the geometry's weight (near_test's) per body
+    logical :: sparse = .false.
+    real(dp), allocatable :: minv_blk(:, :, :), geo_blk(:, :, :)
     integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
     type(mbdk_spatial_work_t), pointer :: work => null()
   contains
@@ -392,7 +415,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call watch_scales(model, fr)
     call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
-    call choose_active_rows(model, fr, t0, stat, asked)
+    call choose_active_rows(model, fr, t0, jbody, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     if (allocated(work%active)) deallocate (work%active)
     allocate (work%active(size(model%active)), stat=astat)
@@ -400,6 +423,8 @@ contains
     if (stat /= MBDK_SUCCESS) return
     work%active = model%active
     work%switches = 0
+    call choose_sparse(model, work, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     call accelerations_scratch(model, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     model%nq = 0
@@ -540,7 +565,7 @@ contains
     type(frames_t), intent(in) :: fr
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nj, j, row, astat
+    integer :: nj, j, row, astat, first
     nj = size(jtype)
     ! prismatic: 5 primitives
     allocate (model%prim(5 * nj), model%row_angular(model%m), stat=astat)
@@ -550,9 +575,11 @@ contains
     model%row_angular = .false.
     row = 1
     do j = 1, nj
+      first = model%nprim + 1
       call add_joint_primitives(model, jtype(j), jbody(1, j), jbody(2, j), jreal(:, j), fr, &
                                 row, stat)
       if (stat /= MBDK_SUCCESS) return
+      model%prim(first:model%nprim)%joint = j
     end do
   end subroutine build_primitives
 
@@ -783,15 +810,18 @@ contains
 
   !> The rows solved (active) and rank0: with redundant joints the independent rows the
   !> rank-revealing Cholesky picks at t0 (any rank accepted there), else every row.
-  subroutine choose_active_rows(model, fr, t0, stat, asked)
+  subroutine choose_active_rows(model, fr, t0, jbody, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(in) :: t0
+    integer, intent(in) :: jbody(:, :)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer :: k, astat
     integer, allocatable :: rows(:)
     real(dp), allocatable :: phi(:), c(:, :), gam(:)
+    integer, allocatable :: edge(:)
+    logical :: independent, tree
     allocate (model%all_rows(model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -799,7 +829,21 @@ contains
       model%all_rows(k) = k
     end do
     model%rank0 = model%m
-    if (model%m > 0) then
+    ! many rows on a tree of joints: each joint's rows on its own (the whole C has the rank of
+    ! its joints' then), so that neither a dense C nor its factorisation is ever formed
+    independent = .false.
+    if (model%m > MBDK_SPATIAL_SPARSE_ROWS) then
+      call joint_edges(jbody, model%nb, edge, tree, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      if (tree) call tree_rows(model, fr, t0, edge, independent, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    if (independent) then
+      allocate (model%active(model%m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      model%active = model%all_rows
+    else if (model%m > 0) then
       allocate (phi(model%m), c(model%m, 6 * model%nb), gam(model%m), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(model%m, dp) * &
                              (6.0_dp * model%nb + 2), stat, asked)
@@ -815,6 +859,156 @@ contains
       call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
     end if
   end subroutine choose_active_rows
+
+  !> The joints jbody(2, nj) (0: the ground) as edges between bodies: edge(k) of joint k, the
+  !> same for joints on the same two bodies (a driver and the joint it drives: one connection),
+  !> and whether the edges form a tree (a forest: none closes a loop of the others; union-find
+  !> over the bodies and the ground). A joint's partner bodies are looked up in per-body lists,
+  !> so the cost grows as the joints do.
+  subroutine joint_edges(jbody, nb, edge, tree, stat, asked)
+    integer, intent(in) :: jbody(:, :), nb
+    integer, allocatable, intent(out) :: edge(:)
+    logical, intent(out) :: tree
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, allocatable :: parent(:), head(:), nxt(:), partner(:), pedge(:)
+    integer :: nj, k, a, b, x, y, node, ne, astat
+    nj = size(jbody, 2)
+    tree = .false.
+    allocate (edge(nj), parent(0:nb), head(0:nb), nxt(nj), partner(nj), pedge(nj), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (5.0_dp * nj + 2.0_dp * (nb + 1)), stat, &
+                           asked)
+    if (stat /= MBDK_SUCCESS) return
+    parent = [(k, k = 0, nb)]
+    head = 0
+    ne = 0
+    do k = 1, nj
+      a = min(jbody(1, k), jbody(2, k))
+      b = max(jbody(1, k), jbody(2, k))
+      ! a connection a-b made before: this joint is part of it
+      edge(k) = 0
+      node = head(b)
+      do while (node /= 0)
+        if (partner(node) == a) then
+          edge(k) = pedge(node)
+          exit
+        end if
+        node = nxt(node)
+      end do
+      if (edge(k) /= 0) cycle
+      x = root(a)
+      y = root(b)
+      if (x == y) return                   ! a loop
+      parent(x) = y
+      ne = ne + 1
+      edge(k) = ne
+      nxt(k) = head(b)
+      partner(k) = a
+      pedge(k) = ne
+      head(b) = k
+    end do
+    tree = .true.
+  contains
+    integer function root(z) result(r)
+      integer, intent(in) :: z
+      r = z
+      do while (parent(r) /= r)
+        r = parent(r)
+      end do
+    end function root
+  end subroutine joint_edges
+
+  !> On a tree of joints, whether each connection's rows (a joint's, with a driver's on the
+  !> same two bodies; edge) are independent (then all the rows are), judged as select_rows
+  !> judges the whole C (the geometry's Gram matrix at unit diagonal, pivoted Cholesky,
+  !> REDUNDANT_RTOL). A connection of more than 6 rows, or dependent ones, leaves the verdict
+  !> to the dense test (independent false); a vanishing row is MBDK_ERR_SINGULAR_MATRIX, as
+  !> there.
+  subroutine tree_rows(model, fr, t0, edge, independent, stat, asked)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(frames_t), intent(in) :: fr
+    real(dp), intent(in) :: t0
+    integer, intent(in) :: edge(:)
+    logical, intent(out) :: independent
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    real(dp), allocatable :: phi(:), cc(:, :), gam(:)
+    integer, allocatable :: redge(:), start(:), list(:), rbody(:, :)
+    real(dp) :: g(6, 6), w(6), d(6)
+    integer :: piv(6), rows(6), k, n, i, j, e, ne, astat, rk, a, b
+    independent = .false.
+    ne = 0
+    if (size(edge) > 0) ne = maxval(edge)
+    allocate (phi(model%m), cc(model%m, 12), gam(model%m), redge(model%m), start(ne + 1), &
+              list(model%m), rbody(2, model%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 14.0_dp * model%m + &
+                           MBDK_INT_BYTES * (4.0_dp * model%m + ne + 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call constraints(model, fr, t0, phi, cc, gam, compact=.true.)
+    do k = 1, model%nprim
+      n = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
+      do i = model%prim(k)%row, model%prim(k)%row + n - 1
+        redge(i) = edge(model%prim(k)%joint)
+        rbody(:, i) = [model%prim(k)%bi, model%prim(k)%bj]
+      end do
+    end do
+    ! the rows of each connection, bucketed (a driver's row need not follow its joint's)
+    start = 0
+    do i = 1, model%m
+      start(redge(i) + 1) = start(redge(i) + 1) + 1
+    end do
+    start(1) = 1
+    do e = 1, ne
+      start(e + 1) = start(e + 1) + start(e)
+    end do
+    do i = 1, model%m
+      list(start(redge(i))) = i
+      start(redge(i)) = start(redge(i)) + 1
+    end do
+    do e = ne, 1, -1                     ! back to each bucket's first entry
+      start(e + 1) = start(e)
+    end do
+    start(1) = 1
+    ! the geometry's weight: rotations as the displacements they give at the length scale
+    w = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp / model%length**2, 1.0_dp / model%length**2, &
+         1.0_dp / model%length**2]
+    do e = 1, ne
+      n = start(e + 1) - start(e)
+      stat = MBDK_SUCCESS
+      if (n == 0) cycle
+      if (n > 6) return                  ! more than a joint can hold: the dense test decides
+      rows(1:n) = list(start(e):start(e + 1) - 1)
+      ! G's entries body by body: the rows of one connection are on its two bodies, in either
+      ! slot (a driver may list them the other way round from the joint it drives)
+      g = 0.0_dp
+      do j = 1, n
+        do i = 1, n
+          do a = 1, 2
+            do b = 1, 2
+              if (rbody(a, rows(i)) == 0 .or. rbody(a, rows(i)) /= rbody(b, rows(j))) cycle
+              g(i, j) = g(i, j) + sum(cc(rows(i), 6 * a - 5:6 * a) * w * &
+                                      cc(rows(j), 6 * b - 5:6 * b))
+            end do
+          end do
+        end do
+      end do
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      do i = 1, n
+        if (.not. (g(i, i) > 0.0_dp)) return
+      end do
+      d(1:n) = 1.0_dp / sqrt([(g(i, i), i = 1, n)])
+      do j = 1, n
+        g(1:n, j) = g(1:n, j) * d(1:n) * d(j)
+      end do
+      call mbdk_chol_pivoted(g(1:n, 1:n), piv(1:n), rk, REDUNDANT_RTOL, stat)
+      if (stat /= MBDK_SUCCESS) return
+      stat = MBDK_SUCCESS
+      if (rk < n) return                 ! dependent rows: the dense test chooses among them
+    end do
+    independent = .true.
+    stat = MBDK_SUCCESS
+
+  end subroutine tree_rows
 
   !> The components of the momentum and angular momentum a spatial scene conserves, from its
   !> elements alone (mbdk_watch's rule): inv(:, 1:ninv).
@@ -1018,14 +1212,20 @@ contains
   !> Phi (m), C (m x 6 nb), gamma (the terms of Phi'' other than C w': -(C' w), and for a driver
   !> -(2 C_t w + Phi_tt)) and, if asked, Phi_t at time t and the frames: primitive by primitive,
   !> each kind's rows by a routine of its own.
-  pure subroutine constraints(model, fr, t, phi, c, gam, phit)
+  pure subroutine constraints(model, fr, t, phi, c, gam, phit, compact)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(frames_t), intent(in) :: fr
     real(dp), intent(in) :: t
     real(dp), intent(out) :: phi(:), c(:, :), gam(:)
     real(dp), intent(out), optional :: phit(:)
-    integer :: k, r
+    !> c in compact rows (m, 12): each row's columns of its body i, then of its body j
+    !> (rbody), the same values as C's
+    logical, intent(in), optional :: compact
+    integer :: k, r, oi, oj
     real(dp) :: f, fd, fdd, pt
+    logical :: cmp
+    cmp = .false.
+    if (present(compact)) cmp = compact
     phi = 0.0_dp
     c = 0.0_dp
     gam = 0.0_dp
@@ -1033,22 +1233,29 @@ contains
     do k = 1, model%nprim
       associate (pr => model%prim(k))
         r = pr%row
+        if (cmp) then
+          oi = 0
+          oj = 6
+        else
+          oi = 6 * (pr%bi - 1)
+          oj = 6 * (pr%bj - 1)
+        end if
         select case (pr%kind)
         case (PRIM_SPH)
-          call sph_rows(pr, fr, phi(r:r + 2), c(r:r + 2, :), gam(r:r + 2))
+          call sph_rows(pr, fr, oi, oj, phi(r:r + 2), c(r:r + 2, :), gam(r:r + 2))
         case (PRIM_DOT1)
-          call dot1_row(pr, fr, phi(r), c(r, :), gam(r))
+          call dot1_row(pr, fr, oi, oj, phi(r), c(r, :), gam(r))
         case (PRIM_DOT2)
-          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
+          call dot2_row(pr, fr, oi, oj, phi(r), c(r, :), gam(r))
         case (PRIM_SLIDE)
           ! Phi = d . h - f(t), d = R_j u_j, h = P_i - P_j: PRIM_DOT2 less the slide f(t)
           call mbdk_time_fn(pr%fn, t, f, fd, fdd)
-          call dot2_row(pr, fr, phi(r), c(r, :), gam(r))
+          call dot2_row(pr, fr, oi, oj, phi(r), c(r, :), gam(r))
           phi(r) = phi(r) - f
           if (present(phit)) phit(r) = -fd
           gam(r) = gam(r) + fdd
         case (PRIM_ANGLE)
-          call angle_row(pr, fr, t, phi(r), c(r, :), gam(r), pt)
+          call angle_row(pr, fr, oi, oj, t, phi(r), c(r, :), gam(r), pt)
           if (present(phit)) phit(r) = pt
         end select
       end associate
@@ -1056,9 +1263,10 @@ contains
   end subroutine constraints
 
   !> A point on a point (PRIM_SPH), three rows: Phi = P_i - P_j with P = r + R s.
-  pure subroutine sph_rows(pr, fr, phi, c, gam)
+  pure subroutine sph_rows(pr, fr, oi, oj, phi, c, gam)
     type(prim_t), intent(in) :: pr
     type(frames_t), intent(in) :: fr
+    integer, intent(in) :: oi, oj
     real(dp), intent(out) :: phi(3), gam(3)
     real(dp), intent(inout) :: c(:, :)
     real(dp) :: pi(3), pj(3)
@@ -1066,16 +1274,17 @@ contains
       pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
       pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
       phi = pi - pj
-      call point_cols(fr, c, i, pr%si, 1.0_dp)
-      call point_cols(fr, c, j, pr%sj, -1.0_dp)
+      call point_cols(fr, c, i, oi, pr%si, 1.0_dp)
+      call point_cols(fr, c, j, oj, pr%sj, -1.0_dp)
       gam = -(pquad(fr, i, pr%si) - pquad(fr, j, pr%sj))
     end associate
   end subroutine sph_rows
 
   !> Two body vectors normal (PRIM_DOT1), one row: Phi = (R_i u_i) . (R_j u_j).
-  pure subroutine dot1_row(pr, fr, phi, cr, gam)
+  pure subroutine dot1_row(pr, fr, oi, oj, phi, cr, gam)
     type(prim_t), intent(in) :: pr
     type(frames_t), intent(in) :: fr
+    integer, intent(in) :: oi, oj
     real(dp), intent(out) :: phi, gam
     real(dp), intent(inout) :: cr(:)
     real(dp) :: di(3), dj(3), ddi(3), ddj(3)
@@ -1083,8 +1292,8 @@ contains
       di = matmul(fr%rot(:, :, i), pr%ui)
       dj = matmul(fr%rot(:, :, j), pr%uj)
       phi = dot_product(di, dj)
-      call vec_cols(fr, cr, i, pr%ui, dj)
-      call vec_cols(fr, cr, j, pr%uj, di)
+      call vec_cols(fr, cr, i, oi, pr%ui, dj)
+      call vec_cols(fr, cr, j, oj, pr%uj, di)
       ddi = vvel(fr, i, pr%ui)
       ddj = vvel(fr, j, pr%uj)
       gam = -(dot_product(dj, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%uj)) + &
@@ -1094,9 +1303,10 @@ contains
 
   !> A vector of body j normal to the joint points' offset (PRIM_DOT2), one row:
   !> Phi = d . h, d = R_j u_j, h = P_i - P_j.
-  pure subroutine dot2_row(pr, fr, phi, cr, gam)
+  pure subroutine dot2_row(pr, fr, oi, oj, phi, cr, gam)
     type(prim_t), intent(in) :: pr
     type(frames_t), intent(in) :: fr
+    integer, intent(in) :: oi, oj
     real(dp), intent(out) :: phi, gam
     real(dp), intent(inout) :: cr(:)
     real(dp) :: pi(3), pj(3), dj(3), h(3), hd(3)
@@ -1106,9 +1316,9 @@ contains
       pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
       h = pi - pj
       phi = dot_product(dj, h)
-      call point_row(fr, cr, i, pr%si, dj)
-      call point_row(fr, cr, j, pr%sj, -dj)
-      call vec_cols(fr, cr, j, pr%uj, h)
+      call point_row(fr, cr, i, oi, pr%si, dj)
+      call point_row(fr, cr, j, oj, pr%sj, -dj)
+      call vec_cols(fr, cr, j, oj, pr%uj, h)
       hd = pvel(fr, i, pr%si) - pvel(fr, j, pr%sj)
       gam = -(dot_product(vquad(fr, j, pr%uj), h) + 2.0_dp * dot_product(vvel(fr, j, pr%uj), hd) &
               + dot_product(dj, pquad(fr, i, pr%si) - pquad(fr, j, pr%sj)))
@@ -1117,9 +1327,10 @@ contains
 
   !> The driven angle (PRIM_ANGLE), one row: Phi = cos f A - sin f B = sin(theta - f), with
   !> A = u . w = sin theta, B = u . v = cos theta (u = R_i ui, v = R_j uj, w = R_j wj); phit.
-  pure subroutine angle_row(pr, fr, t, phi, cr, gam, phit)
+  pure subroutine angle_row(pr, fr, oi, oj, t, phi, cr, gam, phit)
     type(prim_t), intent(in) :: pr
     type(frames_t), intent(in) :: fr
+    integer, intent(in) :: oi, oj
     real(dp), intent(in) :: t
     real(dp), intent(out) :: phi, gam, phit
     real(dp), intent(inout) :: cr(:)
@@ -1134,9 +1345,9 @@ contains
       a = dot_product(di, dw)
       b = dot_product(di, dv)
       phi = cf * a - sf * b
-      call vec_cols(fr, cr, i, pr%ui, cf * dw - sf * dv)
-      call vec_cols(fr, cr, j, pr%wj, cf * di)
-      call vec_cols(fr, cr, j, pr%uj, -sf * di)
+      call vec_cols(fr, cr, i, oi, pr%ui, cf * dw - sf * dv)
+      call vec_cols(fr, cr, j, oj, pr%wj, cf * di)
+      call vec_cols(fr, cr, j, oj, pr%uj, -sf * di)
       ddi = vvel(fr, i, pr%ui)
       qa = dot_product(dw, vquad(fr, i, pr%ui)) + dot_product(di, vquad(fr, j, pr%wj)) + &
         2.0_dp * dot_product(ddi, vvel(fr, j, pr%wj))
@@ -1152,46 +1363,47 @@ contains
     end associate
   end subroutine angle_row
 
-  ! ---- body points and vectors in the frames fr (body 0, the ground, has no columns in C) ----
+  ! ---- body points and vectors in the frames fr (body 0, the ground, has no columns in C; o:
+  ! the body's first column less one: 6 (b - 1) in C, 0 or 6 in a compact row) ----
 
   !> rows of a body point's velocity v + R (W x s) = v - R skew(s) W, times sgn
-  pure subroutine point_cols(fr, cc, b, s, sgn)
+  pure subroutine point_cols(fr, cc, b, o, s, sgn)
     type(frames_t), intent(in) :: fr
     real(dp), intent(inout) :: cc(:, :)
-    integer, intent(in) :: b
+    integer, intent(in) :: b, o
     real(dp), intent(in) :: s(3), sgn
-    integer :: o, d
+    integer :: d
     if (b == 0) return
-    o = (b - 1) * 6
     do d = 1, 3
       cc(d, o + d) = cc(d, o + d) + sgn
     end do
-    cc(:, o + 4:o + 6) = cc(:, o + 4:o + 6) - sgn * matmul(fr%rot(:, :, b), mbdk_skew(s))
+    ! R skew(s), column by column: R (s x e_k)
+    associate (r => fr%rot(:, :, b))
+      cc(:, o + 4) = cc(:, o + 4) - sgn * (s(3) * r(:, 2) - s(2) * r(:, 3))
+      cc(:, o + 5) = cc(:, o + 5) - sgn * (s(1) * r(:, 3) - s(3) * r(:, 1))
+      cc(:, o + 6) = cc(:, o + 6) - sgn * (s(2) * r(:, 1) - s(1) * r(:, 2))
+    end associate
   end subroutine point_cols
 
   !> the row x . (point velocity)
-  pure subroutine point_row(fr, cr, b, s, x)
+  pure subroutine point_row(fr, cr, b, o, s, x)
     type(frames_t), intent(in) :: fr
     real(dp), intent(inout) :: cr(:)
-    integer, intent(in) :: b
+    integer, intent(in) :: b, o
     real(dp), intent(in) :: s(3), x(3)
-    integer :: o
     if (b == 0) return
-    o = (b - 1) * 6
     cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
     ! -x^T R skew(s) W = W . (s x R^T x)
     cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
   end subroutine point_row
 
   !> the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
-  pure subroutine vec_cols(fr, cr, b, u, x)
+  pure subroutine vec_cols(fr, cr, b, o, u, x)
     type(frames_t), intent(in) :: fr
     real(dp), intent(inout) :: cr(:)
-    integer, intent(in) :: b
+    integer, intent(in) :: b, o
     real(dp), intent(in) :: u(3), x(3)
-    integer :: o
     if (b == 0) return
-    o = (b - 1) * 6
     cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
   end subroutine vec_cols
 
@@ -1712,28 +1924,145 @@ contains
     end do
   end subroutine wear_rates
 
-  !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
-  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
-  !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
-  !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
+  !> The sparse path (model%sparse) where the rows are many (MBDK_SPATIAL_SPARSE_ROWS), none
+  !> redundant (a redundant set keeps the dense path, whose row selection it needs) and the
+  !> formulation not the penalty one (its matrix is M + alpha C^T C, not S): S's pattern from
+  !> the rows' bodies, and the per-body blocks of M^-1 and of the geometry's weight.
+  subroutine choose_sparse(model, work, stat, asked)
+    type(mbdk_spatial_model_t), intent(inout) :: model
+    type(mbdk_spatial_work_t), intent(inout) :: work
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, allocatable :: rbody(:, :)
+    integer :: k, b, r, nrows, astat
+    stat = MBDK_SUCCESS
+    model%sparse = model%m > MBDK_SPATIAL_SPARSE_ROWS .and. model%rank0 == model%m .and. &
+      model%opt%formulation /= MBDK_FORM_PENALTY
+    if (.not. model%sparse) return
+    allocate (rbody(2, model%m), model%minv_blk(6, 6, model%nb), model%geo_blk(6, 6, model%nb), &
+              stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * model%m + &
+                           MBDK_REAL_BYTES * 72.0_dp * model%nb, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    do k = 1, model%nprim
+      nrows = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
+      do r = model%prim(k)%row, model%prim(k)%row + nrows - 1
+        rbody(:, r) = [model%prim(k)%bi, model%prim(k)%bj]
+      end do
+    end do
+    model%minv_blk = 0.0_dp
+    model%geo_blk = 0.0_dp
+    do b = 1, model%nb
+      do k = 1, 3
+        model%minv_blk(k, k, b) = 1.0_dp / model%mass(b)
+        model%geo_blk(k, k, b) = 1.0_dp
+        model%geo_blk(k + 3, k + 3, b) = 1.0_dp / model%length**2
+      end do
+      model%minv_blk(4:6, 4:6, b) = model%inv_inertia(:, :, b)
+    end do
+    call mbdk_compact_schur_init(work%cs, rbody, model%nb, 6, stat, asked)
+  end subroutine choose_sparse
+
+  !> C x for C in compact rows cc (the sparse path); absolute: |C| |x|
+  pure function compact_times(model, cc, x, absolute) result(y)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: cc(:, :), x(:)
+    logical, intent(in) :: absolute
+    real(dp) :: y(size(cc, 1))
+    integer :: k, a, b
+    y = 0.0_dp
+    do k = 1, size(cc, 1)
+      do a = 1, 2
+        b = model%work%cs%rbody(a, k)
+        if (b == 0) cycle
+        if (absolute) then
+          y(k) = y(k) + dot_product(abs(cc(k, 6 * a - 5:6 * a)), abs(x(6 * b - 5:6 * b)))
+        else
+          y(k) = y(k) + dot_product(cc(k, 6 * a - 5:6 * a), x(6 * b - 5:6 * b))
+        end if
+      end do
+    end do
+  end function compact_times
+
+  !> M^-1 C^T x for C in compact rows (the sparse path); absolute: |M^-1| |C^T| |x|
+  pure function compact_minv_ct(model, cc, x, absolute) result(dx)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: cc(:, :), x(:)
+    logical, intent(in) :: absolute
+    real(dp) :: dx(6 * model%nb)
+    integer :: k, a, b
+    dx = 0.0_dp
+    do k = 1, size(cc, 1)
+      do a = 1, 2
+        b = model%work%cs%rbody(a, k)
+        if (b == 0) cycle
+        if (absolute) then
+          dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
+            matmul(abs(model%minv_blk(:, :, b)), abs(cc(k, 6 * a - 5:6 * a))) * abs(x(k))
+        else
+          dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
+            matmul(model%minv_blk(:, :, b), cc(k, 6 * a - 5:6 * a)) * x(k)
+        end if
+      end do
+    end do
+  end function compact_minv_ct
+
+  !> The sparse path's schur_solve: lam solving (C M^-1 C^T) lam = rhs and dx = M^-1 C^T lam,
+  !> from C's compact rows cc. A pivot at roundoff of its row's diagonal entry (SOLVE_RTOL)
+  !> is MBDK_ERR_SINGULAR_MATRIX; with near, the geometry G = C W C^T (near_test's weight: S
+  !> mixes 1/m and 1/J, and a slender bar's axial inertia leaves S's relative pivots small at
+  !> a regular pose) is factorised first, and a least pivot ratio of G inside that window,
+  !> taken against the ratios G had before, is one too (mbdk_sparse_ldlt_near: in AMD's order
+  !> a long regular chain's least ratio is about 2 / m, which a fixed window would call near
+  !> singular; the planar sparse path tests so).
+  subroutine sparse_schur(model, cc, rhs, lam, dx, stat, near)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: cc(:, :), rhs(:)
+    real(dp), intent(out) :: lam(:), dx(:)
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: near
+    lam = 0.0_dp
+    dx = 0.0_dp
+    if (present(near)) then
+      call mbdk_compact_schur_factor(model%work%cs, cc, model%geo_blk, SOLVE_RTOL, stat, &
+                                     rigid=.true., near=near, &
+                                     near_rows=MBDK_SPATIAL_SPARSE_ROWS)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    call mbdk_compact_schur_factor(model%work%cs, cc, model%minv_blk, SOLVE_RTOL, stat, &
+                                   rigid=.true.)
+    if (stat /= MBDK_SUCCESS) return
+    lam = rhs
+    call mbdk_compact_schur_solve(model%work%cs, lam)
+    call mbdk_compact_schur_spread(model%work%cs, lam, dx)
+  end subroutine sparse_schur
+
   !> work's arrays of spatial_accelerations, for nb bodies and m rows
   subroutine accelerations_scratch(model, work, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     type(mbdk_spatial_work_t), intent(inout) :: work
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nb, m, k
+    integer :: nb, m, k, mc_, cc_
     nb = model%nb
     m = model%m
     if (allocated(work%fw)) deallocate (work%fw, work%nbd, work%acc, work%gen, work%phi, &
-                                        work%c, work%gam, work%l, work%mc, work%phit)
+                                        work%c, work%gam, work%l, work%mc, work%phit, &
+                                        work%cc, work%dx)
+    ! dense C and M^-1 C^T, or their compact rows (the sparse path)
+    mc_ = merge(0, m, model%sparse)
+    cc_ = merge(m, 0, model%sparse)
     allocate (work%fw(3, nb), work%nbd(3, nb), work%acc(6 * nb), work%gen(6 * nb), &
-              work%phi(m), work%c(m, 6 * nb), work%gam(m), work%l(m), work%mc(6 * nb, m), &
-              work%phit(m), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (18.0_dp * nb + real(m, dp) * (12.0_dp * nb + 4)), &
-                           stat, asked)
+              work%phi(m), work%c(mc_, 6 * nb), work%gam(m), work%l(m), work%mc(6 * nb, mc_), &
+              work%phit(m), work%cc(cc_, 12), work%dx(6 * nb), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (24.0_dp * nb + real(mc_, dp) * 12.0_dp * nb + &
+                                                 4.0_dp * m + 12.0_dp * cc_), stat, asked)
   end subroutine accelerations_scratch
 
+  !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
+  !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
+  !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
+  !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
   subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
@@ -1751,7 +2080,7 @@ contains
     associate (fw => self%work%fw, nbd => self%work%nbd, acc => self%work%acc, &
                gen => self%work%gen, phi => self%work%phi, c => self%work%c, &
                gam => self%work%gam, l => self%work%l, mc => self%work%mc, &
-               phit => self%work%phit)
+               phit => self%work%phit, cc => self%work%cc, dx => self%work%dx)
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power, stat)
@@ -1759,7 +2088,10 @@ contains
     call generalized_forces(self, fr, fw, nbd, gen)
     call apply_minv(self, gen, acc)
     if (present(acc_abs)) acc_abs = abs(acc)
-    if (self%m > 0 .and. present(lam_in)) then
+    if (self%m > 0 .and. self%sparse) then
+      call sparse_accelerations(stat)
+      if (stat /= MBDK_SUCCESS) return
+    else if (self%m > 0 .and. present(lam_in)) then
       call constraints(self, fr, t, phi, c, gam, phit)
       do k = 1, self%m
         call apply_minv(self, c(k, :), mc(:, k))
@@ -1796,6 +2128,37 @@ contains
     end associate
 
   contains
+
+    !> The constrained accelerations by compact rows (model%sparse): as below, with
+    !> sparse_schur for schur_solve (the DAE's multipliers lam_in applied as they are)
+    subroutine sparse_accelerations(st)
+      integer, intent(out) :: st
+      associate (cc => self%work%cc, dx => self%work%dx, acc => self%work%acc, &
+                 phi => self%work%phi, gam => self%work%gam, phit => self%work%phit, &
+                 l => self%work%l)
+        st = MBDK_SUCCESS
+        call constraints(self, fr, t, phi, cc, gam, phit, compact=.true.)
+        if (present(lam_in)) then
+          acc = acc - compact_minv_ct(self, cc, lam_in, .false.)
+          if (present(phi_out)) phi_out = phi
+          if (present(acc_abs)) acc_abs = acc_abs + compact_minv_ct(self, cc, lam_in, .true.)
+          return
+        end if
+        if (self%opt%formulation == MBDK_FORM_BAUMGARTE) &
+          gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
+                (compact_times(self, cc, y(wi(self, 1):last_velocity(self)), .false.) + phit) - &
+                self%opt%baumgarte_beta**2 * phi
+        if (self%opt%formulation == MBDK_FORM_REDUCED) then
+          call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st, &
+                            MBDK_SPATIAL_NEAR_PIVOT)
+        else
+          call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st)
+        end if
+        if (st /= MBDK_SUCCESS) return
+        acc = acc - dx
+        if (present(lam)) lam = l
+      end associate
+    end subroutine sparse_accelerations
 
     !> Jalon-Bayo (3.35)-(3.40) on the velocities w: (M + ap C^T C) w' = gen - ap C^T r with
     !> r = -gamma + 2 mu omega (C w + Phi_t) + omega^2 Phi, lam = ap (C w' + r); M + ap C^T C
@@ -1914,6 +2277,10 @@ contains
     if (.not. constrained .or. self%m == 0) return
     m = self%m
     nb = self%nb
+    if (self%sparse) then
+      call sparse_project(stat)
+      return
+    end if
     allocate (phi(m), c(m, 6 * nb), gam(m), l(m), mc(6 * nb, m), d(6 * nb), phit(m), stat=k)
     call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (12.0_dp * nb + 4) + 6.0_dp * nb), &
                            stat)
@@ -1940,6 +2307,40 @@ contains
     call schur_solve(self, c, matmul(c, y(wi(self, 1):last_velocity(self))) + phit, l, mc, stat)
     if (stat /= MBDK_SUCCESS) return
     y(wi(self, 1):last_velocity(self)) = y(wi(self, 1):last_velocity(self)) - matmul(mc, l)
+
+  contains
+
+    !> the same by compact rows and sparse_schur (model%sparse)
+    subroutine sparse_project(st)
+      integer, intent(out) :: st
+      real(dp), allocatable :: cc(:, :)
+      allocate (phi(m), cc(m, 12), gam(m), l(m), d(6 * nb), phit(m), stat=k)
+      call mbdk_alloc_status(k, MBDK_REAL_BYTES * (16.0_dp * m + 6.0_dp * nb), st)
+      if (st /= MBDK_SUCCESS) return
+      tol = max(self%opt%projection_tol, 16.0_dp * epsilon(1.0_dp) * self%length)
+      do it = 1, PROJECTION_MAX_ITER + 1
+        call frames(self, y, fr, st)
+        if (st /= MBDK_SUCCESS) return
+        call constraints(self, fr, t, phi, cc, gam, phit, compact=.true.)
+        if (maxval(abs(phi)) <= tol) exit
+        st = MBDK_ERR_NEWTON_DIVERGED
+        if (it > PROJECTION_MAX_ITER) return
+        call sparse_schur(self, cc, phi, l, d, st)
+        if (st /= MBDK_SUCCESS) return
+        d = -d
+        do b = 1, nb
+          k = qi(self, b)
+          y(k:k + 2) = y(k:k + 2) + d((b - 1) * 6 + 1:(b - 1) * 6 + 3)
+          call rotate_by(self, y(k + 3:k + self%nqb - 1), d((b - 1) * 6 + 4:(b - 1) * 6 + 6), st)
+          if (st /= MBDK_SUCCESS) return
+        end do
+      end do
+      call sparse_schur(self, cc, compact_times(self, cc, y(wi(self, 1):last_velocity(self)), &
+                                                .false.) + phit, l, d, st)
+      if (st /= MBDK_SUCCESS) return
+      y(wi(self, 1):last_velocity(self)) = y(wi(self, 1):last_velocity(self)) - d
+    end subroutine sparse_project
+
   end subroutine spatial_project
 
   subroutine normalise(self, y)
@@ -2016,9 +2417,12 @@ contains
     out = 0.0_dp
     m = model%m
     nb = model%nb
-    allocate (fw(3, nb), nbd(3, nb), phi(m), c(m, 6 * nb), gam(m), w(6 * nb), phit(m), lam(m), &
-              f(size(y)), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (12.0_dp * nb + real(m, dp) * (6.0_dp * nb + 4) &
+    ! C dense, or in compact rows on the sparse path (the same residuals, summed in another
+    ! order)
+    allocate (fw(3, nb), nbd(3, nb), phi(m), c(m, merge(12, 6 * nb, model%sparse)), gam(m), &
+              w(6 * nb), phit(m), lam(m), f(size(y)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (12.0_dp * nb + real(m, dp) * &
+                                                 (merge(12.0_dp, 6.0_dp * nb, model%sparse) + 4) &
                                                  + size(y)), stat)
     if (stat /= MBDK_SUCCESS) return
     call frames(model, y, fr, stat)
@@ -2039,13 +2443,20 @@ contains
     out(7) = qn
     if (present(mom) .and. present(msc)) call spatial_momenta(model, fr, mom, msc)
     if (model%m > 0) then
-      call constraints(model, fr, t, phi, c, gam, phit)
+      call constraints(model, fr, t, phi, c, gam, phit, compact=model%sparse)
       w = y(wi(model, 1):last_velocity(model))
       out(5) = maxval(abs(phi))
-      out(6) = maxval(abs(matmul(c, w) + phit))
+      if (model%sparse) then
+        gam = compact_times(model, c, w, .false.) + phit   ! gam's storage: C w + Phi_t
+        out(6) = maxval(abs(gam))
+        if (present(vres_out)) vres_out = gam
+        if (present(vterm_out)) vterm_out = compact_times(model, c, w, .true.) + abs(phit)
+      else
+        out(6) = maxval(abs(matmul(c, w) + phit))
+        if (present(vres_out)) vres_out = matmul(c, w) + phit
+        if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w)) + abs(phit)
+      end if
       if (present(phi_out)) phi_out = phi
-      if (present(vres_out)) vres_out = matmul(c, w) + phit
-      if (present(vterm_out)) vterm_out = matmul(abs(c), abs(w)) + abs(phit)
       if (model%has_drivers) then
         if (present(lam_in)) then
           lam = lam_in
@@ -2084,11 +2495,11 @@ contains
     call forces(model, fr, fw, nbd, vg, vs, power, stat)
     if (stat /= MBDK_SUCCESS) return
     if (.not. (model%has_drivers .and. m > 0)) return
-    allocate (phi(m), c(m, 6 * nb), gam(m), phit(m), lam(m), f(size(y)), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (real(m, dp) * (6.0_dp * nb + 4) + size(y)), &
-                           stat)
+    ! Phi_t alone is wanted: C in compact rows, whatever the path
+    allocate (phi(m), c(m, 12), gam(m), phit(m), lam(m), f(size(y)), stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * (16.0_dp * m + size(y)), stat)
     if (stat /= MBDK_SUCCESS) return
-    call constraints(model, fr, t, phi, c, gam, phit)
+    call constraints(model, fr, t, phi, c, gam, phit, compact=.true.)
     if (present(lam_in)) then
       lam = lam_in
     else
