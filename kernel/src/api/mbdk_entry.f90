@@ -43,12 +43,13 @@ module mbdk_entry
     MBDK_OUT_ACCELERATIONS, MBDK_OUT_MULTIPLIERS, MBDK_OUT_REACTIONS, MBDK_OUT_ENERGY, &
     MBDK_OUT_RESIDUALS, mbdk_model_options_t
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
-    mbdk_spatial_outputs, mbdk_spatial_multipliers, MBDK_SPATIAL_NOUT
+    mbdk_spatial_outputs, mbdk_spatial_multipliers, MBDK_SPATIAL_NOUT, &
+    mbdk_spatial_options_t, mbdk_spatial_init
   implicit none
   private
   public :: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
     mbdk_entry_planar_outputs, mbdk_entry_spatial_outputs, mbdk_entry_planar_start, &
-    mbdk_entry_planar_sizes_ok
+    mbdk_entry_planar_sizes_ok, mbdk_entry_spatial_model
 
   !> how a run is integrated (mbdk_entry_route)
   integer, parameter, public :: MBDK_ROUTE_ODE = 1, MBDK_ROUTE_DAE = 2, MBDK_ROUTE_INDEX3 = 3
@@ -176,6 +177,26 @@ contains
     stat = MBDK_SUCCESS
     if (model%record_work) call mbdk_watch_reserve(work%watch, nsamp, stat)
   end subroutine mbdk_entry_planar_start
+
+  !> The spatial model of an f2py entry's tables, whose arrays have room for nj joints and nf
+  !> forces in their first columns (MBDK_ERR_INVALID_INPUT where they have not), built at its
+  !> initial state (t0, y0) with options so (mbdk_spatial_init; asked: MBDK_ERR_NO_MEMORY's
+  !> bytes).
+  subroutine mbdk_entry_spatial_model(model, work, so, mass, inertia, nj, jtype, jbody, jreal, &
+                                      nf, ftype, fbody, freal, t0, y0, stat, asked)
+    type(mbdk_spatial_model_t), intent(out) :: model
+    type(mbdk_spatial_work_t), target, intent(inout) :: work
+    type(mbdk_spatial_options_t), intent(in) :: so
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), t0, y0(:)
+    integer, intent(in) :: nj, nf, jtype(:), jbody(:, :), ftype(:), fbody(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    stat = MBDK_ERR_INVALID_INPUT
+    if (nj < 0 .or. nj > size(jtype) .or. nf < 0 .or. nf > size(ftype)) return
+    call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                           jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
+                           y0, stat, asked)
+  end subroutine mbdk_entry_spatial_model
 
   !> Whether a planar run's output arrays have the columns (na, nl, ni, nr, ne, nrs) for nsamp
   !> samples of what it writes: the index-3 family always a, lam and its iterations, a DAE its

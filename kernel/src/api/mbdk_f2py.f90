@@ -919,6 +919,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, MBDK_INDEX3_BOOK
   use mbdk_entry, only: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
+    mbdk_entry_spatial_model, &
     mbdk_entry_spatial_outputs, MBDK_ROUTE_ODE, MBDK_ROUTE_INDEX3
   use mbdk_spatial_model
   implicit none
@@ -978,9 +979,8 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   if (status /= MBDK_SUCCESS) return
   so = transfer(sobuf, so)
   ! a failure from here on reports its statistics (alloc_bytes: MBDK_ERR_NO_MEMORY's size)
-  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
-                         y0, status, st%alloc_bytes)
+  call mbdk_entry_spatial_model(model, work, so, mass, inertia, nj, jtype, jbody, jreal, nf, &
+                                ftype, fbody, freal, t0, y0, status, st%alloc_bytes)
   ninv = model%ninv
   sparse = merge(1, 0, model%sparse)
   invariants = model%inv
@@ -1033,6 +1033,7 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
   use, intrinsic :: iso_c_binding, only: c_sizeof
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT
+  use mbdk_entry, only: mbdk_entry_spatial_model
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, nsow, n, nsamp, nct
@@ -1053,11 +1054,10 @@ subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jrea
   integer :: k, s
   out = 0.0d0
   status = MBDK_ERR_INVALID_INPUT
-  if (8 * nsow /= c_sizeof(so) .or. nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
+  if (8 * nsow /= c_sizeof(so)) return
   so = transfer(sobuf, so)
-  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, &
-                         y0, status)
+  call mbdk_entry_spatial_model(model, work, so, mass, inertia, nj, jtype, jbody, jreal, nf, &
+                                ftype, fbody, freal, t0, y0, status)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (model%ncontacts /= nct) return
@@ -1079,6 +1079,7 @@ subroutine spatial_start_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jre
   ! (below m: redundant joints; 0 with status MBDK_ERR_SINGULAR_MATRIX: a row vanishes), and
   ! asked: MBDK_ERR_NO_MEMORY's bytes.
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
+  use mbdk_entry, only: mbdk_entry_spatial_model
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1, rotation
@@ -1100,12 +1101,9 @@ subroutine spatial_start_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jre
   vres = 0.0d0
   vterm = 0.0d0
   rank = 0
-  status = MBDK_ERR_INVALID_INPUT
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   so%rotation = rotation
-  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
-                         y0, status, asked)
+  call mbdk_entry_spatial_model(model, work, so, mass, inertia, nj, jtype, jbody, jreal, nf, &
+                                ftype, fbody, freal, t, y0, status, asked)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return
@@ -1128,6 +1126,7 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   ! where the solve failed, and status then says why) and its y' = F(t, y) (0 likewise).
   ! asked: MBDK_ERR_NO_MEMORY's bytes (the model's build), else 0.
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX
+  use mbdk_entry, only: mbdk_entry_spatial_model
   use mbdk_spatial_model
   implicit none
   integer, intent(in) :: nb, nj, nj1, nf, nf1, n, m1, rotation
@@ -1153,12 +1152,9 @@ subroutine spatial_residuals(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf
   phit = 0.0d0
   ydot = 0.0d0
   rank = 0
-  status = MBDK_ERR_INVALID_INPUT
-  if (nj < 0 .or. nj > nj1 .or. nf < 0 .or. nf > nf1) return
   so%rotation = rotation
-  call mbdk_spatial_init(model, work, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
-                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t, &
-                         y0, status, asked)
+  call mbdk_entry_spatial_model(model, work, so, mass, inertia, nj, jtype, jbody, jreal, nf, &
+                                ftype, fbody, freal, t, y0, status, asked)
   if (status /= MBDK_SUCCESS) return
   status = MBDK_ERR_INVALID_INPUT
   if (m1 < model%m) return

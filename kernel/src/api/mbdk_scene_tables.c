@@ -454,14 +454,16 @@ int mbdk_stepper_create_tables(const mbdk_scene_tables *t, int formulation,
 {
     if (stepper) *stepper = NULL;
     if (!t || !opt || !stepper || !t->mass || !t->y0) return MBDK_ERR_INVALID_INPUT;
+    /* Baumgarte's gains as simulate's defaults, 1/h and sqrt(2)/h, for either kind */
+    const double alpha = opt->h > 0 ? 1.0 / opt->h : 0.0;
+    const double beta = opt->h > 0 ? sqrt(2.0) / opt->h : 0.0;
     if (t->kind == MBDK_SCENE_PLANAR) {
         mbdk_model_options mopt;
         mbdk_model_default_options(&mopt);
         if (formulation) mopt.formulation = formulation;
-        /* Baumgarte's gains as simulate's defaults: 1/h and sqrt(2)/h */
         if (opt->h > 0) {
-            mopt.baumgarte_alpha = 1.0 / opt->h;
-            mopt.baumgarte_beta = sqrt(2.0) / opt->h;
+            mopt.baumgarte_alpha = alpha;
+            mopt.baumgarte_beta = beta;
         }
         return mbdk_stepper_create_scene(t->nb, t->mass, t->inertia, t->nj, t->jint, t->jreal,
                                          t->nf, t->fint, t->freal, &mopt, opt, t->t0, t->y0,
@@ -472,8 +474,8 @@ int mbdk_stepper_create_tables(const mbdk_scene_tables *t, int formulation,
         mbdk_spatial_default_options(&sopt);
         if (formulation) sopt.formulation = formulation;
         if (opt->h > 0) {
-            sopt.baumgarte_alpha = 1.0 / opt->h;
-            sopt.baumgarte_beta = sqrt(2.0) / opt->h;
+            sopt.baumgarte_alpha = alpha;
+            sopt.baumgarte_beta = beta;
         }
         sopt.rotation = t->rotation;
         sopt.norm = t->norm;

@@ -16,8 +16,8 @@
 !> rows. With near, a least pivot ratio inside that wider window counts too, against the
 !> ratios met before (mbdk_sparse_ldlt_near). The pivots are taken in AMD's order, not C's:
 !> the ratios, and so where a near test trips on the way to a rank loss, differ from a dense
-!> Cholesky's in C's order (on an RSSR loop driven to its dead centre the sparse test stopped
-!> a little earlier).
+!> Cholesky's in C's order: driven towards a rank loss, the two paths may name it a step
+!> apart, each at a pose whose pivots have fallen to the same window.
 module mbdk_compact_schur
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_SINGULAR_MATRIX

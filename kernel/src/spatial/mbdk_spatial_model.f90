@@ -21,13 +21,14 @@
 !> (at most MBDK_SPATIAL_SPARSE_ROWS); above, with no row redundant and not the penalty
 !> formulation, by C in compact rows (each row's twelve columns on its two bodies) and the
 !> sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that an
-!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py: N^1.0 from 8
-!> to 1024 bodies); a joint tree's rows are then checked for independence connection by
-!> connection (tree_rows) instead of on the whole dense C (a loop's still are on C). The manifest names the path. Redundant joints
-!> (rows found dependent at the start, on the geometry: select_rows) keep the dense path and
-!> are passed, a fixed set of independent rows carrying the multipliers (schur_solve); on the
-!> reduced form a rank lost along the motion (a singular pose) stops the run with
-!> MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023) section 3, as for planar scenes):
+!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py measures it);
+!> a joint tree's rows are then checked for independence connection by connection
+!> (tree_rows) instead of on the whole dense C (a loop's still are on C). The manifest names
+!> the path. Redundant joints (rows found dependent at the start, on the geometry:
+!> select_rows) keep the dense path and are passed, a fixed set of independent rows carrying
+!> the multipliers (schur_solve); on the reduced form a rank lost along the motion (a
+!> singular pose) stops the run with MBDK_ERR_SINGULAR_MATRIX. Formulations (Fekete (2023)
+!> section 3, as for planar scenes):
 !>   1 reduced      C w' = gamma
 !>   2 baumgarte    C w' = gamma - 2 alpha Phi' - beta^2 Phi
 !>   3 penalty      (M + ap C^T C) w' = f - ap C^T (-gamma + 2 mu om Phi' + om^2 Phi),
@@ -172,8 +173,9 @@ module mbdk_spatial_model
   !> above this many constraint rows (and none redundant, and not the penalty formulation) the
   !> constrained solves of the ODE formulations go by compact rows and the sparse LDL^T of
   !> S = C M^-1 C^T (mbdk_compact_schur), whose cost grows as the rows do; at or below it, by
-  !> the dense Cholesky (on a spherical chain the two cost the same at 12 rows, the sparse
-  !> one less from 15; the planar model's threshold is the same)
+  !> the dense Cholesky, whose m^3/6 is cheaper than the sparse factor's ordering and
+  !> symbolic set-up on so few rows (the break-even of a spherical chain; the planar model's
+  !> threshold is the same)
   integer, parameter, public :: MBDK_SPATIAL_SPARSE_ROWS = 12
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
