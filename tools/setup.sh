@@ -46,7 +46,7 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 VPY=.venv/bin/python
-if ! $VPY -c 'import numpy, mesonbuild, mesonpy, ninja, matplotlib, scipy, sympy, h5py, tqdm, distributed, pytest' 2>/dev/null; then
+if ! $VPY -c 'import numpy, mesonbuild, mesonpy, ninja, matplotlib, scipy, sympy, h5py, tqdm, distributed, pytest, fmpy' 2>/dev/null; then
   say "installing Python tools into .venv"
   $VPY -m pip install -q --upgrade pip
   $VPY -m pip install -q -r tools/requirements.txt

@@ -450,6 +450,28 @@ int mbdk_stepper_stats(const mbdk_stepper *stepper, mbdk_stats *stats);
  * index-3 steppers, planar or spatial): what the watch found. ODE steppers:
  * MBDK_ERR_NOT_APPLICABLE. */
 int mbdk_stepper_watch_report(const mbdk_stepper *stepper, mbdk_watch_report *report);
+/* At the current state of a scene or index-3 stepper (planar or spatial): out[0..4] = kinetic
+ * energy, gravity potential, spring potential (contacts' included), max |Phi|, max |C v +
+ * Phi_t|. ODE steppers: MBDK_ERR_NOT_APPLICABLE. */
+enum { MBDK_STEPPER_NOUT = 5 };
+int mbdk_stepper_outputs(mbdk_stepper *stepper, double *out, int nout);
+/* A planar scene's joint reactions reac[nj][3] at the current state: force (x, y) and moment
+ * about the joint point that each joint exerts on its first body, global frame, from the
+ * stepper's multipliers; nj the table's joints. Spatial or ODE steppers:
+ * MBDK_ERR_NOT_APPLICABLE. */
+int mbdk_stepper_reactions(mbdk_stepper *stepper, double *reac, int nj);
+/* A load's value between steps (a co-simulation's input): slot (1-based) of force-table entry
+ * (1-based) becomes value, times the element's time function as in the table. Only a point
+ * force's components (planar slots 3, 4; spatial 4..6, space frame) and a torque's (planar 1;
+ * spatial 1..3): loads enter no Newton matrix, assembly or potential, so the next steps are the
+ * scene's with that value written in. Anything else: MBDK_ERR_INVALID_INPUT. */
+int mbdk_stepper_set_force(mbdk_stepper *stepper, int entry, int slot, double value);
+/* A copy of the whole stepper (state, method history and factors, statistics, watch): the
+ * copy's steps are the bits the original's would be. *dst NULL: a new stepper; else *dst (a
+ * stepper of the same scene and kind) is overwritten, which is how a co-simulation master's
+ * rollback restores a saved stepper. The copy shares user_data and the interrupt flag's
+ * address. */
+int mbdk_stepper_copy(const mbdk_stepper *src, mbdk_stepper **dst);
 int mbdk_stepper_destroy(mbdk_stepper *stepper);              /* NULL: nothing to do */
 
 /* Copies the message of a status into buf (NUL-terminated). */

@@ -156,6 +156,25 @@ int main(void)
         expect("stepper_create_spatial_index3", mbdk_stepper_create_spatial_index3(1, smass, sinertia, 1, sjtype, sjbody, sjreal, 1, sftype, sfbody, sfreal, &so, &i3, 0, sy0, &ss), MBDK_SUCCESS);
         expect("spatial stepper_watch_report, NULL", mbdk_stepper_watch_report(ss, NULL), MBDK_ERR_INVALID_INPUT);
         expect("spatial stepper_multipliers, lam NULL", mbdk_stepper_multipliers(ss, NULL, 3), MBDK_ERR_INVALID_INPUT);
+        {
+            double out[MBDK_STEPPER_NOUT], rc[3];
+            mbdk_stepper *copy = NULL;
+            expect("stepper_outputs, out NULL", mbdk_stepper_outputs(ss, NULL, MBDK_STEPPER_NOUT), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_outputs, handle NULL", mbdk_stepper_outputs(NULL, out, MBDK_STEPPER_NOUT), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_outputs, nout wrong", mbdk_stepper_outputs(ss, out, 4), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_outputs", mbdk_stepper_outputs(ss, out, MBDK_STEPPER_NOUT), MBDK_SUCCESS);
+            expect("stepper_outputs, the hanging body's kinetic energy", out[0] == 0.0, 1);
+            expect("stepper_reactions on a spatial stepper", mbdk_stepper_reactions(ss, rc, 1), MBDK_ERR_NOT_APPLICABLE);
+            expect("stepper_set_force on gravity", mbdk_stepper_set_force(ss, 1, 1, 1.0), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_set_force, entry 0", mbdk_stepper_set_force(ss, 0, 1, 1.0), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_set_force, handle NULL", mbdk_stepper_set_force(NULL, 1, 1, 1.0), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_copy, dst NULL", mbdk_stepper_copy(ss, NULL), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_copy, src NULL", mbdk_stepper_copy(NULL, &copy), MBDK_ERR_INVALID_INPUT);
+            expect("stepper_copy", mbdk_stepper_copy(ss, &copy), MBDK_SUCCESS);
+            expect("stepper_copy onto a stepper of another kind", mbdk_stepper_copy(ss, &s), MBDK_ERR_INVALID_INPUT);
+            expect("the copy steps", mbdk_stepper_step(copy), MBDK_SUCCESS);
+            mbdk_stepper_destroy(copy);
+        }
         mbdk_stepper_destroy(ss);
         expect("stepper_multipliers, lam NULL", mbdk_stepper_multipliers(sc, NULL, 2), MBDK_ERR_INVALID_INPUT);
         expect("stepper_multipliers", mbdk_stepper_multipliers(sc, lam, 2), MBDK_SUCCESS);

@@ -31,6 +31,7 @@ from .scene_file import load_scene, scene, scenes
 from .scene_report import SceneReport, scene_report
 from .simulate import evaluate, simulate
 from .watch import Watch
+from .fmu import export_fmu
 
 __all__ = [
     "solve_ode", "solve_ivp", "ODESolver", "evaluate_rhs", "methods", "problems", "build_info", "ODEResult", "Stats", "MethodInfo",
@@ -42,7 +43,7 @@ __all__ = [
     "scene", "scenes", "scene_report", "SceneReport", "simulate", "SceneResult", "RedundantConstraintsError", "SolveInterrupted",
     "ODEOptions", "Index3Options", "ModelOptions", "SpatialOptions", "Result", "evaluate", "NoMemoryError",
     "ConstraintDriftError", "EnergyDriftError", "InvariantDriftError", "ContactOverrunError",
-    "Watch", "AccuracyWarning",
+    "Watch", "AccuracyWarning", "export_fmu",
 ]
 
 

@@ -22,7 +22,7 @@ status 130 (128 + SIGINT, the shell's convention)
 status 141 (128 + SIGPIPE)
     standard output closed early (`mbdk methods | head -3`), quietly.
 
-The commands that write a file (run, sweep, plot, animate, tables) write it under a temporary name and
+The commands that write a file (run, sweep, plot, animate, tables, fmu) write it under a temporary name and
 rename it when complete, so a failure leaves no file, not even a partial one, and the line says "no
 file written". Ctrl-C during a solve stops the solves of every thread (mbdk._compiled).
 """
@@ -50,9 +50,13 @@ from .simulate import simulate
 from .sweep import load_grid, one_line, sweep
 from .symbolic import cross_check
 from .tables_file import write_tables
+from .fmu import export_fmu
 
 #: the commands that write their output file only when they succeed
-WRITERS = ("run", "sweep", "plot", "animate", "tables")
+WRITERS = ("run", "sweep", "plot", "animate", "tables", "fmu")
+#: simulate's keywords an FMU does not take: its master chooses the communication points
+FMU_SKIP = RUN_SKIP | {"t_end", "every", "outputs", "dt_out", "t_eval", "locate_events",
+                       "switch_angles", "max_steps"}
 #: the API whose keywords are `mbdk solve`'s options (taken at import: the call itself goes
 #: through ode.solve_ode, which a test may stand in for)
 _SOLVE_API = ode.solve_ode
@@ -150,7 +154,27 @@ def parser() -> argparse.ArgumentParser:
     tb.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
     tb.add_argument("--out", type=Path, required=True, help="the tables file (.toml)")
     tb.add_argument("--t0", type=float, default=0.0, help="the initial time (default 0)")
-    for p in (rp, sp, sc, run, pl, sw, an, tb):
+    fm = sub.add_parser("fmu", help="write a scene as an FMI 3.0 co-simulation FMU (the "
+                        "kernel's C stepper inside, no Python) for FMPy, Modelica tools, "
+                        "Simulink and other co-simulation masters (mbdk.export_fmu)")
+    fm.add_argument("scene", help="a built-in scene's name or a scene file (TOML)")
+    fm.add_argument("--out", type=Path, required=True, help="the FMU (.fmu)")
+    fm.add_argument("--method", required=True,
+                    help="a fixed-step ODE method (rk4, heun, ...) or the index-3 family "
+                         "(trapezoidal_index3, newmark, hht, generalized_alpha)")
+    fm.add_argument("--input", dest="inputs", action="append", default=[], metavar="NAME",
+                    help="a point force or torque that becomes an input (its name, or "
+                         "NAME.FIELD such as motor.torque); repeat for several")
+    fm.add_argument("--stop-time", type=float, default=1.0,
+                    help="the default experiment's duration (s, default 1)")
+    fm.add_argument("--step-size", type=float, default=argparse.SUPPRESS,
+                    help="the default experiment's communication step (a multiple of h; "
+                         "default 0.01 s)")
+    fm.add_argument("--no-bundle", dest="bundle", action="store_false",
+                    help="do not copy the binary's shared libraries (gfortran, LAPACK, "
+                         "SUNDIALS, SuiteSparse) into the FMU")
+    add_options(fm, simulate, RUN_HELP, FMU_SKIP)
+    for p in (rp, sp, sc, run, pl, sw, an, tb, fm):
         p.add_argument("--traceback", action="store_true", help="show the traceback of errors")
     ap.commands = sub.choices      # name -> the command's parser, aliases included
     return ap
@@ -268,6 +292,15 @@ def _main(args) -> int:
         args.written = write_tables(sc, args.out, args.t0)
         print(f"wrote {args.written}: the tables of {sc.kind} scene {sc.name!r} for "
               "mbdk_scene_tables_read (mbdk.h)")
+    elif args.cmd == "fmu":
+        sc = scene_or_file(args.scene)
+        kw = given(args, simulate, FMU_SKIP)
+        if hasattr(args, "step_size"):
+            kw["step_size"] = args.step_size
+        args.written = export_fmu(sc, args.out, args.method, inputs=args.inputs,
+                                  stop_time=args.stop_time, bundle=args.bundle, **kw)
+        print(f"wrote {args.written}: scene {sc.name!r} ({sc.kind}) by {args.method} as an FMI "
+              f"3.0 co-simulation FMU{'' if args.bundle else ' (libraries not bundled)'}")
     elif args.cmd == "solve":
         r = ode.solve_ode(args.problem, args.method, **given(args, _SOLVE_API, SOLVE_SKIP))
         print(f"t = {r.t[-1]:.10g}  y = {r.y[-1].tolist()}  {plural(r.stats.steps, 'step')}  "

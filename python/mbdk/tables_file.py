@@ -34,9 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, checks
+from . import checks
 from .codes import NORMS
 from .errors import InvalidInputError, RedundantConstraintsError
+from .ode import package_version
 from .model import build_tables
 from .results_io import check_writable, write_atomic
 from .run_planar import gears_at_assembled_pose
@@ -130,7 +131,7 @@ def write_tables(scene: Scene, path, t0: float = 0.0) -> Path:
     path = Path(path)
     check_writable(path, (".toml",))
     keys = scene_tables(scene, t0)
-    lines = [f"# mbdk {__version__}: the kernel's tables of scene {scene.name!r} "
+    lines = [f"# mbdk {package_version()}: the kernel's tables of scene {scene.name!r} "
              f"({_source(scene)}),",
              "# read from C by mbdk_scene_tables_read (mbdk.h); keys: python/mbdk/tables_file.py",
              *(f"{k} = {_toml(v)}" for k, v in keys.items())]

@@ -10,6 +10,9 @@
 !>   mbdk_stepper_step(s)              one step of opt.h
 !>   mbdk_stepper_advance(s, t)        steps of opt.h up to t, the last one shortened to land on t
 !>   mbdk_stepper_state(s, &t, y, n)   mbdk_stepper_multipliers(s, lam, m)   mbdk_stepper_stats(s, &st)
+!>   mbdk_stepper_outputs(s, out, MBDK_STEPPER_NOUT)   mbdk_stepper_reactions(s, reac, nj)
+!>   mbdk_stepper_set_force(s, entry, slot, value)       a load's value between steps
+!>   mbdk_stepper_copy(s, &saved)      the whole stepper, to go back to (mbdk_stepper_copy(saved, &s))
 !>   mbdk_stepper_destroy(s)
 !>
 !> A scene stepper integrates the model's formulation (reduced, baumgarte, penalty, projection:
@@ -42,7 +45,8 @@ module mbdk_capi_stepper
   use mbdk_fixed_step, only: mbdk_on_grid
   use mbdk_callback_problem, only: mbdk_c_problem_t, mbdk_c_problem_init
   use mbdk_model, only: mbdk_model_t, mbdk_model_init, mbdk_model_work_t, mbdk_model_options_t, &
-    mbdk_model_accelerations, mbdk_model_constraints
+    mbdk_model_accelerations, mbdk_model_constraints, mbdk_model_outputs, MBDK_OUT_ENERGY, &
+    MBDK_OUT_RESIDUALS, MBDK_OUT_REACTIONS, MBDK_ENERGY_PARTS, MBDK_RESIDUALS
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_IMPLICIT_LMM, MBDK_METHOD_NAME_LEN
   use mbdk_lmm_tables, only: mbdk_lmm_t, mbdk_lmm_table
   use mbdk_trapezoidal_index3, only: mbdk_index3_t, mbdk_index3_options_t, mbdk_index3_init, &
@@ -50,13 +54,17 @@ module mbdk_capi_stepper
   use mbdk_c_tables, only: mbdk_c_tables_read
   use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_PROJECTION
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
-    mbdk_spatial_options_t, mbdk_spatial_init, MBDK_SPATIAL_JOINT_REALS, MBDK_SPATIAL_FORCE_REALS
+    mbdk_spatial_options_t, mbdk_spatial_init, MBDK_SPATIAL_JOINT_REALS, &
+    MBDK_SPATIAL_FORCE_REALS, mbdk_spatial_outputs, MBDK_SPATIAL_NOUT
   use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
-  use mbdk_elements, only: MBDK_EFFECT_WEAR
+  use mbdk_elements, only: MBDK_EFFECT_WEAR, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
+    MBDK_FORCE_GRAVITY, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION
   implicit none
   private
 
   integer, parameter :: KIND_ODE = 1, KIND_SCENE = 2, KIND_INDEX3 = 3
+  !> mbdk_stepper_outputs' values (mbdk.h: MBDK_STEPPER_NOUT)
+  integer, parameter :: STEPPER_NOUT = 5
 
   !> What a handle points to. Allocated through a pointer, so the model may point at its work
   !> and mech at the model of the scene's kind (planar or spatial) that it holds.
@@ -672,6 +680,171 @@ contains
     end if
     mbdk_c_stepper_watch_report = MBDK_SUCCESS
   end function mbdk_c_stepper_watch_report
+
+  !> A copy of the whole stepper src: its state, its method's history and factors, its
+  !> statistics and its watch, so that the copy's steps are the bits src's would be. *dst NULL:
+  !> a new stepper (destroyed by the caller); else the stepper *dst is overwritten (a stepper of
+  !> the same scene, as a co-simulation master's rollback takes it: mbdk_stepper_copy(saved,
+  !> &live)). An ODE stepper's copy shares its user_data, a stepper's copies its interrupt
+  !> flag's address. The copy is Fortran's intrinsic assignment of the stepper, which allocates
+  !> as it copies (memory short of a copy ends the process, as every such assignment does).
+  integer(c_int) function mbdk_c_stepper_copy(src, dst) bind(C, name='mbdk_stepper_copy')
+    type(c_ptr), value :: src
+    type(c_ptr), intent(inout), optional :: dst
+    type(stepper_box), pointer :: a, b
+    integer :: stat
+    mbdk_c_stepper_copy = MBDK_ERR_INVALID_INPUT
+    a => box_of(src)
+    if (.not. (associated(a) .and. present(dst))) return
+    b => box_of(dst)
+    if (associated(b, a)) then
+      mbdk_c_stepper_copy = MBDK_SUCCESS
+      return
+    end if
+    if (associated(b)) then
+      ! the same kind of scene and state: a stepper of another scene is not overwritten
+      if (b%kind /= a%kind .or. (b%spatial .neqv. a%spatial) .or. &
+          size(b%y_good) /= size(a%y_good)) return
+    else
+      allocate (b, stat=stat)
+      if (stat /= 0) then
+        mbdk_c_stepper_copy = MBDK_ERR_NO_MEMORY
+        return
+      end if
+    end if
+    b = a
+    ! the copy's pointers to its own parts: the model's work, and the mechanism it steps
+    b%mech => null()
+    if (b%kind /= KIND_ODE) then
+      if (b%spatial) then
+        b%smodel%work => b%swork
+        b%mech => b%smodel
+      else
+        b%model%work => b%work
+        b%mech => b%model
+      end if
+    end if
+    dst = c_loc(b)
+    mbdk_c_stepper_copy = MBDK_SUCCESS
+  end function mbdk_c_stepper_copy
+
+  !> A load's value between steps, as a co-simulation's input sets it: slot (1-based) of the
+  !> force table's entry (1-based, as the stepper's tables list them) becomes value. A point
+  !> force's components (planar slots 3, 4; spatial 4 .. 6, in space) and a torque's (planar 1;
+  !> spatial 1 .. 3) only: loads enter no Newton matrix, no assembly and no potential, so the
+  !> next step is exactly the scene with that value written in. Any other entry or slot, a
+  !> non-finite value, an ODE stepper: MBDK_ERR_INVALID_INPUT. The watch's work counts the
+  !> load's power at the value in force at each step.
+  integer(c_int) function mbdk_c_stepper_set_force(handle, entry, slot, value) &
+      bind(C, name='mbdk_stepper_set_force')
+    type(c_ptr), value :: handle
+    integer(c_int), value :: entry, slot
+    real(c_double), value :: value
+    type(stepper_box), pointer :: b
+    integer :: k, e, kind
+    mbdk_c_stepper_set_force = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. associated(b)) return
+    if (b%kind == KIND_ODE .or. .not. abs(value) <= huge(1.0_dp) .or. entry < 1) return
+    if (b%spatial) then
+      if (entry > b%smodel%nf) return
+      kind = b%smodel%ftype(entry)
+      if (.not. ((kind == MBDK_FORCE_POINT .and. slot >= 4 .and. slot <= 6) .or. &
+                 (kind == MBDK_FORCE_TORQUE .and. slot >= 1 .and. slot <= 3))) return
+      b%smodel%freal(slot, entry) = value
+    else
+      if (entry > size(b%model%fint, 2)) return
+      kind = b%model%fint(1, entry)
+      if (.not. ((kind == MBDK_FORCE_POINT .and. (slot == 3 .or. slot == 4)) .or. &
+                 (kind == MBDK_FORCE_TORQUE .and. slot == 1))) return
+      b%model%freal(slot, entry) = value
+      ! the evaluation's copy of the visited elements (mbdk_model: split_forces keeps the
+      ! table's order among them)
+      k = 0
+      do e = 1, entry
+        if (.not. any(b%model%fint(1, e) == [MBDK_FORCE_GRAVITY, MBDK_EFFECT_WEAR, &
+                                             MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION])) k = k + 1
+      end do
+      if (k < 1 .or. k > size(b%model%freal_v, 2)) return
+      if (b%model%fint_v(1, k) /= kind) return
+      b%model%freal_v(slot, k) = value
+    end if
+    mbdk_c_stepper_set_force = MBDK_SUCCESS
+  end function mbdk_c_stepper_set_force
+
+  !> At the current state of a scene or index-3 stepper, out[MBDK_STEPPER_NOUT] = the kinetic
+  !> energy, the gravity potential, the spring potential (contacts' included), max |Phi| and
+  !> max |C v + Phi_t| (the constraints' residuals; 0 without joints). An ODE stepper:
+  !> MBDK_ERR_NOT_APPLICABLE; a state where the model cannot be evaluated: its status.
+  integer(c_int) function mbdk_c_stepper_outputs(handle, out, nout) &
+      bind(C, name='mbdk_stepper_outputs')
+    type(c_ptr), value :: handle
+    real(c_double), intent(out), optional :: out(*)
+    integer(c_int), value :: nout
+    type(stepper_box), pointer :: b
+    real(dp) :: so(MBDK_SPATIAL_NOUT), en(MBDK_ENERGY_PARTS), res(MBDK_RESIDUALS), reac(3, 1)
+    real(dp), allocatable :: a(:), lam(:)
+    integer :: stat
+    mbdk_c_stepper_outputs = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. (associated(b) .and. present(out)) .or. nout /= STEPPER_NOUT) return
+    mbdk_c_stepper_outputs = MBDK_ERR_NOT_APPLICABLE
+    if (b%kind == KIND_ODE) return
+    if (b%spatial) then
+      call mbdk_spatial_outputs(b%smodel, b%t_good, b%y_good, so, stat)
+      if (stat == MBDK_SUCCESS) out(1:STEPPER_NOUT) = so([1, 2, 3, 5, 6])
+    else
+      allocate (a(b%model%nc), lam(b%model%m), stat=stat)
+      if (stat /= 0) then
+        mbdk_c_stepper_outputs = MBDK_ERR_NO_MEMORY
+        return
+      end if
+      a = 0.0_dp
+      lam = 0.0_dp
+      ! a and lam given (zeros): neither the energy's first three parts nor the first two
+      ! residuals need them, so no constrained solve is paid for
+      call mbdk_model_outputs(b%model, b%t_good, b%y_good, .true., &
+                              MBDK_OUT_ENERGY + MBDK_OUT_RESIDUALS, a, lam, reac, en, res, stat)
+      if (stat == MBDK_SUCCESS) out(1:STEPPER_NOUT) = [en(1:3), res(1:2)]
+    end if
+    mbdk_c_stepper_outputs = int(stat, c_int)
+  end function mbdk_c_stepper_outputs
+
+  !> A planar scene's joint reactions at the current state, reac[nj][3]: the force (x, y) and
+  !> the moment about the joint point that each joint of the table exerts on its first body,
+  !> global frame, from the stepper's multipliers (mbdk_stepper_multipliers'). nj must be the
+  !> table's joint count; a spatial or ODE stepper: MBDK_ERR_NOT_APPLICABLE.
+  integer(c_int) function mbdk_c_stepper_reactions(handle, reac, nj) &
+      bind(C, name='mbdk_stepper_reactions')
+    type(c_ptr), value :: handle
+    real(c_double), intent(out), optional :: reac(3, *)
+    integer(c_int), value :: nj
+    type(stepper_box), pointer :: b
+    real(dp) :: en(MBDK_ENERGY_PARTS), res(MBDK_RESIDUALS)
+    real(dp), allocatable :: a(:), lam(:), r(:, :)
+    integer :: stat
+    mbdk_c_stepper_reactions = MBDK_ERR_INVALID_INPUT
+    b => box_of(handle)
+    if (.not. associated(b)) return
+    mbdk_c_stepper_reactions = MBDK_ERR_NOT_APPLICABLE
+    if (b%kind == KIND_ODE .or. b%spatial) return
+    mbdk_c_stepper_reactions = MBDK_ERR_INVALID_INPUT
+    if (nj /= size(b%model%jint, 2) .or. (nj > 0 .and. .not. present(reac))) return
+    mbdk_c_stepper_reactions = MBDK_SUCCESS
+    if (nj == 0) return
+    allocate (a(b%model%nc), lam(b%model%m), r(3, nj), stat=stat)
+    if (stat /= 0) then
+      mbdk_c_stepper_reactions = MBDK_ERR_NO_MEMORY
+      return
+    end if
+    a = 0.0_dp
+    stat = mbdk_c_stepper_multipliers(handle, lam, int(b%model%m, c_int))
+    if (stat == MBDK_SUCCESS) &
+      call mbdk_model_outputs(b%model, b%t_good, b%y_good, .true., MBDK_OUT_REACTIONS, a, lam, &
+                              r, en, res, stat)
+    if (stat == MBDK_SUCCESS) reac(:, 1:nj) = r
+    mbdk_c_stepper_reactions = int(stat, c_int)
+  end function mbdk_c_stepper_reactions
 
   !> Frees the stepper; a NULL handle is nothing to free (MBDK_SUCCESS).
   integer(c_int) function mbdk_c_stepper_destroy(handle) bind(C, name='mbdk_stepper_destroy')
