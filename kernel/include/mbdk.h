@@ -463,8 +463,10 @@ int mbdk_stepper_reactions(mbdk_stepper *stepper, double *reac, int nj);
 /* A load's value between steps (a co-simulation's input): slot (1-based) of force-table entry
  * (1-based) becomes value, times the element's time function as in the table. Only a point
  * force's components (planar slots 3, 4; spatial 4..6, space frame) and a torque's (planar 1;
- * spatial 1..3): loads enter no Newton matrix, assembly or potential, so the next steps are the
- * scene's with that value written in. Anything else: MBDK_ERR_INVALID_INPUT. */
+ * spatial 1..3): loads enter no assembly or potential, so an explicit method's next steps are
+ * the scene's with that value written in (an implicit method's reused Newton matrix is an
+ * approximation until refreshed). The watch then holds the scene to no conserved momentum.
+ * Anything else: MBDK_ERR_INVALID_INPUT. */
 int mbdk_stepper_set_force(mbdk_stepper *stepper, int entry, int slot, double value);
 /* A copy of the whole stepper (state, method history and factors, statistics, watch): the
  * copy's steps are the bits the original's would be. *dst NULL: a new stepper; else *dst (a

@@ -17,7 +17,8 @@ Variables (names are flat; units in modelDescription.xml):
   kernel's step h);
 - inputs: the loads named in ``inputs``: a point force's components (``NAME.force.x``, ...) and
   a torque's (planar ``NAME.torque``, spatial ``NAME.torque.x``, ...), times the element's time
-  function, acting from the communication point they are set at;
+  function, acting from the communication point they are set at (the watch then holds the
+  scene to no conserved momentum);
 - outputs: each body's coordinates and velocities (planar ``x y angle vx vy omega``; spatial
   ``x y z``, the orientation coordinates ``p0..p3`` or ``angle1..3``, ``vx vy vz`` and the
   body-frame ``wx wy wz``), each wear element's ``volume``, each joint row's multiplier
@@ -152,6 +153,9 @@ def export_fmu(scene, out, method: str = "rk4", h: float | None = None,
     if step_size is None:
         step_size = h * max(1, round(0.01 / h))
     step_size = checks.real("step_size", step_size, positive=True)
+    if abs(step_size / h - round(step_size / h)) > 1e-9 or round(step_size / h) < 1:
+        raise InvalidInputError(f"step_size = {step_size!r}: give a multiple of h = {h!r} (the "
+                                "default experiment's communication step)")
     variables = _variables(sc, _input_set(sc, inputs), h)
     binary = binary_path()
     ident = _identifier(sc.name)
@@ -219,7 +223,7 @@ def _input_set(sc: Scene, inputs) -> set:
         if not loads:
             raise InvalidInputError(
                 f"inputs: {elem!r} is a {sc.forces[k].type}: only point forces and torques can "
-                "be inputs (their values enter no Newton matrix and no potential)")
+                "be inputs (their values enter no assembly and no potential)")
         if fld and fld not in loads:
             raise InvalidInputError(f"inputs: {elem!r} has no load field {fld!r} (its fields: "
                                     f"{', '.join(loads)})")
@@ -331,6 +335,9 @@ def _run_text(plan, variables: list) -> str:
 
 def _model_description(sc, plan, variables, ident, token, t0, stop_time, step_size, h) -> str:
     now = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat()
+    # a method of several past steps takes whole steps of h only (communication points on the
+    # grid t0 + k h)
+    variable = "false" if plan.info.steps > 1 else "true"
     used = sorted({x.unit for x in variables if x.unit})
     desc = (sc.description or sc.name) + f" (mbdk {plan.method}, {plan.formulation}, h = {h:g} s)"
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
@@ -339,7 +346,7 @@ def _model_description(sc, plan, variables, ident, token, t0, stop_time, step_si
            f'generationTool="mbdk {package_version()}" generationDateAndTime="{now}" '
            'variableNamingConvention="flat">',
            f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize='
-           '"true" canGetAndSetFMUState="true" canSerializeFMUState="false" '
+           f'"{variable}" canGetAndSetFMUState="true" canSerializeFMUState="false" '
            f'fixedInternalStepSize="{h!r}" hasEventMode="false" '
            'providesIntermediateUpdate="false" canReturnEarlyAfterIntermediateUpdate="false"/>',
            '  <UnitDefinitions>']

@@ -731,10 +731,12 @@ contains
   !> A load's value between steps, as a co-simulation's input sets it: slot (1-based) of the
   !> force table's entry (1-based, as the stepper's tables list them) becomes value. A point
   !> force's components (planar slots 3, 4; spatial 4 .. 6, in space) and a torque's (planar 1;
-  !> spatial 1 .. 3) only: loads enter no Newton matrix, no assembly and no potential, so the
-  !> next step is exactly the scene with that value written in. Any other entry or slot, a
-  !> non-finite value, an ODE stepper: MBDK_ERR_INVALID_INPUT. The watch's work counts the
-  !> load's power at the value in force at each step.
+  !> spatial 1 .. 3) only: loads enter no assembly and no potential, so an explicit method's
+  !> next step is the scene's with that value written in (an implicit method's reused Newton
+  !> matrix, where a point force's moment arm enters it, is an approximation until its next
+  !> refresh: iterations, not accuracy). Any other entry or slot, a non-finite value, an ODE
+  !> stepper: MBDK_ERR_INVALID_INPUT. The watch's work counts the load's power at the value in
+  !> force at each step, and the watch no longer holds the scene to a conserved momentum.
   integer(c_int) function mbdk_c_stepper_set_force(handle, entry, slot, value) &
       bind(C, name='mbdk_stepper_set_force')
     type(c_ptr), value :: handle
@@ -752,6 +754,11 @@ contains
       if (.not. ((kind == MBDK_FORCE_POINT .and. slot >= 4 .and. slot <= 6) .or. &
                  (kind == MBDK_FORCE_TORQUE .and. slot >= 1 .and. slot <= 3))) return
       b%smodel%freal(slot, entry) = value
+      ! a load the caller drives conserves no momentum: the watch (whose conserved components
+      ! were found at init from the table's values, a zero load ruling nothing out) stops
+      ! holding the scene to any
+      b%smodel%ninv = 0
+      b%swork%watch%ninv = 0
     else
       if (entry > size(b%model%fint, 2)) return
       kind = b%model%fint(1, entry)
@@ -768,6 +775,8 @@ contains
       if (k < 1 .or. k > size(b%model%freal_v, 2)) return
       if (b%model%fint_v(1, k) /= kind) return
       b%model%freal_v(slot, k) = value
+      b%model%ninv = 0
+      b%work%watch%ninv = 0
     end if
     mbdk_c_stepper_set_force = MBDK_SUCCESS
   end function mbdk_c_stepper_set_force

@@ -26,7 +26,8 @@
  * fmi3GetFMUState / fmi3SetFMUState copy the whole stepper (mbdk_stepper_copy), so a rolled-back
  * step repeats bit for bit. A kernel failure is fmi3Error with the status's name and message
  * (and the watch's report on a drift) through the logger; the instance keeps its last good
- * state readable and refuses further steps. Nothing is printed and nothing stops the process.
+ * state readable and refuses further steps. Nothing is printed; only memory short of a state
+ * copy (mbdk_stepper_copy, an intrinsic Fortran assignment) would end the process.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -399,6 +400,8 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance_)
     in->reac = calloc(3 * (size_t)in->sc.nj + 1, sizeof(double));
     if (!in->y || !in->lam || !in->reac) {
         in->phase = FAILED;
+        mbdk_stepper_destroy(in->s);
+        in->s = NULL;
         return kernel_error(in, MBDK_ERR_NO_MEMORY, "the outputs' arrays");
     }
     in->phase = STEP;
@@ -422,9 +425,17 @@ fmi3Status fmi3Terminate(fmi3Instance instance_)
 fmi3Status fmi3Reset(fmi3Instance instance_)
 {
     instance *in = instance_;
+    char path[4200];
     if (!in) return fmi3Error;
     free_arrays(in);
-    return load(in) ? fmi3OK : fmi3Error;
+    /* the options and variables as exported (a parameter such as the step was written into
+     * the options when initialisation ended) */
+    free(in->vars);
+    in->vars = NULL;
+    in->nvars = 0;
+    in->phase = FAILED;
+    snprintf(path, sizeof path, "%sfmu.txt", in->resources);
+    return read_run(in, path) && load(in) ? fmi3OK : fmi3Error;
 }
 
 /* ---- stepping ------------------------------------------------------------------------------ */
@@ -450,7 +461,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance_, fmi3Float64 currentCommunicationPo
               in->t);
         return fmi3Error;
     }
-    if (in->phase != STEP) return fmi3Error;
+    if (in->phase != STEP || !in->s) return fmi3Error;
     h = in->index3 ? in->i3.h : in->ode.h;
     if (!(communicationStepSize >= 0.0) ||
         fabs(currentCommunicationPoint - in->t) > 1e-9 * h + 1e-12 * fabs(in->t)) {
