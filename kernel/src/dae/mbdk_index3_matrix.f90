@@ -17,7 +17,16 @@
 !> chain. That path factorises the symmetric part (A + A^T)/2: equal to A but for the
 !> unsymmetric damping terms of dampers, which then make Newton's matrix an approximation of the
 !> Jacobian (as its reuse across iterations and steps already does), costing iterations, not
-!> accuracy: the residual is exact and Newton's test unchanged.
+!> accuracy: the residual is exact and Newton's test unchanged. The book matrix of a large
+!> scene is sparse the same way (fa%kkt): [K D^T; D 0] as one symmetric matrix of nc + m rows,
+!> K assembled in the body pattern as above (its symmetric part), D from the compact rows, and
+!> factorised by LDL^T without pivoting in AMD's order adjusted so that each constraint row is
+!> eliminated right after the last coordinate it involves: every coordinate's pivot is then one
+!> of K (positive near the solution, M's for small h) updated by the rows' contributions, every
+!> row's pivot -D K^-1 D^T of what was eliminated before it (negative, nonzero while the rows
+!> are independent), and a chain or tree factorises at O(N) with the Newton iteration of the
+!> book's scheme, whose count does not grow with N (the augmented form's multiplier update
+!> contracts more slowly as a chain lengthens).
 module mbdk_index3_matrix
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -35,7 +44,7 @@ module mbdk_index3_matrix
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
     mbdk_body_pattern_pos, mbdk_body_pattern_scatter
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_amd
   use mbdk_kinds, only: i8
   implicit none
   private
@@ -66,6 +75,12 @@ module mbdk_index3_matrix
     type(mbdk_body_pattern_t) :: bp
     type(mbdk_sparse_ldlt_t) :: ldl
     integer, allocatable :: dtd_pos(:)
+    !> the book matrix's sparse path (module header): K's values in the body pattern (kx), the
+    !> position in the whole matrix of each of them (kpos) and of each nonzero of D, by the
+    !> compact rows' order of model%sp, in its rows (dpos_r) and its columns (dpos_c)
+    logical :: kkt = .false.
+    real(dp), allocatable :: kx(:)
+    integer, allocatable :: kpos(:), dpos_r(:), dpos_c(:)
   end type mbdk_index3_factors_t
 
 contains
@@ -86,10 +101,16 @@ contains
     choice = mbdk_model_sparse(model)
     fa%sparse = nk == nc .and. mod(nc, 3) == 0 .and. (choice == 1 .or. &
                 (choice == -1 .and. model%m > MBDK_SPARSE_MIN_ROWS))
+    fa%kkt = nk == nc + model%m .and. model%m > 0 .and. mod(nc, 3) == 0 .and. &
+             (choice == 1 .or. (choice == -1 .and. model%m > MBDK_SPARSE_MIN_ROWS))
     stat = MBDK_SUCCESS
-    if (fa%sparse) then
+    if (fa%sparse .or. fa%kkt) then
       fa%small = .false.
-      call sparse_init(fa, model, stat, asked)
+      if (fa%kkt) then
+        call kkt_init(fa, model, stat, asked)
+      else
+        call sparse_init(fa, model, stat, asked)
+      end if
       if (stat /= MBDK_SUCCESS) return
       allocate (fa%lu(0, 0), fa%ipiv(0), fa%ainv(0, 0), fa%inv_work(0, 0), fa%rinv(0), &
                 fa%body_blk(0), stat=k)
@@ -126,7 +147,12 @@ contains
     fa%have_inv = .false.
     fa%nuse = 0
     if (fa%sparse) then
-      call sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, stat)
+      call sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, fa%ldl%ax, stat)
+      if (stat == MBDK_SUCCESS) call mbdk_sparse_ldlt_factor(fa%ldl, LDLT_TOL, stat)
+      return
+    end if
+    if (fa%kkt) then
+      call kkt_matrix(fa, model, t, q, v, lam, ck, cd, stat)
       if (stat == MBDK_SUCCESS) call mbdk_sparse_ldlt_factor(fa%ldl, LDLT_TOL, stat)
       return
     end if
@@ -168,7 +194,7 @@ contains
       fa%have_inv = .true.
     end if
     fa%nuse = fa%nuse + 1
-    if (fa%sparse) then
+    if (fa%sparse .or. fa%kkt) then
       call mbdk_sparse_ldlt_solve(fa%ldl, r)
     else if (fa%have_inv) then
       call mbdk_small_inverse_apply(fa%ainv, fa%nk, r, fa%rinv)
@@ -288,16 +314,8 @@ contains
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nj, nf, r, i, j, n, astat
-    integer, allocatable :: pairs(:, :)
-    nj = size(model%jint, 2)
-    nf = size(model%fint, 2)
-    allocate (pairs(2, nj + nf), stat=astat)
-    call mbdk_alloc_status(astat, 2 * MBDK_INT_BYTES * (nj + nf), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    pairs(:, 1:nj) = model%jint(2:3, :)
-    pairs(:, nj + 1:) = model%fint(2:3, :)
-    call mbdk_body_pattern_init(fa%bp, model%nb, pairs, stat, asked)
+    integer :: r, i, j, n, astat
+    call body_pattern(fa, model, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     associate (sp => model%sp)
       n = 0
@@ -320,19 +338,188 @@ contains
     call mbdk_sparse_ldlt_analyze(fa%ldl, model%nc, fa%bp%ap, fa%bp%ai, stat, asked)
   end subroutine sparse_init
 
-  !> The augmented matrix into fa%ldl%ax, element by element (see the module header), then
-  !> its symmetric part. model%work%rot and model%work%dz at q.
-  subroutine sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, stat)
+  !> fa%bp: the bodies coupled by a joint or a force element.
+  subroutine body_pattern(fa, model, stat, asked)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, nf, astat
+    integer, allocatable :: pairs(:, :)
+    nj = size(model%jint, 2)
+    nf = size(model%fint, 2)
+    allocate (pairs(2, nj + nf), stat=astat)
+    call mbdk_alloc_status(astat, 2 * MBDK_INT_BYTES * (nj + nf), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    pairs(:, 1:nj) = model%jint(2:3, :)
+    pairs(:, nj + 1:) = model%fint(2:3, :)
+    call mbdk_body_pattern_init(fa%bp, model%nb, pairs, stat, asked)
+  end subroutine body_pattern
+
+  !> The book matrix's sparse pattern (module header): K's body pattern, D's nonzeros in both
+  !> off-diagonal blocks, the rows' diagonal, and the ordering.
+  subroutine kkt_init(fa, model, stat, asked)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nc, m, n, nnz, c, r, j, k, p, astat
+    integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:)
+    call body_pattern(fa, model, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    nc = model%nc
+    m = model%m
+    n = nc + m
+    associate (sp => model%sp, bp => fa%bp)
+      nnz = bp%nnz + 2 * sp%nnz + m
+      allocate (ap(n + 1), ai(nnz), mark(n), perm(n), order(n), last(n), at(n), brow(n), &
+                fa%kx(bp%nnz), fa%kpos(bp%nnz), fa%dpos_r(sp%nnz), fa%dpos_c(sp%nnz), &
+                stat=astat)
+      call mbdk_alloc_status(astat, MBDK_INT_BYTES * (8.0_dp * n + nnz + bp%nnz + &
+                             2.0_dp * sp%nnz) + MBDK_REAL_BYTES * bp%nnz, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      ! columns 1..nc: K's rows, then the constraint rows with a nonzero there (once each: two
+      ! slots of one row in one column add up)
+      mark = 0
+      p = 1
+      do c = 1, nc
+        ap(c) = p
+        do k = bp%ap(c), bp%ap(c + 1) - 1
+          ai(p) = bp%ai(k)
+          fa%kpos(k) = p
+          p = p + 1
+        end do
+        do k = sp%cptr(c), sp%cptr(c + 1) - 1
+          r = nc + sp%crow(k)
+          if (mark(r) == c) cycle
+          mark(r) = c
+          ai(p) = r
+          p = p + 1
+        end do
+      end do
+      ! columns nc+1..n: each row's coordinates and its diagonal
+      mark = 0
+      do r = 1, m
+        ap(nc + r) = p
+        do j = sp%rptr(r), sp%rptr(r + 1) - 1
+          c = sp%rcol(j)
+          if (mark(c) == r) cycle
+          mark(c) = r
+          ai(p) = c
+          p = p + 1
+        end do
+        ai(p) = nc + r
+        p = p + 1
+      end do
+      ap(n + 1) = p
+      ! each nonzero of D: its place in column nc + r and in its coordinate's column
+      do r = 1, m
+        do j = sp%rptr(r), sp%rptr(r + 1) - 1
+          c = sp%rcol(j)
+          fa%dpos_r(j) = find(ap(nc + r), ap(nc + r + 1) - 1, c)
+          fa%dpos_c(j) = find(ap(c), ap(c + 1) - 1, nc + r)
+        end do
+      end do
+      ! AMD's order, each row moved to just after the last of its coordinates
+      call mbdk_sparse_ldlt_amd(n, ap, ai(1:p - 1), perm, stat)
+      if (stat /= MBDK_SUCCESS) return
+      do k = 1, n
+        at(perm(k)) = k
+      end do
+      last = 0
+      do r = 1, m
+        do j = sp%rptr(r), sp%rptr(r + 1) - 1
+          last(nc + r) = max(last(nc + r), at(sp%rcol(j)))
+        end do
+      end do
+      ! a counting sort of the rows by last, stable in AMD's order (bucket k: at(mark(k) ..
+      ! brow(k)-1)); then the nodes in AMD's order, each coordinate followed by its bucket
+      mark = 0
+      do k = 1, n
+        if (perm(k) > nc) mark(max(1, last(perm(k)))) = mark(max(1, last(perm(k)))) + 1
+      end do
+      p = 1
+      do k = 1, n
+        j = mark(k)
+        mark(k) = p
+        p = p + j
+      end do
+      brow = mark
+      do k = 1, n
+        c = perm(k)
+        if (c <= nc) cycle
+        j = max(1, last(c))
+        at(brow(j)) = c
+        brow(j) = brow(j) + 1
+      end do
+      j = 0
+      do k = 1, n
+        c = perm(k)
+        if (c <= nc) then
+          j = j + 1
+          order(j) = c
+        end if
+        do p = mark(k), brow(k) - 1
+          j = j + 1
+          order(j) = at(p)
+        end do
+      end do
+    end associate
+    call mbdk_sparse_ldlt_analyze(fa%ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order)
+
+  contains
+
+    !> the position of row i in ai(lo .. hi)
+    integer function find(lo, hi, i)
+      integer, intent(in) :: lo, hi, i
+      do find = lo, hi
+        if (ai(find) == i) return
+      end do
+      find = 0
+    end function find
+
+  end subroutine kkt_init
+
+  !> The book matrix's values (module header) into fa%ldl%ax: K by sparse_matrix, D from its
+  !> compact rows model%work%dz, at q.
+  subroutine kkt_matrix(fa, model, t, q, v, lam, ck, cd, stat)
+    type(mbdk_index3_factors_t), intent(inout) :: fa
+    type(mbdk_model_t), intent(in) :: model
+    real(dp), intent(in) :: t, ck, cd
+    real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    integer, intent(out) :: stat
+    integer :: p, j, z
+    real(dp) :: x
+    call sparse_matrix(fa, model, t, q, v, lam, ck, cd, 0.0_dp, fa%kx, stat)
+    if (stat /= MBDK_SUCCESS) return
+    associate (ax => fa%ldl%ax, sp => model%sp, dz => model%work%dz)
+      ax = 0.0_dp
+      do p = 1, size(fa%kx)
+        ax(fa%kpos(p)) = ax(fa%kpos(p)) + fa%kx(p)
+      end do
+      do j = 1, sp%nnz
+        z = sp%rz(j)
+        x = dz(mod(z - 1, 6) + 1, (z - 1) / 6 + 1)
+        ax(fa%dpos_r(j)) = ax(fa%dpos_r(j)) + x
+        ax(fa%dpos_c(j)) = ax(fa%dpos_c(j)) + x
+      end do
+    end associate
+  end subroutine kkt_matrix
+
+  !> The augmented matrix into ax (fa%bp's pattern), element by element (see the module
+  !> header), then its symmetric part; alpha = 0: K alone. model%work%rot and model%work%dz at q.
+  subroutine sparse_matrix(fa, model, t, q, v, lam, ck, cd, alpha, ax, stat)
     type(mbdk_index3_factors_t), intent(inout) :: fa
     type(mbdk_model_t), intent(in) :: model
     real(dp), intent(in) :: t, ck, cd, alpha
     real(dp), intent(in), contiguous :: q(:), v(:), lam(:)
+    real(dp), intent(out), contiguous :: ax(:)
     integer, intent(out) :: stat
     real(dp) :: s, ke(6, 6), ql(6), vl(6), rl(2, 2), ll(3), x
     integer :: e, b1, b2, k, r, i, j, n, jl(4, 1), row0(1), p, pt
     s = ck
     stat = MBDK_SUCCESS
-    associate (ax => fa%ldl%ax, w => model%work)
+    associate (w => model%work)
       ax = 0.0_dp
       do e = 1, size(model%fint, 2)
         call local(model%fint(2, e), model%fint(3, e))
@@ -360,6 +547,7 @@ contains
       end do
       ! alpha s D^T D, in the order of sparse_init's positions
       n = 0
+      if (alpha /= 0.0_dp) then
       do r = 1, model%sp%m
         do j = model%sp%rptr(r), model%sp%rptr(r + 1) - 1
           x = s * alpha * w%dz(mod(model%sp%rz(j) - 1, 6) + 1, (model%sp%rz(j) - 1) / 6 + 1)
@@ -370,6 +558,7 @@ contains
           end do
         end do
       end do
+      end if
       do i = 1, model%nc
         p = mbdk_body_pattern_pos(fa%bp, i, i)
         ax(p) = ax(p) + model%mass(i)

@@ -122,7 +122,11 @@
 !> about 1e-3). A step converges when the update computed at an iterate is below 1 in the weighted
 !> norm (atol + rtol |q|; for a spatial body's rotation, atol + rtol: its coordinates' size is
 !> 1, the mechanism's coord_weights) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
-!> multipliers were frozen at a rank loss: below). That last update is applied. In the
+!> multipliers were frozen at a rank loss: below), or, in the book form, where the update's
+!> roundoff floor lies above that tolerance (a long chain, whose matrix's conditioning grows with
+!> its length), when an update from a matrix built in the step no longer halves and is within
+!> NOISE tolerances. That
+!> last update is applied. In the
 !> augmented form the update's target is tighter where the step's local error is small: what
 !> Newton leaves (the update times rate/(1 - rate)) below LOCAL_SHARE of the local error
 !> estimate, so that it does not add up over the 1/h steps (newton_converged); and where the
@@ -1487,7 +1491,19 @@ contains
       converged = dnorm <= 1.0_dp .or. (dnorm <= NOISE .and. dnorm > 0.5_dp * dnorm_old)
     else if (s%m == 0 .or. phin <= phi_tol) then
       converged = dnorm <= 1.0_dp
-      if (.not. converged .or. s%tau >= 1.0_dp) return
+      if (.not. converged) then
+        ! the book form (whose Newton iteration is exact: no multiplier update that stalls
+        ! near a rank loss, which the augmented form's own measures handle): the update's
+        ! roundoff floor above its tolerance (the matrix of a long chain, whose conditioning
+        ! grows with its length). An update from a matrix built in this step that no longer
+        ! halves, within NOISE tolerances, is as small as floating point makes it.
+        stall_own = s%book .and. own .and. dnorm_old < huge(1.0_dp) .and. &
+                    dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= NOISE
+        ! and, once such a floor was met, an update at or below it (decaying as below)
+        converged = stall_own .or. (s%book .and. dnorm <= s%noise)
+        return
+      end if
+      if (s%tau >= 1.0_dp) return
       ! below 1, the step's target (augmented form, small h) on what Newton leaves after this
       ! update, rate / (1 - rate) times it at the contraction rate of the last two updates
       ! (the update itself where no rate is known); or an update from a matrix built in this

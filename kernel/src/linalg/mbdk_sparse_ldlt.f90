@@ -29,7 +29,7 @@ module mbdk_sparse_ldlt
   implicit none
   private
   public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, &
-    mbdk_sparse_ldlt_near
+    mbdk_sparse_ldlt_near, mbdk_sparse_ldlt_amd
 
   !> the least pivot ratio at which mbdk_sparse_ldlt_near keeps a caller's window whole
   real(dp), parameter, public :: MBDK_SPARSE_NEAR_BASELINE = 0.5_dp
@@ -107,15 +107,41 @@ module mbdk_sparse_ldlt
 
 contains
 
+  !> AMD's ordering perm(n) (1-based: perm(k) the k-th node eliminated) of the pattern ap, ai
+  !> (as mbdk_sparse_ldlt_analyze takes it), for a caller that adjusts it before the analysis.
+  !> MBDK_ERR_INVALID_INPUT for a pattern AMD refuses, MBDK_ERR_NO_MEMORY for its workspace.
+  subroutine mbdk_sparse_ldlt_amd(n, ap, ai, perm, stat)
+    integer, intent(in) :: n, ap(:), ai(:)
+    integer, intent(out) :: perm(:), stat
+    integer(c_int), allocatable :: ap0(:), ai0(:), p0(:)
+    integer :: astat, k
+    integer, parameter :: AMD_OUT_OF_MEMORY = -1
+    stat = MBDK_ERR_INVALID_INPUT
+    if (n < 1 .or. size(ap) /= n + 1 .or. size(perm) /= n) return
+    allocate (ap0(n + 1), ai0(ap(n + 1) - 1), p0(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * n + ap(n + 1)), stat)
+    if (stat /= MBDK_SUCCESS) return
+    ap0 = ap - 1
+    ai0 = ai(1:ap(n + 1) - 1) - 1
+    k = amd_order(n, ap0, ai0, p0, c_null_ptr, c_null_ptr)
+    stat = MBDK_ERR_INVALID_INPUT
+    if (k == AMD_OUT_OF_MEMORY) stat = MBDK_ERR_NO_MEMORY
+    if (k < 0) return
+    perm = p0 + 1
+    stat = MBDK_SUCCESS
+  end subroutine mbdk_sparse_ldlt_amd
+
   !> The ordering and the pattern of L for the n x n matrix of pattern ap(n+1), ai(nnz) (1-based
   !> CSC, both triangles, each column's rows in any order, no duplicates). The values go into
-  !> f%ax in the same order. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses;
+  !> f%ax in the same order. The ordering is AMD's, or order(n) (1-based, the k-th node
+  !> eliminated) where the caller gives one. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses;
   !> MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory; AMD's own workspace: 0, not known).
-  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat, asked)
+  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat, asked, order)
     type(mbdk_sparse_ldlt_t), intent(out) :: f
     integer, intent(in) :: n, ap(:), ai(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
+    integer, intent(in), optional :: order(:)
     integer :: nnz, j, k, astat
     !> amd_order's status when its workspace could not be had (amd.h)
     integer, parameter :: AMD_OUT_OF_MEMORY = -1
@@ -138,10 +164,15 @@ contains
         if (ai(k) == j) f%dpos(j) = k
       end do
     end do
-    ! AMD_OK 0, AMD_OK_BUT_JUMBLED 1 (unsorted rows in a column: allowed)
-    k = amd_order(n, f%ap, f%ai, f%p, c_null_ptr, c_null_ptr)
-    if (k == AMD_OUT_OF_MEMORY) stat = MBDK_ERR_NO_MEMORY
-    if (k < 0) return
+    if (present(order)) then
+      if (size(order) /= n) return
+      f%p = order - 1
+    else
+      ! AMD_OK 0, AMD_OK_BUT_JUMBLED 1 (unsorted rows in a column: allowed)
+      k = amd_order(n, f%ap, f%ai, f%p, c_null_ptr, c_null_ptr)
+      if (k == AMD_OUT_OF_MEMORY) stat = MBDK_ERR_NO_MEMORY
+      if (k < 0) return
+    end if
     call ldl_symbolic(n, f%ap, f%ai, f%lp, f%parent, f%lnz, f%flag, f%p, f%pinv)
     allocate (f%li(max(1, f%lp(n + 1))), f%lx(max(1, f%lp(n + 1))), stat=astat)
     call mbdk_alloc_status(astat, (MBDK_INT_BYTES + MBDK_REAL_BYTES) * max(1, f%lp(n + 1)), &

@@ -27,6 +27,7 @@ contains
   !> MBDK_ERR_NOT_APPLICABLE.
   module procedure model_i3_create
     integer :: nc, m, nk, astat
+    logical :: dense_d
     stat = MBDK_ERR_NOT_APPLICABLE
     if (self%has_contacts .or. self%has_pfaffian) return
     nc = self%nc
@@ -44,11 +45,12 @@ contains
       if (stat /= MBDK_SUCCESS) return
       call mbdk_index3_factors_init(aux%fa, self, nk, stat, asked)
       if (stat /= MBDK_SUCCESS) return
-      ! the dense D serves the book scheme's matrix only
-      allocate (aux%d(merge(m, 0, book), merge(nc, 0, book)), aux%lw(m), aux%corr(nc), &
+      ! the dense D serves the book scheme's dense matrix only
+      dense_d = book .and. .not. aux%fa%kkt
+      allocate (aux%d(merge(m, 0, dense_d), merge(nc, 0, dense_d)), aux%lw(m), aux%corr(nc), &
                 aux%one_nc(nc), aux%cv(m), aux%mu(m), aux%zero_nc(nc), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (merge(real(m, dp) * nc, 0.0_dp, book) + &
-                             3.0_dp * m + 3.0_dp * nc), stat, asked)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (merge(real(m, dp) * nc, 0.0_dp, &
+                             dense_d) + 3.0_dp * m + 3.0_dp * nc), stat, asked)
       if (stat /= MBDK_SUCCESS) return
       aux%one_nc = 1.0_dp
       aux%zero_nc = 0.0_dp
