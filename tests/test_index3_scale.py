@@ -22,29 +22,30 @@ def run(n, t_end, **kw):
                              formulation="index3", **kw)
 
 
-def test_the_sparse_book_matrix_gives_the_dense_paths_solution():
-    """60 bars (120 rows, sparse by default): the motion of the dense book matrix to Newton's
-    tolerance (1e-10 of the coordinates; 1e-8 after 100 steps of it), at the same iteration
-    count within one per step."""
-    sparse = run(60, 0.1)
-    dense = run(60, 0.1, solver="schur")
+@pytest.mark.parametrize("n, solver", [(60, "auto"), (4, "sparse")])
+def test_the_sparse_book_matrix_gives_the_dense_paths_solution(n, solver):
+    """60 bars (120 rows, sparse by default) and 4 bars with the sparse path asked for: the
+    motion of the dense book matrix to Newton's tolerance (1e-10 of the coordinates; 1e-8 after
+    100 steps of it), at the same iteration count within one per step; not its bits (the other
+    factorisation's roundoff: the sparse path did run)."""
+    sparse = run(n, 0.1, solver=solver)
+    dense = run(n, 0.1, solver="schur")
     assert np.abs(sparse.q - dense.q).max() < 1e-8
+    assert not np.array_equal(sparse.q, dense.q)
     assert abs(sparse.stats.newton_iterations - dense.stats.newton_iterations) <= \
         sparse.stats.steps
 
 
 def test_newton_iterations_do_not_grow_with_the_chain():
-    """30, 300, 3000 and 10 000 bars released from 30 degrees: every run reaches its end (before
-    the sparse book matrix and the floor test, the book form failed from about 5000 bars and the
-    augmented form's iterations grew from 3 to 9 and failed there), and the iterations per step
-    grow by less than one per tenfold length (measured: 2.9, 3.5, 4.1, 4.8: the steps where the
-    update meets its roundoff floor take one more iteration to show it)."""
+    """30, 300, 3000 and 10 000 bars released from 30 degrees to 0.2 s: every run reaches its
+    end (before the sparse book matrix and the floor test, the book form failed from about 5000
+    bars, and the augmented form's iterations grew to 14 per step and failed at 10 000), and the
+    iterations per step stay within 1.3 times the 30-bar chain's (measured: 3.8, 3.5, 2.9, 4.5:
+    at 10 000 bars the steps where the update meets its roundoff floor take an iteration more
+    to show it)."""
     per_step = {}
     for n in (30, 300, 3000, 10_000):
-        r = run(n, 0.05 if n < 10_000 else 0.02)
-        assert r.success and r.t[-1] == pytest.approx(0.05 if n < 10_000 else 0.02)
+        r = run(n, 0.2)
+        assert r.success and r.t[-1] == pytest.approx(0.2)
         per_step[n] = r.stats.newton_iterations / r.stats.steps
-    sizes = sorted(per_step)
-    for a, b in zip(sizes, sizes[1:]):
-        assert per_step[b] - per_step[a] < np.log10(b / a), per_step
-    assert per_step[10_000] <= 2 * per_step[30], per_step
+    assert max(per_step.values()) <= 1.3 * per_step[30], per_step

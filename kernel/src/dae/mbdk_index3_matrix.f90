@@ -22,11 +22,13 @@
 !> K assembled in the body pattern as above (its symmetric part), D from the compact rows, and
 !> factorised by LDL^T without pivoting in AMD's order adjusted so that each constraint row is
 !> eliminated right after the last coordinate it involves: every coordinate's pivot is then one
-!> of K (positive near the solution, M's for small h) updated by the rows' contributions, every
-!> row's pivot -D K^-1 D^T of what was eliminated before it (negative, nonzero while the rows
-!> are independent), and a chain or tree factorises at O(N) with the Newton iteration of the
-!> book's scheme, whose count does not grow with N (the augmented form's multiplier update
-!> contracts more slowly as a chain lengthens).
+!> of K updated by the rows' contributions, every row's pivot -D K^-1 D^T of what was
+!> eliminated before it, both of the right sign and away from zero while K is positive definite
+!> (M's for small h: a body without inertia keeps the dense path; at large h a compressed
+!> joint's geometric stiffness or a negative spring can make K indefinite, which the pivot
+!> test catches where a pivot vanishes) and the rows independent. A chain or tree factorises
+!> at O(N) with the Newton iteration of the book's scheme, whose count does not grow with N
+!> (the augmented form's multiplier update contracts more slowly as a chain lengthens).
 module mbdk_index3_matrix
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -101,7 +103,9 @@ contains
     choice = mbdk_model_sparse(model)
     fa%sparse = nk == nc .and. mod(nc, 3) == 0 .and. (choice == 1 .or. &
                 (choice == -1 .and. model%m > MBDK_SPARSE_MIN_ROWS))
+    ! (a body without inertia leaves K a zero pivot ahead of its rows: the dense LU)
     fa%kkt = nk == nc + model%m .and. model%m > 0 .and. mod(nc, 3) == 0 .and. &
+             model%m_positive .and. &
              (choice == 1 .or. (choice == -1 .and. model%m > MBDK_SPARSE_MIN_ROWS))
     stat = MBDK_SUCCESS
     if (fa%sparse .or. fa%kkt) then

@@ -124,8 +124,10 @@
 !> 1, the mechanism's coord_weights) and max |Phi| <= atol there (not below 64 eps max|q|; a step whose
 !> multipliers were frozen at a rank loss: below), or, in the book form, where the update's
 !> roundoff floor lies above that tolerance (a long chain, whose matrix's conditioning grows with
-!> its length), when an update from a matrix built in the step no longer halves and is within
-!> NOISE tolerances. That
+!> its length), when an update from a matrix built at its iterate no longer halves and is within
+!> NOISE tolerances (the matrix of a scene with dampers is its symmetric part on the sparse
+!> path: an approximation whose linear rate can look like such a stall, accepted within those
+!> NOISE tolerances too). That
 !> last update is applied. In the
 !> augmented form the update's target is tighter where the step's local error is small: what
 !> Newton leaves (the update times rate/(1 - rate)) below LOCAL_SHARE of the local error
@@ -1367,7 +1369,8 @@ contains
       ! stiffer matrix).
       ! The update is applied (the Newton error left in q is then its square, or the rate times
       ! it); f keeps this evaluation, the step's end evaluates C at the final q+.
-      if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, stall_own)) then
+      if (newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, fresh, &
+                           stall_own)) then
         if (stall_own) s%noise = dnorm
         s%dq(:) = s%dq + s%e%r(1:nv)
         if (book) s%ln = s%ln + s%e%r(nv + 1:) / sh
@@ -1476,11 +1479,11 @@ contains
   !> module header): the update's norm dnorm (the last one's dnorm_old) and |Phi| (phin against
   !> phi_tol) there. own: the matrix was built in this step; stall_own: set when a stall of such
   !> a matrix is what passes (its level is then the step's roundoff, s%noise).
-  logical function newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, &
+  logical function newton_converged(s, k, frozen, phin, phi_tol, dnorm, dnorm_old, own, fresh, &
                                   stall_own) result(converged)
     type(mbdk_index3_t), intent(in) :: s
     integer, intent(in) :: k
-    logical, intent(in) :: frozen, own
+    logical, intent(in) :: frozen, own, fresh
     real(dp), intent(in) :: phin, phi_tol, dnorm, dnorm_old
     logical, intent(out) :: stall_own
     real(dp) :: left, qsize
@@ -1492,15 +1495,16 @@ contains
     else if (s%m == 0 .or. phin <= phi_tol) then
       converged = dnorm <= 1.0_dp
       if (.not. converged) then
-        ! the book form (whose Newton iteration is exact: no multiplier update that stalls
-        ! near a rank loss, which the augmented form's own measures handle): the update's
-        ! roundoff floor above its tolerance (the matrix of a long chain, whose conditioning
-        ! grows with its length). An update from a matrix built in this step that no longer
-        ! halves, within NOISE tolerances, is as small as floating point makes it.
-        stall_own = s%book .and. own .and. dnorm_old < huge(1.0_dp) .and. &
+        ! the book form (no multiplier update that stalls near a rank loss, which the
+        ! augmented form's own measures handle): the update's roundoff floor above its
+        ! tolerance (the matrix of a long chain, whose conditioning grows with its length). An
+        ! update from a matrix built at this very iterate (Newton's own rate, not a reused
+        ! matrix's slower one) that no longer halves, within NOISE tolerances, is as small as
+        ! floating point makes it; once such a floor was met, an update from a matrix built at
+        ! its iterate at or below that level (decaying by NOISE_DECAY per step) is too.
+        stall_own = s%book .and. fresh .and. dnorm_old < huge(1.0_dp) .and. &
                     dnorm > REBUILD_RATE * dnorm_old .and. dnorm <= NOISE
-        ! and, once such a floor was met, an update at or below it (decaying as below)
-        converged = stall_own .or. (s%book .and. dnorm <= s%noise)
+        converged = stall_own .or. (s%book .and. fresh .and. dnorm <= s%noise)
         return
       end if
       if (s%tau >= 1.0_dp) return
