@@ -165,7 +165,14 @@ contains
       end do
     end do
     if (present(order)) then
+      ! a permutation of 1..n, or refused
       if (size(order) /= n) return
+      f%flag = 0
+      do k = 1, n
+        if (order(k) < 1 .or. order(k) > n) return
+        if (f%flag(order(k)) /= 0) return
+        f%flag(order(k)) = 1
+      end do
       f%p = order - 1
     else
       ! AMD_OK 0, AMD_OK_BUT_JUMBLED 1 (unsorted rows in a column: allowed)
