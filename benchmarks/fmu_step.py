@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import mbdk
-from mbdk.fmu import export_fmu
+from mbdk.fmu import export_fmu, state_components
 
 try:
     import fmpy
@@ -26,16 +26,6 @@ try:
     from fmpy.fmi3 import FMU3Slave
 except ImportError:                         # pragma: no cover - the benchmark needs FMPy
     raise SystemExit("this benchmark drives the FMU with FMPy: pip install fmpy")
-
-
-def state_names(sc):
-    if sc.kind == "spatial":
-        q = [f"{b.name}.{c}" for b in sc.bodies for c in ["x", "y", "z", "p0", "p1", "p2", "p3"]]
-        v = [f"{b.name}.{c}" for b in sc.bodies for c in ["vx", "vy", "vz", "wx", "wy", "wz"]]
-    else:
-        q = [f"{b.name}.{c}" for b in sc.bodies for c in ["x", "y", "angle"]]
-        v = [f"{b.name}.{c}" for b in sc.bodies for c in ["vx", "vy", "omega"]]
-    return q + v
 
 
 def fmu_run(path, names, t_end, dt):
@@ -72,7 +62,7 @@ def main():
             sc = mbdk.scene(name)
             path = export_fmu(sc, Path(tmp) / f"{name}.fmu", method="rk4", h=h,
                               formulation="projection", bundle=False)
-            names = state_names(sc)
+            names = [name for name, _unit, _text in state_components(sc)]
             sim = min(mbdk.simulate(sc, "rk4", h=h, t_end=t_end,
                                     formulation="projection").cpu_time for _ in range(3))
             for k in (1, 10, 100):

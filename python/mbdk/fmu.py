@@ -260,33 +260,8 @@ def _variables(sc: Scene, inputs: set, h: float) -> list:
                               f"{k + 1}, slot {slot + 1})"))
     v.append(Variable("step", "step", causality="parameter", unit="s", start=h,
                       description="the kernel's step h (communication steps are cut into it)"))
-    i = 0
-    nb = len(sc.bodies)
-    if spatial:
-        orient = (["p0", "p1", "p2", "p3"] if sc.rotation == "quaternion"
-                  else ["angle1", "angle2", "angle3"])
-        for body in sc.bodies:
-            for c, unit in [("x", "m"), ("y", "m"), ("z", "m"),
-                            *((o, None if o.startswith("p") else "rad") for o in orient)]:
-                v.append(Variable(f"{body.name}.{c}", "y", i, unit=unit))
-                i += 1
-        for body in sc.bodies:
-            for c, unit in [("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"), ("wx", "rad/s"),
-                            ("wy", "rad/s"), ("wz", "rad/s")]:
-                v.append(Variable(f"{body.name}.{c}", "y", i, unit=unit,
-                                  description="body frame" if c[0] == "w" else ""))
-                i += 1
-    else:
-        for names, units in [(("x", "y", "angle"), ("m", "m", "rad")),
-                             (("vx", "vy", "omega"), ("m/s", "m/s", "rad/s"))]:
-            for body in sc.bodies:
-                for c, unit in zip(names, units):
-                    v.append(Variable(f"{body.name}.{c}", "y", i, unit=unit))
-                    i += 1
-    assert i == (len(sc.state0()) if nb else 0)
-    for w in sc.wear:
-        v.append(Variable(f"{w.name}.volume", "y", i, unit="m3", description="worn volume"))
-        i += 1
+    for i, (name, unit, description) in enumerate(state_components(sc)):
+        v.append(Variable(name, "y", i, unit=unit, description=description))
     for name, first, count in sc.joint_rows():
         for r in range(count):
             v.append(Variable(f"{name}.lambda[{r + 1}]", "lambda", first + r,
@@ -306,6 +281,23 @@ def _variables(sc: Scene, inputs: set, h: float) -> list:
                                     "give the scene's elements distinct names")
         seen.add(x.name)
     return v
+
+
+def state_components(sc: Scene) -> list:
+    """(name, unit, description) of each component of the FMU's state outputs, in the kernel's
+    order: the bodies' coordinates, their velocities, the wear elements' volumes."""
+    if sc.kind == "spatial":
+        orient = ([("p0", None), ("p1", None), ("p2", None), ("p3", None)]
+                  if sc.rotation == "quaternion"
+                  else [("angle1", "rad"), ("angle2", "rad"), ("angle3", "rad")])
+        q = [("x", "m", ""), ("y", "m", ""), ("z", "m", ""), *((o, u, "") for o, u in orient)]
+        v = [("vx", "m/s", ""), ("vy", "m/s", ""), ("vz", "m/s", ""),
+             *((f"w{c}", "rad/s", "body frame") for c in "xyz")]
+    else:
+        q = [("x", "m", ""), ("y", "m", ""), ("angle", "rad", "")]
+        v = [("vx", "m/s", ""), ("vy", "m/s", ""), ("omega", "rad/s", "")]
+    return ([(f"{b.name}.{c}", u, d) for part in (q, v) for b in sc.bodies for c, u, d in part]
+            + [(f"{w.name}.volume", "m3", "worn volume") for w in sc.wear])
 
 
 def _run_text(plan, variables: list) -> str:
@@ -427,4 +419,4 @@ def fields_of(kind: str) -> dict:
     return SPATIAL_FIELDS if kind == "spatial" else PLANAR_FIELDS
 
 
-__all__ = ["export_fmu", "binary_path", "fields_of"]
+__all__ = ["export_fmu", "binary_path", "fields_of", "state_components"]
