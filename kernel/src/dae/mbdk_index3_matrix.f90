@@ -21,7 +21,8 @@
 !> scene is sparse the same way (fa%kkt): [K D^T; D 0] as one symmetric matrix of nc + m rows,
 !> K assembled in the body pattern as above (its symmetric part), D from the compact rows, and
 !> factorised by LDL^T without pivoting in AMD's order adjusted so that each constraint row is
-!> eliminated right after the last coordinate it involves: every coordinate's pivot is then one
+!> eliminated right after the last coordinate it involves (mbdk_kkt_pattern, which the spatial
+!> model's sparse index-3 matrix uses too): every coordinate's pivot is then one
 !> of K updated by the rows' contributions, every row's pivot -D K^-1 D^T of what was
 !> eliminated before it, both of the right sign and away from zero while K is positive definite
 !> (M's for small h: a body without inertia keeps the dense path; at large h a compressed
@@ -44,9 +45,10 @@ module mbdk_index3_matrix
   use mbdk_model, only: mbdk_model_sparse
   use mbdk_constrained, only: MBDK_SPARSE_MIN_ROWS
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
-    mbdk_body_pattern_pos, mbdk_body_pattern_scatter
+    mbdk_body_pattern_pos, mbdk_body_pattern_scatter, mbdk_body_pattern_dtd
+  use mbdk_kkt_pattern, only: mbdk_kkt_pattern_init
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, mbdk_sparse_ldlt_amd
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve
   use mbdk_kinds, only: i8
   implicit none
   private
@@ -318,27 +320,10 @@ contains
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: r, i, j, n, astat
     call body_pattern(fa, model, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    associate (sp => model%sp)
-      n = 0
-      do r = 1, sp%m
-        n = n + (sp%rptr(r + 1) - sp%rptr(r))**2
-      end do
-      allocate (fa%dtd_pos(n), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_INT_BYTES * n, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      n = 0
-      do r = 1, sp%m
-        do j = sp%rptr(r), sp%rptr(r + 1) - 1
-          do i = sp%rptr(r), sp%rptr(r + 1) - 1
-            n = n + 1
-            fa%dtd_pos(n) = mbdk_body_pattern_pos(fa%bp, sp%rcol(i), sp%rcol(j))
-          end do
-        end do
-      end do
-    end associate
+    call mbdk_body_pattern_dtd(fa%bp, model%sp%rptr, model%sp%rcol, fa%dtd_pos, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     call mbdk_sparse_ldlt_analyze(fa%ldl, model%nc, fa%bp%ap, fa%bp%ai, stat, asked)
   end subroutine sparse_init
 
@@ -367,121 +352,14 @@ contains
     type(mbdk_model_t), intent(in) :: model
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nc, m, n, nnz, c, r, j, k, p, astat
-    integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:)
+    integer :: astat
     call body_pattern(fa, model, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    nc = model%nc
-    m = model%m
-    n = nc + m
-    associate (sp => model%sp, bp => fa%bp)
-      nnz = bp%nnz + 2 * sp%nnz + m
-      allocate (ap(n + 1), ai(nnz), mark(n), perm(n), order(n), last(n), at(n), brow(n), &
-                fa%kx(bp%nnz), fa%kpos(bp%nnz), fa%dpos_r(sp%nnz), fa%dpos_c(sp%nnz), &
-                stat=astat)
-      call mbdk_alloc_status(astat, MBDK_INT_BYTES * (8.0_dp * n + nnz + bp%nnz + &
-                             2.0_dp * sp%nnz) + MBDK_REAL_BYTES * bp%nnz, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      ! columns 1..nc: K's rows, then the constraint rows with a nonzero there (once each: two
-      ! slots of one row in one column add up)
-      mark = 0
-      p = 1
-      do c = 1, nc
-        ap(c) = p
-        do k = bp%ap(c), bp%ap(c + 1) - 1
-          ai(p) = bp%ai(k)
-          fa%kpos(k) = p
-          p = p + 1
-        end do
-        do k = sp%cptr(c), sp%cptr(c + 1) - 1
-          r = nc + sp%crow(k)
-          if (mark(r) == c) cycle
-          mark(r) = c
-          ai(p) = r
-          p = p + 1
-        end do
-      end do
-      ! columns nc+1..n: each row's coordinates and its diagonal
-      mark = 0
-      do r = 1, m
-        ap(nc + r) = p
-        do j = sp%rptr(r), sp%rptr(r + 1) - 1
-          c = sp%rcol(j)
-          if (mark(c) == r) cycle
-          mark(c) = r
-          ai(p) = c
-          p = p + 1
-        end do
-        ai(p) = nc + r
-        p = p + 1
-      end do
-      ap(n + 1) = p
-      ! each nonzero of D: its place in column nc + r and in its coordinate's column
-      do r = 1, m
-        do j = sp%rptr(r), sp%rptr(r + 1) - 1
-          c = sp%rcol(j)
-          fa%dpos_r(j) = find(ap(nc + r), ap(nc + r + 1) - 1, c)
-          fa%dpos_c(j) = find(ap(c), ap(c + 1) - 1, nc + r)
-        end do
-      end do
-      ! AMD's order, each row moved to just after the last of its coordinates
-      call mbdk_sparse_ldlt_amd(n, ap, ai(1:p - 1), perm, stat)
-      if (stat /= MBDK_SUCCESS) return
-      do k = 1, n
-        at(perm(k)) = k
-      end do
-      last = 0
-      do r = 1, m
-        do j = sp%rptr(r), sp%rptr(r + 1) - 1
-          last(nc + r) = max(last(nc + r), at(sp%rcol(j)))
-        end do
-      end do
-      ! a counting sort of the rows by last, stable in AMD's order (bucket k: at(mark(k) ..
-      ! brow(k)-1)); then the nodes in AMD's order, each coordinate followed by its bucket
-      mark = 0
-      do k = 1, n
-        if (perm(k) > nc) mark(max(1, last(perm(k)))) = mark(max(1, last(perm(k)))) + 1
-      end do
-      p = 1
-      do k = 1, n
-        j = mark(k)
-        mark(k) = p
-        p = p + j
-      end do
-      brow = mark
-      do k = 1, n
-        c = perm(k)
-        if (c <= nc) cycle
-        j = max(1, last(c))
-        at(brow(j)) = c
-        brow(j) = brow(j) + 1
-      end do
-      j = 0
-      do k = 1, n
-        c = perm(k)
-        if (c <= nc) then
-          j = j + 1
-          order(j) = c
-        end if
-        do p = mark(k), brow(k) - 1
-          j = j + 1
-          order(j) = at(p)
-        end do
-      end do
-    end associate
-    call mbdk_sparse_ldlt_analyze(fa%ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order)
-
-  contains
-
-    !> the position of row i in ai(lo .. hi)
-    integer function find(lo, hi, i)
-      integer, intent(in) :: lo, hi, i
-      do find = lo, hi
-        if (ai(find) == i) return
-      end do
-      find = 0
-    end function find
-
+    allocate (fa%kx(fa%bp%nnz), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * fa%bp%nnz, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_kkt_pattern_init(fa%bp, model%sp%rptr, model%sp%rcol, fa%ldl, fa%kpos, &
+                               fa%dpos_r, fa%dpos_c, stat, asked)
   end subroutine kkt_init
 
   !> The book matrix's values (module header) into fa%ldl%ax: K by sparse_matrix, D from its

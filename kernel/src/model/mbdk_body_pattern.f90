@@ -1,13 +1,16 @@
-!> The sparsity of a matrix over the bodies' coordinates (nc x nc, 3 x 3 blocks): block (a, b)
-!> is there when a = b or an element couples bodies a and b (a joint, a two-point force). The
-!> tangent matrices of a scene (M + s (K + alpha D^T D) + (h/2) C of trapezoidal_index3) have
-!> this pattern: D^T D couples the bodies of each joint, K and C those of each element.
+!> The sparsity of a matrix over the bodies' coordinates (nc x nc, bs x bs blocks: bs = 3 for a
+!> planar body's x, y, theta, 6 for a spatial body's velocities): block (a, b) is there when
+!> a = b or an element couples bodies a and b (a joint, a two-point force). The tangent
+!> matrices of a scene (M + s (K + alpha D^T D) + (h/2) C of trapezoidal_index3) have this
+!> pattern: D^T D couples the bodies of each joint, K and C those of each element.
 !>
 !> The pattern is CSC with both triangles (what mbdk_sparse_ldlt takes): scalar column
-!> j = 3 (b - 1) + c holds, for each neighbour a of body b in ascending order, the rows
-!> 3 (a - 1) + 1..3. mbdk_body_pattern_pos finds (i, j) by a binary search among the
-!> neighbours of j's body; mbdk_body_pattern_scatter adds an element's dense 6 x 6 matrix over
-!> the coordinates of its two bodies. Building it costs O(bodies + elements).
+!> j = bs (b - 1) + c holds, for each neighbour a of body b in ascending order, the rows
+!> bs (a - 1) + 1..bs. mbdk_body_pattern_pos finds (i, j) by a binary search among the
+!> neighbours of j's body; mbdk_body_pattern_scatter adds a planar element's dense 6 x 6 matrix
+!> over the coordinates of its two bodies; mbdk_body_pattern_dtd gives the positions of the
+!> products of a D^T D whose rows are listed by their columns. Building it costs
+!> O(bodies + elements).
 module mbdk_body_pattern
   use mbdk_kinds, only: dp
   use mbdk_sparse_schur, only: mbdk_sort_ints
@@ -15,10 +18,11 @@ module mbdk_body_pattern
   use mbdk_memory, only: mbdk_alloc_status, MBDK_INT_BYTES
   implicit none
   private
-  public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter
+  public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter, &
+    mbdk_body_pattern_dtd
 
   type, public :: mbdk_body_pattern_t
-    integer :: nb = 0, nc = 0, nnz = 0
+    integer :: nb = 0, nc = 0, nnz = 0, bs = 3
     !> neighbours of body b (itself included): nbr(bptr(b) .. bptr(b+1)-1), ascending
     integer, allocatable :: bptr(:), nbr(:)
     !> CSC of the scalar matrix (1-based), and the position of the transpose of each entry
@@ -27,17 +31,22 @@ module mbdk_body_pattern
 
 contains
 
-  !> The pattern of nb bodies coupled by the pairs pairs(2, k) (0: the ground, no coupling).
-  !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory).
-  subroutine mbdk_body_pattern_init(bp, nb, pairs, stat, asked)
+  !> The pattern of nb bodies of bs coordinates (default 3) coupled by the pairs pairs(2, k) (0:
+  !> the ground, no coupling). stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes,
+  !> mbdk_memory).
+  subroutine mbdk_body_pattern_init(bp, nb, pairs, stat, asked, bs)
     type(mbdk_body_pattern_t), intent(out) :: bp
     integer, intent(in) :: nb, pairs(:, :)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: k, a, b, n, j, c, i, p, astat
+    integer, intent(in), optional :: bs
+    integer :: k, a, b, n, j, c, i, p, astat, nd
     integer, allocatable :: cnt(:), fill(:)
+    nd = 3
+    if (present(bs)) nd = bs
+    bp%bs = nd
     bp%nb = nb
-    bp%nc = 3 * nb
+    bp%nc = nd * nb
     ! adjacency, both directions, then sorted and made unique per body
     allocate (cnt(nb + 1), bp%bptr(nb + 1), fill(nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 2), stat, asked)
@@ -88,19 +97,19 @@ contains
     end do
     bp%bptr(nb + 1) = n + 1
     bp%nbr = bp%nbr(1:n)
-    ! the scalar CSC: 3 columns per body, 3 rows per neighbour
-    bp%nnz = 9 * n
+    ! the scalar CSC: nd columns per body, nd rows per neighbour
+    bp%nnz = nd * nd * n
     allocate (bp%ap(bp%nc + 1), bp%ai(bp%nnz), bp%tpos(bp%nnz), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (bp%nc + 1.0_dp + 2.0_dp * bp%nnz), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     p = 1
     do b = 1, nb
-      do c = 1, 3
-        j = 3 * (b - 1) + c
+      do c = 1, nd
+        j = nd * (b - 1) + c
         bp%ap(j) = p
         do k = bp%bptr(b), bp%bptr(b + 1) - 1
-          do i = 1, 3
-            bp%ai(p) = 3 * (bp%nbr(k) - 1) + i
+          do i = 1, nd
+            bp%ai(p) = nd * (bp%nbr(k) - 1) + i
             p = p + 1
           end do
         end do
@@ -119,15 +128,15 @@ contains
     type(mbdk_body_pattern_t), intent(in) :: bp
     integer, intent(in) :: i, j
     integer :: a, b, lo, hi, mid
-    a = (i - 1) / 3 + 1
-    b = (j - 1) / 3 + 1
+    a = (i - 1) / bp%bs + 1
+    b = (j - 1) / bp%bs + 1
     lo = bp%bptr(b)
     hi = bp%bptr(b + 1) - 1
     p = 0
     do while (lo <= hi)
       mid = (lo + hi) / 2
       if (bp%nbr(mid) == a) then
-        p = bp%ap(j) + 3 * (mid - bp%bptr(b)) + (i - 3 * (a - 1)) - 1
+        p = bp%ap(j) + bp%bs * (mid - bp%bptr(b)) + (i - bp%bs * (a - 1)) - 1
         return
       else if (bp%nbr(mid) < a) then
         lo = mid + 1
@@ -138,7 +147,8 @@ contains
   end function mbdk_body_pattern_pos
 
   !> ax += the element matrix ke(6, 6) over (x, y, theta) of body b1, then of body b2 (either
-  !> 0: the ground, its rows and columns dropped; b1 = b2: both halves on that body).
+  !> 0: the ground, its rows and columns dropped; b1 = b2: both halves on that body); a planar
+  !> pattern's (bs = 3).
   pure subroutine mbdk_body_pattern_scatter(bp, b1, b2, ke, ax)
     type(mbdk_body_pattern_t), intent(in) :: bp
     integer, intent(in) :: b1, b2
@@ -161,5 +171,34 @@ contains
       end do
     end do
   end subroutine mbdk_body_pattern_scatter
+
+  !> The position in the values of each product of D^T D: row r of D has its nonzeros in the
+  !> columns rcol(rptr(r) .. rptr(r+1)-1); pos lists, row by row, for each of its nonzeros j and
+  !> then each i, the entry (rcol(i), rcol(j)). stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked:
+  !> the bytes, mbdk_memory).
+  subroutine mbdk_body_pattern_dtd(bp, rptr, rcol, pos, stat, asked)
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, intent(in) :: rptr(:), rcol(:)
+    integer, allocatable, intent(out) :: pos(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: r, i, j, n, astat
+    n = 0
+    do r = 1, size(rptr) - 1
+      n = n + (rptr(r + 1) - rptr(r))**2
+    end do
+    allocate (pos(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * n, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    n = 0
+    do r = 1, size(rptr) - 1
+      do j = rptr(r), rptr(r + 1) - 1
+        do i = rptr(r), rptr(r + 1) - 1
+          n = n + 1
+          pos(n) = mbdk_body_pattern_pos(bp, rcol(i), rcol(j))
+        end do
+      end do
+    end do
+  end subroutine mbdk_body_pattern_dtd
 
 end module mbdk_body_pattern
