@@ -154,3 +154,20 @@ def test_a_driven_spatial_tree_is_checked_in_memory_that_grows_as_its_rows_do():
     ''')
     assert rep["type"] == "NoneType", rep["message"]
     assert rep["after"]
+
+
+def test_a_long_spatial_chain_runs_the_index3_family_in_memory_that_grows_as_its_bodies_do():
+    """trapezoidal_index3 (book form) on a chain of 10 000 spatial bars (30 000 rows) runs within
+    the child's 3 GB: compact rows and the model's sparse Newton matrix (mbdk_spatial_i3), where
+    the dense path's C alone would take 14.4 GB (30 000 x 60 000 doubles) and its Newton matrix
+    by differences 2 x 90 000^2 doubles."""
+    rep = run_child('''
+        import warnings
+        from mbdk.benchmarks import spatial_chain
+        warnings.simplefilter("ignore", mbdk.AccuracyWarning)
+        r = mbdk.simulate(spatial_chain(10_000), "trapezoidal_index3", h=1e-3, t_end=3e-3,
+                          formulation="index3")
+        assert r.success and "colored columns" in r.manifest["linear_solve"]
+    ''')
+    assert rep["type"] == "NoneType", rep["message"]
+    assert rep["after"]

@@ -113,6 +113,14 @@ SPATIAL_SCHUR = {False: "dense Schur complement (LAPACK dpotrf)",
                        "(SuiteSparse AMD + LDL, kernel/src/linalg/mbdk_compact_schur.f90)"}
 
 
+#: the index-3 family's Newton matrix by the model's path (kernel/src/spatial/mbdk_spatial_i3.f90)
+SPATIAL_INDEX3_MATRIX = {
+    False: "Newton matrix by forward differences over the whole state (LAPACK LU), kept while "
+           "Newton contracts",
+    True: "Newton matrix by differences of colored columns into 6 x 6 body blocks, factorised "
+          "by a sparse L D U (AMD, SuiteSparse LDL's analysis), kept while Newton contracts"}
+
+
 def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
     formulation, w, req = plan.formulation, plan.watch, plan.request
     manifest = {**build_info(), "scene": scene.name, "kind": "spatial", "method": plan.method,
@@ -138,8 +146,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
         manifest["multipliers"] = plan.multipliers_note
     if plan.index3:
         manifest["form"] = INDEX3_FORMS[formulation]
-        manifest["linear_solve"] = ("Newton matrix by forward differences (LAPACK LU), kept "
-                                    "while Newton contracts")
+        manifest["linear_solve"] = SPATIAL_INDEX3_MATRIX[sparse]
     if plan.ida:
         manifest["form"] = SPATIAL_IDA_FORMS[formulation]
         manifest["linear_solve"] = "IDA's dense difference quotients, SUNDIALS dense LU"

@@ -11,7 +11,7 @@ import numpy as np
 from .errors import InvalidInputError, NotApplicableError, RedundantConstraintsError, Status
 from .plan import RunPlan
 from .scene import Scene, SceneError
-from .spatial_model import check_initial, evaluate_spatial
+from .spatial_model import check_initial, start_residuals
 
 
 def check_applicable(scene: Scene, plan: RunPlan) -> None:
@@ -20,7 +20,8 @@ def check_applicable(scene: Scene, plan: RunPlan) -> None:
         _check_wear_states(scene, plan)
         check_initial(scene, plan.request.assemble_initial, float(plan.t0))
         if plan.index3 and plan.formulation == "index3" and scene.rows:
-            rank = evaluate_spatial(scene, scene.state0(), float(plan.t0))["rank"]
+            # (from the linear-memory start check: evaluate_spatial returns C, rows x 6 bodies)
+            rank = start_residuals(scene, float(plan.t0))["rank"]
             if rank < scene.rows:
                 raise RedundantConstraintsError(
                     f"{scene.source}: the joints' {scene.rows} rows have rank {rank} at the "

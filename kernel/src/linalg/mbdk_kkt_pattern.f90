@@ -28,15 +28,18 @@ contains
   !> rcol(rptr(r) .. rptr(r+1)-1)), its order (module header) and ldl's symbolic
   !> factorisation. kpos(bp%nnz): the place in ldl%ax of each of K's values; dpos_r and
   !> dpos_c (size(rcol)): of each nonzero of D in its row's column and in its coordinate's
-  !> column (two nonzeros of a row in one column share their place). stat: MBDK_SUCCESS,
+  !> column (two nonzeros of a row in one column share their place). unsymmetric: ldl may
+  !> factorise unsymmetric values too (mbdk_sparse_ldlt_factor_lu). stat: MBDK_SUCCESS,
   !> MBDK_ERR_INVALID_INPUT (AMD refused the pattern) or MBDK_ERR_NO_MEMORY (asked: the bytes).
-  subroutine mbdk_kkt_pattern_init(bp, rptr, rcol, ldl, kpos, dpos_r, dpos_c, stat, asked)
+  subroutine mbdk_kkt_pattern_init(bp, rptr, rcol, ldl, kpos, dpos_r, dpos_c, stat, asked, &
+                                   unsymmetric)
     type(mbdk_body_pattern_t), intent(in) :: bp
     integer, intent(in) :: rptr(:), rcol(:)
     type(mbdk_sparse_ldlt_t), intent(out) :: ldl
     integer, allocatable, intent(out) :: kpos(:), dpos_r(:), dpos_c(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
+    logical, intent(in), optional :: unsymmetric
     integer :: nc, m, n, nnz, nd, c, r, j, k, p, astat
     integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:), &
       cptr(:), crow(:)
@@ -151,7 +154,8 @@ contains
         order(j) = at(p)
       end do
     end do
-    call mbdk_sparse_ldlt_analyze(ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order)
+    call mbdk_sparse_ldlt_analyze(ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order, &
+                                  unsymmetric)
 
   contains
 

@@ -20,6 +20,16 @@
 !> in-house LDL^T and of the LAPACK path), or a non-finite one, is MBDK_ERR_SINGULAR_MATRIX (for
 !> S = D W D^T: dependent constraint rows). The least ratio |d_k| / |A_kk| is returned for the
 !> callers' own, wider tests.
+!>
+!> A matrix symmetric in pattern but not in values (a Newton matrix whose tangent has a skew
+!> part too large to drop: a spatial body's gyroscopic and rotational geometric terms against a
+!> slender bar's small axial inertia) is factorised P A P^T = L D U by
+!> mbdk_sparse_ldlt_factor_lu, on the same analysis (analyze with unsymmetric): without
+!> pivoting, the fill of L D U is that of L D L^T and U^T has L's pattern, so U is kept in
+!> L's positions (ux) and the solves are LDL's own with U's values for L^T's. Its numeric
+!> phase is LDL's up-looking loop (ldl_numeric) done twice per row, for the column of D U
+!> above the diagonal and the row of L D left of it; LDL has none for unsymmetric values, and
+!> KLU or UMFPACK keep their factors in allocations of their own (see above).
 module mbdk_sparse_ldlt
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_null_ptr
   use mbdk_kinds, only: dp
@@ -29,7 +39,7 @@ module mbdk_sparse_ldlt
   implicit none
   private
   public :: mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_solve, &
-    mbdk_sparse_ldlt_near, mbdk_sparse_ldlt_amd
+    mbdk_sparse_ldlt_near, mbdk_sparse_ldlt_amd, mbdk_sparse_ldlt_factor_lu
 
   !> the least pivot ratio at which mbdk_sparse_ldlt_near keeps a caller's window whole
   real(dp), parameter, public :: MBDK_SPARSE_NEAR_BASELINE = 0.5_dp
@@ -44,6 +54,12 @@ module mbdk_sparse_ldlt
     !> position in ax of each diagonal entry (0: structurally zero)
     integer, allocatable :: dpos(:)
     real(c_double), allocatable :: lx(:), d(:), y(:)
+    !> unsymmetric values (analyze's unsymmetric): U in L's positions, the work vector of the
+    !> rows of L D, the position in ax of each entry's transpose (1-based); lu: the current
+    !> factors are L D U
+    logical :: lu = .false.
+    real(c_double), allocatable :: ux(:), z(:)
+    integer, allocatable :: tpos(:)
   end type mbdk_sparse_ldlt_t
 
   interface
@@ -134,14 +150,17 @@ contains
   !> The ordering and the pattern of L for the n x n matrix of pattern ap(n+1), ai(nnz) (1-based
   !> CSC, both triangles, each column's rows in any order, no duplicates). The values go into
   !> f%ax in the same order. The ordering is AMD's, or order(n) (1-based, the k-th node
-  !> eliminated) where the caller gives one. MBDK_ERR_INVALID_INPUT for a pattern AMD refuses;
-  !> MBDK_ERR_NO_MEMORY (asked: the bytes, mbdk_memory; AMD's own workspace: 0, not known).
-  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat, asked, order)
+  !> eliminated) where the caller gives one. unsymmetric: mbdk_sparse_ldlt_factor_lu may be
+  !> used too (the pattern must then be symmetric: MBDK_ERR_INVALID_INPUT where an entry has
+  !> no transpose). MBDK_ERR_INVALID_INPUT for a pattern AMD refuses; MBDK_ERR_NO_MEMORY
+  !> (asked: the bytes, mbdk_memory; AMD's own workspace: 0, not known).
+  subroutine mbdk_sparse_ldlt_analyze(f, n, ap, ai, stat, asked, order, unsymmetric)
     type(mbdk_sparse_ldlt_t), intent(out) :: f
     integer, intent(in) :: n, ap(:), ai(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer, intent(in), optional :: order(:)
+    logical, intent(in), optional :: unsymmetric
     integer :: nnz, j, k, astat
     !> amd_order's status when its workspace could not be had (amd.h)
     integer, parameter :: AMD_OUT_OF_MEMORY = -1
@@ -186,8 +205,149 @@ contains
                            stat, asked)
     if (stat /= MBDK_SUCCESS) return
     f%ax = 0.0_dp
+    if (present(unsymmetric)) then
+      if (unsymmetric) then
+        allocate (f%ux(max(1, f%lp(n + 1))), f%z(n), f%tpos(nnz), stat=astat)
+        call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (max(1, f%lp(n + 1)) + n) + &
+                               MBDK_INT_BYTES * nnz, stat, asked)
+        if (stat /= MBDK_SUCCESS) return
+        call transpose_positions(n, ap, ai, f%tpos, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+    end if
     stat = MBDK_SUCCESS
   end subroutine mbdk_sparse_ldlt_analyze
+
+  !> tpos(p): the position of the transpose of entry p of the pattern ap, ai (1-based), found
+  !> by a binary search in its row's entries listed by column; MBDK_ERR_INVALID_INPUT where
+  !> one has none, MBDK_ERR_NO_MEMORY.
+  subroutine transpose_positions(n, ap, ai, tpos, stat)
+    integer, intent(in) :: n, ap(:), ai(:)
+    integer, intent(out) :: tpos(:), stat
+    integer, allocatable :: rptr(:), rcol(:), rpos(:), next(:)
+    integer :: nnz, j, p, i, q, lo, hi, mid, astat
+    nnz = ap(n + 1) - 1
+    allocate (rptr(n + 1), rcol(nnz), rpos(nnz), next(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * n + 1 + 2.0_dp * nnz), stat)
+    if (stat /= MBDK_SUCCESS) return
+    rptr = 0
+    do p = 1, nnz
+      rptr(ai(p) + 1) = rptr(ai(p) + 1) + 1
+    end do
+    rptr(1) = 1
+    do i = 1, n
+      rptr(i + 1) = rptr(i + 1) + rptr(i)
+    end do
+    next = rptr(1:n)
+    ! each row's entries in ascending column order
+    do j = 1, n
+      do p = ap(j), ap(j + 1) - 1
+        i = ai(p)
+        rcol(next(i)) = j
+        rpos(next(i)) = p
+        next(i) = next(i) + 1
+      end do
+    end do
+    stat = MBDK_ERR_INVALID_INPUT
+    do j = 1, n
+      do p = ap(j), ap(j + 1) - 1
+        ! the entry (j, ai(p)): row j's entry in column ai(p)
+        i = ai(p)
+        lo = rptr(j)
+        hi = rptr(j + 1) - 1
+        q = 0
+        do while (lo <= hi)
+          mid = (lo + hi) / 2
+          if (rcol(mid) == i) then
+            q = rpos(mid)
+            exit
+          else if (rcol(mid) < i) then
+            lo = mid + 1
+          else
+            hi = mid - 1
+          end if
+        end do
+        if (q == 0) return
+        tpos(p) = q
+      end do
+    end do
+    stat = MBDK_SUCCESS
+  end subroutine transpose_positions
+
+  !> P A P^T = L D U of the values in f%ax (module header; analyze with unsymmetric), with the
+  !> pivot test of mbdk_sparse_ldlt_factor. mbdk_sparse_ldlt_solve then solves with it.
+  subroutine mbdk_sparse_ldlt_factor_lu(f, tol, stat, rmin)
+    type(mbdk_sparse_ldlt_t), intent(inout) :: f
+    real(dp), intent(in) :: tol
+    integer, intent(out) :: stat
+    real(dp), intent(out), optional :: rmin
+    integer :: n, k, kk, p, p2, i, top, len
+    real(dp) :: yi, zi
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    f%lu = .false.
+    if (present(rmin)) rmin = 0.0_dp
+    if (.not. allocated(f%tpos)) then
+      stat = MBDK_ERR_INVALID_INPUT
+      return
+    end if
+    n = f%n
+    ! (0-based values in the integer arrays, as LDL keeps them)
+    associate (y => f%y, z => f%z, flag => f%flag, pattern => f%pattern, lnz => f%lnz, &
+               lp => f%lp, li => f%li, lx => f%lx, ux => f%ux, d => f%d)
+      do k = 0, n - 1
+        y(k + 1) = 0.0_dp
+        z(k + 1) = 0.0_dp
+        top = n
+        flag(k + 1) = k
+        lnz(k + 1) = 0
+        kk = f%p(k + 1)
+        ! column k of P A P^T above the diagonal into y, row k left of it into z; the pattern
+        ! of row k of L (of column k of U) by the elimination tree, in topological order
+        do p = f%ap(kk + 1), f%ap(kk + 2) - 1
+          i = f%pinv(f%ai(p + 1) + 1)
+          if (i > k) cycle
+          y(i + 1) = y(i + 1) + f%ax(p + 1)
+          z(i + 1) = z(i + 1) + f%ax(f%tpos(p + 1))
+          len = 0
+          do while (flag(i + 1) /= k)
+            len = len + 1
+            pattern(len) = i
+            flag(i + 1) = k
+            i = f%parent(i + 1)
+          end do
+          do while (len > 0)
+            top = top - 1
+            pattern(top + 1) = pattern(len)
+            len = len - 1
+          end do
+        end do
+        d(k + 1) = y(k + 1)
+        y(k + 1) = 0.0_dp
+        z(k + 1) = 0.0_dp
+        do while (top < n)
+          i = pattern(top + 1)
+          yi = y(i + 1)
+          zi = z(i + 1)
+          y(i + 1) = 0.0_dp
+          z(i + 1) = 0.0_dp
+          p2 = lp(i + 1) + lnz(i + 1)
+          do p = lp(i + 1), p2 - 1
+            y(li(p + 1) + 1) = y(li(p + 1) + 1) - lx(p + 1) * yi
+            z(li(p + 1) + 1) = z(li(p + 1) + 1) - ux(p + 1) * zi
+          end do
+          li(p2 + 1) = k
+          lx(p2 + 1) = zi / d(i + 1)
+          ux(p2 + 1) = yi / d(i + 1)
+          d(k + 1) = d(k + 1) - lx(p2 + 1) * yi
+          lnz(i + 1) = lnz(i + 1) + 1
+          top = top + 1
+        end do
+        if (d(k + 1) == 0.0_dp) return
+      end do
+    end associate
+    call pivots_ok(f, tol, stat, rmin)
+    f%lu = stat == MBDK_SUCCESS
+  end subroutine mbdk_sparse_ldlt_factor_lu
 
   !> L D L^T of the values in f%ax. A pivot |d_k| <= tol |A_kk|, or non-finite:
   !> MBDK_ERR_SINGULAR_MATRIX. rmin: the least |d_k| / |A_kk| (on success).
@@ -196,13 +356,27 @@ contains
     real(dp), intent(in) :: tol
     integer, intent(out) :: stat
     real(dp), intent(out), optional :: rmin
+    integer :: k
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (present(rmin)) rmin = 0.0_dp
+    f%lu = .false.
+    k = ldl_numeric(f%n, f%ap, f%ai, f%ax, f%lp, f%parent, f%lnz, f%li, f%lx, f%d, f%y, &
+                    f%pattern, f%flag, f%p, f%pinv)
+    if (k /= f%n) return
+    call pivots_ok(f, tol, stat, rmin)
+  end subroutine mbdk_sparse_ldlt_factor
+
+  !> The factors' pivot test (mbdk_sparse_ldlt_factor's): a pivot |d_k| <= tol |A_kk| or a
+  !> non-finite one is MBDK_ERR_SINGULAR_MATRIX; rmin the least |d_k| / |A_kk|.
+  subroutine pivots_ok(f, tol, stat, rmin)
+    type(mbdk_sparse_ldlt_t), intent(in) :: f
+    real(dp), intent(in) :: tol
+    integer, intent(out) :: stat
+    real(dp), intent(out), optional :: rmin
     integer :: k, c
     real(dp) :: dmax, akk, r
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (present(rmin)) rmin = 0.0_dp
-    k = ldl_numeric(f%n, f%ap, f%ai, f%ax, f%lp, f%parent, f%lnz, f%li, f%lx, f%d, f%y, &
-                    f%pattern, f%flag, f%p, f%pinv)
-    if (k /= f%n) return
     dmax = maxval(abs(f%d))
     if (.not. (dmax <= huge(1.0_dp))) return
     r = huge(1.0_dp)
@@ -215,16 +389,21 @@ contains
     end do
     if (present(rmin)) rmin = r
     stat = MBDK_SUCCESS
-  end subroutine mbdk_sparse_ldlt_factor
+  end subroutine pivots_ok
 
-  !> b <- A^-1 b with the factors of mbdk_sparse_ldlt_factor.
+  !> b <- A^-1 b with the factors of mbdk_sparse_ldlt_factor or mbdk_sparse_ldlt_factor_lu.
   subroutine mbdk_sparse_ldlt_solve(f, b)
     type(mbdk_sparse_ldlt_t), intent(inout) :: f
     real(dp), intent(inout), contiguous :: b(:)
     call ldl_perm(f%n, f%y, b, f%p)
     call ldl_lsolve(f%n, f%y, f%lp, f%li, f%lx)
     call ldl_dsolve(f%n, f%y, f%d)
-    call ldl_ltsolve(f%n, f%y, f%lp, f%li, f%lx)
+    if (f%lu) then
+      ! U x = y: U^T is stored as L is, so L^T's solve with U's values
+      call ldl_ltsolve(f%n, f%y, f%lp, f%li, f%ux)
+    else
+      call ldl_ltsolve(f%n, f%y, f%lp, f%li, f%lx)
+    end if
     call ldl_permt(f%n, b, f%y, f%p)
   end subroutine mbdk_sparse_ldlt_solve
 

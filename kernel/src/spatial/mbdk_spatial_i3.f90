@@ -1,7 +1,10 @@
 !> The spatial model's part of trapezoidal_index3 (mbdk_trapezoidal_index3 is the method's
 !> manual; mbdk_mechanism lists what each procedure gives). The evaluation is the model's
-!> (frames, forces with the gyroscopic moment, the dense C), and the Newton matrix is the
-!> integrator's differences (has_i3_matrix off). The constrained solves are dense:
+!> (frames, forces with the gyroscopic moment, C). Two paths, the model's (model%sparse):
+!>
+!> Dense (at most MBDK_SPATIAL_SPARSE_ROWS rows, or redundant joints): C dense, the Newton
+!> matrix the integrator's differences over the whole state (has_i3_matrix off), and the
+!> constrained solves:
 !>   exact    S = C_a M^-1 C_a^T on the independent rows a the model solves (work%active: all
 !>            rows, or the subset a redundant scene keeps), by Cholesky, each pivot against its
 !>            row's diagonal at roundoff (SOLVE_RTOL) and, where the caller asks, the geometric
@@ -13,13 +16,45 @@
 !>            beta = AL_KAPPA max(diag M) / max |C_i|^2, its matrix positive definite whatever
 !>            C's rank, stopping at roundoff or where the residual stops falling by half (as
 !>            mbdk_constrained's, the planar model's).
+!>
+!> Sparse (more rows, none redundant: a long chain or tree, a large loop): memory and cost per
+!> evaluation O(bodies + rows).
+!>   C        in compact rows (twelve values a row on its two bodies), as the ODE path keeps it;
+!>   solves   S = C M^-1 C^T by mbdk_compact_schur (its own copy of the model's pattern), the
+!>            near test on the geometry's G as the ODE path's; no regular path: a rank loss is
+!>            MBDK_ERR_SINGULAR_MATRIX by name;
+!>   Newton   the model's own matrix (has_i3_matrix on). K = M - ck dg/dq - cd dg/dv,
+!>            g = f - C^T lam, by differences of colored columns: bodies two or more couplings
+!>            apart (no body coupled to both: a distance-2 coloring of the body graph, joints
+!>            and two-body forces as its edges) are perturbed together, each body's six
+!>            velocity components one at a time, q by the retraction (q (+) delta) and v by
+!>            (cd/ck) delta, as a step moves them; a body's column then changes only its
+!>            neighbours' rows. A chain needs 3 colors (18 evaluations per matrix whatever
+!>            its length), a star as many as its hub's bodies plus one. K is kept as it is,
+!>            unsymmetric, in 6 x 6 body blocks (mbdk_body_pattern): its skew part (the
+!>            gyroscopic and the rotations' geometric terms, about h |Omega| and s |lambda| l)
+!>            is small against J but not against a slender bar's axial inertia, where the
+!>            symmetric part alone is indefinite and Newton stalls. The book form's matrix
+!>            [K C^T; C 0] in mbdk_kkt_pattern's order, the augmented one's K + ck alpha C^T C
+!>            in the body pattern under AMD; both factorised by L D U without pivoting on
+!>            LDL's analysis (mbdk_sparse_ldlt_factor_lu).
+!>            The increments: sqrt(eps) max(length, |r|) for a body's translations (f's
+!>            roundoff is eps of the positions), sqrt(eps) rad for its rotations.
 !> A submodule of mbdk_spatial_model, to keep that module's size in hand.
 submodule (mbdk_spatial_model) mbdk_spatial_i3
+  use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
+    mbdk_body_pattern_pos, mbdk_body_pattern_dtd
+  use mbdk_kkt_pattern, only: mbdk_kkt_pattern_init
+  use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
+    mbdk_sparse_ldlt_factor_lu, mbdk_sparse_ldlt_solve
   implicit none
 
   !> the regular path: penalty factor per max(diag M) / max |C_i|^2, and the iteration limit
   real(dp), parameter :: AL_KAPPA = 1.0e3_dp
   integer, parameter :: AL_ITER = 30
+  !> a pivot of the sparse Newton matrix's L D U at or below this of its diagonal entry:
+  !> singular (the planar sparse matrix's test)
+  real(dp), parameter :: LDLT_TOL = 1.0e-14_dp
 
   type, extends(mbdk_i3_aux_t) :: spatial_i3_aux_t
     !> C at the last evaluation (m x 6 nb), M^-1 C^T, the rows of the exact path and the
@@ -28,6 +63,22 @@ submodule (mbdk_spatial_model) mbdk_spatial_i3
     integer, allocatable :: rows(:)
     logical :: regular = .false.
     real(dp) :: beta = 0.0_dp
+    !> the sparse path (module header): C's compact rows at the last evaluation (cc) and at a
+    !> perturbed point (ccw); g = f - C^T lam there (g0, gw), the point (qw, vw), the
+    !> increments (dlt, per body dl(2, nb)); the evaluation's forces (fwk, nbk) and rows
+    !> (phiw, gamw)
+    logical :: sparse = .false.
+    logical :: book = .false.
+    real(dp), allocatable :: cc(:, :), ccw(:, :), g0(:), gw(:), qw(:), vw(:), dlt(:), &
+      dl(:, :), fwk(:, :), nbk(:, :), phiw(:), gamw(:), kx(:)
+    type(mbdk_compact_schur_t) :: cs
+    type(mbdk_body_pattern_t) :: bp
+    type(mbdk_sparse_ldlt_t) :: ldl
+    !> D's nonzeros row by row: their columns (rcol) and slots in a compact row (rslot); the
+    !> places of K's values and D's in the book matrix (kpos, dpos_r, dpos_c) or of the
+    !> products of C^T C in the augmented one (dtd_pos); the bodies by color
+    integer, allocatable :: rptr(:), rcol(:), rslot(:), kpos(:), dpos_r(:), dpos_c(:), &
+      dtd_pos(:), color_ptr(:), color_body(:)
   end type spatial_i3_aux_t
 
 contains
@@ -41,6 +92,10 @@ contains
     if (astat /= 0) return
     select type (aux)
     type is (spatial_i3_aux_t)
+      if (self%sparse) then
+        call sparse_create(self, aux, book, stat, asked)
+        return
+      end if
       allocate (aux%c(m, nv), aux%mc(nv, m), aux%s(m, m), aux%al(nv, nv), &
                 aux%y(last_velocity(self)), aux%x(nv), aux%r(m), aux%muk(m), aux%rows(m), &
                 stat=astat)
@@ -74,11 +129,11 @@ contains
         call generalized_forces(self, fr, fw, nbd, e%f)
       end if
       if (self%m > 0) then
-        e%phi = 0.0_dp
-        aux%c = 0.0_dp
-        e%gam = 0.0_dp
-        e%phit = 0.0_dp
-        call constraints(self, fr, t, e%phi, aux%c, e%gam, e%phit)
+        if (aux%sparse) then
+          call constraints(self, fr, t, e%phi, aux%cc, e%gam, e%phit, compact=.true.)
+        else
+          call constraints(self, fr, t, e%phi, aux%c, e%gam, e%phit)
+        end if
       end if
     end select
   end procedure spatial_i3_evaluate
@@ -88,7 +143,9 @@ contains
     type is (spatial_i3_aux_t)
       associate (r => e%r(1:self%nvel))
         call spatial_mass_times(self, e%dd, r)
-        if (self%m > 0) then
+        if (self%m > 0 .and. aux%sparse) then
+          r = r - s * (e%f - compact_ct(self, aux%cc, e%lt))
+        else if (self%m > 0) then
           r = r - s * (e%f - matmul(e%lt, aux%c))
         else
           r = r - s * e%f
@@ -100,14 +157,22 @@ contains
   module procedure spatial_i3_c_times
     select type (aux)
     type is (spatial_i3_aux_t)
-      y = matmul(aux%c, x)
+      if (aux%sparse) then
+        y = compact_times(self, aux%cc, x, .false.)
+      else
+        y = matmul(aux%c, x)
+      end if
     end select
   end procedure spatial_i3_c_times
 
   module procedure spatial_i3_ct_times
     select type (aux)
     type is (spatial_i3_aux_t)
-      y = matmul(x, aux%c)
+      if (aux%sparse) then
+        y = compact_ct(self, aux%cc, x)
+      else
+        y = matmul(x, aux%c)
+      end if
     end select
   end procedure spatial_i3_ct_times
 
@@ -121,6 +186,16 @@ contains
     select type (aux)
     type is (spatial_i3_aux_t)
       aux%regular = .false.
+      if (aux%sparse) then
+        ! (no regular path here: a rank loss is named)
+        if (near > 0.0_dp) then
+          call compact_factor(self, aux%cs, aux%cc, stat, near)
+        else
+          call compact_factor(self, aux%cs, aux%cc, stat)
+        end if
+        if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
       do k = 1, self%m
         call apply_minv(self, aux%c(k, :), aux%mc(:, k))
       end do
@@ -190,6 +265,14 @@ contains
       call apply_minv(self, b, x)
       mu = 0.0_dp
       if (self%m == 0) return
+      if (aux%sparse) then
+        aux%r = compact_times(self, aux%cc, x, .false.) - c
+        call mbdk_compact_schur_solve(aux%cs, aux%r)
+        mu = aux%r
+        call mbdk_compact_schur_spread(aux%cs, aux%r, aux%x)
+        x = x - aux%x
+        return
+      end if
       if (.not. aux%regular) then
         na = size(self%work%active)
         associate (rows => aux%rows(1:na), z => aux%muk(1:na))
@@ -226,13 +309,272 @@ contains
     end select
   end procedure spatial_i3_cs_solve
 
-  !> (not called: has_i3_matrix is off, the integrator forms the matrix by differences)
+  !> The sparse path's Newton matrix (module header), factorised.
   module procedure spatial_i3_matrix
     stat = MBDK_ERR_NOT_APPLICABLE
+    select type (aux)
+    type is (spatial_i3_aux_t)
+      if (.not. aux%sparse) return
+      if (book) then
+        call sparse_k(self, aux, t, e, lam, ck, cd, 0.0_dp, aux%kx, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call kkt_values(self, aux)
+      else
+        call sparse_k(self, aux, t, e, lam, ck, cd, alpha, aux%ldl%ax, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      call mbdk_sparse_ldlt_factor_lu(aux%ldl, LDLT_TOL, stat)
+      if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
+    end select
   end procedure spatial_i3_matrix
 
   module procedure spatial_i3_matrix_solve
     stat = MBDK_ERR_NOT_APPLICABLE
+    select type (aux)
+    type is (spatial_i3_aux_t)
+      if (.not. aux%sparse) return
+      call mbdk_sparse_ldlt_solve(aux%ldl, e%r)
+      stat = MBDK_SUCCESS
+    end select
   end procedure spatial_i3_matrix_solve
+
+  !> The sparse path's objects (module header): C's compact rows, S's pattern (the model's,
+  !> copied: the ODE path's solves keep theirs), the body pattern, the Newton matrix's pattern
+  !> and symbolic factorisation, and the bodies' colors.
+  subroutine sparse_create(self, aux, book, stat, asked)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(inout) :: aux
+    logical, intent(in) :: book
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: m, nv, nb, k, a, b, j, n, astat
+    integer, allocatable :: pairs(:, :)
+    m = self%m
+    nv = self%nvel
+    nb = self%nb
+    aux%sparse = .true.
+    aux%book = book
+    allocate (aux%cc(m, 12), aux%ccw(m, 12), aux%g0(nv), aux%gw(nv), aux%qw(self%ncoord), &
+              aux%vw(nv), aux%dlt(nv), aux%dl(2, nb), aux%fwk(3, nb), aux%nbk(3, nb), &
+              aux%phiw(m), aux%gamw(m), aux%y(last_velocity(self)), aux%x(nv), aux%r(m), &
+              aux%rptr(m + 1), aux%rcol(12 * m), aux%rslot(12 * m), &
+              pairs(2, self%nprim + self%nf), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (24.0_dp * m + 7.0_dp * nv + 8.0_dp * nb + &
+                           self%ncoord + 3.0_dp * m + last_velocity(self)) + &
+                           MBDK_INT_BYTES * (25.0_dp * m + 1 + 2.0_dp * (self%nprim + self%nf)), &
+                           stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    aux%cc = 0.0_dp
+    aux%cs = self%work%cs
+    ! the body graph: joints and the forces between two bodies
+    n = 0
+    do k = 1, self%nprim
+      n = n + 1
+      pairs(:, n) = [self%prim(k)%bi, self%prim(k)%bj]
+    end do
+    do k = 1, self%nf
+      n = n + 1
+      pairs(:, n) = self%fbody(1:2, k)
+      if (self%ftype(k) /= MBDK_FORCE_SPRING_DAMPER .and. &
+          self%ftype(k) /= MBDK_FORCE_SPHERE_SPHERE) pairs(:, n) = 0
+    end do
+    call mbdk_body_pattern_init(aux%bp, nb, pairs(:, 1:n), stat, asked, bs=6)
+    if (stat /= MBDK_SUCCESS) return
+    ! D's nonzeros: each row's blocks on its bodies (none on the ground)
+    n = 0
+    do k = 1, m
+      aux%rptr(k) = n + 1
+      do a = 1, 2
+        b = aux%cs%rbody(a, k)
+        if (b == 0) cycle
+        do j = 1, 6
+          n = n + 1
+          aux%rcol(n) = 6 * (b - 1) + j
+          aux%rslot(n) = 6 * (a - 1) + j
+        end do
+      end do
+    end do
+    aux%rptr(m + 1) = n + 1
+    if (book) then
+      allocate (aux%kx(aux%bp%nnz), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * aux%bp%nnz, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_kkt_pattern_init(aux%bp, aux%rptr, aux%rcol(1:n), aux%ldl, aux%kpos, &
+                                 aux%dpos_r, aux%dpos_c, stat, asked, unsymmetric=.true.)
+    else
+      call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_sparse_ldlt_analyze(aux%ldl, nv, aux%bp%ap, aux%bp%ai, stat, asked, &
+                                    unsymmetric=.true.)
+    end if
+    if (stat /= MBDK_SUCCESS) return
+    call color_bodies(aux%bp, aux%color_ptr, aux%color_body, stat, asked)
+  end subroutine sparse_create
+
+  !> A distance-2 coloring of the body graph (greedy, in body order): no two bodies of a color
+  !> are neighbours or share one. The bodies of color c: body(ptr(c) .. ptr(c+1)-1).
+  subroutine color_bodies(bp, ptr, body, stat, asked)
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, allocatable, intent(out) :: ptr(:), body(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nb, b, a, c, p, p2, k, ncol, astat
+    integer, allocatable :: color(:), seen(:)
+    nb = bp%nb
+    allocate (color(nb), seen(nb + 1), body(nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    color = 0
+    seen = 0
+    ncol = 0
+    do b = 1, nb
+      do p = bp%bptr(b), bp%bptr(b + 1) - 1
+        a = bp%nbr(p)
+        if (color(a) > 0) seen(color(a)) = b
+        do p2 = bp%bptr(a), bp%bptr(a + 1) - 1
+          c = bp%nbr(p2)
+          if (color(c) > 0) seen(color(c)) = b
+        end do
+      end do
+      k = 1
+      do while (seen(k) == b)
+        k = k + 1
+      end do
+      color(b) = k
+      ncol = max(ncol, k)
+    end do
+    allocate (ptr(ncol + 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ncol + 1.0_dp), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ptr = 0
+    do b = 1, nb
+      ptr(color(b) + 1) = ptr(color(b) + 1) + 1
+    end do
+    ptr(1) = 1
+    do c = 1, ncol
+      ptr(c + 1) = ptr(c + 1) + ptr(c)
+    end do
+    seen(1:ncol) = ptr(1:ncol)
+    do b = 1, nb
+      body(seen(color(b))) = b
+      seen(color(b)) = seen(color(b)) + 1
+    end do
+  end subroutine color_bodies
+
+  !> g = f - C^T lam at (t, q, v) by the model's evaluation (aux's work arrays; C's compact
+  !> rows into ccw).
+  subroutine sparse_g(self, aux, t, q, v, lam, g, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(inout) :: aux
+    real(dp), intent(in) :: t, q(:), v(:), lam(:)
+    real(dp), intent(out) :: g(:)
+    integer, intent(out) :: stat
+    type(frames_t) :: fr
+    real(dp) :: vg, vs, power
+    aux%y(1:self%ncoord) = q
+    aux%y(self%ncoord + 1:self%ncoord + self%nvel) = v
+    call frames(self, aux%y, fr, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call forces(self, fr, aux%fwk, aux%nbk, vg, vs, power, stat)
+    if (stat /= MBDK_SUCCESS) return
+    call generalized_forces(self, fr, aux%fwk, aux%nbk, g)
+    call constraints(self, fr, t, aux%phiw, aux%ccw, aux%gamw, compact=.true.)
+    g = g - compact_ct(self, aux%ccw, lam)
+  end subroutine sparse_g
+
+  !> kx (aux%bp's pattern) = M - ck dg/dq - cd dg/dv (+ ck alpha C^T C)
+  !> at (t, e%q, e%v) with g = f - C^T lam (module header), C of the last evaluation.
+  subroutine sparse_k(self, aux, t, e, lam, ck, cd, alpha, kx, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(inout) :: aux
+    real(dp), intent(in) :: t, ck, cd, alpha
+    type(mbdk_i3_eval_t), intent(in) :: e
+    real(dp), intent(in), contiguous :: lam(:)
+    real(dp), intent(out), contiguous :: kx(:)
+    integer, intent(out) :: stat
+    real(dp) :: h0, x, cv
+    integer :: c, d, k, b, a, p, pos, o, r, i, j, n
+    associate (bp => aux%bp)
+      cv = cd / ck
+      call sparse_g(self, aux, t, e%q, e%v, lam, aux%g0, stat)
+      if (stat /= MBDK_SUCCESS) return
+      h0 = sqrt(epsilon(1.0_dp))
+      do b = 1, self%nb
+        o = qi(self, b)
+        aux%dl(1, b) = h0 * max(self%length, maxval(abs(e%q(o:o + 2))))
+        aux%dl(2, b) = h0
+      end do
+      kx = 0.0_dp
+      aux%dlt = 0.0_dp
+      do c = 1, size(aux%color_ptr) - 1
+        do d = 1, 6
+          do k = aux%color_ptr(c), aux%color_ptr(c + 1) - 1
+            b = aux%color_body(k)
+            aux%dlt(6 * (b - 1) + d) = aux%dl((d + 2) / 3, b)
+          end do
+          call self%retract(e%q, aux%dlt, aux%qw, stat)
+          if (stat /= MBDK_SUCCESS) return
+          aux%vw = e%v + cv * aux%dlt
+          call sparse_g(self, aux, t, aux%qw, aux%vw, lam, aux%gw, stat)
+          if (stat /= MBDK_SUCCESS) return
+          do k = aux%color_ptr(c), aux%color_ptr(c + 1) - 1
+            b = aux%color_body(k)
+            j = 6 * (b - 1) + d
+            x = -ck / aux%dlt(j)
+            aux%dlt(j) = 0.0_dp
+            do p = bp%bptr(b), bp%bptr(b + 1) - 1
+              a = bp%nbr(p)
+              o = 6 * (a - 1)
+              pos = mbdk_body_pattern_pos(bp, o + 1, j)
+              kx(pos:pos + 5) = x * (aux%gw(o + 1:o + 6) - aux%g0(o + 1:o + 6))
+            end do
+          end do
+        end do
+      end do
+      do b = 1, self%nb
+        o = 6 * (b - 1)
+        do i = 1, 3
+          pos = mbdk_body_pattern_pos(bp, o + i, o + i)
+          kx(pos) = kx(pos) + self%mass(b)
+          pos = mbdk_body_pattern_pos(bp, o + 4, o + 3 + i)
+          kx(pos:pos + 2) = kx(pos:pos + 2) + self%inertia(:, i, b)
+        end do
+      end do
+      if (alpha /= 0.0_dp) then
+        n = 0
+        do r = 1, self%m
+          do j = aux%rptr(r), aux%rptr(r + 1) - 1
+            x = ck * alpha * aux%cc(r, aux%rslot(j))
+            do i = aux%rptr(r), aux%rptr(r + 1) - 1
+              n = n + 1
+              kx(aux%dtd_pos(n)) = kx(aux%dtd_pos(n)) + x * aux%cc(r, aux%rslot(i))
+            end do
+          end do
+        end do
+      end if
+    end associate
+  end subroutine sparse_k
+
+  !> The book matrix's values into aux%ldl%ax: K (aux%kx) and C's compact rows at the last
+  !> evaluation in both off-diagonal blocks.
+  subroutine kkt_values(self, aux)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(inout) :: aux
+    integer :: p, r, j
+    real(dp) :: x
+    associate (ax => aux%ldl%ax)
+      ax = 0.0_dp
+      do p = 1, size(aux%kx)
+        ax(aux%kpos(p)) = ax(aux%kpos(p)) + aux%kx(p)
+      end do
+      do r = 1, self%m
+        do j = aux%rptr(r), aux%rptr(r + 1) - 1
+          x = aux%cc(r, aux%rslot(j))
+          ax(aux%dpos_r(j)) = ax(aux%dpos_r(j)) + x
+          ax(aux%dpos_c(j)) = ax(aux%dpos_c(j)) + x
+        end do
+      end do
+    end associate
+  end subroutine kkt_values
 
 end submodule mbdk_spatial_i3

@@ -142,7 +142,7 @@ module mbdk_spatial_model
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
   public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces, &
-    last_velocity
+    last_velocity, compact_times, compact_ct, compact_factor, qi
 
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
@@ -426,6 +426,9 @@ contains
     work%active = model%active
     work%switches = 0
     call choose_sparse(model, work, stat, asked)
+    ! the index-3 Newton matrix: the model's own on the sparse path (mbdk_spatial_i3), the
+    ! integrator's differences over the dense evaluation otherwise
+    model%has_i3_matrix = model%sparse
     if (stat /= MBDK_SUCCESS) return
     call accelerations_scratch(model, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -2025,19 +2028,44 @@ contains
     real(dp), intent(in), optional :: near
     lam = 0.0_dp
     dx = 0.0_dp
-    if (present(near)) then
-      call mbdk_compact_schur_factor(model%work%cs, cc, model%geo_blk, SOLVE_RTOL, stat, &
-                                     rigid=.true., near=near, &
-                                     near_rows=MBDK_SPATIAL_SPARSE_ROWS)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    call mbdk_compact_schur_factor(model%work%cs, cc, model%minv_blk, SOLVE_RTOL, stat, &
-                                   rigid=.true.)
+    call compact_factor(model, model%work%cs, cc, stat, near)
     if (stat /= MBDK_SUCCESS) return
     lam = rhs
     call mbdk_compact_schur_solve(model%work%cs, lam)
     call mbdk_compact_schur_spread(model%work%cs, lam, dx)
   end subroutine sparse_schur
+
+  !> S = C M^-1 C^T from C's compact rows cc factorised into cs, with sparse_schur's tests (near:
+  !> the geometry's G first); cs's spread is then M^-1 C^T.
+  subroutine compact_factor(model, cs, cc, stat, near)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    type(mbdk_compact_schur_t), intent(inout) :: cs
+    real(dp), intent(in) :: cc(:, :)
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: near
+    if (present(near)) then
+      call mbdk_compact_schur_factor(cs, cc, model%geo_blk, SOLVE_RTOL, stat, rigid=.true., &
+                                     near=near, near_rows=MBDK_SPATIAL_SPARSE_ROWS)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    call mbdk_compact_schur_factor(cs, cc, model%minv_blk, SOLVE_RTOL, stat, rigid=.true.)
+  end subroutine compact_factor
+
+  !> C^T x (6 nb) for C in compact rows cc (the sparse path)
+  pure function compact_ct(model, cc, x) result(y)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: cc(:, :), x(:)
+    real(dp) :: y(6 * model%nb)
+    integer :: k, a, b
+    y = 0.0_dp
+    do k = 1, size(cc, 1)
+      do a = 1, 2
+        b = model%work%cs%rbody(a, k)
+        if (b == 0) cycle
+        y(6 * b - 5:6 * b) = y(6 * b - 5:6 * b) + cc(k, 6 * a - 5:6 * a) * x(k)
+      end do
+    end do
+  end function compact_ct
 
   !> work's arrays of spatial_accelerations, for nb bodies and m rows
   subroutine accelerations_scratch(model, work, stat, asked)
