@@ -12,9 +12,12 @@ chain (NodeRigidBodyEP, ObjectRigidBody, ObjectJointSpherical, gravity by
 LoadMassProportional), run in the same invocation, one size after the other, by its implicit
 generalized-alpha (spectral radius 0.8, index-3 constraints, fixed step, EigenSparse, one
 thread), its CPU time per step differenced the same way. Exudyn's explicit solvers take no
-joints (its documentation, ExplicitSolvers.rst), so the two columns are each code's cheapest
-way to step the same mechanism at this step size, not the same method: the ratio says what a
-step costs, not which integrator is better.
+joints (its documentation, ExplicitSolvers.rst), so rk4 against it compares each code's
+cheapest way to step the same mechanism at this step size, not the same method: that ratio
+says what a step costs, not which integrator is better. The same method is the next column:
+mbdk's generalized_alpha at rho_inf = 0.8 in the book's index-3 form (formulation "index3",
+as Exudyn's useIndex2Constraints = False), its Newton matrix above 12 rows the model's sparse
+one (kernel/src/spatial/mbdk_spatial_i3.f90), Newton iterations per step in the last column.
 
 usage: python benchmarks/spatial_chain.py [--sizes 2,4,8,...] [--exudyn-python PATH] [--quick]
 """
@@ -84,22 +87,27 @@ print(json.dumps({"us_per_step": (best[k2] - best[k1]) / (k2 - k1) * 1e6, "versi
 '''
 
 
-def mbdk_step_cost(n: int, steps: tuple) -> tuple[float, str]:
-    """mbdk's rk4 CPU seconds per step on the chain of n bars, and its linear solve's path."""
+def mbdk_step_cost(n: int, steps: tuple, method: str = "rk4") -> tuple[float, str, float]:
+    """mbdk's CPU seconds per step on the chain of n bars by rk4 (reduced formulation) or
+    generalized_alpha (rho_inf 0.8, index3), its linear solve's path, and Newton iterations per
+    step (0 for rk4)."""
     sc = spatial_chain(n)
-    best, path = {}, ""
+    kw = (dict(formulation="reduced") if method == "rk4" else
+          dict(formulation="index3", rho_inf=0.8))
+    best, path, iters = {}, "", 0.0
     for k in steps:
         runs = []
         for _ in range(3):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                r = mbdk.simulate(sc, "rk4", h=H, t_end=k * H, every=k, formulation="reduced",
-                                  outputs=(), watch=False)
+                r = mbdk.simulate(sc, method, h=H, t_end=k * H, every=k, outputs=(), watch=False,
+                                  **kw)
             runs.append(r.stats.cpu_time)
             path = r.manifest["linear_solve"]
+            iters = r.stats.newton_iterations / max(r.stats.steps, 1)
         best[k] = min(runs)
     k1, k2 = steps
-    return (best[k2] - best[k1]) / (k2 - k1), path
+    return (best[k2] - best[k1]) / (k2 - k1), path, iters
 
 
 def exudyn_step_cost(python: str, n: int, steps: tuple) -> float | None:
@@ -121,18 +129,25 @@ def main(argv=None) -> int:
     sizes = ([int(x) for x in args.sizes.split(",")] if args.sizes else
              [2, 4, 8, 16, 32, 64, 128] + ([] if args.quick else [256, 512, 1024]))
     print(f"{'N':>6} {'rows':>6} {'mbdk rk4 us/step':>17} {'growth':>7} "
-          f"{'exudyn GA us/step':>18} {'mbdk/exudyn':>12}  path")
-    prev = None
+          f"{'exudyn GA us/step':>18} {'rk4/exudyn':>11} {'mbdk GA us/step':>16} "
+          f"{'growth':>7} {'GA/exudyn':>10} {'it/step':>8}  path")
+    prev = prev_ga = None
+    dash = chr(45)
     for n in sizes:
         steps = (20, 60) if n >= 256 else (100, 300)
-        cost, path = mbdk_step_cost(n, steps)
+        cost, path, _ = mbdk_step_cost(n, steps)
+        ga, _, iters = mbdk_step_cost(n, steps, "generalized_alpha")
         growth = (f"{math.log(cost / prev[1]) / math.log(n / prev[0]):7.2f}" if prev else
                   f"{'':>7}")
-        prev = (n, cost)
+        growth_ga = (f"{math.log(ga / prev_ga[1]) / math.log(n / prev_ga[0]):7.2f}"
+                     if prev_ga else f"{'':>7}")
+        prev, prev_ga = (n, cost), (n, ga)
         exu = exudyn_step_cost(args.exudyn_python, n, steps) if args.exudyn_python else None
         print(f"{n:6d} {3 * n:6d} {cost * 1e6:17.1f} {growth} "
-              f"{(f'{exu * 1e6:18.1f}' if exu else f'{chr(45):>18}')} "
-              f"{(f'{cost / exu:12.2f}' if exu else f'{chr(45):>12}')}  "
+              f"{(f'{exu * 1e6:18.1f}' if exu else f'{dash:>18}')} "
+              f"{(f'{cost / exu:11.2f}' if exu else f'{dash:>11}')} "
+              f"{ga * 1e6:16.1f} {growth_ga} "
+              f"{(f'{ga / exu:10.2f}' if exu else f'{dash:>10}')} {iters:8.2f}  "
               f"{'sparse' if 'sparse' in path else 'dense'}", flush=True)
     return 0
 

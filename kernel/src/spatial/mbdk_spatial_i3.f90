@@ -188,7 +188,7 @@ contains
       aux%regular = .false.
       if (aux%sparse) then
         ! (no regular path here: a rank loss is named)
-        if (near > 0.0_dp) then
+        if (near > 0.0_dp .and. .not. self%regular_tree) then
           call compact_factor(self, aux%cs, aux%cc, stat, near)
         else
           call compact_factor(self, aux%cs, aux%cc, stat)

@@ -263,6 +263,11 @@ module mbdk_spatial_model
     !> the constrained solves by compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), with
     !> the blocks of M^-1 and of the geometry's weight (near_test's) per body
     logical :: sparse = .false.
+    !> a tree of spherical joints with independent rows at the start: C keeps its full rank at
+    !> every pose (each joint's three rows have the identity on the translation of the body
+    !> away from the root, so C is block triangular with blocks of full rank), and the near
+    !> test of a rank loss (the geometry's G, a second factorisation per evaluation) is skipped
+    logical :: regular_tree = .false.
     real(dp), allocatable :: minv_blk(:, :, :), geo_blk(:, :, :)
     integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
     type(mbdk_spatial_work_t), pointer :: work => null()
@@ -843,6 +848,7 @@ contains
       if (tree) call tree_rows(model, fr, t0, edge, independent, stat, asked)
       if (stat /= MBDK_SUCCESS) return
     end if
+    model%regular_tree = independent .and. all(model%prim(1:model%nprim)%kind == PRIM_SPH)
     if (independent) then
       allocate (model%active(model%m), stat=astat)
       call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
@@ -2178,7 +2184,7 @@ contains
           gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
                 (compact_times(self, cc, y(wi(self, 1):last_velocity(self)), .false.) + phit) - &
                 self%opt%baumgarte_beta**2 * phi
-        if (self%opt%formulation == MBDK_FORM_REDUCED) then
+        if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
           call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st, &
                             MBDK_SPATIAL_NEAR_PIVOT)
         else
