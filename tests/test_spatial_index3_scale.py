@@ -6,6 +6,7 @@ do and Newton's iterations per step do not. Before, the matrix was differences o
 state, dense (a 10 000-body chain could not be set up). Checked against an independent
 solution: a chain of bars moving in its plane, built from spatial bodies, is the planar model's
 chain (another code, with analytic tangents) under the same method and step."""
+import math
 import warnings
 
 import numpy as np
@@ -14,6 +15,7 @@ import pytest
 import mbdk
 from mbdk.benchmarks import bar_chain, spatial_chain
 from mbdk.run_spatial import SPATIAL_INDEX3_MATRIX
+from mbdk.scene_file import scene_from_dict
 from test_spatial_sparse import spatial_chain_from
 
 
@@ -70,3 +72,109 @@ def test_newton_iterations_do_not_grow_with_the_spatial_chain(formulation, sizes
         assert np.ptp(r.energy) < 1e-6
         per_step[n] = r.stats.newton_iterations / r.stats.steps
     assert max(per_step.values()) <= 1.3 * per_step[8], per_step
+
+
+def zigzag(n):
+    """n spatial bars on spherical joints hanging from the ground at the origin (the bodies and
+    joints of mbdk.benchmarks.spatial_chain's scene, as dicts)."""
+    ex, bodies, joints, p = np.array([1.0, 0.0, 0.0]), [], [], np.zeros(3)
+    for i in range(n):
+        a = 0.3 if i % 2 else -0.3
+        d = np.array([np.cos(a), 0.5 * np.sin(a), 0.5 * np.sin(a)])
+        d /= np.linalg.norm(d)
+        half = (ex + d) / np.linalg.norm(ex + d)
+        bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
+                       "shape": {"type": "bar", "length": 1.0},
+                       "position": (p + 0.5 * d).tolist(),
+                       "quaternion": [float(half @ ex), *np.cross(ex, half).tolist()]})
+        joint = {"name": f"S{i}", "type": "spherical", "body1": f"b{i}",
+                 "point1": [-0.5, 0.0, 0.0]}
+        if i:
+            joint.update(body2=f"b{i - 1}", point2=[0.5, 0.0, 0.0])
+        joints.append(joint)
+        p = p + d
+    return bodies, joints
+
+
+def with_elements(pad):
+    """Far from a zigzag of `pad` bars (no coupling to it): a body Q pinned at its centre with a
+    plane on its top face, a sphere P resting on that plane (a sphere-plane contact between two
+    bodies, k = 1e7), a body R hanging from Q by a spring-damper. 3 + 3 pad rows."""
+    bodies, joints = zigzag(pad)
+    box = {"kind": "spatial", "mass": 1.0, "inertia": [0.1, 0.1, 0.1],
+           "quaternion": [1.0, 0.0, 0.0, 0.0]}
+    bodies += [{"name": "Q", "position": [0.0, -10.0, 5.0], **box},
+               {"name": "P", "position": [0.0, -9.4 - 9.81e-7, 5.0], **box},
+               {"name": "R", "position": [0.3, -11.2, 5.0], **box}]
+    joints.append({"name": "SQ", "type": "spherical", "body1": "Q", "at": [0.0, -10.0, 5.0]})
+    forces = [{"type": "gravity", "g": [0.0, -9.81, 0.0]},
+              {"type": "contact", "name": "c", "body1": "P",
+               "shape1": {"type": "sphere", "radius": 0.1, "centre": [0.0, 0.0, 0.0]},
+               "body2": "Q",
+               "shape2": {"type": "plane", "point": [0.0, 0.5, 0.0], "normal": [0.0, 1.0, 0.0]},
+               "stiffness": 1e7, "damping": 2e3},
+              {"type": "spring_damper", "name": "s", "body1": "Q", "point1": [0.0, -0.5, 0.0],
+               "body2": "R", "point2": [0.0, 0.5, 0.0], "stiffness": 100.0, "damping": 1.0,
+               "rest_length": 0.5}]
+    return scene_from_dict({"scene": {"name": f"elements_{pad}"}, "body": bodies,
+                            "joint": joints, "force": forces})
+
+
+@pytest.mark.parametrize("formulation", ["index3", "augmented_lagrangian"])
+def test_two_body_forces_on_the_sparse_path_give_the_dense_paths_motion(formulation):
+    """A sphere-plane contact whose plane sits on a second body and a spring-damper between two
+    bodies couple their bodies in the sparse matrix's pattern and colors: the same bodies beside
+    a zigzag of 4 bars (15 rows: the sparse path) move as beside one of 3 bars (12 rows: the
+    dense path, its matrix by differences over the whole state), to Newton's tolerance. (With
+    the contact left out of the pattern, the book form stopped in its first step.)"""
+    runs = {pad: index3(with_elements(pad), 0.2, formulation, every=50) for pad in (3, 4)}
+    assert runs[3].manifest["linear_solve"] == SPATIAL_INDEX3_MATRIX[False]
+    assert runs[4].manifest["linear_solve"] == SPATIAL_INDEX3_MATRIX[True]
+    assert np.ptp(runs[4].position("R")[:, 1]) > 1e-3          # the spring moves R
+    for b in ("P", "Q", "R"):
+        assert np.max(np.abs(runs[4].position(b) - runs[3].position(b))) < 1e-9
+
+
+def near_straight_loop(pad: bool):
+    """Three bars on spherical joints between two ground points 3 - 1e-3 m apart (a loop near
+    its straight, singular pose: C M^-1 C^T nearly loses a rank), with or without a pendulum
+    beside it that takes the scene to 15 rows (the sparse path)."""
+    n, slack = 3, 1e-3
+    c = (n - slack) / n
+    s = math.sqrt(1 - c * c)
+    ex, bodies, joints, p = np.array([1.0, 0.0, 0.0]), [], [], np.zeros(3)
+    for i, sgn in enumerate((-1, 0, 1)):
+        d = np.array([c, sgn * s, 0.0]) if sgn else ex.copy()
+        d /= np.linalg.norm(d)
+        half = (ex + d) / np.linalg.norm(ex + d)
+        bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
+                       "inertia": [0.01, 0.1, 0.1], "position": (p + 0.5 * d).tolist(),
+                       "quaternion": [float(half @ ex), *np.cross(ex, half).tolist()]})
+        joint = {"name": f"S{i}", "type": "spherical", "body1": f"b{i}",
+                 "point1": [-0.5, 0.0, 0.0]}
+        if i:
+            joint.update(body2=f"b{i - 1}", point2=[0.5, 0.0, 0.0])
+        joints.append(joint)
+        p = p + d
+    joints.append({"name": "end", "type": "spherical", "body1": "b2", "point1": [0.5, 0.0, 0.0],
+                   "point2": p.tolist()})
+    if pad:
+        bodies.append({"name": "D", "kind": "spatial", "mass": 1.0, "inertia": [0.01, 0.1, 0.1],
+                       "position": [0.0, -20.5, 3.0], "quaternion": [1.0, 0.0, 0.0, 0.0]})
+        joints.append({"name": "SD", "type": "spherical", "body1": "D", "at": [0.0, -20.0, 3.0]})
+    return scene_from_dict({"scene": {"name": "near_straight"}, "body": bodies,
+                            "joint": joints, "force": [{"type": "gravity",
+                                                        "g": [0.0, -9.81, 0.0]}]})
+
+
+def test_the_augmented_forms_regular_path_on_the_sparse_path():
+    """Near a rank loss the augmented form's projections take the regular path (M + beta C^T C),
+    on the sparse path as on the dense one: the loop near its straight pose runs beside a
+    pendulum (sparse) as alone (dense), to Newton's tolerance (measured 1e-14). (Without the
+    sparse regular path it stopped at t = 0 with SingularMatrixError.)"""
+    alone = index3(near_straight_loop(False), 0.3, "augmented_lagrangian", every=100)
+    padded = index3(near_straight_loop(True), 0.3, "augmented_lagrangian", every=100)
+    assert padded.manifest["linear_solve"] == SPATIAL_INDEX3_MATRIX[True]
+    assert alone.manifest["linear_solve"] == SPATIAL_INDEX3_MATRIX[False]
+    for b in ("b0", "b1", "b2"):
+        assert np.max(np.abs(padded.position(b) - alone.position(b))) < 1e-9

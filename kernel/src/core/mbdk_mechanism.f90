@@ -51,9 +51,12 @@
 !>                here from i3_c_times and i3_cs_solve; a model may do it in one call of its own)
 !>   i3_matrix, i3_matrix_solve   the Newton matrix, where the model has its tangents
 !>                (has_i3_matrix); otherwise the integrator forms it by differences
+!>   i3_matrix_renew   where the model's matrix is costly to build (has_i3_renew): the
+!>                augmented form's matrix at the last evaluation's C from the last build's
+!>                tangent, its penalty ck alpha C^T C renewed (a default here: not offered)
 module mbdk_mechanism
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NOT_APPLICABLE
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   implicit none
@@ -96,6 +99,8 @@ module mbdk_mechanism
     logical :: identity_kinematics = .false.
     !> i3_matrix builds the index-3 Newton matrix from the model's tangents
     logical :: has_i3_matrix = .false.
+    !> i3_matrix_renew renews the augmented matrix's penalty without a new tangent
+    logical :: has_i3_renew = .false.
     !> forces that depend on the velocities (dampers, friction, the gyroscopic moment): the
     !> index-3 step evaluates them at projected velocities
     logical :: velocity_forces = .true.
@@ -124,6 +129,7 @@ module mbdk_mechanism
     procedure(i3_matrix_iface), deferred :: i3_matrix
     procedure(i3_matrix_solve_iface), deferred :: i3_matrix_solve
     procedure :: i3_project_velocity => mechanism_i3_project_velocity
+    procedure :: i3_matrix_renew => mechanism_i3_matrix_renew
   end type mbdk_mechanism_t
 
   abstract interface
@@ -330,6 +336,17 @@ module mbdk_mechanism
   end interface
 
 contains
+
+  !> The augmented Newton matrix M + ck (K + alpha C^T C) + cd D_f with the tangent K, D_f of
+  !> the last i3_matrix and C of the last evaluation, factorised (has_i3_renew). The default:
+  !> MBDK_ERR_NOT_APPLICABLE (a model without it builds the whole matrix).
+  subroutine mechanism_i3_matrix_renew(self, aux, ck, alpha, stat)
+    class(mbdk_mechanism_t), intent(in) :: self
+    class(mbdk_i3_aux_t), intent(inout) :: aux
+    real(dp), intent(in) :: ck, alpha
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_NOT_APPLICABLE
+  end subroutine mechanism_i3_matrix_renew
 
   !> e%v overwritten by its mass-orthogonal projection onto C v + Phi_t = 0 (Phi_t: e%phit) at
   !> the last evaluation and factorisation: v - x, M x + C^T mu = 0, C x = C v + Phi_t.

@@ -392,7 +392,8 @@ module mbdk_trapezoidal_index3
     !> fd_matrix: the matrix and its LU, and the evaluation it was built around
     real(dp), allocatable :: jm(:, :), r0(:), f0(:), phi0(:), gam0(:), phit0(:), col(:)
     !> fd_matrix, augmented form: the matrix by differences less the penalty's cs alpha C^T C
-    !> at its iterate (penalty_matrix adds it at another), its h, a work vector
+    !> at its iterate (penalty_matrix adds it at another), its h, a work vector; have_fd also
+    !> where the mechanism keeps its own matrix's tangent for the renewal (has_i3_renew)
     real(dp), allocatable :: jfd(:, :), wv(:)
     real(dp) :: h_fd = 0.0_dp
     logical :: have_fd = .false.
@@ -1438,7 +1439,11 @@ contains
     fresh = .false.
     if (s%have_fd .and. .not. (s%book .or. penalty_renewed) .and. s%no_renewal == 0 .and. &
         abs(s%h - s%h_fd) <= sqrt(epsilon(1.0_dp)) * s%h) then
-      call penalty_matrix(s, mech, ierr)
+      if (s%fd_matrix) then
+        call penalty_matrix(s, mech, ierr)
+      else
+        call mech%i3_matrix_renew(s%aux, s%cs, s%alpha, ierr)
+      end if
       penalty_renewed = .true.
     else
       if (penalty_renewed) s%no_renewal = COOL_START
@@ -1647,6 +1652,11 @@ contains
     integer :: j, nv, m
     if (.not. s%fd_matrix) then
       call mech%i3_matrix(s%aux, s%book, s%tn, s%e, s%ln, s%cs, s%cd, s%alpha, ierr)
+      ! a model's matrix costly to build keeps its tangent for the penalty's renewal
+      if (ierr == MBDK_SUCCESS .and. mech%has_i3_renew .and. .not. s%book) then
+        s%h_fd = s%h
+        s%have_fd = .true.
+      end if
       return
     end if
     nv = s%nv

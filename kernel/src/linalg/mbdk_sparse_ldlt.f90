@@ -211,7 +211,7 @@ contains
         call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (max(1, f%lp(n + 1)) + n) + &
                                MBDK_INT_BYTES * nnz, stat, asked)
         if (stat /= MBDK_SUCCESS) return
-        call transpose_positions(n, ap, ai, f%tpos, stat)
+        call transpose_positions(n, ap, ai, f%tpos, stat, asked)
         if (stat /= MBDK_SUCCESS) return
       end if
     end if
@@ -220,15 +220,16 @@ contains
 
   !> tpos(p): the position of the transpose of entry p of the pattern ap, ai (1-based), found
   !> by a binary search in its row's entries listed by column; MBDK_ERR_INVALID_INPUT where
-  !> one has none, MBDK_ERR_NO_MEMORY.
-  subroutine transpose_positions(n, ap, ai, tpos, stat)
+  !> one has none or a row holds a column twice (a duplicate entry), MBDK_ERR_NO_MEMORY.
+  subroutine transpose_positions(n, ap, ai, tpos, stat, asked)
     integer, intent(in) :: n, ap(:), ai(:)
     integer, intent(out) :: tpos(:), stat
+    real(dp), intent(inout), optional :: asked
     integer, allocatable :: rptr(:), rcol(:), rpos(:), next(:)
     integer :: nnz, j, p, i, q, lo, hi, mid, astat
     nnz = ap(n + 1) - 1
     allocate (rptr(n + 1), rcol(nnz), rpos(nnz), next(n), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * n + 1 + 2.0_dp * nnz), stat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * n + 1 + 2.0_dp * nnz), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     rptr = 0
     do p = 1, nnz
@@ -249,6 +250,11 @@ contains
       end do
     end do
     stat = MBDK_ERR_INVALID_INPUT
+    do i = 1, n
+      do q = rptr(i) + 1, rptr(i + 1) - 1
+        if (rcol(q) == rcol(q - 1)) return
+      end do
+    end do
     do j = 1, n
       do p = ap(j), ap(j + 1) - 1
         ! the entry (j, ai(p)): row j's entry in column ai(p)

@@ -20,17 +20,22 @@
 !> Sparse (more rows, none redundant: a long chain or tree, a large loop): memory and cost per
 !> evaluation O(bodies + rows).
 !>   C        in compact rows (twelve values a row on its two bodies), as the ODE path keeps it;
-!>   solves   S = C M^-1 C^T by mbdk_compact_schur (its own copy of the model's pattern), the
-!>            near test on the geometry's G as the ODE path's; no regular path: a rank loss is
-!>            MBDK_ERR_SINGULAR_MATRIX by name;
+!>   solves   S = C M^-1 C^T by mbdk_compact_schur (its own pattern, built as the model's),
+!>            the near test on the geometry's G as the ODE path's (none on a tree of spherical
+!>            joints, model%regular_tree); the augmented form's regular path as the dense one's,
+!>            M + beta C^T C in the body pattern by the symmetric LDL^T (the book form has none:
+!>            a rank loss is MBDK_ERR_SINGULAR_MATRIX by name);
 !>   Newton   the model's own matrix (has_i3_matrix on). K = M - ck dg/dq - cd dg/dv,
 !>            g = f - C^T lam, by differences of colored columns: bodies two or more couplings
 !>            apart (no body coupled to both: a distance-2 coloring of the body graph, joints
 !>            and two-body forces as its edges) are perturbed together, each body's six
 !>            velocity components one at a time, q by the retraction (q (+) delta) and v by
 !>            (cd/ck) delta, as a step moves them; a body's column then changes only its
-!>            neighbours' rows. A chain needs 3 colors (18 evaluations per matrix whatever
-!>            its length), a star as many as its hub's bodies plus one. K is kept as it is,
+!>            neighbours' rows. A chain needs 3 colors (19 evaluations per matrix whatever
+!>            its length, with the one at the point itself); the colors are as many as the
+!>            largest set of bodies within two couplings of one another: a hub (a body
+!>            jointed to many, springs or declared contacts to one body) makes them grow with
+!>            its degree, and the matrix's cost with them (O(N^2) for a star). K is kept as it is,
 !>            unsymmetric, in 6 x 6 body blocks (mbdk_body_pattern): its skew part (the
 !>            gyroscopic and the rotations' geometric terms, about h |Omega| and s |lambda| l)
 !>            is small against J but not against a slender bar's axial inertia, where the
@@ -38,15 +43,20 @@
 !>            [K C^T; C 0] in mbdk_kkt_pattern's order, the augmented one's K + ck alpha C^T C
 !>            in the body pattern under AMD; both factorised by L D U without pivoting on
 !>            LDL's analysis (mbdk_sparse_ldlt_factor_lu).
-!>            The increments: sqrt(eps) max(length, |r|) for a body's translations (f's
-!>            roundoff is eps of the positions), sqrt(eps) rad for its rotations.
+!>            The increments: sqrt(eps) max(|r|, length / 100) for a body's translations (f's
+!>            roundoff is eps of the body's own position; not the scene's spread, which would
+!>            step a body resting on a stiff contact across its penetration, F / k, and
+!>            leave the contact's stiffness out of its column), sqrt(eps) rad for its
+!>            rotations. A contact whose penetration is below the increment (about 1e-8 of the
+!>            body's coordinates) still gets a softened column: Newton then converges more
+!>            slowly or stops by name (MBDK_ERR_NEWTON_DIVERGED), as the dense differences do.
 !> A submodule of mbdk_spatial_model, to keep that module's size in hand.
 submodule (mbdk_spatial_model) mbdk_spatial_i3
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
     mbdk_body_pattern_pos, mbdk_body_pattern_dtd
   use mbdk_kkt_pattern, only: mbdk_kkt_pattern_init
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
-    mbdk_sparse_ldlt_factor_lu, mbdk_sparse_ldlt_solve
+    mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_factor_lu, mbdk_sparse_ldlt_solve
   implicit none
 
   !> the regular path: penalty factor per max(diag M) / max |C_i|^2, and the iteration limit
@@ -74,6 +84,9 @@ submodule (mbdk_spatial_model) mbdk_spatial_i3
     type(mbdk_compact_schur_t) :: cs
     type(mbdk_body_pattern_t) :: bp
     type(mbdk_sparse_ldlt_t) :: ldl
+    !> the augmented form's regular path (has_reg): M + beta C^T C in the body pattern
+    logical :: has_reg = .false.
+    type(mbdk_sparse_ldlt_t) :: reg
     !> D's nonzeros row by row: their columns (rcol) and slots in a compact row (rslot); the
     !> places of K's values and D's in the book matrix (kpos, dpos_r, dpos_c) or of the
     !> products of C^T C in the augmented one (dtd_pos); the bodies by color
@@ -187,13 +200,21 @@ contains
     type is (spatial_i3_aux_t)
       aux%regular = .false.
       if (aux%sparse) then
-        ! (no regular path here: a rank loss is named)
         if (near > 0.0_dp .and. .not. self%regular_tree) then
           call compact_factor(self, aux%cs, aux%cc, stat, near)
         else
           call compact_factor(self, aux%cs, aux%cc, stat)
         end if
-        if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
+        if (stat == MBDK_SUCCESS) return
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        if (.not. (regular_ok .and. aux%has_reg)) return
+        call sparse_regular(self, aux, stat)
+        if (stat /= MBDK_SUCCESS) then
+          stat = MBDK_ERR_SINGULAR_MATRIX
+          return
+        end if
+        aux%regular = .true.
+        regular = .true.
         return
       end if
       do k = 1, self%m
@@ -258,14 +279,14 @@ contains
 
   module procedure spatial_i3_cs_solve
     integer :: na, k
-    real(dp) :: rr, r_best
+    real(dp) :: rr, r_best, cabs
     stat = MBDK_SUCCESS
     select type (aux)
     type is (spatial_i3_aux_t)
       call apply_minv(self, b, x)
       mu = 0.0_dp
       if (self%m == 0) return
-      if (aux%sparse) then
+      if (.not. aux%regular .and. aux%sparse) then
         aux%r = compact_times(self, aux%cc, x, .false.) - c
         call mbdk_compact_schur_solve(aux%cs, aux%r)
         mu = aux%r
@@ -289,21 +310,33 @@ contains
       end if
       ! the regular path: the augmented Lagrangian iteration from mu = 0, until C x - c is at
       ! roundoff or no longer falls by half; x and mu those of the smallest residual
+      if (aux%sparse) then
+        cabs = maxval(abs(aux%cc))
+      else
+        cabs = maxval(abs(aux%c))
+      end if
       aux%muk = 0.0_dp
       x = 0.0_dp
       r_best = huge(1.0_dp)
       do k = 1, AL_ITER
-        aux%x = b - matmul(aux%muk - aux%beta * c, aux%c)
-        call mbdk_chol_solve(aux%al, aux%x, stat)
-        if (stat /= MBDK_SUCCESS) return
-        aux%r = matmul(aux%c, aux%x) - c
+        aux%r = aux%muk - aux%beta * c
+        if (aux%sparse) then
+          aux%x = b - compact_ct(self, aux%cc, aux%r)
+          call mbdk_sparse_ldlt_solve(aux%reg, aux%x)
+          aux%r = compact_times(self, aux%cc, aux%x, .false.) - c
+        else
+          aux%x = b - matmul(aux%r, aux%c)
+          call mbdk_chol_solve(aux%al, aux%x, stat)
+          if (stat /= MBDK_SUCCESS) return
+          aux%r = matmul(aux%c, aux%x) - c
+        end if
         rr = maxval(abs(aux%r))
         if (.not. (rr < r_best)) exit
         aux%muk = aux%muk + aux%beta * aux%r
         x = aux%x
         mu = aux%muk
-        if (rr <= 64.0_dp * epsilon(1.0_dp) * (maxval(abs(c)) + maxval(abs(aux%c)) * &
-                                               maxval(abs(x))) .or. rr > 0.5_dp * r_best) exit
+        if (rr <= 64.0_dp * epsilon(1.0_dp) * (maxval(abs(c)) + cabs * maxval(abs(x))) .or. &
+            rr > 0.5_dp * r_best) exit
         r_best = rr
       end do
     end select
@@ -320,13 +353,27 @@ contains
         if (stat /= MBDK_SUCCESS) return
         call kkt_values(self, aux)
       else
-        call sparse_k(self, aux, t, e, lam, ck, cd, alpha, aux%ldl%ax, stat)
+        ! K kept apart for the penalty's renewal (spatial_i3_matrix_renew)
+        call sparse_k(self, aux, t, e, lam, ck, cd, 0.0_dp, aux%kx, stat)
         if (stat /= MBDK_SUCCESS) return
+        aux%ldl%ax = aux%kx
+        call add_ctc(self, aux, ck * alpha, aux%ldl%ax)
       end if
       call mbdk_sparse_ldlt_factor_lu(aux%ldl, LDLT_TOL, stat)
-      if (stat /= MBDK_SUCCESS) stat = MBDK_ERR_SINGULAR_MATRIX
     end select
   end procedure spatial_i3_matrix
+
+  !> The augmented matrix renewed: the last build's K and ck alpha C^T C at the last evaluation.
+  module procedure spatial_i3_matrix_renew
+    stat = MBDK_ERR_NOT_APPLICABLE
+    select type (aux)
+    type is (spatial_i3_aux_t)
+      if (.not. aux%sparse .or. aux%book) return
+      aux%ldl%ax = aux%kx
+      call add_ctc(self, aux, ck * alpha, aux%ldl%ax)
+      call mbdk_sparse_ldlt_factor_lu(aux%ldl, LDLT_TOL, stat)
+    end select
+  end procedure spatial_i3_matrix_renew
 
   module procedure spatial_i3_matrix_solve
     stat = MBDK_ERR_NOT_APPLICABLE
@@ -357,16 +404,18 @@ contains
     allocate (aux%cc(m, 12), aux%ccw(m, 12), aux%g0(nv), aux%gw(nv), aux%qw(self%ncoord), &
               aux%vw(nv), aux%dlt(nv), aux%dl(2, nb), aux%fwk(3, nb), aux%nbk(3, nb), &
               aux%phiw(m), aux%gamw(m), aux%y(last_velocity(self)), aux%x(nv), aux%r(m), &
+              aux%muk(m), &
               aux%rptr(m + 1), aux%rcol(12 * m), aux%rslot(12 * m), &
               pairs(2, self%nprim + self%nf), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (24.0_dp * m + 7.0_dp * nv + 8.0_dp * nb + &
-                           self%ncoord + 3.0_dp * m + last_velocity(self)) + &
+                           self%ncoord + 4.0_dp * m + last_velocity(self)) + &
                            MBDK_INT_BYTES * (25.0_dp * m + 1 + 2.0_dp * (self%nprim + self%nf)), &
                            stat, asked)
     if (stat /= MBDK_SUCCESS) return
     aux%cc = 0.0_dp
-    aux%cs = self%work%cs
-    ! the body graph: joints and the forces between two bodies
+    call mbdk_compact_schur_init(aux%cs, self%work%cs%rbody, nb, 6, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ! the body graph: joints and the forces that load two bodies
     n = 0
     do k = 1, self%nprim
       n = n + 1
@@ -375,8 +424,7 @@ contains
     do k = 1, self%nf
       n = n + 1
       pairs(:, n) = self%fbody(1:2, k)
-      if (self%ftype(k) /= MBDK_FORCE_SPRING_DAMPER .and. &
-          self%ftype(k) /= MBDK_FORCE_SPHERE_SPHERE) pairs(:, n) = 0
+      if (.not. loads_two_bodies(self%ftype(k))) pairs(:, n) = 0
     end do
     call mbdk_body_pattern_init(aux%bp, nb, pairs(:, 1:n), stat, asked, bs=6)
     if (stat /= MBDK_SUCCESS) return
@@ -395,17 +443,21 @@ contains
       end do
     end do
     aux%rptr(m + 1) = n + 1
+    call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    allocate (aux%kx(aux%bp%nnz), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * aux%bp%nnz, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     if (book) then
-      allocate (aux%kx(aux%bp%nnz), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * aux%bp%nnz, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
       call mbdk_kkt_pattern_init(aux%bp, aux%rptr, aux%rcol(1:n), aux%ldl, aux%kpos, &
                                  aux%dpos_r, aux%dpos_c, stat, asked, unsymmetric=.true.)
     else
-      call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
       call mbdk_sparse_ldlt_analyze(aux%ldl, nv, aux%bp%ap, aux%bp%ai, stat, asked, &
                                     unsymmetric=.true.)
+      if (stat /= MBDK_SUCCESS) return
+      ! the augmented form's projections: the regular path's M + beta C^T C, symmetric
+      call mbdk_sparse_ldlt_analyze(aux%reg, nv, aux%bp%ap, aux%bp%ai, stat, asked)
+      aux%has_reg = stat == MBDK_SUCCESS
     end if
     if (stat /= MBDK_SUCCESS) return
     call color_bodies(aux%bp, aux%color_ptr, aux%color_body, stat, asked)
@@ -493,7 +545,7 @@ contains
     real(dp), intent(out), contiguous :: kx(:)
     integer, intent(out) :: stat
     real(dp) :: h0, x, cv
-    integer :: c, d, k, b, a, p, pos, o, r, i, j, n
+    integer :: c, d, k, b, a, p, pos, o, j
     associate (bp => aux%bp)
       cv = cd / ck
       call sparse_g(self, aux, t, e%q, e%v, lam, aux%g0, stat)
@@ -501,7 +553,7 @@ contains
       h0 = sqrt(epsilon(1.0_dp))
       do b = 1, self%nb
         o = qi(self, b)
-        aux%dl(1, b) = h0 * max(self%length, maxval(abs(e%q(o:o + 2))))
+        aux%dl(1, b) = h0 * max(1.0e-2_dp * self%length, maxval(abs(e%q(o:o + 2))))
         aux%dl(2, b) = h0
       end do
       kx = 0.0_dp
@@ -531,29 +583,68 @@ contains
           end do
         end do
       end do
-      do b = 1, self%nb
-        o = 6 * (b - 1)
-        do i = 1, 3
-          pos = mbdk_body_pattern_pos(bp, o + i, o + i)
-          kx(pos) = kx(pos) + self%mass(b)
-          pos = mbdk_body_pattern_pos(bp, o + 4, o + 3 + i)
-          kx(pos:pos + 2) = kx(pos:pos + 2) + self%inertia(:, i, b)
-        end do
-      end do
-      if (alpha /= 0.0_dp) then
-        n = 0
-        do r = 1, self%m
-          do j = aux%rptr(r), aux%rptr(r + 1) - 1
-            x = ck * alpha * aux%cc(r, aux%rslot(j))
-            do i = aux%rptr(r), aux%rptr(r + 1) - 1
-              n = n + 1
-              kx(aux%dtd_pos(n)) = kx(aux%dtd_pos(n)) + x * aux%cc(r, aux%rslot(i))
-            end do
-          end do
-        end do
-      end if
+      call add_mass_blocks(self, bp, kx)
+      if (alpha /= 0.0_dp) call add_ctc(self, aux, ck * alpha, kx)
     end associate
   end subroutine sparse_k
+
+  !> kx += M in the body pattern bp
+  subroutine add_mass_blocks(self, bp, kx)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    real(dp), intent(inout) :: kx(:)
+    integer :: b, o, i, pos
+    do b = 1, self%nb
+      o = 6 * (b - 1)
+      do i = 1, 3
+        pos = mbdk_body_pattern_pos(bp, o + i, o + i)
+        kx(pos) = kx(pos) + self%mass(b)
+        pos = mbdk_body_pattern_pos(bp, o + 4, o + 3 + i)
+        kx(pos:pos + 2) = kx(pos:pos + 2) + self%inertia(:, i, b)
+      end do
+    end do
+  end subroutine add_mass_blocks
+
+  !> kx += w C^T C in the body pattern, C the compact rows of the last evaluation
+  subroutine add_ctc(self, aux, w, kx)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(in) :: aux
+    real(dp), intent(in) :: w
+    real(dp), intent(inout) :: kx(:)
+    integer :: r, i, j, n
+    real(dp) :: x
+    n = 0
+    do r = 1, self%m
+      do j = aux%rptr(r), aux%rptr(r + 1) - 1
+        x = w * aux%cc(r, aux%rslot(j))
+        do i = aux%rptr(r), aux%rptr(r + 1) - 1
+          n = n + 1
+          kx(aux%dtd_pos(n)) = kx(aux%dtd_pos(n)) + x * aux%cc(r, aux%rslot(i))
+        end do
+      end do
+    end do
+  end subroutine add_ctc
+
+  !> The sparse regular path's matrix M + beta C^T C (beta as the dense path's) in aux%reg,
+  !> factorised (symmetric, positive definite whatever C's rank).
+  subroutine sparse_regular(self, aux, stat)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    type(spatial_i3_aux_t), intent(inout) :: aux
+    integer, intent(out) :: stat
+    real(dp) :: cmax
+    integer :: k
+    cmax = 0.0_dp
+    do k = 1, self%m
+      cmax = max(cmax, sum(aux%cc(k, :)**2))
+    end do
+    if (.not. (cmax > 0.0_dp)) cmax = 1.0_dp
+    call spatial_mass_diagonal(self, aux%x)
+    aux%beta = AL_KAPPA * maxval(aux%x) / cmax
+    aux%reg%ax = 0.0_dp
+    call add_mass_blocks(self, aux%bp, aux%reg%ax)
+    call add_ctc(self, aux, aux%beta, aux%reg%ax)
+    call mbdk_sparse_ldlt_factor(aux%reg, LDLT_TOL, stat)
+  end subroutine sparse_regular
 
   !> The book matrix's values into aux%ldl%ax: K (aux%kx) and C's compact rows at the last
   !> evaluation in both off-diagonal blocks.

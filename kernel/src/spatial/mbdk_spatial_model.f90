@@ -142,7 +142,7 @@ module mbdk_spatial_model
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
   public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces, &
-    last_velocity, compact_times, compact_ct, compact_factor, qi
+    last_velocity, compact_times, compact_ct, compact_factor, qi, loads_two_bodies
 
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
@@ -303,6 +303,7 @@ module mbdk_spatial_model
     procedure :: i3_cs_solve => spatial_i3_cs_solve
     procedure :: i3_matrix => spatial_i3_matrix
     procedure :: i3_matrix_solve => spatial_i3_matrix_solve
+    procedure :: i3_matrix_renew => spatial_i3_matrix_renew
   end type mbdk_spatial_model_t
 
   interface
@@ -363,6 +364,12 @@ module mbdk_spatial_model
       real(dp), intent(in), contiguous :: lam(:)
       integer, intent(out) :: stat
     end subroutine spatial_i3_matrix
+    module subroutine spatial_i3_matrix_renew(self, aux, ck, alpha, stat)
+      class(mbdk_spatial_model_t), intent(in) :: self
+      class(mbdk_i3_aux_t), intent(inout) :: aux
+      real(dp), intent(in) :: ck, alpha
+      integer, intent(out) :: stat
+    end subroutine spatial_i3_matrix_renew
     module subroutine spatial_i3_matrix_solve(self, aux, e, stat)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
@@ -434,6 +441,7 @@ contains
     ! the index-3 Newton matrix: the model's own on the sparse path (mbdk_spatial_i3), the
     ! integrator's differences over the dense evaluation otherwise
     model%has_i3_matrix = model%sparse
+    model%has_i3_renew = model%sparse
     if (stat /= MBDK_SUCCESS) return
     call accelerations_scratch(model, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -781,6 +789,14 @@ contains
     integer, intent(in) :: ft
     is_contact = ft == MBDK_FORCE_SPHERE_PLANE .or. ft == MBDK_FORCE_SPHERE_SPHERE
   end function is_contact
+
+  !> Whether a force type may load two bodies (its fbody(1:2), either the ground: 0), as forces
+  !> applies it: the couplings of the body graph (the sparse index-3 matrix's pattern and
+  !> colors). A sphere-plane contact's plane may sit on a second body.
+  elemental logical function loads_two_bodies(ft)
+    integer, intent(in) :: ft
+    loads_two_bodies = ft == MBDK_FORCE_SPRING_DAMPER .or. is_contact(ft)
+  end function loads_two_bodies
 
   !> The watch's scales: the length (joint and spring points, spheres, the bodies' spread; else
   !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1).
