@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mbdk
-from mbdk.benchmarks import bar_chain, spatial_chain
+from mbdk.benchmarks import bar_chain, spatial_chain, spatial_chain_elements
 from mbdk.run_spatial import SPATIAL_INDEX3_MATRIX
 from mbdk.scene_file import scene_from_dict
 from test_spatial_sparse import spatial_chain_from
@@ -74,33 +74,11 @@ def test_newton_iterations_do_not_grow_with_the_spatial_chain(formulation, sizes
     assert max(per_step.values()) <= 1.3 * per_step[8], per_step
 
 
-def zigzag(n):
-    """n spatial bars on spherical joints hanging from the ground at the origin (the bodies and
-    joints of mbdk.benchmarks.spatial_chain's scene, as dicts)."""
-    ex, bodies, joints, p = np.array([1.0, 0.0, 0.0]), [], [], np.zeros(3)
-    for i in range(n):
-        a = 0.3 if i % 2 else -0.3
-        d = np.array([np.cos(a), 0.5 * np.sin(a), 0.5 * np.sin(a)])
-        d /= np.linalg.norm(d)
-        half = (ex + d) / np.linalg.norm(ex + d)
-        bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
-                       "shape": {"type": "bar", "length": 1.0},
-                       "position": (p + 0.5 * d).tolist(),
-                       "quaternion": [float(half @ ex), *np.cross(ex, half).tolist()]})
-        joint = {"name": f"S{i}", "type": "spherical", "body1": f"b{i}",
-                 "point1": [-0.5, 0.0, 0.0]}
-        if i:
-            joint.update(body2=f"b{i - 1}", point2=[0.5, 0.0, 0.0])
-        joints.append(joint)
-        p = p + d
-    return bodies, joints
-
-
 def with_elements(pad):
-    """Far from a zigzag of `pad` bars (no coupling to it): a body Q pinned at its centre with a
+    """Far from a zigzag of `pad` bars (mbdk.benchmarks.spatial_chain's; no coupling to it): a body Q pinned at its centre with a
     plane on its top face, a sphere P resting on that plane (a sphere-plane contact between two
     bodies, k = 1e7), a body R hanging from Q by a spring-damper. 3 + 3 pad rows."""
-    bodies, joints = zigzag(pad)
+    bodies, joints = spatial_chain_elements(pad)
     box = {"kind": "spatial", "mass": 1.0, "inertia": [0.1, 0.1, 0.1],
            "quaternion": [1.0, 0.0, 0.0, 0.0]}
     bodies += [{"name": "Q", "position": [0.0, -10.0, 5.0], **box},

@@ -67,16 +67,9 @@ def bar_chain(n: int, angle_deg: float = 0.0):
         "body": bodies, "joint": joints, "force": [{"type": "gravity", "g": [0.0, -G]}]})
 
 
-def spatial_chain(n: int, bend: float = 0.3):
-    """An open chain of n uniform spatial bars (1 m, 1 kg) on spherical joints under gravity
-    (-9.81 m/s^2 along y), released at rest from a zigzag out of the x-y plane: bar i points
-    along (cos a, sin(a)/2, sin(a)/2) normalised, a = +-bend alternating; bar b0's first end is
-    at the origin (a spherical joint with the ground), bar b{i}'s first end at the far end of
-    b{i-1}. 3 n constraint rows, none redundant: the scaling benchmark of the spatial model's
-    sparse path (benchmarks/spatial_chain.py)."""
-    if isinstance(n, bool) or not (isinstance(n, int) and n >= 1):
-        raise InvalidInputError(f"spatial_chain: n = {n!r}; the chain needs a whole number of "
-                                "bars, 1 or more")
+def spatial_chain_elements(n: int, bend: float = 0.3) -> tuple[list, list]:
+    """spatial_chain's bodies and joints as scene-file dicts (n checked by spatial_chain), for a
+    scene that adds elements of its own to the chain."""
     ex = np.array([1.0, 0.0, 0.0])
     bodies, joints, p = [], [], np.zeros(3)
     for i in range(n):
@@ -94,6 +87,20 @@ def spatial_chain(n: int, bend: float = 0.3):
             joint.update(body2=f"b{i - 1}", point2=[0.5, 0.0, 0.0])
         joints.append(joint)
         p = p + d
+    return bodies, joints
+
+
+def spatial_chain(n: int, bend: float = 0.3):
+    """An open chain of n uniform spatial bars (1 m, 1 kg) on spherical joints under gravity
+    (-9.81 m/s^2 along y), released at rest from a zigzag out of the x-y plane: bar i points
+    along (cos a, sin(a)/2, sin(a)/2) normalised, a = +-bend alternating; bar b0's first end is
+    at the origin (a spherical joint with the ground), bar b{i}'s first end at the far end of
+    b{i-1}. 3 n constraint rows, none redundant: the scaling benchmark of the spatial model's
+    sparse path (benchmarks/spatial_chain.py)."""
+    if isinstance(n, bool) or not (isinstance(n, int) and n >= 1):
+        raise InvalidInputError(f"spatial_chain: n = {n!r}; the chain needs a whole number of "
+                                "bars, 1 or more")
+    bodies, joints = spatial_chain_elements(n, bend)
     return scene_from_dict({
         "scene": {"name": f"spatial_chain_n{n}", "rotation": "quaternion",
                   "description": f"an open chain of {n} spatial bars (1 m, 1 kg) on spherical "

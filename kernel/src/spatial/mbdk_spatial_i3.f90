@@ -192,7 +192,6 @@ contains
   module procedure spatial_i3_cs_factor
     integer :: k, na, astat
     real(dp), allocatable :: diag(:)
-    real(dp) :: cmax
     regular = .false.
     stat = MBDK_SUCCESS
     if (self%m == 0) return
@@ -242,13 +241,7 @@ contains
       if (stat /= MBDK_ERR_SINGULAR_MATRIX .or. .not. regular_ok) return
       ! the regular path's matrix M + beta C^T C (formed in place: an expression's temporary
       ! of 6 nb x 6 nb would be taken without a status)
-      cmax = 0.0_dp
-      do k = 1, self%m
-        cmax = max(cmax, sum(aux%c(k, :)**2))
-      end do
-      if (.not. (cmax > 0.0_dp)) cmax = 1.0_dp
-      call spatial_mass_diagonal(self, aux%x)
-      aux%beta = AL_KAPPA * maxval(aux%x) / cmax
+      aux%beta = regular_beta(self, aux%c, aux%x)
       aux%al = matmul(transpose(aux%c), aux%c)
       aux%al = aux%beta * aux%al
       call add_mass(aux%al)
@@ -476,8 +469,8 @@ contains
     allocate (color(nb), seen(nb + 1), body(nb), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 1), stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    color = 0
-    seen = 0
+    color(:) = 0
+    seen(:) = 0
     ncol = 0
     do b = 1, nb
       do p = bp%bptr(b), bp%bptr(b + 1) - 1
@@ -562,7 +555,7 @@ contains
         do d = 1, 6
           do k = aux%color_ptr(c), aux%color_ptr(c + 1) - 1
             b = aux%color_body(k)
-            aux%dlt(6 * (b - 1) + d) = aux%dl((d + 2) / 3, b)
+            aux%dlt(6 * (b - 1) + d) = aux%dl(merge(1, 2, d <= 3), b)
           end do
           call self%retract(e%q, aux%dlt, aux%qw, stat)
           if (stat /= MBDK_SUCCESS) return
@@ -625,21 +618,30 @@ contains
     end do
   end subroutine add_ctc
 
+  !> The regular path's beta = AL_KAPPA max(diag M) / max |C_i|^2 from C's rows c (dense or
+  !> compact: a row's squares sum alike); w(nvel) a work array.
+  real(dp) function regular_beta(self, c, w) result(beta)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: c(:, :)
+    real(dp), intent(inout) :: w(:)
+    real(dp) :: cmax
+    integer :: k
+    cmax = 0.0_dp
+    do k = 1, self%m
+      cmax = max(cmax, sum(c(k, :)**2))
+    end do
+    if (.not. (cmax > 0.0_dp)) cmax = 1.0_dp
+    call spatial_mass_diagonal(self, w)
+    beta = AL_KAPPA * maxval(w) / cmax
+  end function regular_beta
+
   !> The sparse regular path's matrix M + beta C^T C (beta as the dense path's) in aux%reg,
   !> factorised (symmetric, positive definite whatever C's rank).
   subroutine sparse_regular(self, aux, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
     type(spatial_i3_aux_t), intent(inout) :: aux
     integer, intent(out) :: stat
-    real(dp) :: cmax
-    integer :: k
-    cmax = 0.0_dp
-    do k = 1, self%m
-      cmax = max(cmax, sum(aux%cc(k, :)**2))
-    end do
-    if (.not. (cmax > 0.0_dp)) cmax = 1.0_dp
-    call spatial_mass_diagonal(self, aux%x)
-    aux%beta = AL_KAPPA * maxval(aux%x) / cmax
+    aux%beta = regular_beta(self, aux%cc, aux%x)
     aux%reg%ax = 0.0_dp
     call add_mass_blocks(self, aux%bp, aux%reg%ax)
     call add_ctc(self, aux, aux%beta, aux%reg%ax)
