@@ -49,3 +49,13 @@ def test_newton_iterations_do_not_grow_with_the_chain():
         assert r.success and r.t[-1] == pytest.approx(0.2)
         per_step[n] = r.stats.newton_iterations / r.stats.steps
     assert max(per_step.values()) <= 1.3 * per_step[30], per_step
+
+
+def test_a_failed_augmented_run_on_a_long_chain_names_the_books_scheme():
+    """The augmented form (trapezoidal_index3's default) fails on the 10 000-bar chain (its
+    multiplier update contracts more slowly as the chain lengthens: NewtonDivergedError at about
+    t = 0.034 s), and its message names formulation = 'index3', which runs that chain (above)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", mbdk.AccuracyWarning)
+        with pytest.raises(mbdk.NewtonDivergedError, match="formulation = 'index3'"):
+            mbdk.simulate(bar_chain(10_000, 30.0), "trapezoidal_index3", h=1e-3, t_end=0.05)

@@ -236,6 +236,11 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
     return note
 
 
+#: from this many constraint rows a failed augmented-Lagrangian run names the book's scheme
+#: (docs/guide/index3.md, "Long chains")
+LONG_CHAIN_ROWS = 1000
+
+
 def _index3_failure_message(scene: Scene, tab: Tables, plan: RunPlan, r: SceneResult) -> str:
     """A planar trapezoidal_index3 run's failure: where (its substeps, its retry budget), a
     singular configuration nearby, and what may get past it."""
@@ -263,6 +268,14 @@ def _index3_failure_message(scene: Scene, tab: Tables, plan: RunPlan, r: SceneRe
                   "err_rtol and err_atol ask, whatever the step: its error estimate is noise "
                   "there. adaptive='estimated' (whose estimate is no difference of solves) "
                   "passes such poses, or looser err_rtol and err_atol do")
+    if (not note and formulation == "augmented_lagrangian" and r.status ==
+            Status.ERR_NEWTON_DIVERGED and scene.rows >= LONG_CHAIN_ROWS):
+        # measured on bar chains: its iterations grow with the length, and it fails from about
+        # 5000 bars, where the book's scheme runs at 4.5 iterations per step
+        remedy += (f". On {scene.rows} constraint rows: the augmented form's multiplier update "
+                   "contracts more slowly as a chain lengthens (its Newton iterations grow "
+                   "with N); formulation = 'index3' (the book's scheme, Newton on the "
+                   "multipliers) keeps its iteration count on long chains")
     note = f"; there {note}" if note else ""
     return (f"trapezoidal_index3/{formulation} on scene {scene.name!r}: {r.message} ({where})"
             f"{note}. {remedy}")
