@@ -166,6 +166,12 @@ STARTUP = {"rk4": 0, "bdf": 1}
 DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
 DAE_NONE = 0
 
+#: the DAE methods' Newton matrices, dense in both models (kernel/src/implicit/
+#: mbdk_variable_bdf.f90; SUNDIALS IDA's dense linear solver): the manifest's newton_matrix
+DAE_NEWTON_MATRIX = {"bdf": "bdf's Newton matrix E - c J by differences over the DAE's state "
+                            "(LAPACK LU)",
+                     "ida": "IDA's dense difference quotients, SUNDIALS dense LU"}
+
 # ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----
 # (its joint and force codes are the element registry's, above)
 

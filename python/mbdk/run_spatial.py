@@ -8,6 +8,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .checks import check_memory, memory_error
+from .codes import DAE_NEWTON_MATRIX
 from .errors import Status, exception_for, status_message
 from .ode import build_info
 from .options import empty, unpack
@@ -32,7 +33,6 @@ SI2_FORM = ("stabilised index-2 DAE (GSTIFF SI2): q' = T(q) (w - M^-1 C^T mu), w
             "no projection between steps")
 I3_FORM = ("index-3 DAE (GSTIFF I3): q' = T(q) w, w' = M^-1 (f - C^T lam), 0 = Phi on the "
            "independent rows; error test on q and h times w; no projection between steps")
-BDF_NEWTON = "bdf's Newton matrix E - c J by differences (LAPACK LU)"
 
 
 def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
@@ -149,11 +149,11 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
         manifest["linear_solve"] = SPATIAL_INDEX3_MATRIX[sparse]
     if plan.ida:
         manifest["form"] = SPATIAL_IDA_FORMS[formulation]
-        manifest["linear_solve"] = "IDA's dense difference quotients, SUNDIALS dense LU"
+        manifest["linear_solve"] = DAE_NEWTON_MATRIX["ida"]
         manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
                                        if scene.quaternion_norm == "project" else
                                        scene.quaternion_norm)
     if plan.dae_bdf:
         manifest["form"] = SI2_FORM if formulation == "si2" else I3_FORM
-        manifest["linear_solve"] = BDF_NEWTON
+        manifest["linear_solve"] = DAE_NEWTON_MATRIX["bdf"]
     return manifest
