@@ -18,10 +18,11 @@
 !> Jacobian in the velocities w (Phi' = C w: a rotation R -> R (I + skew(dtheta)) in the body
 !> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
 !> multipliers come from the Schur complement S = C M^-1 C^T: dense, by Cholesky, on a few rows
-!> (at most MBDK_SPATIAL_SPARSE_ROWS); above, with no row redundant and not the penalty
-!> formulation, by C in compact rows (each row's twelve columns on its two bodies) and the
-!> sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that an
-!> evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py measures it);
+!> (at most MBDK_SPATIAL_SPARSE_ROWS, or up to MBDK_SPATIAL_DENSE_MAX_ROWS where S would be
+!> more than half full: a few bodies under many joints); above, with no row redundant and not
+!> the penalty formulation, by C in compact rows (each row's twelve columns on its two bodies)
+!> and the sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that
+!> an evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py measures it);
 !> a joint tree's rows are then checked for independence connection by connection
 !> (tree_rows) instead of on the whole dense C (a loop's still are on C). The manifest names
 !> the path. Redundant joints (rows found dependent at the start, on the geometry:
@@ -177,6 +178,9 @@ module mbdk_spatial_model
   !> symbolic set-up on so few rows (the break-even of a spherical chain; the planar model's
   !> threshold is the same)
   integer, parameter, public :: MBDK_SPATIAL_SPARSE_ROWS = 12
+  !> ... but up to this many rows, an S more than half full keeps the dense path (choose_sparse;
+  !> not a tree of spherical joints)
+  integer, parameter, public :: MBDK_SPATIAL_DENSE_MAX_ROWS = 60
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
 
@@ -263,10 +267,11 @@ module mbdk_spatial_model
     !> the constrained solves by compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), with
     !> the blocks of M^-1 and of the geometry's weight (near_test's) per body
     logical :: sparse = .false.
-    !> a tree of spherical joints with independent rows at the start: C keeps its full rank at
-    !> every pose (each joint's three rows have the identity on the translation of the body
-    !> away from the root, so C is block triangular with blocks of full rank), and the near
-    !> test of a rank loss (the geometry's G, a second factorisation per evaluation) is skipped
+    !> a tree of spherical joints with independent rows at the start (two on one pair of
+    !> bodies are not: six rows on five freedoms): C keeps its full rank at every pose (each
+    !> joint's three rows have the identity on the translation of the body away from the root,
+    !> so C is block triangular with blocks of full rank), and the near test of a rank loss
+    !> (the geometry's G, a second factorisation per evaluation) is skipped
     logical :: regular_tree = .false.
     real(dp), allocatable :: minv_blk(:, :, :), geo_blk(:, :, :)
     integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
@@ -642,11 +647,11 @@ contains
       ! the rotation about the axis: body i's image of b2 stays normal to b1
       if (jt == MBDK_JOINT_PRISMATIC) &
         call add(PRIM_DOT1, r(1:3), r(4:6), &
-                 matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b2)), b1)
+                 rtmul(fr%rot(:, :, bi), rmul(fr%rot(:, :, bj), b2)), b1)
     case (MBDK_JOINT_ANGLE_DRIVER)
       ! u on body i: body j's b1 as body i sees it at the start; v = b1, w = a_j x b1 on j
       call add(PRIM_ANGLE, zero3, zero3, &
-               matmul(transpose(fr%rot(:, :, bi)), matmul(fr%rot(:, :, bj), b1)), b1)
+               rtmul(fr%rot(:, :, bi), rmul(fr%rot(:, :, bj), b1)), b1)
       model%prim(model%nprim)%wj = b2
       model%prim(model%nprim)%fn = r(13:17)
       model%has_drivers = .true.
@@ -858,13 +863,15 @@ contains
     ! many rows on a tree of joints: each joint's rows on its own (the whole C has the rank of
     ! its joints' then), so that neither a dense C nor its factorisation is ever formed
     independent = .false.
-    if (model%m > MBDK_SPATIAL_SPARSE_ROWS) then
+    tree = .false.
+    if (model%m > 0) then
       call joint_edges(jbody, model%nb, edge, tree, stat, asked)
       if (stat /= MBDK_SUCCESS) return
-      if (tree) call tree_rows(model, fr, t0, edge, independent, stat, asked)
+    end if
+    if (model%m > MBDK_SPATIAL_SPARSE_ROWS .and. tree) then
+      call tree_rows(model, fr, t0, edge, independent, stat, asked)
       if (stat /= MBDK_SUCCESS) return
     end if
-    model%regular_tree = independent .and. all(model%prim(1:model%nprim)%kind == PRIM_SPH)
     if (independent) then
       allocate (model%active(model%m), stat=astat)
       call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
@@ -881,10 +888,13 @@ contains
       if (stat /= MBDK_SUCCESS) return
       call move_alloc(rows, model%active)
       model%rank0 = size(model%active)
+      independent = model%rank0 == model%m
     else
       allocate (model%active(0), stat=astat)
       call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
     end if
+    model%regular_tree = tree .and. independent .and. &
+      all(model%prim(1:model%nprim)%kind == PRIM_SPH)
   end subroutine choose_active_rows
 
   !> The joints jbody(2, nj) (0: the ground) as edges between bodies: edge(k) of joint k, the
@@ -1130,9 +1140,9 @@ contains
     end if
     do b = 1, model%nb
       d = fr%r(:, b) - c
-      jw = matmul(model%inertia(:, :, b), fr%om(:, b))
+      jw = rmul(model%inertia(:, :, b), fr%om(:, b))
       mom(4:6) = mom(4:6) + model%mass(b) * mbdk_cross(d, fr%v(:, b)) + &
-        matmul(fr%rot(:, :, b), jw)
+        rmul(fr%rot(:, :, b), jw)
       msc(2) = msc(2) + model%mass(b) * norm2(d) * norm2(fr%v(:, b) - vc) + norm2(jw)
     end do
   end subroutine spatial_momenta
@@ -1298,8 +1308,8 @@ contains
     real(dp), intent(inout) :: c(:, :)
     real(dp) :: pi(3), pj(3)
     associate (i => pr%bi, j => pr%bj)
-      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      pi = fr%r(:, i) + rmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + rmul(fr%rot(:, :, j), pr%sj)
       phi = pi - pj
       call point_cols(fr, c, i, oi, pr%si, 1.0_dp)
       call point_cols(fr, c, j, oj, pr%sj, -1.0_dp)
@@ -1316,8 +1326,8 @@ contains
     real(dp), intent(inout) :: cr(:)
     real(dp) :: di(3), dj(3), ddi(3), ddj(3)
     associate (i => pr%bi, j => pr%bj)
-      di = matmul(fr%rot(:, :, i), pr%ui)
-      dj = matmul(fr%rot(:, :, j), pr%uj)
+      di = rmul(fr%rot(:, :, i), pr%ui)
+      dj = rmul(fr%rot(:, :, j), pr%uj)
       phi = dot_product(di, dj)
       call vec_cols(fr, cr, i, oi, pr%ui, dj)
       call vec_cols(fr, cr, j, oj, pr%uj, di)
@@ -1338,9 +1348,9 @@ contains
     real(dp), intent(inout) :: cr(:)
     real(dp) :: pi(3), pj(3), dj(3), h(3), hd(3)
     associate (i => pr%bi, j => pr%bj)
-      dj = matmul(fr%rot(:, :, j), pr%uj)
-      pi = fr%r(:, i) + matmul(fr%rot(:, :, i), pr%si)
-      pj = fr%r(:, j) + matmul(fr%rot(:, :, j), pr%sj)
+      dj = rmul(fr%rot(:, :, j), pr%uj)
+      pi = fr%r(:, i) + rmul(fr%rot(:, :, i), pr%si)
+      pj = fr%r(:, j) + rmul(fr%rot(:, :, j), pr%sj)
       h = pi - pj
       phi = dot_product(dj, h)
       call point_row(fr, cr, i, oi, pr%si, dj)
@@ -1366,9 +1376,9 @@ contains
       call mbdk_time_fn(pr%fn, t, f, fd, fdd)
       cf = cos(f)
       sf = sin(f)
-      di = matmul(fr%rot(:, :, i), pr%ui)
-      dv = matmul(fr%rot(:, :, j), pr%uj)
-      dw = matmul(fr%rot(:, :, j), pr%wj)
+      di = rmul(fr%rot(:, :, i), pr%ui)
+      dv = rmul(fr%rot(:, :, j), pr%uj)
+      dw = rmul(fr%rot(:, :, j), pr%wj)
       a = dot_product(di, dw)
       b = dot_product(di, dv)
       phi = cf * a - sf * b
@@ -1421,7 +1431,7 @@ contains
     if (b == 0) return
     cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
     ! -x^T R skew(s) W = W . (s x R^T x)
-    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, matmul(transpose(fr%rot(:, :, b)), x))
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, rtmul(fr%rot(:, :, b), x))
   end subroutine point_row
 
   !> the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
@@ -1431,7 +1441,7 @@ contains
     integer, intent(in) :: b, o
     real(dp), intent(in) :: u(3), x(3)
     if (b == 0) return
-    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, matmul(transpose(fr%rot(:, :, b)), x))
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, rtmul(fr%rot(:, :, b), x))
   end subroutine vec_cols
 
   !> the velocity of body b's point s
@@ -1440,7 +1450,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: s(3)
     real(dp) :: x(3)
-    x = fr%v(:, b) + matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
+    x = fr%v(:, b) + rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
   end function pvel
 
   !> the acceleration of body b's point s quadratic in its angular velocity, R (W x (W x s))
@@ -1449,7 +1459,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: s(3)
     real(dp) :: x(3)
-    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
+    x = rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
   end function pquad
 
   !> the rate of body b's vector R u
@@ -1458,7 +1468,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: u(3)
     real(dp) :: x(3)
-    x = matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
+    x = rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
   end function vvel
 
   !> the terms of the second derivative of body b's vector R u quadratic in W: a point's (pquad)
@@ -1470,6 +1480,33 @@ contains
     x = pquad(fr, b, u)
   end function vquad
 
+  !> R x and R^T x for a body's rotation: explicit shapes, so that the compiler unrolls them
+  !> (matmul on an array section of unknown shape goes to the library, with a temporary)
+  pure function rmul(r, x) result(y)
+    real(dp), intent(in) :: r(3, 3), x(3)
+    real(dp) :: y(3)
+    y = r(:, 1) * x(1) + r(:, 2) * x(2) + r(:, 3) * x(3)
+  end function rmul
+
+  !> W x for a body's 6 x 6 block (explicit shapes, as rmul)
+  pure function blk6(w, x) result(y)
+    real(dp), intent(in) :: w(6, 6), x(6)
+    real(dp) :: y(6)
+    integer :: k
+    y = w(:, 1) * x(1)
+    do k = 2, 6
+      y = y + w(:, k) * x(k)
+    end do
+  end function blk6
+
+  pure function rtmul(r, x) result(y)
+    real(dp), intent(in) :: r(3, 3), x(3)
+    real(dp) :: y(3)
+    y(1) = r(1, 1) * x(1) + r(2, 1) * x(2) + r(3, 1) * x(3)
+    y(2) = r(1, 2) * x(1) + r(2, 2) * x(2) + r(3, 2) * x(3)
+    y(3) = r(1, 3) * x(1) + r(2, 3) * x(2) + r(3, 3) * x(3)
+  end function rtmul
+
   !> M^-1 x for x in the velocity layout (6 per body).
   pure subroutine apply_minv(model, x, y)
     type(mbdk_spatial_model_t), intent(in) :: model
@@ -1479,7 +1516,7 @@ contains
     do b = 1, model%nb
       o = (b - 1) * 6
       y(o + 1:o + 3) = x(o + 1:o + 3) / model%mass(b)
-      y(o + 4:o + 6) = matmul(model%inv_inertia(:, :, b), x(o + 4:o + 6))
+      y(o + 4:o + 6) = rmul(model%inv_inertia(:, :, b), x(o + 4:o + 6))
     end do
   end subroutine apply_minv
 
@@ -1781,20 +1818,20 @@ contains
         case (MBDK_FORCE_POINT)
           b = model%fbody(1, k)
           fw(:, b) = fw(:, b) + r(4:6)
-          nb_(:, b) = nb_(:, b) + mbdk_cross(r(1:3), matmul(transpose(fr%rot(:, :, b)), r(4:6)))
+          nb_(:, b) = nb_(:, b) + mbdk_cross(r(1:3), rtmul(fr%rot(:, :, b), r(4:6)))
           power = power + dot_product(r(4:6), fr%v(:, b) + &
-                                      matmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), r(1:3))))
+                                      rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), r(1:3))))
         case (MBDK_FORCE_TORQUE)
           b = model%fbody(1, k)
-          nb_(:, b) = nb_(:, b) + matmul(transpose(fr%rot(:, :, b)), r(1:3))
-          power = power + dot_product(r(1:3), matmul(fr%rot(:, :, b), fr%om(:, b)))
+          nb_(:, b) = nb_(:, b) + rtmul(fr%rot(:, :, b), r(1:3))
+          power = power + dot_product(r(1:3), rmul(fr%rot(:, :, b), fr%om(:, b)))
         case (MBDK_FORCE_SPRING_DAMPER)
           i = model%fbody(1, k)
           j = model%fbody(2, k)
-          pi = fr%r(:, i) + matmul(fr%rot(:, :, i), r(1:3))
-          pj = fr%r(:, j) + matmul(fr%rot(:, :, j), r(4:6))
-          vi = fr%v(:, i) + matmul(fr%rot(:, :, i), mbdk_cross(fr%om(:, i), r(1:3)))
-          vj = fr%v(:, j) + matmul(fr%rot(:, :, j), mbdk_cross(fr%om(:, j), r(4:6)))
+          pi = fr%r(:, i) + rmul(fr%rot(:, :, i), r(1:3))
+          pj = fr%r(:, j) + rmul(fr%rot(:, :, j), r(4:6))
+          vi = fr%v(:, i) + rmul(fr%rot(:, :, i), mbdk_cross(fr%om(:, i), r(1:3)))
+          vj = fr%v(:, j) + rmul(fr%rot(:, :, j), mbdk_cross(fr%om(:, j), r(4:6)))
           d = pi - pj
           len = norm2(d)
           vs = vs + 0.5_dp * r(7) * (len - r(9))**2
@@ -1805,10 +1842,10 @@ contains
           power = power - r(8) * ldot**2
           fv = -f * e                            ! on body i
           fw(:, i) = fw(:, i) + fv
-          nb_(:, i) = nb_(:, i) + mbdk_cross(r(1:3), matmul(transpose(fr%rot(:, :, i)), fv))
+          nb_(:, i) = nb_(:, i) + mbdk_cross(r(1:3), rtmul(fr%rot(:, :, i), fv))
           if (j > 0) then
             fw(:, j) = fw(:, j) - fv
-            nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), matmul(transpose(fr%rot(:, :, j)), fv))
+            nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), rtmul(fr%rot(:, :, j), fv))
           end if
         case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
           i = model%fbody(1, k)
@@ -1988,6 +2025,12 @@ contains
       model%minv_blk(4:6, 4:6, b) = model%inv_inertia(:, :, b)
     end do
     call mbdk_compact_schur_init(work%cs, rbody, model%nb, 6, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ! a few bodies under many rows (the flyball governor: 4 bodies, 20 rows) make S mostly
+    ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T (a tree of
+    ! spherical joints stays: the sparse path spares it the near test)
+    if (size(work%cs%ai) > model%m**2 / 2 .and. model%m <= MBDK_SPATIAL_DENSE_MAX_ROWS .and. &
+        .not. model%regular_tree) model%sparse = .false.
   end subroutine choose_sparse
 
   !> C x for C in compact rows cc (the sparse path); absolute: |C| |x|
@@ -2025,10 +2068,10 @@ contains
         if (b == 0) cycle
         if (absolute) then
           dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
-            matmul(abs(model%minv_blk(:, :, b)), abs(cc(k, 6 * a - 5:6 * a))) * abs(x(k))
+            blk6(abs(model%minv_blk(:, :, b)), abs(cc(k, 6 * a - 5:6 * a))) * abs(x(k))
         else
           dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
-            matmul(model%minv_blk(:, :, b), cc(k, 6 * a - 5:6 * a)) * x(k)
+            blk6(model%minv_blk(:, :, b), cc(k, 6 * a - 5:6 * a)) * x(k)
         end if
       end do
     end do
@@ -2162,7 +2205,7 @@ contains
         gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
               (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
               self%opt%baumgarte_beta**2 * phi
-      if (self%opt%formulation == MBDK_FORM_REDUCED) then
+      if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
@@ -2485,7 +2528,7 @@ contains
     qn = 0.0_dp
     do b = 1, model%nb
       kin = kin + 0.5_dp * model%mass(b) * dot_product(fr%v(:, b), fr%v(:, b)) + &
-        0.5_dp * dot_product(fr%om(:, b), matmul(model%inertia(:, :, b), fr%om(:, b)))
+        0.5_dp * dot_product(fr%om(:, b), rmul(model%inertia(:, :, b), fr%om(:, b)))
       if (model%opt%rotation == MBDK_ROT_QUATERNION) then
         k = qi(model, b) + 3
         qn = max(qn, abs(norm2(y(k:k + 3)) - 1.0_dp))
@@ -2801,7 +2844,7 @@ contains
     integer :: b, o
     do b = 1, self%nb
       o = (b - 1) * 6
-      jw = matmul(self%inertia(:, :, b), fr%om(:, b))
+      jw = rmul(self%inertia(:, :, b), fr%om(:, b))
       f(o + 1:o + 3) = fw(:, b)
       f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
     end do
@@ -2847,7 +2890,7 @@ contains
     do b = 1, self%nb
       o = (b - 1) * 6
       y(o + 1:o + 3) = self%mass(b) * x(o + 1:o + 3)
-      y(o + 4:o + 6) = matmul(self%inertia(:, :, b), x(o + 4:o + 6))
+      y(o + 4:o + 6) = rmul(self%inertia(:, :, b), x(o + 4:o + 6))
     end do
   end subroutine spatial_mass_times
 
