@@ -69,7 +69,7 @@ def test_the_few_rows_keep_the_dense_path():
     assert r.manifest["linear_solve"] == SPATIAL_SCHUR[False]
     fly = mbdk.scene("flyball_governor")           # 20 rows on 4 bodies
     assert fly.rows == 20 and len(fly.bodies) == 4
-    r = mbdk.simulate(fly, "rk4", h=1e-3, t_end=0.01)
+    r = mbdk.simulate(fly, "rk4", h=1e-4, t_end=0.001)
     assert r.manifest["linear_solve"] == SPATIAL_SCHUR[False]
     r = mbdk.simulate(spatial_chain(7), "rk4", h=1e-3, t_end=0.01)      # 21 rows
     assert r.manifest["linear_solve"] == SPATIAL_SCHUR[True]
