@@ -168,6 +168,8 @@ DAE_NONE = 0
 
 #: the DAE methods' Newton matrices, dense in both models (kernel/src/implicit/
 #: mbdk_variable_bdf.f90; SUNDIALS IDA's dense linear solver): the manifest's newton_matrix
+#: (a spatial run's linear_solve too: the spatial model takes no constrained solve of its own
+#: into a DAE run)
 DAE_NEWTON_MATRIX = {"bdf": "bdf's Newton matrix E - c J by differences over the DAE's state "
                             "(LAPACK LU)",
                      "ida": "IDA's dense difference quotients, SUNDIALS dense LU"}

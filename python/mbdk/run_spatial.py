@@ -149,11 +149,11 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
         manifest["linear_solve"] = SPATIAL_INDEX3_MATRIX[sparse]
     if plan.ida:
         manifest["form"] = SPATIAL_IDA_FORMS[formulation]
-        manifest["linear_solve"] = DAE_NEWTON_MATRIX["ida"]
+        manifest["linear_solve"] = manifest["newton_matrix"] = DAE_NEWTON_MATRIX["ida"]
         manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
                                        if scene.quaternion_norm == "project" else
                                        scene.quaternion_norm)
     if plan.dae_bdf:
         manifest["form"] = SI2_FORM if formulation == "si2" else I3_FORM
-        manifest["linear_solve"] = DAE_NEWTON_MATRIX["bdf"]
+        manifest["linear_solve"] = manifest["newton_matrix"] = DAE_NEWTON_MATRIX["bdf"]
     return manifest

@@ -1425,10 +1425,11 @@ contains
 
   end subroutine newton
 
-  !> A matrix for Newton at the current iterate (fresh: built there). One by differences first
-  !> has its penalty renewed at the iterate, once per step (what an old augmented matrix loses
-  !> first: cs alpha C^T C is a thousand times M); where that did not serve a step, the next
-  !> COOL_START steps build theirs anew.
+  !> A matrix for Newton at the current iterate (fresh: built there). One by differences, or a
+  !> mechanism's own that is costly to build (has_i3_renew), first has its penalty renewed at
+  !> the iterate, once per step (what an old augmented matrix loses first: cs alpha C^T C is a
+  !> thousand times M); where that did not serve a step, the next COOL_START steps build theirs
+  !> anew.
   subroutine new_matrix(s, mech, boosted, penalty_renewed, fresh, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech
@@ -1651,6 +1652,8 @@ contains
     real(dp) :: sh, dlt, keep, wmax
     integer :: j, nv, m
     if (.not. s%fd_matrix) then
+      ! (a build that fails part-way leaves no tangent to renew)
+      s%have_fd = .false.
       call mech%i3_matrix(s%aux, s%book, s%tn, s%e, s%ln, s%cs, s%cd, s%alpha, ierr)
       ! a model's matrix costly to build keeps its tangent for the penalty's renewal
       if (ierr == MBDK_SUCCESS .and. mech%has_i3_renew .and. .not. s%book) then

@@ -2,14 +2,15 @@
 !> manual; mbdk_mechanism lists what each procedure gives). The evaluation is the model's
 !> (frames, forces with the gyroscopic moment, C). Two paths, the model's (model%sparse):
 !>
-!> Dense (at most MBDK_SPATIAL_SPARSE_ROWS rows, or redundant joints): C dense, the Newton
-!> matrix the integrator's differences over the whole state (has_i3_matrix off), and the
-!> constrained solves:
+!> Dense (the model's dense path: at most MBDK_SPATIAL_SPARSE_ROWS rows, redundant joints, or
+!> a few bodies under many rows): C dense, the Newton matrix the integrator's differences over
+!> the whole state (has_i3_matrix off), and the constrained solves:
 !>   exact    S = C_a M^-1 C_a^T on the independent rows a the model solves (work%active: all
 !>            rows, or the subset a redundant scene keeps), by Cholesky, each pivot against its
 !>            row's diagonal at roundoff (SOLVE_RTOL) and, where the caller asks, the geometric
 !>            near test of the model (near_test, the rows' C W C^T with rotations at the length
-!>            scale); the other rows get no multiplier;
+!>            scale; none on a tree of spherical joints, model%regular_tree); the other rows get
+!>            no multiplier;
 !>   regular  where that fails and the caller allows it (a singular pose): the augmented
 !>            Lagrangian iteration of Bayo and Ledesma (1996) on all rows,
 !>              (M + beta C^T C) x_k+1 = b - C^T mu_k + beta C^T c,  mu_k+1 = mu_k + beta (C x - c),
@@ -378,9 +379,10 @@ contains
     end select
   end procedure spatial_i3_matrix_solve
 
-  !> The sparse path's objects (module header): C's compact rows, S's pattern (the model's,
-  !> copied: the ODE path's solves keep theirs), the body pattern, the Newton matrix's pattern
-  !> and symbolic factorisation, and the bodies' colors.
+  !> The sparse path's objects (module header): C's compact rows, S's pattern (built as the
+  !> model's, an object of its own: the ODE path's solves keep theirs), the body pattern, the
+  !> Newton matrix's pattern and symbolic factorisation (the augmented form's: also the
+  !> positions of C^T C's products and the regular path's analysis), and the bodies' colors.
   subroutine sparse_create(self, aux, book, stat, asked)
     class(mbdk_spatial_model_t), intent(in) :: self
     type(spatial_i3_aux_t), intent(inout) :: aux
@@ -436,8 +438,6 @@ contains
       end do
     end do
     aux%rptr(m + 1) = n + 1
-    call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
-    if (stat /= MBDK_SUCCESS) return
     allocate (aux%kx(aux%bp%nnz), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * aux%bp%nnz, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -445,12 +445,14 @@ contains
       call mbdk_kkt_pattern_init(aux%bp, aux%rptr, aux%rcol(1:n), aux%ldl, aux%kpos, &
                                  aux%dpos_r, aux%dpos_c, stat, asked, unsymmetric=.true.)
     else
+      call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
       call mbdk_sparse_ldlt_analyze(aux%ldl, nv, aux%bp%ap, aux%bp%ai, stat, asked, &
                                     unsymmetric=.true.)
       if (stat /= MBDK_SUCCESS) return
       ! the augmented form's projections: the regular path's M + beta C^T C, symmetric
       call mbdk_sparse_ldlt_analyze(aux%reg, nv, aux%bp%ap, aux%bp%ai, stat, asked)
-      aux%has_reg = stat == MBDK_SUCCESS
+      aux%has_reg = .true.
     end if
     if (stat /= MBDK_SUCCESS) return
     call color_bodies(aux%bp, aux%color_ptr, aux%color_body, stat, asked)

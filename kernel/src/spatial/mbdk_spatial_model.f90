@@ -19,7 +19,7 @@
 !> frame moves Phi by C_W dtheta) and gamma = -(C' w), the terms of Phi'' quadratic in w. The
 !> multipliers come from the Schur complement S = C M^-1 C^T: dense, by Cholesky, on a few rows
 !> (at most MBDK_SPATIAL_SPARSE_ROWS, or up to MBDK_SPATIAL_DENSE_MAX_ROWS where S would be
-!> more than half full: a few bodies under many joints); above, with no row redundant and not
+!> more than three quarters full: a few bodies under many joints); above, with no row redundant and not
 !> the penalty formulation, by C in compact rows (each row's twelve columns on its two bodies)
 !> and the sparse LDL^T of S under AMD (mbdk_compact_schur: no fill on a chain or tree), so that
 !> an evaluation's cost and memory grow as the rows do (benchmarks/spatial_chain.py measures it);
@@ -178,8 +178,8 @@ module mbdk_spatial_model
   !> symbolic set-up on so few rows (the break-even of a spherical chain; the planar model's
   !> threshold is the same)
   integer, parameter, public :: MBDK_SPATIAL_SPARSE_ROWS = 12
-  !> ... but up to this many rows, an S more than half full keeps the dense path (choose_sparse;
-  !> not a tree of spherical joints)
+  !> ... but up to this many rows, an S more than three quarters full keeps the dense path
+  !> (choose_sparse)
   integer, parameter, public :: MBDK_SPATIAL_DENSE_MAX_ROWS = 60
   integer, parameter :: PRIM_SPH = 1, PRIM_DOT1 = 2, PRIM_DOT2 = 3, PRIM_ANGLE = 4, &
     PRIM_SLIDE = 5
@@ -268,7 +268,7 @@ module mbdk_spatial_model
     !> the blocks of M^-1 and of the geometry's weight (near_test's) per body
     logical :: sparse = .false.
     !> a tree of spherical joints with independent rows at the start (two on one pair of
-    !> bodies are not: six rows on five freedoms): C keeps its full rank at every pose (each
+    !> bodies are not: six rows of rank five): C keeps its full rank at every pose (each
     !> joint's three rows have the identity on the translation of the body away from the root,
     !> so C is block triangular with blocks of full rank), and the near test of a rank loss
     !> (the geometry's G, a second factorisation per evaluation) is skipped
@@ -1480,7 +1480,7 @@ contains
     x = pquad(fr, b, u)
   end function vquad
 
-  !> R x and R^T x for a body's rotation: explicit shapes, so that the compiler unrolls them
+  !> R x for a body's rotation (or inertia): explicit shapes, so that the compiler unrolls it
   !> (matmul on an array section of unknown shape goes to the library, with a temporary)
   pure function rmul(r, x) result(y)
     real(dp), intent(in) :: r(3, 3), x(3)
@@ -1499,6 +1499,7 @@ contains
     end do
   end function blk6
 
+  !> R^T x (as rmul)
   pure function rtmul(r, x) result(y)
     real(dp), intent(in) :: r(3, 3), x(3)
     real(dp) :: y(3)
@@ -1989,8 +1990,9 @@ contains
   end subroutine wear_rates
 
   !> The sparse path (model%sparse) where the rows are many (MBDK_SPATIAL_SPARSE_ROWS), none
-  !> redundant (a redundant set keeps the dense path, whose row selection it needs) and the
-  !> formulation not the penalty one (its matrix is M + alpha C^T C, not S): S's pattern from
+  !> redundant (a redundant set keeps the dense path, whose row selection it needs), the
+  !> formulation not the penalty one (its matrix is M + alpha C^T C, not S) and, up to
+  !> MBDK_SPATIAL_DENSE_MAX_ROWS rows, S no more than three quarters full: S's pattern from
   !> the rows' bodies, and the per-body blocks of M^-1 and of the geometry's weight.
   subroutine choose_sparse(model, work, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
@@ -2026,11 +2028,13 @@ contains
     end do
     call mbdk_compact_schur_init(work%cs, rbody, model%nb, 6, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    ! a few bodies under many rows (the flyball governor: 4 bodies, 20 rows) make S mostly
-    ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T (a tree of
-    ! spherical joints stays: the sparse path spares it the near test)
-    if (size(work%cs%ai) > model%m**2 / 2 .and. model%m <= MBDK_SPATIAL_DENSE_MAX_ROWS .and. &
-        .not. model%regular_tree) model%sparse = .false.
+    ! a few bodies under many rows (the flyball governor: 4 bodies, 20 rows) make S nearly
+    ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T (measured:
+    ! 37 against 51 us per rk4 step); a chain's S of 15 rows, 52 % full, is still cheaper
+    ! sparse (12 against 16 us)
+    if (model%m <= MBDK_SPATIAL_DENSE_MAX_ROWS) then
+      if (4 * size(work%cs%ai) > 3 * model%m**2) model%sparse = .false.
+    end if
   end subroutine choose_sparse
 
   !> C x for C in compact rows cc (the sparse path); absolute: |C| |x|
