@@ -343,15 +343,15 @@ contains
     type is (spatial_i3_aux_t)
       if (.not. aux%sparse) return
       if (book) then
-        call sparse_k(self, aux, t, e, lam, ck, cd, 0.0_dp, aux%kx, stat)
+        call sparse_k(self, aux, t, e, lam, ck, cd, aux%kx, stat)
         if (stat /= MBDK_SUCCESS) return
         call kkt_values(self, aux)
       else
         ! K kept apart for the penalty's renewal (spatial_i3_matrix_renew)
-        call sparse_k(self, aux, t, e, lam, ck, cd, 0.0_dp, aux%kx, stat)
+        call sparse_k(self, aux, t, e, lam, ck, cd, aux%kx, stat)
         if (stat /= MBDK_SUCCESS) return
         aux%ldl%ax = aux%kx
-        call add_ctc(self, aux, ck * alpha, aux%ldl%ax)
+        call add_ctc(aux%cc, aux%rptr, aux%rslot, aux%dtd_pos, ck * alpha, aux%ldl%ax)
       end if
       call mbdk_sparse_ldlt_factor_lu(aux%ldl, LDLT_TOL, stat)
     end select
@@ -364,7 +364,7 @@ contains
     type is (spatial_i3_aux_t)
       if (.not. aux%sparse .or. aux%book) return
       aux%ldl%ax = aux%kx
-      call add_ctc(self, aux, ck * alpha, aux%ldl%ax)
+      call add_ctc(aux%cc, aux%rptr, aux%rslot, aux%dtd_pos, ck * alpha, aux%ldl%ax)
       call mbdk_sparse_ldlt_factor_lu(aux%ldl, LDLT_TOL, stat)
     end select
   end procedure spatial_i3_matrix_renew
@@ -529,12 +529,12 @@ contains
     g = g - compact_ct(self, aux%ccw, lam)
   end subroutine sparse_g
 
-  !> kx (aux%bp's pattern) = M - ck dg/dq - cd dg/dv (+ ck alpha C^T C)
-  !> at (t, e%q, e%v) with g = f - C^T lam (module header), C of the last evaluation.
-  subroutine sparse_k(self, aux, t, e, lam, ck, cd, alpha, kx, stat)
+  !> kx (aux%bp's pattern) = M - ck dg/dq - cd dg/dv at (t, e%q, e%v), g = f - C^T lam (module
+  !> header; the augmented form's penalty is added by its caller)
+  subroutine sparse_k(self, aux, t, e, lam, ck, cd, kx, stat)
     class(mbdk_spatial_model_t), intent(in) :: self
     type(spatial_i3_aux_t), intent(inout) :: aux
-    real(dp), intent(in) :: t, ck, cd, alpha
+    real(dp), intent(in) :: t, ck, cd
     type(mbdk_i3_eval_t), intent(in) :: e
     real(dp), intent(in), contiguous :: lam(:)
     real(dp), intent(out), contiguous :: kx(:)
@@ -579,7 +579,6 @@ contains
         end do
       end do
       call add_mass_blocks(self, bp, kx)
-      if (alpha /= 0.0_dp) call add_ctc(self, aux, ck * alpha, kx)
     end associate
   end subroutine sparse_k
 
@@ -600,21 +599,21 @@ contains
     end do
   end subroutine add_mass_blocks
 
-  !> kx += w C^T C in the body pattern, C the compact rows of the last evaluation
-  subroutine add_ctc(self, aux, w, kx)
-    class(mbdk_spatial_model_t), intent(in) :: self
-    type(spatial_i3_aux_t), intent(in) :: aux
-    real(dp), intent(in) :: w
+  !> kx += w C^T C in the body pattern, C the compact rows of the last evaluation (aux's lists;
+  !> kx may be one of aux's arrays, so aux comes in by its parts)
+  subroutine add_ctc(cc, rptr, rslot, dtd_pos, w, kx)
+    real(dp), intent(in) :: cc(:, :), w
+    integer, intent(in) :: rptr(:), rslot(:), dtd_pos(:)
     real(dp), intent(inout) :: kx(:)
     integer :: r, i, j, n
     real(dp) :: x
     n = 0
-    do r = 1, self%m
-      do j = aux%rptr(r), aux%rptr(r + 1) - 1
-        x = w * aux%cc(r, aux%rslot(j))
-        do i = aux%rptr(r), aux%rptr(r + 1) - 1
+    do r = 1, size(rptr) - 1
+      do j = rptr(r), rptr(r + 1) - 1
+        x = w * cc(r, rslot(j))
+        do i = rptr(r), rptr(r + 1) - 1
           n = n + 1
-          kx(aux%dtd_pos(n)) = kx(aux%dtd_pos(n)) + x * aux%cc(r, aux%rslot(i))
+          kx(dtd_pos(n)) = kx(dtd_pos(n)) + x * cc(r, rslot(i))
         end do
       end do
     end do
@@ -646,7 +645,7 @@ contains
     aux%beta = regular_beta(self, aux%cc, aux%x)
     aux%reg%ax = 0.0_dp
     call add_mass_blocks(self, aux%bp, aux%reg%ax)
-    call add_ctc(self, aux, aux%beta, aux%reg%ax)
+    call add_ctc(aux%cc, aux%rptr, aux%rslot, aux%dtd_pos, aux%beta, aux%reg%ax)
     call mbdk_sparse_ldlt_factor(aux%reg, LDLT_TOL, stat)
   end subroutine sparse_regular
 
