@@ -2029,9 +2029,8 @@ contains
     call mbdk_compact_schur_init(work%cs, rbody, model%nb, 6, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! a few bodies under many rows (the flyball governor: 4 bodies, 20 rows) make S nearly
-    ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T (measured:
-    ! 37 against 51 us per rk4 step); a chain's S of 15 rows, 52 % full, is still cheaper
-    ! sparse (12 against 16 us)
+    ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T; a chain's S,
+    ! half full at 15 rows, is still cheaper sparse (the performance guide has the figures)
     if (model%m <= MBDK_SPATIAL_DENSE_MAX_ROWS) then
       if (4 * size(work%cs%ai) > 3 * model%m**2) model%sparse = .false.
     end if
