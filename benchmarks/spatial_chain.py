@@ -127,7 +127,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="N up to 128")
     args = ap.parse_args(argv)
     sizes = ([int(x) for x in args.sizes.split(",")] if args.sizes else
-             [2, 4, 8, 16, 32, 64, 128] + ([] if args.quick else [256, 512, 1024]))
+             [2, 4, 8, 16, 32, 64, 128] + ([] if args.quick else [256, 512, 1024, 4096, 10000]))
     print(f"{'N':>6} {'rows':>6} {'mbdk rk4 us/step':>17} {'growth':>7} "
           f"{'exudyn GA us/step':>18} {'rk4/exudyn':>11} {'mbdk GA us/step':>16} "
           f"{'growth':>7} {'GA/exudyn':>10} {'it/step':>8}  path")
