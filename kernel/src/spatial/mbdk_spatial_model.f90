@@ -2063,20 +2063,14 @@ contains
     real(dp), intent(in) :: cc(:, :), x(:)
     logical, intent(in) :: absolute
     real(dp) :: dx(6 * model%nb)
-    integer :: k, a, b
-    dx = 0.0_dp
-    do k = 1, size(cc, 1)
-      do a = 1, 2
-        b = model%work%cs%rbody(a, k)
-        if (b == 0) cycle
-        if (absolute) then
-          dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
-            blk6(abs(model%minv_blk(:, :, b)), abs(cc(k, 6 * a - 5:6 * a))) * abs(x(k))
-        else
-          dx(6 * b - 5:6 * b) = dx(6 * b - 5:6 * b) + &
-            blk6(model%minv_blk(:, :, b), cc(k, 6 * a - 5:6 * a)) * x(k)
-        end if
-      end do
+    integer :: b
+    dx = compact_ct(model, cc, x, absolute)
+    do b = 1, model%nb
+      if (absolute) then
+        dx(6 * b - 5:6 * b) = blk6(abs(model%minv_blk(:, :, b)), dx(6 * b - 5:6 * b))
+      else
+        dx(6 * b - 5:6 * b) = blk6(model%minv_blk(:, :, b), dx(6 * b - 5:6 * b))
+      end if
     end do
   end function compact_minv_ct
 
@@ -2119,18 +2113,26 @@ contains
     call mbdk_compact_schur_factor(cs, cc, model%minv_blk, SOLVE_RTOL, stat, rigid=.true.)
   end subroutine compact_factor
 
-  !> C^T x (6 nb) for C in compact rows cc (the sparse path)
-  pure function compact_ct(model, cc, x) result(y)
+  !> C^T x (6 nb) for C in compact rows cc (the sparse path); absolute: |C^T| |x|
+  pure function compact_ct(model, cc, x, absolute) result(y)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: cc(:, :), x(:)
+    logical, intent(in), optional :: absolute
     real(dp) :: y(6 * model%nb)
     integer :: k, a, b
+    logical :: ab
+    ab = .false.
+    if (present(absolute)) ab = absolute
     y = 0.0_dp
     do k = 1, size(cc, 1)
       do a = 1, 2
         b = model%work%cs%rbody(a, k)
         if (b == 0) cycle
-        y(6 * b - 5:6 * b) = y(6 * b - 5:6 * b) + cc(k, 6 * a - 5:6 * a) * x(k)
+        if (ab) then
+          y(6 * b - 5:6 * b) = y(6 * b - 5:6 * b) + abs(cc(k, 6 * a - 5:6 * a)) * abs(x(k))
+        else
+          y(6 * b - 5:6 * b) = y(6 * b - 5:6 * b) + cc(k, 6 * a - 5:6 * a) * x(k)
+        end if
       end do
     end do
   end function compact_ct
