@@ -42,7 +42,7 @@ static const double mass[NB] = {1.0};
 static const double inertia[NB * 9] = {0.005, 0, 0, 0, 0.005, 0, 0, 0, 0.01};
 static const int jtype[NJ] = {MBDK_JOINT_SPHERICAL}, jbody[2 * NJ] = {1, 0};
 static const double jreal[NJ * MBDK_SPATIAL_JOINT_REALS] = {
-    0.0, -4.478210340602475e-18, -0.1, 0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0};
+    0.0, -3.469446951953614e-18, -0.1, 0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0};
 static const int ftype[NF] = {MBDK_FORCE_GRAVITY}, fbody[2 * NF] = {0, 0};
 static const double freal[NF * MBDK_SPATIAL_FORCE_REALS] = {0, 0, -9.81};
 /* r (3), p (4), r' (3), Omega (3) */

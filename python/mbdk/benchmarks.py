@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError
+from .rotations import dot_fixed, norm_fixed
 from .scene_file import scene_from_dict
 
 G = 9.81
@@ -75,12 +76,12 @@ def spatial_chain_elements(n: int, bend: float = 0.3) -> tuple[list, list]:
     for i in range(n):
         a = bend if i % 2 else -bend
         d = np.array([np.cos(a), 0.5 * np.sin(a), 0.5 * np.sin(a)])
-        d /= np.linalg.norm(d)
-        half = (ex + d) / np.linalg.norm(ex + d)     # the quaternion turning x onto d
+        d /= norm_fixed(d)
+        half = (ex + d) / norm_fixed(ex + d)     # the quaternion turning x onto d
         bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
                        "shape": {"type": "bar", "length": 1.0},
                        "position": (p + 0.5 * d).tolist(),
-                       "quaternion": [float(half @ ex), *np.cross(ex, half).tolist()]})
+                       "quaternion": [dot_fixed(half, ex), *np.cross(ex, half).tolist()]})
         joint = {"name": f"S{i}", "type": "spherical", "body1": f"b{i}",
                  "point1": [-0.5, 0.0, 0.0]}
         if i:

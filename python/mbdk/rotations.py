@@ -22,6 +22,27 @@ from .errors import InvalidInputError, SingularMatrixError, Status
 SEQUENCES = ("121", "123", "131", "132", "212", "213", "231", "232", "312", "313", "321", "323")
 
 
+def dot_fixed(a, b) -> float:
+    """a . b summed left to right in Python floats. A scene's numbers (body-frame points and
+    axes, unit vectors, initial states) go through this and not numpy's dot or matmul, which
+    call BLAS: its kernel, chosen for the CPU, orders a sum its own way, and the last bits of a
+    scene, and of every run from it, would change with the machine."""
+    s = 0.0
+    for x, y in zip(a, b):
+        s += float(x) * float(y)
+    return s
+
+
+def norm_fixed(a) -> float:
+    """|a| by dot_fixed (not np.linalg.norm, which calls BLAS)."""
+    return float(np.sqrt(dot_fixed(a, a)))
+
+
+def matvec_fixed(m, x) -> np.ndarray:
+    """m x row by row by dot_fixed (not m @ x, which calls BLAS); m.T for R^T x."""
+    return np.array([dot_fixed(row, x) for row in np.asarray(m)])
+
+
 class GimbalLockError(SingularMatrixError):
     """The angle rates of an angular velocity are undefined: the sequence's middle angle is at
     its singular value, where two of the three rotation axes coincide."""

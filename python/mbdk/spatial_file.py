@@ -110,7 +110,7 @@ import numpy as np
 from .checks import NUMBER_MAX, NUMBER_MIN, number_problem, show
 from .codes import (NORMS, ROTATIONS, SPATIAL_FORCE_CODES, SPATIAL_FORCE_REALS,
                     SPATIAL_JOINT_CODES, WEAR_LAWS)
-from .rotations import from_angles, from_quaternion
+from .rotations import from_angles, from_quaternion, matvec_fixed, norm_fixed
 from .scene import (DRIVERS, GROUND, SPATIAL_FORCE_TYPES, SPATIAL_TWO_BODY_FORCES, Body, Scene,
                     SceneError, SpatialBody, SpatialForce, SpatialJoint, Wear)
 from .scene_fields import (FieldReader, check_wear_contacts, read_friction, read_wear,
@@ -148,7 +148,7 @@ class _SpatialReader(FieldReader):
             return None
         if not np.linalg.norm(v) > 0:
             raise self.err(fld, f"= {v.tolist()} has zero length; an axis needs a direction")
-        return v / np.linalg.norm(v)
+        return v / norm_fixed(v)
 
 
 def _inertia(r: _SpatialReader, mass: float) -> np.ndarray:
@@ -241,7 +241,7 @@ def _orientation(r: _SpatialReader) -> np.ndarray:
     f = given[0]
     if f == "quaternion":
         q = r.vec3("quaternion", n=4)
-        norm = float(np.linalg.norm(q))
+        norm = norm_fixed(q)
         if not abs(norm - 1) <= WRITTEN_UNIT_TOL:
             raise r.err("quaternion", f"= {q.tolist()} has norm {norm:.12g}; a rotation's "
                                       "quaternion has norm 1 (to the precision it is written "
@@ -272,7 +272,7 @@ def _spatial_body(r: _SpatialReader) -> SpatialBody:
         raise r.err("omega", "and 'omega_body' are both given; give one")
     om = r.vec3("omega_body", np.zeros(3))
     if r.has("omega"):
-        om = rot.T @ r.vec3("omega")
+        om = matvec_fixed(rot.T, r.vec3("omega"))
     b = SpatialBody(name, mass, j, r.vec3("position", np.zeros(3)), rot,
                     r.vec3("velocity", np.zeros(3)), om)
     r.done()
@@ -310,7 +310,7 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
         if r.has("point1") or r.has("point2"):
             raise r.err("at", "and point1/point2 are both given; give one")
         at = r.vec3("at")
-        p1, p2 = R1.T @ (at - r1), R2.T @ (at - r2)
+        p1, p2 = matvec_fixed(R1.T, at - r1), matvec_fixed(R2.T, at - r2)
     else:
         p1 = r.vec3("point1", np.zeros(3))
         p2 = r.vec3("point2", np.zeros(3))
@@ -324,13 +324,13 @@ def _spatial_joint(r: _SpatialReader, bodies: dict) -> SpatialJoint:
                                     "function, a number or {offset, rate, amplitude, omega, phase}")
     if typ in ("revolute", "cylindrical", "prismatic", "angle_driver", "slide_driver"):
         ax = r.unit3("axis", required=True)
-        a1, a2 = R1.T @ ax, R2.T @ ax
+        a1, a2 = matvec_fixed(R1.T, ax), matvec_fixed(R2.T, ax)
     elif typ == "universal":
         ax1, ax2 = r.unit3("axis1", required=True), r.unit3("axis2", required=True)
         if abs(ax1 @ ax2) > 1e-9:
             raise r.err("axis2", f"= {ax2.tolist()} is not normal to axis1 = {ax1.tolist()} "
                                  f"(cosine {ax1 @ ax2:.3g}); a universal joint's two axes are")
-        a1, a2 = R1.T @ ax1, R2.T @ ax2
+        a1, a2 = matvec_fixed(R1.T, ax1), matvec_fixed(R2.T, ax2)
     j = SpatialJoint(name, typ, b1, b2, p1, p2, a1, a2, fn)
     r.done()
     return j
@@ -367,13 +367,15 @@ def _spatial_force(r: _SpatialReader, bodies: dict) -> SpatialForce:
     if b1 == b2:
         raise r.err("body2", f"= {b2!r} is body1 too; a spring joins two bodies")
     (r1, R1), (r2, R2) = _frame(bodies, b1), _frame(bodies, b2)
-    p1 = R1.T @ (r.vec3("at1") - r1) if r.has("at1") else r.vec3("point1", np.zeros(3))
-    p2 = R2.T @ (r.vec3("at2") - r2) if r.has("at2") else r.vec3("point2", np.zeros(3))
+    p1 = (matvec_fixed(R1.T, r.vec3("at1") - r1) if r.has("at1") else
+          r.vec3("point1", np.zeros(3)))
+    p2 = (matvec_fixed(R2.T, r.vec3("at2") - r2) if r.has("at2") else
+          r.vec3("point2", np.zeros(3)))
     k = r.num("stiffness", 0.0, required=typ == "spring", nonneg=True) if typ != "damper" else 0.0
     c = r.num("damping", 0.0, required=typ == "damper", nonneg=True) if typ != "spring" else 0.0
     rest = r.num("rest_length", None, nonneg=True)
     if rest is None:
-        rest = float(np.linalg.norm(r1 + R1 @ p1 - r2 - R2 @ p2))
+        rest = norm_fixed(r1 + matvec_fixed(R1, p1) - r2 - matvec_fixed(R2, p2))
     return _done(r, SpatialForce("spring_damper", name, b1, b2,
                                  reals=(*p1, *p2, k, c, rest)))
 
