@@ -111,14 +111,17 @@ def test_a_ten_thousand_body_spatial_chain_sets_up_and_steps():
     ("rk4", {"h": 1e-3, "formulation": "reduced"}),
     ("rk4", {"h": 1e-3, "formulation": "projection"}),
     ("ida", {"rtol": 1e-9, "atol": 1e-11, "dt_out": 0.1}),
+    ("bdf", {"formulation": "si2", "rtol": 1e-9, "atol": 1e-11, "dt_out": 0.1}),
+    ("bdf", {"formulation": "i3", "rtol": 1e-9, "atol": 1e-11, "dt_out": 0.1}),
     ("trapezoidal_index3", {"h": 1e-3}),
 ])
 def test_the_sparse_path_is_the_dense_one_on_a_driven_chain(method, kw):
     """The sparse path (41 rows, none redundant) against the dense one on the same motion (one
     hinge doubled: redundant rows, which only the dense path's row selection takes), the root
-    driven by f(t) = 0.3 sin(2 t) (Phi_t in both), by the ODE formulations, ida and the index-3 family (whose own Newton
-    matrices are dense either way): the same q and the same driven angle to the methods'
-    roundoff."""
+    driven by f(t) = 0.3 sin(2 t) (Phi_t in both), by the ODE formulations, ida (its Newton
+    matrix dense either way), bdf on the DAE (its Newton matrix sparse on the sparse path:
+    mbdk_mechanism_dae) and the index-3 family: the same q and the same driven angle to the
+    methods' roundoff."""
     planar = bar_chain(8, -30.0)
     start = mbdk.simulate(planar, "rk4", h=1e-3, t_end=1e-3)
     runs = {}

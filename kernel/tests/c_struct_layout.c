@@ -16,7 +16,8 @@ static const struct field stats[] = {
     F(mbdk_stats, newton_iterations), F(mbdk_stats, startup_steps),
     F(mbdk_stats, rejected_steps), F(mbdk_stats, newton_failures), F(mbdk_stats, order1_steps),
     F(mbdk_stats, order2_steps), F(mbdk_stats, order3_steps), F(mbdk_stats, order4_steps),
-    F(mbdk_stats, order5_steps), F(mbdk_stats, cpu_time),
+    F(mbdk_stats, order5_steps), F(mbdk_stats, nlu_sparse),
+    F(mbdk_stats, cpu_time),
     F(mbdk_stats, wall_time), F(mbdk_stats, t_reached), F(mbdk_stats, alloc_bytes)};
 static const struct field options[] = {
     F(mbdk_options, h), F(mbdk_options, newton_rtol), F(mbdk_options, newton_atol),

@@ -120,9 +120,11 @@ contains
     type(mbdk_body_pattern_t) :: bp
     type(mbdk_sparse_ldlt_t) :: f
     integer, allocatable :: kpos(:), dpos_r(:), dpos_c(:)
-    integer :: rptr(13), rcol(12 * 12), rb(2, 12), stat, r, a, j, n, p, nd, c
-    real(dp) :: x
-    real(dp), allocatable :: kx(:)
+    integer :: rptr(13), rcol(12 * 12), rb(2, 12), stat, r, a, j, n, nd, variant, &
+      partner(12), pos(12), pos0(12)
+    logical :: moved
+    moved = .false.
+    pos0 = 0
     call loop_pattern(bp)
     ! 12 rows: a spherical joint's three on each of bodies (0, 1), (1, 2), (3, 4), (7, 1)
     rb = reshape([0, 1, 0, 1, 0, 1, 1, 2, 1, 2, 1, 2, 3, 4, 3, 4, 3, 4, 7, 1, 7, 1, 7, 1], [2, 12])
@@ -138,10 +140,45 @@ contains
       end do
     end do
     rptr(13) = nd + 1
-    call mbdk_kkt_pattern_init(bp, rptr, rcol(1:nd), f, kpos, dpos_r, dpos_c, stat, &
-                               unsymmetric=.true.)
-    call check(stat == MBDK_SUCCESS, 'kkt pattern')
-    n = bp%nc + 12
+    ! without partners, then each joint's first row after its last and the other way round
+    ! (rows of one joint have the same columns): in one of the two AMD's order is changed
+    do variant = 0, 2
+      partner = 0
+      do r = 1, 12, 3
+        if (variant == 1) partner(r) = r + 2
+        if (variant == 2) partner(r + 2) = r
+      end do
+      if (variant == 0) then
+        call mbdk_kkt_pattern_init(bp%ap, bp%ai(1:bp%nnz), rptr, rcol(1:nd), f, kpos, dpos_r, &
+                                   dpos_c, stat, unsymmetric=.true.)
+      else
+        call mbdk_kkt_pattern_init(bp%ap, bp%ai(1:bp%nnz), rptr, rcol(1:nd), f, kpos, dpos_r, &
+                                   dpos_c, stat, unsymmetric=.true., partner=partner)
+      end if
+      call check(stat == MBDK_SUCCESS, 'kkt pattern')
+      n = bp%nc + 12
+      do r = 1, 12
+        pos(r) = f%pinv(bp%nc + r)
+        if (partner(r) > 0) call check(pos(r) > f%pinv(bp%nc + partner(r)), &
+                                       'a row after its partner')
+      end do
+      if (variant == 0) pos0 = pos
+      if (variant > 0) moved = moved .or. any(pos /= pos0)
+      call kkt_values(f, bp, kpos, dpos_r, dpos_c, rptr, rcol(1:nd))
+      call compare_solves(f, n, f%ap + 1, f%ai + 1, 'kkt, unsymmetric K')
+    end do
+    call check(moved, 'partners changed the order')
+  end subroutine check_kkt
+
+  !> random K (diagonally dominant) and D values (a translation's identity block and random
+  !> rotational ones) into the KKT pattern f
+  subroutine kkt_values(f, bp, kpos, dpos_r, dpos_c, rptr, rcol)
+    type(mbdk_sparse_ldlt_t), intent(inout) :: f
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, intent(in) :: kpos(:), dpos_r(:), dpos_c(:), rptr(:), rcol(:)
+    integer :: p, c, j, r
+    real(dp) :: x
+    real(dp), allocatable :: kx(:)
     allocate (kx(bp%nnz))
     call random_number(kx)
     kx = kx - 0.5_dp
@@ -154,13 +191,12 @@ contains
     do p = 1, bp%nnz
       f%ax(kpos(p)) = kx(p)
     end do
-    ! D's values: a translation's identity block and random rotational ones
-    do j = 1, nd
+    do j = 1, size(rcol)
       call random_number(x)
       f%ax(dpos_r(j)) = f%ax(dpos_r(j)) + x - 0.5_dp
       f%ax(dpos_c(j)) = f%ax(dpos_c(j)) + x - 0.5_dp
     end do
-    do r = 1, 12
+    do r = 1, size(rptr) - 1
       do j = rptr(r), rptr(r + 1) - 1
         if (mod(rcol(j) - 1, 6) == mod(r - 1, 3)) then
           f%ax(dpos_r(j)) = f%ax(dpos_r(j)) + 1.0_dp
@@ -168,8 +204,7 @@ contains
         end if
       end do
     end do
-    call compare_solves(f, n, f%ap + 1, f%ai + 1, 'kkt, unsymmetric K')
-  end subroutine check_kkt
+  end subroutine kkt_values
 
   subroutine check_refusals()
     type(mbdk_sparse_ldlt_t) :: f

@@ -11,7 +11,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from . import _compiled, _kernel, checks
-from .codes import DAE_NEWTON_MATRIX, LINEAR_SOLVES, OUTPUTS, PLANAR_VISITS, VISIT_NAMES
+from .codes import dae_newton_matrix, LINEAR_SOLVES, OUTPUTS, PLANAR_VISITS, VISIT_NAMES
 from .errors import InvalidInputError, Status, exception_for, status_message
 from .model import (assemble, assembly_error, assembly_report, build_tables, given_mask,
                     pose_error)
@@ -195,7 +195,7 @@ def _manifest(scene: Scene, plan: RunPlan, stats: Stats, path: int, inv) -> dict
         manifest["steps"] = stats.steps
     # (linear_solve is the model's constrained solve, which the DAE methods take at the start)
     if plan.dae_bdf or plan.ida:
-        manifest["newton_matrix"] = DAE_NEWTON_MATRIX["ida" if plan.ida else "bdf"]
+        manifest["newton_matrix"] = dae_newton_matrix("ida" if plan.ida else "bdf", stats)
     if plan.multipliers_note:
         manifest["multipliers"] = plan.multipliers_note
     return manifest

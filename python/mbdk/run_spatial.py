@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .checks import check_memory, memory_error
-from .codes import DAE_NEWTON_MATRIX
+from .codes import DAE_NEWTON_MATRIX, dae_newton_matrix
 from .errors import Status, exception_for, status_message
 from .ode import build_info
 from .options import empty, unpack
@@ -69,14 +69,15 @@ def run_spatial(scene: Scene, plan: RunPlan) -> KernelRun:
     ys = y[:, :nw].T
     o = out[:, :nw].T
     inv = invariants[:, :int(ninv)].T
+    st = Stats.from_words(stats)
     result = SceneResult(
         t=t[:nw], q=ys[:, :nq], v=ys[:, nq:nv], a=None,
         multipliers=lam[:scene.rows, :nw].T if scene.rows else None, reactions=None,
         energy=o[:, 0] + o[:, 1] + o[:, 2],
         energy_parts={"kinetic": o[:, 0], "potential_gravity": o[:, 1],
                       "potential_springs": o[:, 2], "power": o[:, 3], "work": o[:, 7]},
-        residuals=o[:, 4:7], stats=Stats.from_words(stats), status=status,
-        message=status_message(status), manifest=_manifest(scene, plan, inv, bool(sparse)),
+        residuals=o[:, 4:7], stats=st, status=status,
+        message=status_message(status), manifest=_manifest(scene, plan, inv, bool(sparse), st),
         bodies=[b.name for b in scene.bodies], joints=[j.name for j in scene.joints],
         assembly={"moved": float(moved)}, wear={w.name: ys[:, nv + k] for k, w in
                                                enumerate(scene.wear)},
@@ -121,7 +122,7 @@ SPATIAL_INDEX3_MATRIX = {
           "by a sparse L D U (AMD, SuiteSparse LDL's analysis), kept while Newton contracts"}
 
 
-def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
+def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False, stats=None) -> dict:
     formulation, w, req = plan.formulation, plan.watch, plan.request
     manifest = {**build_info(), "scene": scene.name, "kind": "spatial", "method": plan.method,
                 "formulation": formulation, "rotation": scene.rotation,
@@ -155,5 +156,5 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False) -> dict:
                                        scene.quaternion_norm)
     if plan.dae_bdf:
         manifest["form"] = SI2_FORM if formulation == "si2" else I3_FORM
-        manifest["linear_solve"] = manifest["newton_matrix"] = DAE_NEWTON_MATRIX["bdf"]
+        manifest["linear_solve"] = manifest["newton_matrix"] = dae_newton_matrix("bdf", stats)
     return manifest

@@ -96,9 +96,6 @@ contains
     type(mbdk_stats_t), target :: st
     type(mbdk_options_t), target :: op
     type(mbdk_index3_options_t), target :: i3
-    type(mbdk_model_options_t), target :: mo
-    type(mbdk_spatial_options_t), target :: so
-    type(mbdk_watch_report_t), target :: wr
     integer(c_intptr_t) :: base
     nf = 0
     nbytes = 0
@@ -121,6 +118,7 @@ contains
       call add('order3_steps', transfer(c_loc(st%order3_steps), base), MBDK_FIELD_INT64)
       call add('order4_steps', transfer(c_loc(st%order4_steps), base), MBDK_FIELD_INT64)
       call add('order5_steps', transfer(c_loc(st%order5_steps), base), MBDK_FIELD_INT64)
+      call add('nlu_sparse', transfer(c_loc(st%nlu_sparse), base), MBDK_FIELD_INT64)
       call add('cpu_time', transfer(c_loc(st%cpu_time), base), MBDK_FIELD_DOUBLE)
       call add('wall_time', transfer(c_loc(st%wall_time), base), MBDK_FIELD_DOUBLE)
       call add('t_reached', transfer(c_loc(st%t_reached), base), MBDK_FIELD_DOUBLE)
@@ -170,6 +168,33 @@ contains
       call add('gamma', transfer(c_loc(i3%gamma), base), MBDK_FIELD_DOUBLE)
       call add('alpha_m', transfer(c_loc(i3%alpha_m), base), MBDK_FIELD_DOUBLE)
       call add('alpha_f', transfer(c_loc(i3%alpha_f), base), MBDK_FIELD_DOUBLE)
+    case default
+      call scene_layout(id, cname, nbytes, f, nf)
+    end select
+
+  contains
+
+    subroutine add(name, address, ftype)
+      character(len=*), intent(in) :: name
+      integer(c_intptr_t), intent(in) :: address
+      integer, intent(in) :: ftype
+      nf = nf + 1
+      f(nf) = field_t(name, int(address - base), ftype)
+    end subroutine add
+
+  end subroutine layout
+
+  !> layout's structs of a scene's options and the watch's report
+  subroutine scene_layout(id, cname, nbytes, f, nf)
+    integer, intent(in) :: id
+    character(len=*), intent(inout) :: cname
+    integer, intent(inout) :: nbytes, nf
+    type(field_t), intent(inout) :: f(MAX_FIELDS)
+    type(mbdk_model_options_t), target :: mo
+    type(mbdk_spatial_options_t), target :: so
+    type(mbdk_watch_report_t), target :: wr
+    integer(c_intptr_t) :: base
+    select case (id)
     case (MBDK_STRUCT_MODEL_OPTIONS)
       cname = 'mbdk_model_options'
       nbytes = int(c_sizeof(mo))
@@ -237,6 +262,6 @@ contains
       f(nf) = field_t(name, int(address - base), ftype)
     end subroutine add
 
-  end subroutine layout
+  end subroutine scene_layout
 
 end module mbdk_structs

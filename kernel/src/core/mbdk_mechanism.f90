@@ -19,6 +19,9 @@
 !>                models); pfaffian(m): rows that constrain velocities only (a knife edge:
 !>                its "Phi" row is C v + Phi_t)
 !>   evaluate     f, Phi, C (dense, m x nvel), gamma and Phi_t at (t, q, v)
+!>   body_graph   the bodies of the coordinates, velocities and rows, and the pairs the
+!>                elements couple: the pattern of the DAE's Jacobian (compact_rows: a large
+!>                scene, whose DAE forms then evaluate by the index-3 procedures below)
 !>   mass         M x and M^-1 x; diag_mass and mass_diagonal where M is diagonal (planar:
 !>                a body without inertia has a zero there, and no M^-1)
 !>   rates        q' = T(q) v (with a spatial scene's norm stabilisation where it asks for it)
@@ -104,8 +107,13 @@ module mbdk_mechanism
     !> forces that depend on the velocities (dampers, friction, the gyroscopic moment): the
     !> index-3 step evaluates them at projected velocities
     logical :: velocity_forces = .true.
+    !> the model keeps C in compact rows (a large scene: its constrained solves are sparse):
+    !> the DAE forms of bdf then evaluate through the index-3 procedures and factorise their
+    !> Newton matrix sparse, in the pattern of body_graph (mbdk_mechanism_dae)
+    logical :: compact_rows = .false.
   contains
     procedure(evaluate_iface), deferred :: evaluate
+    procedure(body_graph_iface), deferred :: body_graph
     procedure(times_iface), deferred :: mass_times
     procedure(times_iface), deferred :: minv_times
     procedure(diagonal_iface), deferred :: mass_diagonal
@@ -158,6 +166,21 @@ module mbdk_mechanism
       class(mbdk_mechanism_t), intent(in) :: self
       real(dp), intent(out) :: dm(:)
     end subroutine diagonal_iface
+
+    !> The body graph: the body of each coordinate (qbody, ncoord) and velocity (vbody,
+    !> nvel), the pairs of bodies an element couples (pairs(2, k): each joint, each force
+    !> that loads two bodies; 0 the ground) and each constraint row's velocity columns
+    !> (rcol(rptr(r) .. rptr(r+1)-1), r = 1..m). Every term of the equations of motion of a
+    !> body depends on the coordinates and velocities of the body, of the bodies paired with
+    !> it, and on the multipliers of the rows with a column on it; a row on the coordinates
+    !> and velocities of its columns' bodies. MBDK_ERR_NO_MEMORY (asked: the bytes).
+    subroutine body_graph_iface(self, qbody, vbody, pairs, rptr, rcol, stat, asked)
+      import :: mbdk_mechanism_t, dp
+      class(mbdk_mechanism_t), intent(in) :: self
+      integer, allocatable, intent(out) :: qbody(:), vbody(:), pairs(:, :), rptr(:), rcol(:)
+      integer, intent(out) :: stat
+      real(dp), intent(inout), optional :: asked
+    end subroutine body_graph_iface
 
     !> qdot = T(q) v. stat: an angle set at its gimbal lock, MBDK_ERR_SINGULAR_MATRIX
     subroutine rates_iface(self, q, v, qdot, stat)

@@ -31,6 +31,11 @@ module mbdk_problem
     !> > 0: events g(t, y) whose sign changes the error-controlled Runge-Kutta pairs locate and
     !> end a step on (a contact that closes or opens: F is not smooth there)
     integer :: nevents = 0
+    !> .true.: the problem forms, factorises and solves the Newton matrix E - c J of an
+    !> implicit method itself (newton_jacobian, newton_factor, newton_solve: a large
+    !> mechanism's DAE, whose matrix is sparse, mbdk_mechanism_dae); bdf then keeps no dense
+    !> n x n matrix
+    logical :: has_newton_matrix = .false.
   contains
 
     procedure(rhs_iface), deferred :: rhs
@@ -41,6 +46,9 @@ module mbdk_problem
     procedure :: watch_wants_nodes => no_wants_nodes
     procedure :: watch_nodes => no_watch_nodes
     procedure :: events => no_events
+    procedure :: newton_jacobian => no_newton_jacobian
+    procedure :: newton_factor => no_newton_factor
+    procedure :: newton_solve => no_newton_solve
   end type mbdk_problem_t
 
   abstract interface
@@ -117,5 +125,37 @@ contains
     integer, intent(out) :: stat
     stat = MBDK_SUCCESS
   end subroutine no_watch
+
+  !> Default (has_newton_matrix false): J = dF/dy at (t, y) is not kept here; nfev: the
+  !> evaluations of F it took.
+  subroutine no_newton_jacobian(self, t, y, nfev, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: y(:)
+    integer, intent(out) :: nfev
+    integer, intent(out) :: stat
+    nfev = 0
+    stat = MBDK_ERR_NOT_APPLICABLE
+  end subroutine no_newton_jacobian
+
+  !> Default: no matrix. The problem's own: E - c J (E = diag(em)) of the last
+  !> newton_jacobian factorised, with the rows and columns of alg (E_ii = 0) divided by c
+  !> (mbdk_variable_bdf's index scaling); MBDK_ERR_SINGULAR_MATRIX where a pivot vanishes.
+  subroutine no_newton_factor(self, c, em, alg, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: c, em(:)
+    logical, intent(in) :: alg(:)
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_NOT_APPLICABLE
+  end subroutine no_newton_factor
+
+  !> Default: no matrix. The problem's own: x overwritten by the solution of the last
+  !> newton_factor's system.
+  subroutine no_newton_solve(self, x, stat)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(inout), contiguous :: x(:)
+    integer, intent(out) :: stat
+    stat = MBDK_ERR_NOT_APPLICABLE
+  end subroutine no_newton_solve
 
 end module mbdk_problem

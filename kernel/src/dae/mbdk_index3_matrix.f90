@@ -358,8 +358,8 @@ contains
     allocate (fa%kx(fa%bp%nnz), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * fa%bp%nnz, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    call mbdk_kkt_pattern_init(fa%bp, model%sp%rptr, model%sp%rcol, fa%ldl, fa%kpos, &
-                               fa%dpos_r, fa%dpos_c, stat, asked)
+    call mbdk_kkt_pattern_init(fa%bp%ap, fa%bp%ai(1:fa%bp%nnz), model%sp%rptr, model%sp%rcol, &
+                               fa%ldl, fa%kpos, fa%dpos_r, fa%dpos_c, stat, asked)
   end subroutine kkt_init
 
   !> The book matrix's values (module header) into fa%ldl%ax: K by sparse_matrix, D from its

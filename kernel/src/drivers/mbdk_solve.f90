@@ -27,7 +27,8 @@ module mbdk_solve
   use mbdk_cvode, only: mbdk_cvode_solve
   use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED
   use mbdk_ida, only: mbdk_ida_solve
-  use mbdk_mechanism_dae, only: mbdk_mechanism_dae_t, mbdk_mechanism_dae_init, MBDK_DAE_I3, &
+  use mbdk_mechanism_dae, only: mbdk_mechanism_dae_t, mbdk_mechanism_dae_init, &
+    mbdk_mechanism_dae_residuals, MBDK_DAE_I3, &
     MBDK_DAE_SI2
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   implicit none
@@ -179,8 +180,8 @@ contains
     subroutine bdf_on_dae(s)
       integer, intent(out) :: s
       type(mbdk_mechanism_dae_t) :: dae
-      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), lam0(:), f0(:), phi0(:), &
-        c0(:, :), gam0(:), phit0(:)
+      real(dp), allocatable :: mass(:), yd(:), ypd(:), ys(:, :), lam0(:)
+      real(dp) :: phi_max, cv_max
       integer :: nq, nv, ny, m, na, k, astat
       nq = mech%ncoord
       nv = mech%nvel
@@ -190,21 +191,9 @@ contains
         s = MBDK_ERR_NOT_APPLICABLE
         return
       end if
-      allocate (lam0(m), f0(nv), phi0(m), c0(m, nv), gam0(m), phit0(m), ypd(ny), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (nv + 4) + nv + ny), s, &
-                             st%alloc_bytes)
+      allocate (lam0(m), ypd(ny), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) + ny), s, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
-      ! a start off the constraints would be projected by the first Newton iteration into a
-      ! correction no error test accepts: refused, as ida refuses it
-      if (m > 0) then
-        call mech%evaluate(t0, y0(1:nq), y0(nq + 1:ny), f0, phi0, c0, gam0, phit0, s)
-        if (s /= MBDK_SUCCESS) return
-        s = MBDK_ERR_INCONSISTENT_INITIAL
-        if (mech%has_pfaffian) phi0 = merge(0.0_dp, phi0, mech%pfaffian)
-        if (maxval(abs(phi0)) > CONSISTENT_PHI) return
-        if (maxval(abs(matmul(c0, y0(nq + 1:ny)) + phit0)) > CONSISTENT_PHI * &
-            max(1.0_dp, maxval(abs(y0(nq + 1:ny))))) return
-      end if
       ! the consistent rates and multipliers; the rows after this solve, which may move a
       ! redundant scene to another set of independent rows
       call mech%accelerations(t0, y0(1:nq), y0(nq + 1:ny), ypd(nq + 1:ny), lam0, s)
@@ -213,6 +202,13 @@ contains
       if (s /= MBDK_SUCCESS) return
       call mbdk_mechanism_dae_init(dae, mech, form, mass, s, st%alloc_bytes)
       if (s /= MBDK_SUCCESS) return
+      ! a start off the constraints would be projected by the first Newton iteration into a
+      ! correction no error test accepts: refused, as ida refuses it
+      call mbdk_mechanism_dae_residuals(dae, t0, y0, phi_max, cv_max, s)
+      if (s /= MBDK_SUCCESS) return
+      s = MBDK_ERR_INCONSISTENT_INITIAL
+      if (phi_max > CONSISTENT_PHI) return
+      if (cv_max > CONSISTENT_PHI * max(1.0_dp, maxval(abs(y0(nq + 1:ny))))) return
       na = dae%na
       allocate (yd(dae%n), ys(dae%n, nsamp), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(dae%n, dp) * (nsamp + 1), s, &

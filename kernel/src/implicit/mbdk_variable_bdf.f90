@@ -59,8 +59,10 @@
 !> a thousandth of the error test (not a tenth) judged by this step's own contraction rate: the
 !> constraints hold only as far as Newton converged, and a leftover returns in the next
 !> predictor as a correction that no smaller step removes, so that the error test would reject
-!> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or opt%h); the Jacobian is by
-!> differences (N + 1 evaluations of F).
+!> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or
+!> opt%h); the Jacobian is by differences (N + 1 evaluations of F), or the problem's own
+!> (has_newton_matrix, mbdk_problem: a large mechanism's DAE forms E - c J sparse by colored
+!> differences and factorises it by a sparse L D U, mbdk_mechanism_dae; stats: nlu_sparse).
 !> Roundoff floor. A corrector that stalls or runs out of iterations is tested against the
 !> floor of its update (mbdk_newton_floor, with the current matrix, in the error test's
 !> norm): an ODE's iterate at that floor is accepted (it is as good as double precision makes
@@ -79,7 +81,8 @@ module mbdk_variable_bdf
   use mbdk_interrupt, only: mbdk_interrupted, mbdk_progress
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
-  use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_from_probes, mbdk_floor_cap, &
+  use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_probes, mbdk_floor_from_probes, &
+    mbdk_floor_cap, &
     MBDK_FLOOR_FACTOR
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
@@ -122,6 +125,9 @@ module mbdk_variable_bdf
     integer(i8) :: tries = 0, limit = 0
     !> dae: E y' = F(t, y) with E = diag(em) (the module header's section "DAE")
     logical :: dae = .false.
+    !> the problem forms and factorises M itself (has_newton_matrix: a large mechanism's DAE,
+    !> sparse); else J and M are dense here
+    logical :: own_matrix = .false.
     logical :: have_lu = .false., jac_current = .false., converged = .false.
     !> the last corrector met F not finite; a corrector of this step stalled at its floor
     logical :: nonfinite = .false., at_floor = .false.
@@ -160,6 +166,7 @@ contains
     type(bdf_t) :: b
     integer :: k
 
+    b%own_matrix = prob%has_newton_matrix
     call bdf_init(b, opt, t0, y0, t_out(size(t_out)), st, stat, mass, yp0, ntest, nindex2)
     if (stat /= MBDK_SUCCESS) return
     call bdf_start(b, prob, opt, atol, y0, st, stat, yp0)
@@ -228,7 +235,7 @@ contains
       if (b%n2 < 0 .or. b%nt + b%n2 > n) return
     end if
     b%alg = b%em == 0.0_dp
-    call mbdk_newton_work_init(b%nw, n, stat, st%alloc_bytes)
+    call mbdk_newton_work_init(b%nw, n, stat, st%alloc_bytes, no_matrix=b%own_matrix)
     if (stat /= MBDK_SUCCESS) return
     b%t = t0
     st%t_reached = t0
@@ -283,7 +290,7 @@ contains
     b%floor_stalls = 0
     b%c_lu = 0.0_dp
     b%crate = 1.0_dp
-    call mbdk_jacobian(prob, opt, b%t, y0, b%nw, st, stat)
+    call jacobian(b, prob, opt, b%t, y0, st, stat)
     if (stat /= MBDK_SUCCESS) return
     b%jac_current = .true.
     b%limit = mbdk_adaptive_step_limit(opt)
@@ -323,7 +330,7 @@ contains
         return
       end if
       if (b%h < mbdk_adaptive_h_floor(opt, b%t, landing=b%t + b%h >= b%t_end)) then
-        call too_small_status(b, stat)
+        call too_small_status(b, prob, stat)
         return
       end if
       b%t_new = b%t + b%h
@@ -350,8 +357,9 @@ contains
   !> because the tolerance lies below the corrector's roundoff (its Newton stalled there, or
   !> the error estimate, a share of the correction, carries a tenth of the tolerance in
   !> roundoff: MBDK_ERR_TOO_MUCH_ACCURACY); or for another reason (MBDK_ERR_STEP_TOO_SMALL).
-  subroutine too_small_status(b, stat)
+  subroutine too_small_status(b, prob, stat)
     type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
     integer, intent(out) :: stat
     real(dp) :: fl
     if (b%nonfinite .and. .not. b%at_floor) then
@@ -359,7 +367,7 @@ contains
       return
     end if
     if (.not. b%at_floor .and. b%have_lu) then
-      call floor_norm(b, fl, stat)
+      call floor_norm(b, prob, fl, stat)
       if (stat /= MBDK_SUCCESS) return
       b%at_floor = b%errc(b%q) * fl >= ERROR_FLOOR_SHARE
     end if
@@ -396,13 +404,13 @@ contains
     integer, intent(out) :: stat
     do
       if (.not. b%have_lu .or. abs(b%c - b%c_lu) > C_CHANGE * b%c_lu) then
-        call factor_matrix(b, st, stat)
+        call factor_matrix(b, prob, st, stat)
         if (stat /= MBDK_SUCCESS) return
       end if
       call corrector(b, prob, st, stat)
       if (stat /= MBDK_SUCCESS) return
       if (b%converged .or. b%jac_current) exit
-      call mbdk_jacobian(prob, opt, b%t_new, b%yp, b%nw, st, stat)
+      call jacobian(b, prob, opt, b%t_new, b%yp, st, stat)
       if (stat /= MBDK_SUCCESS) return
       b%jac_current = .true.
       b%have_lu = .false.
@@ -506,12 +514,54 @@ contains
     end do
   end subroutine write_samples
 
-  !> M = E - c J, factorised (a DAE's index-scaled).
-  subroutine factor_matrix(b, st, s)
+  !> J at (t, y): the problem's own (has_newton_matrix: it keeps J, sparse) or mbdk_jacobian's.
+  subroutine jacobian(b, prob, opt, t, y, st, stat)
     type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(in) :: t, y(:)
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    integer :: nfev
+    if (b%own_matrix) then
+      st%njev = st%njev + 1
+      call prob%newton_jacobian(t, y, nfev, stat)
+      st%nfev = st%nfev + nfev
+    else
+      call mbdk_jacobian(prob, opt, t, y, b%nw, st, stat)
+    end if
+  end subroutine jacobian
+
+  !> x <- M^-1 x with the last factorisation
+  subroutine newton_solve(b, prob, x, s)
+    type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
+    real(dp), intent(inout), contiguous :: x(:)
+    integer, intent(out) :: s
+    if (b%own_matrix) then
+      call prob%newton_solve(x, s)
+    else
+      call mbdk_lu_solve(b%nw%lu, b%nw%ipiv, x, s)
+    end if
+  end subroutine newton_solve
+
+  !> M = E - c J, factorised (a DAE's index-scaled): the problem's own (has_newton_matrix),
+  !> else dense by LAPACK.
+  subroutine factor_matrix(b, prob, st, s)
+    type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: s
     integer :: ii
+    if (b%own_matrix) then
+      call prob%newton_factor(b%c, b%em, b%alg, s)
+      st%nlu = st%nlu + 1
+      st%nlu_sparse = st%nlu_sparse + 1
+      b%have_lu = s == MBDK_SUCCESS
+      b%c_lu = b%c
+      b%crate = 1.0_dp
+      return
+    end if
     b%nw%lu = -b%c * b%nw%jac
     do ii = 1, b%n
       b%nw%lu(ii, ii) = b%nw%lu(ii, ii) + b%em(ii)
@@ -562,7 +612,7 @@ contains
       end if
       b%dy = b%c * b%f - b%em * (b%psi + b%corr)
       if (b%dae) where (b%alg) b%dy = b%f      ! the row divided by c
-      call mbdk_lu_solve(b%nw%lu, b%nw%ipiv, b%dy, s)
+      call newton_solve(b, prob, b%dy, s)
       if (s /= MBDK_SUCCESS) return
       if (b%dae) where (b%alg) b%dy = b%dy / b%c
       b%iters = it
@@ -584,7 +634,7 @@ contains
           ! after any failure, and after MAX_FLOOR_STALLS such stalls in one step, or if the
           ! steps shrink to the floor, the cause is named (MBDK_ERR_TOO_MUCH_ACCURACY): a
           ! smaller step's matrix is worse conditioned
-          call floor_norm(b, fl, s)
+          call floor_norm(b, prob, fl, s)
           if (s /= MBDK_SUCCESS) return
           if (dnorm <= fl) then
             if (b%dae) then
@@ -619,8 +669,9 @@ contains
   !> residual's rows (an algebraic row, divided by c, carries eps times the largest tested
   !> component: its terms are positions) through the matrix, plus the rounding of the iterate
   !> itself, capped (mbdk_floor_cap). The Newton work's vectors hold the probes.
-  subroutine floor_norm(b, fl, s)
+  subroutine floor_norm(b, prob, fl, s)
     type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
     real(dp), intent(out) :: fl
     integer, intent(out) :: s
     real(dp) :: ymax
@@ -630,7 +681,14 @@ contains
       nw%ytmp = abs(b%c * b%f) + b%em * (abs(b%psi) + abs(b%corr))
       if (b%dae) where (b%alg) nw%ytmp = abs(b%f) + ymax
       nw%ytmp = epsilon(1.0_dp) * nw%ytmp
-      call mbdk_floor_solve(nw%ytmp, nw%lu, nw%ipiv, nw%b1, nw%b2, s)
+      if (b%own_matrix) then
+        call mbdk_floor_probes(nw%ytmp, nw%b1, nw%b2)
+        call newton_solve(b, prob, nw%b1, s)
+        if (s /= MBDK_SUCCESS) return
+        call newton_solve(b, prob, nw%b2, s)
+      else
+        call mbdk_floor_solve(nw%ytmp, nw%lu, nw%ipiv, nw%b1, nw%b2, s)
+      end if
       if (s /= MBDK_SUCCESS) return
       if (b%dae) then
         where (b%alg)

@@ -2,8 +2,9 @@
 !>
 !>   [K D^T; D 0]   (nc + m rows)
 !>
-!> as one symmetric matrix for mbdk_sparse_ldlt: K in a body pattern (mbdk_body_pattern, any
-!> block size: planar and spatial bodies alike), D's nonzeros given row by row by their columns,
+!> as one symmetric matrix for mbdk_sparse_ldlt: K in a pattern given as CSC (a body pattern of
+!> mbdk_body_pattern, any block size: planar and spatial bodies alike; or the coordinates and
+!> velocities of a DAE's bodies, mbdk_mechanism_dae), D's nonzeros given row by row by their columns,
 !> and each row's own diagonal entry (zero). LDL^T without pivoting meets a zero pivot on a
 !> constraint row taken before any coordinate it involves, so the order is AMD's on the whole
 !> pattern with each constraint row moved to just after the last of its coordinates: every
@@ -16,7 +17,6 @@ module mbdk_kkt_pattern
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
-  use mbdk_body_pattern, only: mbdk_body_pattern_t
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_amd
   implicit none
   private
@@ -24,35 +24,40 @@ module mbdk_kkt_pattern
 
 contains
 
-  !> The pattern of [K D^T; D 0] (K in bp, row r of D with its nonzeros in the columns
-  !> rcol(rptr(r) .. rptr(r+1)-1)), its order (module header) and ldl's symbolic
-  !> factorisation. kpos(bp%nnz): the place in ldl%ax of each of K's values; dpos_r and
+  !> The pattern of [K D^T; D 0] (K's of nc = size(kap) - 1 columns in kap, kai: CSC with
+  !> both triangles, a diagonal entry in every column; row r of D with its nonzeros in the
+  !> columns rcol(rptr(r) .. rptr(r+1)-1)), its order (module header) and ldl's symbolic
+  !> factorisation. kpos(size(kai)): the place in ldl%ax of each of K's values; dpos_r and
   !> dpos_c (size(rcol)): of each nonzero of D in its row's column and in its coordinate's
   !> column (two nonzeros of a row in one column share their place). unsymmetric: ldl may
   !> factorise unsymmetric values too (mbdk_sparse_ldlt_factor_lu). stat: MBDK_SUCCESS,
   !> MBDK_ERR_INVALID_INPUT (AMD refused the pattern) or MBDK_ERR_NO_MEMORY (asked: the bytes).
-  subroutine mbdk_kkt_pattern_init(bp, rptr, rcol, ldl, kpos, dpos_r, dpos_c, stat, asked, &
-                                   unsymmetric)
-    type(mbdk_body_pattern_t), intent(in) :: bp
-    integer, intent(in) :: rptr(:), rcol(:)
+  !> partner(r) = s > 0: row r, whose columns are row s's, is eliminated after s (where AMD
+  !> put it before, the two trade places, which keeps the fill: the stabilised index-2 DAE's
+  !> mu row after its lam row, mbdk_mechanism_dae, whose pivot is otherwise nearly zero).
+  subroutine mbdk_kkt_pattern_init(kap, kai, rptr, rcol, ldl, kpos, dpos_r, dpos_c, stat, &
+                                   asked, unsymmetric, partner)
+    integer, intent(in) :: kap(:), kai(:), rptr(:), rcol(:)
     type(mbdk_sparse_ldlt_t), intent(out) :: ldl
     integer, allocatable, intent(out) :: kpos(:), dpos_r(:), dpos_c(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     logical, intent(in), optional :: unsymmetric
-    integer :: nc, m, n, nnz, nd, c, r, j, k, p, astat
+    integer, intent(in), optional :: partner(:)
+    integer :: nc, knz, m, n, nnz, nd, c, r, j, k, p, astat
     integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:), &
       cptr(:), crow(:)
-    nc = bp%nc
+    nc = size(kap) - 1
+    knz = size(kai)
     m = size(rptr) - 1
     n = nc + m
     nd = size(rcol)
-    nnz = bp%nnz + 2 * nd + m
+    nnz = knz + 2 * nd + m
     allocate (ap(n + 1), ai(nnz), mark(n), perm(n), order(n), last(n), at(n), brow(n), &
-              cptr(nc + 1), crow(nd), kpos(bp%nnz), dpos_r(nd), dpos_c(nd), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (8.0_dp * n + nnz + bp%nnz + 3.0_dp * nd + &
+              cptr(nc + 1), crow(nd), kpos(knz), dpos_r(nd), dpos_c(nd), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (8.0_dp * n + nnz + knz + 3.0_dp * nd + &
                            nc + 2), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
+    if (astat /= 0) return
     ! D by columns (rows ascending in each)
     cptr = 0
     do j = 1, nd
@@ -75,8 +80,8 @@ contains
     p = 1
     do c = 1, nc
       ap(c) = p
-      do k = bp%ap(c), bp%ap(c + 1) - 1
-        ai(p) = bp%ai(k)
+      do k = kap(c), kap(c + 1) - 1
+        ai(p) = kai(k)
         kpos(k) = p
         p = p + 1
       end do
@@ -134,7 +139,7 @@ contains
       mark(k) = p
       p = p + j
     end do
-    brow = mark
+    brow(1:n) = mark(1:n)
     do k = 1, n
       c = perm(k)
       if (c <= nc) cycle
@@ -154,6 +159,7 @@ contains
         order(j) = at(p)
       end do
     end do
+    if (present(partner)) call after_partners(nc, partner, order, at)
     call mbdk_sparse_ldlt_analyze(ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order, &
                                   unsymmetric)
 
@@ -169,5 +175,27 @@ contains
     end function find
 
   end subroutine mbdk_kkt_pattern_init
+
+  !> order (the k-th node eliminated) with each row r (node nc + r) after its partner's row
+  !> where it came before: the two trade places. at: work of size(order).
+  pure subroutine after_partners(nc, partner, order, at)
+    integer, intent(in) :: nc, partner(:)
+    integer, intent(inout) :: order(:)
+    integer, intent(out) :: at(:)
+    integer :: k, j, r
+    do k = 1, size(order)
+      at(order(k)) = k
+    end do
+    do r = 1, size(partner)
+      if (partner(r) < 1) cycle
+      j = at(nc + partner(r))
+      k = at(nc + r)
+      if (k > j) cycle
+      order(k) = nc + partner(r)
+      order(j) = nc + r
+      at(nc + r) = j
+      at(nc + partner(r)) = k
+    end do
+  end subroutine after_partners
 
 end module mbdk_kkt_pattern

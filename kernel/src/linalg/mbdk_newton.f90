@@ -39,17 +39,23 @@ module mbdk_newton
 contains
 
   !> stat: MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes of the two dense n x n
-  !> matrices and the vectors, mbdk_memory)
-  subroutine mbdk_newton_work_init(w, n, stat, asked)
+  !> matrices and the vectors, mbdk_memory). no_matrix: the vectors alone (a problem that
+  !> keeps its own Newton matrix, mbdk_problem's has_newton_matrix)
+  subroutine mbdk_newton_work_init(w, n, stat, asked, no_matrix)
     type(mbdk_newton_work_t), intent(out) :: w
     integer, intent(in) :: n
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: astat
-    allocate (w%jac(n, n), w%lu(n, n), w%f(n), w%f0(n), w%r(n), w%ytmp(n), w%ypred(n), w%ipiv(n), &
-              w%floor(n), w%b1(n), w%b2(n), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * n * n + 8.0_dp * n) + &
-                           MBDK_INT_BYTES * n, stat, asked)
+    logical, intent(in), optional :: no_matrix
+    integer :: astat, nm
+    nm = n
+    if (present(no_matrix)) then
+      if (no_matrix) nm = 0
+    end if
+    allocate (w%jac(nm, nm), w%lu(nm, nm), w%f(n), w%f0(n), w%r(n), w%ytmp(n), w%ypred(n), &
+              w%ipiv(nm), w%floor(n), w%b1(n), w%b2(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (2.0_dp * nm * nm + 8.0_dp * n) + &
+                           MBDK_INT_BYTES * nm, stat, asked)
   end subroutine mbdk_newton_work_init
 
   !> J = dF/dy at (t, y): analytic if available (and not overridden), else forward differences.

@@ -19,7 +19,7 @@ module mbdk_body_pattern
   implicit none
   private
   public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter, &
-    mbdk_body_pattern_dtd
+    mbdk_body_pattern_dtd, mbdk_body_pattern_colors
 
   type, public :: mbdk_body_pattern_t
     integer :: nb = 0, nc = 0, nnz = 0, bs = 3
@@ -200,5 +200,57 @@ contains
       end do
     end do
   end subroutine mbdk_body_pattern_dtd
+
+  !> A distance-2 coloring of the body graph (greedy, in body order): no two bodies of a color
+  !> are neighbours or share one, so that differences of the columns of a color's bodies
+  !> taken together do not mix in any row (the index-3 and DAE Newton matrices). The bodies
+  !> of color c: body(ptr(c) .. ptr(c+1)-1).
+  subroutine mbdk_body_pattern_colors(bp, ptr, body, stat, asked)
+    type(mbdk_body_pattern_t), intent(in) :: bp
+    integer, allocatable, intent(out) :: ptr(:), body(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nb, b, a, c, p, p2, k, ncol, astat
+    integer, allocatable :: color(:), seen(:)
+    nb = bp%nb
+    allocate (color(nb), seen(nb + 1), body(nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    color(:) = 0
+    seen(:) = 0
+    ncol = 0
+    do b = 1, nb
+      do p = bp%bptr(b), bp%bptr(b + 1) - 1
+        a = bp%nbr(p)
+        if (color(a) > 0) seen(color(a)) = b
+        do p2 = bp%bptr(a), bp%bptr(a + 1) - 1
+          c = bp%nbr(p2)
+          if (color(c) > 0) seen(color(c)) = b
+        end do
+      end do
+      k = 1
+      do while (seen(k) == b)
+        k = k + 1
+      end do
+      color(b) = k
+      ncol = max(ncol, k)
+    end do
+    allocate (ptr(ncol + 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ncol + 1.0_dp), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    ptr = 0
+    do b = 1, nb
+      ptr(color(b) + 1) = ptr(color(b) + 1) + 1
+    end do
+    ptr(1) = 1
+    do c = 1, ncol
+      ptr(c + 1) = ptr(c + 1) + ptr(c)
+    end do
+    seen(1:ncol) = ptr(1:ncol)
+    do b = 1, nb
+      body(seen(color(b))) = b
+      seen(color(b)) = seen(color(b)) + 1
+    end do
+  end subroutine mbdk_body_pattern_colors
 
 end module mbdk_body_pattern

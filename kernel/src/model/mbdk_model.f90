@@ -235,6 +235,7 @@ module mbdk_model
     procedure :: watch_nodes => model_watch_nodes
     procedure :: events => model_events
     procedure :: evaluate => model_evaluate
+    procedure :: body_graph => model_body_graph
     procedure :: mass_times => model_mass_times
     procedure :: minv_times => model_minv_times
     procedure :: mass_diagonal => model_mass_diagonal
@@ -379,6 +380,7 @@ contains
     call allocate_work(model, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     model%work => work
+    model%compact_rows = work%cs%path == MBDK_SOLVE_SCHUR_SPARSE
     model%has_jac = .false.
     call split_forces(model, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -1748,6 +1750,32 @@ contains
     call mbdk_model_constraints(self, t, q, v, phi, c, gam, phit)
     self%work%visits(1:MBDK_JOINT_TYPES) = visits
   end subroutine model_evaluate
+
+  !> The body graph (mbdk_mechanism): coordinate and velocity 3 (b - 1) + k are body b's,
+  !> joints and force elements (contacts among them) pair their two bodies, the rows' columns
+  !> are those of the compact rows (sp).
+  subroutine model_body_graph(self, qbody, vbody, pairs, rptr, rcol, stat, asked)
+    class(mbdk_model_t), intent(in) :: self
+    integer, allocatable, intent(out) :: qbody(:), vbody(:), pairs(:, :), rptr(:), rcol(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: nj, nf, i, astat
+    nj = size(self%jint, 2)
+    nf = size(self%fint, 2)
+    allocate (qbody(self%nc), vbody(self%nc), pairs(2, nj + nf), rptr(self%m + 1), &
+              rcol(size(self%sp%rcol)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * self%nc + 2 * (nj + nf) + &
+                           self%m + 1 + size(self%sp%rcol)), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    do i = 1, self%nc
+      qbody(i) = (i - 1) / 3 + 1
+    end do
+    vbody = qbody
+    pairs(:, 1:nj) = self%jint(2:3, :)
+    pairs(:, nj + 1:) = self%fint(2:3, :)
+    rptr = self%sp%rptr(1:self%m + 1)
+    rcol = self%sp%rcol
+  end subroutine model_body_graph
 
   subroutine model_mass_times(self, x, y)
     class(mbdk_model_t), intent(in) :: self

@@ -54,7 +54,7 @@
 !> A submodule of mbdk_spatial_model, to keep that module's size in hand.
 submodule (mbdk_spatial_model) mbdk_spatial_i3
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
-    mbdk_body_pattern_pos, mbdk_body_pattern_dtd
+    mbdk_body_pattern_pos, mbdk_body_pattern_dtd, mbdk_body_pattern_colors
   use mbdk_kkt_pattern, only: mbdk_kkt_pattern_init
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, &
     mbdk_sparse_ldlt_factor, mbdk_sparse_ldlt_factor_lu, mbdk_sparse_ldlt_solve
@@ -442,8 +442,9 @@ contains
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * aux%bp%nnz, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     if (book) then
-      call mbdk_kkt_pattern_init(aux%bp, aux%rptr, aux%rcol(1:n), aux%ldl, aux%kpos, &
-                                 aux%dpos_r, aux%dpos_c, stat, asked, unsymmetric=.true.)
+      call mbdk_kkt_pattern_init(aux%bp%ap, aux%bp%ai(1:aux%bp%nnz), aux%rptr, aux%rcol(1:n), &
+                                 aux%ldl, aux%kpos, aux%dpos_r, aux%dpos_c, stat, asked, &
+                                 unsymmetric=.true.)
     else
       call mbdk_body_pattern_dtd(aux%bp, aux%rptr, aux%rcol(1:n), aux%dtd_pos, stat, asked)
       if (stat /= MBDK_SUCCESS) return
@@ -455,58 +456,8 @@ contains
       aux%has_reg = .true.
     end if
     if (stat /= MBDK_SUCCESS) return
-    call color_bodies(aux%bp, aux%color_ptr, aux%color_body, stat, asked)
+    call mbdk_body_pattern_colors(aux%bp, aux%color_ptr, aux%color_body, stat, asked)
   end subroutine sparse_create
-
-  !> A distance-2 coloring of the body graph (greedy, in body order): no two bodies of a color
-  !> are neighbours or share one. The bodies of color c: body(ptr(c) .. ptr(c+1)-1).
-  subroutine color_bodies(bp, ptr, body, stat, asked)
-    type(mbdk_body_pattern_t), intent(in) :: bp
-    integer, allocatable, intent(out) :: ptr(:), body(:)
-    integer, intent(out) :: stat
-    real(dp), intent(inout), optional :: asked
-    integer :: nb, b, a, c, p, p2, k, ncol, astat
-    integer, allocatable :: color(:), seen(:)
-    nb = bp%nb
-    allocate (color(nb), seen(nb + 1), body(nb), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 1), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    color(:) = 0
-    seen(:) = 0
-    ncol = 0
-    do b = 1, nb
-      do p = bp%bptr(b), bp%bptr(b + 1) - 1
-        a = bp%nbr(p)
-        if (color(a) > 0) seen(color(a)) = b
-        do p2 = bp%bptr(a), bp%bptr(a + 1) - 1
-          c = bp%nbr(p2)
-          if (color(c) > 0) seen(color(c)) = b
-        end do
-      end do
-      k = 1
-      do while (seen(k) == b)
-        k = k + 1
-      end do
-      color(b) = k
-      ncol = max(ncol, k)
-    end do
-    allocate (ptr(ncol + 1), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ncol + 1.0_dp), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    ptr = 0
-    do b = 1, nb
-      ptr(color(b) + 1) = ptr(color(b) + 1) + 1
-    end do
-    ptr(1) = 1
-    do c = 1, ncol
-      ptr(c + 1) = ptr(c + 1) + ptr(c)
-    end do
-    seen(1:ncol) = ptr(1:ncol)
-    do b = 1, nb
-      body(seen(color(b))) = b
-      seen(color(b)) = seen(color(b)) + 1
-    end do
-  end subroutine color_bodies
 
   !> g = f - C^T lam at (t, q, v) by the model's evaluation (aux's work arrays; C's compact
   !> rows into ccw).

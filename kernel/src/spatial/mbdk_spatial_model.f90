@@ -285,6 +285,7 @@ module mbdk_spatial_model
     procedure :: watch_nodes => spatial_watch_nodes
     procedure :: events => spatial_events
     procedure :: evaluate => spatial_evaluate
+    procedure :: body_graph => spatial_body_graph
     procedure :: mass_times => spatial_mass_times
     procedure :: minv_times => spatial_minv_times
     procedure :: mass_diagonal => spatial_mass_diagonal
@@ -447,6 +448,7 @@ contains
     ! integrator's differences over the dense evaluation otherwise
     model%has_i3_matrix = model%sparse
     model%has_i3_renew = model%sparse
+    model%compact_rows = model%sparse
     if (stat /= MBDK_SUCCESS) return
     call accelerations_scratch(model, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -2000,7 +2002,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer, allocatable :: rbody(:, :)
-    integer :: k, b, r, nrows, astat
+    integer :: k, b, astat
     stat = MBDK_SUCCESS
     model%sparse = model%m > MBDK_SPATIAL_SPARSE_ROWS .and. model%rank0 == model%m .and. &
       model%opt%formulation /= MBDK_FORM_PENALTY
@@ -2010,12 +2012,7 @@ contains
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * model%m + &
                            MBDK_REAL_BYTES * 72.0_dp * model%nb, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    do k = 1, model%nprim
-      nrows = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
-      do r = model%prim(k)%row, model%prim(k)%row + nrows - 1
-        rbody(:, r) = [model%prim(k)%bi, model%prim(k)%bj]
-      end do
-    end do
+    call row_bodies(model, rbody)
     model%minv_blk = 0.0_dp
     model%geo_blk = 0.0_dp
     do b = 1, model%nb
@@ -2035,6 +2032,62 @@ contains
       if (4 * size(work%cs%ai) > 3 * model%m**2) model%sparse = .false.
     end if
   end subroutine choose_sparse
+
+  !> rbody(:, r): the two bodies of row r (0: the ground), its primitive's
+  pure subroutine row_bodies(model, rbody)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    integer, intent(out) :: rbody(:, :)
+    integer :: k, r, nrows
+    do k = 1, model%nprim
+      nrows = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
+      do r = model%prim(k)%row, model%prim(k)%row + nrows - 1
+        rbody(:, r) = [model%prim(k)%bi, model%prim(k)%bj]
+      end do
+    end do
+  end subroutine row_bodies
+
+  !> The body graph (mbdk_mechanism): nqb coordinates and 6 velocities per body, the joints'
+  !> primitives and the forces that load two bodies as pairs, each row's 6 velocity columns
+  !> on each of its bodies.
+  subroutine spatial_body_graph(self, qbody, vbody, pairs, rptr, rcol, stat, asked)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    integer, allocatable, intent(out) :: qbody(:), vbody(:), pairs(:, :), rptr(:), rcol(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer :: i, k, a, b, n, astat
+    integer, allocatable :: rbody(:, :)
+    allocate (qbody(self%ncoord), vbody(self%nvel), pairs(2, self%nprim + self%nf), &
+              rptr(self%m + 1), rcol(12 * self%m), rbody(2, self%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (real(self%ncoord, dp) + self%nvel + &
+                           2 * (self%nprim + self%nf) + 15.0_dp * self%m + 1), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    do i = 1, self%ncoord
+      qbody(i) = (i - 1) / self%nqb + 1
+    end do
+    do i = 1, self%nvel
+      vbody(i) = (i - 1) / 6 + 1
+    end do
+    do k = 1, self%nprim
+      pairs(:, k) = [self%prim(k)%bi, self%prim(k)%bj]
+    end do
+    do k = 1, self%nf
+      pairs(:, self%nprim + k) = self%fbody(1:2, k)
+      if (.not. loads_two_bodies(self%ftype(k))) pairs(:, self%nprim + k) = 0
+    end do
+    call row_bodies(self, rbody)
+    n = 0
+    do k = 1, self%m
+      rptr(k) = n + 1
+      do a = 1, 2
+        b = rbody(a, k)
+        if (b == 0) cycle
+        rcol(n + 1:n + 6) = [(6 * (b - 1) + i, i = 1, 6)]
+        n = n + 6
+      end do
+    end do
+    rptr(self%m + 1) = n + 1
+    rcol = rcol(1:n)
+  end subroutine spatial_body_graph
 
   !> C x for C in compact rows cc (the sparse path); absolute: |C| |x|
   pure function compact_times(model, cc, x, absolute) result(y)
