@@ -18,6 +18,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from mbdk.errors import format_bytes
 
 #: the child's address space: the interpreter, numpy and the kernel fit, the runs' arrays not
@@ -173,21 +175,23 @@ def test_a_long_spatial_chain_runs_the_index3_family_in_memory_that_grows_as_its
     assert rep["after"]
 
 
-def test_a_long_spatial_chain_runs_bdf_on_its_dae_in_memory_that_grows_as_its_bodies_do():
-    """bdf (si2, the DAE itself) on a chain of 10 000 spatial bars (30 000 rows, 190 000
-    unknowns) runs within the child's 3 GB (measured 0.6 GB for the process): compact rows and
-    the DAE's own sparse Newton matrix (mbdk_mechanism_dae), where the dense one and its LU
-    would take 2 x 190 000^2 doubles (578 GB) and its Jacobian 190 001 evaluations of a dense
-    C of 14.4 GB."""
-    rep = run_child('''
+@pytest.mark.parametrize("method, form", [("bdf", "si2"), ("ida", "index1")])
+def test_a_long_spatial_chain_runs_the_dae_methods_in_memory_that_grows_as_its_bodies_do(
+        method, form):
+    """bdf (si2) and ida (index1) on the DAE of a chain of 10 000 spatial bars (30 000 rows;
+    160 000 or 190 000 unknowns) run within the child's 3 GB (measured about 0.6 GB for the
+    process): compact rows and sparse Newton matrices (bdf's own, mbdk_mechanism_dae; ida's
+    by KLU, mbdk_ida), where a dense one and its LU would take 2 x 190 000^2 doubles (578 GB)
+    and its Jacobian 190 001 evaluations of a dense C of 14.4 GB."""
+    rep = run_child(f'''
         import warnings
         from mbdk.benchmarks import spatial_chain
         from mbdk.codes import DAE_NEWTON_MATRIX
         warnings.simplefilter("ignore", mbdk.AccuracyWarning)
-        r = mbdk.simulate(spatial_chain(10_000), "bdf", formulation="si2", rtol=1e-6,
+        r = mbdk.simulate(spatial_chain(10_000), "{method}", formulation="{form}", rtol=1e-6,
                           atol=1e-8, t_end=2e-3)
         assert r.success and r.stats.nlu_sparse == r.stats.nlu > 0
-        assert r.manifest["newton_matrix"] == DAE_NEWTON_MATRIX["bdf_sparse"]
+        assert r.manifest["newton_matrix"] == DAE_NEWTON_MATRIX["{method}_sparse"]
     ''')
     assert rep["type"] == "NoneType", rep["message"]
     assert rep["after"]

@@ -85,8 +85,9 @@ typedef struct mbdk_stats {
     int64_t order1_steps, order2_steps, order3_steps, order4_steps, order5_steps;
                                 /* bdf, cvode_*: accepted steps at each order (cvode_adams
                                    counts orders above 5 in order5_steps) */
-    int64_t nlu_sparse;         /* of nlu, those by a sparse L D U of the problem's own (bdf
-                                   on a large mechanism's DAE); the others dense */
+    int64_t nlu_sparse;         /* of nlu, those of a DAE method's sparse Newton matrix (a
+                                   large scene's DAE: bdf's L D U, ida's KLU); 0 for the
+                                   other methods */
     double cpu_time;            /* CPU seconds of the solving thread in the time loop */
     double wall_time;           /* wall-clock seconds of the time loop */
     double t_reached;           /* the last accepted step's time (where a failed solve stopped) */

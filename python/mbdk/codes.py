@@ -168,23 +168,29 @@ DAE_NONE = 0
 
 #: the DAE methods' Newton matrices (kernel/src/implicit/mbdk_variable_bdf.f90; SUNDIALS IDA's
 #: dense linear solver): the manifest's newton_matrix (a spatial run's linear_solve too: the
-#: spatial model takes no constrained solve of its own into a DAE run). bdf's is sparse on a
+#: spatial model takes no constrained solve of its own into a DAE run). Both are sparse on a
 #: scene whose constraint rows the model keeps compact (its solves are sparse: a large scene;
-#: not with contacts, a knife edge or a planar body without inertia), which the run's
-#: stats.nlu_sparse shows (kernel/src/dae/mbdk_mechanism_dae.f90); ida's is dense always.
+#: not with contacts or a knife edge, and for bdf not with a planar body without inertia),
+#: which the run's stats.nlu_sparse shows (kernel/src/dae/mbdk_mechanism_dae.f90,
+#: kernel/src/sundials/mbdk_ida.f90).
 DAE_NEWTON_MATRIX = {"bdf": "bdf's Newton matrix E - c J by differences over the DAE's state "
                             "(LAPACK LU)",
                      "bdf_sparse": "bdf's Newton matrix E - c J in the body graph's pattern: "
                                    "the bodies' columns by colored differences, the "
                                    "multipliers' exact; sparse L D U (AMD, SuiteSparse LDL's "
                                    "analysis)",
-                     "ida": "IDA's dense difference quotients, SUNDIALS dense LU"}
+                     "ida": "IDA's dense difference quotients, SUNDIALS dense LU",
+                     "ida_sparse": "IDA's Newton matrix in the body graph's pattern by colored "
+                                   "difference quotients, SUNDIALS KLU"}
 
 
 def dae_newton_matrix(method: str, stats) -> str:
-    """The manifest's newton_matrix of a DAE run by method ('bdf' or 'ida') with these stats."""
-    if method == "bdf" and stats.nlu_sparse:
-        return DAE_NEWTON_MATRIX["bdf_sparse"]
+    """The manifest's newton_matrix of a DAE run by method ('bdf' or 'ida') with these stats
+    (a run that stopped before its first factorisation had none)."""
+    if stats is not None and stats.nlu == 0:
+        return "none factorised (the run stopped before its first Newton matrix)"
+    if stats is not None and stats.nlu_sparse:
+        return DAE_NEWTON_MATRIX[method + "_sparse"]
     return DAE_NEWTON_MATRIX[method]
 
 # ---- the spatial model (kernel/src/spatial/mbdk_spatial_model.f90), no exported table yet ----

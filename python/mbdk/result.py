@@ -31,7 +31,7 @@ class Stats:
     order3_steps: int = 0
     order4_steps: int = 0
     order5_steps: int = 0          # (cvode_adams: order 5 and above)
-    nlu_sparse: int = 0            # of nlu, by a sparse L D U (bdf on a large mechanism's DAE)
+    nlu_sparse: int = 0            # of nlu, a DAE method's sparse Newton matrix (bdf, ida)
     cpu_time: float = 0.0
     wall_time: float = 0.0
     t_reached: float = 0.0         # the last accepted step's time (where a failed solve stopped)

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .checks import check_memory, memory_error
-from .codes import DAE_NEWTON_MATRIX, dae_newton_matrix
+from .codes import dae_newton_matrix
 from .errors import Status, exception_for, status_message
 from .ode import build_info
 from .options import empty, unpack
@@ -150,7 +150,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False, stats=None
         manifest["linear_solve"] = SPATIAL_INDEX3_MATRIX[sparse]
     if plan.ida:
         manifest["form"] = SPATIAL_IDA_FORMS[formulation]
-        manifest["linear_solve"] = manifest["newton_matrix"] = DAE_NEWTON_MATRIX["ida"]
+        manifest["linear_solve"] = manifest["newton_matrix"] = dae_newton_matrix("ida", stats)
         manifest["quaternion_norm"] = ("none (ida on the DAE: no projection between its steps)"
                                        if scene.quaternion_norm == "project" else
                                        scene.quaternion_norm)

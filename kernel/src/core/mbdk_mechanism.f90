@@ -46,7 +46,7 @@
 !>                products and solves below
 !>   i3_residual  r = M dd - s (f - C^T lt), the trapezoidal equations of motion (in the
 !>                mbdk_i3_eval_t)
-!>   i3_c_times, i3_ct_times   C x and C^T x
+!>   i3_c_times, i3_ct_times   C x and C^T x (or |C| |x| and |C|^T |x|)
 !>   i3_cs_factor, i3_cs_solve   M x + C^T mu = b, C x = c at the last evaluation (the
 !>                projections); on a regular path (an augmented Lagrangian iteration) where C
 !>                has lost a rank, when the caller allows it
@@ -302,13 +302,15 @@ module mbdk_mechanism
       real(dp), intent(in) :: s
     end subroutine i3_residual_iface
 
-    !> y = C x (i3_c_times: x of nvel, y of m) or C^T x (i3_ct_times) at the last evaluation
-    subroutine i3_times_iface(self, aux, x, y)
+    !> y = C x (i3_c_times: x of nvel, y of m) or C^T x (i3_ct_times) at the last evaluation;
+    !> absolute: |C| |x| (|C|^T |x|), the sizes of the products' terms (roundoff bounds)
+    subroutine i3_times_iface(self, aux, x, y, absolute)
       import :: mbdk_mechanism_t, mbdk_i3_aux_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in), contiguous :: x(:)
       real(dp), intent(out), contiguous :: y(:)
+      logical, intent(in), optional :: absolute
     end subroutine i3_times_iface
 
     !> factorises the constrained system at the last evaluation. near > 0: a relative pivot of

@@ -19,8 +19,9 @@ module mbdk_stats
     !> error-controlled multistep methods (bdf, cvode_*): accepted steps taken at order k
     integer(c_int64_t) :: order1_steps = 0, order2_steps = 0, order3_steps = 0, &
                           order4_steps = 0, order5_steps = 0
-    !> of nlu, the factorisations by a sparse L D U of the problem's own (bdf on a large
-    !> mechanism's DAE, mbdk_mechanism_dae); the others dense
+    !> of nlu, the factorisations of a DAE method's sparse Newton matrix (a large scene's DAE:
+    !> bdf's own L D U, mbdk_mechanism_dae; ida's KLU, mbdk_ida); 0 for the other methods
+    !> (the index-3 family's manifest names its matrix)
     integer(c_int64_t) :: nlu_sparse = 0
     real(c_double) :: cpu_time = 0.0_c_double   !< CPU seconds of the solving thread in the time loop
     real(c_double) :: wall_time = 0.0_c_double  !< wall-clock seconds of the time loop

@@ -26,26 +26,34 @@
 !>
 !> Large scenes (the mechanism's compact_rows: its constrained solves are sparse) keep nothing
 !> dense. G is evaluated through the index-3 procedures (f, Phi, Phi_t and the products C x,
-!> C^T x from the model's compact rows; i3_create's object, which a scene with contacts or a
-!> knife edge refuses: those keep the dense path), and the problem forms, factorises and
-!> solves bdf's Newton matrix E - c J itself (mbdk_problem's has_newton_matrix):
+!> C^T x from the model's compact rows; i3_create's object, which a planar scene with contacts
+!> refuses, and no knife edge, whose velocity row G would read as a position row: those keep
+!> the dense path), and the problem forms, factorises and solves bdf's Newton matrix E - c J
+!> itself (mbdk_problem's has_newton_matrix):
 !>   pattern   J's columns of a body's coordinates and velocities have rows on the bodies
 !>             paired with it and on the rows with a column on it; a multiplier's column has
-!>             rows on its row's bodies (mbdk_mechanism's body_graph). That is the KKT shape
+!>             rows on its row's bodies (mbdk_dae_pattern, from mbdk_mechanism's body_graph;
+!>             ida's sparse matrix has the same pattern). That is the KKT shape
 !>             [K D^T; D 0] of mbdk_kkt_pattern with K over [q; v] and D the rows of lam
 !>             (and mu), in its order: AMD's, each multiplier after the last unknown of its
 !>             bodies, so that L D U without pivoting (mbdk_sparse_ldlt_factor_lu) meets
 !>             pivots near 1 on the bodies' unknowns (E's identity and M: a planar body
 !>             without inertia keeps the dense path) and c C M^-1 C^T, scaled, on the rows'
 !>   values    the bodies' columns by forward differences of G, colored: a distance-2
-!>             coloring of the body graph (mbdk_body_pattern_colors) perturbs the k-th unknown
-!>             of every body of a color at once, so a chain's matrix costs about 3 x 13
-!>             evaluations whatever its length, each O(N); increments sqrt(eps) max(|y_j|, 1),
+!>             coloring of the body graph (mbdk_dae_pattern) perturbs the k-th unknown of
+!>             every body of a color at once, so a chain's matrix costs about 3 x 13
+!>             evaluations whatever its length, each O(N) (a hub, a body coupled to many,
+!>             makes the colors grow with its degree); increments sqrt(eps) max(|y_j|, 1),
 !>             mbdk_jacobian's. The multipliers' columns exactly, G being linear in them: a
 !>             coloring of the rows (no two of a color on one body) gives -M^-1 C^T e (v rows)
 !>             and, si2, -T(q) C^T e (q rows) for all rows of a color by one product
 !>   factor    the values E - c J with the algebraic rows and columns divided by c (bdf's
-!>             index scaling) into L D U; a vanishing pivot is MBDK_ERR_SINGULAR_MATRIX.
+!>             index scaling) into L D U; a vanishing pivot is MBDK_ERR_SINGULAR_MATRIX (bdf
+!>             retries the step smaller). Without pivoting a body's pivot shrinks where a
+!>             stiff element's c^2 K nears its mass, and the solve loses digits to that growth:
+!>             each solve takes one step of iterative refinement with the matrix itself (a
+!>             product and a second solve), which restores them (tests/test_dae_scale.py: the
+!>             stiff spring bar then takes the dense LU's steps and iterations).
 !> The start's consistency (mbdk_mechanism_dae_residuals) is measured the same way.
 module mbdk_mechanism_dae
   use mbdk_kinds, only: dp
@@ -53,8 +61,7 @@ module mbdk_mechanism_dae
   use mbdk_problem, only: mbdk_problem_t
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
-  use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
-    mbdk_body_pattern_colors
+  use mbdk_dae_pattern, only: mbdk_dae_pattern_t, mbdk_dae_pattern_init
   use mbdk_kkt_pattern, only: mbdk_kkt_pattern_init
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_factor_lu, &
     mbdk_sparse_ldlt_solve
@@ -72,9 +79,8 @@ module mbdk_mechanism_dae
 
   !> evaluation buffers (the problem is intent(in) in rhs: they live behind a pointer); the
   !> sparse path's (module header): the index-3 object and point, the factors of the KKT
-  !> pattern and J's values in their layout (jx), each body's unknowns (q's, then v's:
-  !> bidx(bptr(b) .. bptr(b+1)-1)), the bodies' colors, the rows' colors (active rows i:
-  !> rrow(rptr(k) .. rptr(k+1)-1) for color k), and vectors
+  !> pattern and J's values in their layout (jx), the pattern and colorings
+  !> (mbdk_dae_pattern), and vectors
   type :: dae_work_t
     real(dp), allocatable :: f(:), phi(:), c(:, :), gam(:), phit(:), lam(:), mu(:), g(:), &
       x(:), lamn(:, :)
@@ -82,7 +88,7 @@ module mbdk_mechanism_dae
     type(mbdk_i3_eval_t) :: e
     type(mbdk_sparse_ldlt_t) :: ldl
     real(dp), allocatable :: jx(:), g0(:), g1(:), yw(:), del(:), z(:), zq(:), rq0(:), cv(:)
-    integer, allocatable :: bptr(:), bidx(:), cptr(:), cbody(:), rptr(:), rrow(:)
+    type(mbdk_dae_pattern_t) :: pat
   end type dae_work_t
 
   type, extends(mbdk_problem_t), public :: mbdk_mechanism_dae_t
@@ -176,199 +182,41 @@ contains
     type(mbdk_mechanism_dae_t), intent(inout) :: self
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer, allocatable :: qbody(:), vbody(:), pairs(:, :), grptr(:), grcol(:), kap(:), &
-      kai(:), drptr(:), drcol(:), kpos(:), dpos_r(:), dpos_c(:), rb(:, :), fill(:), partner(:)
-    type(mbdk_body_pattern_t) :: bp
-    integer :: nb, ncq, ny, na, nd, m, i, j, k, b, a, p, r, nnz, astat
+    integer, allocatable :: kpos(:), dpos_r(:), dpos_c(:), partner(:)
+    integer :: ncq, na, nd, m, i, astat
     stat = MBDK_ERR_NOT_APPLICABLE
     if (self%na == 0) return
     associate (w => self%work, mech => self%mech)
       call mech%i3_create(w%aux, .false., stat, asked)
       if (stat /= MBDK_SUCCESS) return
-      call mech%body_graph(qbody, vbody, pairs, grptr, grcol, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      nb = mech%nb
       m = mech%m
       ncq = self%ncq
-      ny = self%ny
       na = self%na
       nd = merge(2 * na, na, self%form == MBDK_DAE_SI2)
+      call mbdk_dae_pattern_init(w%pat, mech, self%rows, nd / na, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
       allocate (w%e%q(ncq), w%e%v(self%nv), w%e%f(self%nv), w%e%phi(m), w%e%gam(m), &
                 w%e%phit(m), w%e%lt(m), w%e%dd(self%nv), w%e%r(self%nv + m), w%g0(self%n), &
                 w%g1(self%n), w%yw(self%n), w%del(self%n), w%z(self%nv), w%zq(ncq), &
-                w%rq0(ncq), w%cv(m), w%bptr(nb + 1), w%bidx(ny), fill(nb), rb(2, na), &
-                stat=astat)
+                w%rq0(ncq), w%cv(m), partner(nd), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (6.0_dp * m + 5.0_dp * self%nv + &
-                             3.0_dp * ncq + 4.0_dp * self%n) + MBDK_INT_BYTES * (2.0_dp * nb + &
-                             1 + ny + 2.0_dp * na), stat, asked)
+                             3.0_dp * ncq + 4.0_dp * self%n) + MBDK_INT_BYTES * nd, stat, asked)
       if (astat /= 0) return
       w%e%lt = 0.0_dp
       w%e%dd = 0.0_dp
-      ! each body's unknowns, its coordinates then its velocities
-      w%bptr = 0
-      do i = 1, self%nv
-        w%bptr(vbody(i) + 1) = w%bptr(vbody(i) + 1) + 1
-      end do
-      do i = 1, ncq
-        w%bptr(qbody(i) + 1) = w%bptr(qbody(i) + 1) + 1
-      end do
-      w%bptr(1) = 1
-      do b = 1, nb
-        w%bptr(b + 1) = w%bptr(b + 1) + w%bptr(b)
-      end do
-      fill = w%bptr(1:nb)
-      do i = 1, ny
-        b = merge(qbody(min(i, ncq)), vbody(max(i - ncq, 1)), i <= ncq)
-        w%bidx(fill(b)) = i
-        fill(b) = fill(b) + 1
-      end do
-      ! the bodies of each active row (from its columns: one or two)
-      do i = 1, na
-        r = self%rows(i)
-        rb(:, i) = 0
-        do j = grptr(r), grptr(r + 1) - 1
-          b = vbody(grcol(j))
-          if (rb(1, i) == 0) then
-            rb(1, i) = b
-          else if (rb(1, i) /= b) then
-            rb(2, i) = b
-          end if
-        end do
-      end do
-      ! K's pattern over [q; v]: a body's unknowns against those of its neighbours (the rows'
-      ! pairs are joints: in pairs already)
-      call mbdk_body_pattern_init(bp, nb, pairs, stat, asked, bs=1)
-      if (stat /= MBDK_SUCCESS) return
-      nnz = 0
-      do b = 1, nb
-        do p = bp%bptr(b), bp%bptr(b + 1) - 1
-          a = bp%nbr(p)
-          nnz = nnz + (w%bptr(b + 1) - w%bptr(b)) * (w%bptr(a + 1) - w%bptr(a))
-        end do
-      end do
-      k = 0
-      do i = 1, na
-        do j = 1, 2
-          if (rb(j, i) > 0) k = k + w%bptr(rb(j, i) + 1) - w%bptr(rb(j, i))
-        end do
-      end do
-      allocate (kap(ny + 1), kai(nnz), drptr(nd + 1), drcol(k * (nd / na)), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ny + 2.0_dp + nnz + nd + &
-                             real(k, dp) * (nd / na)), stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      p = 0
-      do j = 1, ny
-        kap(j) = p + 1
-        b = merge(qbody(min(j, ncq)), vbody(max(j - ncq, 1)), j <= ncq)
-        do k = bp%bptr(b), bp%bptr(b + 1) - 1
-          a = bp%nbr(k)
-          kai(p + 1:p + w%bptr(a + 1) - w%bptr(a)) = w%bidx(w%bptr(a):w%bptr(a + 1) - 1)
-          p = p + w%bptr(a + 1) - w%bptr(a)
-        end do
-      end do
-      kap(ny + 1) = p + 1
-      ! D: the rows of lam (and mu) on all unknowns of their bodies
-      p = 0
-      do k = 1, nd
-        i = k
-        if (k > na) i = k - na
-        drptr(k) = p + 1
-        do j = 1, 2
-          b = rb(j, i)
-          if (b == 0) cycle
-          drcol(p + 1:p + w%bptr(b + 1) - w%bptr(b)) = w%bidx(w%bptr(b):w%bptr(b + 1) - 1)
-          p = p + w%bptr(b + 1) - w%bptr(b)
-        end do
-      end do
-      drptr(nd + 1) = p + 1
       ! (si2: each mu row after its lam row, module header)
-      allocate (partner(nd), stat=astat)
-      call mbdk_alloc_status(astat, MBDK_INT_BYTES * nd, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
       partner = 0
-      if (nd > na) partner(na + 1:nd) = [(i, i = 1, na)]
-      call mbdk_kkt_pattern_init(kap, kai, drptr, drcol(1:p), w%ldl, kpos, dpos_r, dpos_c, &
-                                 stat, asked, unsymmetric=.true., partner=partner)
+      do i = na + 1, nd
+        partner(i) = i - na
+      end do
+      call mbdk_kkt_pattern_init(w%pat%kap, w%pat%kai, w%pat%drptr, w%pat%drcol, w%ldl, kpos, &
+                                 dpos_r, dpos_c, stat, asked, unsymmetric=.true., &
+                                 partner=partner)
       if (stat /= MBDK_SUCCESS) return
       allocate (w%jx(size(w%ldl%ax)), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * size(w%ldl%ax), stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      call mbdk_body_pattern_colors(bp, w%cptr, w%cbody, stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      call color_rows(na, rb, nb, w%rptr, w%rrow, stat, asked)
     end associate
   end subroutine sparse_init
-
-  !> A coloring of the rows i = 1..na on the bodies rb(:, i) (0: the ground; nb
-  !> bodies), greedy: no two rows of a color on one body, so that C^T e for the rows of a
-  !> color gives each body one row's column. The rows of color k: rrow(rptr(k) ..
-  !> rptr(k+1)-1).
-  subroutine color_rows(na, rb, nb, rptr, rrow, stat, asked)
-    integer, intent(in) :: na, rb(2, na), nb
-    integer, allocatable, intent(out) :: rptr(:), rrow(:)
-    integer, intent(out) :: stat
-    real(dp), intent(inout), optional :: asked
-    integer, allocatable :: color(:), seen(:), brptr(:), brow(:), fill(:)
-    integer :: i, j, b, p, k, ncol, astat
-    allocate (brptr(nb + 1), brow(2 * na), fill(nb), color(na), seen(na + 1), rrow(na), &
-              stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * nb + 5.0_dp * na + 2), stat, asked)
-    if (astat /= 0) return
-    ! each body's rows, by a counting sort
-    brptr = 0
-    do i = 1, na
-      do j = 1, 2
-        if (rb(j, i) > 0) brptr(rb(j, i) + 1) = brptr(rb(j, i) + 1) + 1
-      end do
-    end do
-    brptr(1) = 1
-    do b = 1, nb
-      brptr(b + 1) = brptr(b + 1) + brptr(b)
-    end do
-    fill = brptr(1:nb)
-    do i = 1, na
-      do j = 1, 2
-        b = rb(j, i)
-        if (b == 0) cycle
-        brow(fill(b)) = i
-        fill(b) = fill(b) + 1
-      end do
-    end do
-    color = 0
-    seen = 0
-    ncol = 0
-    do i = 1, na
-      do j = 1, 2
-        b = rb(j, i)
-        if (b == 0) cycle
-        do p = brptr(b), brptr(b + 1) - 1
-          if (color(brow(p)) > 0) seen(color(brow(p))) = i
-        end do
-      end do
-      k = 1
-      do while (seen(k) == i)
-        k = k + 1
-      end do
-      color(i) = k
-      ncol = max(ncol, k)
-    end do
-    allocate (rptr(ncol + 1), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ncol + 1.0_dp), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    rptr = 0
-    do i = 1, na
-      rptr(color(i) + 1) = rptr(color(i) + 1) + 1
-    end do
-    rptr(1) = 1
-    do k = 1, ncol
-      rptr(k + 1) = rptr(k + 1) + rptr(k)
-    end do
-    seen(1:ncol) = rptr(1:ncol)
-    do i = 1, na
-      rrow(seen(color(i))) = i
-      seen(color(i)) = seen(color(i)) + 1
-    end do
-  end subroutine color_rows
 
   subroutine dae_free(self)
     type(mbdk_mechanism_dae_t), intent(inout) :: self
@@ -439,6 +287,10 @@ contains
     associate (w => self%work, mech => self%mech, e => self%work%e)
       e%q = y(1:ncq)
       e%v = y(ncq + 1:ny)
+      ! a non-finite state is named, as the dense evaluate names it (the index-3 one leaves it
+      ! to its caller); forces not finite at a finite state reach f, which bdf checks
+      stat = MBDK_ERR_NONFINITE
+      if (.not. all(abs(y(1:ny)) <= huge(1.0_dp))) return
       call mech%i3_evaluate(w%aux, t, e, .true., .false., stat)
       if (stat /= MBDK_SUCCESS) return
       w%lam = 0.0_dp
@@ -488,6 +340,8 @@ contains
       call compact_g(self, t, y, w%g0, stat)
       nfev = 1
       if (stat /= MBDK_SUCCESS) return
+      stat = MBDK_ERR_NONFINITE
+      if (.not. all(abs(w%g0) <= huge(1.0_dp))) return
       w%jx = 0.0_dp
       ! the multipliers' columns, with C of the evaluation at y (the last)
       if (self%form == MBDK_DAE_SI2) then
@@ -495,10 +349,10 @@ contains
         call mech%rates(w%e%q, w%z, w%rq0, stat)
         if (stat /= MBDK_SUCCESS) return
       end if
-      do c = 1, size(w%rptr) - 1
+      do c = 1, size(w%pat%rptr) - 1
         w%lam = 0.0_dp
-        do k = w%rptr(c), w%rptr(c + 1) - 1
-          w%lam(self%rows(w%rrow(k))) = 1.0_dp
+        do k = w%pat%rptr(c), w%pat%rptr(c + 1) - 1
+          w%lam(self%rows(w%pat%rrow(k))) = 1.0_dp
         end do
         call mech%i3_ct_times(w%aux, w%lam, w%x)
         if (mech%diag_mass) then
@@ -512,8 +366,8 @@ contains
           if (stat /= MBDK_SUCCESS) return
           w%zq = w%zq - w%rq0
         end if
-        do k = w%rptr(c), w%rptr(c + 1) - 1
-          i = w%rrow(k)
+        do k = w%pat%rptr(c), w%pat%rptr(c + 1) - 1
+          i = w%pat%rrow(k)
           j = ny + i
           do p = ap(j) + 1, ap(j + 1)
             row = ai(p) + 1
@@ -528,15 +382,15 @@ contains
         end do
       end do
       ! the bodies' columns, the k-th unknown of every body of a color at once
-      dmax = maxval(w%bptr(2:) - w%bptr(:size(w%bptr) - 1))
+      dmax = w%pat%dmax
       w%yw = y
-      do c = 1, size(w%cptr) - 1
+      do c = 1, size(w%pat%cptr) - 1
         do d = 1, dmax
           any_col = .false.
-          do k = w%cptr(c), w%cptr(c + 1) - 1
-            b = w%cbody(k)
-            if (w%bptr(b) + d - 1 >= w%bptr(b + 1)) cycle
-            j = w%bidx(w%bptr(b) + d - 1)
+          do k = w%pat%cptr(c), w%pat%cptr(c + 1) - 1
+            b = w%pat%cbody(k)
+            if (w%pat%bptr(b) + d - 1 >= w%pat%bptr(b + 1)) cycle
+            j = w%pat%bidx(w%pat%bptr(b) + d - 1)
             w%yw(j) = y(j) + sqrt(epsilon(1.0_dp)) * max(abs(y(j)), 1.0_dp)
             w%del(j) = w%yw(j) - y(j)    ! the increment actually representable
             any_col = .true.
@@ -545,10 +399,14 @@ contains
           call compact_g(self, t, w%yw, w%g1, stat)
           nfev = nfev + 1
           if (stat /= MBDK_SUCCESS) return
-          do k = w%cptr(c), w%cptr(c + 1) - 1
-            b = w%cbody(k)
-            if (w%bptr(b) + d - 1 >= w%bptr(b + 1)) cycle
-            j = w%bidx(w%bptr(b) + d - 1)
+          ! (G not finite a difference increment away: a singularity there, named)
+          stat = MBDK_ERR_NONFINITE
+          if (.not. all(abs(w%g1) <= huge(1.0_dp))) return
+          stat = MBDK_SUCCESS
+          do k = w%pat%cptr(c), w%pat%cptr(c + 1) - 1
+            b = w%pat%cbody(k)
+            if (w%pat%bptr(b) + d - 1 >= w%pat%bptr(b + 1)) cycle
+            j = w%pat%bidx(w%pat%bptr(b) + d - 1)
             w%yw(j) = y(j)
             do p = ap(j) + 1, ap(j + 1)
               row = ai(p) + 1
@@ -589,9 +447,21 @@ contains
     class(mbdk_mechanism_dae_t), intent(in) :: self
     real(dp), intent(inout), contiguous :: x(:)
     integer, intent(out) :: stat
+    integer :: j, p
     stat = MBDK_ERR_NOT_APPLICABLE
     if (.not. self%sparse) return
-    call mbdk_sparse_ldlt_solve(self%work%ldl, x)
+    associate (w => self%work, ap => self%work%ldl%ap, ai => self%work%ldl%ai)
+      w%yw = x
+      call mbdk_sparse_ldlt_solve(w%ldl, x)
+      w%g1 = w%yw
+      do j = 1, self%n
+        do p = ap(j) + 1, ap(j + 1)
+          w%g1(ai(p) + 1) = w%g1(ai(p) + 1) - w%ldl%ax(p) * x(j)
+        end do
+      end do
+      call mbdk_sparse_ldlt_solve(w%ldl, w%g1)
+      x = x + w%g1
+    end associate
     stat = MBDK_SUCCESS
   end subroutine dae_newton_solve
 

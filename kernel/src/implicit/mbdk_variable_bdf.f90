@@ -62,7 +62,9 @@
 !> every smaller step after a rejection. The first step comes from yp0 (1 % of |y|/|y'|, or
 !> opt%h); the Jacobian is by differences (N + 1 evaluations of F), or the problem's own
 !> (has_newton_matrix, mbdk_problem: a large mechanism's DAE forms E - c J sparse by colored
-!> differences and factorises it by a sparse L D U, mbdk_mechanism_dae; stats: nlu_sparse).
+!> differences and factorises it by a sparse L D U, mbdk_mechanism_dae; stats: nlu_sparse). That
+!> factorisation does not pivot: a zero pivot there is a failed iteration (h halves), and the
+!> cause (MBDK_ERR_SINGULAR_MATRIX) if the steps shrink to the floor.
 !> Roundoff floor. A corrector that stalls or runs out of iterations is tested against the
 !> floor of its update (mbdk_newton_floor, with the current matrix, in the error test's
 !> norm): an ODE's iterate at that floor is accepted (it is as good as double precision makes
@@ -126,8 +128,8 @@ module mbdk_variable_bdf
     !> dae: E y' = F(t, y) with E = diag(em) (the module header's section "DAE")
     logical :: dae = .false.
     !> the problem forms and factorises M itself (has_newton_matrix: a large mechanism's DAE,
-    !> sparse); else J and M are dense here
-    logical :: own_matrix = .false.
+    !> sparse); else J and M are dense here. singular: its last factorisation met a zero pivot
+    logical :: own_matrix = .false., singular = .false.
     logical :: have_lu = .false., jac_current = .false., converged = .false.
     !> the last corrector met F not finite; a corrector of this step stalled at its floor
     logical :: nonfinite = .false., at_floor = .false.
@@ -366,6 +368,10 @@ contains
       stat = MBDK_ERR_NONFINITE
       return
     end if
+    if (b%singular) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      return
+    end if
     if (.not. b%at_floor .and. b%have_lu) then
       call floor_norm(b, prob, fl, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -405,7 +411,18 @@ contains
     do
       if (.not. b%have_lu .or. abs(b%c - b%c_lu) > C_CHANGE * b%c_lu) then
         call factor_matrix(b, prob, st, stat)
+        ! the problem's own factorisation has no pivoting: a body's block M - c D - c^2 K
+        ! can pass through zero at one c while E - c J is regular (a compressed chain's
+        ! geometric stiffness), so its zero pivot is a failed iteration, retried at a smaller
+        ! step, and the cause if the steps shrink to nothing (too_small_status)
+        if (stat == MBDK_ERR_SINGULAR_MATRIX .and. b%own_matrix) then
+          b%singular = .true.
+          b%converged = .false.
+          stat = MBDK_SUCCESS
+          return
+        end if
         if (stat /= MBDK_SUCCESS) return
+        b%singular = .false.
       end if
       call corrector(b, prob, st, stat)
       if (stat /= MBDK_SUCCESS) return

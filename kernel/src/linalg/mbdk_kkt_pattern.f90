@@ -20,7 +20,7 @@ module mbdk_kkt_pattern
   use mbdk_sparse_ldlt, only: mbdk_sparse_ldlt_t, mbdk_sparse_ldlt_analyze, mbdk_sparse_ldlt_amd
   implicit none
   private
-  public :: mbdk_kkt_pattern_init
+  public :: mbdk_kkt_pattern_init, mbdk_kkt_pattern_csc
 
 contains
 
@@ -44,18 +44,90 @@ contains
     real(dp), intent(inout), optional :: asked
     logical, intent(in), optional :: unsymmetric
     integer, intent(in), optional :: partner(:)
+    integer :: nc, m, n, c, r, j, k, p, astat
+    integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:)
+    nc = size(kap) - 1
+    m = size(rptr) - 1
+    n = nc + m
+    call mbdk_kkt_pattern_csc(kap, kai, rptr, rcol, ap, ai, kpos, dpos_r, dpos_c, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    allocate (mark(n), perm(n), order(n), last(n), at(n), brow(n), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 6.0_dp * n, stat, asked)
+    if (astat /= 0) return
+    p = ap(n + 1)
+    ! AMD's order, each row moved to just after the last of its coordinates
+    call mbdk_sparse_ldlt_amd(n, ap, ai(1:p - 1), perm, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do k = 1, n
+      at(perm(k)) = k
+    end do
+    last = 0
+    do r = 1, m
+      do j = rptr(r), rptr(r + 1) - 1
+        last(nc + r) = max(last(nc + r), at(rcol(j)))
+      end do
+    end do
+    ! a counting sort of the rows by last, stable in AMD's order (bucket k: at(mark(k) ..
+    ! brow(k)-1)); then the nodes in AMD's order, each coordinate followed by its bucket
+    mark = 0
+    do k = 1, n
+      if (perm(k) > nc) mark(max(1, last(perm(k)))) = mark(max(1, last(perm(k)))) + 1
+    end do
+    p = 1
+    do k = 1, n
+      j = mark(k)
+      mark(k) = p
+      p = p + j
+    end do
+    brow(1:n) = mark(1:n)
+    do k = 1, n
+      c = perm(k)
+      if (c <= nc) cycle
+      j = max(1, last(c))
+      at(brow(j)) = c
+      brow(j) = brow(j) + 1
+    end do
+    j = 0
+    do k = 1, n
+      c = perm(k)
+      if (c <= nc) then
+        j = j + 1
+        order(j) = c
+      end if
+      do p = mark(k), brow(k) - 1
+        j = j + 1
+        order(j) = at(p)
+      end do
+    end do
+    if (present(partner)) call after_partners(nc, partner, order, at)
+    call mbdk_sparse_ldlt_analyze(ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order, &
+                                  unsymmetric)
+
+  end subroutine mbdk_kkt_pattern_init
+
+  !> The CSC pattern ap(n+1), ai of [K D^T; D 0] (n = nc + m; K's of nc = size(kap) - 1
+  !> columns in kap, kai, both triangles; row r of D with its nonzeros in the columns
+  !> rcol(rptr(r) .. rptr(r+1)-1)), each column's K entries first, then its rows' (once each:
+  !> two nonzeros of one row in one column share their place), a row's column its columns
+  !> then its own diagonal. kpos, dpos_r, dpos_c as mbdk_kkt_pattern_init's. stat:
+  !> MBDK_SUCCESS or MBDK_ERR_NO_MEMORY (asked: the bytes).
+  subroutine mbdk_kkt_pattern_csc(kap, kai, rptr, rcol, ap, ai, kpos, dpos_r, dpos_c, stat, &
+                                  asked)
+    integer, intent(in) :: kap(:), kai(:), rptr(:), rcol(:)
+    integer, allocatable, intent(out) :: ap(:), ai(:), kpos(:), dpos_r(:), dpos_c(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
     integer :: nc, knz, m, n, nnz, nd, c, r, j, k, p, astat
-    integer, allocatable :: ap(:), ai(:), mark(:), perm(:), order(:), last(:), at(:), brow(:), &
-      cptr(:), crow(:)
+    integer, allocatable :: mark(:), brow(:), cptr(:), crow(:)
     nc = size(kap) - 1
     knz = size(kai)
     m = size(rptr) - 1
     n = nc + m
     nd = size(rcol)
     nnz = knz + 2 * nd + m
-    allocate (ap(n + 1), ai(nnz), mark(n), perm(n), order(n), last(n), at(n), brow(n), &
-              cptr(nc + 1), crow(nd), kpos(knz), dpos_r(nd), dpos_c(nd), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (8.0_dp * n + nnz + knz + 3.0_dp * nd + &
+    allocate (ap(n + 1), ai(nnz), mark(n), brow(n), cptr(nc + 1), crow(nd), kpos(knz), &
+              dpos_r(nd), dpos_c(nd), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * n + nnz + knz + 3.0_dp * nd + &
                            nc + 2), stat, asked)
     if (astat /= 0) return
     ! D by columns (rows ascending in each)
@@ -115,53 +187,6 @@ contains
         dpos_c(j) = find(ap(c), ap(c + 1) - 1, nc + r)
       end do
     end do
-    ! AMD's order, each row moved to just after the last of its coordinates
-    call mbdk_sparse_ldlt_amd(n, ap, ai(1:p - 1), perm, stat)
-    if (stat /= MBDK_SUCCESS) return
-    do k = 1, n
-      at(perm(k)) = k
-    end do
-    last = 0
-    do r = 1, m
-      do j = rptr(r), rptr(r + 1) - 1
-        last(nc + r) = max(last(nc + r), at(rcol(j)))
-      end do
-    end do
-    ! a counting sort of the rows by last, stable in AMD's order (bucket k: at(mark(k) ..
-    ! brow(k)-1)); then the nodes in AMD's order, each coordinate followed by its bucket
-    mark = 0
-    do k = 1, n
-      if (perm(k) > nc) mark(max(1, last(perm(k)))) = mark(max(1, last(perm(k)))) + 1
-    end do
-    p = 1
-    do k = 1, n
-      j = mark(k)
-      mark(k) = p
-      p = p + j
-    end do
-    brow(1:n) = mark(1:n)
-    do k = 1, n
-      c = perm(k)
-      if (c <= nc) cycle
-      j = max(1, last(c))
-      at(brow(j)) = c
-      brow(j) = brow(j) + 1
-    end do
-    j = 0
-    do k = 1, n
-      c = perm(k)
-      if (c <= nc) then
-        j = j + 1
-        order(j) = c
-      end if
-      do p = mark(k), brow(k) - 1
-        j = j + 1
-        order(j) = at(p)
-      end do
-    end do
-    if (present(partner)) call after_partners(nc, partner, order, at)
-    call mbdk_sparse_ldlt_analyze(ldl, n, ap, ai(1:ap(n + 1) - 1), stat, asked, order, &
-                                  unsymmetric)
 
   contains
 
@@ -174,7 +199,7 @@ contains
       find = 0
     end function find
 
-  end subroutine mbdk_kkt_pattern_init
+  end subroutine mbdk_kkt_pattern_csc
 
   !> order (the k-th node eliminated) with each row r (node nc + r) after its partner's row
   !> where it came before: the two trade places. at: work of size(order).

@@ -18,8 +18,8 @@ module mbdk_sparse_schur
   implicit none
   private
   public :: mbdk_sparse_schur_init, mbdk_sparse_schur_assemble, mbdk_sparse_d_times, &
-    mbdk_sparse_schur_csc, mbdk_sparse_schur_assemble_csc, mbdk_sort_ints, &
-    mbdk_sparse_w_residual, mbdk_sparse_dtd_add
+    mbdk_sparse_d_abs_times, mbdk_sparse_schur_csc, mbdk_sparse_schur_assemble_csc, &
+    mbdk_sort_ints, mbdk_sparse_w_residual, mbdk_sparse_dtd_add
 
   integer, parameter :: SLOTS = 6
 
@@ -261,6 +261,32 @@ contains
       y(r) = z
     end do
   end subroutine mbdk_sparse_d_times
+
+  !> y = |D| |x| (y of m), or with transpose |D|^T |x| (y of nc): the sizes of the products'
+  !> terms, for roundoff bounds
+  pure subroutine mbdk_sparse_d_abs_times(sp, dz, x, y, nc, transpose)
+    type(mbdk_sparse_schur_t), intent(in) :: sp
+    real(dp), intent(in) :: dz(*), x(*)
+    real(dp), intent(out) :: y(*)
+    integer, intent(in) :: nc
+    logical, intent(in) :: transpose
+    integer :: r, a, c, k
+    if (transpose) then
+      do c = 1, nc
+        y(c) = 0.0_dp
+        do k = sp%cptr(c), sp%cptr(c + 1) - 1
+          y(c) = y(c) + abs(dz(sp%cz(k)) * x(sp%crow(k)))
+        end do
+      end do
+    else
+      do r = 1, sp%m
+        y(r) = 0.0_dp
+        do a = sp%rptr(r), sp%rptr(r + 1) - 1
+          y(r) = y(r) + abs(dz(sp%rz(a)) * x(sp%rcol(a)))
+        end do
+      end do
+    end if
+  end subroutine mbdk_sparse_d_abs_times
 
   !> a = W (f - D^T lam), a(nc) (f absent: 0): with f the forces and lam the multipliers of
   !> S lam = D W f - r, the constrained accelerations; without f and with lam = S^-1 r, the

@@ -19,7 +19,7 @@ module mbdk_body_pattern
   implicit none
   private
   public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter, &
-    mbdk_body_pattern_dtd, mbdk_body_pattern_colors
+    mbdk_body_pattern_dtd, mbdk_body_pattern_colors, mbdk_group_by
 
   type, public :: mbdk_body_pattern_t
     integer :: nb = 0, nc = 0, nnz = 0, bs = 3
@@ -213,9 +213,9 @@ contains
     integer :: nb, b, a, c, p, p2, k, ncol, astat
     integer, allocatable :: color(:), seen(:)
     nb = bp%nb
-    allocate (color(nb), seen(nb + 1), body(nb), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (3.0_dp * nb + 1), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
+    allocate (color(nb), seen(nb + 1), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * nb + 1), stat, asked)
+    if (astat /= 0) return
     color(:) = 0
     seen(:) = 0
     ncol = 0
@@ -235,22 +235,35 @@ contains
       color(b) = k
       ncol = max(ncol, k)
     end do
-    allocate (ptr(ncol + 1), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (ncol + 1.0_dp), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
+    call mbdk_group_by(color, ncol, ptr, body, stat, asked)
+  end subroutine mbdk_body_pattern_colors
+
+  !> The items i = 1..size(key) grouped by key(i) in 1..nkey, in ascending order within a group
+  !> (a counting sort): the items of key k are item(ptr(k) .. ptr(k+1)-1). stat: MBDK_SUCCESS
+  !> or MBDK_ERR_NO_MEMORY (asked: the bytes).
+  subroutine mbdk_group_by(key, nkey, ptr, item, stat, asked)
+    integer, intent(in) :: key(:), nkey
+    integer, allocatable, intent(out) :: ptr(:), item(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, allocatable :: next(:)
+    integer :: i, k, astat
+    allocate (ptr(nkey + 1), item(size(key)), next(nkey), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (2.0_dp * nkey + 1 + size(key)), stat, asked)
+    if (astat /= 0) return
     ptr = 0
-    do b = 1, nb
-      ptr(color(b) + 1) = ptr(color(b) + 1) + 1
+    do i = 1, size(key)
+      ptr(key(i) + 1) = ptr(key(i) + 1) + 1
     end do
     ptr(1) = 1
-    do c = 1, ncol
-      ptr(c + 1) = ptr(c + 1) + ptr(c)
+    do k = 1, nkey
+      ptr(k + 1) = ptr(k + 1) + ptr(k)
     end do
-    seen(1:ncol) = ptr(1:ncol)
-    do b = 1, nb
-      body(seen(color(b))) = b
-      seen(color(b)) = seen(color(b)) + 1
+    next = ptr(1:nkey)
+    do i = 1, size(key)
+      item(next(key(i))) = i
+      next(key(i)) = next(key(i)) + 1
     end do
-  end subroutine mbdk_body_pattern_colors
+  end subroutine mbdk_group_by
 
 end module mbdk_body_pattern

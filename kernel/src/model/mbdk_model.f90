@@ -284,17 +284,19 @@ module mbdk_model
       type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
     end subroutine model_i3_residual
-    module subroutine model_i3_c_times(self, aux, x, y)
+    module subroutine model_i3_c_times(self, aux, x, y, absolute)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in), contiguous :: x(:)
       real(dp), intent(out), contiguous :: y(:)
+      logical, intent(in), optional :: absolute
     end subroutine model_i3_c_times
-    module subroutine model_i3_ct_times(self, aux, x, y)
+    module subroutine model_i3_ct_times(self, aux, x, y, absolute)
       class(mbdk_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in), contiguous :: x(:)
       real(dp), intent(out), contiguous :: y(:)
+      logical, intent(in), optional :: absolute
     end subroutine model_i3_ct_times
     module subroutine model_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
       class(mbdk_model_t), intent(in) :: self
@@ -1752,8 +1754,9 @@ contains
   end subroutine model_evaluate
 
   !> The body graph (mbdk_mechanism): coordinate and velocity 3 (b - 1) + k are body b's,
-  !> joints and force elements (contacts among them) pair their two bodies, the rows' columns
-  !> are those of the compact rows (sp).
+  !> joints and force elements (contacts among them) pair their two bodies (friction and wear
+  !> entries refer to a contact's column, not to bodies: no pair of their own), the rows'
+  !> columns are those of the compact rows (sp).
   subroutine model_body_graph(self, qbody, vbody, pairs, rptr, rcol, stat, asked)
     class(mbdk_model_t), intent(in) :: self
     integer, allocatable, intent(out) :: qbody(:), vbody(:), pairs(:, :), rptr(:), rcol(:)
@@ -1773,6 +1776,10 @@ contains
     vbody = qbody
     pairs(:, 1:nj) = self%jint(2:3, :)
     pairs(:, nj + 1:) = self%fint(2:3, :)
+    do i = 1, nf
+      if (self%fint(1, i) == MBDK_FORCE_FRICTION .or. self%fint(1, i) == MBDK_EFFECT_WEAR) &
+        pairs(:, nj + i) = 0
+    end do
     rptr = self%sp%rptr(1:self%m + 1)
     rcol = self%sp%rcol
   end subroutine model_body_graph

@@ -6,7 +6,7 @@
 !> LU, LAPACK or the sparse body-block path). A submodule, so that the model's module does not
 !> depend on the matrix's (which reads the model).
 submodule (mbdk_model) mbdk_model_i3
-  use mbdk_sparse_schur, only: mbdk_sparse_w_residual
+  use mbdk_sparse_schur, only: mbdk_sparse_w_residual, mbdk_sparse_d_abs_times
   use mbdk_index3_matrix, only: mbdk_index3_factors_t, mbdk_index3_factors_init, &
     mbdk_index3_factor, mbdk_index3_factors_solve
   implicit none
@@ -86,10 +86,24 @@ contains
   end procedure model_i3_residual
 
   module procedure model_i3_c_times
-    call mbdk_sparse_d_times(self%sp, self%work%dz, x, y, .false.)
+    logical :: ab
+    ab = .false.
+    if (present(absolute)) ab = absolute
+    if (ab) then
+      call mbdk_sparse_d_abs_times(self%sp, self%work%dz, x, y, self%nc, .false.)
+    else
+      call mbdk_sparse_d_times(self%sp, self%work%dz, x, y, .false.)
+    end if
   end procedure model_i3_c_times
 
   module procedure model_i3_ct_times
+    logical :: ab
+    ab = .false.
+    if (present(absolute)) ab = absolute
+    if (ab) then
+      call mbdk_sparse_d_abs_times(self%sp, self%work%dz, x, y, self%nc, .true.)
+      return
+    end if
     select type (aux)
     type is (planar_i3_aux_t)
       call mbdk_sparse_w_residual(self%sp, self%work%dz, aux%one_nc, x, y, self%nc)

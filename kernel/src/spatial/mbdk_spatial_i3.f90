@@ -128,13 +128,22 @@ contains
     real(dp), allocatable :: fw(:, :), nbd(:, :)
     real(dp) :: vg, vs, power
     integer :: astat
+    logical :: own
+    ! (the dummy forces shares its name with the model's procedure forces, which a call below
+    ! makes the name's meaning from there on)
+    own = forces
     select type (aux)
     type is (spatial_i3_aux_t)
       aux%y(1:self%ncoord) = e%q
       aux%y(self%ncoord + 1:) = e%v
       call frames(self, aux%y, fr, stat)
       if (stat /= MBDK_SUCCESS) return
-      if (forces) then
+      if (own .and. aux%sparse) then
+        ! (the sparse path's own buffers: a DAE's colored differences evaluate dozens of times)
+        call forces(self, fr, aux%fwk, aux%nbk, vg, vs, power, stat)
+        if (stat /= MBDK_SUCCESS) return
+        call generalized_forces(self, fr, aux%fwk, aux%nbk, e%f)
+      else if (own) then
         allocate (fw(3, self%nb), nbd(3, self%nb), stat=astat)
         call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 6.0_dp * self%nb, stat)
         if (stat /= MBDK_SUCCESS) return
@@ -169,10 +178,15 @@ contains
   end procedure spatial_i3_residual
 
   module procedure spatial_i3_c_times
+    logical :: ab
+    ab = .false.
+    if (present(absolute)) ab = absolute
     select type (aux)
     type is (spatial_i3_aux_t)
       if (aux%sparse) then
-        y = compact_times(self, aux%cc, x, .false.)
+        y = compact_times(self, aux%cc, x, ab)
+      else if (ab) then
+        y = matmul(abs(aux%c), abs(x))
       else
         y = matmul(aux%c, x)
       end if
@@ -180,10 +194,15 @@ contains
   end procedure spatial_i3_c_times
 
   module procedure spatial_i3_ct_times
+    logical :: ab
+    ab = .false.
+    if (present(absolute)) ab = absolute
     select type (aux)
     type is (spatial_i3_aux_t)
       if (aux%sparse) then
-        y = compact_ct(self, aux%cc, x)
+        y = compact_ct(self, aux%cc, x, ab)
+      else if (ab) then
+        y = matmul(abs(x), abs(aux%c))
       else
         y = matmul(x, aux%c)
       end if

@@ -334,17 +334,19 @@ module mbdk_spatial_model
       type(mbdk_i3_eval_t), intent(inout) :: e
       real(dp), intent(in) :: s
     end subroutine spatial_i3_residual
-    module subroutine spatial_i3_c_times(self, aux, x, y)
+    module subroutine spatial_i3_c_times(self, aux, x, y, absolute)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in), contiguous :: x(:)
       real(dp), intent(out), contiguous :: y(:)
+      logical, intent(in), optional :: absolute
     end subroutine spatial_i3_c_times
-    module subroutine spatial_i3_ct_times(self, aux, x, y)
+    module subroutine spatial_i3_ct_times(self, aux, x, y, absolute)
       class(mbdk_spatial_model_t), intent(in) :: self
       class(mbdk_i3_aux_t), intent(inout) :: aux
       real(dp), intent(in), contiguous :: x(:)
       real(dp), intent(out), contiguous :: y(:)
+      logical, intent(in), optional :: absolute
     end subroutine spatial_i3_ct_times
     module subroutine spatial_i3_cs_factor(self, aux, near, regular_ok, regular, stat)
       class(mbdk_spatial_model_t), intent(in) :: self
@@ -2056,11 +2058,16 @@ contains
     real(dp), intent(inout), optional :: asked
     integer :: i, k, a, b, n, astat
     integer, allocatable :: rbody(:, :)
+    allocate (rbody(2, self%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * self%m, stat, asked)
+    if (astat /= 0) return
+    call row_bodies(self, rbody)
+    n = 6 * count(rbody > 0)
     allocate (qbody(self%ncoord), vbody(self%nvel), pairs(2, self%nprim + self%nf), &
-              rptr(self%m + 1), rcol(12 * self%m), rbody(2, self%m), stat=astat)
+              rptr(self%m + 1), rcol(n), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (real(self%ncoord, dp) + self%nvel + &
-                           2 * (self%nprim + self%nf) + 15.0_dp * self%m + 1), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
+                           2 * (self%nprim + self%nf) + self%m + 1.0_dp + n), stat, asked)
+    if (astat /= 0) return
     do i = 1, self%ncoord
       qbody(i) = (i - 1) / self%nqb + 1
     end do
@@ -2074,7 +2081,6 @@ contains
       pairs(:, self%nprim + k) = self%fbody(1:2, k)
       if (.not. loads_two_bodies(self%ftype(k))) pairs(:, self%nprim + k) = 0
     end do
-    call row_bodies(self, rbody)
     n = 0
     do k = 1, self%m
       rptr(k) = n + 1
@@ -2086,7 +2092,6 @@ contains
       end do
     end do
     rptr(self%m + 1) = n + 1
-    rcol = rcol(1:n)
   end subroutine spatial_body_graph
 
   !> C x for C in compact rows cc (the sparse path); absolute: |C| |x|

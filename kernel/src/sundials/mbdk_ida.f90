@@ -11,7 +11,8 @@
 !> fixed-leading-coefficient form (Brenan, Campbell and Petzold, Numerical Solution of IVPs in
 !> DAEs, 1996, ch. 5; Hindmarsh et al., ACM TOMS 31 (2005) 363), Newton iteration on
 !> dF/dY + cj dF/dY' from IDA's dense difference quotients (N residuals per Jacobian) on
-!> SUNDIALS' dense matrix and dense LU (SUNMatrix_Dense, SUNLinSol_Dense). An analytic Jacobian
+!> SUNDIALS' dense matrix and dense LU (SUNMatrix_Dense, SUNLinSol_Dense); a large scene's are
+!> sparse (below, "Large scenes"). An analytic Jacobian
 !> (the mass matrix, C, the force elements' tangents and the joints' geometric stiffness, as
 !> mbdk_index3_matrix builds them) is out of scope: it would save the N residuals per setup,
 !> not change what is computed.
@@ -107,7 +108,8 @@
 !> residual, so a long Jacobian of a large model ends within one evaluation.
 !>
 !> Residual callback. One evaluation of the mechanism (evaluate: f, Phi, the dense C, gamma,
-!> Phi_t into buffers of the context, allocated once per solve; each element counted once),
+!> Phi_t into buffers of the context, allocated once per solve; each element counted once; on
+!> the sparse path the index-3 evaluation and C's compact products),
 !> its rates T(q) v and, for a non-diagonal M, one product with M^-1.
 !> A mechanism's failure (evaluate's stat) or the interrupt is stored and returned as
 !> unrecoverable (-1), and every later call returns -1 too (mbdk_cvode's rule: no step can be
@@ -138,9 +140,21 @@
 !>   on a smooth problem most of them; a step retried at a smaller h is one of
 !>   IDAGetNumStepSolveFails); order1_steps..order5_steps IDAGetLastOrder per step.
 !>
-!> Out of scope: an analytic Jacobian (above), IDACalcIC (above), the sparse structure of the
-!> Newton matrix (dense: O(N^3) per setup, for the scene sizes of the book), per-component
-!> tolerances, root finding. SUNDIALS writes its error messages to stderr by default;
+!> Large scenes. Where the model keeps its constraint rows compact (mbdk_mechanism's
+!> compact_rows: its solves are sparse), no knife edge, and the mechanism has an index-3 object
+!> for the scene (a planar one with contacts has none), nothing is dense: the residual comes
+!> from the index-3 procedures (f, Phi, gamma, Phi_t and the products C x, C^T x from the
+!> compact rows: compact_residual), the Newton matrix dF/dY + cj dF/dY' is a SUNDIALS CSC
+!> matrix in the pattern of mbdk_dae_pattern ([K D^T; D 0] over the bodies' unknowns and the
+!> rows' multipliers, mbdk_kkt_pattern_csc) factorised by SUNDIALS' KLU (sparse LU with
+!> partial pivoting), and its values come from ida_jac: IDA's own difference quotients
+!> (the same increments), but colored: the k-th unknown of every body of a distance-2 color,
+!> or the multipliers of a color of rows, perturbed together (a chain's matrix costs about 50
+!> residuals at every length, against one per unknown). The consistency check takes |C| |x|
+!> from the compact rows too. stats: nlu_sparse = nlu; nfev includes ida_jac's residuals.
+!>
+!> Out of scope: an analytic Jacobian (above), IDACalcIC (above), per-component tolerances,
+!> root finding. SUNDIALS writes its error messages to stderr by default;
 !> IDASetErrFile(NULL) silences them, as the kernel never prints. All SUNDIALS objects are freed
 !> on every path.
 module mbdk_ida
@@ -150,10 +164,12 @@ module mbdk_ida
   use mbdk_status
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
-  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
+  use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_interrupt, only: mbdk_interrupted
   use mbdk_sundials_loop, only: mbdk_sundials_loop_t, mbdk_sundials_run
-  use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_REDUCED
+  use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED
+  use mbdk_dae_pattern, only: mbdk_dae_pattern_t, mbdk_dae_pattern_init
+  use mbdk_kkt_pattern, only: mbdk_kkt_pattern_csc
   use fsundials_context_mod, only: FSUNContext_Create, FSUNContext_Free
   use fsundials_nvector_mod, only: N_Vector, FN_VDestroy
   use fnvector_serial_mod, only: FN_VMake_Serial
@@ -170,7 +186,7 @@ module mbdk_ida
     FIDAGetLastStep, FIDAGetNumSteps, FIDAGetNumResEvals, FIDAGetNumLinResEvals, &
     FIDAGetNumJacEvals, FIDAGetNumLinSolvSetups, FIDAGetNumNonlinSolvIters, &
     FIDAGetNumErrTestFails, FIDAGetNumNonlinSolvConvFails, FIDAGetNumStepSolveFails, &
-    FIDAWFtolerances
+    FIDAWFtolerances, FIDASetJacFn, FIDAGetCurrentStep
   implicit none
   private
   public :: mbdk_ida_solve
@@ -195,10 +211,37 @@ module mbdk_ida
   integer, parameter :: SINGULAR_PROBES = 4
   !> ggl: the least first step, as a fraction of the interval (the module header)
   real(dp), parameter :: GGL_FIRST_STEP = 1.0e-6_dp
+  !> SUNDIALS' CSC_MAT (sunmatrix_sparse.h)
+  integer(c_int), parameter :: CSC_MAT = 0_c_int
 
   ! SUNDIALS' own accessor, called directly (as in mbdk_cvode): the interface's
   ! FN_VGetArrayPointer asks for the length through a second wrapper on every call.
   interface
+    ! the sparse matrix and SUNDIALS' KLU solver, by their C entry points (no Fortran module
+    ! of theirs is needed for these few calls)
+    type(c_ptr) function sun_sparse_matrix(m, n, nnz, sparsetype, sunctx) &
+        bind(C, name='SUNSparseMatrix')
+      import :: c_ptr, c_int64_t, c_int
+      integer(c_int64_t), value :: m, n, nnz
+      integer(c_int), value :: sparsetype
+      type(c_ptr), value :: sunctx
+    end function sun_sparse_matrix
+    type(c_ptr) function sun_sparse_data(a) bind(C, name='SUNSparseMatrix_Data')
+      import :: c_ptr
+      type(c_ptr), value :: a
+    end function sun_sparse_data
+    type(c_ptr) function sun_sparse_indexvalues(a) bind(C, name='SUNSparseMatrix_IndexValues')
+      import :: c_ptr
+      type(c_ptr), value :: a
+    end function sun_sparse_indexvalues
+    type(c_ptr) function sun_sparse_indexpointers(a) bind(C, name='SUNSparseMatrix_IndexPointers')
+      import :: c_ptr
+      type(c_ptr), value :: a
+    end function sun_sparse_indexpointers
+    type(c_ptr) function sun_linsol_klu(y, a, sunctx) bind(C, name='SUNLinSol_KLU')
+      import :: c_ptr
+      type(c_ptr), value :: y, a, sunctx
+    end function sun_linsol_klu
     type(c_ptr) function n_vgetarraypointer(v) bind(C, name='N_VGetArrayPointer')
       import :: c_ptr
       type(c_ptr), value :: v
@@ -231,6 +274,17 @@ module mbdk_ida
       g(:), x(:), ming(:), qd(:), dm(:)
     !> index1: the reduced ODE's y' at a probe of singular_pose
     real(dp), allocatable :: ydot(:)
+    !> the sparse path (module header): the index-3 object and point, the DAE's pattern and
+    !> the CSC of [K D^T; D 0] (1-based), the difference quotients' residuals, perturbed
+    !> state and increments, C x, the residual evaluations of the Jacobians, IDA's memory
+    logical :: sparse = .false.
+    class(mbdk_i3_aux_t), allocatable :: aux
+    type(mbdk_i3_eval_t) :: e
+    type(mbdk_dae_pattern_t) :: pat
+    integer, allocatable :: ap(:), ai(:)
+    real(dp), allocatable :: r1(:), yw(:), ypw(:), del(:), cv(:), tv(:)
+    integer(i8) :: jac_nfev = 0
+    type(c_ptr) :: mem = c_null_ptr
   end type ida_context_t
 
   !> One IDA solve: its SUNDIALS objects (each handle empty until made, so that ida_run frees
@@ -282,8 +336,9 @@ contains
     type(ida_context_t), target :: ctx
     real(dp), allocatable, target :: y(:), yp(:), ydky(:), id(:), atol_v(:)
     real(dp), allocatable :: r0(:), lam0(:)
-    integer :: nq, nv, ny, m, nl, n, ns, ierr, nlam
+    integer :: nq, nv, ny, m, nl, n, ns, ierr, nlam, mc
     real(dp) :: t_end, s
+    logical :: want_sparse
 
     nq = mech%ncoord
     nv = mech%nvel
@@ -304,12 +359,16 @@ contains
     if (size(y_out, 1) /= ny .or. size(y_out, 2) < ns) return
     if (nlam > 0 .and. size(lam_out, 1) < m) return
 
+    ! a scene whose rows the model keeps compact: no dense C (the sparse path, module header;
+    ! the dense one where the mechanism has no index-3 object for it)
+    want_sparse = mech%compact_rows .and. m > 0 .and. .not. mech%has_pfaffian
+    mc = merge(0, m, want_sparse)
     stat = MBDK_ERR_NO_MEMORY
-    allocate (ctx%f(nv), ctx%phi(m), ctx%c(m, nv), ctx%gam(m), ctx%phit(m), ctx%lamfull(m), &
-              ctx%mufull(m), ctx%g(nv), ctx%x(nv), ctx%ming(nv), ctx%qd(nq), ctx%dm(nv), &
-              lam0(m), ctx%ydot(nq + nv), stat=ierr)
-    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(m, dp) * (nv + 6) + 7.0_dp * nv + &
-                           2.0_dp * nq), stat, st%alloc_bytes)
+    allocate (ctx%f(nv), ctx%phi(m), ctx%c(mc, merge(0, nv, want_sparse)), ctx%gam(m), &
+              ctx%phit(m), ctx%lamfull(m), ctx%mufull(m), ctx%g(nv), ctx%x(nv), ctx%ming(nv), &
+              ctx%qd(nq), ctx%dm(nv), lam0(m), ctx%ydot(nq + nv), stat=ierr)
+    call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * (real(mc, dp) * nv + 6.0_dp * m + &
+                           7.0_dp * nv + 2.0_dp * nq), stat, st%alloc_bytes)
     if (stat /= MBDK_SUCCESS) return
     ctx%mech => mech
     ctx%nq = nq
@@ -336,6 +395,15 @@ contains
     if (ggl) n = n + nl
     ctx%nl = nl
     ctx%n = n
+    if (want_sparse) then
+      call sparse_setup(ctx, stat, st%alloc_bytes)
+      if (stat == MBDK_ERR_NOT_APPLICABLE) then
+        deallocate (ctx%c)
+        allocate (ctx%c(m, nv), stat=ierr)
+        call mbdk_alloc_status(ierr, MBDK_REAL_BYTES * real(m, dp) * nv, stat, st%alloc_bytes)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+    end if
     yp = [yp, spread(0.0_dp, 1, n - ny)]
     stat = MBDK_ERR_NO_MEMORY
     allocate (y(n), ydky(n), id(n), atol_v(n), r0(n), stat=ierr)
@@ -369,6 +437,38 @@ contains
   end subroutine mbdk_ida_solve
 
 
+  !> The sparse path's objects (module header): the index-3 object (MBDK_ERR_NOT_APPLICABLE
+  !> where the mechanism has none for the scene), the point, the pattern and its CSC, and the
+  !> difference quotients' vectors.
+  subroutine sparse_setup(ctx, stat, asked)
+    type(ida_context_t), intent(inout) :: ctx
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    integer, allocatable :: kpos(:), dpos_r(:), dpos_c(:)
+    integer :: m, nv, n, astat
+    associate (mech => ctx%mech)
+      call mech%i3_create(ctx%aux, .false., stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_dae_pattern_init(ctx%pat, mech, ctx%rows, merge(2, 1, ctx%ggl), stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_kkt_pattern_csc(ctx%pat%kap, ctx%pat%kai, ctx%pat%drptr, ctx%pat%drcol, &
+                                ctx%ap, ctx%ai, kpos, dpos_r, dpos_c, stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      m = ctx%m
+      nv = ctx%nv
+      n = ctx%n
+      allocate (ctx%e%q(ctx%nq), ctx%e%v(nv), ctx%e%f(nv), ctx%e%phi(m), ctx%e%gam(m), &
+                ctx%e%phit(m), ctx%e%lt(m), ctx%e%dd(nv), ctx%e%r(nv + m), ctx%r1(n), &
+                ctx%yw(n), ctx%ypw(n), ctx%del(n), ctx%cv(m), ctx%tv(nv), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(ctx%nq, dp) + 5.0_dp * nv + &
+                             7.0_dp * m + 4.0_dp * n), stat, asked)
+      if (astat /= 0) return
+      ctx%e%lt = 0.0_dp
+      ctx%e%dd = 0.0_dp
+      ctx%sparse = .true.
+    end associate
+  end subroutine sparse_setup
+
   !> The SUNDIALS part of a solve (the module header): IDA from the consistent (y, yp) of the
   !> context's form to t_out's last time, samples and multipliers out.
   subroutine ida_run(ctx, opt, t0, t_end, y, yp, ydky, id, atol_v, t_out, y_out, lam_out, &
@@ -399,7 +499,7 @@ contains
                              st%alloc_bytes)
     end if
     if (stat == MBDK_SUCCESS) call mbdk_sundials_run(lp, opt, t0, t_out, y_out, nwritten, st, stat)
-    if (c_associated(lp%mem)) call add_stats(lp%mem, st)
+    if (c_associated(lp%mem)) call add_stats(lp%mem, st, ctx)
     call FIDAFree(lp%mem)   ! NULL-safe; also frees IDA's copy of id
     if (associated(lp%ls)) ierr = FSUNLinSolFree(lp%ls)
     if (associated(lp%amat)) call FSUNMatDestroy(lp%amat)
@@ -468,6 +568,10 @@ contains
     end if
 
     stat = MBDK_ERR_NO_MEMORY
+    if (lp%ctx%sparse) then
+      call sparse_solver(lp, st, stat)
+      return
+    end if
     lp%amat => FSUNDenseMatrix(n, n, lp%sunctx)
     if (.not. associated(lp%amat)) then   ! (the size SUNDIALS asked for: n x n doubles)
       st%alloc_bytes = MBDK_REAL_BYTES * real(n, dp)**2
@@ -480,6 +584,48 @@ contains
     if (FIDASetLinearSolver(lp%mem, lp%ls, lp%amat) /= 0) return
     stat = MBDK_SUCCESS
   end subroutine ida_create
+
+  !> The sparse path's linear solver (module header): a CSC matrix of the pattern's size,
+  !> SUNDIALS' KLU on it, and ida_jac as IDA's Jacobian.
+  subroutine sparse_solver(lp, st, stat)
+    type(ida_loop_t), intent(inout) :: lp
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    type(c_ptr) :: a, ls
+    integer(c_int64_t) :: n, nnz
+    n = int(lp%ctx%n, c_int64_t)
+    nnz = int(lp%ctx%ap(lp%ctx%n + 1) - 1, c_int64_t)
+    stat = MBDK_ERR_NO_MEMORY
+    a = sun_sparse_matrix(n, n, nnz, CSC_MAT, lp%sunctx)
+    if (.not. c_associated(a)) then   ! (what SUNDIALS asked for: the values and the indices)
+      st%alloc_bytes = (MBDK_REAL_BYTES + 8.0_dp) * real(nnz, dp) + 8.0_dp * real(n + 1, dp)
+      return
+    end if
+    call c_f_pointer(a, lp%amat)
+    call put_pattern(lp%ctx, a)
+    ls = sun_linsol_klu(c_loc(lp%nv_y), a, lp%sunctx)
+    if (.not. c_associated(ls)) return
+    call c_f_pointer(ls, lp%ls)
+    stat = MBDK_ERR_BACKEND
+    if (FIDASetLinearSolver(lp%mem, lp%ls, lp%amat) /= 0) return
+    if (FIDASetJacFn(lp%mem, c_funloc(ida_jac)) /= 0) return
+    lp%ctx%mem = lp%mem
+    stat = MBDK_SUCCESS
+  end subroutine sparse_solver
+
+  !> The CSC pattern (ctx%ap, ai) into the sparse matrix a, 0-based (SUNMatZero_Sparse clears
+  !> it with the values: written again before every Jacobian)
+  subroutine put_pattern(ctx, a)
+    type(ida_context_t), intent(in) :: ctx
+    type(c_ptr), intent(in) :: a
+    integer(c_int64_t), pointer :: iptr(:), ival(:)
+    integer :: nnz
+    nnz = ctx%ap(ctx%n + 1) - 1
+    call c_f_pointer(sun_sparse_indexpointers(a), iptr, [ctx%n + 1])
+    call c_f_pointer(sun_sparse_indexvalues(a), ival, [nnz])
+    iptr = int(ctx%ap(1:ctx%n + 1) - 1, c_int64_t)
+    ival = int(ctx%ai(1:nnz) - 1, c_int64_t)
+  end subroutine put_pattern
 
   !> One internal step (IDA_ONE_STEP) towards t_stop; a residual's failure comes first.
   subroutine ida_step(self, t_stop, t, stat)
@@ -637,7 +783,7 @@ contains
   logical function consistent(ctx, y, yp, r)
     type(ida_context_t), intent(inout) :: ctx
     real(dp), intent(in) :: y(:), yp(:), r(:)
-    real(dp), allocatable :: ts(:), mlam(:), sz(:)
+    real(dp), allocatable :: ts(:), mlam(:), sz(:), cabs(:)
     real(dp) :: tol, s
     integer :: nq, nv, ny, nl, i, j, k, astat
     nq = ctx%nq
@@ -646,16 +792,20 @@ contains
     nl = ctx%nl
     tol = CONSISTENT_ULPS * epsilon(1.0_dp)
     consistent = .false.
-    allocate (ts(nv), mlam(nv), sz(max(nl, 1)), stat=astat)
+    allocate (ts(nv), mlam(nv), sz(max(nl, 1)), cabs(ctx%m), stat=astat)
     if (astat /= 0) return
     ! the kinematic rows: the rates are the same function of the same numbers (0 exactly)
     if (.not. all(abs(r(1:nq)) <= tol * (abs(yp(1:nq)) + abs(ctx%qd)))) return
     ! the velocity rows; ts: the sizes of the terms of each acceleration (M^-1 f and
     ! M^-1 C^T lam, which nearly cancel in a mechanism at rest under gravity)
     associate (v => y(nq + 1:ny), a => yp(nq + 1:ny), rv => r(nq + 1:ny))
-      do k = 1, nv
-        mlam(k) = sum(abs(ctx%c(:, k) * ctx%lamfull))   ! |C^T lam| term by term
-      end do
+      if (ctx%sparse) then
+        call ctx%mech%i3_ct_times(ctx%aux, ctx%lamfull, mlam, absolute=.true.)
+      else
+        do k = 1, nv
+          mlam(k) = sum(abs(ctx%c(:, k) * ctx%lamfull))   ! |C^T lam| term by term
+        end do
+      end if
       if (ctx%mech%diag_mass) then
         do k = 1, nv
           if (.not. (abs(rv(k)) <= tol * (abs(ctx%dm(k) * a(k)) + mlam(k) + abs(ctx%f(k))))) &
@@ -673,14 +823,30 @@ contains
       ! the constraint rows against the largest row's terms: a row whose own terms are all
       ! zero (a slider's, while the crank turns) still carries the roundoff of the assembly's
       ! solve, which is that of the largest
+      ! (cabs: |C| |v|, or |C| (|a| + ts), on every row)
+      if (ctx%sparse .and. nl > 0) then
+        if (ctx%ggl) then
+          call ctx%mech%i3_c_times(ctx%aux, v, cabs, absolute=.true.)
+        else
+          call ctx%mech%i3_c_times(ctx%aux, abs(a) + ts, cabs, absolute=.true.)
+        end if
+      end if
       do i = 1, nl
         j = ctx%rows(i)
         if (ctx%ggl) then
-          sz(i) = sum(abs(ctx%c(j, :) * v)) + abs(ctx%phit(j))
+          if (ctx%sparse) then
+            sz(i) = cabs(j) + abs(ctx%phit(j))
+          else
+            sz(i) = sum(abs(ctx%c(j, :) * v)) + abs(ctx%phit(j))
+          end if
           if (.not. (abs(r(ny + i)) <= max(ASSEMBLED_PHI, tol * maxval(abs(y(1:nq)))))) return
         else
           ! C a = gamma: a's roundoff is that of its terms
-          sz(i) = abs(ctx%gam(j)) + sum(abs(ctx%c(j, :)) * (abs(a) + ts))
+          if (ctx%sparse) then
+            sz(i) = abs(ctx%gam(j)) + cabs(j)
+          else
+            sz(i) = abs(ctx%gam(j)) + sum(abs(ctx%c(j, :)) * (abs(a) + ts))
+          end if
         end if
       end do
       if (nl > 0) then
@@ -704,6 +870,10 @@ contains
     integer :: nq, nv, ny, nl, i, j, k, ol, om
     real(dp) :: s, u
 
+    if (ctx%sparse) then
+      call compact_residual(ctx, t, y, yp, r, stat)
+      return
+    end if
     nq = ctx%nq
     nv = ctx%nv
     ny = ctx%ny
@@ -759,10 +929,67 @@ contains
     end associate
   end subroutine dae_residual
 
+  !> dae_residual on the sparse path: the index-3 evaluation (f, Phi, gamma, Phi_t, C kept in
+  !> compact rows) and C's products; the same context fields left at (t, q, v).
+  subroutine compact_residual(ctx, t, y, yp, r, stat)
+    type(ida_context_t), intent(inout) :: ctx
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: y(:), yp(:)
+    real(dp), intent(out), contiguous :: r(:)
+    integer, intent(out) :: stat
+    integer :: nq, ny, nl, ol, om
+    nq = ctx%nq
+    ny = ctx%ny
+    nl = ctx%nl
+    ol = ny
+    om = ny + nl
+    associate (q => y(1:nq), v => y(nq + 1:ny), e => ctx%e, mech => ctx%mech)
+      e%q = q
+      e%v = v
+      ! (ida_res has checked Y; forces not finite at a finite state reach r, which it checks)
+      call mech%i3_evaluate(ctx%aux, t, e, .true., .false., stat)
+      if (stat /= MBDK_SUCCESS) return
+      ctx%f = e%f
+      ctx%phi = e%phi
+      ctx%gam = e%gam
+      ctx%phit = e%phit
+      ctx%lamfull = 0.0_dp
+      ctx%lamfull(ctx%rows) = y(ol + 1:ol + nl)
+      call mech%i3_ct_times(ctx%aux, ctx%lamfull, ctx%tv)
+      ctx%g = ctx%f - ctx%tv
+      if (mech%diag_mass) then
+        r(nq + 1:ny) = ctx%dm * yp(nq + 1:ny) - ctx%g
+      else
+        call mech%minv_times(ctx%g, ctx%ming)
+        r(nq + 1:ny) = yp(nq + 1:ny) - ctx%ming
+      end if
+      if (ctx%ggl) then
+        ctx%mufull = 0.0_dp
+        ctx%mufull(ctx%rows) = y(om + 1:om + nl)
+        call mech%i3_ct_times(ctx%aux, ctx%mufull, ctx%tv)
+        ctx%x = v - ctx%tv
+        call mech%rates(q, ctx%x, ctx%qd, stat)
+      else
+        call mech%rates(q, v, ctx%qd, stat)
+      end if
+      if (stat /= MBDK_SUCCESS) return
+      r(1:nq) = yp(1:nq) - ctx%qd
+      if (ctx%ggl) then
+        r(ol + 1:ol + nl) = ctx%phi(ctx%rows)
+        call mech%i3_c_times(ctx%aux, v, ctx%cv)
+        r(om + 1:om + nl) = ctx%cv(ctx%rows) + ctx%phit(ctx%rows)
+      else
+        call mech%i3_c_times(ctx%aux, yp(nq + 1:ny), ctx%cv)
+        r(ol + 1:ol + nl) = ctx%cv(ctx%rows) - ctx%gam(ctx%rows)
+      end if
+    end associate
+  end subroutine compact_residual
+
   !> IDA's counters into st (see the module header).
-  subroutine add_stats(mem, st)
+  subroutine add_stats(mem, st, ctx)
     type(c_ptr), intent(in) :: mem
     type(mbdk_stats_t), intent(inout) :: st
+    type(ida_context_t), intent(in) :: ctx
     integer(c_long) :: c(1)
     integer(c_int) :: flag
     c = 0
@@ -780,6 +1007,11 @@ contains
     c = 0
     flag = FIDAGetNumLinSolvSetups(mem, c)
     st%nlu = st%nlu + c(1)
+    if (ctx%sparse) then
+      ! the sparse path's setups are KLU's; its difference quotients are residuals of ours
+      st%nlu_sparse = st%nlu_sparse + c(1)
+      st%nfev = st%nfev + ctx%jac_nfev
+    end if
     c = 0
     flag = FIDAGetNumNonlinSolvIters(mem, c)
     st%newton_iterations = st%newton_iterations + c(1)
@@ -886,6 +1118,121 @@ contains
       ierr = 1
     end if
   end function ida_res
+
+  !> IDALsJacFn on the sparse path: J = dF/dY + cj dF/dY' into the CSC matrix jac by colored
+  !> difference quotients (module header): the k-th unknown of every body of a color, or the
+  !> multiplier of every row of a color (lam, then mu), moved together by IDA's own increment
+  !> (max(sqrt(eps) max(|y_j|, |h y'_j|), 1 / ewt_j), with the sign of h y'_j) in Y and cj
+  !> times it in Y'; r is F at (Y, Y'). 0, or ida_res's 1 and -1.
+  integer(c_int) function ida_jac(t, cj, nv_y, nv_yp, nv_r, jac, user_data, t1, t2, t3) &
+      bind(C, name='') result(ierr)
+    real(c_double), value :: t, cj
+    type(N_Vector), target :: nv_y, nv_yp, nv_r
+    type(c_ptr), value :: jac, user_data, t1, t2, t3
+    type(ida_context_t), pointer :: ctx
+    real(c_double), pointer, contiguous :: y(:), yp(:), r(:), jx(:)
+    real(dp) :: h(1), inc
+    integer :: c, d, k, b, j, p, set, stat, nn
+    logical :: moved
+    call c_f_pointer(user_data, ctx)
+    ierr = -1
+    if (ctx%stat /= MBDK_SUCCESS) return
+    nn = ctx%n
+    call c_f_pointer(n_vgetarraypointer(c_loc(nv_y)), y, [nn])
+    call c_f_pointer(n_vgetarraypointer(c_loc(nv_yp)), yp, [nn])
+    call c_f_pointer(n_vgetarraypointer(c_loc(nv_r)), r, [nn])
+    call put_pattern(ctx, jac)
+    call c_f_pointer(sun_sparse_data(jac), jx, [ctx%ap(nn + 1) - 1])
+    h = 0.0_dp
+    if (FIDAGetCurrentStep(ctx%mem, h) /= 0) return
+    ctx%yw = y
+    ctx%ypw = yp
+    associate (pat => ctx%pat)
+      ! the bodies' columns
+      do c = 1, size(pat%cptr) - 1
+        do d = 1, pat%dmax
+          moved = .false.
+          do k = pat%cptr(c), pat%cptr(c + 1) - 1
+            b = pat%cbody(k)
+            if (pat%bptr(b) + d - 1 >= pat%bptr(b + 1)) cycle
+            call move(pat%bidx(pat%bptr(b) + d - 1))
+            moved = .true.
+          end do
+          if (.not. moved) cycle
+          call quotients(stat)
+          if (stat /= 0) then
+            ierr = stat
+            return
+          end if
+          do k = pat%cptr(c), pat%cptr(c + 1) - 1
+            b = pat%cbody(k)
+            if (pat%bptr(b) + d - 1 >= pat%bptr(b + 1)) cycle
+            call fill(pat%bidx(pat%bptr(b) + d - 1))
+          end do
+        end do
+      end do
+      ! the multipliers' columns, row color by row color, lam's then mu's
+      do set = 0, pat%nsets - 1
+        do c = 1, size(pat%rptr) - 1
+          do k = pat%rptr(c), pat%rptr(c + 1) - 1
+            call move(ctx%ny + set * ctx%nl + pat%rrow(k))
+          end do
+          call quotients(stat)
+          if (stat /= 0) then
+            ierr = stat
+            return
+          end if
+          do k = pat%rptr(c), pat%rptr(c + 1) - 1
+            call fill(ctx%ny + set * ctx%nl + pat%rrow(k))
+          end do
+        end do
+      end do
+    end associate
+    ierr = 0
+
+  contains
+
+    !> Y_j and Y'_j moved by IDA's increment (the function's header)
+    subroutine move(jj)
+      integer, intent(in) :: jj
+      inc = max(sqrt(epsilon(1.0_dp)) * max(abs(y(jj)), abs(h(1) * yp(jj))), &
+                ctx%rtol * abs(y(jj)) + ctx%atol(jj))
+      if (h(1) * yp(jj) < 0.0_dp) inc = -inc
+      ctx%yw(jj) = y(jj) + inc
+      ctx%del(jj) = ctx%yw(jj) - y(jj)     ! the increment actually representable
+      ctx%ypw(jj) = yp(jj) + cj * ctx%del(jj)
+    end subroutine move
+
+    !> F at the moved state into ctx%r1 (counted); s: ida_res's convention
+    subroutine quotients(s)
+      integer, intent(out) :: s
+      integer :: st_
+      s = -1
+      ctx%jac_nfev = ctx%jac_nfev + 1
+      call dae_residual(ctx, t, ctx%yw, ctx%ypw, ctx%r1, st_)
+      if (st_ /= MBDK_SUCCESS) then
+        ctx%stat = st_
+        return
+      end if
+      s = 0
+      if (.not. all(abs(ctx%r1) <= huge(1.0_dp))) then
+        ctx%soft_stat = MBDK_ERR_NONFINITE
+        s = 1
+      end if
+    end subroutine quotients
+
+    !> column jj from the quotients, Y_j and Y'_j put back
+    subroutine fill(jj)
+      integer, intent(in) :: jj
+      do p = ctx%ap(jj), ctx%ap(jj + 1) - 1
+        j = ctx%ai(p)
+        jx(p) = (ctx%r1(j) - r(j)) / ctx%del(jj)
+      end do
+      ctx%yw(jj) = y(jj)
+      ctx%ypw(jj) = yp(jj)
+    end subroutine fill
+
+  end function ida_jac
 
   !> The absolute tolerance of the multipliers lam (their values at the start, and again after
   !> a step where the largest has doubled): max(atol, max(rtol, LAM_RTOL_FLOOR) max |lam|). In
