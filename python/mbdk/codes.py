@@ -166,13 +166,13 @@ STARTUP = {"rk4": 0, "bdf": 1}
 DAE_FORMS = {"ida": {"index1": 1, "ggl": 2}, "bdf": {"i3": 1, "si2": 2}}
 DAE_NONE = 0
 
-#: the DAE methods' Newton matrices (kernel/src/implicit/mbdk_variable_bdf.f90; SUNDIALS IDA's
-#: dense linear solver): the manifest's newton_matrix (a spatial run's linear_solve too: the
-#: spatial model takes no constrained solve of its own into a DAE run). Both are sparse on a
-#: scene whose constraint rows the model keeps compact (its solves are sparse: a large scene;
-#: not with contacts or a knife edge, and for bdf not with a planar body without inertia),
-#: which the run's stats.nlu_sparse shows (kernel/src/dae/mbdk_mechanism_dae.f90,
-#: kernel/src/sundials/mbdk_ida.f90).
+#: the DAE methods' Newton matrices (kernel/src/implicit/mbdk_variable_bdf.f90,
+#: kernel/src/sundials/mbdk_ida.f90): the manifest's newton_matrix (a spatial run's
+#: linear_solve too: the spatial model takes no constrained solve of its own into a DAE run).
+#: Dense, or sparse on a scene whose constraint rows the model keeps compact (its solves are
+#: sparse: a large scene; not a planar scene with contacts, not a knife edge, and for bdf not
+#: a planar body without inertia), which the run's stats.nlu_sparse shows
+#: (kernel/src/dae/mbdk_mechanism_dae.f90; ida's by SUNDIALS' KLU).
 DAE_NEWTON_MATRIX = {"bdf": "bdf's Newton matrix E - c J by differences over the DAE's state "
                             "(LAPACK LU)",
                      "bdf_sparse": "bdf's Newton matrix E - c J in the body graph's pattern: "

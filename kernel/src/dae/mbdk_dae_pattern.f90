@@ -185,7 +185,7 @@ contains
     integer, allocatable :: color(:), seen(:), brptr(:), brow(:), key(:), item(:)
     integer :: i, j, b, p, k, ncol, n, astat
     allocate (color(na), seen(na + 1), key(2 * na), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (5.0_dp * na + 1), stat, asked)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * (4.0_dp * na + 1), stat, asked)
     if (astat /= 0) return
     ! each body's rows: the row's bodies grouped (item k is row (k + 1) / 2's j-th body, j =
     ! 2 - mod(k, 2); the ground's entries, key nb + 1, fall in a group of their own)

@@ -417,6 +417,7 @@ contains
         ! step, and the cause if the steps shrink to nothing (too_small_status)
         if (stat == MBDK_ERR_SINGULAR_MATRIX .and. b%own_matrix) then
           b%singular = .true.
+          b%nonfinite = .false.
           b%converged = .false.
           stat = MBDK_SUCCESS
           return
@@ -428,6 +429,16 @@ contains
       if (stat /= MBDK_SUCCESS) return
       if (b%converged .or. b%jac_current) exit
       call jacobian(b, prob, opt, b%t_new, b%yp, st, stat)
+      ! the problem's own Jacobian names G not finite a difference increment away (the dense
+      ! one carries it into its matrix, and the corrector meets it): a failed iteration too,
+      ! retried at a smaller step, as where the corrector met it
+      if (stat == MBDK_ERR_NONFINITE .and. b%own_matrix) then
+        b%nonfinite = .true.
+        b%singular = .false.
+        b%converged = .false.
+        stat = MBDK_SUCCESS
+        return
+      end if
       if (stat /= MBDK_SUCCESS) return
       b%jac_current = .true.
       b%have_lu = .false.

@@ -129,8 +129,8 @@ contains
     real(dp) :: vg, vs, power
     integer :: astat
     logical :: own
-    ! (the dummy forces shares its name with the model's procedure forces, which a call below
-    ! makes the name's meaning from there on)
+    ! (the dummy forces shares its name with the model's procedure forces, called below: the
+    ! flag is read once, before that call, so that no later line names it)
     own = forces
     select type (aux)
     type is (spatial_i3_aux_t)

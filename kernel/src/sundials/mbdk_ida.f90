@@ -146,11 +146,12 @@
 !> from the index-3 procedures (f, Phi, gamma, Phi_t and the products C x, C^T x from the
 !> compact rows: compact_residual), the Newton matrix dF/dY + cj dF/dY' is a SUNDIALS CSC
 !> matrix in the pattern of mbdk_dae_pattern ([K D^T; D 0] over the bodies' unknowns and the
-!> rows' multipliers, mbdk_kkt_pattern_csc) factorised by SUNDIALS' KLU (sparse LU with
-!> partial pivoting), and its values come from ida_jac: IDA's own difference quotients
-!> (the same increments), but colored: the k-th unknown of every body of a distance-2 color,
-!> or the multipliers of a color of rows, perturbed together (a chain's matrix costs about 50
-!> residuals at every length, against one per unknown). The consistency check takes |C| |x|
+!> rows' multipliers, mbdk_kkt_pattern_csc) factorised by SUNDIALS' KLU (sparse LU; KLU
+!> pivots at its first factorisation, preferring the diagonal, and refactors in that order),
+!> and its values come from ida_jac: IDA's difference quotients (its increment rule), but
+!> colored: the k-th unknown of every body of a distance-2 color, or the multipliers of a
+!> color of rows, perturbed together (a chain's matrix costs 22 to 51 residuals at every
+!> length, against one per unknown). The consistency check takes |C| |x|
 !> from the compact rows too. stats: nlu_sparse = nlu; nfev includes ida_jac's residuals.
 !>
 !> Out of scope: an analytic Jacobian (above), IDACalcIC (above), per-component tolerances,
@@ -461,7 +462,7 @@ contains
                 ctx%e%phit(m), ctx%e%lt(m), ctx%e%dd(nv), ctx%e%r(nv + m), ctx%r1(n), &
                 ctx%yw(n), ctx%ypw(n), ctx%del(n), ctx%cv(m), ctx%tv(nv), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(ctx%nq, dp) + 5.0_dp * nv + &
-                             7.0_dp * m + 4.0_dp * n), stat, asked)
+                             6.0_dp * m + 4.0_dp * n), stat, asked)
       if (astat /= 0) return
       ctx%e%lt = 0.0_dp
       ctx%e%dd = 0.0_dp
@@ -1121,9 +1122,10 @@ contains
 
   !> IDALsJacFn on the sparse path: J = dF/dY + cj dF/dY' into the CSC matrix jac by colored
   !> difference quotients (module header): the k-th unknown of every body of a color, or the
-  !> multiplier of every row of a color (lam, then mu), moved together by IDA's own increment
-  !> (max(sqrt(eps) max(|y_j|, |h y'_j|), 1 / ewt_j), with the sign of h y'_j) in Y and cj
-  !> times it in Y'; r is F at (Y, Y'). 0, or ida_res's 1 and -1.
+  !> multiplier of every row of a color (lam, then mu), moved together by IDA's increment rule
+  !> (max(sqrt(eps) max(|y_j|, |h y'_j|), 1 / ewt_j), with the sign of h y'_j; ewt_j here at
+  !> the iterate, IDA's at the last step) in Y and cj times it in Y'; r is F at (Y, Y'). 0, or
+  !> ida_res's 1 and -1.
   integer(c_int) function ida_jac(t, cj, nv_y, nv_yp, nv_r, jac, user_data, t1, t2, t3) &
       bind(C, name='') result(ierr)
     real(c_double), value :: t, cj
@@ -1144,7 +1146,10 @@ contains
     call put_pattern(ctx, jac)
     call c_f_pointer(sun_sparse_data(jac), jx, [ctx%ap(nn + 1) - 1])
     h = 0.0_dp
-    if (FIDAGetCurrentStep(ctx%mem, h) /= 0) return
+    if (FIDAGetCurrentStep(ctx%mem, h) /= 0) then
+      ctx%stat = MBDK_ERR_BACKEND
+      return
+    end if
     ctx%yw = y
     ctx%ypw = yp
     associate (pat => ctx%pat)
@@ -1208,6 +1213,13 @@ contains
       integer, intent(out) :: s
       integer :: st_
       s = -1
+      ! (ida_res's poll: a long Jacobian of a large scene ends within one evaluation)
+      if (ctx%interrupt /= 0) then
+        if (mbdk_interrupted(ctx%interrupt)) then
+          ctx%stat = MBDK_ERR_INTERRUPTED
+          return
+        end if
+      end if
       ctx%jac_nfev = ctx%jac_nfev + 1
       call dae_residual(ctx, t, ctx%yw, ctx%ypw, ctx%r1, st_)
       if (st_ /= MBDK_SUCCESS) then
