@@ -284,10 +284,26 @@ def _index3_failure_message(scene: Scene, tab: Tables, plan: RunPlan, r: SceneRe
 DRIFTS = (Status.ERR_CONSTRAINT_DRIFT, Status.ERR_ENERGY_DRIFT, Status.ERR_INVARIANT_DRIFT)
 
 
+def _ida_first_step_note(plan: RunPlan, r: SceneResult) -> str:
+    """ida ggl's Newton failing in its first step, no first step given: IDA's estimate from
+    rest (the velocities' tolerance over their accelerations) falls below its floor, 1e-6 of
+    the interval (kernel/src/sundials/mbdk_ida.f90, GGL_FIRST_STEP), where the index-2 Newton
+    matrix of a long chain is singular to roundoff (planar chains from about 800 bars from rest
+    to 0.01 s; h = 1e-4 runs them to 10 000 bars, tests/test_dae_scale.py)."""
+    if not (plan.ida and plan.formulation == "ggl" and r.status == Status.ERR_NEWTON_DIVERGED
+            and r.stats.steps == 0 and not plan.h):
+        return ""
+    return ("; IDA's own first step from rest (the velocities' tolerance over their "
+            "accelerations) fell to its floor, a millionth of the interval, where the index-2 "
+            "Newton matrix can be singular to roundoff: give the first step, h (h = 1e-4 runs "
+            "planar chains of 800 to 10 000 bars from rest), or take bdf with "
+            "formulation='si2', the same equations")
+
+
 def _ode_failure_message(scene: Scene, tab: Tables, plan: RunPlan, r: SceneResult) -> str:
     """A planar ODE (or DAE) run's failure: the status's text, where it stopped, and the note."""
     where = stopped_at(r.stats, r.manifest.get("t0", 0.0))
-    note = _ode_failure_note(scene, tab, plan.formulation, r)
+    note = _ode_failure_note(scene, tab, plan.formulation, r) + _ida_first_step_note(plan, r)
     text = failure_text(r.status, plan.info.adaptive,
                         plan.formulation in ("i3", "si2", "index1", "ggl"))
     return f"{plan.method}/{plan.formulation} on scene {scene.name!r}: {text} ({where}){note}"
@@ -446,7 +462,7 @@ def _spatial_failure_message(scene: Scene, plan: RunPlan, run: KernelRun) -> str
                    "are not unique")
         return f"{head} {where}: {why}"
     text = failure_text(status, plan.info.adaptive, plan.dae)
-    return f"{head}: {text} ({stopped_at(r.stats, plan.t0)})"
+    return f"{head}: {text} ({stopped_at(r.stats, plan.t0)}){_ida_first_step_note(plan, r)}"
 
 
 def _diagnose_spatial(scene: Scene, plan: RunPlan, run: KernelRun) -> SceneResult:

@@ -4,8 +4,9 @@
 !>
 !> as one symmetric matrix for mbdk_sparse_ldlt: K in a pattern given as CSC (a body pattern of
 !> mbdk_body_pattern, any block size: planar and spatial bodies alike; or the coordinates and
-!> velocities of a DAE's bodies, mbdk_mechanism_dae), D's nonzeros given row by row by their columns,
-!> and each row's own diagonal entry (zero). LDL^T without pivoting meets a zero pivot on a
+!> velocities of a DAE's bodies, mbdk_dae_pattern), D's nonzeros given row by row by their
+!> columns, and each row's own diagonal entry (zero). mbdk_kkt_pattern_csc gives the pattern
+!> alone (ida's sparse matrix, which KLU orders and pivots itself). LDL^T without pivoting meets a zero pivot on a
 !> constraint row taken before any coordinate it involves, so the order is AMD's on the whole
 !> pattern with each constraint row moved to just after the last of its coordinates: every
 !> coordinate's pivot is then one of K updated by the rows' contributions, every row's pivot
