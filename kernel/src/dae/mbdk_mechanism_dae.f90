@@ -53,7 +53,7 @@
 !>             stiff element's c^2 K nears its mass, and the solve loses digits to that growth:
 !>             each solve takes one step of iterative refinement with the matrix itself (a
 !>             product and a second solve), which restores them (tests/test_dae_scale.py: the
-!>             stiff spring bar then takes the dense LU's steps and iterations within 5 %).
+!>             stiff spring bar then takes the dense LU's steps and iterations, or close).
 !> The start's consistency (mbdk_mechanism_dae_residuals) is measured the same way.
 module mbdk_mechanism_dae
   use mbdk_kinds, only: dp
