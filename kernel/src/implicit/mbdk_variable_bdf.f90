@@ -84,8 +84,7 @@ module mbdk_variable_bdf
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_newton, only: mbdk_newton_work_t, mbdk_newton_work_init, mbdk_jacobian
   use mbdk_newton_floor, only: mbdk_floor_solve, mbdk_floor_probes, mbdk_floor_from_probes, &
-    mbdk_floor_cap, &
-    MBDK_FLOOR_FACTOR
+    mbdk_floor_cap, MBDK_FLOOR_FACTOR
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_adaptive, only: mbdk_adaptive_weights, mbdk_adaptive_wrms, mbdk_adaptive_after_step, &
     mbdk_adaptive_step_limit, mbdk_adaptive_initial_step, mbdk_adaptive_h_floor, &
