@@ -120,8 +120,7 @@ def test_every_element_on_the_sparse_matrix_is_the_dense_paths_motion(name, meth
     (measured: equal on every scene and form but the stiff spring bar's and two ida runs
     within 4 %; the bar's bdf i3 takes 282 steps and 822 iterations on the sparse path under
     every OpenBLAS kernel, the dense LU 281 and 809 under SkylakeX's but 307 and 899 under
-    Prescott's, Haswell's or Zen's; without the sparse solve's iterative refinement it took
-    298 and 897), the motions within 1e-6 (measured at most 1.9e-7, that bar's i3; elsewhere
+    Prescott's, Haswell's or Zen's), the motions within 1e-6 (measured at most 1.9e-7, that bar's i3; elsewhere
     at most 7e-9)."""
     sparse = mbdk.simulate(mbdk.scene(name), method, formulation=form, t_end=0.5, rtol=1e-7,
                            atol=1e-9, solver="sparse")

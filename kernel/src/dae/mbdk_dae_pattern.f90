@@ -24,7 +24,7 @@ module mbdk_dae_pattern
   use mbdk_mechanism, only: mbdk_mechanism_t
   use mbdk_memory, only: mbdk_alloc_status, MBDK_INT_BYTES
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
-    mbdk_body_pattern_colors, mbdk_group_by
+    mbdk_body_pattern_colors, mbdk_group_by, mbdk_first_fit
   implicit none
   private
   public :: mbdk_dae_pattern_init
@@ -183,7 +183,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer, allocatable :: color(:), seen(:), brptr(:), brow(:), key(:), item(:)
-    integer :: i, j, b, p, k, ncol, n, astat
+    integer :: i, j, b, p, ncol, n, astat
     allocate (color(na), seen(na + 1), key(2 * na), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (4.0_dp * na + 1), stat, asked)
     if (astat /= 0) return
@@ -212,12 +212,8 @@ contains
           if (color(brow(p)) > 0) seen(color(brow(p))) = i
         end do
       end do
-      k = 1
-      do while (seen(k) == i)
-        k = k + 1
-      end do
-      color(i) = k
-      ncol = max(ncol, k)
+      color(i) = mbdk_first_fit(seen, i)
+      ncol = max(ncol, color(i))
     end do
     call mbdk_group_by(color, ncol, rptr, rrow, stat, asked)
   end subroutine color_rows

@@ -19,7 +19,7 @@ module mbdk_body_pattern
   implicit none
   private
   public :: mbdk_body_pattern_init, mbdk_body_pattern_pos, mbdk_body_pattern_scatter, &
-    mbdk_body_pattern_dtd, mbdk_body_pattern_colors, mbdk_group_by
+    mbdk_body_pattern_dtd, mbdk_body_pattern_colors, mbdk_group_by, mbdk_first_fit
 
   type, public :: mbdk_body_pattern_t
     integer :: nb = 0, nc = 0, nnz = 0, bs = 3
@@ -210,7 +210,7 @@ contains
     integer, allocatable, intent(out) :: ptr(:), body(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer :: nb, b, a, c, p, p2, k, ncol, astat
+    integer :: nb, b, a, c, p, p2, ncol, astat
     integer, allocatable :: color(:), seen(:)
     nb = bp%nb
     allocate (color(nb), seen(nb + 1), stat=astat)
@@ -228,15 +228,21 @@ contains
           if (color(c) > 0) seen(color(c)) = b
         end do
       end do
-      k = 1
-      do while (seen(k) == b)
-        k = k + 1
-      end do
-      color(b) = k
-      ncol = max(ncol, k)
+      color(b) = mbdk_first_fit(seen, b)
+      ncol = max(ncol, color(b))
     end do
     call mbdk_group_by(color, ncol, ptr, body, stat, asked)
   end subroutine mbdk_body_pattern_colors
+
+  !> A greedy coloring's choice for the item that marked with mark the colors it may not take
+  !> (seen(c) = mark): the least color left. seen must have a color beyond the marked ones.
+  pure integer function mbdk_first_fit(seen, mark) result(k)
+    integer, intent(in) :: seen(:), mark
+    k = 1
+    do while (seen(k) == mark)
+      k = k + 1
+    end do
+  end function mbdk_first_fit
 
   !> The items i = 1..size(key) grouped by key(i) in 1..nkey, in ascending order within a group
   !> (a counting sort): the items of key k are item(ptr(k) .. ptr(k+1)-1). stat: MBDK_SUCCESS
