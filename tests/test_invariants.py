@@ -122,16 +122,17 @@ def test_the_heavy_top_at_2000_rad_per_s_on_implicit_euler_stops_naming_its_vert
 
 
 def test_bdf_on_the_tops_dae_names_the_quaternion_norm_it_lets_go():
-    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s, rtol 5e-3 and
-    1 s the unwatched run lets |p| drift by more than twice the watch's tolerance (by how much
-    varies with roundoff at so loose a tolerance: 0.46 to 0.65 between rtol 4e-3 and 6e-3,
-    t_end 0.8 and 1.2 s; at rtol 3e-3 over 10 s the run itself succeeded or stopped with its
-    step too small depending on the last bits); watched, it stops by name; with the momentum
-    and energy tests off, naming the body's quaternion, every sample returned within the
-    tolerance. At 50 rad/s and rtol 1e-6 the norm stays within 1e-2 and the run passes."""
+    """bdf on the index-3 DAE does not project between its steps: at 2000 rad/s, rtol 2e-3 and
+    2.5 s the unwatched run lets |p| drift by more than twice the watch's tolerance; watched,
+    it stops by name; with the momentum and energy tests off, naming the body's quaternion,
+    every sample returned within the tolerance. By how much |p| drifts varies with roundoff at
+    so loose a tolerance (0.38 to 0.47 here under OpenBLAS' Haswell, Zen, Prescott and SkylakeX
+    kernels; at rtol 3e-3 and 1.5 s from 0.1 to 0.42; at rtol 3e-3 over 10 s the run itself
+    succeeded or stopped with its step too small depending on the last bits). At 50 rad/s and
+    rtol 1e-6 the norm stays within 1e-2 and the run passes."""
     sc = mbdk.scene("heavy_top")
     sc.bodies[0].omega_body = np.array([1.0, 0.0, 2000.0])
-    kw = dict(formulation="i3", rtol=5e-3, atol=5e-6, t_end=1.0, dt_out=0.01)
+    kw = dict(formulation="i3", rtol=2e-3, atol=2e-6, t_end=2.5, dt_out=0.01)
     free = mbdk.simulate(sc, "bdf", watch=False, **kw)
     assert free.success and free.residuals[:, 2].max() > 0.2
     with pytest.raises(mbdk.InvariantDriftError):

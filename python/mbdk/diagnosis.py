@@ -181,6 +181,18 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
+#: the stabilised index-2 forms (bdf's si2, ida's ggl), and what their stop next to a singular
+#: pose means (the kernel names it: its last accepted state fails the reduced solve's pivot
+#: test, kernel/src/core/mbdk_mechanism.f90, singular_at)
+INDEX2_FORMS = ("si2", "ggl")
+INDEX2_AT_SINGULAR = (
+    "the stabilised index-2 form's steps shrank to nothing next to a singular pose of the "
+    "constraints, where its rows Phi = 0 and C v + Phi_t = 0 lose a rank and its Newton "
+    "iteration failed at every step tried")
+INDEX2_REMEDY = ("bdf with formulation='i3' or trapezoidal_index3 pass such poses; looser "
+                 "tolerances may step over it")
+
+
 def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResult) -> str:
     """What a planar ODE or DAE run's failure message adds to the status's text: dependent
     joints, an ill-conditioned regular pose, gear flanks overrun, a distance or a contact without
@@ -214,6 +226,11 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
         note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
                 "whose centres coincide, or gears whose centres came within their base "
                 "circles' sum; a smaller h or a stiffer contact keeps them apart")
+    if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation in INDEX2_FORMS \
+            and r.stats.steps:
+        found = singular_note(scene, tab, r)
+        note = ("; " + INDEX2_AT_SINGULAR + (f" (at the last sample {found})" if found else "")
+                + ". " + INDEX2_REMEDY)
     if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation == "index1":
         found = singular_note(scene, tab, r)
         note = ("; ida's index-1 form stops where the mechanism nears a singular pose (the "
@@ -456,6 +473,8 @@ def _spatial_failure_message(scene: Scene, plan: RunPlan, run: KernelRun) -> str
             why = (f"the orientation angles reached their gimbal lock "
                    f"({LOCK_MEASURE[scene.rotation]} = {lock:.2g} at the last sample), where "
                    "their rates are undefined; rotation = 'quaternion' has no such point")
+        elif formulation in INDEX2_FORMS and r.stats.steps:
+            why = f"{INDEX2_AT_SINGULAR}. {INDEX2_REMEDY}"
         else:
             why = ("the joints' constraint rows lost their rank (a singular pose: rows that "
                    "were independent at the start became dependent), where the multipliers "

@@ -59,7 +59,7 @@
 !>                tangent, its penalty ck alpha C^T C renewed (a default here: not offered)
 module mbdk_mechanism
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NOT_APPLICABLE
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NOT_APPLICABLE, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   implicit none
@@ -138,6 +138,7 @@ module mbdk_mechanism
     procedure(i3_matrix_solve_iface), deferred :: i3_matrix_solve
     procedure :: i3_project_velocity => mechanism_i3_project_velocity
     procedure :: i3_matrix_renew => mechanism_i3_matrix_renew
+    procedure :: singular_at => mechanism_singular_at
   end type mbdk_mechanism_t
 
   abstract interface
@@ -405,5 +406,22 @@ contains
     call move_alloc(mu, aux%pv_mu)
     call move_alloc(zero, aux%pv_zero)
   end subroutine mechanism_i3_project_velocity
+
+  !> Whether y = [q; v] lies next to a singular pose: the reduced ODE's constrained solve refuses
+  !> it (the relative pivot test of a mechanism built with the reduced formulation, as a DAE
+  !> solve's is; MBDK_ERR_SINGULAR_MATRIX). Another failure there, or no memory for the rates,
+  !> says nothing of the pose: .false.
+  logical function mechanism_singular_at(self, t, y)
+    class(mbdk_mechanism_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), allocatable :: ydot(:)
+    integer :: astat, st
+    mechanism_singular_at = .false.
+    if (self%m == 0 .or. size(y) /= self%ncoord + self%nvel + self%ns) return
+    allocate (ydot(size(y)), stat=astat)
+    if (astat /= 0) return
+    call self%rhs(t, y, ydot, st)
+    mechanism_singular_at = st == MBDK_ERR_SINGULAR_MATRIX
+  end function mechanism_singular_at
 
 end module mbdk_mechanism

@@ -49,6 +49,7 @@ module mbdk_problem
     procedure :: newton_jacobian => no_newton_jacobian
     procedure :: newton_factor => no_newton_factor
     procedure :: newton_solve => no_newton_solve
+    procedure :: singular_at => no_singular_at
   end type mbdk_problem_t
 
   abstract interface
@@ -157,5 +158,14 @@ contains
     integer, intent(out) :: stat
     stat = MBDK_ERR_NOT_APPLICABLE
   end subroutine no_newton_solve
+
+  !> Default: no state is a singular configuration. A problem with constraints says whether y
+  !> lies next to a rank loss of them (a mechanism's DAE: mbdk_mechanism_dae), so that a step
+  !> that shrank to nothing there is named by that cause (bdf, ida).
+  logical function no_singular_at(self, t, y)
+    class(mbdk_problem_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    no_singular_at = .false.
+  end function no_singular_at
 
 end module mbdk_problem

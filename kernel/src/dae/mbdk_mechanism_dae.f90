@@ -109,6 +109,7 @@ module mbdk_mechanism_dae
     procedure :: watch => dae_watch
     procedure :: watch_wants_nodes => dae_wants_nodes
     procedure :: watch_nodes => dae_watch_nodes
+    procedure :: singular_at => dae_singular_at
     final :: dae_free
   end type mbdk_mechanism_dae_t
 
@@ -539,5 +540,15 @@ contains
       call self%mech%watch_nodes_lam(t_a, t_b, y(1:self%ny, :), lamn, stat)
     end associate
   end subroutine dae_watch_nodes
+
+  !> Whether the state's pose is next to a rank loss of the constraints (the mechanism's
+  !> reduced solve refuses it, mbdk_mechanism's singular_at). There the stabilised index-2
+  !> form's velocity rows lose a rank and its Newton iteration stops converging at any step
+  !> (IFToMM A02's flat poses at rtol 1e-7), so bdf names that cause, not the step.
+  logical function dae_singular_at(self, t, y)
+    class(mbdk_mechanism_dae_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    dae_singular_at = self%mech%singular_at(t, y(1:self%ny))
+  end function dae_singular_at
 
 end module mbdk_mechanism_dae

@@ -34,7 +34,12 @@
 !> mbdk_jacobian; opt%fd_jacobian forces differences). M is factorised again when h/a_q has
 !> moved more than 30 % from the value it was built with (CVODE's rule: a change of order or
 !> step that keeps c within that band keeps the matrix), and after a Newton failure. A Newton
-!> failure with a fresh Jacobian halves h (stats: newton_failures). Below mbdk_adaptive_h_floor:
+!> failure with a fresh Jacobian halves h (stats: newton_failures), and the shorter step
+!> evaluates J again at its own predictor before its first iteration (CVODE's rule after a
+!> convergence failure, CV_FAIL_OTHER): a Jacobian taken where the longer step began to fail
+!> can be far from the one at the new predictor, as next to a singular pose, where it moves
+!> fast (bdf si2 on IFToMM A02 failed at every step down to 1e-14 s with it, with a rate of 30,
+!> and converged from the same state with a Jacobian taken there). Below mbdk_adaptive_h_floor:
 !> MBDK_ERR_STEP_TOO_SMALL, or MBDK_ERR_NONFINITE where the last failure met F not finite (and at
 !> once where F is not finite at the initial state): no step is small enough for a singularity.
 !>
@@ -129,6 +134,8 @@ module mbdk_variable_bdf
     !> the problem forms and factorises M itself (has_newton_matrix: a large mechanism's DAE,
     !> sparse); else J and M are dense here. singular: its last factorisation met a zero pivot
     logical :: own_matrix = .false., singular = .false.
+    !> the next attempt evaluates J at its predictor first (a Newton failure with a fresh J)
+    logical :: refresh_jac = .false.
     logical :: have_lu = .false., jac_current = .false., converged = .false.
     !> the last corrector met F not finite; a corrector of this step stalled at its floor
     logical :: nonfinite = .false., at_floor = .false.
@@ -346,6 +353,10 @@ contains
         ! a Jacobian taken where F was not finite is no use at the shorter step: take it
         ! again there, should the iteration fail once more
         if (b%nonfinite) b%jac_current = .false.
+        ! a failure with this step's fresh Jacobian: the shorter step's predictor gets its own
+        ! (CVODE's CV_FAIL_OTHER); one taken where the step started to fail can be far from
+        ! what holds at the new predictor (next to a singular pose, J moves fast)
+        if (b%jac_current) b%refresh_jac = .true.
         cycle
       end if
       if (error_test_passes(b, opt, atol, st)) exit
@@ -354,7 +365,8 @@ contains
   end subroutine take_step
 
   !> Why the step shrank to nothing: halved by corrector iterates whose F was not finite (F is
-  !> not finite next to this state, a singularity of the model: MBDK_ERR_NONFINITE); or
+  !> not finite next to this state, a singularity of the model: MBDK_ERR_NONFINITE); or a
+  !> singular pose at the last accepted state (prob%singular_at: MBDK_ERR_SINGULAR_MATRIX); or
   !> because the tolerance lies below the corrector's roundoff (its Newton stalled there, or
   !> the error estimate, a share of the correction, carries a tenth of the tolerance in
   !> roundoff: MBDK_ERR_TOO_MUCH_ACCURACY); or for another reason (MBDK_ERR_STEP_TOO_SMALL).
@@ -371,6 +383,10 @@ contains
       stat = MBDK_ERR_SINGULAR_MATRIX
       return
     end if
+    ! the last accepted state next to a rank loss of the problem's constraints (a mechanism's
+    ! singular pose, where a DAE form's Newton iteration stops converging): that is the cause
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    if (prob%singular_at(b%t, b%d(:, 0))) return
     if (.not. b%at_floor .and. b%have_lu) then
       call floor_norm(b, prob, fl, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -407,6 +423,11 @@ contains
     type(mbdk_options_t), intent(in) :: opt
     type(mbdk_stats_t), intent(inout) :: st
     integer, intent(out) :: stat
+    if (b%refresh_jac) then
+      b%refresh_jac = .false.
+      call fresh_jacobian(b, prob, opt, st, stat)
+      if (stat /= MBDK_SUCCESS .or. b%nonfinite) return
+    end if
     do
       if (.not. b%have_lu .or. abs(b%c - b%c_lu) > C_CHANGE * b%c_lu) then
         call factor_matrix(b, prob, st, stat)
@@ -415,10 +436,7 @@ contains
         ! geometric stiffness), so its zero pivot is a failed iteration, retried at a smaller
         ! step, and the cause if the steps shrink to nothing (too_small_status)
         if (stat == MBDK_ERR_SINGULAR_MATRIX .and. b%own_matrix) then
-          b%singular = .true.
-          b%nonfinite = .false.
-          b%converged = .false.
-          stat = MBDK_SUCCESS
+          call failed_iteration(b, singular=.true., stat=stat)
           return
         end if
         if (stat /= MBDK_SUCCESS) return
@@ -427,22 +445,43 @@ contains
       call corrector(b, prob, st, stat)
       if (stat /= MBDK_SUCCESS) return
       if (b%converged .or. b%jac_current) exit
-      call jacobian(b, prob, opt, b%t_new, b%yp, st, stat)
-      ! the problem's own Jacobian names G not finite a difference increment away (the dense
-      ! one carries it into its matrix, and the corrector meets it): a failed iteration too,
-      ! retried at a smaller step, as where the corrector met it
-      if (stat == MBDK_ERR_NONFINITE .and. b%own_matrix) then
-        b%nonfinite = .true.
-        b%singular = .false.
-        b%converged = .false.
-        stat = MBDK_SUCCESS
-        return
-      end if
-      if (stat /= MBDK_SUCCESS) return
-      b%jac_current = .true.
-      b%have_lu = .false.
+      call fresh_jacobian(b, prob, opt, st, stat)
+      if (stat /= MBDK_SUCCESS .or. b%nonfinite) return
     end do
   end subroutine solve_corrector
+
+  !> J at the step's predictor, to be factorised before the next iteration. The problem's own
+  !> Jacobian names G not finite a difference increment away (the dense one carries it into
+  !> its matrix, and the corrector meets it): a failed iteration too (b%nonfinite, stat
+  !> MBDK_SUCCESS), retried at a smaller step, as where the corrector met it.
+  subroutine fresh_jacobian(b, prob, opt, st, stat)
+    type(bdf_t), intent(inout) :: b
+    class(mbdk_problem_t), intent(in) :: prob
+    type(mbdk_options_t), intent(in) :: opt
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    b%nonfinite = .false.
+    call jacobian(b, prob, opt, b%t_new, b%yp, st, stat)
+    if (stat == MBDK_ERR_NONFINITE .and. b%own_matrix) then
+      call failed_iteration(b, singular=.false., stat=stat)
+      return
+    end if
+    if (stat /= MBDK_SUCCESS) return
+    b%jac_current = .true.
+    b%have_lu = .false.
+  end subroutine fresh_jacobian
+
+  !> The problem's own Newton matrix failed this iteration (a zero pivot: singular; else G not
+  !> finite next to the predictor): not converged, retried at a smaller step; stat SUCCESS.
+  subroutine failed_iteration(b, singular, stat)
+    type(bdf_t), intent(inout) :: b
+    logical, intent(in) :: singular
+    integer, intent(out) :: stat
+    b%singular = singular
+    b%nonfinite = .not. singular
+    b%converged = .false.
+    stat = MBDK_SUCCESS
+  end subroutine failed_iteration
 
   !> The error test of a converged step (WRMS(e) <= 1, e = errc(q) corr, at the weights of
   !> y_new); a failed one is a rejection, h shrunk by max(FAC_MIN, safety err^(-1/(q+1))).

@@ -124,6 +124,9 @@
 !>   IDA_ERR_FAIL (error test failed repeatedly or at h_min)   MBDK_ERR_STEP_TOO_SMALL
 !>   IDA_CONV_FAIL                                 MBDK_ERR_NEWTON_DIVERGED
 !>   IDA_LSETUP_FAIL, IDA_LSOLVE_FAIL              MBDK_ERR_SINGULAR_MATRIX
+!> and a solve that ends with MBDK_ERR_STEP_TOO_SMALL, MBDK_ERR_NEWTON_DIVERGED or
+!> MBDK_ERR_TOO_MUCH_ACCURACY next to a singular pose (singular_stop) with
+!> MBDK_ERR_SINGULAR_MATRIX.
 !>   IDA_RES_FAIL, IDA_FIRST_RES_FAIL, IDA_REP_RES_ERR
 !>                                                 MBDK_ERR_NONFINITE after a non-finite
 !>                                                 residual, else MBDK_ERR_CALLBACK_FAILED
@@ -500,6 +503,8 @@ contains
                              st%alloc_bytes)
     end if
     if (stat == MBDK_SUCCESS) call mbdk_sundials_run(lp, opt, t0, t_out, y_out, nwritten, st, stat)
+    if (stat == MBDK_ERR_STEP_TOO_SMALL .or. stat == MBDK_ERR_NEWTON_DIVERGED .or. &
+        stat == MBDK_ERR_TOO_MUCH_ACCURACY) call singular_stop(lp, st%t_reached, t0, stat)
     if (c_associated(lp%mem)) call add_stats(lp%mem, st, ctx)
     call FIDAFree(lp%mem)   ! NULL-safe; also frees IDA's copy of id
     if (associated(lp%ls)) ierr = FSUNLinSolFree(lp%ls)
@@ -768,6 +773,22 @@ contains
       stat = MBDK_SUCCESS
     end associate
   end subroutine singular_pose
+
+  !> A solve whose steps shrank to nothing (or whose Newton iteration failed at every step)
+  !> after the last accepted state at t > t0 lying next to a singular pose (the mechanism's
+  !> singular_at): MBDK_ERR_SINGULAR_MATRIX, the cause. There the ggl form's velocity rows
+  !> lose a rank and its Newton iteration stops converging whatever the step (IFToMM A02's
+  !> flat poses, at tolerances that vary with the scene and the last bits of the run).
+  subroutine singular_stop(lp, t, t0, stat)
+    type(ida_loop_t), intent(inout) :: lp
+    real(dp), intent(in) :: t, t0
+    integer, intent(inout) :: stat
+    integer :: dstat
+    if (t <= t0 .or. lp%ctx%m == 0) return
+    call lp%dky(t, dstat)      ! IDA's state at its last step, as its failure left it
+    if (dstat /= MBDK_SUCCESS) return
+    if (lp%ctx%mech%singular_at(t, lp%ydky(1:lp%ctx%ny))) stat = MBDK_ERR_SINGULAR_MATRIX
+  end subroutine singular_stop
 
   !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
   !> (the rows a redundant scene leaves out: 0).
