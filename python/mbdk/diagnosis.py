@@ -181,16 +181,24 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
-#: the stabilised index-2 forms (bdf's si2, ida's ggl), and what their stop next to a singular
-#: pose means (the kernel names it: its last accepted state fails the reduced solve's pivot
-#: test, kernel/src/core/mbdk_mechanism.f90, singular_at)
-INDEX2_FORMS = ("si2", "ggl")
-INDEX2_AT_SINGULAR = (
-    "the stabilised index-2 form's steps shrank to nothing next to a singular pose of the "
-    "constraints, where its rows Phi = 0 and C v + Phi_t = 0 lose a rank and its Newton "
-    "iteration failed at every step tried")
-INDEX2_REMEDY = ("bdf with formulation='i3' or trapezoidal_index3 pass such poses; looser "
-                 "tolerances may step over it")
+#: a DAE form's stop next to a singular pose (the kernel names it MBDK_ERR_SINGULAR_MATRIX where
+#: its last accepted state lies within MBDK_NEAR_RANK_LOSS of a rank loss of the constraints,
+#: kernel/src/core/mbdk_mechanism.f90), in words, and what passes such poses
+DAE_FORMS = ("i3", "si2", "ggl")
+DAE_AT_SINGULAR = (
+    "the {form} form's steps shrank to nothing next to a singular pose of the constraints, "
+    "where its rows lose a rank and its Newton iteration failed at every step tried")
+DAE_REMEDY = {"i3": "trapezoidal_index3 passes such poses; looser tolerances may step over it",
+              "si2": "bdf with formulation='i3' or trapezoidal_index3 pass such poses; looser "
+                     "tolerances may step over it"}
+DAE_REMEDY["ggl"] = DAE_REMEDY["si2"]
+
+
+def dae_singular_text(formulation: str) -> str:
+    """DAE_AT_SINGULAR for the form (i3: index-3; si2, ggl: stabilised index-2) and its
+    remedy."""
+    form = "index-3" if formulation == "i3" else "stabilised index-2"
+    return f"{DAE_AT_SINGULAR.format(form=form)}. {DAE_REMEDY[formulation]}"
 
 
 def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResult) -> str:
@@ -199,7 +207,10 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
     a direction, or a singular configuration nearby."""
     nw = len(r.t)
     note = ""
-    if r.status == Status.ERR_SINGULAR_MATRIX and nw and not too_large_to_name(tab):
+    dae_stop = r.status == Status.ERR_SINGULAR_MATRIX and formulation in DAE_FORMS and \
+        r.stats.steps
+    if r.status == Status.ERR_SINGULAR_MATRIX and nw and not too_large_to_name(tab) and \
+            not dae_stop:
         tab_r = resolved(scene, r)
         dep = dependent_rows(scaled_jacobian(
             tab_r, evaluate_model(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
@@ -226,11 +237,10 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
         note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
                 "whose centres coincide, or gears whose centres came within their base "
                 "circles' sum; a smaller h or a stiffer contact keeps them apart")
-    if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation in INDEX2_FORMS \
-            and r.stats.steps:
+    if not note and dae_stop:
         found = singular_note(scene, tab, r)
-        note = ("; " + INDEX2_AT_SINGULAR + (f" (at the last sample {found})" if found else "")
-                + ". " + INDEX2_REMEDY)
+        note = "; " + dae_singular_text(formulation) + (
+            f" (at the last sample {found})" if found else "")
     if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation == "index1":
         found = singular_note(scene, tab, r)
         note = ("; ida's index-1 form stops where the mechanism nears a singular pose (the "
@@ -473,8 +483,8 @@ def _spatial_failure_message(scene: Scene, plan: RunPlan, run: KernelRun) -> str
             why = (f"the orientation angles reached their gimbal lock "
                    f"({LOCK_MEASURE[scene.rotation]} = {lock:.2g} at the last sample), where "
                    "their rates are undefined; rotation = 'quaternion' has no such point")
-        elif formulation in INDEX2_FORMS and r.stats.steps:
-            why = f"{INDEX2_AT_SINGULAR}. {INDEX2_REMEDY}"
+        elif formulation in DAE_FORMS and r.stats.steps:
+            why = dae_singular_text(formulation)
         else:
             why = ("the joints' constraint rows lost their rank (a singular pose: rows that "
                    "were independent at the start became dependent), where the multipliers "

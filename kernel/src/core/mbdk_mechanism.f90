@@ -40,6 +40,9 @@
 !>   coord_weights  per velocity component, the size of the coordinates it moves (a planar
 !>                coordinate's |q|; a spatial body's |r| and 1 for its rotations), for tests
 !>                on increments
+!>   near_rank_loss  whether a pose lies within MBDK_NEAR_RANK_LOSS of a rank loss of the rows
+!>                solved (the constrained solve's near test with that window): the cause a DAE
+!>                form's failure is named by
 !> and for the index-3 integrator (mbdk_trapezoidal_index3), with an mbdk_i3_aux_t the model
 !> creates for each solve (i3_create: its constrained-solve object and Newton factors):
 !>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v) into an mbdk_i3_eval_t, C kept for the
@@ -59,7 +62,7 @@
 !>                tangent, its penalty ck alpha C^T C renewed (a default here: not offered)
 module mbdk_mechanism
   use mbdk_kinds, only: dp
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NOT_APPLICABLE, MBDK_ERR_SINGULAR_MATRIX
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_NOT_APPLICABLE
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES
   use mbdk_problem, only: mbdk_problem_t
   implicit none
@@ -68,6 +71,13 @@ module mbdk_mechanism
   !> the ODE formulations (Fekete (2023) section 3), one code in both models
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
+  !> near_rank_loss's window: a relative pivot of the constrained solve (the models' near
+  !> tests) below this is next to a rank loss. A hundred times the reduced formulation's
+  !> refusal window (1e-4), because the stabilised index-2 forms give up further out: their
+  !> Newton matrix's Jacobian moves fast there. On IFToMM A02 the pivot falls as the square of
+  !> the time to a flat pose (5e-4 at 3 ms, 1.2e-2 at 15 ms, 4.6e-2 at 30 ms), and bdf si2 and
+  !> ida ggl stopped from 15 ms before one (rtol 1e-10) to just past it.
+  real(dp), parameter, public :: MBDK_NEAR_RANK_LOSS = 2.0e-2_dp
 
   !> What a mechanism keeps for one index-3 solve; each model extends it (i3_create).
   type, abstract, public :: mbdk_i3_aux_t
@@ -138,7 +148,7 @@ module mbdk_mechanism
     procedure(i3_matrix_solve_iface), deferred :: i3_matrix_solve
     procedure :: i3_project_velocity => mechanism_i3_project_velocity
     procedure :: i3_matrix_renew => mechanism_i3_matrix_renew
-    procedure :: singular_at => mechanism_singular_at
+    procedure(near_rank_loss_iface), deferred :: near_rank_loss
   end type mbdk_mechanism_t
 
   abstract interface
@@ -359,6 +369,15 @@ module mbdk_mechanism
       type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine i3_matrix_solve_iface
+    !> Whether the pose of y = [q; v] lies within MBDK_NEAR_RANK_LOSS of a rank loss of the
+    !> rows the mechanism solves (its constrained solve's near-singular test, with that window):
+    !> what a DAE form's failure is named by (mbdk_mechanism_dae, mbdk_ida). .false. where the
+    !> solve fails for another reason.
+    logical function near_rank_loss_iface(self, t, y)
+      import :: mbdk_mechanism_t, dp
+      class(mbdk_mechanism_t), intent(in) :: self
+      real(dp), intent(in) :: t, y(:)
+    end function near_rank_loss_iface
   end interface
 
 contains
@@ -406,22 +425,5 @@ contains
     call move_alloc(mu, aux%pv_mu)
     call move_alloc(zero, aux%pv_zero)
   end subroutine mechanism_i3_project_velocity
-
-  !> Whether y = [q; v] lies next to a singular pose: the reduced ODE's constrained solve refuses
-  !> it (the relative pivot test of a mechanism built with the reduced formulation, as a DAE
-  !> solve's is; MBDK_ERR_SINGULAR_MATRIX). Another failure there, or no memory for the rates,
-  !> says nothing of the pose: .false.
-  logical function mechanism_singular_at(self, t, y)
-    class(mbdk_mechanism_t), intent(in) :: self
-    real(dp), intent(in) :: t, y(:)
-    real(dp), allocatable :: ydot(:)
-    integer :: astat, st
-    mechanism_singular_at = .false.
-    if (self%m == 0 .or. size(y) /= self%ncoord + self%nvel + self%ns) return
-    allocate (ydot(size(y)), stat=astat)
-    if (astat /= 0) return
-    call self%rhs(t, y, ydot, st)
-    mechanism_singular_at = st == MBDK_ERR_SINGULAR_MATRIX
-  end function mechanism_singular_at
 
 end module mbdk_mechanism

@@ -541,14 +541,14 @@ contains
     end associate
   end subroutine dae_watch_nodes
 
-  !> Whether the state's pose is next to a rank loss of the constraints (the mechanism's
-  !> reduced solve refuses it, mbdk_mechanism's singular_at). There the stabilised index-2
-  !> form's velocity rows lose a rank and its Newton iteration stops converging at any step
-  !> (IFToMM A02's flat poses at rtol 1e-7), so bdf names that cause, not the step.
+  !> Whether the state's pose is next to a rank loss of the constraints (mbdk_mechanism's
+  !> near_rank_loss). There the DAE's rows lose a rank together and bdf's Newton iteration may
+  !> fail at every step (IFToMM A02's flat poses at tight tolerances), so bdf names that cause,
+  !> not the step.
   logical function dae_singular_at(self, t, y)
     class(mbdk_mechanism_dae_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    dae_singular_at = self%mech%singular_at(t, y(1:self%ny))
+    dae_singular_at = self%mech%near_rank_loss(t, y(1:self%ny))
   end function dae_singular_at
 
 end module mbdk_mechanism_dae

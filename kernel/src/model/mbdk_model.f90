@@ -56,7 +56,7 @@ module mbdk_model
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
-    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_NEAR_RANK_LOSS
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
@@ -249,6 +249,7 @@ module mbdk_model
     procedure :: retract => model_retract
     procedure :: normalise => model_normalise
     procedure :: coord_weights => model_coord_weights
+    procedure :: near_rank_loss => model_near_rank_loss
     ! trapezoidal_index3's part (the submodule mbdk_model_i3)
     procedure :: i3_create => model_i3_create
     procedure :: i3_evaluate => model_i3_evaluate
@@ -963,6 +964,23 @@ contains
       f(i) = y(nc + i)
     end do
   end subroutine model_rhs
+
+  !> The reduced solve's near test (mbdk_model_accelerations' near) at y = [q; v] with the
+  !> window MBDK_NEAR_RANK_LOSS (mbdk_mechanism).
+  logical function model_near_rank_loss(self, t, y) result(near)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), allocatable :: a(:), lam(:)
+    integer :: nc, st
+    near = .false.
+    nc = self%nc
+    if (self%m == 0 .or. size(y) < 2 * nc) return
+    allocate (a(nc), lam(self%m), stat=st)
+    if (st /= 0) return
+    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), a, lam, st, &
+                                  MBDK_NEAR_RANK_LOSS)
+    near = st == MBDK_ERR_SINGULAR_MATRIX
+  end function model_near_rank_loss
 
   !> model_rhs of a scene with effects: the accelerations, then the effects' rates
   !> f(2 nc + 1:), after the evaluation has left work%rot at q.

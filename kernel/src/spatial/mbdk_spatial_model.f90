@@ -108,7 +108,7 @@ module mbdk_spatial_model
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
-    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_NEAR_RANK_LOSS
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_compact_schur, only: mbdk_compact_schur_t, mbdk_compact_schur_init, &
     mbdk_compact_schur_factor, mbdk_compact_schur_solve, mbdk_compact_schur_spread
@@ -299,6 +299,7 @@ module mbdk_spatial_model
     procedure :: retract => spatial_retract
     procedure :: normalise => spatial_normalise
     procedure :: coord_weights => spatial_coord_weights
+    procedure :: near_rank_loss => spatial_near_rank_loss
     ! trapezoidal_index3's part (the submodule mbdk_spatial_i3)
     procedure :: i3_create => spatial_i3_create
     procedure :: i3_evaluate => spatial_i3_evaluate
@@ -2221,7 +2222,7 @@ contains
   !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
   !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
   !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
-  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
+  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs, near)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: f(:)
@@ -2229,9 +2230,12 @@ contains
     real(dp), intent(out), optional :: lam(:)
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
+    real(dp), intent(in), optional :: near   !< the reduced solve's near window (default below)
     type(frames_t) :: fr
-    real(dp) :: vg, vs, power
+    real(dp) :: vg, vs, power, win
     integer :: k, nb, m
+    win = MBDK_SPATIAL_NEAR_PIVOT
+    if (present(near)) win = near
     f = 0.0_dp
     nb = self%nb
     m = self%m
@@ -2269,7 +2273,7 @@ contains
               (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
               self%opt%baumgarte_beta**2 * phi
       if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
-        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
+        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, win)
       else
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
       end if
@@ -2308,7 +2312,7 @@ contains
                 self%opt%baumgarte_beta**2 * phi
         if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
           call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st, &
-                            MBDK_SPATIAL_NEAR_PIVOT)
+                            win)
         else
           call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st)
         end if
@@ -2359,6 +2363,21 @@ contains
     end subroutine penalty_solve
 
   end subroutine spatial_accelerations
+
+  !> The reduced solve's near test (spatial_accelerations' near) at y = [q; w] with the window
+  !> MBDK_NEAR_RANK_LOSS (mbdk_mechanism); a joint tree never loses its rank (regular_tree).
+  logical function spatial_near_rank_loss(self, t, y) result(near)
+    class(mbdk_spatial_model_t), intent(in) :: self
+    real(dp), intent(in) :: t, y(:)
+    real(dp), allocatable :: f(:)
+    integer :: st
+    near = .false.
+    if (self%m == 0 .or. self%opt%formulation /= MBDK_FORM_REDUCED) return
+    allocate (f(size(y)), stat=st)
+    if (st /= 0) return
+    call spatial_accelerations(self, t, y, f, st, near=MBDK_NEAR_RANK_LOSS)
+    near = st == MBDK_ERR_SINGULAR_MATRIX
+  end function spatial_near_rank_loss
 
   !> The DAE form's right-hand side at (t, y = [q; w]) with the multipliers lam (m; zero on
   !> the rows a redundant scene leaves out): f = [q'; w'], w' = M^-1 (f - C^T lam - W x J W

@@ -776,7 +776,7 @@ contains
 
   !> A solve whose steps shrank to nothing (or whose Newton iteration failed at every step)
   !> after the last accepted state at t > t0 lying next to a singular pose (the mechanism's
-  !> singular_at): MBDK_ERR_SINGULAR_MATRIX, the cause. There the ggl form's velocity rows
+  !> near_rank_loss): MBDK_ERR_SINGULAR_MATRIX, the cause. There the ggl form's velocity rows
   !> lose a rank and its Newton iteration stops converging whatever the step (IFToMM A02's
   !> flat poses, at tolerances that vary with the scene and the last bits of the run).
   subroutine singular_stop(lp, t, t0, stat)
@@ -787,7 +787,7 @@ contains
     if (t <= t0 .or. lp%ctx%m == 0) return
     call lp%dky(t, dstat)      ! IDA's state at its last step, as its failure left it
     if (dstat /= MBDK_SUCCESS) return
-    if (lp%ctx%mech%singular_at(t, lp%ydky(1:lp%ctx%ny))) stat = MBDK_ERR_SINGULAR_MATRIX
+    if (lp%ctx%mech%near_rank_loss(t, lp%ydky(1:lp%ctx%ny))) stat = MBDK_ERR_SINGULAR_MATRIX
   end subroutine singular_stop
 
   !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
