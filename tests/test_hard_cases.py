@@ -170,33 +170,32 @@ def test_ida_index1_names_a_singular_pose_instead_of_leaving_the_branch():
     ("ida", "ggl", (1e-5,))])
 def test_the_dae_forms_pass_a02s_flat_poses_on_the_branch_or_name_them(
         method, formulation, passing):
-    """IFToMM A02 (one and two loops) over its eight flat poses in 5 s, rtol 1e-4 to 1e-10. The
+    """IFToMM A02 (one and two loops) over its eight flat poses in 5 s, rtol 1e-4 to 1e-9. The
     index-3 and stabilised index-2 forms keep Phi, so they stay on the motion's branch (the
     index-1 form's crossed branch ends 5.6 rad off the exact crank angle,
-    mbdk.benchmarks.a02_crank), or stop at a flat pose by name. Whether ida ggl's Newton iteration gets past a flat pose depends on
-    where its steps land, down to the last bits of the start (rtol 1e-6 passed A02's second flat
-    pose under OpenBLAS' Haswell kernel and stopped there under its Prescott kernel), so either
-    outcome is allowed there, not a silent one. bdf si2 failed at every step down to 1e-14 s
-    next to a flat pose while it kept the Jacobian of the step's first attempt (rtol 1e-4 and
-    1e-6 on some kernels); with J taken again at each shorter step's predictor it passes at
-    the tolerances in `passing` on every kernel tried (Haswell, Prescott, SkylakeX,
-    Sandybridge). bdf i3 (index 3, Phi kept) passes down to rtol 1e-9 and stops by name at
-    1e-10."""
+    mbdk.benchmarks.a02_crank), or stop at a flat pose by name. Next to a flat pose their
+    Newton matrix's Jacobian moves fast; whether ida ggl's Newton iteration gets past one
+    depends on where its steps land, down to the last bits of the start (at rtol 1e-6 it
+    passes under OpenBLAS' Haswell kernel and stops under its Prescott kernel), so either
+    outcome is allowed, never a silent one; bdf must pass at the tolerances in `passing` (every
+    kernel tried: Haswell, Prescott, SkylakeX, Sandybridge)."""
     from mbdk.benchmarks import a02_chain, a02_crank
     for n in (1, 2):
         sc = a02_chain(n)
         flat = _flat_pose_times(n)
-        for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+        for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
             try:
                 r = mbdk.simulate(sc, method, formulation=formulation, rtol=rtol,
                                   atol=1e-2 * rtol, t_end=5, dt_out=0.05)
-            except mbdk.SingularMatrixError as e:
+            except (mbdk.SingularMatrixError, mbdk.EnergyDriftError,
+                    mbdk.ConstraintDriftError) as e:
                 assert rtol not in passing, (n, rtol, str(e))
-                assert "form's steps shrank to nothing next to a singular pose" in str(e)
-                assert "trapezoidal_index3" in str(e)
+                # (the watch may see a flat pose's jump in the energy balance first)
+                if isinstance(e, mbdk.SingularMatrixError):
+                    assert "form stopped at a rank loss" in str(e)
+                    assert "trapezoidal_index3" in str(e)
                 # the last accepted step lies within 0.03 s of a flat pose (the kernel's window,
-                # MBDK_NEAR_RANK_LOSS, reaches 15 to 25 ms before one on A02; bdf si2 at rtol
-                # 1e-10 stopped 24 ms before the two-loop chain's first)
+                # MBDK_RANK_LOSS_WINDOW, reaches 15 to 25 ms before one on A02)
                 assert np.abs(flat - e.result.stats.t_reached).min() < 3e-2, (n, rtol)
                 continue
             theta, _ = a02_crank(n, r.t)
@@ -204,4 +203,86 @@ def test_the_dae_forms_pass_a02s_flat_poses_on_the_branch_or_name_them(
             # poses the largest error measured was 0.56 rad at rtol 1e-4 (bdf i3, two loops),
             # 1.1e-2 rad at 1e-6 and 4.8e-5 rad at 1e-8
             err = np.abs(r.q[:, 2] - theta).max()
-            assert err < (1.0 if rtol > 1e-8 else 1e-3), (n, rtol, err)
+            assert err < (2.0 if rtol > 1e-8 else 1e-3), (n, rtol, err)
+
+
+@pytest.mark.parametrize("method, formulation, h_min", [
+    ("bdf", "i3", 2e-4), ("bdf", "i3", 5e-4), ("ida", "ggl", 2e-4), ("ida", "ggl", 5e-4)])
+def test_a_dae_form_stopped_at_a_regular_pose_keeps_its_name(method, formulation, h_min):
+    """The four-bar (a Grashof crank-rocker: no singular pose) with a coupler of 2 g beside
+    links of 0.6 and 1.2 kg, and a floor on the step that the run meets after some steps: it
+    stops with StepTooSmallError, not SingularMatrixError. The pose test that names a DAE
+    form's stop (kernel/src/linalg/mbdk_rank_margin.f90) looks at the geometry alone: with the
+    masses in its metric, as the reduced formulation's pivot test has them, these stops were
+    named SingularMatrixError at regular poses."""
+    sc = mbdk.scene("four_bar")
+    sc.bodies[1].mass = 0.002
+    with pytest.raises(mbdk.StepTooSmallError) as info:
+        mbdk.simulate(sc, method, formulation=formulation, rtol=1e-6, atol=1e-8, t_end=2,
+                      dt_out=0.05, h_min=h_min)
+    assert info.value.result.stats.steps > 0
+
+
+def _a02_spatial():
+    """IFToMM A02's one loop built from spatial boxes (1 m x 0.1 m x 0.1 m, 1 kg) on four
+    revolute joints about z: a planar loop in 3D, so three of its 20 rows are redundant, and
+    at each flat pose one more falls out."""
+    from mbdk.scene_file import scene_from_dict
+    upright = {"type": "box", "size": [0.1, 1.0, 0.1]}
+    level = {"type": "box", "size": [1.0, 0.1, 0.1]}
+    crank = {"kind": "spatial", "mass": 1.0, "shape": upright, "velocity": [0.5, 0.0, 0.0],
+             "omega": [0.0, 0.0, -1.0]}
+    z = [0.0, 0.0, 1.0]
+    return scene_from_dict({
+        "scene": {"name": "a02_spatial", "rotation": "quaternion"},
+        "body": [{"name": "crank0", "position": [0.0, 0.5, 0.0], **crank},
+                 {"name": "crank1", "position": [1.0, 0.5, 0.0], **crank},
+                 {"name": "coupler", "kind": "spatial", "mass": 1.0, "shape": level,
+                  "position": [0.5, 1.0, 0.0], "velocity": [1.0, 0.0, 0.0]}],
+        "joint": [{"name": "G0", "type": "revolute", "body1": "crank0", "at": [0, 0, 0], "axis": z},
+                  {"name": "G1", "type": "revolute", "body1": "crank1", "at": [1, 0, 0], "axis": z},
+                  {"name": "L0", "type": "revolute", "body1": "coupler", "body2": "crank0",
+                   "at": [0, 1, 0], "axis": z},
+                  {"name": "R0", "type": "revolute", "body1": "coupler", "body2": "crank1",
+                   "at": [1, 1, 0], "axis": z}],
+        "force": [{"type": "gravity", "g": [0.0, -9.81, 0.0]}]})
+
+
+def _crank_angle(q):
+    """crank0's rotation about z from its quaternion (scalar first), unwrapped."""
+    return np.unwrap(2.0 * np.arctan2(q[:, 6], q[:, 3]))
+
+
+@pytest.mark.parametrize("method, formulation", [("bdf", "i3"), ("bdf", "si2"), ("ida", "ggl")])
+def test_the_dae_forms_on_a_spatial_a02_pass_its_flat_poses_or_name_them(method, formulation):
+    """The spatial model's side of the DAE forms' naming (its geometric pose test, and the
+    spatial message): A02's loop built from spatial bodies, 5 s, rtol 1e-4 to 1e-9. Every run
+    stays on the motion's branch (against trapezoidal_index3 at h = 1e-3, itself within 1e-2
+    rad of h = 1e-4; a crossed branch ends 5.6 rad off on the planar chain) or stops within 0.03 s of a flat pose
+    with SingularMatrixError saying why (measured: bdf i3 at rtol 1e-9, si2 at 1e-8 and 1e-9,
+    ida ggl at 1e-7 to 1e-9 stop so)."""
+    ref = mbdk.simulate(_a02_spatial(), "trapezoidal_index3", h=1e-3, t_end=5, every=1)
+    angle = _crank_angle(ref.q)
+    # flat: the crank along the ground line, its angle from the upright a multiple of pi,
+    # crossed between two steps (linear interpolation)
+    s = (angle - 0.5 * np.pi) / np.pi
+    i = np.nonzero(np.diff(np.floor(s)))[0]
+    flat = ref.t[i] + (np.round(s[i + 1]) - s[i]) / (s[i + 1] - s[i]) * (ref.t[i + 1] - ref.t[i])
+    assert len(flat) == 5
+    angle = angle[::50]             # at the runs' samples, every 0.05 s
+    passed = 0
+    for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
+        try:
+            r = mbdk.simulate(_a02_spatial(), method, formulation=formulation, rtol=rtol,
+                              atol=1e-2 * rtol, t_end=5, dt_out=0.05)
+        except (mbdk.SingularMatrixError, mbdk.EnergyDriftError, mbdk.ConstraintDriftError) as e:
+            # the watch may see the jump a flat pose puts into the energy balance first (bdf i3
+            # at rtol 1e-9 under OpenBLAS' Atom kernel): a named stop there too
+            if isinstance(e, mbdk.SingularMatrixError):
+                assert "form stopped at a rank loss" in str(e) and "spatial scene" in str(e)
+            assert np.abs(flat - e.result.stats.t_reached).min() < 3e-2, (rtol, str(e))
+            continue
+        # (0.58 rad at rtol 1e-4 after eight flat poses, bdf i3: its accuracy there)
+        assert np.abs(_crank_angle(r.q) - angle).max() < 2.0, rtol
+        passed += 1
+    assert passed >= 3, passed      # rtol 1e-4 to 1e-6 passed for every form

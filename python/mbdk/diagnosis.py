@@ -31,7 +31,8 @@ from .stability import instability_note
 from .watch import drift_message, drift_report
 
 # the reduced formulation refuses a relative pivot of D M^-1 D^T below this (the kernel's)
-REDUCED_NEAR_PIVOT = float(_kernel.model_constants())
+# and a DAE form's stop is named by a singular pose within this relative pivot of the geometry
+REDUCED_NEAR_PIVOT, RANK_LOSS_WINDOW = (float(x) for x in _kernel.model_constants())
 
 
 DRIFT_ADVICE = {
@@ -181,13 +182,8 @@ def resolved(scene: Scene, r: SceneResult) -> Tables:
     return build_tables(scene, r.q[0])
 
 
-#: a DAE form's stop next to a singular pose (the kernel names it MBDK_ERR_SINGULAR_MATRIX where
-#: its last accepted state lies within MBDK_NEAR_RANK_LOSS of a rank loss of the constraints,
-#: kernel/src/core/mbdk_mechanism.f90), in words, and what passes such poses
+#: the DAE forms (bdf's i3, si2; ida's ggl) and what passes a singular pose where they stop
 DAE_FORMS = ("i3", "si2", "ggl")
-DAE_AT_SINGULAR = (
-    "the {form} form's steps shrank to nothing next to a singular pose of the constraints, "
-    "where its rows lose a rank and its Newton iteration failed at every step tried")
 DAE_REMEDY = {"i3": "trapezoidal_index3 passes such poses; looser tolerances may step over it",
               "si2": "bdf with formulation='i3' or trapezoidal_index3 pass such poses; looser "
                      "tolerances may step over it"}
@@ -195,10 +191,15 @@ DAE_REMEDY["ggl"] = DAE_REMEDY["si2"]
 
 
 def dae_singular_text(formulation: str) -> str:
-    """DAE_AT_SINGULAR for the form (i3: index-3; si2, ggl: stabilised index-2) and its
-    remedy."""
+    """What a DAE form's SINGULAR_MATRIX after its first step means: the kernel names a stop so
+    where its last accepted state lies within RANK_LOSS_WINDOW of a rank loss of the rows it
+    solves (their geometry, kernel/src/linalg/mbdk_rank_margin.f90), or where a Newton matrix
+    had a zero pivot; and the remedy."""
     form = "index-3" if formulation == "i3" else "stabilised index-2"
-    return f"{DAE_AT_SINGULAR.format(form=form)}. {DAE_REMEDY[formulation]}"
+    return (f"the {form} form stopped at a rank loss: its last accepted state lies next to a "
+            f"singular pose of the constraints (a relative pivot of their geometry below "
+            f"{RANK_LOSS_WINDOW:g}), or a Newton matrix had a zero pivot. "
+            f"{DAE_REMEDY[formulation]}")
 
 
 def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResult) -> str:
@@ -207,10 +208,7 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
     a direction, or a singular configuration nearby."""
     nw = len(r.t)
     note = ""
-    dae_stop = r.status == Status.ERR_SINGULAR_MATRIX and formulation in DAE_FORMS and \
-        r.stats.steps
-    if r.status == Status.ERR_SINGULAR_MATRIX and nw and not too_large_to_name(tab) and \
-            not dae_stop:
+    if r.status == Status.ERR_SINGULAR_MATRIX and nw and not too_large_to_name(tab):
         tab_r = resolved(scene, r)
         dep = dependent_rows(scaled_jacobian(
             tab_r, evaluate_model(tab_r, r.q[-1], r.v[-1], r.t[-1])["D"]))
@@ -237,14 +235,15 @@ def _ode_failure_note(scene: Scene, tab: Tables, formulation: str, r: SceneResul
         note = (f"; a contact may have no normal there ({', '.join(contacts)}): two circles "
                 "whose centres coincide, or gears whose centres came within their base "
                 "circles' sum; a smaller h or a stiffer contact keeps them apart")
-    if not note and dae_stop:
-        found = singular_note(scene, tab, r)
-        note = "; " + dae_singular_text(formulation) + (
+    if r.status == Status.ERR_SINGULAR_MATRIX and formulation in DAE_FORMS and r.stats.steps:
+        # the joints named above, or those the last sample finds nearly dependent, then the cause
+        found = "" if note else singular_note(scene, tab, r)
+        note += "; " + dae_singular_text(formulation) + (
             f" (at the last sample {found})" if found else "")
     if not note and r.status == Status.ERR_SINGULAR_MATRIX and formulation == "index1":
         found = singular_note(scene, tab, r)
         note = ("; ida's index-1 form stops where the mechanism nears a singular pose (the "
-                "reduced solve's pivot, looked for at eight points of every step)"
+                "reduced solve's pivot, looked for at four points of every step)"
                 + (f": {found}" if found else "") + ". There its acceleration rows hold on "
                 "either branch, and without Phi kept it can leave the motion's branch "
                 "unseen; formulation='ggl', bdf with 'i3' or trapezoidal_index3 "

@@ -731,13 +731,16 @@ subroutine index3_constants(max_cuts, retry_budget)
   retry_budget = nint(MBDK_INDEX3_RETRY_BUDGET)
 end subroutine index3_constants
 
-subroutine model_constants(near_pivot)
-  ! The relative pivot of D M^-1 D^T below which the reduced formulation refuses a pose, for
-  ! the messages Python writes.
+subroutine model_constants(near_pivot, rank_window)
+  ! For the messages Python writes: the relative pivot of D M^-1 D^T below which the reduced
+  ! formulation refuses a pose, and the window in which a DAE form's stop is named by a
+  ! singular pose (mbdk_mechanism).
   use mbdk_model, only: MBDK_MODEL_NEAR_PIVOT
+  use mbdk_mechanism, only: MBDK_RANK_LOSS_WINDOW
   implicit none
-  double precision, intent(out) :: near_pivot
+  double precision, intent(out) :: near_pivot, rank_window
   near_pivot = MBDK_MODEL_NEAR_PIVOT
+  rank_window = MBDK_RANK_LOSS_WINDOW
 end subroutine model_constants
 
 subroutine index3_error_constants(ni3w, i3buf, lte_q, lte_v, status)

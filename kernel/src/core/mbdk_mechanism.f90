@@ -40,9 +40,9 @@
 !>   coord_weights  per velocity component, the size of the coordinates it moves (a planar
 !>                coordinate's |q|; a spatial body's |r| and 1 for its rotations), for tests
 !>                on increments
-!>   near_rank_loss  whether a pose lies within MBDK_NEAR_RANK_LOSS of a rank loss of the rows
-!>                solved (the constrained solve's near test with that window): the cause a DAE
-!>                form's failure is named by
+!>   near_rank_loss  whether the pose lies within MBDK_RANK_LOSS_WINDOW of a rank loss of given
+!>                rows, on the geometry (mbdk_rank_margin; no masses, no counts or state of the
+!>                model touched): the cause a DAE form's failure is named by
 !> and for the index-3 integrator (mbdk_trapezoidal_index3), with an mbdk_i3_aux_t the model
 !> creates for each solve (i3_create: its constrained-solve object and Newton factors):
 !>   i3_evaluate  f, Phi, gamma, Phi_t at (t, q, v) into an mbdk_i3_eval_t, C kept for the
@@ -71,13 +71,16 @@ module mbdk_mechanism
   !> the ODE formulations (Fekete (2023) section 3), one code in both models
   integer, parameter, public :: MBDK_FORM_REDUCED = 1, MBDK_FORM_BAUMGARTE = 2, &
     MBDK_FORM_PENALTY = 3, MBDK_FORM_PROJECTION = 4
-  !> near_rank_loss's window: a relative pivot of the constrained solve (the models' near
-  !> tests) below this is next to a rank loss. A hundred times the reduced formulation's
-  !> refusal window (1e-4), because the stabilised index-2 forms give up further out: their
+  !> near_rank_loss's window: a relative pivot of the rows' geometric Gram matrix
+  !> (mbdk_rank_margin) at or below this is next to a rank loss. A hundred times the reduced
+  !> formulation's refusal window (1e-4), because the DAE forms give up further out: their
   !> Newton matrix's Jacobian moves fast there. On IFToMM A02 the pivot falls as the square of
-  !> the time to a flat pose (5e-4 at 3 ms, 1.2e-2 at 15 ms, 4.6e-2 at 30 ms), and bdf si2 and
-  !> ida ggl stopped from 15 ms before one (rtol 1e-10) to just past it.
-  real(dp), parameter, public :: MBDK_NEAR_RANK_LOSS = 2.0e-2_dp
+  !> the time to a flat pose (5e-4 at 3 ms, 1.2e-2 at 15 ms, 4.6e-2 at 30 ms), and bdf and
+  !> ida's DAE forms stopped from 24 ms before one (rtol 1e-10) to just past it.
+  real(dp), parameter, public :: MBDK_RANK_LOSS_WINDOW = 2.0e-2_dp
+  !> near_rank_loss looks at most this many rows (its Gram matrix is dense); a larger scene's
+  !> DAE failures keep the name their solver gave them
+  integer, parameter, public :: MBDK_RANK_LOSS_MAX_ROWS = 300
 
   !> What a mechanism keeps for one index-3 solve; each model extends it (i3_create).
   type, abstract, public :: mbdk_i3_aux_t
@@ -369,14 +372,15 @@ module mbdk_mechanism
       type(mbdk_i3_eval_t), intent(inout) :: e
       integer, intent(out) :: stat
     end subroutine i3_matrix_solve_iface
-    !> Whether the pose of y = [q; v] lies within MBDK_NEAR_RANK_LOSS of a rank loss of the
-    !> rows the mechanism solves (its constrained solve's near-singular test, with that window):
-    !> what a DAE form's failure is named by (mbdk_mechanism_dae, mbdk_ida). .false. where the
-    !> solve fails for another reason.
-    logical function near_rank_loss_iface(self, t, y)
+    !> Whether the pose of y = [q; v] lies within MBDK_RANK_LOSS_WINDOW of a rank loss of the
+    !> given rows (mbdk_rank_margin, with the model's geometric weights): what a DAE form's
+    !> failure is named by (mbdk_mechanism_dae, mbdk_ida). .false. for more than
+    !> MBDK_RANK_LOSS_MAX_ROWS rows, or where the evaluation fails.
+    logical function near_rank_loss_iface(self, t, y, rows)
       import :: mbdk_mechanism_t, dp
       class(mbdk_mechanism_t), intent(in) :: self
       real(dp), intent(in) :: t, y(:)
+      integer, intent(in) :: rows(:)
     end function near_rank_loss_iface
   end interface
 

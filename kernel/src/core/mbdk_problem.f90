@@ -160,8 +160,8 @@ contains
   end subroutine no_newton_solve
 
   !> Default: no state is a singular configuration. A problem with constraints says whether y
-  !> lies next to a rank loss of them (a mechanism's DAE: mbdk_mechanism_dae), so that a step
-  !> that shrank to nothing there is named by that cause (bdf, ida).
+  !> lies next to a rank loss of them (a mechanism's DAE: mbdk_mechanism_dae), so that bdf
+  !> names a stop there by that cause.
   logical function no_singular_at(self, t, y)
     class(mbdk_problem_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)

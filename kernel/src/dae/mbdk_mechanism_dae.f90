@@ -548,7 +548,7 @@ contains
   logical function dae_singular_at(self, t, y)
     class(mbdk_mechanism_dae_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    dae_singular_at = self%mech%near_rank_loss(t, y(1:self%ny))
+    dae_singular_at = self%mech%near_rank_loss(t, y(1:self%ny), self%rows)
   end function dae_singular_at
 
 end module mbdk_mechanism_dae

@@ -38,8 +38,7 @@
 !> evaluates J again at its own predictor before its first iteration (CVODE's rule after a
 !> convergence failure, CV_FAIL_OTHER): a Jacobian taken where the longer step began to fail
 !> can be far from the one at the new predictor, as next to a singular pose, where it moves
-!> fast (bdf si2 on IFToMM A02 failed at every step down to 1e-14 s with it, with a rate of 30,
-!> and converged from the same state with a Jacobian taken there). Below mbdk_adaptive_h_floor:
+!> fast enough that no shorter step converges with the old one. Below mbdk_adaptive_h_floor:
 !> MBDK_ERR_STEP_TOO_SMALL, or MBDK_ERR_NONFINITE where the last failure met F not finite (and at
 !> once where F is not finite at the initial state): no step is small enough for a singularity.
 !>
@@ -142,6 +141,8 @@ module mbdk_variable_bdf
     !> t_new: the end of the step being tried; c = h / a_q, c_lu: the c that M was built with;
     !> tol: Newton's; err: the accepted step's error estimate; safety: its step-size factor
     real(dp) :: t = 0.0_dp, t_new = 0.0_dp, t_end = 0.0_dp, h = 0.0_dp, hmax = 0.0_dp
+    !> the solve's start (a stop before any accepted step is not named by the pose)
+    real(dp) :: t0 = 0.0_dp
     real(dp) :: c = 0.0_dp, c_lu = 0.0_dp, tol = 0.0_dp, err = 0.0_dp, safety = 0.0_dp
     real(dp) :: crate = 1.0_dp
     !> gam(j) = gamma_j = sum_{i=1..j} 1/i; errc(j) = 1/(j + 1), BDF-j's error constant
@@ -246,6 +247,7 @@ contains
     call mbdk_newton_work_init(b%nw, n, stat, st%alloc_bytes, no_matrix=b%own_matrix)
     if (stat /= MBDK_SUCCESS) return
     b%t = t0
+    b%t0 = t0
     st%t_reached = t0
     b%d = 0.0_dp
     b%d(:, 0) = y0
@@ -335,6 +337,7 @@ contains
       b%tries = b%tries + 1
       if (b%floor_stalls >= MAX_FLOOR_STALLS) then
         stat = MBDK_ERR_TOO_MUCH_ACCURACY
+        call pose_cause(b, prob, stat)
         return
       end if
       if (b%h < mbdk_adaptive_h_floor(opt, b%t, landing=b%t + b%h >= b%t_end)) then
@@ -365,11 +368,11 @@ contains
   end subroutine take_step
 
   !> Why the step shrank to nothing: halved by corrector iterates whose F was not finite (F is
-  !> not finite next to this state, a singularity of the model: MBDK_ERR_NONFINITE); or a
-  !> singular pose at the last accepted state (prob%singular_at: MBDK_ERR_SINGULAR_MATRIX); or
+  !> not finite next to this state, a singularity of the model: MBDK_ERR_NONFINITE); or
   !> because the tolerance lies below the corrector's roundoff (its Newton stalled there, or
   !> the error estimate, a share of the correction, carries a tenth of the tolerance in
-  !> roundoff: MBDK_ERR_TOO_MUCH_ACCURACY); or for another reason (MBDK_ERR_STEP_TOO_SMALL).
+  !> roundoff: MBDK_ERR_TOO_MUCH_ACCURACY); or for another reason (MBDK_ERR_STEP_TOO_SMALL);
+  !> either of the last two next to a singular pose is named by it (pose_cause).
   subroutine too_small_status(b, prob, stat)
     type(bdf_t), intent(inout) :: b
     class(mbdk_problem_t), intent(in) :: prob
@@ -383,10 +386,6 @@ contains
       stat = MBDK_ERR_SINGULAR_MATRIX
       return
     end if
-    ! the last accepted state next to a rank loss of the problem's constraints (a mechanism's
-    ! singular pose, where a DAE form's Newton iteration stops converging): that is the cause
-    stat = MBDK_ERR_SINGULAR_MATRIX
-    if (prob%singular_at(b%t, b%d(:, 0))) return
     if (.not. b%at_floor .and. b%have_lu) then
       call floor_norm(b, prob, fl, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -394,6 +393,7 @@ contains
     end if
     stat = MBDK_ERR_STEP_TOO_SMALL
     if (b%at_floor) stat = MBDK_ERR_TOO_MUCH_ACCURACY
+    call pose_cause(b, prob, stat)
   end subroutine too_small_status
 
   !> The predictor y_p = sum_{j=0..q} D_j, psi, c = h / a_q, Newton's tolerance and the
@@ -470,6 +470,19 @@ contains
     b%jac_current = .true.
     b%have_lu = .false.
   end subroutine fresh_jacobian
+
+  !> A stop (stat) after at least one accepted step whose last state lies next to a singular
+  !> pose of the problem's constraints (prob%singular_at: a mechanism's DAE) becomes
+  !> MBDK_ERR_SINGULAR_MATRIX: the pose is the cause (there the DAE's rows lose a rank together
+  !> and its Newton matrix's Jacobian moves fast), not the step or the tolerance.
+  subroutine pose_cause(b, prob, stat)
+    type(bdf_t), intent(in) :: b
+    class(mbdk_problem_t), intent(in) :: prob
+    integer, intent(inout) :: stat
+    if (b%t > b%t0) then
+      if (prob%singular_at(b%t, b%d(:, 0))) stat = MBDK_ERR_SINGULAR_MATRIX
+    end if
+  end subroutine pose_cause
 
   !> The problem's own Newton matrix failed this iteration (a zero pivot: singular; else G not
   !> finite next to the predictor): not converged, retried at a smaller step; stat SUCCESS.

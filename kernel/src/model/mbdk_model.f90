@@ -56,7 +56,9 @@ module mbdk_model
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
-    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_NEAR_RANK_LOSS
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_RANK_LOSS_WINDOW, &
+    MBDK_RANK_LOSS_MAX_ROWS
+  use mbdk_rank_margin, only: mbdk_near_rank_loss
   use mbdk_joints, only: mbdk_joint_rows, mbdk_joints_eval, mbdk_joints_pattern, &
     mbdk_joints_scatter, MBDK_JOINT_TYPES, MBDK_JOINT_DRIVER, MBDK_JOINT_REVOLUTE, &
     MBDK_JOINT_DISTANCE, MBDK_JOINT_POINT_LINE, MBDK_JOINT_POINT_CURVE, MBDK_JOINT_COUPLING, &
@@ -965,21 +967,41 @@ contains
     end do
   end subroutine model_rhs
 
-  !> The reduced solve's near test (mbdk_model_accelerations' near) at y = [q; v] with the
-  !> window MBDK_NEAR_RANK_LOSS (mbdk_mechanism).
-  logical function model_near_rank_loss(self, t, y) result(near)
+  !> Whether the pose of y = [q; v] lies within MBDK_RANK_LOSS_WINDOW of a rank loss of the rows
+  !> (mbdk_rank_margin): D at q with a body's rotation column weighted by 1/L^2, L the largest
+  !> distance of a joint point from its body's centre (rotations as the displacements they give
+  !> there). The joints' visit counts and the model's buffers are left as they were.
+  logical function model_near_rank_loss(self, t, y, rows) result(near)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    real(dp), allocatable :: a(:), lam(:)
-    integer :: nc, st
+    integer, intent(in) :: rows(:)
+    real(dp), allocatable :: rot(:, :), dz(:, :), phi(:), gam(:), phit(:), d(:, :), w(:), &
+      v0(:)
+    integer(i8), allocatable :: visits(:)
+    real(dp) :: length
+    integer :: nc, j, st
     near = .false.
     nc = self%nc
-    if (self%m == 0 .or. size(y) < 2 * nc) return
-    allocate (a(nc), lam(self%m), stat=st)
+    if (size(rows) == 0 .or. size(rows) > MBDK_RANK_LOSS_MAX_ROWS .or. size(y) < nc) return
+    allocate (rot, mold=self%work%rot, stat=st)
+    if (st == 0) allocate (dz, mold=self%work%dz, stat=st)
+    if (st == 0) allocate (visits, mold=self%work%visits, stat=st)
+    if (st == 0) allocate (phi(self%m), gam(self%m), phit(self%m), d(self%m, nc), w(nc), &
+                           v0(nc), stat=st)
     if (st /= 0) return
-    call mbdk_model_accelerations(self, t, y(1:nc), y(nc + 1:2 * nc), a, lam, st, &
-                                  MBDK_NEAR_RANK_LOSS)
-    near = st == MBDK_ERR_SINGULAR_MATRIX
+    v0 = 0.0_dp
+    call mbdk_body_rotations(y(1:nc), rot)
+    call mbdk_joints_eval(self%jint, self%jreal, self%row0, rot, y(1:nc), v0, t, phi, dz, gam, &
+                          phit, visits(1:MBDK_JOINT_TYPES))
+    call mbdk_joints_scatter(self%col, dz, d)
+    length = 0.0_dp
+    do j = 1, size(self%jint, 2)
+      length = max(length, norm2(self%jreal(1:2, j)), norm2(self%jreal(3:4, j)))
+    end do
+    if (.not. (length > 0.0_dp)) length = 1.0_dp
+    w = 1.0_dp
+    w(3:nc:3) = 1.0_dp / length**2
+    near = mbdk_near_rank_loss(d(rows, :), w, MBDK_RANK_LOSS_WINDOW)
   end function model_near_rank_loss
 
   !> model_rhs of a scene with effects: the accelerations, then the effects' rates

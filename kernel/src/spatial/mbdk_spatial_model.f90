@@ -108,7 +108,9 @@ module mbdk_spatial_model
   use mbdk_status
   use mbdk_problem, only: mbdk_problem_t, MBDK_GAUSS3
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
-    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_NEAR_RANK_LOSS
+    MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_RANK_LOSS_WINDOW, &
+    MBDK_RANK_LOSS_MAX_ROWS
+  use mbdk_rank_margin, only: mbdk_near_rank_loss
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_compact_schur, only: mbdk_compact_schur_t, mbdk_compact_schur_init, &
     mbdk_compact_schur_factor, mbdk_compact_schur_solve, mbdk_compact_schur_spread
@@ -2222,7 +2224,7 @@ contains
   !> given, not solved for (the DAE form, mbdk_spatial_dae_rhs), phi_out receives Phi and
   !> acc_abs (6 nb) the magnitudes of the accelerations' terms, |M^-1 (f - W x J W)| +
   !> |M^-1 C^T| |lam| (their sum can cancel: a body resting on its joint)
-  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs, near)
+  subroutine spatial_accelerations(self, t, y, f, stat, lam, lam_in, phi_out, acc_abs)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     real(dp), intent(out) :: f(:)
@@ -2230,12 +2232,9 @@ contains
     real(dp), intent(out), optional :: lam(:)
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
-    real(dp), intent(in), optional :: near   !< the reduced solve's near window (default below)
     type(frames_t) :: fr
-    real(dp) :: vg, vs, power, win
+    real(dp) :: vg, vs, power
     integer :: k, nb, m
-    win = MBDK_SPATIAL_NEAR_PIVOT
-    if (present(near)) win = near
     f = 0.0_dp
     nb = self%nb
     m = self%m
@@ -2273,7 +2272,7 @@ contains
               (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
               self%opt%baumgarte_beta**2 * phi
       if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
-        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, win)
+        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
         call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
       end if
@@ -2312,7 +2311,7 @@ contains
                 self%opt%baumgarte_beta**2 * phi
         if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
           call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st, &
-                            win)
+                            MBDK_SPATIAL_NEAR_PIVOT)
         else
           call sparse_schur(self, cc, compact_times(self, cc, acc, .false.) - gam, l, dx, st)
         end if
@@ -2364,19 +2363,28 @@ contains
 
   end subroutine spatial_accelerations
 
-  !> The reduced solve's near test (spatial_accelerations' near) at y = [q; w] with the window
-  !> MBDK_NEAR_RANK_LOSS (mbdk_mechanism); a joint tree never loses its rank (regular_tree).
-  logical function spatial_near_rank_loss(self, t, y) result(near)
+  !> Whether the pose of y = [q; w] lies within MBDK_RANK_LOSS_WINDOW of a rank loss of the rows
+  !> (mbdk_rank_margin): C at q with near_test's weights (a body's rotations over the length
+  !> scale squared). The model's buffers are left as they were.
+  logical function spatial_near_rank_loss(self, t, y, rows) result(near)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
-    real(dp), allocatable :: f(:)
-    integer :: st
+    integer, intent(in) :: rows(:)
+    type(frames_t) :: fr
+    real(dp), allocatable :: phi(:), c(:, :), gam(:), w(:)
+    integer :: b, st
     near = .false.
-    if (self%m == 0 .or. self%opt%formulation /= MBDK_FORM_REDUCED) return
-    allocate (f(size(y)), stat=st)
+    if (size(rows) == 0 .or. size(rows) > MBDK_RANK_LOSS_MAX_ROWS) return
+    call frames(self, y, fr, st)
+    if (st /= MBDK_SUCCESS) return
+    allocate (phi(self%m), c(self%m, 6 * self%nb), gam(self%m), w(6 * self%nb), stat=st)
     if (st /= 0) return
-    call spatial_accelerations(self, t, y, f, st, near=MBDK_NEAR_RANK_LOSS)
-    near = st == MBDK_ERR_SINGULAR_MATRIX
+    call constraints(self, fr, t, phi, c, gam)
+    w = 1.0_dp
+    do b = 1, self%nb
+      w(6 * b - 2:6 * b) = 1.0_dp / self%length**2
+    end do
+    near = mbdk_near_rank_loss(c(rows, :), w, MBDK_RANK_LOSS_WINDOW)
   end function spatial_near_rank_loss
 
   !> The DAE form's right-hand side at (t, y = [q; w]) with the multipliers lam (m; zero on

@@ -124,15 +124,15 @@
 !>   IDA_ERR_FAIL (error test failed repeatedly or at h_min)   MBDK_ERR_STEP_TOO_SMALL
 !>   IDA_CONV_FAIL                                 MBDK_ERR_NEWTON_DIVERGED
 !>   IDA_LSETUP_FAIL, IDA_LSOLVE_FAIL              MBDK_ERR_SINGULAR_MATRIX
-!> and a solve that ends with MBDK_ERR_STEP_TOO_SMALL, MBDK_ERR_NEWTON_DIVERGED or
-!> MBDK_ERR_TOO_MUCH_ACCURACY next to a singular pose (singular_stop) with
-!> MBDK_ERR_SINGULAR_MATRIX.
 !>   IDA_RES_FAIL, IDA_FIRST_RES_FAIL, IDA_REP_RES_ERR
 !>                                                 MBDK_ERR_NONFINITE after a non-finite
 !>                                                 residual, else MBDK_ERR_CALLBACK_FAILED
 !>   IDA_MEM_FAIL                                  MBDK_ERR_NO_MEMORY
 !>   IDA_ILL_INPUT                                 MBDK_ERR_INVALID_INPUT
 !>   any other failure (IDA_CONSTR_FAIL, IDA_NLS_FAIL, IDA_LINIT_FAIL, ...)   MBDK_ERR_BACKEND
+!> A solve that ends with MBDK_ERR_STEP_TOO_SMALL, MBDK_ERR_NEWTON_DIVERGED or
+!> MBDK_ERR_TOO_MUCH_ACCURACY after its first step, its last accepted state next to a singular
+!> pose, ends with MBDK_ERR_SINGULAR_MATRIX instead (singular_stop).
 !>
 !> Statistics, from IDA's counters (also after a failure):
 !>   steps IDAGetNumSteps; nfev IDAGetNumResEvals + IDAGetNumLinResEvals (the
@@ -750,7 +750,8 @@ contains
   !> formulation, which refuses a relative pivot of C M^-1 C^T below its threshold) at
   !> SINGULAR_PROBES points of the accepted step, from IDA's interpolant (a step strides over
   !> a pose its end points miss).
-  !> The ggl form keeps Phi = 0 and passes such poses on the motion's branch.
+  !> The ggl form keeps Phi = 0: it passes such poses on the motion's branch, or stops next to
+  !> one by name (singular_stop).
   subroutine singular_pose(self, t, stat)
     class(ida_loop_t), intent(inout) :: self
     real(dp), intent(in) :: t
@@ -775,10 +776,10 @@ contains
   end subroutine singular_pose
 
   !> A solve whose steps shrank to nothing (or whose Newton iteration failed at every step)
-  !> after the last accepted state at t > t0 lying next to a singular pose (the mechanism's
-  !> near_rank_loss): MBDK_ERR_SINGULAR_MATRIX, the cause. There the ggl form's velocity rows
-  !> lose a rank and its Newton iteration stops converging whatever the step (IFToMM A02's
-  !> flat poses, at tolerances that vary with the scene and the last bits of the run).
+  !> after the last accepted state at t > t0 lying next to a singular pose of the rows it
+  !> solves (the mechanism's near_rank_loss): MBDK_ERR_SINGULAR_MATRIX, the cause. There the
+  !> DAE's rows lose a rank together and the Jacobian of its Newton matrix moves fast; whether
+  !> the steps get past depends on where they land (IFToMM A02's flat poses).
   subroutine singular_stop(lp, t, t0, stat)
     type(ida_loop_t), intent(inout) :: lp
     real(dp), intent(in) :: t, t0
@@ -787,7 +788,8 @@ contains
     if (t <= t0 .or. lp%ctx%m == 0) return
     call lp%dky(t, dstat)      ! IDA's state at its last step, as its failure left it
     if (dstat /= MBDK_SUCCESS) return
-    if (lp%ctx%mech%near_rank_loss(t, lp%ydky(1:lp%ctx%ny))) stat = MBDK_ERR_SINGULAR_MATRIX
+    if (lp%ctx%mech%near_rank_loss(t, lp%ydky(1:lp%ctx%ny), lp%ctx%rows)) &
+      stat = MBDK_ERR_SINGULAR_MATRIX
   end subroutine singular_stop
 
   !> The multipliers of Y (the context's nl, on its rows) as the mechanism's m rows into dst
