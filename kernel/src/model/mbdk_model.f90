@@ -968,41 +968,63 @@ contains
   end subroutine model_rhs
 
   !> Whether the pose of y = [q; v] lies within MBDK_RANK_LOSS_WINDOW of a rank loss of the rows
-  !> (mbdk_rank_margin): D at q with a body's rotation column weighted by 1/L^2, L the largest
-  !> distance of a joint point from its body's centre (rotations as the displacements they give
-  !> there). The joints' visit counts and the model's buffers are left as they were.
+  !> (mbdk_rank_margin): D at q with a body's rotation column weighted by 1/reach^2
+  !> (body_reach; the largest body's where it has none). The joints' visit counts and the
+  !> model's buffers are left as they were. (A scene whose rows are dependent at every pose,
+  !> redundant joints, never gets here: the DAE forms refuse it at the start.)
   logical function model_near_rank_loss(self, t, y, rows) result(near)
     class(mbdk_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     integer, intent(in) :: rows(:)
     real(dp), allocatable :: rot(:, :), dz(:, :), phi(:), gam(:), phit(:), d(:, :), w(:), &
-      v0(:)
-    integer(i8), allocatable :: visits(:)
-    real(dp) :: length
-    integer :: nc, j, st
+      v0(:), reach(:)
+    integer(i8) :: visits(MBDK_JOINT_TYPES)
+    real(dp) :: big
+    integer :: nc, b, st
     near = .false.
     nc = self%nc
     if (size(rows) == 0 .or. size(rows) > MBDK_RANK_LOSS_MAX_ROWS .or. size(y) < nc) return
     allocate (rot, mold=self%work%rot, stat=st)
     if (st == 0) allocate (dz, mold=self%work%dz, stat=st)
-    if (st == 0) allocate (visits, mold=self%work%visits, stat=st)
     if (st == 0) allocate (phi(self%m), gam(self%m), phit(self%m), d(self%m, nc), w(nc), &
                            v0(nc), stat=st)
     if (st /= 0) return
     v0 = 0.0_dp
+    visits = 0
     call mbdk_body_rotations(y(1:nc), rot)
     call mbdk_joints_eval(self%jint, self%jreal, self%row0, rot, y(1:nc), v0, t, phi, dz, gam, &
-                          phit, visits(1:MBDK_JOINT_TYPES))
+                          phit, visits)
     call mbdk_joints_scatter(self%col, dz, d)
-    length = 0.0_dp
-    do j = 1, size(self%jint, 2)
-      length = max(length, norm2(self%jreal(1:2, j)), norm2(self%jreal(3:4, j)))
-    end do
-    if (.not. (length > 0.0_dp)) length = 1.0_dp
+    reach = body_reach(self)
+    big = max(0.0_dp, maxval(reach))
+    if (.not. (big > 0.0_dp)) big = 1.0_dp
     w = 1.0_dp
-    w(3:nc:3) = 1.0_dp / length**2
+    do b = 1, self%nb
+      if (.not. (reach(b) > 0.0_dp)) reach(b) = big
+      w(3 * b) = 1.0_dp / reach(b)**2
+    end do
     near = mbdk_near_rank_loss(d(rows, :), w, MBDK_RANK_LOSS_WINDOW)
   end function model_near_rank_loss
+
+  !> Each body's reach: the largest distance from its centre of the points its joints hold it
+  !> at (a driver's and a coupling's reals are no points, nor a rolling disc's first two: its
+  !> radius stands for them). 0 for a body no joint point is on.
+  pure function body_reach(self) result(reach)
+    class(mbdk_model_t), intent(in) :: self
+    real(dp) :: reach(self%nb)
+    integer :: j, typ, b1, b2
+    reach = 0.0_dp
+    do j = 1, size(self%jint, 2)
+      typ = self%jint(1, j)
+      if (typ == MBDK_JOINT_DRIVER .or. typ == MBDK_JOINT_COUPLING) cycle
+      b1 = self%jint(2, j)
+      b2 = self%jint(3, j)
+      if (b1 > 0 .and. typ /= MBDK_JOINT_ROLLING) reach(b1) = max(reach(b1), &
+                                                                  norm2(self%jreal(1:2, j)))
+      if (b1 > 0 .and. typ == MBDK_JOINT_ROLLING) reach(b1) = max(reach(b1), self%jreal(7, j))
+      if (b2 > 0) reach(b2) = max(reach(b2), norm2(self%jreal(3:4, j)))
+    end do
+  end function body_reach
 
   !> model_rhs of a scene with effects: the accelerations, then the effects' rates
   !> f(2 nc + 1:), after the evaluation has left work%rot at q.
@@ -1425,15 +1447,10 @@ contains
     nb = self%nb
     length = 0.0_dp
     power = .false.
+    length = max(0.0_dp, maxval(body_reach(self)))
     do j = 1, size(self%jint, 2)
       typ = self%jint(1, j)
       r = self%row0(j)
-      ! (a driver's, a coupling's and a rolling disc's first reals are no points)
-      if (self%jint(2, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING &
-          .and. typ /= MBDK_JOINT_ROLLING) &
-        length = max(length, norm2(self%jreal(1:2, j)))
-      if (self%jint(3, j) > 0 .and. typ /= MBDK_JOINT_DRIVER .and. typ /= MBDK_JOINT_COUPLING) &
-        length = max(length, norm2(self%jreal(3:4, j)))
       select case (typ)
       case (MBDK_JOINT_REVOLUTE)
         angular(r:r + 1) = .false.
@@ -1450,7 +1467,6 @@ contains
         angular(r) = .false.
       case (MBDK_JOINT_ROLLING)
         angular(r:r + 1) = .false.
-        length = max(length, self%jreal(7, j))
       case (MBDK_JOINT_COUPLING)
         ! in the unit of body 2's coordinate (radians for gears, metres for a rack)
         angular(r) = self%jreal(6, j) /= 0.0_dp .or. (self%jint(3, j) == 0 .and. &

@@ -110,7 +110,7 @@ module mbdk_spatial_model
   use mbdk_mechanism, only: mbdk_mechanism_t, mbdk_i3_aux_t, mbdk_i3_eval_t, MBDK_FORM_REDUCED, &
     MBDK_FORM_BAUMGARTE, MBDK_FORM_PENALTY, MBDK_FORM_PROJECTION, MBDK_RANK_LOSS_WINDOW, &
     MBDK_RANK_LOSS_MAX_ROWS
-  use mbdk_rank_margin, only: mbdk_near_rank_loss
+  use mbdk_rank_margin, only: mbdk_near_rank_loss, mbdk_pivots_near
   use mbdk_lapack, only: mbdk_chol_factor, mbdk_chol_solve, mbdk_chol_pivoted
   use mbdk_compact_schur, only: mbdk_compact_schur_t, mbdk_compact_schur_init, &
     mbdk_compact_schur_factor, mbdk_compact_schur_solve, mbdk_compact_schur_spread
@@ -1769,12 +1769,12 @@ contains
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), near     !< the rows to test
     integer, intent(out) :: stat
-    real(dp), allocatable :: g(:, :), wc(:, :), diag(:)
+    real(dp), allocatable :: g(:, :), wc(:, :)
     real(dp) :: l2
     integer :: k, b, info, m
     m = size(c, 1)
-    allocate (g(m, m), wc(size(c, 2), m), diag(m), stat=info)
-    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(m, dp) * (m + size(c, 2) + 1), stat)
+    allocate (g(m, m), wc(size(c, 2), m), stat=info)
+    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(m, dp) * (m + size(c, 2)), stat)
     if (stat /= MBDK_SUCCESS) return
     l2 = model%length**2
     wc = transpose(c)
@@ -1783,14 +1783,7 @@ contains
     end do
     call gram(model, c, wc, [(k, k = 1, m)], g, stat)
     if (stat /= MBDK_SUCCESS) return
-    diag = [(g(k, k), k = 1, size(c, 1))]
-    call mbdk_chol_factor(g, info)
-    stat = MBDK_ERR_SINGULAR_MATRIX
-    if (info /= MBDK_SUCCESS) return
-    do k = 1, size(c, 1)
-      if (.not. (g(k, k)**2 > near * diag(k))) return
-    end do
-    stat = MBDK_SUCCESS
+    stat = merge(MBDK_ERR_SINGULAR_MATRIX, MBDK_SUCCESS, mbdk_pivots_near(g, near))
   end subroutine near_test
 
 
@@ -2364,25 +2357,38 @@ contains
   end subroutine spatial_accelerations
 
   !> Whether the pose of y = [q; w] lies within MBDK_RANK_LOSS_WINDOW of a rank loss of the rows
-  !> (mbdk_rank_margin): C at q with near_test's weights (a body's rotations over the length
-  !> scale squared). The model's buffers are left as they were.
+  !> (mbdk_rank_margin): C at q with a body's rotations weighted by 1/reach^2, its reach the
+  !> largest distance of its joints' points from its centre (the largest body's where it has
+  !> none). The model's buffers are left as they were.
   logical function spatial_near_rank_loss(self, t, y, rows) result(near)
     class(mbdk_spatial_model_t), intent(in) :: self
     real(dp), intent(in) :: t, y(:)
     integer, intent(in) :: rows(:)
     type(frames_t) :: fr
-    real(dp), allocatable :: phi(:), c(:, :), gam(:), w(:)
-    integer :: b, st
+    real(dp), allocatable :: phi(:), c(:, :), gam(:), w(:), reach(:)
+    integer :: b, k, st
     near = .false.
     if (size(rows) == 0 .or. size(rows) > MBDK_RANK_LOSS_MAX_ROWS) return
     call frames(self, y, fr, st)
     if (st /= MBDK_SUCCESS) return
-    allocate (phi(self%m), c(self%m, 6 * self%nb), gam(self%m), w(6 * self%nb), stat=st)
+    allocate (phi(self%m), c(self%m, 6 * self%nb), gam(self%m), w(6 * self%nb), &
+              reach(0:self%nb), stat=st)
     if (st /= 0) return
     call constraints(self, fr, t, phi, c, gam)
+    ! (body j = 0 is the ground, whose points are global: not a reach)
+    reach = 0.0_dp
+    do k = 1, self%nprim
+      associate (p => self%prim(k))
+        reach(p%bi) = max(reach(p%bi), norm2(p%si))
+        if (p%bj > 0) reach(p%bj) = max(reach(p%bj), norm2(p%sj))
+      end associate
+    end do
+    reach(0) = maxval(reach(1:))
+    if (.not. (reach(0) > 0.0_dp)) reach(0) = self%length
     w = 1.0_dp
     do b = 1, self%nb
-      w(6 * b - 2:6 * b) = 1.0_dp / self%length**2
+      if (.not. (reach(b) > 0.0_dp)) reach(b) = reach(0)
+      w(6 * b - 2:6 * b) = 1.0_dp / reach(b)**2
     end do
     near = mbdk_near_rank_loss(c(rows, :), w, MBDK_RANK_LOSS_WINDOW)
   end function spatial_near_rank_loss
