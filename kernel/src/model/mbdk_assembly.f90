@@ -12,7 +12,9 @@
 !>
 !> Assembly (mbdk_assembly_run). The coordinates the scene does not mark as given move as little
 !> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
-!> solution of D_free dq = -Phi (LAPACK dgelsd, so redundant constraints are no obstacle), until
+!> solution of D_free dq = -Phi (D_f^T (D_f D_f^T)^-1 by an in-house LDL^T where the rows are
+!> few and independent, the same bits on every CPU; else LAPACK dgelsd, so redundant
+!> constraints are no obstacle), until
 !> max |Phi| <= tol (or Phi's roundoff at q, mbdk_phi_floor, where that is larger); then the
 !> velocities not given, v_free = least-squares solution of D_free v_free = -Phi_t - D_given
 !> v_given. A knife edge's row constrains velocities only: the positions' corrections leave it
@@ -30,6 +32,7 @@ module mbdk_assembly
   use mbdk_status
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_lapack, only: mbdk_least_squares
+  use mbdk_small_dense, only: mbdk_small_ldlt_solve_once, MBDK_SMALL_DENSE_MAX
   use mbdk_joints, only: mbdk_body_point, MBDK_JOINT_PRISMATIC, &
     MBDK_JOINT_FIXED, MBDK_JOINT_DISTANCE, MBDK_JOINT_COUPLING, MBDK_JOINT_ROLLING
   use mbdk_force_elements, only: MBDK_FORCE_SPRING_DAMPER, MBDK_FORCE_SPRING, MBDK_FORCE_DAMPER
@@ -39,7 +42,7 @@ module mbdk_assembly
   use mbdk_joints, only: mbdk_joints_pattern, MBDK_JOINT_SLOTS
   use mbdk_sparse_schur, only: mbdk_sparse_schur_t, mbdk_sparse_schur_init, mbdk_sparse_d_times
   use mbdk_constrained, only: mbdk_constrained_t, mbdk_constrained_init, &
-    mbdk_constrained_solve_once, MBDK_SOLVE_SCHUR_SPARSE
+    mbdk_constrained_solve_once, MBDK_SOLVE_SCHUR_SPARSE, MBDK_CONSTRAINED_SINGULAR_TOL
   implicit none
   private
   public :: mbdk_tables_resolve, mbdk_assembly_run, mbdk_model_start
@@ -324,12 +327,44 @@ contains
                            st)
     if (st /= MBDK_SUCCESS) return
     as%a = as%d(:, fr)
+    as%dx = 0.0_dp
+    if (small_minnorm(as%a, c, as%b(1:size(fr)))) then
+      as%dx(fr) = as%b(1:size(fr))
+      deallocate (as%b)
+      st = MBDK_SUCCESS
+      return
+    end if
     as%b(1:m) = c
     call mbdk_least_squares(as%a, as%b, epsilon(1.0_dp) * max(m, size(fr)), rk, st)
-    as%dx = 0.0_dp
     if (st == MBDK_SUCCESS) as%dx(fr) = as%b(1:size(fr))
     deallocate (as%b)
   end subroutine least_change
+
+  !> x = A^T (A A^T)^-1 c, the least change with A x = c where A's rows are independent (the
+  !> sparse path's least change, minnorm, in the dense form of a few rows), by the in-house
+  !> LDL^T of mbdk_small_dense: every sum in one order, so that a planar start is assembled to
+  !> the same bits under every BLAS kernel (LAPACK's dgelsd, below, is not: its BLAS kernels
+  !> order their sums by CPU, and a start that differed in its last bits moved ida's steps on
+  !> IFToMM A02 from 603 to 685 between kernels). .false. (x undefined) for more rows than
+  !> MBDK_SMALL_DENSE_MAX, more rows than columns, or rows that are dependent (redundant
+  !> joints) or zero (a knife edge's, in the positions' correction) to the singular test of the
+  !> constrained solves: dgelsd then takes the least squares.
+  logical function small_minnorm(a, c, x) result(ok)
+    real(dp), intent(in) :: a(:, :), c(:)
+    real(dp), intent(out) :: x(:)
+    real(dp) :: g(size(a, 1), size(a, 1)), y(size(a, 1))
+    integer :: m, i, st
+    ok = .false.
+    m = size(a, 1)
+    if (m == 0 .or. m > MBDK_SMALL_DENSE_MAX .or. m > size(a, 2)) return
+    g = matmul(a, transpose(a))
+    y = c
+    call mbdk_small_ldlt_solve_once(g, m, [(i, i = 1, m + 1)], MBDK_CONSTRAINED_SINGULAR_TOL, y, &
+                                    st)
+    if (st /= MBDK_SUCCESS) return
+    x = matmul(y, a)
+    ok = .true.
+  end function small_minnorm
 
   !> The knife edges' rows of the dense D zeroed, for the positions' least squares.
   pure subroutine drop_velocity_rows(model, d)

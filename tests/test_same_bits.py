@@ -1,0 +1,60 @@
+"""Runs whose linear algebra is the kernel's own are the same bits under every OpenBLAS kernel:
+the planar scenes' starts (the dense least change of a few rows, mbdk_assembly: in-house
+LDL^T, where LAPACK's dgelsd ordered its sums by the BLAS kernel) and what runs from them on
+paths that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU). Under the Prescott
+kernel the A02 loop's start differed from Haswell's in its last bits, and ida ggl took 685
+steps to 5 s there against 643; the three-link pendulum's and the trolley crane's starts
+differed too. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took
+with OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+KERNELS = ("Prescott", "Haswell", "Sandybridge")
+
+CODE = textwrap.dedent("""
+    import hashlib
+    import mbdk
+    from mbdk.benchmarks import a02_chain
+
+    def digest(*arrays):
+        return hashlib.sha256(b"".join(a.tobytes() for a in arrays)).hexdigest()[:16]
+
+    r = mbdk.simulate(a02_chain(1), "ida", formulation="ggl", rtol=1e-6, atol=1e-8, t_end=5,
+                      dt_out=0.05, raise_on_failure=False)
+    print("a02", r.status.name, r.stats.steps, digest(r.q[0], r.v[0]), digest(r.q, r.v))
+    for name in ("three_link_pendulum", "trolley_crane"):
+        r = mbdk.simulate(mbdk.scene(name), "dopri54", rtol=1e-8, atol=1e-10, t_end=1,
+                          dt_out=0.1)
+        print(name, r.status.name, r.stats.steps, digest(r.q[0], r.v[0]), digest(r.q, r.v))
+""")
+
+
+def _run(kernel: str) -> list[str] | None:
+    env = dict(os.environ, OPENBLAS_CORETYPE=kernel, OPENBLAS_VERBOSE="2")
+    out = subprocess.run([sys.executable, "-c", CODE], env=env, capture_output=True, text=True,
+                         timeout=600)
+    if f"Core: {kernel}" not in out.stdout + out.stderr:
+        return None
+    assert out.returncode == 0, out.stderr[-2000:]
+    return [ln for ln in out.stdout.splitlines() if ln.split()[0] in
+            ("a02", "three_link_pendulum", "trolley_crane")]
+
+
+def test_planar_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
+    if platform.machine() not in ("x86_64", "AMD64"):
+        pytest.skip("OPENBLAS_CORETYPE names x86-64 kernels")
+    results = {k: _run(k) for k in KERNELS}
+    taken = {k: v for k, v in results.items() if v is not None}
+    if len(taken) < 2:
+        pytest.skip("the BLAS did not take two of OpenBLAS's kernels")
+    first = next(iter(taken.values()))
+    assert len(first) == 3
+    for kernel, lines in taken.items():
+        assert lines == first, (kernel, lines, first)
