@@ -1,10 +1,9 @@
 """Runs whose linear algebra is the kernel's own are the same bits under every OpenBLAS kernel:
 the planar scenes' starts (the dense least change of a few rows, mbdk_assembly: in-house
-LDL^T, where LAPACK's dgelsd ordered its sums by the BLAS kernel) and what runs from them on
-paths that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU). Under the Prescott
-kernel the A02 loop's start differed from Haswell's in its last bits, and ida ggl took 685
-steps to 5 s there against 643; the three-link pendulum's and the trolley crane's starts
-differed too. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took
+LDL^T; LAPACK's dgelsd orders its sums by the BLAS kernel) and what runs from them on paths
+that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU). A start that differs in
+its last bits is enough to change where ida ggl stops on the A02 loop, next to a flat pose
+or not at all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took
 with OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
 from __future__ import annotations
 

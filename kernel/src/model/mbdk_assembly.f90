@@ -344,11 +344,11 @@ contains
   !> sparse path's least change, minnorm, in the dense form of a few rows), by the in-house
   !> LDL^T of mbdk_small_dense: every sum in one order, so that a planar start is assembled to
   !> the same bits under every BLAS kernel (LAPACK's dgelsd, below, is not: its BLAS kernels
-  !> order their sums by CPU, and a start that differed in its last bits moved ida's steps on
-  !> IFToMM A02 from 603 to 685 between kernels). .false. (x undefined) for more rows than
-  !> MBDK_SMALL_DENSE_MAX, more rows than columns, or rows that are dependent (redundant
-  !> joints) or zero (a knife edge's, in the positions' correction) to the singular test of the
-  !> constrained solves: dgelsd then takes the least squares.
+  !> order their sums by CPU, and a start that differs in its last bits can change where a run
+  !> through a singular pose stops, tests/test_same_bits.py). .false. (x undefined) for more
+  !> rows than MBDK_SMALL_DENSE_MAX, more rows than columns, or rows that are dependent
+  !> (redundant joints) or zero (a knife edge's, in the positions' correction) to the singular
+  !> test of the constrained solves: dgelsd then takes the least squares.
   logical function small_minnorm(a, c, x) result(ok)
     real(dp), intent(in) :: a(:, :), c(:)
     real(dp), intent(out) :: x(:)
