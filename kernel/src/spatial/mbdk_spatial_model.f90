@@ -256,6 +256,11 @@ module mbdk_spatial_model
     logical :: has_power = .false.
     logical :: has_drivers = .false.   !< rheonomic rows: Phi_t and the drivers' power
     real(dp) :: length = 1.0_dp, gscale = 0.0_dp
+    !> the length at which the reduced form's tests of a rank loss (select_rows, near_test,
+    !> tree_rows, geo_blk) see rotations: length's, with the ground's points measured from the
+    !> bodies' centre instead of the origin, so that where the mechanism stands does not sway
+    !> them (length itself keeps the coordinates' size, whose roundoff the watch's floors meet)
+    real(dp) :: geo_length = 1.0_dp
     !> the components of the momentum and angular momentum the scene conserves, found at init
     !> from its elements (mbdk_watch's rule)
     integer :: ninv = 0
@@ -811,27 +816,47 @@ contains
   end function loads_two_bodies
 
   !> The watch's scales: the length (joint and spring points, spheres, the bodies' spread; else
-  !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1).
+  !> 1) and gscale, gravity's energy over that length or a radius of gyration (not the 1); and
+  !> geo_length, the same length with the ground's points (which are in space) taken from the
+  !> bodies' centre.
   subroutine watch_scales(model, fr)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(frames_t), intent(in) :: fr
     integer :: k, b, nb
-    real(dp) :: reach
+    real(dp) :: reach, centre(3), local, spread
     nb = model%nb
+    centre = 0.0_dp
+    if (nb > 0) centre = sum(fr%r(:, 1:nb), 2) / nb
     model%length = 0.0_dp
+    model%geo_length = 0.0_dp
     do k = 1, model%nprim
-      model%length = max(model%length, norm2(model%prim(k)%si), norm2(model%prim(k)%sj))
+      associate (p => model%prim(k))
+        model%length = max(model%length, norm2(p%si), norm2(p%sj))
+        local = norm2(p%sj)
+        if (p%bj == 0) local = norm2(p%sj - centre)
+        model%geo_length = max(model%geo_length, norm2(p%si), local)
+      end associate
     end do
     associate (ftype => model%ftype, freal => model%freal)
       do k = 1, model%nf
-        if (ftype(k) == MBDK_FORCE_SPRING_DAMPER) model%length = max(model%length, &
-          norm2(freal(1:3, k)), norm2(freal(4:6, k)))
-        if (is_contact(ftype(k))) model%length = max(model%length, &
-          norm2(freal(1:3, k)) + freal(4, k))
+        if (ftype(k) == MBDK_FORCE_SPRING_DAMPER) then
+          model%length = max(model%length, norm2(freal(1:3, k)), norm2(freal(4:6, k)))
+          local = norm2(freal(4:6, k))
+          if (model%fbody(2, k) == 0) local = norm2(freal(4:6, k) - centre)
+          model%geo_length = max(model%geo_length, norm2(freal(1:3, k)), local)
+        end if
+        if (is_contact(ftype(k))) then
+          model%length = max(model%length, norm2(freal(1:3, k)) + freal(4, k))
+          model%geo_length = max(model%geo_length, norm2(freal(1:3, k)) + freal(4, k))
+        end if
       end do
+      spread = 0.0_dp
       do b = 1, nb
-        model%length = max(model%length, 2.0_dp * norm2(fr%r(:, b) - sum(fr%r(:, 1:nb), 2) / nb))
+        spread = max(spread, 2.0_dp * norm2(fr%r(:, b) - centre))
       end do
+      model%length = max(model%length, spread)
+      model%geo_length = max(model%geo_length, spread)
+      if (.not. (model%geo_length > 0.0_dp)) model%geo_length = 1.0_dp
       reach = model%length
       do b = 1, nb
         reach = max(reach, sqrt((model%inertia(1, 1, b) + model%inertia(2, 2, b) + &
@@ -1014,8 +1039,8 @@ contains
     end do
     start(1) = 1
     ! the geometry's weight: rotations as the displacements they give at the length scale
-    w = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp / model%length**2, 1.0_dp / model%length**2, &
-         1.0_dp / model%length**2]
+    w = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp / model%geo_length**2, 1.0_dp / model%geo_length**2, &
+         1.0_dp / model%geo_length**2]
     do e = 1, ne
       n = start(e + 1) - start(e)
       stat = MBDK_SUCCESS
@@ -1654,9 +1679,9 @@ contains
   end subroutine gram
 
   !> The independent rows of C with the greatest margin (in their order in C), judged on the
-  !> geometry G = C W C^T (W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per body: rotations as the
-  !> displacements they give at the length scale, so that neither the unit of length nor a
-  !> light or slender body sways the test) scaled to a unit diagonal. LAPACK's rank-revealing
+  !> geometry G = C W C^T (W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per body, L = geo_length:
+  !> rotations as the displacements they give at the mechanism's size, so that neither the unit
+  !> of length, nor where the mechanism stands, nor a light or slender body sways the test) scaled to a unit diagonal. LAPACK's rank-revealing
   !> Cholesky (dpstrf; pivots at or below REDUNDANT_RTOL are zero) gives the rank r and the
   !> dependencies of the m - r remaining rows on the others: the left null vectors Y of the
   !> scaled C. The rows left out are then chosen by pivoting on the rows of Y (the subset
@@ -1685,7 +1710,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     wc = transpose(c)
     do b = 1, model%nb
-      wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / model%length**2
+      wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / model%geo_length**2
     end do
     call gram(model, c, wc, [(k, k = 1, m)], g, stat)
     if (stat /= MBDK_SUCCESS) return
@@ -1761,8 +1786,8 @@ contains
 
   !> MBDK_ERR_SINGULAR_MATRIX when the active rows of C are near a rank loss: a relative pivot
   !> (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per
-  !> body (L the length scale: rotations as the displacements they give there, so that the test
-  !> does not depend on the unit of length). The geometry alone, not the masses: with M^-1 in
+  !> body (L = geo_length: rotations as the displacements they give at the mechanism's size, so
+  !> that the test depends neither on the unit of length nor on where the mechanism stands). The geometry alone, not the masses: with M^-1 in
   !> its place a slender body's small axial inertia (a bar's) makes rows look near dependent at a
   !> regular pose.
   subroutine near_test(model, c, near, stat)
@@ -1776,7 +1801,7 @@ contains
     allocate (g(m, m), wc(size(c, 2), m), stat=info)
     call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(m, dp) * (m + size(c, 2)), stat)
     if (stat /= MBDK_SUCCESS) return
-    l2 = model%length**2
+    l2 = model%geo_length**2
     wc = transpose(c)
     do b = 1, model%nb
       wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / l2
@@ -2017,7 +2042,7 @@ contains
       do k = 1, 3
         model%minv_blk(k, k, b) = 1.0_dp / model%mass(b)
         model%geo_blk(k, k, b) = 1.0_dp
-        model%geo_blk(k + 3, k + 3, b) = 1.0_dp / model%length**2
+        model%geo_blk(k + 3, k + 3, b) = 1.0_dp / model%geo_length**2
       end do
       model%minv_blk(4:6, 4:6, b) = model%inv_inertia(:, :, b)
     end do
