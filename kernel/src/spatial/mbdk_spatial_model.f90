@@ -164,6 +164,9 @@ module mbdk_spatial_model
   !> roundoff there (1e-16), and a regular pose of a sound mechanism keeps its least pivot far
   !> above
   real(dp), parameter :: REDUNDANT_RTOL = 1.0e-10_dp
+  !> select_rows' ties: values within this fraction of each other are equal (a symmetric
+  !> mechanism ties exactly, and a pick by the largest alone went by roundoff)
+  real(dp), parameter :: SELECT_TIE_RTOL = 1.0e-8_dp
   !> a pivot of the mass-weighted S at or below this fraction of its row's diagonal is a
   !> numerically singular solve
   real(dp), parameter :: SOLVE_RTOL = 64.0_dp * epsilon(1.0_dp)
@@ -1698,14 +1701,15 @@ contains
     integer, allocatable, intent(out) :: rows(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    real(dp), allocatable :: g(:, :), wc(:, :), d(:), y(:, :), l11(:, :)
-    real(dp) :: big
+    real(dp), allocatable :: g(:, :), wc(:, :), d(:), y(:, :), l11(:, :), g0(:, :)
+    real(dp) :: big, spread, least
     integer :: k, j, l, m, r, nd, b, best, col
     integer, allocatable :: piv(:)
     logical, allocatable :: keep(:)
     m = size(c, 1)
-    allocate (g(m, m), wc(size(c, 2), m), d(m), y(m, m), l11(m, m), piv(m), keep(m), stat=k)
-    call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * (3.0_dp * m + size(c, 2) + 1) + &
+    allocate (g(m, m), wc(size(c, 2), m), d(m), y(m, m), l11(m, m), g0(m, m), piv(m), keep(m), &
+              stat=k)
+    call mbdk_alloc_status(k, MBDK_REAL_BYTES * real(m, dp) * (4.0_dp * m + size(c, 2) + 1) + &
                            2 * MBDK_INT_BYTES * m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     wc = transpose(c)
@@ -1722,6 +1726,7 @@ contains
     do k = 1, m
       g(:, k) = g(:, k) * d * d(k)
     end do
+    g0 = g
     call mbdk_chol_pivoted(g, piv, r, REDUNDANT_RTOL, stat)
     if (stat /= MBDK_SUCCESS) return
     stat = MBDK_ERR_SINGULAR_MATRIX
@@ -1743,22 +1748,46 @@ contains
       end do
       ! Gaussian elimination with complete pivoting on Y's rows: leave out the row holding the
       ! largest remaining entry, take it out of the other columns, repeat; the rows left out
-      ! then make Y(out, :) nonsingular, which is what leaves the kept rows independent
+      ! then make Y(out, :) nonsingular, which is what leaves the kept rows independent. Rows
+      ! whose entries tie (SELECT_TIE_RTOL; Bricard's linkage has four at its start) leave sets
+      ! of the same volume (a principal minor of G is its pseudo-determinant times y_j^2), so
+      ! the last pick among them takes the set furthest from a rank loss, the least trace of
+      ! its G^-1 (the sets tied in share differ there by 4 % on Bricard's linkage, and the
+      ! first of them drifted 20 times as much over 10 s), and every other tie goes to the
+      ! first row in C's order
       do k = 1, nd
         big = -1.0_dp
-        best = 0
-        col = k
         do l = k, nd
           do j = 1, m
-            if (keep(j) .and. abs(y(j, l)) > big) then
-              big = abs(y(j, l))
-              best = j
-              col = l
-            end if
+            if (keep(j)) big = max(big, abs(y(j, l)))
           end do
         end do
         stat = MBDK_ERR_SINGULAR_MATRIX
         if (.not. (big > 0.0_dp)) return
+        best = 0
+        col = k
+        least = huge(1.0_dp)
+        candidates: do j = 1, m
+          do l = k, nd
+            if (keep(j) .and. abs(y(j, l)) >= (1.0_dp - SELECT_TIE_RTOL) * big) then
+              if (best == 0) then
+                best = j
+                col = l
+              end if
+              if (k < nd) exit candidates
+              call inverse_trace(j, spread, stat)
+              if (stat /= MBDK_SUCCESS) return
+              if (spread < (1.0_dp - SELECT_TIE_RTOL) * least) then
+                least = spread
+                best = j
+                col = l
+              end if
+              exit
+            end if
+          end do
+        end do candidates
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        if (best == 0) return
         keep(best) = .false.
         if (col /= k) then
           d = y(:, k)
@@ -1773,6 +1802,39 @@ contains
     rows = pack([(k, k = 1, m)], keep)
     stat = MBDK_SUCCESS
   contains
+    !> spread: the trace of G^-1 over the kept rows but j (G's lower triangle in g0; huge where
+    !> it is not positive definite), the sum of its inverse eigenvalues: a set's distance from a
+    !> rank loss that, unlike the order-bound pivots, no ordering of its rows changes.
+    subroutine inverse_trace(j, spread, stat)
+      integer, intent(in) :: j
+      real(dp), intent(out) :: spread
+      integer, intent(out) :: stat
+      real(dp), allocatable :: gk(:, :), z(:)
+      integer, allocatable :: idx(:)
+      integer :: n, p, q, i, st
+      idx = pack([(i, i = 1, m)], keep .and. [(i /= j, i = 1, m)])
+      n = size(idx)
+      allocate (gk(n, n), z(n), stat=st)
+      call mbdk_alloc_status(st, MBDK_REAL_BYTES * real(n, dp) * (n + 1), stat, asked)
+      if (stat /= MBDK_SUCCESS) return
+      do q = 1, n
+        do p = q, n
+          gk(p, q) = g0(idx(p), idx(q))         ! idx ascends: g0's lower triangle
+        end do
+      end do
+      spread = huge(1.0_dp)
+      call mbdk_chol_factor(gk, st)
+      if (st /= MBDK_SUCCESS) return
+      spread = 0.0_dp
+      do i = 1, n                                ! |L^-1 e_i|^2, by forward substitution
+        z(i) = 1.0_dp / gk(i, i)
+        do p = i + 1, n
+          z(p) = -dot_product(gk(p, i:p - 1), z(i:p - 1)) / gk(p, p)
+        end do
+        spread = spread + sum(z(i:n)**2)
+      end do
+    end subroutine inverse_trace
+
     !> x solving L^T x = bvec for the lower triangular L.
     pure function lower_transpose_solve(l, bvec) result(x)
       real(dp), intent(in) :: l(:, :), bvec(:)
