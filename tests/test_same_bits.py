@@ -1,10 +1,14 @@
 """Runs whose linear algebra is the kernel's own are the same bits under every OpenBLAS kernel:
 the planar scenes' starts (the dense least change of a few rows, mbdk_assembly: in-house
-LDL^T; LAPACK's dgelsd orders its sums by the BLAS kernel) and what runs from them on paths
-that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU). A start that differs in
-its last bits is enough to change where ida ggl stops on the A02 loop, next to a flat pose
-or not at all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took
-with OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
+LDL^T; LAPACK's dgelsd orders its sums by the BLAS kernel), what runs from them on paths that
+call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU), and the dense factorisations
+of up to 64 unknowns, which mbdk_lapack routes to mbdk_fixed_order (bdf's Newton matrix on
+planar and spatial scenes, the spatial Schur complement and rank tests on Bricard's linkage and
+the flyball governor, trapezoidal_index3's Newton matrix on a spatial scene: under LAPACK each
+of these differed between the Prescott and Haswell kernels). A start that differs in its last
+bits is enough to change where ida ggl stops on the A02 loop, next to a flat pose or not at
+all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took with
+OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
 from __future__ import annotations
 
 import os
@@ -16,6 +20,8 @@ import textwrap
 import pytest
 
 KERNELS = ("Prescott", "Haswell", "Sandybridge")
+NAMES = ("a02", "three_link_pendulum", "trolley_crane", "four_bar", "bricard", "heavy_top",
+         "spatial_double_pendulum", "flyball_governor")
 
 CODE = textwrap.dedent("""
     import hashlib
@@ -32,6 +38,15 @@ CODE = textwrap.dedent("""
         r = mbdk.simulate(mbdk.scene(name), "dopri54", rtol=1e-8, atol=1e-10, t_end=1,
                           dt_out=0.1)
         print(name, r.status.name, r.stats.steps, digest(r.q[0], r.v[0]), digest(r.q, r.v))
+    for name, method, kw in (
+            ("four_bar", "bdf", dict(formulation="si2", rtol=1e-6, atol=1e-8, t_end=2,
+                                     dt_out=0.1)),
+            ("bricard", "rk4", dict(h=1e-3, t_end=2, every=100)),
+            ("heavy_top", "bdf", dict(rtol=1e-6, atol=1e-8, t_end=1, dt_out=0.1)),
+            ("spatial_double_pendulum", "trapezoidal_index3", dict(h=1e-3, t_end=1, every=100)),
+            ("flyball_governor", "rk4", dict(h=1e-4, t_end=0.2, every=100))):
+        r = mbdk.simulate(mbdk.scene(name), method, **kw)
+        print(name, r.status.name, r.stats.steps, digest(r.q[0], r.v[0]), digest(r.q, r.v))
 """)
 
 
@@ -42,11 +57,10 @@ def _run(kernel: str) -> list[str] | None:
     if f"Core: {kernel}" not in out.stdout + out.stderr:
         return None
     assert out.returncode == 0, out.stderr[-2000:]
-    return [ln for ln in out.stdout.splitlines() if ln.split()[0] in
-            ("a02", "three_link_pendulum", "trolley_crane")]
+    return [ln for ln in out.stdout.splitlines() if ln.split()[0] in NAMES]
 
 
-def test_planar_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
+def test_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
     if platform.machine() not in ("x86_64", "AMD64"):
         pytest.skip("OPENBLAS_CORETYPE names x86-64 kernels")
     results = {k: _run(k) for k in KERNELS}
@@ -54,6 +68,6 @@ def test_planar_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
     if len(taken) < 2:
         pytest.skip("the BLAS did not take two of OpenBLAS's kernels")
     first = next(iter(taken.values()))
-    assert len(first) == 3
+    assert len(first) == len(NAMES)
     for kernel, lines in taken.items():
         assert lines == first, (kernel, lines, first)

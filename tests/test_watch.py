@@ -67,11 +67,12 @@ def test_the_book_index3_scheme_blowing_up_is_named_where_it_starts():
 
 def test_a_1e9_spring_that_loses_its_energy_in_one_step_is_named():
     """spring_bar with k = 1e9 N/m, stretched at t0 (1.25e8 J in the spring), projected index-3
-    at h = 1e-3 (h omega ~ 30): unwatched, SUCCESS with the energy 1e5 times its start; watched,
-    EnergyDriftError at the first step."""
+    at h = 1e-3 (h omega ~ 30): unwatched, SUCCESS over 0.1 s with the energy 1e5 times its
+    start (from t = 0.015; later, Newton may give up where the run has no meaning left);
+    watched, EnergyDriftError at the first step."""
     sc = mbdk.scene("spring_bar")
     sc.forces[0].stiffness = 1e9
-    free = mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=1.0, watch=False)
+    free = mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=0.1, watch=False)
     assert free.success and np.abs(free.energy).max() > 1e3 * abs(free.energy[0])
     with pytest.raises(mbdk.EnergyDriftError, match="t = 0.001"):
         mbdk.simulate(sc, "trapezoidal_index3", h=1e-3, t_end=1.0)

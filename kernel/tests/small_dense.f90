@@ -1,7 +1,8 @@
 !> small_dense.f90 - checks the in-house factorisations of mbdk_small_dense against the
 !> definitions, on random matrices of every size the kernel uses them for (1 to
 !> MBDK_SMALL_DENSE_MAX rows). Exit code 0 = pass.
-!>   LU with partial pivoting (general matrices, pivoting needed): the residual of the solve,
+!>   LU with partial pivoting (mbdk_fixed_order's, whose factor the explicit inverse takes;
+!>     general matrices, pivoting needed): the residual of the solve,
 !>     max |A x - b| <= 64 n^2 eps max|A| max|x| (the usual n eps |A||x| backward-error bound,
 !>     with n for the max norms and 64 as margin), and the explicit inverse, max |A Ainv - I|
 !>     <= 64 n^2 eps max|A| max|Ainv|; applying the inverse agrees with the solve to that bound
@@ -16,6 +17,7 @@ program small_dense
   use mbdk_kinds, only: dp, i8
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_small_dense
+  use mbdk_fixed_order, only: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve
   implicit none
   integer, parameter :: NMAX = MBDK_SMALL_DENSE_MAX
   real(dp) :: a(NMAX, NMAX), f(NMAX, NMAX), ainv(NMAX, NMAX), w(NMAX, NMAX), g(NMAX, NMAX)
@@ -31,10 +33,10 @@ program small_dense
       call fill(a(1:n, 1:n))
       call fill_v(b(1:n))
       f(1:n, 1:n) = a(1:n, 1:n)
-      call mbdk_small_lu_factor(f(1:n, 1:n), n, ipiv(1:n), stat)
-      if (stat /= MBDK_SUCCESS) cycle          ! (a singular draw: not the point here)
+      call mbdk_fixed_lu_factor(f(1:n, 1:n), n, ipiv(1:n), stat)
+      if (stat /= 0) cycle          ! (a singular draw: not the point here)
       x(1:n) = b(1:n)
-      call mbdk_small_lu_solve(f(1:n, 1:n), n, ipiv(1:n), x(1:n))
+      call mbdk_fixed_lu_solve(f(1:n, 1:n), n, ipiv(1:n), x(1:n))
       tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * maxval(abs(x(1:n))) * n
       call check(maxval(abs(matmul(a(1:n, 1:n), x(1:n)) - b(1:n))) <= tol, 'LU solve', n)
       call mbdk_small_lu_inverse(f(1:n, 1:n), n, ipiv(1:n), ainv(1:n, 1:n), w(1:n, 1:n))

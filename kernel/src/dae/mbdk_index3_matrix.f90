@@ -40,8 +40,8 @@ module mbdk_index3_matrix
   use mbdk_force_elements, only: mbdk_forces_tangent
   use mbdk_lapack, only: mbdk_lu_factor, mbdk_lu_solve
   use mbdk_sparse_schur, only: mbdk_sparse_dtd_add
-  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_lu_factor, &
-    mbdk_small_lu_solve, mbdk_small_lu_inverse, mbdk_small_inverse_apply, MBDK_SMALL_DENSE_MAX
+  use mbdk_small_dense, only: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, &
+    mbdk_small_lu_inverse, mbdk_small_inverse_apply, MBDK_SMALL_DENSE_MAX
   use mbdk_model, only: mbdk_model_sparse
   use mbdk_constrained, only: MBDK_SPARSE_MIN_ROWS
   use mbdk_body_pattern, only: mbdk_body_pattern_t, mbdk_body_pattern_init, &
@@ -180,11 +180,7 @@ contains
       end if
     end if
     if (stat /= MBDK_SUCCESS .or. fa%ldlt) return
-    if (fa%small) then
-      call mbdk_small_lu_factor(fa%lu, fa%nk, fa%ipiv, stat)
-    else
-      call mbdk_lu_factor(fa%lu, fa%ipiv, stat)
-    end if
+    call mbdk_lu_factor(fa%lu, fa%ipiv, stat)
   end subroutine mbdk_index3_factor
 
   !> r <- (Newton matrix)^-1 r with the current factors.
@@ -206,8 +202,6 @@ contains
       call mbdk_small_inverse_apply(fa%ainv, fa%nk, r, fa%rinv)
     else if (fa%ldlt) then
       call mbdk_small_ldlt_solve(fa%lu, fa%nk, fa%body_blk, r)
-    else if (fa%small) then
-      call mbdk_small_lu_solve(fa%lu, fa%nk, fa%ipiv, r)
     else
       call mbdk_lu_solve(fa%lu, fa%ipiv, r, stat)
     end if

@@ -2,11 +2,16 @@
 !> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs),
 !> the rank-revealing Cholesky factorisation of semidefinite ones (dpstrf),
 !> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
+!> Up to MBDK_FIXED_ORDER_MAX unknowns the factorisations and solves are those of
+!> mbdk_fixed_order instead (the same algorithms and storage, written out in one order of
+!> operations): the same bits under every OpenBLAS kernel, and faster at these sizes.
 module mbdk_lapack
   use mbdk_kinds, only: dp
   use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT, &
     MBDK_ERR_NONFINITE, MBDK_ERR_NO_MEMORY
+  use mbdk_fixed_order, only: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve, &
+    mbdk_fixed_chol_factor, mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted, MBDK_FIXED_ORDER_MAX
   implicit none
   private
   public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
@@ -116,7 +121,11 @@ contains
     integer, intent(out) :: stat
     integer :: info, n
     n = size(a, 1)
-    call dgetrf(n, n, a, n, ipiv, info)
+    if (n <= MBDK_FIXED_ORDER_MAX) then
+      call mbdk_fixed_lu_factor(a, n, ipiv, info)
+    else
+      call dgetrf(n, n, a, n, ipiv, info)
+    end if
     if (info > 0) then
       stat = MBDK_ERR_SINGULAR_MATRIX
     else if (info < 0) then
@@ -134,6 +143,11 @@ contains
     integer, intent(out) :: stat
     integer :: info, n
     n = size(lu, 1)
+    if (n <= MBDK_FIXED_ORDER_MAX) then
+      call mbdk_fixed_lu_solve(lu, n, ipiv, b)
+      stat = MBDK_SUCCESS
+      return
+    end if
     call dgetrs('N', n, 1, lu, n, ipiv, b, n, info)
     stat = merge(MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, info == 0)
   end subroutine mbdk_lu_solve
@@ -144,7 +158,11 @@ contains
     integer, intent(out) :: stat
     integer :: info, n
     n = size(a, 1)
-    call dpotrf('L', n, a, n, info)
+    if (n <= MBDK_FIXED_ORDER_MAX) then
+      call mbdk_fixed_chol_factor(a, n, info)
+    else
+      call dpotrf('L', n, a, n, info)
+    end if
     stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info == 0)
   end subroutine mbdk_chol_factor
 
@@ -173,7 +191,11 @@ contains
     end do
     stat = MBDK_ERR_SINGULAR_MATRIX
     if (.not. (big > 0.0_dp)) return
-    call dpstrf('L', n, a, n, piv, rank, rtol * big, work, info)
+    if (n <= MBDK_FIXED_ORDER_MAX) then
+      call mbdk_fixed_chol_pivoted(a, n, piv, rank, rtol * big, work, info)
+    else
+      call dpstrf('L', n, a, n, piv, rank, rtol * big, work, info)
+    end if
     stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info >= 0)
   end subroutine mbdk_chol_pivoted
 
@@ -184,6 +206,11 @@ contains
     integer, intent(out) :: stat
     integer :: info, n
     n = size(l, 1)
+    if (n <= MBDK_FIXED_ORDER_MAX) then
+      call mbdk_fixed_chol_solve(l, n, b)
+      stat = MBDK_SUCCESS
+      return
+    end if
     call dpotrs('L', n, 1, l, n, b, n, info)
     stat = merge(MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, info == 0)
   end subroutine mbdk_chol_solve

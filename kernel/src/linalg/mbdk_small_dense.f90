@@ -1,8 +1,9 @@
-!> LDL^T and LU factorisations and solves for the tiny systems of planar mechanisms (the
-!> Schur complement D M^-1 D^T of a few constraints, the Newton matrix of trapezoidal_index3),
-!> without LAPACK's call overhead. Measured against dpotrf/dpotrs and dgetrf/dgetrs in
-!> studies/scene_drift.py (table scene_speed) and studies/index3.py; the kernel uses them up to
-!> MBDK_SMALL_DENSE_MAX rows unless told otherwise.
+!> LDL^T factorisations and solves, and the explicit inverse from an LU factor, for the tiny
+!> systems of planar mechanisms (the Schur complement D M^-1 D^T of a few constraints, the
+!> Newton matrix of trapezoidal_index3), without LAPACK's call overhead (measured against
+!> dpotrf/dpotrs and dgetrf/dgetrs in studies/scene_drift.py, table scene_speed, and
+!> studies/index3.py); the kernel uses them up to MBDK_SMALL_DENSE_MAX rows unless told
+!> otherwise.
 !>
 !> LDL^T: factor and solve (a matrix serving several solves), or both in one pass
 !> (mbdk_small_ldlt_solve_once, one solve: no L is stored or read back).
@@ -13,15 +14,13 @@
 !> diagonal of A: a joint on a body 1e12 times lighter than another has a diagonal 1e12 times
 !> larger without being any closer to dependent, and a fixed joint's angle row (radians) is not
 !> measured against its position rows (metres).
-!> LU: partial pivoting as dgetf2; a zero or non-finite pivot is MBDK_ERR_SINGULAR_MATRIX (as
-!> dgetrf's info > 0).
+!> The LU itself is mbdk_lapack's (mbdk_fixed_order's at these sizes), in LAPACK's storage.
 module mbdk_small_dense
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
   implicit none
   private
   public :: mbdk_small_ldlt_factor, mbdk_small_ldlt_solve, mbdk_small_ldlt_solve_once
-  public :: mbdk_small_lu_factor, mbdk_small_lu_solve
   public :: mbdk_small_lu_inverse, mbdk_small_inverse_apply
   integer, parameter, public :: MBDK_SMALL_DENSE_MAX = 12
 
@@ -305,79 +304,9 @@ contains
     stat = MBDK_SUCCESS
   end subroutine invert3
 
-  !> In place: A = P L U with unit lower L below the diagonal and U on and above it; ipiv(j) is
-  !> the row swapped with row j at step j (as dgetrf), and the diagonal holds 1 / U(j, j).
-  pure subroutine mbdk_small_lu_factor(a, n, ipiv, stat)
-    integer, intent(in) :: n
-    real(dp), intent(inout) :: a(n, n)
-    integer, intent(out) :: ipiv(n), stat
-    integer :: i, j, k, p
-    real(dp) :: amax, x
-    stat = MBDK_ERR_SINGULAR_MATRIX
-    do j = 1, n
-      p = j
-      amax = abs(a(j, j))
-      do i = j + 1, n
-        if (abs(a(i, j)) > amax) then
-          amax = abs(a(i, j))
-          p = i
-        end if
-      end do
-      ipiv(j) = p
-      if (.not. (amax > 0.0_dp .and. amax <= huge(1.0_dp))) return
-      if (p /= j) then
-        do k = 1, n
-          x = a(j, k)
-          a(j, k) = a(p, k)
-          a(p, k) = x
-        end do
-      end if
-      a(j, j) = 1.0_dp / a(j, j)
-      do i = j + 1, n
-        a(i, j) = a(i, j) * a(j, j)
-      end do
-      do k = j + 1, n
-        x = a(j, k)
-        do i = j + 1, n
-          a(i, k) = a(i, k) - a(i, j) * x
-        end do
-      end do
-    end do
-    stat = MBDK_SUCCESS
-  end subroutine mbdk_small_lu_factor
-
-  !> Solves A x = b with the factor of mbdk_small_lu_factor; b is overwritten by x.
-  pure subroutine mbdk_small_lu_solve(lu, n, ipiv, b)
-    integer, intent(in) :: n, ipiv(n)
-    real(dp), intent(in) :: lu(n, n)
-    real(dp), intent(inout) :: b(n)
-    integer :: i, k
-    real(dp) :: x
-    do i = 1, n
-      if (ipiv(i) /= i) then
-        x = b(i)
-        b(i) = b(ipiv(i))
-        b(ipiv(i)) = x
-      end if
-    end do
-    do k = 1, n
-      x = b(k)
-      do i = k + 1, n
-        b(i) = b(i) - lu(i, k) * x
-      end do
-    end do
-    do k = n, 1, -1
-      b(k) = b(k) * lu(k, k)
-      x = b(k)
-      do i = 1, k - 1
-        b(i) = b(i) - lu(i, k) * x
-      end do
-    end do
-  end subroutine mbdk_small_lu_solve
-
-  !> ainv = A^-1 from the factor of mbdk_small_lu_factor; w(n, n) is a work array. For a
-  !> matrix that serves many solves (modified Newton): mbdk_small_inverse_apply then costs a
-  !> quarter of mbdk_small_lu_solve at n = 10 (a column-oriented product of fixed length n
+  !> ainv = A^-1 from an LU factor in LAPACK's storage (mbdk_lu_factor); w(n, n) is a work
+  !> array. For a matrix that serves many solves (modified Newton): mbdk_small_inverse_apply
+  !> then costs a quarter of an LU solve at n = 10 (a column-oriented product of fixed length n
   !> against two triangular sweeps of varying length). The inverse is formed transposed, as
   !> w = A^-T, so that every operation runs down a contiguous column of w; about one
   !> triangular solve's work per row.
@@ -401,14 +330,14 @@ contains
         end do
       end if
     end do
-    ! the forward and backward sweeps of mbdk_small_lu_solve, on all n right-hand sides
+    ! the forward and backward sweeps of the LU solve, on all n right-hand sides
     do k = 1, n
       do i = k + 1, n
         w(:, i) = w(:, i) - lu(i, k) * w(:, k)
       end do
     end do
     do k = n, 1, -1
-      w(:, k) = w(:, k) * lu(k, k)
+      w(:, k) = w(:, k) / lu(k, k)
       do i = 1, k - 1
         w(:, i) = w(:, i) - lu(i, k) * w(:, k)
       end do

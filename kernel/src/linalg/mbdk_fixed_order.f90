@@ -1,0 +1,249 @@
+!> Dense factorisations of LAPACK's unblocked routines (dgetf2, dpotf2, dpstf2) with their
+!> solves, written out with every sum in one fixed order, for the systems of up to
+!> MBDK_FIXED_ORDER_MAX unknowns that mbdk_lapack routes here. Two reasons:
+!>   - the same bits on every CPU: OpenBLAS picks the kernels under LAPACK (dgemv, dtrsm,
+!>     dswap, ...) by CPU, and they order their sums differently, so a mechanism's Newton
+!>     matrix or Schur complement factorised under another kernel moved bdf's steps and where
+!>     a run next to a singular pose stopped (tests/test_same_bits.py runs both kinds);
+!>   - at these sizes the call into LAPACK costs more than the work; above them LAPACK's
+!>     blocked routines win (the crossover, measured for the LU, lies between 64 and 128).
+!> Each routine follows its LAPACK namesake's algorithm, storage and tests: the LU keeps U on
+!> and above the diagonal and the unit lower L below it, row j swapped with ipiv(j) at step j
+!> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
+!> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
+!> is not positive (or NaN); the pivoted one takes the first largest remaining diagonal entry
+!> and stops at one at or below dstop (dpstf2's rule, its running dot products included).
+module mbdk_fixed_order
+  use mbdk_kinds, only: dp
+  implicit none
+  private
+  public :: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve, mbdk_fixed_chol_factor, &
+    mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted
+
+  !> the largest order mbdk_lapack factorises here (above it LAPACK's blocked routines are
+  !> faster: see the module header)
+  integer, parameter, public :: MBDK_FIXED_ORDER_MAX = 64
+
+contains
+
+  !> A = P L U in place (dgetf2); info = 0, or j where U(j, j) is exactly zero (the factor is
+  !> then incomplete).
+  pure subroutine mbdk_fixed_lu_factor(a, n, ipiv, info)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: a(n, n)
+    integer, intent(out) :: ipiv(n), info
+    integer :: i, j, k, p
+    real(dp) :: amax, x, r
+    info = 0
+    do j = 1, n
+      p = j
+      amax = abs(a(j, j))
+      do i = j + 1, n
+        if (abs(a(i, j)) > amax) then
+          amax = abs(a(i, j))
+          p = i
+        end if
+      end do
+      ipiv(j) = p
+      if (a(p, j) == 0.0_dp) then
+        info = j
+        return
+      end if
+      if (p /= j) then
+        do k = 1, n
+          x = a(j, k)
+          a(j, k) = a(p, k)
+          a(p, k) = x
+        end do
+      end if
+      if (abs(a(j, j)) >= tiny(1.0_dp)) then
+        r = 1.0_dp / a(j, j)
+        do i = j + 1, n
+          a(i, j) = a(i, j) * r
+        end do
+      else
+        do i = j + 1, n
+          a(i, j) = a(i, j) / a(j, j)
+        end do
+      end if
+      do k = j + 1, n
+        x = a(j, k)
+        do i = j + 1, n
+          a(i, k) = a(i, k) - a(i, j) * x
+        end do
+      end do
+    end do
+  end subroutine mbdk_fixed_lu_factor
+
+  !> b <- A^-1 b with the factor of mbdk_fixed_lu_factor (dgetrs, one right-hand side).
+  pure subroutine mbdk_fixed_lu_solve(lu, n, ipiv, b)
+    integer, intent(in) :: n, ipiv(n)
+    real(dp), intent(in) :: lu(n, n)
+    real(dp), intent(inout) :: b(n)
+    integer :: i, k
+    real(dp) :: x
+    do i = 1, n
+      if (ipiv(i) /= i) then
+        x = b(i)
+        b(i) = b(ipiv(i))
+        b(ipiv(i)) = x
+      end if
+    end do
+    do k = 1, n
+      x = b(k)
+      do i = k + 1, n
+        b(i) = b(i) - lu(i, k) * x
+      end do
+    end do
+    do k = n, 1, -1
+      b(k) = b(k) / lu(k, k)
+      x = b(k)
+      do i = 1, k - 1
+        b(i) = b(i) - lu(i, k) * x
+      end do
+    end do
+  end subroutine mbdk_fixed_lu_solve
+
+  !> A = L L^T in the lower triangle (dpotf2 'L'); info = 0, or j where the leading minor of
+  !> order j is not positive definite.
+  pure subroutine mbdk_fixed_chol_factor(a, n, info)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: a(n, n)
+    integer, intent(out) :: info
+    integer :: i, j, k
+    real(dp) :: ajj, x
+    info = 0
+    do j = 1, n
+      ! column j less the columns before it, k = 1 .. j - 1 in turn (down a contiguous column)
+      do k = 1, j - 1
+        x = a(j, k)
+        do i = j, n
+          a(i, j) = a(i, j) - a(i, k) * x
+        end do
+      end do
+      ajj = a(j, j)
+      if (.not. (ajj > 0.0_dp)) then
+        info = j
+        return
+      end if
+      ajj = sqrt(ajj)
+      a(j, j) = ajj
+      do i = j + 1, n
+        a(i, j) = a(i, j) / ajj
+      end do
+    end do
+  end subroutine mbdk_fixed_chol_factor
+
+  !> b <- A^-1 b with the factor of mbdk_fixed_chol_factor (dpotrs 'L', one right-hand side).
+  pure subroutine mbdk_fixed_chol_solve(l, n, b)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: l(n, n)
+    real(dp), intent(inout) :: b(n)
+    integer :: i, k
+    real(dp) :: x
+    do k = 1, n
+      b(k) = b(k) / l(k, k)
+      x = b(k)
+      do i = k + 1, n
+        b(i) = b(i) - l(i, k) * x
+      end do
+    end do
+    do k = n, 1, -1
+      x = b(k)
+      do i = k + 1, n
+        x = x - l(i, k) * b(i)
+      end do
+      b(k) = x / l(k, k)
+    end do
+  end subroutine mbdk_fixed_chol_solve
+
+  !> P^T A P = L L^T in the lower triangle with complete pivoting (dpstf2 'L'): piv(k) the row
+  !> of A in position k, rank the pivots taken; it stops at the first largest remaining
+  !> diagonal entry at or below dstop, or NaN (info = 1, that entry left in A(rank+1, rank+1)),
+  !> and at a largest diagonal entry of A not positive (rank 0, info = 1). work(2 n).
+  pure subroutine mbdk_fixed_chol_pivoted(a, n, piv, rank, dstop, work, info)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: a(n, n)
+    integer, intent(out) :: piv(n), rank, info
+    real(dp), intent(in) :: dstop
+    real(dp), intent(out) :: work(2 * n)
+    integer :: i, j, k, p, itmp
+    real(dp) :: ajj, x
+    do i = 1, n
+      piv(i) = i
+    end do
+    info = 0
+    rank = 0
+    if (n == 0) return
+    p = first_max([(a(i, i), i = 1, n)])
+    ajj = a(p, p)
+    if (.not. (ajj > 0.0_dp)) then
+      info = 1
+      return
+    end if
+    work(1:n) = 0.0_dp
+    do j = 1, n
+      do i = j, n
+        if (j > 1) work(i) = work(i) + a(i, j - 1)**2
+        work(n + i) = a(i, i) - work(i)
+      end do
+      if (j > 1) then
+        p = j - 1 + first_max(work(n + j:2 * n))
+        ajj = work(n + p)
+        if (ajj <= dstop .or. ajj /= ajj) then
+          a(j, j) = ajj
+          rank = j - 1
+          info = 1
+          return
+        end if
+      end if
+      if (j /= p) then
+        a(p, p) = a(j, j)
+        do k = 1, j - 1
+          x = a(j, k)
+          a(j, k) = a(p, k)
+          a(p, k) = x
+        end do
+        do k = p + 1, n
+          x = a(k, j)
+          a(k, j) = a(k, p)
+          a(k, p) = x
+        end do
+        do k = j + 1, p - 1
+          x = a(k, j)
+          a(k, j) = a(p, k)
+          a(p, k) = x
+        end do
+        x = work(j)
+        work(j) = work(p)
+        work(p) = x
+        itmp = piv(p)
+        piv(p) = piv(j)
+        piv(j) = itmp
+      end if
+      ajj = sqrt(ajj)
+      a(j, j) = ajj
+      do k = 1, j - 1
+        x = a(j, k)
+        do i = j + 1, n
+          a(i, j) = a(i, j) - a(i, k) * x
+        end do
+      end do
+      do i = j + 1, n
+        a(i, j) = a(i, j) / ajj
+      end do
+    end do
+    rank = n
+  end subroutine mbdk_fixed_chol_pivoted
+
+  !> The index of the first largest entry of x (MAXLOC's choice; NaN entries are passed over).
+  pure integer function first_max(x)
+    real(dp), intent(in) :: x(:)
+    integer :: i
+    first_max = 1
+    do i = 2, size(x)
+      if (x(i) > x(first_max) .or. x(first_max) /= x(first_max)) first_max = i
+    end do
+  end function first_max
+
+end module mbdk_fixed_order

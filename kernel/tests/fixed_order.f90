@@ -1,0 +1,145 @@
+!> fixed_order.f90 - checks mbdk_fixed_order against the LAPACK routines it stands in for, on
+!> random matrices of every order it serves (1 to MBDK_FIXED_ORDER_MAX). Exit code 0 = pass.
+!>   LU (dgetrf): the same row interchanges, and factors that agree to 64 n eps max|A| max|U|
+!>     (the two differ only in the order of their sums); the solve's residual against
+!>     64 n^2 eps max|A| max|x|; an exactly singular matrix (its last column zero) gives
+!>     info = n, as dgetrf's.
+!>   Cholesky (dpotrf 'L') on A = G^T G + I: factors within 64 n eps max|A| of LAPACK's, the
+!>     solve's residual as the LU's; a matrix with a negative diagonal entry gives info > 0.
+!>   Pivoted Cholesky (dpstrf 'L', dstop 1e-10 max diag) on A = G^T G with G of rank r < n: the
+!>     same rank and pivot order as LAPACK's, and factors within 64 n eps max|A|.
+program fixed_order
+  use mbdk_kinds, only: dp, i8
+  use mbdk_fixed_order
+  implicit none
+  integer, parameter :: NMAX = MBDK_FIXED_ORDER_MAX
+  real(dp) :: a(NMAX, NMAX), f(NMAX, NMAX), g(NMAX, NMAX), b(NMAX), x(NMAX), work(2 * NMAX)
+  real(dp) :: tol, dstop
+  integer :: ipiv(NMAX), ipiv2(NMAX), piv(NMAX), piv2(NMAX), n, trial, info, info2, r, rank, &
+    rank2, i, j, nfail
+  integer(i8) :: seed
+  external :: dgetrf, dpotrf, dpstrf
+  seed = 4242_i8
+  nfail = 0
+  do n = 1, NMAX
+    do trial = 1, 4
+      ! ---- LU ----
+      call fill(a(1:n, 1:n))
+      call fill_v(b(1:n))
+      f(1:n, 1:n) = a(1:n, 1:n)
+      g(1:n, 1:n) = a(1:n, 1:n)
+      call mbdk_fixed_lu_factor(f(1:n, 1:n), n, ipiv(1:n), info)
+      call dgetrf(n, n, g(1:n, 1:n), n, ipiv2(1:n), info2)
+      call check(info == 0 .and. info2 == 0, 'LU info', n)
+      call check(all(ipiv(1:n) == ipiv2(1:n)), 'LU interchanges', n)
+      tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * max(1.0_dp, maxval(abs(g(1:n, 1:n))))
+      call check(maxval(abs(f(1:n, 1:n) - g(1:n, 1:n))) <= tol, 'LU factors', n)
+      x(1:n) = b(1:n)
+      call mbdk_fixed_lu_solve(f(1:n, 1:n), n, ipiv(1:n), x(1:n))
+      tol = 64 * n * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * maxval(abs(x(1:n)))
+      call check(maxval(abs(matmul(a(1:n, 1:n), x(1:n)) - b(1:n))) <= tol, 'LU solve', n)
+      f(1:n, 1:n) = a(1:n, 1:n)
+      f(1:n, n) = 0.0_dp
+      g(1:n, 1:n) = f(1:n, 1:n)
+      call mbdk_fixed_lu_factor(f(1:n, 1:n), n, ipiv(1:n), info)
+      call dgetrf(n, n, g(1:n, 1:n), n, ipiv2(1:n), info2)
+      call check(info == n .and. info2 == n, 'LU singular', n)
+      ! ---- Cholesky ----
+      call fill(g(1:n, 1:n))
+      a(1:n, 1:n) = matmul(transpose(g(1:n, 1:n)), g(1:n, 1:n))
+      do i = 1, n
+        a(i, i) = a(i, i) + 1.0_dp
+      end do
+      f(1:n, 1:n) = a(1:n, 1:n)
+      g(1:n, 1:n) = a(1:n, 1:n)
+      call mbdk_fixed_chol_factor(f(1:n, 1:n), n, info)
+      call dpotrf('L', n, g(1:n, 1:n), n, info2)
+      call check(info == 0 .and. info2 == 0, 'Cholesky info', n)
+      tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n)))
+      call check(maxval(abs(lower(f(1:n, 1:n)) - lower(g(1:n, 1:n)))) <= tol, 'Cholesky factor', n)
+      call check(all(f(1:n, 1:n) == g(1:n, 1:n) .or. lower_mask(n)), 'Cholesky upper kept', n)
+      call fill_v(b(1:n))
+      x(1:n) = b(1:n)
+      call mbdk_fixed_chol_solve(f(1:n, 1:n), n, x(1:n))
+      tol = 64 * n * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n))) * maxval(abs(x(1:n)))
+      call check(maxval(abs(matmul(a(1:n, 1:n), x(1:n)) - b(1:n))) <= tol, 'Cholesky solve', n)
+      f(1:n, 1:n) = a(1:n, 1:n)
+      f(n, n) = -1.0_dp
+      call mbdk_fixed_chol_factor(f(1:n, 1:n), n, info)
+      call check(info == n, 'Cholesky refusal', n)
+      ! ---- pivoted Cholesky of a semidefinite matrix of rank r ----
+      r = max(1, n - 1 - mod(trial + n, 3))
+      call fill(g(1:r, 1:n))
+      a(1:n, 1:n) = matmul(transpose(g(1:r, 1:n)), g(1:r, 1:n))
+      dstop = 1.0e-10_dp * maxval([(a(j, j), j = 1, n)])
+      f(1:n, 1:n) = a(1:n, 1:n)
+      g(1:n, 1:n) = a(1:n, 1:n)
+      call mbdk_fixed_chol_pivoted(f(1:n, 1:n), n, piv(1:n), rank, dstop, work(1:2 * n), info)
+      call dpstrf('L', n, g(1:n, 1:n), n, piv2(1:n), rank2, dstop, work(1:2 * n), info2)
+      call check(rank == rank2 .and. rank == min(r, n) .and. info == info2, 'pivoted rank', n)
+      call check(all(piv(1:n) == piv2(1:n)), 'pivoted order', n)
+      tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n)))
+      call check(maxval(abs(lower(f(1:n, 1:rank)) - lower(g(1:n, 1:rank)))) <= sqrt(tol), &
+                 'pivoted factor', n)
+    end do
+  end do
+  if (nfail > 0) then
+    print '(a, i0, a)', 'fixed_order: ', nfail, ' checks FAILED'
+    error stop 1
+  end if
+  print '(a, i0, a)', 'fixed_order: LU, Cholesky and pivoted Cholesky agree with LAPACK, n = 1..', &
+    NMAX, ': PASS'
+contains
+  subroutine check(ok, what, n)
+    logical, intent(in) :: ok
+    character(*), intent(in) :: what
+    integer, intent(in) :: n
+    if (.not. ok) then
+      nfail = nfail + 1
+      print '(a, a, a, i0)', 'FAIL ', what, ' at n = ', n
+    end if
+  end subroutine check
+  !> uniform numbers in [-1, 1] from a 64-bit linear congruential generator (reproducible)
+  real(dp) function next()
+    seed = seed * 6364136223846793005_i8 + 1442695040888963407_i8
+    next = real(ishft(seed, -11), dp) / real(2_i8**53, dp) * 2.0_dp - 1.0_dp
+  end function next
+  subroutine fill(m)
+    real(dp), intent(out) :: m(:, :)
+    integer :: i, j
+    do j = 1, size(m, 2)
+      do i = 1, size(m, 1)
+        m(i, j) = next()
+      end do
+    end do
+  end subroutine fill
+  subroutine fill_v(v)
+    real(dp), intent(out) :: v(:)
+    integer :: i
+    do i = 1, size(v)
+      v(i) = next()
+    end do
+  end subroutine fill_v
+  !> the lower triangle of m (the upper set to zero)
+  function lower(m) result(l)
+    real(dp), intent(in) :: m(:, :)
+    real(dp) :: l(size(m, 1), size(m, 2))
+    integer :: i, j
+    do j = 1, size(m, 2)
+      do i = 1, size(m, 1)
+        l(i, j) = merge(m(i, j), 0.0_dp, i >= j)
+      end do
+    end do
+  end function lower
+  !> .true. on and below the diagonal
+  function lower_mask(n) result(mk)
+    integer, intent(in) :: n
+    logical :: mk(n, n)
+    integer :: i, j
+    do j = 1, n
+      do i = 1, n
+        mk(i, j) = i >= j
+      end do
+    end do
+  end function lower_mask
+end program fixed_order
