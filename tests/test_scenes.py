@@ -272,8 +272,8 @@ def test_every_integrator_on_every_formulation(method, formulation):
 @pytest.mark.parametrize("name", ["four_bar", "every_joint_type"])
 def test_linear_solvers_agree(name, formulation):
     """The Schur complement assembled from the nonzeros of D and factorised by joint blocks
-    (in-house, small_dense) or by LAPACK's dpotrf, and (every joint revolute) the closed-form
-    2 x 2 blocks of mbdk_revolute_schur, against LAPACK's LU of the dense KKT matrix: 2-row
+    (in-house, small_dense) or by the general dense Cholesky, and (every joint revolute) the
+    closed-form 2 x 2 blocks of mbdk_revolute_schur, against the dense LU of the KKT matrix: 2-row
     (revolute, prismatic), 3-row (fixed) and 1-row (driver) pivot blocks, off the constraint
     manifold (so that Baumgarte's D v and Phi terms count)."""
     if name == "every_joint_type":

@@ -14,7 +14,8 @@
 !>     within 64 n^2 eps cond(A) max|x| (the forward error the residual bound allows); an
 !>     indefinite matrix is refused as MBDK_ERR_SINGULAR_MATRIX by both.
 program small_dense
-  use mbdk_kinds, only: dp, i8
+  use mbdk_kinds, only: dp
+  use test_draws, only: draws_t, fill, fill_v
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX
   use mbdk_small_dense
   use mbdk_fixed_order, only: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve
@@ -24,14 +25,13 @@ program small_dense
   real(dp) :: b(NMAX), x(NMAX), y(NMAX), tol
   integer :: ipiv(NMAX), n, trial, stat, i, nfail, k
   integer, allocatable :: blk(:)
-  integer(i8) :: seed
-  seed = 12345_i8
+  type(draws_t) :: rnd
   nfail = 0
   do n = 1, NMAX
     do trial = 1, 20
       ! ---- LU: a general matrix (entries in [-1, 1]: pivoting happens) ----
-      call fill(a(1:n, 1:n))
-      call fill_v(b(1:n))
+      call fill(rnd, a(1:n, 1:n))
+      call fill_v(rnd, b(1:n))
       f(1:n, 1:n) = a(1:n, 1:n)
       call mbdk_fixed_lu_factor(f(1:n, 1:n), n, ipiv(1:n), stat)
       if (stat /= 0) cycle          ! (a singular draw: not the point here)
@@ -50,7 +50,7 @@ program small_dense
       call mbdk_small_inverse_apply(ainv(1:n, 1:n), n, y(1:n), w(1:n, 1))
       call check(maxval(abs(y(1:n) - x(1:n))) <= tol * maxval(abs(b(1:n))), 'inverse apply', n)
       ! ---- block LDL^T: symmetric positive definite a = G^T G + I ----
-      call fill(g(1:n, 1:n))
+      call fill(rnd, g(1:n, 1:n))
       a(1:n, 1:n) = matmul(transpose(g(1:n, 1:n)), g(1:n, 1:n))
       do i = 1, n
         a(i, i) = a(i, i) + 1.0_dp
@@ -112,30 +112,5 @@ contains
       print '(a, a, i0)', what, ' failed at n = ', n
     end if
   end subroutine check
-
-  !> uniform in (-1, 1) from the minimal standard generator (Park and Miller 1988) in 64-bit
-  !> integers: no overflow, the same draws everywhere
-  real(dp) function draw()
-    seed = mod(16807_i8 * seed, 2147483647_i8)
-    draw = 2.0_dp * real(seed, dp) / 2147483647.0_dp - 1.0_dp
-  end function draw
-
-  subroutine fill(m)
-    real(dp), intent(out) :: m(:, :)
-    integer :: i, j
-    do j = 1, size(m, 2)
-      do i = 1, size(m, 1)
-        m(i, j) = draw()
-      end do
-    end do
-  end subroutine fill
-
-  subroutine fill_v(v)
-    real(dp), intent(out) :: v(:)
-    integer :: i
-    do i = 1, size(v)
-      v(i) = draw()
-    end do
-  end subroutine fill_v
 
 end program small_dense

@@ -38,7 +38,8 @@ RUN_HELP = {
     "penalty": "the penalty formulation's alpha_p omega_p mu_p",
     "projection_tol": "max |Phi| the projections reach",
     "solver": "the constrained solve: auto, schur, kkt, revolute_schur, sparse",
-    "small_dense": "factorise small systems in-house (--no-small-dense: LAPACK always)",
+    "small_dense": "factorise tiny systems by block LDL^T (--no-small-dense: the general "
+                   "dense LU and Cholesky)",
     "assemble_initial": "assemble the initial state onto the joints first",
     "startup": "the multistep methods' start-up: rk4 or bdf",
     "newton_rtol": "Newton's relative tolerance (implicit and index-3 methods)",

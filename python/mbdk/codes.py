@@ -124,13 +124,18 @@ SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
 #: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
 SPARSE_MIN_ROWS = 12
 #: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (mbdk_constrained)
+#: the general dense factorisations (kernel/src/linalg/mbdk_lapack.f90: LAPACK's algorithms,
+#: written out in one order of sums up to 64 unknowns so that every CPU gets the same bits)
+DENSE_CHOLESKY = ("dense Cholesky (mbdk_lapack: in one order of sums up to 64 rows, LAPACK dpotrf "
+                  "above)")
+DENSE_LU = "dense LU (mbdk_lapack: in one order of sums up to 64 unknowns, LAPACK dgetrf above)"
 LINEAR_SOLVES = {0: "none (no constraints)",
                  1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
                  2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",
-                 3: "schur: S = D M^-1 D^T from the nonzeros of D, LAPACK dpotrf/dpotrs",
-                 4: "kkt: [M D^T; D 0] by LAPACK dgetrf/dgetrs",
+                 3: f"schur: S = D M^-1 D^T from the nonzeros of D, {DENSE_CHOLESKY}",
+                 4: f"kkt: [M D^T; D 0] by {DENSE_LU}",
                  5: "penalty: M + ap D^T D, in-house LDL^T",
-                 6: "penalty: M + ap D^T D, LAPACK dpotrf/dpotrs",
+                 6: f"penalty: M + ap D^T D, {DENSE_CHOLESKY}",
                  7: "sparse: S = D M^-1 D^T kept sparse, SuiteSparse AMD + LDL"}
 #: the outputs a planar run computes at its samples, the bits of scene_run's want
 #: (MBDK_OUT_* of mbdk_model.f90)
@@ -174,7 +179,7 @@ DAE_NONE = 0
 #: a planar body without inertia), which the run's stats.nlu_sparse shows
 #: (kernel/src/dae/mbdk_mechanism_dae.f90; ida's by SUNDIALS' KLU).
 DAE_NEWTON_MATRIX = {"bdf": "bdf's Newton matrix E - c J by differences over the DAE's state "
-                            "(LAPACK LU)",
+                            f"({DENSE_LU})",
                      "bdf_sparse": "bdf's Newton matrix E - c J in the body graph's pattern: "
                                    "the bodies' columns by colored differences, the "
                                    "multipliers' exact; sparse L D U (AMD, SuiteSparse LDL's "

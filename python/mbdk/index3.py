@@ -21,8 +21,8 @@ augmented_lagrangian
 
 Newton: converged when the update computed at an iterate is within rtol/atol (defaults 1e-10,
 1e-12; simulate's newton_rtol/newton_atol) and max |Phi| <= atol there; max_iter updates
-(default 20). small_dense=False takes LAPACK's LU instead of the in-house one for the Newton
-and projection matrices. The result's `a` and `multipliers` are the integrator's own;
+(default 20). small_dense=False takes the general dense LU (mbdk_lapack) instead of the
+tiny-system one (block LDL^T, explicit inverse) for the Newton and projection matrices. The result's `a` and `multipliers` are the integrator's own;
 `iterations` holds the Newton iterations of the step behind each sample.
 
 Step size: fixed (h, every) by default. adaptive=True (= "extrapolated") starts from h and
@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernel
-from .codes import INDEX3_SCALINGS
+from .codes import DENSE_LU, INDEX3_SCALINGS
 from .errors import Status, exception_for
 from .options import ModelOptions
 
@@ -60,7 +60,7 @@ def factorisation(formulation: str, small_dense: bool) -> str:
     """How the kernel factorises the Newton matrix (kernel/src/dae/mbdk_index3_matrix.f90,
     mbdk_index3_factor)."""
     if not small_dense:
-        return "LU, LAPACK"
+        return DENSE_LU
     lu = "LU (its explicit inverse from the third solve on)"
     if formulation == "augmented_lagrangian":
         return ("in-house up to 12 rows: block LDL^T with the bodies as pivot blocks when the "

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _compiled, _kernel
 from .checks import check_memory, memory_error
-from .codes import dae_newton_matrix
+from .codes import DENSE_CHOLESKY, DENSE_LU, dae_newton_matrix
 from .errors import Status, exception_for, status_message
 from .ode import build_info
 from .options import empty, unpack
@@ -109,15 +109,15 @@ def _contacts(scene: Scene, plan: RunPlan, y0, y, t0: float) -> dict:
 
 #: the constrained solves of the ODE formulations by the model's path (kernel/src/spatial/
 #: mbdk_spatial_model.f90, MBDK_SPATIAL_SPARSE_ROWS)
-SPATIAL_SCHUR = {False: "dense Schur complement (LAPACK dpotrf)",
+SPATIAL_SCHUR = {False: f"dense Schur complement ({DENSE_CHOLESKY})",
                  True: "compact rows and the sparse Schur complement S = C M^-1 C^T "
                        "(SuiteSparse AMD + LDL, kernel/src/linalg/mbdk_compact_schur.f90)"}
 
 
 #: the index-3 family's Newton matrix by the model's path (kernel/src/spatial/mbdk_spatial_i3.f90)
 SPATIAL_INDEX3_MATRIX = {
-    False: "Newton matrix by forward differences over the whole state (LAPACK LU), kept while "
-           "Newton contracts",
+    False: f"Newton matrix by forward differences over the whole state ({DENSE_LU}), kept "
+           "while Newton contracts",
     True: "Newton matrix by differences of colored columns into 6 x 6 body blocks, factorised "
           "by a sparse L D U (AMD, SuiteSparse LDL's analysis), kept while Newton contracts"}
 
@@ -131,7 +131,7 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False, stats=None
                                     if plan.dae_bdf and scene.quaternion_norm == "project"
                                     else scene.quaternion_norm), "t0": req.t0,
                 "t_end": req.t_end, **plan.manifest,
-                "linear_solve": ("dense M + alpha_p C^T C (LAPACK dpotrf)"
+                "linear_solve": (f"dense M + alpha_p C^T C ({DENSE_CHOLESKY})"
                                  if formulation == "penalty" else SPATIAL_SCHUR[sparse]),
                 "locate_events": bool(req.locate_events) and plan.method in ("dopri54", "bs32"),
                 "watch": {"position": w.position, "velocity": w.velocity,

@@ -116,13 +116,16 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         constraint rows, else schur when every body has mass and inertia (in-house dense up to
         12 rows, sparse above), else kkt); ``"revolute_schur"`` (S = D M^-1 D^T in closed 2 x 2
         blocks from the joint points, block LDL^T); ``"schur"`` (S from the nonzeros of D, any
-        joint type, dense at any size: in-house block LDL^T up to 12 rows, LAPACK dpotrf/dpotrs
-        with small_dense=False or more rows); ``"sparse"`` (the same S kept sparse and
+        joint type, dense at any size: in-house block LDL^T up to 12 rows, the general dense
+        Cholesky with small_dense=False or more rows); ``"sparse"`` (the same S kept sparse and
         factorised by SuiteSparse's AMD + LDL, O(N) for a chain or tree; trapezoidal_index3's
         augmented Newton matrix likewise, and the assembly of the initial state); ``"kkt"``
-        ([M D^T; D 0] by LAPACK's LU). Planar scenes only.
+        ([M D^T; D 0] by the general dense LU). The general dense factorisations are
+        LAPACK's algorithms, written out in one order of sums up to 64 unknowns (the same bits
+        on every CPU) and LAPACK's own above. Planar scenes only.
     small_dense : bool
-        The in-house factorisations of small matrices (default True); False takes LAPACK's.
+        The factorisations for tiny systems, up to 12 rows (block LDL^T, explicit inverse;
+        default True); False takes the general dense ones.
         Planar scenes only.
     assemble_initial : bool
         Move the coordinates not marked ``given`` onto the joints before the run (Gauss-Newton;

@@ -8,8 +8,10 @@
 !> (mbdk_forces_tangent) and K_c the geometric stiffness of the joints (mbdk_joints_tangent).
 !> mbdk_index3_factors_t factorises it: up to MBDK_SMALL_DENSE_MAX rows in-house (the augmented
 !> matrix, when symmetric to roundoff and positive definite, by the block LDL^T with the bodies
-!> as 3 x 3 pivot blocks, else by the LU with partial pivoting; an LU that has served two solves
-!> forms its explicit inverse for the next ones), otherwise by LAPACK's dgetrf/dgetrs; the
+!> as 3 x 3 pivot blocks, else by mbdk_lapack's LU with partial pivoting, whose explicit
+!> inverse serves from an LU's third solve on; a matrix not finite is refused, as the LU, like
+!> dgetrf, would take an infinite pivot and return finite nonsense), otherwise by mbdk_lapack's
+!> LU (dgetrf's algorithm, in-house up to 64 unknowns); the
 !> augmented matrix of a large scene (more than MBDK_SPARSE_MIN_ROWS constraint rows, or solver
 !> sparse) sparse: assembled element by element into the body-block pattern of
 !> mbdk_body_pattern (each element's tangent formed on its two bodies alone, by the same
@@ -180,6 +182,10 @@ contains
       end if
     end if
     if (stat /= MBDK_SUCCESS .or. fa%ldlt) return
+    if (fa%small) then
+      stat = MBDK_ERR_SINGULAR_MATRIX
+      if (.not. all(abs(fa%lu(1:fa%nk, 1:fa%nk)) <= huge(1.0_dp))) return
+    end if
     call mbdk_lu_factor(fa%lu, fa%ipiv, stat)
   end subroutine mbdk_index3_factor
 

@@ -101,13 +101,13 @@
 !> make them long to write) gets the residual's Jacobian by forward differences in each
 !> component of dq (build_matrix: one evaluation per column, the multipliers' update
 !> lam* + alpha Phi and the retraction included; the book form's columns of s lambda are C^T),
-!> factorised by LAPACK's LU; it is reused as the analytic one is.
+!> factorised by mbdk_lapack's LU; it is reused as the analytic one is.
 !>
-!> Newton. On planar scenes, up to MBDK_SMALL_DENSE_MAX rows the matrix is factorised in-house (LAPACK's call
-!> overhead dominates such systems; model%small_dense = false, or more rows, take LAPACK's
-!> dgetrf/dgetrs): the augmented form's matrix, when symmetric to roundoff (no dampers: their
-!> tangent stiffness is unsymmetric) and positive definite, by the block LDL^T with the bodies as
-!> 3 x 3 pivot blocks (half the cost of the LU: 0.76 us per step on the double pendulum at
+!> Newton. On planar scenes, up to MBDK_SMALL_DENSE_MAX rows the matrix is factorised by the
+!> tiny-system routines (a call's overhead dominates such systems; model%small_dense = false,
+!> or more rows, take mbdk_lapack's general LU): the augmented form's matrix, when symmetric
+!> to roundoff (no dampers: their tangent stiffness is unsymmetric) and positive definite, by
+!> the block LDL^T with the bodies as 3 x 3 pivot blocks (half the cost of the LU: 0.76 us per step on the double pendulum at
 !> h = 1e-3 against 1.2 us); otherwise by the LU with partial pivoting. An LU that has served two
 !> solves forms its explicit inverse for the next ones (a fixed-length column product, a quarter
 !> of the triangular sweeps at 10 rows: the book scheme's matrix serves about 30 solves;
@@ -1643,8 +1643,8 @@ contains
   !> mechanism without tangents, forward differences of the residual in each component of dq
   !> (the multipliers' update lt = ln + alpha Phi and the retraction included, so that the
   !> matrix is the residual's Jacobian; one evaluation per column, counted in nfev), the book
-  !> scheme's columns of s lambda being C^T; factorised by LAPACK's LU. The evaluation and the
-  !> residual at the iterate are restored after.
+  !> scheme's columns of s lambda being C^T; factorised by mbdk_lapack's LU. The evaluation and
+  !> the residual at the iterate are restored after.
   subroutine build_matrix(s, mech, ierr)
     type(mbdk_index3_t), intent(inout) :: s
     class(mbdk_mechanism_t), intent(in) :: mech

@@ -12,7 +12,10 @@
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
 !> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
 !> is not positive (or NaN); the pivoted one takes the first largest remaining diagonal entry
-!> and stops at one at or below dstop (dpstf2's rule, its running dot products included).
+!> and stops at one at or below dstop (dpstf2's rule, its running dot products included). Like
+!> LAPACK's, the LU takes a NaN or infinite entry as it comes (a caller that must refuse one
+!> tests its matrix, as mbdk_index3_matrix's small path does; bdf's corrector meets a NaN in its
+!> increments and retries smaller).
 module mbdk_fixed_order
   use mbdk_kinds, only: dp
   implicit none

@@ -26,10 +26,10 @@
 !>     to MBDK_SMALL_DENSE_MAX rows, or solver schur, dense, by an in-house root-free Cholesky
 !>     (LDL^T) with the joints as pivot blocks, eliminating the right-hand side along with the
 !>     matrix in one pass (mbdk_small_ldlt_solve_once: S serves one solve; LAPACK's call
-!>     overhead dominates such tiny systems), or by LAPACK dpotrf/dpotrs for more rows (solver
+!>     overhead dominates such tiny systems), or by mbdk_lapack's Cholesky for more rows (solver
 !>     schur) or small_dense off; with solver auto above MBDK_SMALL_DENSE_MAX rows, or solver
 !>     sparse, kept sparse and factorised by AMD + LDL (mbdk_constrained's sparse path);
-!>   - otherwise (or solver kkt) the KKT matrix [M D^T; D 0] is factorised with LAPACK dgetrf.
+!>   - otherwise (or solver kkt) the KKT matrix [M D^T; D 0] is factorised by mbdk_lapack's LU.
 !> Dependent (redundant) constraint rows make S or the KKT matrix singular:
 !> MBDK_ERR_SINGULAR_MATRIX. The penalty matrix M + ap D^T D stays definite with redundant rows.
 !> Solver schur or revolute without M positive, or revolute with a joint of another type:

@@ -165,7 +165,8 @@ module mbdk_spatial_model
   !> above
   real(dp), parameter :: REDUNDANT_RTOL = 1.0e-10_dp
   !> select_rows' ties: values within this fraction of each other are equal (a symmetric
-  !> mechanism ties exactly, and a pick by the largest alone went by roundoff)
+  !> mechanism ties exactly, and a pick by the largest alone would go by roundoff, which the
+  !> mechanism's place or another CPU's sums change)
   real(dp), parameter :: SELECT_TIE_RTOL = 1.0e-8_dp
   !> a pivot of the mass-weighted S at or below this fraction of its row's diagonal is a
   !> numerically singular solve
@@ -835,6 +836,7 @@ contains
     do k = 1, model%nprim
       associate (p => model%prim(k))
         model%length = max(model%length, norm2(p%si), norm2(p%sj))
+        if (p%kind == PRIM_ANGLE) cycle          ! (its si, sj are no points)
         local = norm2(p%sj)
         if (p%bj == 0) local = norm2(p%sj - centre)
         model%geo_length = max(model%geo_length, norm2(p%si), local)
@@ -1684,16 +1686,18 @@ contains
   !> The independent rows of C with the greatest margin (in their order in C), judged on the
   !> geometry G = C W C^T (W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per body, L = geo_length:
   !> rotations as the displacements they give at the mechanism's size, so that neither the unit
-  !> of length, nor where the mechanism stands, nor a light or slender body sways the test) scaled to a unit diagonal. LAPACK's rank-revealing
-  !> Cholesky (dpstrf; pivots at or below REDUNDANT_RTOL are zero) gives the rank r and the
+  !> of length, nor where the mechanism stands, nor a light or slender body sways the test)
+  !> scaled to a unit diagonal. The rank-revealing Cholesky (mbdk_chol_pivoted, dpstrf's
+  !> algorithm; pivots at or below REDUNDANT_RTOL are zero) gives the rank r and the
   !> dependencies of the m - r remaining rows on the others: the left null vectors Y of the
   !> scaled C. The rows left out are then chosen by pivoting on the rows of Y (the subset
   !> selection of Golub, Klema and Stewart): those with the largest share in the dependencies,
   !> whose removal leaves the others furthest from dependent. dpstrf's own choice breaks the ties
   !> of a unit diagonal by order and can leave a set that nears a rank loss of its own along the
-  !> motion (on Bricard's linkage it did, once per swing). With rank0 set: a rank above it is MBDK_ERR_CONSTRAINT_DRIFT (the state left the
-  !> joints far enough that their dependent rows disagree), one below MBDK_ERR_SINGULAR_MATRIX (a
-  !> singular pose); a vanishing row is MBDK_ERR_SINGULAR_MATRIX too.
+  !> motion (on Bricard's linkage it did, once per swing). With rank0 set: a rank above it is
+  !> MBDK_ERR_CONSTRAINT_DRIFT (the state left the joints far enough that their dependent rows
+  !> disagree), one below MBDK_ERR_SINGULAR_MATRIX (a singular pose); a vanishing row is
+  !> MBDK_ERR_SINGULAR_MATRIX too.
   !> MBDK_ERR_NO_MEMORY: asked gets the bytes (mbdk_memory).
   subroutine select_rows(model, c, rows, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
@@ -1750,11 +1754,10 @@ contains
       ! largest remaining entry, take it out of the other columns, repeat; the rows left out
       ! then make Y(out, :) nonsingular, which is what leaves the kept rows independent. Rows
       ! whose entries tie (SELECT_TIE_RTOL; Bricard's linkage has four at its start) leave sets
-      ! of the same volume (a principal minor of G is its pseudo-determinant times y_j^2), so
-      ! the last pick among them takes the set furthest from a rank loss, the least trace of
-      ! its G^-1 (the sets tied in share differ there by 4 % on Bricard's linkage, and the
-      ! first of them drifted 20 times as much over 10 s), and every other tie goes to the
-      ! first row in C's order
+      ! of the same volume (a principal minor of G is its pseudo-determinant times y_j^2), but
+      ! not equally far from a rank loss, and the reduced form's drift follows that distance:
+      ! the last pick among them takes the set with the least trace of its G^-1, and every other
+      ! tie goes to the first row in C's order
       do k = 1, nd
         big = -1.0_dp
         do l = k, nd
@@ -1775,7 +1778,7 @@ contains
                 col = l
               end if
               if (k < nd) exit candidates
-              call inverse_trace(j, spread, stat)
+              call inverse_trace(g0, keep, j, spread, stat, asked)
               if (stat /= MBDK_SUCCESS) return
               if (spread < (1.0_dp - SELECT_TIE_RTOL) * least) then
                 least = spread
@@ -1802,39 +1805,6 @@ contains
     rows = pack([(k, k = 1, m)], keep)
     stat = MBDK_SUCCESS
   contains
-    !> spread: the trace of G^-1 over the kept rows but j (G's lower triangle in g0; huge where
-    !> it is not positive definite), the sum of its inverse eigenvalues: a set's distance from a
-    !> rank loss that, unlike the order-bound pivots, no ordering of its rows changes.
-    subroutine inverse_trace(j, spread, stat)
-      integer, intent(in) :: j
-      real(dp), intent(out) :: spread
-      integer, intent(out) :: stat
-      real(dp), allocatable :: gk(:, :), z(:)
-      integer, allocatable :: idx(:)
-      integer :: n, p, q, i, st
-      idx = pack([(i, i = 1, m)], keep .and. [(i /= j, i = 1, m)])
-      n = size(idx)
-      allocate (gk(n, n), z(n), stat=st)
-      call mbdk_alloc_status(st, MBDK_REAL_BYTES * real(n, dp) * (n + 1), stat, asked)
-      if (stat /= MBDK_SUCCESS) return
-      do q = 1, n
-        do p = q, n
-          gk(p, q) = g0(idx(p), idx(q))         ! idx ascends: g0's lower triangle
-        end do
-      end do
-      spread = huge(1.0_dp)
-      call mbdk_chol_factor(gk, st)
-      if (st /= MBDK_SUCCESS) return
-      spread = 0.0_dp
-      do i = 1, n                                ! |L^-1 e_i|^2, by forward substitution
-        z(i) = 1.0_dp / gk(i, i)
-        do p = i + 1, n
-          z(p) = -dot_product(gk(p, i:p - 1), z(i:p - 1)) / gk(p, p)
-        end do
-        spread = spread + sum(z(i:n)**2)
-      end do
-    end subroutine inverse_trace
-
     !> x solving L^T x = bvec for the lower triangular L.
     pure function lower_transpose_solve(l, bvec) result(x)
       real(dp), intent(in) :: l(:, :), bvec(:)
@@ -1846,12 +1816,56 @@ contains
     end function lower_transpose_solve
   end subroutine select_rows
 
+  !> spread: the trace of G^-1 over the rows kept but j (G's lower triangle in g0, scaled to a
+  !> unit diagonal; huge where it is not positive definite), the sum of its inverse
+  !> eigenvalues: a set's distance from a rank loss that, unlike the order-bound pivots, no
+  !> ordering of its rows changes (select_rows' ties). MBDK_ERR_NO_MEMORY: asked gets the bytes.
+  subroutine inverse_trace(g0, keep, j, spread, stat, asked)
+    real(dp), intent(in) :: g0(:, :)
+    logical, intent(in) :: keep(:)
+    integer, intent(in) :: j
+    real(dp), intent(out) :: spread
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    real(dp), allocatable :: gk(:, :), z(:)
+    integer, allocatable :: idx(:)
+    integer :: n, p, q, i, st
+    spread = huge(1.0_dp)
+    n = count(keep) - merge(1, 0, keep(j))
+    allocate (gk(n, n), z(n), idx(n), stat=st)
+    call mbdk_alloc_status(st, MBDK_REAL_BYTES * real(n, dp) * (n + 1) + &
+                           MBDK_INT_BYTES * n, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    n = 0
+    do i = 1, size(keep)
+      if (keep(i) .and. i /= j) then
+        n = n + 1
+        idx(n) = i
+      end if
+    end do
+    do q = 1, n
+      do p = q, n
+        gk(p, q) = g0(idx(p), idx(q))         ! idx ascends: g0's lower triangle
+      end do
+    end do
+    call mbdk_chol_factor(gk, st)
+    if (st /= MBDK_SUCCESS) return
+    spread = 0.0_dp
+    do i = 1, n                                ! |L^-1 e_i|^2, by forward substitution
+      z(i) = 1.0_dp / gk(i, i)
+      do p = i + 1, n
+        z(p) = -dot_product(gk(p, i:p - 1), z(i:p - 1)) / gk(p, p)
+      end do
+      spread = spread + sum(z(i:n)**2)
+    end do
+  end subroutine inverse_trace
+
   !> MBDK_ERR_SINGULAR_MATRIX when the active rows of C are near a rank loss: a relative pivot
   !> (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per
   !> body (L = geo_length: rotations as the displacements they give at the mechanism's size, so
-  !> that the test depends neither on the unit of length nor on where the mechanism stands). The geometry alone, not the masses: with M^-1 in
-  !> its place a slender body's small axial inertia (a bar's) makes rows look near dependent at a
-  !> regular pose.
+  !> that the test depends neither on the unit of length nor on where the mechanism stands). The
+  !> geometry alone, not the masses: with M^-1 in its place a slender body's small axial inertia
+  !> (a bar's) makes rows look near dependent at a regular pose.
   subroutine near_test(model, c, near, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), near     !< the rows to test
@@ -2471,7 +2485,7 @@ contains
       end associate
     end do
     reach(0) = maxval(reach(1:))
-    if (.not. (reach(0) > 0.0_dp)) reach(0) = self%length
+    if (.not. (reach(0) > 0.0_dp)) reach(0) = self%geo_length
     w = 1.0_dp
     do b = 1, self%nb
       if (.not. (reach(b) > 0.0_dp)) reach(b) = reach(0)
