@@ -125,10 +125,10 @@ SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
 SPARSE_MIN_ROWS = 12
 #: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (mbdk_constrained)
 #: the general dense factorisations (kernel/src/linalg/mbdk_lapack.f90: LAPACK's algorithms,
-#: written out in one order of sums up to 64 unknowns so that every CPU gets the same bits)
-DENSE_CHOLESKY = ("dense Cholesky (mbdk_lapack: in one order of sums up to 64 rows, LAPACK dpotrf "
+#: written out in one order of sums up to 128 unknowns so that every CPU gets the same bits)
+DENSE_CHOLESKY = ("dense Cholesky (mbdk_lapack: in one order of sums up to 128 rows, LAPACK dpotrf "
                   "above)")
-DENSE_LU = "dense LU (mbdk_lapack: in one order of sums up to 64 unknowns, LAPACK dgetrf above)"
+DENSE_LU = "dense LU (mbdk_lapack: in one order of sums up to 128 unknowns, LAPACK dgetrf above)"
 LINEAR_SOLVES = {0: "none (no constraints)",
                  1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
                  2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",

@@ -121,7 +121,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
         factorised by SuiteSparse's AMD + LDL, O(N) for a chain or tree; trapezoidal_index3's
         augmented Newton matrix likewise, and the assembly of the initial state); ``"kkt"``
         ([M D^T; D 0] by the general dense LU). The general dense factorisations are
-        LAPACK's algorithms, written out in one order of sums up to 64 unknowns (the same bits
+        LAPACK's algorithms, written out in one order of sums up to 128 unknowns (the same bits
         on every CPU) and LAPACK's own above. Planar scenes only.
     small_dense : bool
         The factorisations for tiny systems, up to 12 rows (block LDL^T, explicit inverse;

@@ -11,7 +11,7 @@
 !> as 3 x 3 pivot blocks, else by mbdk_lapack's LU with partial pivoting, whose explicit
 !> inverse serves from an LU's third solve on; a matrix not finite is refused, as the LU, like
 !> dgetrf, would take an infinite pivot and return finite nonsense), otherwise by mbdk_lapack's
-!> LU (dgetrf's algorithm, in-house up to 64 unknowns); the
+!> LU (dgetrf's algorithm, in-house up to 128 unknowns); the
 !> augmented matrix of a large scene (more than MBDK_SPARSE_MIN_ROWS constraint rows, or solver
 !> sparse) sparse: assembled element by element into the body-block pattern of
 !> mbdk_body_pattern (each element's tangent formed on its two bodies alone, by the same

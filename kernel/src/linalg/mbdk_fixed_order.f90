@@ -5,8 +5,10 @@
 !>     dswap, ...) by CPU, and they order their sums differently, so a mechanism's Newton
 !>     matrix or Schur complement factorised under another kernel moved bdf's steps and where
 !>     a run next to a singular pose stopped (tests/test_same_bits.py runs both kinds);
-!>   - at these sizes the call into LAPACK costs more than the work; above them LAPACK's
-!>     blocked routines win (the crossover, measured for the LU, lies between 64 and 128).
+!>   - up to about 64 unknowns the call into LAPACK costs more than the work. From there to
+!>     128 LAPACK's blocked LU is faster (about 1.6 times at 96), and the bound takes that cost
+!>     for the DAE forms of the small closed loops (Bricard's linkage, 95 unknowns; the flyball
+!>     governor, 72), whose runs it makes the same on every kernel for a few percent of CPU.
 !> Each routine follows its LAPACK namesake's algorithm, storage and tests: the LU keeps U on
 !> and above the diagonal and the unit lower L below it, row j swapped with ipiv(j) at step j
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
@@ -23,9 +25,8 @@ module mbdk_fixed_order
   public :: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve, mbdk_fixed_chol_factor, &
     mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted
 
-  !> the largest order mbdk_lapack factorises here (above it LAPACK's blocked routines are
-  !> faster: see the module header)
-  integer, parameter, public :: MBDK_FIXED_ORDER_MAX = 64
+  !> the largest order mbdk_lapack factorises here (see the module header)
+  integer, parameter, public :: MBDK_FIXED_ORDER_MAX = 128
 
 contains
 
@@ -36,7 +37,7 @@ contains
     real(dp), intent(inout) :: a(n, n)
     integer, intent(out) :: ipiv(n), info
     integer :: i, j, k, p
-    real(dp) :: amax, x, r
+    real(dp) :: amax, x, r, x0, x1, x2, x3
     info = 0
     do j = 1, n
       p = j
@@ -69,7 +70,23 @@ contains
           a(i, j) = a(i, j) / a(j, j)
         end do
       end if
-      do k = j + 1, n
+      ! the trailing update four columns at a pass over column j (each entry still takes its
+      ! one product per step, so the sums are those of a column at a time)
+      k = j + 1
+      do while (k + 3 <= n)
+        x0 = a(j, k)
+        x1 = a(j, k + 1)
+        x2 = a(j, k + 2)
+        x3 = a(j, k + 3)
+        do i = j + 1, n
+          a(i, k) = a(i, k) - a(i, j) * x0
+          a(i, k + 1) = a(i, k + 1) - a(i, j) * x1
+          a(i, k + 2) = a(i, k + 2) - a(i, j) * x2
+          a(i, k + 3) = a(i, k + 3) - a(i, j) * x3
+        end do
+        k = k + 4
+      end do
+      do k = k, n
         x = a(j, k)
         do i = j + 1, n
           a(i, k) = a(i, k) - a(i, j) * x
