@@ -198,7 +198,8 @@ TABLES = {
 #: Python's single codes and sizes -> the kernel constant each mirrors
 SCALARS = {"FROM_POSE": "MBDK_FROM_POSE", "SPARSE_MIN_ROWS": "MBDK_SPARSE_MIN_ROWS",
            "SPATIAL_JOINT_REALS": "MBDK_SPATIAL_JOINT_REALS",
-           "SPATIAL_FORCE_REALS": "MBDK_SPATIAL_FORCE_REALS"}
+           "SPATIAL_FORCE_REALS": "MBDK_SPATIAL_FORCE_REALS",
+           "FIXED_ORDER_MAX": "MBDK_FIXED_ORDER_MAX"}
 
 
 def _python_table(name: str) -> dict:

@@ -147,8 +147,8 @@ def test_unconstrained_scene_follows_the_exact_discrete_solution():
 
 
 def test_in_house_lu_matches_lapack():
-    """small_dense = False takes the general dense LU (mbdk_lapack) for the Newton matrix and the KKT
-    matrix of the projections; the in-house factorisations (the augmented form's block LDL^T
+    """small_dense = False takes the general dense LU (mbdk_lapack) for the Newton matrix and
+    the KKT matrix of the projections; the in-house factorisations (the augmented form's block LDL^T
     when its matrix is symmetric, else LU; the Schur complement's LDL^T) must give the same run
     to roundoff: on a scene with every tangent (dampers: a non-symmetric Newton matrix, LU), the
     same scene without dampers (symmetric: LDL^T) and on the crane."""

@@ -12,11 +12,15 @@ all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it t
 OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
 from __future__ import annotations
 
+import json
 import os
 import platform
+import re
+import shlex
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -80,3 +84,54 @@ def test_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
     assert len(first) == len(NAMES) + 2          # (a02_bdf at two tolerances, dae on two)
     for kernel, lines in taken.items():
         assert lines == first, (kernel, lines, first)
+
+
+def _library_matmuls(entry: dict, tmp: Path) -> list[int]:
+    """The source lines of entry's file whose MATMUL calls libgfortran with no inline branch,
+    from gfortran's tree dump of it compiled with the build's own command (its objects and
+    module files written under tmp, not the build's)."""
+    args = shlex.split(entry["command"])
+    out = args.index("-o")
+    args[out + 1] = str(tmp / "x.o")
+    args = [a if not a.startswith("-J") else f"-J{tmp}" for a in args]
+    args += ["-I" + a[2:] for a in shlex.split(entry["command"]) if a.startswith("-J")]
+    args.append("-fdump-tree-original-lineno")
+    proc = subprocess.run(args, cwd=entry["directory"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (dump,) = tmp.glob("*.original")
+    name = re.escape(Path(entry["file"]).name)
+    calls, guarded = set(), set()
+    for line in dump.read_text().splitlines():
+        m = re.search(name + r":(\d+)", line)
+        if m is None:
+            continue
+        if "_gfortran_matmul_r8" in line:
+            calls.add(int(m.group(1)))
+        if re.search(r"<= (4\.096e\+3|2\.62144e\+5)\)", line):   # 64^2, 64^3: inline below
+            guarded.add(int(m.group(1)))
+    dump.unlink()
+    return sorted(calls - guarded)
+
+
+def test_the_kernels_matrix_products_are_compiled_inline(tmp_path):
+    """libgfortran's MATMUL picks an AVX, AVX2 or AVX-512 variant by CPU at run time, each
+    rounding its sums its own way, which no OPENBLAS_CORETYPE shows: the kernel is built with
+    -finline-matmul-limit=64 (meson.build), and gfortran then compiles every product inline up
+    to that order, except forms it never inlines (transpose(A) times a vector, a product of a
+    product, a function's result as an argument). No kernel source may hold one of those: each
+    library call in the tree dump of a file that uses MATMUL must sit behind gfortran's size
+    test, in the branch taken only above order 64."""
+    root = Path(__file__).resolve().parents[1]
+    found = sorted((root / "build").glob("cp*/compile_commands.json"))
+    if not found:
+        pytest.skip("no meson build directory beside the sources (an installed mbdk)")
+    entries = [e for e in json.loads(found[0].read_text())
+               if "libmbdk" in e["output"] and e["file"].endswith(".f90")
+               and "matmul(" in (Path(e["directory"]) / e["file"]).read_text().lower()]
+    assert len(entries) >= 10
+    unguarded = {}
+    for e in entries:
+        lines = _library_matmuls(e, tmp_path)
+        if lines:
+            unguarded[Path(e["file"]).name] = lines
+    assert not unguarded, unguarded

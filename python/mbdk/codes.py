@@ -123,12 +123,15 @@ FORMULATIONS = {"reduced": 1, "baumgarte": 2, "penalty": 3, "projection": 4}
 SOLVERS = {"auto": 1, "schur": 2, "kkt": 3, "revolute_schur": 4, "sparse": 5}
 #: constraint rows above which solver="auto" goes sparse (MBDK_SPARSE_MIN_ROWS)
 SPARSE_MIN_ROWS = 12
+#: the general dense factorisations (kernel/src/linalg/mbdk_lapack.f90): LAPACK's algorithms,
+#: written out in one order of sums up to this order (MBDK_FIXED_ORDER_MAX) so that every BLAS
+#: kernel gives the same bits, LAPACK's own above
+FIXED_ORDER_MAX = 128
+DENSE_CHOLESKY = (f"dense Cholesky (mbdk_lapack: in one order of sums up to {FIXED_ORDER_MAX} "
+                  "rows, LAPACK dpotrf above)")
+DENSE_LU = (f"dense LU (mbdk_lapack: in one order of sums up to {FIXED_ORDER_MAX} unknowns, "
+            "LAPACK dgetrf above)")
 #: the linear solve an evaluation takes, by the kernel's MBDK_SOLVE_* code (mbdk_constrained)
-#: the general dense factorisations (kernel/src/linalg/mbdk_lapack.f90: LAPACK's algorithms,
-#: written out in one order of sums up to 128 unknowns so that every CPU gets the same bits)
-DENSE_CHOLESKY = ("dense Cholesky (mbdk_lapack: in one order of sums up to 128 rows, LAPACK dpotrf "
-                  "above)")
-DENSE_LU = "dense LU (mbdk_lapack: in one order of sums up to 128 unknowns, LAPACK dgetrf above)"
 LINEAR_SOLVES = {0: "none (no constraints)",
                  1: "revolute_schur: S = D M^-1 D^T in closed 2 x 2 blocks, block LDL^T",
                  2: "schur: S = D M^-1 D^T from the nonzeros of D, in-house block LDL^T",

@@ -22,8 +22,9 @@ augmented_lagrangian
 Newton: converged when the update computed at an iterate is within rtol/atol (defaults 1e-10,
 1e-12; simulate's newton_rtol/newton_atol) and max |Phi| <= atol there; max_iter updates
 (default 20). small_dense=False takes the general dense LU (mbdk_lapack) instead of the
-tiny-system one (block LDL^T, explicit inverse) for the Newton and projection matrices. The result's `a` and `multipliers` are the integrator's own;
-`iterations` holds the Newton iterations of the step behind each sample.
+tiny-system one (block LDL^T, explicit inverse) for the Newton and projection matrices. The
+result's `a` and `multipliers` are the integrator's own; `iterations` holds the Newton
+iterations of the step behind each sample.
 
 Step size: fixed (h, every) by default. adaptive=True (= "extrapolated") starts from h and
 controls the step on q and v (multipliers excluded) against err_rtol/err_atol (defaults 1e-6,

@@ -6,18 +6,17 @@
 !>     matrix or Schur complement factorised under another kernel moved bdf's steps and where
 !>     a run next to a singular pose stopped (tests/test_same_bits.py runs both kinds);
 !>   - up to about 64 unknowns the call into LAPACK costs more than the work. From there to
-!>     128 LAPACK's blocked LU is faster (about 1.6 times at 96), and the bound takes that cost
-!>     for the DAE forms of the small closed loops (Bricard's linkage, 95 unknowns; the flyball
-!>     governor, 72), whose runs it makes the same on every kernel for a few percent of CPU.
+!>     128 LAPACK's blocked LU is faster, and the bound takes that cost for the DAE forms of the
+!>     small closed loops (Bricard's linkage, 95 unknowns; the flyball governor, 72), whose runs
+!>     it makes the same under every kernel.
 !> Each routine follows its LAPACK namesake's algorithm, storage and tests: the LU keeps U on
 !> and above the diagonal and the unit lower L below it, row j swapped with ipiv(j) at step j
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
 !> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
 !> is not positive (or NaN); the pivoted one takes the first largest remaining diagonal entry
 !> and stops at one at or below dstop (dpstf2's rule, its running dot products included). Like
-!> LAPACK's, the LU takes a NaN or infinite entry as it comes (a caller that must refuse one
-!> tests its matrix, as mbdk_index3_matrix's small path does; bdf's corrector meets a NaN in its
-!> increments and retries smaller).
+!> LAPACK's, the LU takes a NaN or infinite entry as it comes: a caller that must refuse one
+!> tests its matrix (mbdk_index3_matrix's small path does).
 module mbdk_fixed_order
   use mbdk_kinds, only: dp
   implicit none
@@ -86,11 +85,12 @@ contains
         end do
         k = k + 4
       end do
-      do k = k, n
+      do while (k <= n)
         x = a(j, k)
         do i = j + 1, n
           a(i, k) = a(i, k) - a(i, j) * x
         end do
+        k = k + 1
       end do
     end do
   end subroutine mbdk_fixed_lu_factor

@@ -249,7 +249,7 @@ contains
     r_best = huge(1.0_dp)
     cs%al_iters = 0
     do k = 1, MBDK_CONSTRAINED_AL_ITER
-      cs%alx = b - matmul(transpose(cs%ald), mu_k - cs%beta * c)
+      cs%alx = b - matmul(mu_k - cs%beta * c, cs%ald)   ! D^T x as x^T D (meson.build)
       call mbdk_chol_solve(cs%al, cs%alx, stat)
       if (stat /= MBDK_SUCCESS) return
       cs%al_iters = k

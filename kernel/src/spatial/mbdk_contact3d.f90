@@ -122,10 +122,13 @@ contains
     type(mbdk_contact3d_t), intent(in) :: ct
     real(dp), intent(in) :: r1(3), rot1(3, 3), r2(3), rot2(3, 3)
     real(dp), intent(out) :: f1(3), m1(3), f2(3), m2(3)
+    real(dp) :: x(3)
     f1 = ct%f
-    m1 = matmul(transpose(rot1), mbdk_cross(ct%c - r1, ct%f))
+    x = mbdk_cross(ct%c - r1, ct%f)
+    m1 = matmul(x, rot1)          ! R^T x as x^T R, of a variable: gfortran inlines it (meson.build)
     f2 = -ct%f
-    m2 = -matmul(transpose(rot2), mbdk_cross(ct%c - r2, ct%f))
+    x = mbdk_cross(ct%c - r2, ct%f)
+    m2 = -matmul(x, rot2)
   end subroutine mbdk_contact3d_loads
 
   !> The contact's two event functions: the law's (mbdk_contact_event: the normal force before

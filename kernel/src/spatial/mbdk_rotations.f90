@@ -101,11 +101,16 @@ contains
     real(dp), intent(in) :: a(3)
     real(dp), intent(out) :: r(3, 3)
     integer, intent(out) :: stat
+    real(dp) :: r1(3, 3), r2(3, 3), r3(3, 3), r12(3, 3)
     r = 0.0_dp
     stat = MBDK_ERR_INVALID_INPUT
     if (.not. valid_sequence(seq) .or. .not. all(abs(a) <= huge(1.0_dp))) return
-    r = matmul(matmul(mbdk_axis_rotation(seq(1), a(1)), mbdk_axis_rotation(seq(2), a(2))), &
-               mbdk_axis_rotation(seq(3), a(3)))
+    ! (products of named matrices: gfortran inlines those, not a product of products)
+    r1 = mbdk_axis_rotation(seq(1), a(1))
+    r2 = mbdk_axis_rotation(seq(2), a(2))
+    r3 = mbdk_axis_rotation(seq(3), a(3))
+    r12 = matmul(r1, r2)
+    r = matmul(r12, r3)
     stat = MBDK_SUCCESS
   end subroutine mbdk_angles_matrix
 

@@ -2443,7 +2443,7 @@ contains
           a(oo + 4:oo + 6, oo + 4:oo + 6) = a(oo + 4:oo + 6, oo + 4:oo + 6) + &
                                             self%inertia(:, :, bb)
         end do
-        acc = gen - ap * matmul(transpose(c), r)
+        acc = gen - ap * matmul(r, c)                 ! C^T r as r^T C (meson.build)
         call mbdk_chol_factor(a, st)
         if (st /= MBDK_SUCCESS) then
           st = MBDK_ERR_SINGULAR_MATRIX
