@@ -11,6 +11,10 @@ the wall time beside it:
     (`pip install exudyn`; benchmarks/exudyn_chain.py);
   - the growth exponent p of cost ~ N^p, a least-squares fit over N = 8 .. 1024;
   - closed loops (the IFToMM A02 chain of n four-bar loops, mbdk.benchmarks.a02_chain) per step;
+  - what one body costs per rk4 step (reduced formulation, h = 1e-4): the planar four-bar, the
+    planar chain of 1024 bars, the heavy top, the spatial double pendulum, Bricard's linkage
+    (IFToMM A04), the flyball governor (A05) and the spatial chain of 1024 bars, each as a
+    ratio to a body of the four-bar and of the planar chain;
   - the minimal-coordinate double pendulum's rk4 step in the kernel against a plain scalar C
     loop doing the same arithmetic, compiled and timed in this run (studies/benchmark_rk4.py's
     yardstick), SciPy's solve_ivp RK45 on it, and the kernel's bdf against SUNDIALS CVODE
@@ -19,7 +23,8 @@ the wall time beside it:
     scenes, steps and rho_inf, agreement and cost per step (benchmarks/exudyn_alpha.py, when
     exudyn is installed).
 
-Writes benchmarks/out/ (or --out): size.csv/.md, peers.csv/.md, size.png, exudyn_alpha*.csv/.md
+Writes benchmarks/out/ (or --out): size.csv/.md, loops.csv/.md, per_body.csv/.md,
+peers.csv/.md, size.png, exudyn_alpha*.csv/.md
 (with Exudyn) and manifest.json (machine, versions, settings). `python benchmarks/run.py [--quick]`.
 """
 from __future__ import annotations
@@ -41,7 +46,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "studies"))
 
 import mbdk  # noqa: E402
-from mbdk.benchmarks import a02_chain, bar_chain  # noqa: E402
+from mbdk.benchmarks import a02_chain, bar_chain, spatial_chain  # noqa: E402
 
 H = 1e-4
 
@@ -153,6 +158,8 @@ def run(out: Path, quick: bool) -> dict:
     write(loops, ["loops", "rows", "mbdk rk4 us", "rk4 path", "mbdk index3 us", "index3 path"],
           out / "loops", "Closed loops: IFToMM A02, cost per step (thread CPU, us)", "")
 
+    per_body(out, quick)
+
     # the minimal rk4 loop against a plain C loop and SciPy, double pendulum P1
     import benchmark_rk4 as b4
     peers = []
@@ -210,6 +217,43 @@ def run(out: Path, quick: bool) -> dict:
                 "timing": "thread CPU (CLOCK_THREAD_CPUTIME_ID) of the solve, best of 3"}
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
     return manifest
+
+
+def per_body(out: Path, quick: bool) -> list:
+    """What one body costs per rk4 step (reduced formulation, the path solver="auto" takes),
+    planar and spatial, measured one after the other in this run; ratios to a body of the
+    planar four-bar (the scene with the planar model's closed-form 2 x 2 blocks) and of the
+    planar chain of the same size as the spatial one."""
+    n_chain = 256 if quick else 1024
+    scenes = [("four_bar", "planar", mbdk.scene("four_bar")),
+              (f"bar chain N = {n_chain}", "planar", bar_chain(n_chain)),
+              ("heavy_top", "spatial", mbdk.scene("heavy_top")),
+              ("spatial_double_pendulum", "spatial", mbdk.scene("spatial_double_pendulum")),
+              ("bricard (A04)", "spatial", mbdk.scene("bricard")),
+              ("flyball_governor (A05)", "spatial", mbdk.scene("flyball_governor")),
+              (f"spatial chain N = {n_chain}", "spatial", spatial_chain(n_chain))]
+    rows = []
+    for name, model, sc in scenes:
+        progress(f"per body: {name}")
+        nb = len(sc.bodies)
+        m = mbdk_step(sc, "rk4", "reduced", max(20, min(2000, 20000 // nb)),
+                      repeats=3 if quick else 5)
+        rows.append({"scene": name, "model": model, "bodies": nb, "rows": sc.rows,
+                     "us/step": 1e6 * m["cpu"], "us/body": 1e6 * m["cpu"] / nb,
+                     "path": m["path"].split(":")[0].split(" (")[0]})
+    four_bar, chain = rows[0]["us/body"], rows[1]["us/body"]
+    for r in rows:
+        r["/ four-bar body"] = r["us/body"] / four_bar
+        r["/ planar chain body"] = r["us/body"] / chain
+    write(rows, ["scene", "model", "bodies", "rows", "us/step", "us/body", "/ four-bar body",
+                 "/ planar chain body", "path"], out / "per_body",
+          f"What a body costs per rk4 step (reduced formulation, h = {H:g}; thread CPU in us, "
+          "best of the runs)",
+          "The four-bar's evaluation is the planar model's closed form (2 x 2 blocks, a few "
+          "hundred instructions); a small closed spatial loop's is dense (its S of 20-30 rows, "
+          "its Cholesky, and, on a loop that can near a rank loss, the geometry's for the "
+          "near-singular test).")
+    return rows
 
 
 def cvode_row(quick: bool) -> dict:

@@ -373,8 +373,9 @@ def test_bricard_linkage_runs_with_its_redundant_row_at_the_method_order():
 
 def revolute_chain(n, x0=0.0):
     """n bars of 1 m along x from (x0, 0, 0), on revolute joints about z and y in turn, the first
-    to the ground: 5 n rows, a tree that is not one of spherical joints, so the reduced form
-    tests its rows' rank at every evaluation (8 bars, 40 rows: on the sparse path)."""
+    to the ground, the last one's angle driven (f(t) = 0.1 (cos 2t - 1)): 5 n + 1 rows, a tree
+    with a driver, so the reduced form tests its rows' rank at every evaluation (a tree without
+    drivers skips that test; 8 bars, 41 rows: on the sparse path)."""
     bodies, joints = [], []
     for i in range(n):
         bodies.append({"name": f"b{i}", "kind": "spatial", "mass": 1.0,
@@ -383,6 +384,11 @@ def revolute_chain(n, x0=0.0):
         joints.append({"name": f"R{i}", "type": "revolute", "body1": f"b{i}",
                        "at": [x0 + i, 0.0, 0.0], "axis": [0.0, 0.0, 1.0] if i % 2 == 0
                        else [0.0, 1.0, 0.0], **({"body2": f"b{i - 1}"} if i else {})})
+    joints.append({"name": "drive", "type": "angle_driver", "body1": f"b{n - 1}",
+                   "axis": [0.0, 0.0, 1.0] if (n - 1) % 2 == 0 else [0.0, 1.0, 0.0],
+                   "function": {"offset": -0.1, "amplitude": 0.1, "omega": 2.0,
+                                "phase": math.pi / 2},
+                   **({"body2": f"b{n - 2}"} if n > 1 else {})})
     return scene_from_dict({"scene": {"name": f"revolute_chain_{n}"}, "body": bodies,
                             "joint": joints, "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]})
 
@@ -585,14 +591,18 @@ def test_bad_arguments_to_spatial_runs_are_named():
 
 def test_the_rank_test_is_on_the_geometry_not_on_masses_or_units():
     """A near point mass on a hinge keeps all 5 rows (a mass-weighted test called one of them
-    dependent, and the hinge then let the body tilt); the same pendulum in millimetres runs on
-    the reduced form exactly as in metres (a near-singular test with rotations weighted by L^2
-    refused it at t = 0)."""
-    def pendulum(scale, j):
+    dependent, and the hinge then let the body tilt); the same pendulum in millimetres, its
+    angle driven (a driver keeps the near-singular test, which a tree without drivers skips),
+    runs on the reduced form exactly as in metres (a near-singular test with rotations weighted
+    by L^2 refused it at t = 0)."""
+    def pendulum(scale, j, driven=False):
+        drive = [{"name": "drive", "type": "angle_driver", "body1": "x", "axis": [0, 0, 1],
+                  "function": {"offset": -0.3, "amplitude": 0.3, "omega": 2.0,
+                               "phase": math.pi / 2}}]
         return scene_from_dict({
             "body": [body("x", 1.0, (j * scale ** 2,) * 3, position=[scale, 0.0, 0.0])],
             "joint": [{"name": "h", "type": "revolute", "body1": "x", "at": [0, 0, 0],
-                       "axis": [0, 0, 1]}],
+                       "axis": [0, 0, 1]}] + (drive if driven else []),
             "force": [{"type": "gravity", "g": [0.0, -G * scale, 0.0]},
                       {"type": "torque", "body": "x", "torque": [0.0, 1e-9 * scale ** 2, 0.0]}]})
     point = pendulum(1.0, 1e-10)
@@ -601,7 +611,7 @@ def test_the_rank_test_is_on_the_geometry_not_on_masses_or_units():
     # S's condition of 1e10 leaves its roundoff in the drift: 1e-8 over 0.5 s, against 2e-5 (and
     # a tilt rate of 2e-3 rad/s) with a row left out
     assert np.max(r.residuals[:, 0]) < 1e-7 and np.max(np.abs(r.omega_body("x")[:, :2])) < 1e-6
-    m, mm = (mbdk.simulate(pendulum(s, 0.01), "rk4", h=1e-3, t_end=1.0, every=100)
+    m, mm = (mbdk.simulate(pendulum(s, 0.01, driven=True), "rk4", h=1e-3, t_end=1.0, every=100)
              for s in (1.0, 1000.0))
     assert np.allclose(mm.position("x") / 1000.0, m.position("x"), rtol=0, atol=1e-12)
 
@@ -1120,3 +1130,24 @@ def test_trapezoidal_index3_controls_its_step_on_spatial_scenes(mode):
         assert r.residuals[:, 0].max() < 1e-12
         runs[tol] = (max(np.abs(r.q - ref.q).max(), np.abs(r.v - ref.v).max()), r.stats.steps)
     assert runs[1e-7][0] < 0.1 * runs[1e-5][0] and runs[1e-7][1] > runs[1e-5][1], runs
+
+
+@pytest.mark.parametrize("length", [0.5, 1.0, 2.0])
+def test_a_tree_of_joints_keeps_the_margin_its_skipped_near_test_would_check(length):
+    """A tree of joints without drivers skips the reduced form's near test of a rank loss
+    (model%regular_tree: C is block triangular with blocks of full rank along the motion). On
+    the flyball governor (revolute, prismatic and two revolute joints on a tree, the dense path),
+    the smallest relative Cholesky pivot of the geometry's G = C W C^T (rotations weighted
+    1/L^2; the skipped test's form, in C's order) stays far above the test's window of 1e-4
+    over two seconds of motion, for length scales L around the mechanism's: skipping the test
+    changes no outcome. (A rank loss of the tree itself would take this to zero.)"""
+    sc = mbdk.scene("flyball_governor")
+    r = mbdk.simulate(sc, "rk4", h=1e-4, t_end=2.0, every=400, formulation="reduced")
+    w = np.tile([1.0, 1.0, 1.0, length**-2, length**-2, length**-2], len(sc.bodies))
+    worst = 1.0
+    for y in r.y:
+        c = evaluate_spatial(sc, y)["C"]
+        g = (c * w) @ c.T
+        lc = np.linalg.cholesky(g)
+        worst = min(worst, float((np.diag(lc) ** 2 / np.diag(g)).min()))
+    assert worst > 1e-2, worst

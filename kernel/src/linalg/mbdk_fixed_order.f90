@@ -131,11 +131,25 @@ contains
     real(dp), intent(inout) :: a(n, n)
     integer, intent(out) :: info
     integer :: i, j, k
-    real(dp) :: ajj, x
+    real(dp) :: ajj, x, x1, x2, x3
     info = 0
     do j = 1, n
-      ! column j less the columns before it, k = 1 .. j - 1 in turn (down a contiguous column)
-      do k = 1, j - 1
+      ! column j less the columns before it, k = 1 .. j - 1 in turn (down a contiguous column),
+      ! four of them at a pass over column j: each entry still takes them one at a time, in
+      ! that order, and is loaded and stored once per pass
+      k = 1
+      do while (k + 3 <= j - 1)
+        x = a(j, k)
+        x1 = a(j, k + 1)
+        x2 = a(j, k + 2)
+        x3 = a(j, k + 3)
+        do i = j, n
+          a(i, j) = (((a(i, j) - a(i, k) * x) - a(i, k + 1) * x1) - a(i, k + 2) * x2) - &
+                    a(i, k + 3) * x3
+        end do
+        k = k + 4
+      end do
+      do k = k, j - 1
         x = a(j, k)
         do i = j, n
           a(i, j) = a(i, j) - a(i, k) * x

@@ -9,8 +9,8 @@
 !>            rows, or the subset a redundant scene keeps), by Cholesky, each pivot against its
 !>            row's diagonal at roundoff (SOLVE_RTOL) and, where the caller asks, the geometric
 !>            near test of the model (near_test, the rows' C W C^T with rotations at the length
-!>            scale; none on a tree of spherical joints, model%regular_tree); the other rows get
-!>            no multiplier;
+!>            scale; none on a tree of joints without drivers, model%regular_tree); the other
+!>            rows get no multiplier;
 !>   regular  where that fails and the caller allows it (a singular pose): the augmented
 !>            Lagrangian iteration of Bayo and Ledesma (1996) on all rows,
 !>              (M + beta C^T C) x_k+1 = b - C^T mu_k + beta C^T c,  mu_k+1 = mu_k + beta (C x - c),
@@ -22,10 +22,10 @@
 !> evaluation O(bodies + rows).
 !>   C        in compact rows (twelve values a row on its two bodies), as the ODE path keeps it;
 !>   solves   S = C M^-1 C^T by mbdk_compact_schur (its own pattern, built as the model's),
-!>            the near test on the geometry's G as the ODE path's (none on a tree of spherical
-!>            joints, model%regular_tree); the augmented form's regular path as the dense one's,
-!>            M + beta C^T C in the body pattern by the symmetric LDL^T (the book form has none:
-!>            a rank loss is MBDK_ERR_SINGULAR_MATRIX by name);
+!>            the near test on the geometry's G as the ODE path's (none on a tree of joints
+!>            without drivers, model%regular_tree); the augmented form's regular path as the
+!>            dense one's, M + beta C^T C in the body pattern by the symmetric LDL^T (the book
+!>            form has none: a rank loss is MBDK_ERR_SINGULAR_MATRIX by name);
 !>   Newton   the model's own matrix (has_i3_matrix on). K = M - ck dg/dq - cd dg/dv,
 !>            g = f - C^T lam, by differences of colored columns: bodies two or more couplings
 !>            apart (no body coupled to both: a distance-2 coloring of the body graph, joints
@@ -236,9 +236,7 @@ contains
         regular = .true.
         return
       end if
-      do k = 1, self%m
-        call apply_minv(self, aux%c(k, :), aux%mc(:, k))
-      end do
+      call minv_ct(self, aux%c, aux%mc)
       ! the exact path on the model's independent rows
       na = size(self%work%active)
       aux%rows(1:na) = self%work%active
@@ -247,7 +245,9 @@ contains
       if (stat /= MBDK_SUCCESS) return
       call gram(self, aux%c, aux%mc, aux%rows(1:na), aux%s(1:na, 1:na), stat)
       if (stat /= MBDK_SUCCESS) return
-      diag = [(aux%s(k, k), k = 1, na)]
+      do k = 1, na
+        diag(k) = aux%s(k, k)
+      end do
       call mbdk_chol_factor(aux%s(1:na, 1:na), stat)
       if (stat == MBDK_SUCCESS) then
         do k = 1, na
@@ -257,7 +257,7 @@ contains
         stat = MBDK_ERR_SINGULAR_MATRIX
       end if
       if (stat == MBDK_SUCCESS .and. near > 0.0_dp .and. .not. self%regular_tree) &
-        call near_test(self, aux%c(aux%rows(1:na), :), near, stat)
+        call near_test(self, aux%c, aux%rows(1:na), near, stat)
       if (stat /= MBDK_ERR_SINGULAR_MATRIX .or. .not. regular_ok) return
       ! the regular path's matrix M + beta C^T C (formed in place: an expression's temporary
       ! of 6 nb x 6 nb would be taken without a status)

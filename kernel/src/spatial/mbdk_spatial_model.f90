@@ -115,7 +115,7 @@ module mbdk_spatial_model
   use mbdk_compact_schur, only: mbdk_compact_schur_t, mbdk_compact_schur_init, &
     mbdk_compact_schur_factor, mbdk_compact_schur_solve, mbdk_compact_schur_spread
   use mbdk_rotations, only: mbdk_skew, mbdk_angles_matrix, mbdk_angles_rates, mbdk_quat_mul, &
-    mbdk_quat_rates, mbdk_quat_matrix_of, mbdk_cross, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
+    mbdk_quat_rates, mbdk_quat_matrix_of, MBDK_SEQ_EULER313, MBDK_SEQ_CARDAN123
   use mbdk_time_function, only: mbdk_time_fn
   use mbdk_watch, only: mbdk_watch_t, mbdk_watch_start, mbdk_watch_due, mbdk_watch_test, &
     mbdk_watch_power, MBDK_WATCH_NOTHING, MBDK_WATCH_POWER_ONLY, MBDK_WATCH_EVERY, &
@@ -144,8 +144,9 @@ module mbdk_spatial_model
     mbdk_spatial_watch_nodes
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
-  public :: frames, forces, constraints, apply_minv, gram, near_test, generalized_forces, &
-    last_velocity, compact_times, compact_ct, compact_factor, qi, loads_two_bodies
+  public :: frames, forces, constraints, apply_minv, minv_ct, gram, near_test, &
+    generalized_forces, last_velocity, compact_times, compact_ct, compact_factor, qi, &
+    loads_two_bodies
 
   !> a force's reals: as many as a contact has (mbdk_contact3d), the other kinds use the first
   integer, parameter, public :: MBDK_SPATIAL_JOINT_REALS = 17, &
@@ -224,6 +225,11 @@ module mbdk_spatial_model
     integer :: joint = 0      !< the joint (table column) it belongs to
   end type prim_t
 
+  !> the kinematics of every body at one state (index 0: the ground)
+  type :: frames_t
+    real(dp), allocatable :: r(:, :), rot(:, :, :), v(:, :), om(:, :)
+  end type frames_t
+
   !> what the caller owns and the model points to (rhs receives the model read-only)
   type, public :: mbdk_spatial_work_t
     type(mbdk_watch_t) :: watch
@@ -232,11 +238,12 @@ module mbdk_spatial_model
     !> set changed
     integer, allocatable :: active(:)
     integer :: switches = 0
-    !> spatial_accelerations' arrays, sized once at init: an evaluation allocates none (ten
-    !> allocations per evaluation cost about a sixth of an rk4 step of the heavy top). That
+    !> spatial_accelerations' arrays, sized once at init (the frames at the first evaluation;
+    !> ten allocations per evaluation cost about a sixth of an rk4 step of the heavy top). That
     !> routine is the only user, and never runs inside itself.
     real(dp), allocatable :: fw(:, :), nbd(:, :), acc(:), gen(:), phi(:), c(:, :), gam(:), &
-      l(:), mc(:, :), phit(:)
+      l(:), mc(:, :), phit(:), rhs(:)
+    type(frames_t) :: fr
     !> the sparse path (model%sparse): C in compact rows (m, 12), a correction W C^T lam (6 nb)
     !> and S's pattern and factors; c and mc are then empty
     real(dp), allocatable :: cc(:, :), dx(:)
@@ -278,14 +285,23 @@ module mbdk_spatial_model
     !> the constrained solves by compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), with
     !> the blocks of M^-1 and of the geometry's weight (near_test's) per body
     logical :: sparse = .false.
-    !> a tree of spherical joints with independent rows at the start (two on one pair of
-    !> bodies are not: six rows of rank five): C keeps its full rank at every pose (each
-    !> joint's three rows have the identity on the translation of the body away from the root,
-    !> so C is block triangular with blocks of full rank), and the near test of a rank loss
-    !> (the geometry's G, a second factorisation per evaluation) is skipped
+    !> a tree of joints with independent rows at the start (two on one pair of bodies are not:
+    !> six rows of rank five) and no drivers: C keeps its full rank along the motion, and the
+    !> near test of a rank loss (the geometry's G, a second factorisation per evaluation) is
+    !> skipped. Ordered from the root, C is block triangular, each joint's block on the body
+    !> away from the root of full rank: a spherical joint's three rows have the identity on its
+    !> translation at every pose; the rotation rows of a revolute, universal, cylindrical,
+    !> prismatic or fixed joint (two body vectors kept normal) have the gradients u x v of
+    !> unit vectors held normal, of length 1 and, within a joint, normal to one another on the
+    !> joint (a_i x b1 and a_i x b2 with a_i along b1 x b2; a prismatic's fifth row along a_j;
+    !> a fixed joint's e1, e2, e3), so independent near it too (they degenerate only where the
+    !> joint is broken by tens of degrees); a prismatic or cylindrical joint's offset rows have
+    !> two normal unit vectors on its translation. A driver's angle or slide row is left
+    !> out: an angle measured about an axis the joint does not hold can lose its gradient.
     logical :: regular_tree = .false.
     real(dp), allocatable :: minv_blk(:, :, :), geo_blk(:, :, :)
     integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
+    integer, allocatable :: rbody(:, :)   !< (2, m): the two bodies of each row (0: the ground)
     type(mbdk_spatial_work_t), pointer :: work => null()
   contains
     procedure :: rhs => spatial_rhs
@@ -397,11 +413,6 @@ module mbdk_spatial_model
       integer, intent(out) :: stat
     end subroutine spatial_i3_matrix_solve
   end interface
-
-  !> the kinematics of every body at one state (index 0: the ground)
-  type :: frames_t
-    real(dp), allocatable :: r(:, :), rot(:, :, :), v(:, :), om(:, :)
-  end type frames_t
 
 contains
 
@@ -886,13 +897,15 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer :: k, astat
-    integer, allocatable :: rows(:)
+    integer, allocatable :: rows(:), rbody(:, :)
     real(dp), allocatable :: phi(:), c(:, :), gam(:)
     integer, allocatable :: edge(:)
     logical :: independent, tree
-    allocate (model%all_rows(model%m), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * model%m, stat, asked)
+    allocate (model%all_rows(model%m), rbody(2, model%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 3.0_dp * model%m, stat, asked)
     if (stat /= MBDK_SUCCESS) return
+    call row_bodies(model, rbody)
+    call move_alloc(rbody, model%rbody)
     do k = 1, model%m
       model%all_rows(k) = k
     end do
@@ -931,7 +944,7 @@ contains
       call mbdk_alloc_status(astat, 0.0_dp, stat, asked)
     end if
     model%regular_tree = tree .and. independent .and. &
-      all(model%prim(1:model%nprim)%kind == PRIM_SPH)
+      .not. model%has_drivers
   end subroutine choose_active_rows
 
   !> The joints jbody(2, nj) (0: the ground) as edges between bodies: edge(k) of joint k, the
@@ -1178,7 +1191,7 @@ contains
     do b = 1, model%nb
       d = fr%r(:, b) - c
       jw = rmul(model%inertia(:, :, b), fr%om(:, b))
-      mom(4:6) = mom(4:6) + model%mass(b) * mbdk_cross(d, fr%v(:, b)) + &
+      mom(4:6) = mom(4:6) + model%mass(b) * cross(d, fr%v(:, b)) + &
         rmul(fr%rot(:, :, b), jw)
       msc(2) = msc(2) + model%mass(b) * norm2(d) * norm2(fr%v(:, b) - vc) + norm2(jw)
     end do
@@ -1202,9 +1215,9 @@ contains
       return
     end if
     k = minloc(abs(a), 1)               ! the coordinate axis least aligned with a
-    b1 = mbdk_cross(a, unit(k))
+    b1 = cross(a, unit(k))
     b1 = b1 / norm2(b1)
-    b2 = mbdk_cross(a, b1)
+    b2 = cross(a, b1)
   end subroutine normals
 
 
@@ -1251,12 +1264,24 @@ contains
   pure subroutine frames(model, y, fr, stat, asked)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: y(:)
-    type(frames_t), intent(out) :: fr
+    type(frames_t), intent(inout) :: fr   !< its arrays kept where already of the model's size
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer :: b, k
-    allocate (fr%r(3, 0:model%nb), fr%rot(3, 3, 0:model%nb), fr%v(3, 0:model%nb), &
-              fr%om(3, 0:model%nb), stat=k)
+    k = 0
+    if (allocated(fr%r)) then
+      if (size(fr%r, 2) /= model%nb + 1) deallocate (fr%r)
+    end if
+    ! (all four or none: an allocation that failed part-way is redone whole)
+    if (.not. (allocated(fr%r) .and. allocated(fr%rot) .and. allocated(fr%v) .and. &
+               allocated(fr%om))) then
+      if (allocated(fr%r)) deallocate (fr%r)
+      if (allocated(fr%rot)) deallocate (fr%rot)
+      if (allocated(fr%v)) deallocate (fr%v)
+      if (allocated(fr%om)) deallocate (fr%om)
+      allocate (fr%r(3, 0:model%nb), fr%rot(3, 3, 0:model%nb), fr%v(3, 0:model%nb), &
+                fr%om(3, 0:model%nb), stat=k)
+    end if
     stat = MBDK_ERR_NO_MEMORY
     if (k /= 0) then
       if (present(asked)) asked = MBDK_REAL_BYTES * 18.0_dp * (model%nb + 1)
@@ -1468,7 +1493,7 @@ contains
     if (b == 0) return
     cr(o + 1:o + 3) = cr(o + 1:o + 3) + x
     ! -x^T R skew(s) W = W . (s x R^T x)
-    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(s, rtmul(fr%rot(:, :, b), x))
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(s, rtmul(fr%rot(:, :, b), x))
   end subroutine point_row
 
   !> the row x . d' of a body vector d = R u: d' = R (W x u), x . d' = W . (u x R^T x)
@@ -1478,7 +1503,7 @@ contains
     integer, intent(in) :: b, o
     real(dp), intent(in) :: u(3), x(3)
     if (b == 0) return
-    cr(o + 4:o + 6) = cr(o + 4:o + 6) + mbdk_cross(u, rtmul(fr%rot(:, :, b), x))
+    cr(o + 4:o + 6) = cr(o + 4:o + 6) + cross(u, rtmul(fr%rot(:, :, b), x))
   end subroutine vec_cols
 
   !> the velocity of body b's point s
@@ -1487,7 +1512,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: s(3)
     real(dp) :: x(3)
-    x = fr%v(:, b) + rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), s))
+    x = fr%v(:, b) + rmul(fr%rot(:, :, b), cross(fr%om(:, b), s))
   end function pvel
 
   !> the acceleration of body b's point s quadratic in its angular velocity, R (W x (W x s))
@@ -1496,7 +1521,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: s(3)
     real(dp) :: x(3)
-    x = rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), mbdk_cross(fr%om(:, b), s)))
+    x = rmul(fr%rot(:, :, b), cross(fr%om(:, b), cross(fr%om(:, b), s)))
   end function pquad
 
   !> the rate of body b's vector R u
@@ -1505,7 +1530,7 @@ contains
     integer, intent(in) :: b
     real(dp), intent(in) :: u(3)
     real(dp) :: x(3)
-    x = rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), u))
+    x = rmul(fr%rot(:, :, b), cross(fr%om(:, b), u))
   end function vvel
 
   !> the terms of the second derivative of body b's vector R u quadratic in W: a point's (pquad)
@@ -1516,6 +1541,15 @@ contains
     real(dp) :: x(3)
     x = pquad(fr, b, u)
   end function vquad
+
+  !> x × y, as mbdk_cross: a function of another module is never inlined (each source is its own
+  !> unit; no link-time optimisation), and the joints' rows, the forces and the Newton-Euler
+  !> terms call it at every evaluation
+  pure function cross(x, y) result(z)
+    real(dp), intent(in) :: x(3), y(3)
+    real(dp) :: z(3)
+    z = [x(2) * y(3) - x(3) * y(2), x(3) * y(1) - x(1) * y(3), x(1) * y(2) - x(2) * y(1)]
+  end function cross
 
   !> R x for a body's rotation (or inertia): explicit shapes, so that the compiler unrolls it
   !> (matmul on an array section of unknown shape goes to the library, with a temporary)
@@ -1558,6 +1592,26 @@ contains
     end do
   end subroutine apply_minv
 
+  !> mc = M^-1 C^T (6 nb x m), each row of C on its two bodies only (model%rbody): the other
+  !> columns of a row are zero.
+  pure subroutine minv_ct(model, c, mc)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :)
+    real(dp), intent(out) :: mc(:, :)
+    integer :: k, a, b, o
+    mc = 0.0_dp
+    do k = 1, size(c, 1)
+      do a = 1, 2
+        b = model%rbody(a, k)
+        if (b == 0) cycle
+        if (a == 2 .and. b == model%rbody(1, k)) cycle
+        o = (b - 1) * 6
+        mc(o + 1:o + 3, k) = c(k, o + 1:o + 3) / model%mass(b)
+        mc(o + 4:o + 6, k) = rmul(model%inv_inertia(:, :, b), c(k, o + 4:o + 6))
+      end do
+    end do
+  end subroutine minv_ct
+
   !> lam solving (C M^-1 C^T) lam = rhs, and mc = M^-1 C^T, by Cholesky; a pivot at roundoff of
   !> its row's diagonal entry (SOLVE_RTOL) is a singular solve: MBDK_ERR_SINGULAR_MATRIX
   !> (a singular pose). Redundant joints (rank0 < m; Bricard's linkage, a planar loop of
@@ -1580,11 +1634,9 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: near   !< the window of near_test, if any
     integer, allocatable :: rows(:)
-    integer :: k, m
+    integer :: m
     m = size(c, 1)
-    do k = 1, m
-      call apply_minv(model, c(k, :), mc(:, k))
-    end do
+    call minv_ct(model, c, mc)
     if (model%rank0 == m) then
       call solve_rows(model, c, rhs, mc, model%all_rows, lam, stat, near)
       return
@@ -1613,45 +1665,54 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: near
     real(dp), allocatable :: s(:, :), x(:), diag(:)
-    integer :: k, info, r
+    integer :: info, r
     r = size(rows)
     allocate (s(r, r), x(r), diag(r), stat=info)
     call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
     if (stat /= MBDK_SUCCESS) return
-    call gram(model, c, mc, rows, s, stat)
-    if (stat /= MBDK_SUCCESS) return
-    x = rhs(rows)
-    lam = 0.0_dp
-    diag = [(s(k, k), k = 1, r)]
-    call mbdk_chol_factor(s, info)
-    stat = MBDK_ERR_SINGULAR_MATRIX
-    if (info /= MBDK_SUCCESS) return
-    ! each pivot against its own row's diagonal, at roundoff: which rows are dependent is the
-    ! geometry's to say (select_rows, near_test); S mixes 1/m and 1/J, and a near point mass
-    ! (J = 1e-10 on a lever of 1 m) leaves relative pivots of 1e-10 at a regular pose
-    do k = 1, r
-      if (.not. (s(k, k)**2 > SOLVE_RTOL * diag(k))) return
-    end do
-    if (present(near)) then
-      if (r == size(c, 1)) then
-        call near_test(model, c, near, stat)
-      else
-        call near_test(model, c(rows, :), near, stat)
-      end if
+    call solve_rows_in(s, x)
+
+  contains
+
+    !> the solve in the scratch s (r x r) and x (r)
+    subroutine solve_rows_in(s, x)
+      real(dp), intent(out) :: s(:, :), x(:)
+      integer :: k
+      call gram(model, c, mc, rows, s, stat)
       if (stat /= MBDK_SUCCESS) return
-    end if
-    call mbdk_chol_solve(s, x, stat)
-    if (stat /= MBDK_SUCCESS) then
+      x = rhs(rows)
+      lam = 0.0_dp
+      do k = 1, r
+        diag(k) = s(k, k)
+      end do
+      call mbdk_chol_factor(s, info)
       stat = MBDK_ERR_SINGULAR_MATRIX
-      return
-    end if
-    lam(rows) = x
+      if (info /= MBDK_SUCCESS) return
+      ! each pivot against its own row's diagonal, at roundoff: which rows are dependent is
+      ! the geometry's to say (select_rows, near_test); S mixes 1/m and 1/J, and a near point
+      ! mass (J = 1e-10 on a lever of 1 m) leaves relative pivots of 1e-10 at a regular pose
+      do k = 1, r
+        if (.not. (s(k, k)**2 > SOLVE_RTOL * diag(k))) return
+      end do
+      if (present(near)) then
+        call near_test(model, c, rows, near, stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      call mbdk_chol_solve(s, x, stat)
+      if (stat /= MBDK_SUCCESS) then
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        return
+      end if
+      lam(rows) = x
+    end subroutine solve_rows_in
+
   end subroutine solve_rows
 
   !> The lower triangle of S = C(rows, :) X C(rows, :)^T from xc = X C^T (X block diagonal by
-  !> body), body block by body block: a row of C touches at most two bodies, so only rows that
-  !> share a body meet (a quarter of the dense product's work on the flyball governor, less on
-  !> longer chains). The upper triangle is left zero (the Cholesky factorisations read the lower).
+  !> body), body block by body block: a row of C touches at most two bodies (model%rbody), so
+  !> only rows that share a body meet (a quarter of the dense product's work on the flyball
+  !> governor, less on longer chains). The upper triangle is left zero (the Cholesky
+  !> factorisations read the lower).
   pure subroutine gram(model, c, xc, rows, s, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), xc(:, :)
@@ -1668,7 +1729,7 @@ contains
       o = 6 * (b - 1)
       n = 0
       do i = 1, size(rows)
-        if (any(c(rows(i), o + 1:o + 6) /= 0.0_dp)) then
+        if (any(model%rbody(:, rows(i)) == b)) then
           n = n + 1
           list(n) = i
         end if
@@ -1860,31 +1921,45 @@ contains
     end do
   end subroutine inverse_trace
 
-  !> MBDK_ERR_SINGULAR_MATRIX when the active rows of C are near a rank loss: a relative pivot
-  !> (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2, 1/L^2, 1/L^2) per
-  !> body (L = geo_length: rotations as the displacements they give at the mechanism's size, so
-  !> that the test depends neither on the unit of length nor on where the mechanism stands). The
-  !> geometry alone, not the masses: with M^-1 in its place a slender body's small axial inertia
-  !> (a bar's) makes rows look near dependent at a regular pose.
-  subroutine near_test(model, c, near, stat)
+  !> MBDK_ERR_SINGULAR_MATRIX when the rows of C tested (the active ones) are near a rank loss:
+  !> a relative pivot (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2,
+  !> 1/L^2, 1/L^2) per body (L = geo_length: rotations as the displacements they give at the
+  !> mechanism's size, so that the test depends neither on the unit of length nor on where the
+  !> mechanism stands). The geometry alone, not the masses: with M^-1 in its place a slender
+  !> body's small axial inertia (a bar's) makes rows look near dependent at a regular pose.
+  subroutine near_test(model, c, rows, near, stat)
     type(mbdk_spatial_model_t), intent(in) :: model
-    real(dp), intent(in) :: c(:, :), near     !< the rows to test
+    real(dp), intent(in) :: c(:, :), near
+    integer, intent(in) :: rows(:)            !< the rows to test
     integer, intent(out) :: stat
     real(dp), allocatable :: g(:, :), wc(:, :)
-    real(dp) :: l2
-    integer :: k, b, info, m
-    m = size(c, 1)
-    allocate (g(m, m), wc(size(c, 2), m), stat=info)
-    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(m, dp) * (m + size(c, 2)), stat)
+    integer :: info, m
+    m = size(rows)
+    allocate (g(m, m), wc(size(c, 2), size(c, 1)), stat=info)
+    call mbdk_alloc_status(info, MBDK_REAL_BYTES * (real(m, dp) * m + &
+                           real(size(c, 1), dp) * size(c, 2)), stat)
     if (stat /= MBDK_SUCCESS) return
-    l2 = model%geo_length**2
-    wc = transpose(c)
-    do b = 1, model%nb
-      wc(6 * b - 2:6 * b, :) = wc(6 * b - 2:6 * b, :) / l2
-    end do
-    call gram(model, c, wc, [(k, k = 1, m)], g, stat)
-    if (stat /= MBDK_SUCCESS) return
-    stat = merge(MBDK_ERR_SINGULAR_MATRIX, MBDK_SUCCESS, mbdk_pivots_near(g, near))
+    call near_test_in(g, wc)
+
+  contains
+
+    !> the test in the scratch g (m x m) and wc (6 nb x rows of c; only the tested columns set)
+    subroutine near_test_in(g, wc)
+      real(dp), intent(out) :: g(:, :), wc(:, :)
+      real(dp) :: l2
+      integer :: k, b
+      l2 = model%geo_length**2
+      do k = 1, m
+        wc(:, rows(k)) = c(rows(k), :)
+        do b = 1, model%nb
+          wc(6 * b - 2:6 * b, rows(k)) = wc(6 * b - 2:6 * b, rows(k)) / l2
+        end do
+      end do
+      call gram(model, c, wc, rows, g, stat)
+      if (stat /= MBDK_SUCCESS) return
+      stat = merge(MBDK_ERR_SINGULAR_MATRIX, MBDK_SUCCESS, mbdk_pivots_near(g, near))
+    end subroutine near_test_in
+
   end subroutine near_test
 
 
@@ -1920,9 +1995,9 @@ contains
         case (MBDK_FORCE_POINT)
           b = model%fbody(1, k)
           fw(:, b) = fw(:, b) + r(4:6)
-          nb_(:, b) = nb_(:, b) + mbdk_cross(r(1:3), rtmul(fr%rot(:, :, b), r(4:6)))
+          nb_(:, b) = nb_(:, b) + cross(r(1:3), rtmul(fr%rot(:, :, b), r(4:6)))
           power = power + dot_product(r(4:6), fr%v(:, b) + &
-                                      rmul(fr%rot(:, :, b), mbdk_cross(fr%om(:, b), r(1:3))))
+                                      rmul(fr%rot(:, :, b), cross(fr%om(:, b), r(1:3))))
         case (MBDK_FORCE_TORQUE)
           b = model%fbody(1, k)
           nb_(:, b) = nb_(:, b) + rtmul(fr%rot(:, :, b), r(1:3))
@@ -1932,8 +2007,8 @@ contains
           j = model%fbody(2, k)
           pi = fr%r(:, i) + rmul(fr%rot(:, :, i), r(1:3))
           pj = fr%r(:, j) + rmul(fr%rot(:, :, j), r(4:6))
-          vi = fr%v(:, i) + rmul(fr%rot(:, :, i), mbdk_cross(fr%om(:, i), r(1:3)))
-          vj = fr%v(:, j) + rmul(fr%rot(:, :, j), mbdk_cross(fr%om(:, j), r(4:6)))
+          vi = fr%v(:, i) + rmul(fr%rot(:, :, i), cross(fr%om(:, i), r(1:3)))
+          vj = fr%v(:, j) + rmul(fr%rot(:, :, j), cross(fr%om(:, j), r(4:6)))
           d = pi - pj
           len = norm2(d)
           vs = vs + 0.5_dp * r(7) * (len - r(9))**2
@@ -1944,10 +2019,10 @@ contains
           power = power - r(8) * ldot**2
           fv = -f * e                            ! on body i
           fw(:, i) = fw(:, i) + fv
-          nb_(:, i) = nb_(:, i) + mbdk_cross(r(1:3), rtmul(fr%rot(:, :, i), fv))
+          nb_(:, i) = nb_(:, i) + cross(r(1:3), rtmul(fr%rot(:, :, i), fv))
           if (j > 0) then
             fw(:, j) = fw(:, j) - fv
-            nb_(:, j) = nb_(:, j) - mbdk_cross(r(4:6), rtmul(fr%rot(:, :, j), fv))
+            nb_(:, j) = nb_(:, j) - cross(r(4:6), rtmul(fr%rot(:, :, j), fv))
           end if
         case (MBDK_FORCE_SPHERE_PLANE, MBDK_FORCE_SPHERE_SPHERE)
           i = model%fbody(1, k)
@@ -2100,18 +2175,14 @@ contains
     type(mbdk_spatial_work_t), intent(inout) :: work
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    integer, allocatable :: rbody(:, :)
     integer :: k, b, astat
     stat = MBDK_SUCCESS
     model%sparse = model%m > MBDK_SPATIAL_SPARSE_ROWS .and. model%rank0 == model%m .and. &
       model%opt%formulation /= MBDK_FORM_PENALTY
     if (.not. model%sparse) return
-    allocate (rbody(2, model%m), model%minv_blk(6, 6, model%nb), model%geo_blk(6, 6, model%nb), &
-              stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * model%m + &
-                           MBDK_REAL_BYTES * 72.0_dp * model%nb, stat, asked)
+    allocate (model%minv_blk(6, 6, model%nb), model%geo_blk(6, 6, model%nb), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 72.0_dp * model%nb, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    call row_bodies(model, rbody)
     model%minv_blk = 0.0_dp
     model%geo_blk = 0.0_dp
     do b = 1, model%nb
@@ -2122,7 +2193,7 @@ contains
       end do
       model%minv_blk(4:6, 4:6, b) = model%inv_inertia(:, :, b)
     end do
-    call mbdk_compact_schur_init(work%cs, rbody, model%nb, 6, stat, asked)
+    call mbdk_compact_schur_init(work%cs, model%rbody, model%nb, 6, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! a few bodies under many rows (the flyball governor: 4 bodies, 20 rows) make S nearly
     ! full, where the dense Cholesky is cheaper than the sparse assembly and LDL^T; a chain's S,
@@ -2303,15 +2374,15 @@ contains
     m = model%m
     if (allocated(work%fw)) deallocate (work%fw, work%nbd, work%acc, work%gen, work%phi, &
                                         work%c, work%gam, work%l, work%mc, work%phit, &
-                                        work%cc, work%dx)
+                                        work%cc, work%dx, work%rhs)
     ! dense C and M^-1 C^T, or their compact rows (the sparse path)
     mc_ = merge(0, m, model%sparse)
     cc_ = merge(m, 0, model%sparse)
     allocate (work%fw(3, nb), work%nbd(3, nb), work%acc(6 * nb), work%gen(6 * nb), &
               work%phi(m), work%c(mc_, 6 * nb), work%gam(m), work%l(m), work%mc(6 * nb, mc_), &
-              work%phit(m), work%cc(cc_, 12), work%dx(6 * nb), stat=k)
+              work%phit(m), work%cc(cc_, 12), work%dx(6 * nb), work%rhs(m), stat=k)
     call mbdk_alloc_status(k, MBDK_REAL_BYTES * (24.0_dp * nb + real(mc_, dp) * 12.0_dp * nb + &
-                                                 4.0_dp * m + 12.0_dp * cc_), stat, asked)
+                                                 5.0_dp * m + 12.0_dp * cc_), stat, asked)
   end subroutine accelerations_scratch
 
   !> F(t, y) and, optionally, the multipliers lam (m). With lam_in (m) the multipliers are
@@ -2326,7 +2397,6 @@ contains
     real(dp), intent(out), optional :: lam(:)
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
-    type(frames_t) :: fr
     real(dp) :: vg, vs, power
     integer :: k, nb, m
     f = 0.0_dp
@@ -2335,7 +2405,8 @@ contains
     associate (fw => self%work%fw, nbd => self%work%nbd, acc => self%work%acc, &
                gen => self%work%gen, phi => self%work%phi, c => self%work%c, &
                gam => self%work%gam, l => self%work%l, mc => self%work%mc, &
-               phit => self%work%phit, cc => self%work%cc, dx => self%work%dx)
+               phit => self%work%phit, cc => self%work%cc, dx => self%work%dx, &
+               fr => self%work%fr, rhs => self%work%rhs)
     call frames(self, y, fr, stat)
     if (stat /= MBDK_SUCCESS) return
     call forces(self, fr, fw, nbd, vg, vs, power, stat)
@@ -2348,9 +2419,7 @@ contains
       if (stat /= MBDK_SUCCESS) return
     else if (self%m > 0 .and. present(lam_in)) then
       call constraints(self, fr, t, phi, c, gam, phit)
-      do k = 1, self%m
-        call apply_minv(self, c(k, :), mc(:, k))
-      end do
+      call minv_ct(self, c, mc)
       acc = acc - matmul(mc, lam_in)
       if (present(phi_out)) phi_out = phi
       if (present(acc_abs)) acc_abs = acc_abs + matmul(abs(mc), abs(lam_in))
@@ -2365,13 +2434,18 @@ contains
         gam = gam - 2.0_dp * self%opt%baumgarte_alpha * &
               (matmul(c, y(wi(self, 1):last_velocity(self))) + phit) - &
               self%opt%baumgarte_beta**2 * phi
+      ! (C acc - gamma and M^-1 C^T lam in the scratch: an expression's temporary would be
+      ! allocated at every evaluation)
+      rhs = matmul(c, acc)
+      rhs = rhs - gam
       if (self%opt%formulation == MBDK_FORM_REDUCED .and. .not. self%regular_tree) then
-        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
+        call schur_solve(self, c, rhs, l, mc, stat, MBDK_SPATIAL_NEAR_PIVOT)
       else
-        call schur_solve(self, c, matmul(c, acc) - gam, l, mc, stat)
+        call schur_solve(self, c, rhs, l, mc, stat)
       end if
       if (stat /= MBDK_SUCCESS) return
-      acc = acc - matmul(mc, l)
+      dx = matmul(mc, l)
+      acc = acc - dx
       if (present(lam)) lam = l
     end if
     ! the kinematic equations
@@ -2390,7 +2464,7 @@ contains
       integer, intent(out) :: st
       associate (cc => self%work%cc, dx => self%work%dx, acc => self%work%acc, &
                  phi => self%work%phi, gam => self%work%gam, phit => self%work%phit, &
-                 l => self%work%l)
+                 l => self%work%l, fr => self%work%fr)
         st = MBDK_SUCCESS
         call constraints(self, fr, t, phi, cc, gam, phit, compact=.true.)
         if (present(lam_in)) then
@@ -3043,7 +3117,7 @@ contains
       o = (b - 1) * 6
       jw = rmul(self%inertia(:, :, b), fr%om(:, b))
       f(o + 1:o + 3) = fw(:, b)
-      f(o + 4:o + 6) = nbd(:, b) - mbdk_cross(fr%om(:, b), jw)
+      f(o + 4:o + 6) = nbd(:, b) - cross(fr%om(:, b), jw)
     end do
   end subroutine generalized_forces
   !> f = (force, moment - Omega x J Omega) per body, and Phi, C, gamma, Phi_t at (t, q, v).
