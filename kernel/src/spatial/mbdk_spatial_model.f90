@@ -888,7 +888,8 @@ contains
   end subroutine watch_scales
 
   !> The rows solved (active) and rank0: with redundant joints the independent rows the
-  !> rank-revealing Cholesky picks at t0 (any rank accepted there), else every row.
+  !> rank-revealing Cholesky picks at t0 (any rank accepted there), else every row; with them
+  !> each row's bodies (rbody) and whether the joints form a regular tree (regular_tree).
   subroutine choose_active_rows(model, fr, t0, jbody, stat, asked)
     type(mbdk_spatial_model_t), intent(inout) :: model
     type(frames_t), intent(in) :: fr
@@ -1020,23 +1021,22 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     real(dp), allocatable :: phi(:), cc(:, :), gam(:)
-    integer, allocatable :: redge(:), start(:), list(:), rbody(:, :)
+    integer, allocatable :: redge(:), start(:), list(:)
     real(dp) :: g(6, 6), w(6), d(6)
     integer :: piv(6), rows(6), k, n, i, j, e, ne, astat, rk, a, b
     independent = .false.
     ne = 0
     if (size(edge) > 0) ne = maxval(edge)
     allocate (phi(model%m), cc(model%m, 12), gam(model%m), redge(model%m), start(ne + 1), &
-              list(model%m), rbody(2, model%m), stat=astat)
+              list(model%m), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 14.0_dp * model%m + &
-                           MBDK_INT_BYTES * (4.0_dp * model%m + ne + 1), stat, asked)
+                           MBDK_INT_BYTES * (2.0_dp * model%m + ne + 1), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     call constraints(model, fr, t0, phi, cc, gam, compact=.true.)
     do k = 1, model%nprim
       n = merge(3, 1, model%prim(k)%kind == PRIM_SPH)
       do i = model%prim(k)%row, model%prim(k)%row + n - 1
         redge(i) = edge(model%prim(k)%joint)
-        rbody(:, i) = [model%prim(k)%bi, model%prim(k)%bj]
       end do
     end do
     ! the rows of each connection, bucketed (a driver's row need not follow its joint's)
@@ -1072,7 +1072,8 @@ contains
         do i = 1, n
           do a = 1, 2
             do b = 1, 2
-              if (rbody(a, rows(i)) == 0 .or. rbody(a, rows(i)) /= rbody(b, rows(j))) cycle
+              if (model%rbody(a, rows(i)) == 0 .or. &
+                  model%rbody(a, rows(i)) /= model%rbody(b, rows(j))) cycle
               g(i, j) = g(i, j) + sum(cc(rows(i), 6 * a - 5:6 * a) * w * &
                                       cc(rows(j), 6 * b - 5:6 * b))
             end do
@@ -2225,12 +2226,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer :: i, k, a, b, n, astat
-    integer, allocatable :: rbody(:, :)
-    allocate (rbody(2, self%m), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * self%m, stat, asked)
-    if (astat /= 0) return
-    call row_bodies(self, rbody)
-    n = 6 * count(rbody > 0)
+    n = 6 * count(self%rbody > 0)
     allocate (qbody(self%ncoord), vbody(self%nvel), pairs(2, self%nprim + self%nf), &
               rptr(self%m + 1), rcol(n), stat=astat)
     call mbdk_alloc_status(astat, MBDK_INT_BYTES * (real(self%ncoord, dp) + self%nvel + &
@@ -2253,7 +2249,7 @@ contains
     do k = 1, self%m
       rptr(k) = n + 1
       do a = 1, 2
-        b = rbody(a, k)
+        b = self%rbody(a, k)
         if (b == 0) cycle
         rcol(n + 1:n + 6) = [(6 * (b - 1) + i, i = 1, 6)]
         n = n + 6
@@ -2398,7 +2394,7 @@ contains
     real(dp), intent(in), optional :: lam_in(:)
     real(dp), intent(out), optional :: phi_out(:), acc_abs(:)
     real(dp) :: vg, vs, power
-    integer :: k, nb, m
+    integer :: nb, m
     f = 0.0_dp
     nb = self%nb
     m = self%m
