@@ -1,15 +1,17 @@
 """Runs whose linear algebra is the kernel's own are the same bits under every OpenBLAS kernel:
 the planar scenes' starts (the dense least change of a few rows, mbdk_assembly: in-house
-LDL^T; LAPACK's dgelsd orders its sums by the BLAS kernel), what runs from them on paths that
-call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU), and the dense factorisations
-of up to 128 unknowns, which mbdk_lapack routes to mbdk_fixed_order (bdf's Newton matrix on
-planar and spatial scenes and on the DAE forms of Bricard's linkage and the flyball governor,
-95 and 72 unknowns; the spatial Schur complement and rank tests; trapezoidal_index3's Newton
-matrix on a spatial scene: LAPACK's own factorisations of these differ between OpenBLAS's
-Prescott and Haswell kernels). A start or a factorisation that differs in its last bits is
-enough to change where ida ggl or bdf stops on the A02 loop, next to a flat pose or not at
-all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says which it took with
-OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
+LDL^T; with redundant joints, a least squares by a QR with column pivoting in one order of
+sums, mbdk_fixed_order, where LAPACK's dgelsd orders its sums by the BLAS kernel: the
+redundant parallelogram's start differed under each of four kernels), what runs from them on
+paths that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU), and the dense
+factorisations of up to 128 unknowns, which mbdk_lapack routes to mbdk_fixed_order (bdf's
+Newton matrix on planar and spatial scenes and on the DAE forms of Bricard's linkage and the
+flyball governor, 95 and 72 unknowns; the spatial Schur complement and rank tests;
+trapezoidal_index3's Newton matrix on a spatial scene: LAPACK's own factorisations of these
+differ between OpenBLAS's Prescott and Haswell kernels). A start or a factorisation that
+differs in its last bits is enough to change where ida ggl or bdf stops on the A02 loop, next
+to a flat pose or not at all. Each kernel in a fresh process (OPENBLAS_CORETYPE; OpenBLAS says
+which it took with OPENBLAS_VERBOSE=2, and the case does not apply where it takes none)."""
 from __future__ import annotations
 
 import json
@@ -26,7 +28,8 @@ import pytest
 
 KERNELS = ("Prescott", "Haswell", "Sandybridge")
 NAMES = ("a02", "a02_bdf", "three_link_pendulum", "trolley_crane", "four_bar", "bricard",
-         "heavy_top", "spatial_double_pendulum", "flyball_governor", "dae")
+         "heavy_top", "spatial_double_pendulum", "flyball_governor", "dae",
+         "parallelogram_redundant")
 
 CODE = textwrap.dedent("""
     import hashlib
@@ -56,6 +59,12 @@ CODE = textwrap.dedent("""
             ("flyball_governor", "rk4", dict(h=1e-4, t_end=0.2, every=100))):
         r = mbdk.simulate(mbdk.scene(name), method, **kw)
         print(name, r.status.name, r.stats.steps, digest(r.q[0], r.v[0]), digest(r.q, r.v))
+    for method, kw in (("rk4", dict(formulation="penalty", h=1e-3)),
+                       ("trapezoidal_index3", dict(formulation="augmented_lagrangian", h=1e-3))):
+        r = mbdk.simulate(mbdk.scene("parallelogram_redundant"), method, t_end=1, every=100,
+                          **kw)
+        print("parallelogram_redundant", method, r.status.name, r.stats.steps,
+              digest(r.q[0], r.v[0]), digest(r.q, r.v))
     for name, form, t_end in (("bricard", "i3", 2), ("flyball_governor", "si2", 1)):
         r = mbdk.simulate(mbdk.scene(name), "bdf", formulation=form, rtol=1e-6, atol=1e-8,
                           t_end=t_end, dt_out=0.1)
@@ -81,7 +90,8 @@ def test_starts_and_runs_are_the_same_bits_under_every_blas_kernel():
     if len(taken) < 2:
         pytest.skip("the BLAS did not take two of OpenBLAS's kernels")
     first = next(iter(taken.values()))
-    assert len(first) == len(NAMES) + 2          # (a02_bdf at two tolerances, dae on two)
+    # (a02_bdf at two tolerances, dae on two scenes, the parallelogram by two methods)
+    assert len(first) == len(NAMES) + 3
     for kernel, lines in taken.items():
         assert lines == first, (kernel, lines, first)
 

@@ -8,6 +8,11 @@
 !>     solve's residual as the LU's; a matrix with a negative diagonal entry gives info > 0.
 !>   Pivoted Cholesky (dpstrf 'L', dstop 1e-10 max diag) on A = G^T G with G of rank r < n: the
 !>     same rank and pivot order as LAPACK's, and factors within 64 n eps max|A|.
+!>   Least squares (dgelsd, rcond eps max(m, n)) with n unknowns: m = n/2 independent rows; n
+!>     rows of which the last ones are combinations of the others (a redundant joint's), with a
+!>     right-hand side they agree on and one they do not; n + 5 rows (overdetermined). The same
+!>     rank as dgelsd's and a solution within 1e-9 max|x| of it (two algorithms, both of the
+!>     minimum-norm least-squares solution).
 program fixed_order
   use mbdk_kinds, only: dp, i8
   use test_draws, only: draws_t, fill, fill_v
@@ -17,11 +22,16 @@ program fixed_order
   real(dp) :: a(NMAX, NMAX), f(NMAX, NMAX), g(NMAX, NMAX), b(NMAX), x(NMAX), work(2 * NMAX)
   real(dp) :: tol, dstop
   integer :: ipiv(NMAX), ipiv2(NMAX), piv(NMAX), piv2(NMAX), n, trial, info, info2, r, rank, &
-    rank2, i, j, nfail
+    rank2, i, j, nfail, m
+  real(dp) :: t(NMAX, NMAX), u(NMAX, NMAX + 1), w(4 * NMAX), y(NMAX), cmb(NMAX, NMAX)
+  real(dp), allocatable :: lwork(:)
+  integer, allocatable :: liwork(:)
+  integer :: jpvt(NMAX)
   type(draws_t) :: rnd
-  external :: dgetrf, dpotrf, dpstrf
+  external :: dgetrf, dpotrf, dpstrf, dgelsd
   rnd%seed = 4242_i8
   nfail = 0
+  allocate (lwork(1000000), liwork(100000))
   do n = 1, NMAX
     do trial = 1, 4
       ! ---- LU ----
@@ -82,14 +92,45 @@ program fixed_order
       tol = 64 * n * epsilon(1.0_dp) * maxval(abs(a(1:n, 1:n)))
       call check(maxval(abs(lower(f(1:n, 1:rank)) - lower(g(1:n, 1:rank)))) <= tol, &
                  'pivoted factor', n)
+      ! ---- least squares, n unknowns ----
+      select case (trial)
+      case (1)
+        m = max(1, n / 2)
+        call fill(rnd, a(1:m, 1:n))
+      case (2, 3)
+        m = n
+        r = max(1, n - 1 - mod(n, 3))
+        call fill(rnd, a(1:r, 1:n))
+        call fill(rnd, cmb(1:m - r, 1:r))
+        a(r + 1:m, 1:n) = matmul(cmb(1:m - r, 1:r), a(1:r, 1:n))
+      case default
+        m = min(NMAX, n + 5)
+        call fill(rnd, a(1:m, 1:n))
+      end select
+      call fill_v(rnd, y(1:n))
+      b(1:m) = matmul(a(1:m, 1:n), y(1:n))
+      if (trial == 3 .or. trial == 4) call fill_v(rnd, b(1:m))
+      x(1:max(m, n)) = 0.0_dp
+      x(1:m) = b(1:m)
+      call mbdk_fixed_least_squares(a(1:m, 1:n), m, n, x(1:max(m, n)), &
+                                    epsilon(1.0_dp) * max(m, n), rank, t(1:n, 1:m), &
+                                    u(1:m, 1:m + 1), w(1:3 * m + n), jpvt(1:m))
+      g(1:m, 1:n) = a(1:m, 1:n)
+      y(1:max(m, n)) = 0.0_dp
+      y(1:m) = b(1:m)
+      call dgelsd(m, n, 1, g(1:m, 1:n), m, y(1:max(m, n)), max(m, n), work, &
+                  epsilon(1.0_dp) * max(m, n), rank2, lwork, size(lwork), liwork, info2)
+      call check(info2 == 0 .and. rank == rank2, 'least squares rank', n)
+      tol = 1.0e-9_dp * max(1.0_dp, maxval(abs(y(1:n))))
+      call check(maxval(abs(x(1:n) - y(1:n))) <= tol, 'least squares solution', n)
     end do
   end do
   if (nfail > 0) then
     print '(a, i0, a)', 'fixed_order: ', nfail, ' checks FAILED'
     error stop 1
   end if
-  print '(a, i0, a)', 'fixed_order: LU, Cholesky and pivoted Cholesky agree with LAPACK, n = 1..', &
-    NMAX, ': PASS'
+  print '(a, i0, a)', 'fixed_order: LU, Cholesky, pivoted Cholesky and least squares agree with ' &
+    // 'LAPACK, n = 1..', NMAX, ': PASS'
 contains
   subroutine check(ok, what, n)
     logical, intent(in) :: ok

@@ -1,5 +1,6 @@
 !> Dense factorisations of LAPACK's unblocked routines (dgetf2, dpotf2, dpstf2) with their
-!> solves, written out with every sum in one fixed order, for the systems of up to
+!> solves, and a minimum-norm least squares (dgelsd's solution, by dlaqp2's QR with column
+!> pivoting), written out with every sum in one fixed order, for the systems of up to
 !> MBDK_FIXED_ORDER_MAX unknowns that mbdk_lapack routes here. Two reasons:
 !>   - the same bits on every CPU: OpenBLAS picks the kernels under LAPACK (dgemv, dtrsm,
 !>     dswap, ...) by CPU, and they order their sums differently, so a mechanism's Newton
@@ -14,15 +15,17 @@
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
 !> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
 !> is not positive (or NaN); the pivoted one takes the first largest remaining diagonal entry
-!> and stops at one at or below dstop (dpstf2's rule, its running dot products included). Like
-!> LAPACK's, the LU takes a NaN or infinite entry as it comes: a caller that must refuse one
-!> tests its matrix (mbdk_index3_matrix's small path does).
+!> and stops at one at or below dstop (dpstf2's rule, its running dot products included). The
+!> least squares reaches dgelsd's solution by another road (an SVD in fixed order would be far
+!> more code): see mbdk_fixed_least_squares. Like LAPACK's, the LU takes a NaN or infinite
+!> entry as it comes: a caller that must refuse one tests its matrix (mbdk_index3_matrix's
+!> small path does; mbdk_least_squares refuses one before either path).
 module mbdk_fixed_order
   use mbdk_kinds, only: dp
   implicit none
   private
   public :: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve, mbdk_fixed_chol_factor, &
-    mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted
+    mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted, mbdk_fixed_least_squares
 
   !> the largest order mbdk_lapack factorises here (see the module header)
   integer, parameter, public :: MBDK_FIXED_ORDER_MAX = 128
@@ -269,6 +272,152 @@ contains
     end do
     rank = n
   end subroutine mbdk_fixed_chol_pivoted
+
+  !> The minimum-norm x minimising |A x - b| for A (m x n) of any rank: dgelsd's solution,
+  !> reached another way. A^T P = Q R by Householder reflectors with column pivoting (dlaqp2:
+  !> the first largest remaining column norm, norms downdated, and recomputed where the
+  !> downdate has lost half the digits); the rank is the number of leading |R(i, i)| above
+  !> rcond |R(1, 1)| (rank 0: x = 0). Then x = Q1 z lies in the range of A^T, and z minimises
+  !> |R1^T z - P^T b| (R1 the first rank rows of R; an m x rank problem of full column rank, by
+  !> an unpivoted Householder QR): that is the minimum-norm least-squares solution, whether
+  !> the rows of A (A's dependent rows, a redundant joint's) agree or not. b(1:m) on entry,
+  !> x = b(1:n) on exit (b has max(m, n) entries). Scratch: t (n x m), u (m x (m + 1)),
+  !> w (3 m + n), jpvt (m).
+  pure subroutine mbdk_fixed_least_squares(a, m, n, b, rcond, rank, t, u, w, jpvt)
+    integer, intent(in) :: m, n
+    real(dp), intent(in) :: a(m, n), rcond
+    real(dp), intent(inout) :: b(:)
+    integer, intent(out) :: rank, jpvt(m)
+    real(dp), intent(out) :: t(n, m), u(m, m + 1), w(3 * m + n)
+    integer :: i, j, k, p, itmp
+    real(dp) :: temp, temp2, x
+    ! w: vn1 (m), vn2 (m), tau (m, first min(m, n) used), then the solution's n entries
+    associate (vn1 => w(1:m), vn2 => w(m + 1:2 * m), tau => w(2 * m + 1:3 * m), &
+               xs => w(3 * m + 1:3 * m + n))
+      t = transpose(a)
+      do j = 1, m
+        jpvt(j) = j
+        vn1(j) = norm2(t(:, j))
+        vn2(j) = vn1(j)
+      end do
+      k = min(m, n)
+      do i = 1, k
+        p = i - 1 + first_max(vn1(i:m))
+        if (p /= i) then
+          do j = 1, n
+            x = t(j, p)
+            t(j, p) = t(j, i)
+            t(j, i) = x
+          end do
+          itmp = jpvt(p)
+          jpvt(p) = jpvt(i)
+          jpvt(i) = itmp
+          vn1(p) = vn1(i)
+          vn2(p) = vn2(i)
+        end if
+        call reflect(t(i:n, i), tau(i))
+        call apply_reflector(t(i:n, i), tau(i), t(i:n, i + 1:m))
+        do j = i + 1, m
+          if (vn1(j) == 0.0_dp) cycle
+          temp = max(0.0_dp, 1.0_dp - (abs(t(i, j)) / vn1(j))**2)
+          temp2 = temp * (vn1(j) / vn2(j))**2
+          if (temp2 <= sqrt(epsilon(1.0_dp))) then
+            if (i < n) then
+              vn1(j) = norm2(t(i + 1:n, j))
+            else
+              vn1(j) = 0.0_dp
+            end if
+            vn2(j) = vn1(j)
+          else
+            vn1(j) = vn1(j) * sqrt(temp)
+          end if
+        end do
+      end do
+      rank = 0
+      do i = 1, k
+        if (.not. (abs(t(i, i)) > rcond * abs(t(1, 1)))) exit
+        rank = i
+      end do
+      xs = 0.0_dp
+      if (rank > 0) then
+        ! z: the least squares of R1^T z = P^T b, in u (m x rank) and b's permuted copy
+        u(:, 1:rank) = 0.0_dp
+        do i = 1, rank
+          do j = i, m
+            u(j, i) = t(i, j)
+          end do
+        end do
+        do j = 1, m
+          u(j, rank + 1) = b(jpvt(j))
+        end do
+        do i = 1, rank
+          call reflect(u(i:m, i), temp)
+          call apply_reflector(u(i:m, i), temp, u(i:m, i + 1:rank + 1))
+        end do
+        do i = rank, 1, -1
+          x = u(i, rank + 1)
+          do j = i + 1, rank
+            x = x - u(i, j) * xs(j)
+          end do
+          xs(i) = x / u(i, i)
+        end do
+        ! x = H(1) ... H(rank) [z; 0]
+        do i = rank, 1, -1
+          call apply_reflector(t(i:n, i), tau(i), xs(i:n))
+        end do
+      end if
+      b(1:n) = xs
+    end associate
+  end subroutine mbdk_fixed_least_squares
+
+  !> dlarfg on x: H = I - tau v v^T with v = [1; x(2:)] (returned in x(2:)) takes x to
+  !> [beta; 0] (beta in x(1)), beta = -sign(|x|, x(1)); tau = 0 (H = I) where x(2:) is zero.
+  pure subroutine reflect(x, tau)
+    real(dp), intent(inout) :: x(:)
+    real(dp), intent(out) :: tau
+    real(dp) :: beta
+    tau = 0.0_dp
+    if (size(x) < 2) return
+    if (all(x(2:) == 0.0_dp)) return
+    beta = -sign(norm2(x), x(1))
+    tau = (beta - x(1)) / beta
+    x(2:) = x(2:) / (x(1) - beta)
+    x(1) = beta
+  end subroutine reflect
+
+  !> c <- H c for each column of c (or the vector c), H = I - tau v v^T, v = [1; x(2:)]
+  !> (dlarf from the left).
+  pure subroutine apply_reflector(x, tau, c)
+    real(dp), intent(in) :: x(:), tau
+    real(dp), intent(inout) :: c(..)
+    real(dp) :: s
+    integer :: j, l
+    if (tau == 0.0_dp) return
+    select rank (c)
+    rank (1)
+      s = c(1)
+      do l = 2, size(x)
+        s = s + x(l) * c(l)
+      end do
+      s = tau * s
+      c(1) = c(1) - s
+      do l = 2, size(x)
+        c(l) = c(l) - s * x(l)
+      end do
+    rank (2)
+      do j = 1, size(c, 2)
+        s = c(1, j)
+        do l = 2, size(x)
+          s = s + x(l) * c(l, j)
+        end do
+        s = tau * s
+        c(1, j) = c(1, j) - s
+        do l = 2, size(x)
+          c(l, j) = c(l, j) - s * x(l)
+        end do
+      end do
+    end select
+  end subroutine apply_reflector
 
   !> The index of the first largest entry of x (MAXLOC's choice; NaN entries are passed over).
   pure integer function first_max(x)

@@ -11,7 +11,8 @@ module mbdk_lapack
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, MBDK_ERR_INVALID_INPUT, &
     MBDK_ERR_NONFINITE, MBDK_ERR_NO_MEMORY
   use mbdk_fixed_order, only: mbdk_fixed_lu_factor, mbdk_fixed_lu_solve, &
-    mbdk_fixed_chol_factor, mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted, MBDK_FIXED_ORDER_MAX
+    mbdk_fixed_chol_factor, mbdk_fixed_chol_solve, mbdk_fixed_chol_pivoted, &
+    mbdk_fixed_least_squares, MBDK_FIXED_ORDER_MAX
   implicit none
   private
   public :: mbdk_lu_factor, mbdk_lu_solve, mbdk_chol_factor, mbdk_chol_solve, &
@@ -70,9 +71,11 @@ module mbdk_lapack
 contains
 
   !> The minimum-norm x minimising |A x - b| (A m x n, any rank): b(1:m) on entry, x = b(1:n)
-  !> on exit (b has max(m, n) entries); singular values below rcond times the largest count as
-  !> zero (rcond < 0: machine precision), rank is the effective rank. A is overwritten.
-  !> MBDK_ERR_NO_MEMORY when dgelsd's workspace cannot be had.
+  !> on exit (b has max(m, n) entries); rank is the effective rank. Up to MBDK_FIXED_ORDER_MAX
+  !> rows and columns by mbdk_fixed_least_squares (a QR with column pivoting of A^T, every sum
+  !> in one order; R's diagonal entries below rcond times the first count as zero), above by
+  !> LAPACK's dgelsd (singular values below rcond times the largest; A overwritten; rcond < 0:
+  !> machine precision). MBDK_ERR_NO_MEMORY when the workspace cannot be had.
   subroutine mbdk_least_squares(a, b, rcond, rank, stat)
     real(dp), intent(inout) :: a(:, :), b(:)
     real(dp), intent(in) :: rcond
@@ -80,8 +83,8 @@ contains
     integer :: m, n, info, lwork, liwork, astat
     real(dp) :: wq(1)
     integer :: iq(1)
-    real(dp), allocatable :: sv(:), work(:)
-    integer, allocatable :: iwork(:)
+    real(dp), allocatable :: sv(:), work(:), t(:, :), u(:, :), w(:)
+    integer, allocatable :: iwork(:), jpvt(:)
     m = size(a, 1)
     n = size(a, 2)
     rank = 0
@@ -96,6 +99,15 @@ contains
     ! LAPACK's error handler reports by printing (and may stop the process)
     if (.not. (all(abs(a) <= huge(1.0_dp)) .and. all(abs(b(1:m)) <= huge(1.0_dp)))) then
       stat = MBDK_ERR_NONFINITE
+      return
+    end if
+    if (max(m, n) <= MBDK_FIXED_ORDER_MAX) then
+      allocate (t(n, m), u(m, m + 1), w(3 * m + n), jpvt(m), stat=astat)
+      call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(n, dp) * m + real(m, dp) * (m + 1) + &
+                             3 * m + n) + MBDK_INT_BYTES * m, stat)
+      if (stat /= MBDK_SUCCESS) return
+      call mbdk_fixed_least_squares(a, m, n, b, merge(epsilon(1.0_dp), rcond, rcond < 0.0_dp), &
+                                    rank, t, u, w, jpvt)
       return
     end if
     allocate (sv(min(m, n)), stat=astat)

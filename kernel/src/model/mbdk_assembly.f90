@@ -13,8 +13,8 @@
 !> Assembly (mbdk_assembly_run). The coordinates the scene does not mark as given move as little
 !> as possible: Gauss-Newton on Phi(q, t0) = 0, each correction the minimum-norm least-squares
 !> solution of D_free dq = -Phi (D_f^T (D_f D_f^T)^-1 by an in-house LDL^T where the rows are
-!> few and independent, the same bits on every CPU; else LAPACK dgelsd, so redundant
-!> constraints are no obstacle), until
+!> few and independent; else mbdk_least_squares, so redundant constraints are no obstacle:
+!> both the same bits on every CPU up to MBDK_FIXED_ORDER_MAX rows and columns), until
 !> max |Phi| <= tol (or Phi's roundoff at q, mbdk_phi_floor, where that is larger); then the
 !> velocities not given, v_free = least-squares solution of D_free v_free = -Phi_t - D_given
 !> v_given. A knife edge's row constrains velocities only: the positions' corrections leave it
@@ -343,12 +343,13 @@ contains
   !> x = A^T (A A^T)^-1 c, the least change with A x = c where A's rows are independent (the
   !> sparse path's least change, minnorm, in the dense form of a few rows), by the in-house
   !> LDL^T of mbdk_small_dense: every sum in one order, so that a planar start is assembled to
-  !> the same bits under every BLAS kernel (LAPACK's dgelsd, below, is not: its BLAS kernels
-  !> order their sums by CPU, and a start that differs in its last bits can change where a run
-  !> through a singular pose stops, tests/test_same_bits.py). .false. (x undefined) for more
-  !> rows than MBDK_SMALL_DENSE_MAX, more rows than columns, or rows that are dependent
-  !> (redundant joints) or zero (a knife edge's, in the positions' correction) to the singular
-  !> test of the constrained solves: dgelsd then takes the least squares.
+  !> the same bits under every BLAS kernel (a start that differs in its last bits can change
+  !> where a run through a singular pose stops, tests/test_same_bits.py). .false. (x
+  !> undefined) for more rows than MBDK_SMALL_DENSE_MAX, more rows than columns, or rows that
+  !> are dependent (redundant joints) or zero (a knife edge's, in the positions' correction) to
+  !> the singular test of the constrained solves: mbdk_least_squares then takes the least
+  !> squares (in one order of sums too up to MBDK_FIXED_ORDER_MAX rows and columns, LAPACK's
+  !> dgelsd above).
   logical function small_minnorm(a, c, x) result(ok)
     real(dp), intent(in) :: a(:, :), c(:)
     real(dp), intent(out) :: x(:)
