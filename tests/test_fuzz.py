@@ -67,8 +67,8 @@ def test_the_generator_carries_every_bad_input_of_issue_36(outcomes):
 def test_nothing_is_printed(tmp_path, capfd):
     """Neither the kernel nor LAPACK prints, whatever comes in: a fuzz subset, and a NaN state
     handed to the kernel's assembly directly (the door a C caller has; Python's own checks stop
-    it earlier), which reached LAPACK's dgelsd, whose error handler printed "On entry to DLASCL
-    parameter number 4 had an illegal value"."""
+    it earlier): LAPACK's dgelsd, which the assembly's least squares may call, prints "On entry
+    to DLASCL parameter number 4 had an illegal value" for one, so the kernel refuses it first."""
     import numpy as np
     import mbdk
     from mbdk import _kernel

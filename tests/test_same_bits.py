@@ -1,8 +1,8 @@
 """Runs whose linear algebra is the kernel's own are the same bits under every OpenBLAS kernel:
 the planar scenes' starts (the dense least change of a few rows, mbdk_assembly: in-house
 LDL^T; with redundant joints, a least squares by a QR with column pivoting in one order of
-sums, mbdk_fixed_order, where LAPACK's dgelsd orders its sums by the BLAS kernel: the
-redundant parallelogram's start differed under each of four kernels), what runs from them on
+sums, mbdk_fixed_order, where LAPACK's dgelsd orders its sums by the BLAS kernel and gives the
+redundant parallelogram another start under each), what runs from them on
 paths that call no BLAS (dopri54's reduced solve, ida's dense SUNDIALS LU), and the dense
 factorisations of up to 128 unknowns, which mbdk_lapack routes to mbdk_fixed_order (bdf's
 Newton matrix on planar and spatial scenes and on the DAE forms of Bricard's linkage and the

@@ -115,7 +115,8 @@ def test_auto_goes_sparse_above_12_rows_only():
 def test_sparse_assembly_moves_the_same_least_change_as_the_dense_least_squares():
     """A chain whose bodies are displaced off the joints: the assembly (Gauss-Newton, each
     correction the least change of the free coordinates) lands on the same pose whether its
-    corrections come from LAPACK's dense least squares or the sparse Schur complement."""
+    corrections come from the dense least squares (mbdk_least_squares) or the sparse Schur
+    complement."""
     sc = chain(30, -30.0)
     rng = np.random.default_rng(7)
     for b in sc.bodies:

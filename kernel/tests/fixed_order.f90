@@ -8,11 +8,13 @@
 !>     solve's residual as the LU's; a matrix with a negative diagonal entry gives info > 0.
 !>   Pivoted Cholesky (dpstrf 'L', dstop 1e-10 max diag) on A = G^T G with G of rank r < n: the
 !>     same rank and pivot order as LAPACK's, and factors within 64 n eps max|A|.
-!>   Least squares (dgelsd, rcond eps max(m, n)) with n unknowns: m = n/2 independent rows; n
-!>     rows of which the last ones are combinations of the others (a redundant joint's), with a
-!>     right-hand side they agree on and one they do not; n + 5 rows (overdetermined). The same
-!>     rank as dgelsd's and a solution within 1e-9 max|x| of it (two algorithms, both of the
-!>     minimum-norm least-squares solution).
+!>   Least squares (dgelsd, rcond eps max(m, n)) with n unknowns: about n/2 independent rows
+!>     with one zeroed (a knife edge's in the positions' correction); about 2n/3 rows, a third
+!>     of the entries zero, the last two combinations of the others (a redundant joint's), with
+!>     a right-hand side they agree on; n rows, two dependent, with one they do not; about
+!>     n + 5 rows, two dependent (overdetermined, rank below n where n allows); and A = 0. The
+!>     same rank as dgelsd's and a solution within 1e-9 max|x| of it (two algorithms, both of
+!>     the minimum-norm least-squares solution).
 program fixed_order
   use mbdk_kinds, only: dp, i8
   use test_draws, only: draws_t, fill, fill_v
@@ -23,15 +25,16 @@ program fixed_order
   real(dp) :: tol, dstop
   integer :: ipiv(NMAX), ipiv2(NMAX), piv(NMAX), piv2(NMAX), n, trial, info, info2, r, rank, &
     rank2, i, j, nfail, m
-  real(dp) :: t(NMAX, NMAX), u(NMAX, NMAX + 1), w(4 * NMAX), y(NMAX), cmb(NMAX, NMAX)
-  real(dp), allocatable :: lwork(:)
-  integer, allocatable :: liwork(:)
-  integer :: jpvt(NMAX)
+  real(dp) :: t(NMAX, NMAX + 5), u(NMAX + 5, NMAX + 6), w(4 * NMAX + 15), y(NMAX + 5), &
+    cmb(NMAX, NMAX)
+  real(dp), allocatable :: lsq_work(:)
+  integer, allocatable :: lsq_iwork(:)
+  integer :: jpvt(NMAX + 5)
   type(draws_t) :: rnd
   external :: dgetrf, dpotrf, dpstrf, dgelsd
   rnd%seed = 4242_i8
   nfail = 0
-  allocate (lwork(1000000), liwork(100000))
+  allocate (lsq_work(1000000), lsq_iwork(100000))
   do n = 1, NMAX
     do trial = 1, 4
       ! ---- LU ----
@@ -97,32 +100,25 @@ program fixed_order
       case (1)
         m = max(1, n / 2)
         call fill(rnd, a(1:m, 1:n))
-      case (2, 3)
+        if (m >= 2) a(2, 1:n) = 0.0_dp
+      case (2)
+        m = max(1, (2 * n) / 3)
+        call dependent_rows(m, n, 2, sparse=.true.)
+      case (3)
         m = n
-        r = max(1, n - 1 - mod(n, 3))
-        call fill(rnd, a(1:r, 1:n))
-        call fill(rnd, cmb(1:m - r, 1:r))
-        a(r + 1:m, 1:n) = matmul(cmb(1:m - r, 1:r), a(1:r, 1:n))
+        call dependent_rows(m, n, 2, sparse=.false.)
       case default
         m = min(NMAX, n + 5)
-        call fill(rnd, a(1:m, 1:n))
+        call dependent_rows(m, n, 2, sparse=.false.)
       end select
       call fill_v(rnd, y(1:n))
       b(1:m) = matmul(a(1:m, 1:n), y(1:n))
-      if (trial == 3 .or. trial == 4) call fill_v(rnd, b(1:m))
-      x(1:max(m, n)) = 0.0_dp
-      x(1:m) = b(1:m)
-      call mbdk_fixed_least_squares(a(1:m, 1:n), m, n, x(1:max(m, n)), &
-                                    epsilon(1.0_dp) * max(m, n), rank, t(1:n, 1:m), &
-                                    u(1:m, 1:m + 1), w(1:3 * m + n), jpvt(1:m))
-      g(1:m, 1:n) = a(1:m, 1:n)
-      y(1:max(m, n)) = 0.0_dp
-      y(1:m) = b(1:m)
-      call dgelsd(m, n, 1, g(1:m, 1:n), m, y(1:max(m, n)), max(m, n), work, &
-                  epsilon(1.0_dp) * max(m, n), rank2, lwork, size(lwork), liwork, info2)
-      call check(info2 == 0 .and. rank == rank2, 'least squares rank', n)
-      tol = 1.0e-9_dp * max(1.0_dp, maxval(abs(y(1:n))))
-      call check(maxval(abs(x(1:n) - y(1:n))) <= tol, 'least squares solution', n)
+      if (trial >= 3) call fill_v(rnd, b(1:m))
+      call compare_least_squares(m, n, 'least squares')
+      if (trial == 1) then
+        a(1:m, 1:n) = 0.0_dp
+        call compare_least_squares(m, n, 'least squares of A = 0')
+      end if
     end do
   end do
   if (nfail > 0) then
@@ -132,6 +128,46 @@ program fixed_order
   print '(a, i0, a)', 'fixed_order: LU, Cholesky, pivoted Cholesky and least squares agree with ' &
     // 'LAPACK, n = 1..', NMAX, ': PASS'
 contains
+  !> a(1:m, 1:n) random with its last k rows combinations of the others (where m > k), a third
+  !> of the entries of those others zero if sparse
+  subroutine dependent_rows(m, n, k, sparse)
+    integer, intent(in) :: m, n, k
+    logical, intent(in) :: sparse
+    integer :: r, i, j
+    r = merge(m - k, m, m > k)
+    call fill(rnd, a(1:r, 1:n))
+    if (sparse) then
+      do j = 1, n
+        do i = 1, r
+          if (mod(i + 2 * j, 3) == 0) a(i, j) = 0.0_dp
+        end do
+      end do
+    end if
+    if (r < m) then
+      call fill(rnd, cmb(1:m - r, 1:r))
+      a(r + 1:m, 1:n) = matmul(cmb(1:m - r, 1:r), a(1:r, 1:n))
+    end if
+  end subroutine dependent_rows
+  !> mbdk_fixed_least_squares against dgelsd on a(1:m, 1:n), b(1:m)
+  subroutine compare_least_squares(m, n, what)
+    integer, intent(in) :: m, n
+    character(*), intent(in) :: what
+    real(dp) :: xf(NMAX + 5), xl(NMAX + 5), tol
+    integer :: rank, rank2, info2
+    xf = 0.0_dp
+    xf(1:m) = b(1:m)
+    call mbdk_fixed_least_squares(a(1:m, 1:n), m, n, xf(1:max(m, n)), &
+                                  epsilon(1.0_dp) * max(m, n), rank, t(1:n, 1:m), &
+                                  u(1:m, 1:m + 1), w(1:3 * m + n), jpvt(1:m))
+    g(1:m, 1:n) = a(1:m, 1:n)
+    xl = 0.0_dp
+    xl(1:m) = b(1:m)
+    call dgelsd(m, n, 1, g(1:m, 1:n), m, xl(1:max(m, n)), max(m, n), work, &
+                epsilon(1.0_dp) * max(m, n), rank2, lsq_work, size(lsq_work), lsq_iwork, info2)
+    call check(info2 == 0 .and. rank == rank2, what // ' rank', n)
+    tol = 1.0e-9_dp * max(1.0_dp, maxval(abs(xl(1:n))))
+    call check(maxval(abs(xf(1:n) - xl(1:n))) <= tol, what // ' solution', n)
+  end subroutine compare_least_squares
   subroutine check(ok, what, n)
     logical, intent(in) :: ok
     character(*), intent(in) :: what

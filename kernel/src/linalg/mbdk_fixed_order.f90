@@ -10,7 +10,7 @@
 !>     128 LAPACK's blocked LU is faster, and the bound takes that cost for the DAE forms of the
 !>     small closed loops (Bricard's linkage, 95 unknowns; the flyball governor, 72), whose runs
 !>     it makes the same under every kernel.
-!> Each routine follows its LAPACK namesake's algorithm, storage and tests: the LU keeps U on
+!> Each factorisation follows its LAPACK namesake's algorithm, storage and tests: the LU keeps U on
 !> and above the diagonal and the unit lower L below it, row j swapped with ipiv(j) at step j
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
 !> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
@@ -273,8 +273,10 @@ contains
     rank = n
   end subroutine mbdk_fixed_chol_pivoted
 
-  !> The minimum-norm x minimising |A x - b| for A (m x n) of any rank: dgelsd's solution,
-  !> reached another way. A^T P = Q R by Householder reflectors with column pivoting (dlaqp2:
+  !> The minimum-norm x minimising |A x - b| for A (m x n) of any rank: dgelsd's solution for
+  !> an A of exact rank (redundant joints), reached another way; rows near dependent but not
+  !> exactly may be ranked otherwise than by its singular values. A^T P = Q R by Householder
+  !> reflectors with column pivoting (dlaqp2:
   !> the first largest remaining column norm, norms downdated, and recomputed where the
   !> downdate has lost half the digits); the rank is the number of leading |R(i, i)| above
   !> rcond |R(1, 1)| (rank 0: x = 0). Then x = Q1 z lies in the range of A^T, and z minimises
@@ -321,7 +323,7 @@ contains
           if (vn1(j) == 0.0_dp) cycle
           temp = max(0.0_dp, 1.0_dp - (abs(t(i, j)) / vn1(j))**2)
           temp2 = temp * (vn1(j) / vn2(j))**2
-          if (temp2 <= sqrt(epsilon(1.0_dp))) then
+          if (temp2 <= sqrt(0.5_dp * epsilon(1.0_dp))) then     ! dlaqp2's tol3z
             if (i < n) then
               vn1(j) = norm2(t(i + 1:n, j))
             else
@@ -363,7 +365,7 @@ contains
         end do
         ! x = H(1) ... H(rank) [z; 0]
         do i = rank, 1, -1
-          call apply_reflector(t(i:n, i), tau(i), xs(i:n))
+          call apply_reflector_v(t(i:n, i), tau(i), xs(i:n))
         end do
       end if
       b(1:n) = xs
@@ -385,39 +387,33 @@ contains
     x(1) = beta
   end subroutine reflect
 
-  !> c <- H c for each column of c (or the vector c), H = I - tau v v^T, v = [1; x(2:)]
-  !> (dlarf from the left).
+  !> c <- H c for each column of c, H = I - tau v v^T, v = [1; x(2:)] (dlarf from the left).
   pure subroutine apply_reflector(x, tau, c)
     real(dp), intent(in) :: x(:), tau
-    real(dp), intent(inout) :: c(..)
-    real(dp) :: s
-    integer :: j, l
-    if (tau == 0.0_dp) return
-    select rank (c)
-    rank (1)
-      s = c(1)
-      do l = 2, size(x)
-        s = s + x(l) * c(l)
-      end do
-      s = tau * s
-      c(1) = c(1) - s
-      do l = 2, size(x)
-        c(l) = c(l) - s * x(l)
-      end do
-    rank (2)
-      do j = 1, size(c, 2)
-        s = c(1, j)
-        do l = 2, size(x)
-          s = s + x(l) * c(l, j)
-        end do
-        s = tau * s
-        c(1, j) = c(1, j) - s
-        do l = 2, size(x)
-          c(l, j) = c(l, j) - s * x(l)
-        end do
-      end do
-    end select
+    real(dp), intent(inout) :: c(:, :)
+    integer :: j
+    do j = 1, size(c, 2)
+      call apply_reflector_v(x, tau, c(:, j))
+    end do
   end subroutine apply_reflector
+
+  !> c <- H c for one vector c (apply_reflector's column).
+  pure subroutine apply_reflector_v(x, tau, c)
+    real(dp), intent(in) :: x(:), tau
+    real(dp), intent(inout) :: c(:)
+    real(dp) :: s
+    integer :: l
+    if (tau == 0.0_dp) return
+    s = c(1)
+    do l = 2, size(x)
+      s = s + x(l) * c(l)
+    end do
+    s = tau * s
+    c(1) = c(1) - s
+    do l = 2, size(x)
+      c(l) = c(l) - s * x(l)
+    end do
+  end subroutine apply_reflector_v
 
   !> The index of the first largest entry of x (MAXLOC's choice; NaN entries are passed over).
   pure integer function first_max(x)

@@ -2,9 +2,11 @@
 !> Cholesky factorisation and solve of symmetric positive definite matrices (dpotrf / dpotrs),
 !> the rank-revealing Cholesky factorisation of semidefinite ones (dpstrf),
 !> and minimum-norm least squares through the SVD (dgelsd), rank-deficient systems included.
-!> Up to MBDK_FIXED_ORDER_MAX unknowns the factorisations and solves are those of
-!> mbdk_fixed_order instead (the same algorithms and storage, written out in one order of
-!> operations): the same bits under every OpenBLAS kernel, and faster at these sizes.
+!> Up to MBDK_FIXED_ORDER_MAX unknowns (rows and columns) these are mbdk_fixed_order's instead,
+!> written out in one order of operations: the factorisations and solves with LAPACK's
+!> algorithms and storage, the least squares by a QR with column pivoting (the same solution
+!> for exactly rank-deficient A). The same bits under every OpenBLAS kernel, and faster at
+!> these sizes.
 module mbdk_lapack
   use mbdk_kinds, only: dp
   use mbdk_memory, only: mbdk_alloc_status, mbdk_count_fits, MBDK_REAL_BYTES, MBDK_INT_BYTES
@@ -71,11 +73,14 @@ module mbdk_lapack
 contains
 
   !> The minimum-norm x minimising |A x - b| (A m x n, any rank): b(1:m) on entry, x = b(1:n)
-  !> on exit (b has max(m, n) entries); rank is the effective rank. Up to MBDK_FIXED_ORDER_MAX
-  !> rows and columns by mbdk_fixed_least_squares (a QR with column pivoting of A^T, every sum
-  !> in one order; R's diagonal entries below rcond times the first count as zero), above by
-  !> LAPACK's dgelsd (singular values below rcond times the largest; A overwritten; rcond < 0:
-  !> machine precision). MBDK_ERR_NO_MEMORY when the workspace cannot be had.
+  !> on exit (b has max(m, n) entries); rank is the effective rank, rcond its relative
+  !> threshold (rcond <= 0 or >= 1: machine precision, as dgelsd takes it). Up to
+  !> MBDK_FIXED_ORDER_MAX rows and columns by mbdk_fixed_least_squares (a QR with column
+  !> pivoting of A^T, every sum in one order; R's diagonal entries at or below rcond times the
+  !> first count as zero), above by LAPACK's dgelsd (singular values at or below rcond times
+  !> the largest; A overwritten). Both give the minimum-norm least-squares solution; for rows
+  !> near dependent but not exactly, the two rank tests may decide otherwise.
+  !> MBDK_ERR_NO_MEMORY when the workspace cannot be had.
   subroutine mbdk_least_squares(a, b, rcond, rank, stat)
     real(dp), intent(inout) :: a(:, :), b(:)
     real(dp), intent(in) :: rcond
@@ -95,8 +100,9 @@ contains
       b(1:n) = 0.0_dp
       return
     end if
-    ! dgelsd scales by the norms of A and b: a NaN there is an illegal argument to DLASCL, which
-    ! LAPACK's error handler reports by printing (and may stop the process)
+    ! refused on both paths: dgelsd scales by the norms of A and b, and a NaN there is an illegal
+    ! argument to DLASCL, which LAPACK's error handler reports by printing (and may stop the
+    ! process); the QR's pivot choice passes NaN norms over
     if (.not. (all(abs(a) <= huge(1.0_dp)) .and. all(abs(b(1:m)) <= huge(1.0_dp)))) then
       stat = MBDK_ERR_NONFINITE
       return
@@ -106,8 +112,9 @@ contains
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(n, dp) * m + real(m, dp) * (m + 1) + &
                              3 * m + n) + MBDK_INT_BYTES * m, stat)
       if (stat /= MBDK_SUCCESS) return
-      call mbdk_fixed_least_squares(a, m, n, b, merge(epsilon(1.0_dp), rcond, rcond < 0.0_dp), &
-                                    rank, t, u, w, jpvt)
+      call mbdk_fixed_least_squares(a, m, n, b, &
+                                    merge(epsilon(1.0_dp), rcond, rcond <= 0.0_dp .or. &
+                                          rcond >= 1.0_dp), rank, t, u, w, jpvt)
       return
     end if
     allocate (sv(min(m, n)), stat=astat)
