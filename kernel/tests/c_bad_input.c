@@ -10,6 +10,15 @@
  *    hinge, or with a velocity the hinge does not allow, is refused at creation with
  *    MBDK_ERR_INCONSISTENT_INITIAL; the consistent states (at rest, and turning about the hinge
  *    with its centre at omega x r) are accepted.
+ * 4. A Newton matrix that overflows while the residual stays finite: the same bar with a rigid
+ *    lever, a spring of k = 1.7e308 N/m at rest, horizontal, 10 m below the bar's centre (its
+ *    rotational stiffness k r^2 overflows; at rest it pulls with no force). trapezoidal_index3
+ *    with h = 1 (the book's and the augmented form, the small dense path) stops with
+ *    MBDK_ERR_SINGULAR_MATRIX at its first step, with only the initial sample written:
+ *    mbdk_index3_matrix refuses a matrix that is not finite, naming the matrix (without that
+ *    test the LU takes the infinite pivot, and the run ends with MBDK_ERR_NONFINITE once its
+ *    result turns NaN). (Python's scene reader keeps magnitudes within 1e150; a C caller's
+ *    tables are not checked so.)
  * Exit code 0 = pass.
  */
 #include <math.h>
@@ -127,11 +136,40 @@ static void inconsistent_scene_start(void)
           "a velocity that moves the hinge point -> MBDK_ERR_INCONSISTENT_INITIAL");
 }
 
+static void overflowing_newton_matrix(void)
+{
+    static const double mass[1] = {1.0}, inertia[1] = {1.0 / 12.0};
+    static const int jint[4] = {MBDK_JOINT_REVOLUTE, 1, 0, 0};
+    static const double jreal[12] = {0.5, 0.0, 0.0, 0.0};
+    /* gravity; the spring from (-10, 0) on the bar, (0, -10.5) in space, to (10, -10.5) */
+    static const int fint[2][4] = {{MBDK_FORCE_GRAVITY, 0, 0, 0}, {MBDK_FORCE_SPRING, 1, 0, 0}};
+    static const double freal[2][12] = {{0.0, -9.81},
+                                        {-10.0, 0.0, 10.0, -10.5, 1.7e308, 10.0}};
+    const double y0[6] = {0.0, -0.5, PI / 2, 0, 0, 0};
+    const int forms[2] = {MBDK_INDEX3_BOOK, MBDK_INDEX3_AUGMENTED};
+    for (int k = 0; k < 2; k++) {
+        mbdk_index3_options opt;
+        mbdk_stats st;
+        double t[3], y[18], a[9], lam[6];
+        int it[3], nw = -1;
+        mbdk_index3_default_options(&opt);
+        opt.formulation = forms[k];
+        opt.h = 1.0;
+        int status = mbdk_index3_solve(1, mass, inertia, 1, jint, jreal, 2, &fint[0][0],
+                                       &freal[0][0], &opt, 0.0, 2.0, y0, 3, t, y, a, lam, it, &nw,
+                                       &st);
+        check(status == MBDK_ERR_SINGULAR_MATRIX && nw == 1,
+              k == 0 ? "an overflowing Newton matrix, book form -> MBDK_ERR_SINGULAR_MATRIX"
+                     : "an overflowing Newton matrix, augmented -> MBDK_ERR_SINGULAR_MATRIX");
+    }
+}
+
 int main(void)
 {
     nonfinite_right_hand_side();
     advance_backwards();
     inconsistent_scene_start();
+    overflowing_newton_matrix();
     printf("%s\n", fails ? "FAILED" : "PASSED");
     return fails ? 1 : 0;
 }
