@@ -250,9 +250,9 @@ def per_body(out: Path, quick: bool) -> list:
           f"What a body costs per rk4 step (reduced formulation, h = {H:g}; thread CPU in us, "
           "best of the runs)",
           "The four-bar's evaluation is the planar model's closed form (2 x 2 blocks, a few "
-          "hundred instructions); a small closed spatial loop's is dense (its S of 20-30 rows, "
-          "its Cholesky, and, on a loop that can near a rank loss, the geometry's for the "
-          "near-singular test).")
+          "hundred instructions); a small closed spatial loop's is dense (its S of 20-30 rows "
+          "and its Cholesky; on a loop that can near a rank loss, the geometry's second "
+          "factorisation for the near-singular test only where S's pivots leave it open).")
     return rows
 
 

@@ -455,6 +455,72 @@ def test_a_singular_pose_stops_by_name_naming_the_rank_not_a_gimbal_lock():
     assert "gimbal" not in str(err.value)
 
 
+@pytest.mark.parametrize("redundant", [False, True])
+def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(redundant):
+    """The reduced form refuses a near rank loss by the geometry's G = C W C^T (near_test), and
+    skips that second factorisation where S = C M^-1 C^T's pivots, already at hand, prove G
+    clear of the window (clear_of_near: G >= kappa S, kappa from the masses and inertias). The
+    parallelogram in 3D, its crank driven at 1 rad/s from 60 degrees through the flat pose at
+    t = pi / 3: as an RSSR loop (spherical joints at the coupler, 17 independent rows) and with
+    the third crank (31 rows of rank 24). The motion is the driver's whatever the masses, and G
+    the geometry's, so the step at which the run stops must not depend on them. Masses from
+    1e-3 to 1e3 kg, inertias from 1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse),
+    boxes and spheres. With kappa ten times too large, the redundant loop of spheres stops 6
+    steps later than the others (1000 times: the spheres and the fat boxes, 16 and 14)."""
+    planar = mbdk.scene("parallelogram_redundant")
+    links = [b.name for b in planar.bodies if redundant or b.name != "crank3"]
+    q0 = planar.q0()
+    stops = []
+    for variant in range(4):
+        bodies = []
+        for k, b in enumerate(planar.bodies):
+            if b.name not in links:
+                continue
+            length = math.sqrt(12 * b.inertia / b.mass)
+            d = body(b.name, b.mass, position=[q0[3 * k], q0[3 * k + 1], 0.0],
+                     cardan123=[0.0, 0.0, q0[3 * k + 2]])
+            # the driver's motion: the cranks turn at -1 rad/s, the coupler translates
+            if b.name == "coupler":
+                d["velocity"] = [math.sqrt(3) / 2, -0.5, 0.0]
+            else:
+                d["velocity"] = [math.sqrt(3) / 4, -0.25, 0.0]
+                d["omega_body"] = [0.0, 0.0, -1.0]
+            shape = [{"type": "bar", "length": length},
+                     {"type": "sphere", "radius": 0.3},
+                     {"type": "box", "size": [length, 0.1, 0.1]},
+                     {"type": "box", "size": [length, 0.3, 0.3]}][variant]
+            if variant == 2 and b.name in ("crank1", "coupler"):
+                d["mass"], d["inertia"] = ((1e3, [1.0, 1e2, 1e2]) if b.name == "crank1" else
+                                           (1e-3, [1e-6, 1e-3, 1e-3]))
+            else:
+                del d["inertia"]
+                d["shape"] = shape
+                d["mass"] = 10.0 if variant == 3 else b.mass
+            bodies.append(d)
+        joints = []
+        for j in planar.joints:
+            if j.body1 not in links or j.body2 not in links + [GROUND]:
+                continue
+            spherical = not redundant and j.name in ("B", "C")
+            joints.append({"name": j.name, "type": "spherical" if spherical else "revolute",
+                           "body1": j.body1, "body2": j.body2, "point1": [*j.point1, 0.0],
+                           "point2": [*j.point2, 0.0]} | ({} if spherical else {"axis": [0, 0, 1]}))
+        joints.append({"name": "drive", "type": "angle_driver", "body1": "crank1",
+                       "axis": [0, 0, 1], "function": {"rate": -1.0}})
+        sc = scene_from_dict({"body": bodies, "joint": joints,
+                              "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]},
+                             "driven_parallelogram.toml")
+        assert (sc.rows, evaluate_spatial(sc)["rank"]) == ((31, 24) if redundant else (17, 17))
+        with pytest.raises(mbdk.SingularMatrixError, match="lost their rank") as err:
+            mbdk.simulate(sc, "rk4", h=1e-3, t_end=1.2)
+        r = err.value.result
+        rot = r.orientation("crank1")
+        # stopped before the flat pose (crank angle 0), within a few hundredths of a radian
+        assert 0.0 < np.arctan2(rot[-1, 1, 0], rot[-1, 0, 0]) < 0.05
+        stops.append(len(r.t))
+    assert len(set(stops)) == 1, stops
+
+
 def test_error_controlled_methods_run_spatial_scenes():
     sc = mbdk.scene("heavy_top")
     ref = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.5, every=5000)

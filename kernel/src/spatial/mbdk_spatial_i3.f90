@@ -256,8 +256,10 @@ contains
       else
         stat = MBDK_ERR_SINGULAR_MATRIX
       end if
-      if (stat == MBDK_SUCCESS .and. near > 0.0_dp .and. .not. self%regular_tree) &
-        call near_test(self, aux%c, aux%rows(1:na), near, stat)
+      if (stat == MBDK_SUCCESS .and. near > 0.0_dp .and. .not. self%regular_tree) then
+        if (.not. clear_of_near(self, aux%c, aux%rows(1:na), aux%s(1:na, 1:na), near)) &
+          call near_test(self, aux%c, aux%rows(1:na), near, stat)
+      end if
       if (stat /= MBDK_ERR_SINGULAR_MATRIX .or. .not. regular_ok) return
       ! the regular path's matrix M + beta C^T C (formed in place: an expression's temporary
       ! of 6 nb x 6 nb would be taken without a status)

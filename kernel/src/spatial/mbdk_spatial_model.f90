@@ -144,7 +144,7 @@ module mbdk_spatial_model
     mbdk_spatial_watch_nodes
   ! for the submodule mbdk_spatial_i3: gfortran gives a private module procedure local linkage
   ! (and clones it), so that a submodule compiled on its own cannot link to it
-  public :: frames, forces, constraints, apply_minv, minv_ct, gram, near_test, &
+  public :: frames, forces, constraints, apply_minv, minv_ct, gram, near_test, clear_of_near, &
     generalized_forces, last_velocity, compact_times, compact_ct, compact_factor, qi, &
     loads_two_bodies
 
@@ -248,6 +248,9 @@ module mbdk_spatial_model
     !> and S's pattern and factors; c and mc are then empty
     real(dp), allocatable :: cc(:, :), dx(:)
     type(mbdk_compact_schur_t) :: cs
+    !> solve_rows' S, right-hand side and diagonal, sized at its first call and again where the
+    !> rows solved change in number (a redundant scene's switch of rows)
+    real(dp), allocatable :: s(:, :), sx(:), sdiag(:)
   end type mbdk_spatial_work_t
 
   !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
@@ -299,6 +302,10 @@ module mbdk_spatial_model
     !> two normal unit vectors on its translation. A driver's angle or slide row is left
     !> out: an angle measured about an axis the joint does not hold can lose its gradient.
     logical :: regular_tree = .false.
+    !> kappa with W >= kappa M^-1 body by body, W the geometry's weight of the near test
+    !> (diag(I, I / geo_length^2)): the least of a body's mass and of a lower bound of its
+    !> inertia's least eigenvalue over geo_length^2 (clear_of_near)
+    real(dp) :: near_kappa = 0.0_dp
     real(dp), allocatable :: minv_blk(:, :, :), geo_blk(:, :, :)
     integer, allocatable :: all_rows(:)   !< 1 .. m, the index of every row
     integer, allocatable :: rbody(:, :)   !< (2, m): the two bodies of each row (0: the ground)
@@ -459,6 +466,7 @@ contains
     call take_forces(model, ftype, fbody, freal, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     call watch_scales(model, fr)
+    model%near_kappa = weight_bound(model)
     call spatial_invariants(jtype, jbody, jreal, ftype, fbody, freal, model%inv, model%ninv)
     call choose_active_rows(model, fr, t0, jbody, stat, asked)
     if (stat /= MBDK_SUCCESS) return
@@ -1665,19 +1673,24 @@ contains
     real(dp), intent(out) :: lam(:)
     integer, intent(out) :: stat
     real(dp), intent(in), optional :: near
-    real(dp), allocatable :: s(:, :), x(:), diag(:)
     integer :: info, r
     r = size(rows)
-    allocate (s(r, r), x(r), diag(r), stat=info)
-    call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
-    if (stat /= MBDK_SUCCESS) return
-    call solve_rows_in(s, x)
+    stat = MBDK_SUCCESS
+    if (allocated(model%work%s)) then
+      if (size(model%work%s, 1) /= r) deallocate (model%work%s, model%work%sx, model%work%sdiag)
+    end if
+    if (.not. allocated(model%work%s)) then
+      allocate (model%work%s(r, r), model%work%sx(r), model%work%sdiag(r), stat=info)
+      call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
+      if (stat /= MBDK_SUCCESS) return
+    end if
+    call solve_rows_in(model%work%s, model%work%sx, model%work%sdiag)
 
   contains
 
-    !> the solve in the scratch s (r x r) and x (r)
-    subroutine solve_rows_in(s, x)
-      real(dp), intent(out) :: s(:, :), x(:)
+    !> the solve in the scratch s (r x r), x (r) and diag (r)
+    subroutine solve_rows_in(s, x, diag)
+      real(dp), intent(out) :: s(:, :), x(:), diag(:)
       integer :: k
       call gram(model, c, mc, rows, s, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -1696,8 +1709,10 @@ contains
         if (.not. (s(k, k)**2 > SOLVE_RTOL * diag(k))) return
       end do
       if (present(near)) then
-        call near_test(model, c, rows, near, stat)
-        if (stat /= MBDK_SUCCESS) return
+        if (.not. clear_of_near(model, c, rows, s, near)) then
+          call near_test(model, c, rows, near, stat)
+          if (stat /= MBDK_SUCCESS) return
+        end if
       end if
       call mbdk_chol_solve(s, x, stat)
       if (stat /= MBDK_SUCCESS) then
@@ -1921,6 +1936,64 @@ contains
       spread = spread + sum(z(i:n)**2)
     end do
   end subroutine inverse_trace
+
+  !> Whether near_test would pass the rows, known from the factor of S = C M^-1 C^T on the same
+  !> rows in the same order (s: its Cholesky factor, pivots on the diagonal), without forming
+  !> and factoring the geometry's G = C W C^T. W and M^-1 are block diagonal by body with
+  !> W >= kappa M^-1 (model%near_kappa), so G >= kappa S; a pivot of the Cholesky factor
+  !> squared is a Schur complement, the least of x^T A x over the x whose last nonzero entry is
+  !> a 1 at that row, so G's is at least kappa times S's. Where kappa pivot(S)^2 exceeds twice
+  !> the window times G's diagonal entry (a row's own weighted length, a few products) for
+  !> every row, G has no pivot within the window: near_test's verdict, with a factor 2 for the
+  !> roundoff of either factorisation. Otherwise near_test decides. On Bricard's linkage
+  !> (rods of 1 x 0.1 x 0.1 m, kappa from their axial inertia) the bound decides at every
+  !> evaluation of the benchmark's 10 s (rk4 on the reduced form, trapezoidal_index3).
+  pure logical function clear_of_near(model, c, rows, s, near) result(clear)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp), intent(in) :: c(:, :), s(:, :), near
+    integer, intent(in) :: rows(:)
+    real(dp) :: dg, l2
+    integer :: k, a, b, o
+    clear = .false.
+    if (.not. (model%near_kappa > 0.0_dp)) return
+    l2 = model%geo_length**2
+    do k = 1, size(rows)
+      dg = 0.0_dp
+      do a = 1, 2
+        b = model%rbody(a, rows(k))
+        if (b == 0) cycle
+        if (a == 2 .and. b == model%rbody(1, rows(k))) cycle
+        o = 6 * (b - 1)
+        dg = dg + sum(c(rows(k), o + 1:o + 3)**2) + sum(c(rows(k), o + 4:o + 6)**2) / l2
+      end do
+      if (.not. (model%near_kappa * s(k, k)**2 > 2.0_dp * near * dg)) return
+    end do
+    clear = .true.
+  end function clear_of_near
+
+  !> kappa with W >= kappa M^-1 on every body (clear_of_near): W - kappa M^-1 is
+  !> diag((1 - kappa / m) I, I / geo_length^2 - kappa J^-1), semidefinite for kappa at most m
+  !> and lambda_min(J) / geo_length^2; lambda_min(J) = 1 / lambda_max(J^-1) is bounded below by
+  !> Gershgorin's bound on J^-1's rows (exact for a diagonal J). 0 where a body has no finite
+  !> bound (the near test then always runs).
+  pure real(dp) function weight_bound(model) result(kappa)
+    type(mbdk_spatial_model_t), intent(in) :: model
+    real(dp) :: g
+    integer :: b, i
+    kappa = huge(1.0_dp)
+    do b = 1, model%nb
+      g = 0.0_dp
+      do i = 1, 3
+        g = max(g, sum(abs(model%inv_inertia(i, :, b))))
+      end do
+      if (.not. (g > 0.0_dp .and. g <= huge(1.0_dp))) then
+        kappa = 0.0_dp
+        return
+      end if
+      kappa = min(kappa, model%mass(b), 1.0_dp / (g * model%geo_length**2))
+    end do
+    if (.not. (kappa > 0.0_dp .and. kappa < huge(1.0_dp))) kappa = 0.0_dp
+  end function weight_bound
 
   !> MBDK_ERR_SINGULAR_MATRIX when the rows of C tested (the active ones) are near a rank loss:
   !> a relative pivot (to its row's diagonal) of C W C^T below near, W = diag(1, 1, 1, 1/L^2,
