@@ -457,16 +457,18 @@ def test_a_singular_pose_stops_by_name_naming_the_rank_not_a_gimbal_lock():
 
 @pytest.mark.parametrize("redundant", [False, True])
 def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(redundant):
-    """The reduced form refuses a near rank loss by the geometry's G = C W C^T (near_test), and
-    skips that second factorisation where S = C M^-1 C^T's pivots, already at hand, prove G
-    clear of the window (clear_of_near: G >= kappa S, kappa from the masses and inertias). The
-    parallelogram in 3D, its crank driven at 1 rad/s from 60 degrees through the flat pose at
-    t = pi / 3: as an RSSR loop (spherical joints at the coupler, 17 independent rows) and with
-    the third crank (31 rows of rank 24). The motion is the driver's whatever the masses, and G
-    the geometry's, so the step at which the run stops must not depend on them. Masses from
-    1e-3 to 1e3 kg, inertias from 1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse),
-    boxes and spheres. With kappa ten times too large, the redundant loop of spheres stops 6
-    steps later than the others (1000 times: the spheres and the fat boxes, 16 and 14)."""
+    """The reduced form refuses a near rank loss by the geometry's G = C W C^T, not by S =
+    C M^-1 C^T. The parallelogram in 3D, its crank driven at 1 rad/s from 60 degrees through
+    the flat pose at t = pi / 3: the motion is the driver's whatever the masses, and G the
+    geometry's, so the step at which the run stops must not depend on them. Masses from 1e-3
+    to 1e3 kg, inertias from 1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse), boxes
+    and spheres.
+    With the third crank (31 rows of rank 24) the solve is dense, and skips near_test's
+    factorisation of G where S's pivots, already at hand, prove it clear (clear_of_near:
+    W >= kappa M^-1, so G >= kappa S): with kappa ten times too large the spheres stop 6 steps
+    later than the others (1000 times: the spheres and the fat boxes, 16 and 14).
+    As an RSSR loop (spherical joints at the coupler, 17 independent rows) S is sparse enough
+    for compact rows, whose near test factorises G on its own (mbdk_compact_schur)."""
     planar = mbdk.scene("parallelogram_redundant")
     links = [b.name for b in planar.bodies if redundant or b.name != "crank3"]
     q0 = planar.q0()
@@ -514,6 +516,7 @@ def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(re
         with pytest.raises(mbdk.SingularMatrixError, match="lost their rank") as err:
             mbdk.simulate(sc, "rk4", h=1e-3, t_end=1.2)
         r = err.value.result
+        assert r.manifest["linear_solve"].startswith("dense" if redundant else "compact rows")
         rot = r.orientation("crank1")
         # stopped before the flat pose (crank angle 0), within a few hundredths of a radian
         assert 0.0 < np.arctan2(rot[-1, 1, 0], rot[-1, 0, 0]) < 0.05

@@ -248,8 +248,9 @@ module mbdk_spatial_model
     !> and S's pattern and factors; c and mc are then empty
     real(dp), allocatable :: cc(:, :), dx(:)
     type(mbdk_compact_schur_t) :: cs
-    !> solve_rows' S, right-hand side and diagonal, sized at its first call and again where the
-    !> rows solved change in number (a redundant scene's switch of rows)
+    !> solve_rows' S, right-hand side and diagonal, sized at its first call to the rows solved
+    !> (all, or a redundant scene's independent set, whose count stays rank0); not at init, as
+    !> the paths that never solve rows densely (sparse, penalty) would hold an m x m S for nothing
     real(dp), allocatable :: s(:, :), sx(:), sdiag(:)
   end type mbdk_spatial_work_t
 
@@ -1676,15 +1677,22 @@ contains
     integer :: info, r
     r = size(rows)
     stat = MBDK_SUCCESS
-    if (allocated(model%work%s)) then
-      if (size(model%work%s, 1) /= r) deallocate (model%work%s, model%work%sx, model%work%sdiag)
-    end if
-    if (.not. allocated(model%work%s)) then
-      allocate (model%work%s(r, r), model%work%sx(r), model%work%sdiag(r), stat=info)
-      call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
-      if (stat /= MBDK_SUCCESS) return
-    end if
-    call solve_rows_in(model%work%s, model%work%sx, model%work%sdiag)
+    associate (w => model%work)
+      ! all three or none: an allocation that failed part way leaves some of them allocated
+      if (.not. (allocated(w%s) .and. allocated(w%sx) .and. allocated(w%sdiag))) then
+        if (allocated(w%s)) deallocate (w%s)
+        if (allocated(w%sx)) deallocate (w%sx)
+        if (allocated(w%sdiag)) deallocate (w%sdiag)
+      else if (size(w%s, 1) /= r) then
+        deallocate (w%s, w%sx, w%sdiag)
+      end if
+      if (.not. allocated(w%s)) then
+        allocate (w%s(r, r), w%sx(r), w%sdiag(r), stat=info)
+        call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
+        if (stat /= MBDK_SUCCESS) return
+      end if
+      call solve_rows_in(w%s, w%sx, w%sdiag)
+    end associate
 
   contains
 
@@ -1943,11 +1951,13 @@ contains
   !> W >= kappa M^-1 (model%near_kappa), so G >= kappa S; a pivot of the Cholesky factor
   !> squared is a Schur complement, the least of x^T A x over the x whose last nonzero entry is
   !> a 1 at that row, so G's is at least kappa times S's. Where kappa pivot(S)^2 exceeds twice
-  !> the window times G's diagonal entry (a row's own weighted length, a few products) for
+  !> the window times G's diagonal entry (a row's weighted squared length, a few products) for
   !> every row, G has no pivot within the window: near_test's verdict, with a factor 2 for the
-  !> roundoff of either factorisation. Otherwise near_test decides. On Bricard's linkage
-  !> (rods of 1 x 0.1 x 0.1 m, kappa from their axial inertia) the bound decides at every
-  !> evaluation of the benchmark's 10 s (rk4 on the reduced form, trapezoidal_index3).
+  !> roundoff of either factorisation (and of J^-1's symmetry in weight_bound). Otherwise
+  !> near_test decides. The bound gives away the spread of the weights (kappa against the
+  !> masses and the inertias over L^2): it decides where S's pivots clear the window by that
+  !> much more, and a body far lighter in rotation than in translation (a slender bar's
+  !> axial inertia) leaves more poses to near_test.
   pure logical function clear_of_near(model, c, rows, s, near) result(clear)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp), intent(in) :: c(:, :), s(:, :), near
@@ -1974,8 +1984,9 @@ contains
   !> kappa with W >= kappa M^-1 on every body (clear_of_near): W - kappa M^-1 is
   !> diag((1 - kappa / m) I, I / geo_length^2 - kappa J^-1), semidefinite for kappa at most m
   !> and lambda_min(J) / geo_length^2; lambda_min(J) = 1 / lambda_max(J^-1) is bounded below by
-  !> Gershgorin's bound on J^-1's rows (exact for a diagonal J). 0 where a body has no finite
-  !> bound (the near test then always runs).
+  !> Gershgorin's bound on J^-1's rows (exact for a diagonal J; inv_inertia is symmetric to
+  !> roundoff, which the factor 2 of clear_of_near covers). 0 where a body has no finite bound
+  !> (the near test then always runs).
   pure real(dp) function weight_bound(model) result(kappa)
     type(mbdk_spatial_model_t), intent(in) :: model
     real(dp) :: g
