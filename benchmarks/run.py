@@ -223,7 +223,8 @@ def per_body(out: Path, quick: bool) -> list:
     """What one body costs per rk4 step (reduced formulation, the path solver="auto" takes),
     planar and spatial, measured one after the other in this run; ratios to a body of the
     planar four-bar (the scene with the planar model's closed-form 2 x 2 blocks) and of the
-    planar chain of the same size as the spatial one."""
+    planar chain of the same size as the spatial one. The compiled heavy top (minimal
+    coordinates) closes the table: a spatial body without the constrained solve."""
     n_chain = 256 if quick else 1024
     scenes = [("four_bar", "planar", mbdk.scene("four_bar")),
               (f"bar chain N = {n_chain}", "planar", bar_chain(n_chain)),
