@@ -6,6 +6,10 @@
 !>     info = n, as dgetrf's.
 !>   Cholesky (dpotrf 'L') on A = G^T G + I: factors within 64 n eps max|A| of LAPACK's, the
 !>     solve's residual as the LU's; a matrix with a negative diagonal entry gives info > 0.
+!>   The Cholesky factor and solve of matrices with exact zeros (a band, a loop's blocks,
+!>     scattered zeros, an arrow): the same bits as the full loops, every product taken (the
+!>     factor and, with its envelope, the solve skip products with a zero entry of L), and an
+!>     envelope that ends at each column's last nonzero entry.
 !>   Pivoted Cholesky (dpstrf 'L', dstop 1e-10 max diag) on A = G^T G with G of rank r < n: the
 !>     same rank and pivot order as LAPACK's, and factors within 64 n eps max|A|.
 !>   Least squares (dgelsd, rcond eps max(m, n)) with n unknowns: about n/2 independent rows
@@ -23,7 +27,8 @@ program fixed_order
   integer, parameter :: NMAX = MBDK_FIXED_ORDER_MAX
   real(dp) :: a(NMAX, NMAX), f(NMAX, NMAX), g(NMAX, NMAX), b(NMAX), x(NMAX), work(2 * NMAX)
   real(dp) :: tol, dstop
-  integer :: ipiv(NMAX), ipiv2(NMAX), piv(NMAX), piv2(NMAX), n, trial, info, info2, r, rank, &
+  integer :: ipiv(NMAX), ipiv2(NMAX), piv(NMAX), piv2(NMAX), last(NMAX), n, trial, info, &
+    info2, r, rank, &
     rank2, i, j, nfail, m
   real(dp) :: t(NMAX, NMAX + 5), u(NMAX + 5, NMAX + 6), w(4 * NMAX + 15), y(NMAX + 5), &
     cmb(NMAX, NMAX)
@@ -81,6 +86,26 @@ program fixed_order
       f(n, n) = -1.0_dp
       call mbdk_fixed_chol_factor(f(1:n, 1:n), n, info)
       call check(info == n, 'Cholesky refusal', n)
+      ! ---- Cholesky of a matrix with zeros: the same bits as the full loops ----
+      call patterned(n, trial)
+      f(1:n, 1:n) = a(1:n, 1:n)
+      g(1:n, 1:n) = a(1:n, 1:n)
+      call mbdk_fixed_chol_factor(f(1:n, 1:n), n, info, last(1:n))
+      call full_chol(g(1:n, 1:n), n)
+      call check(info == 0, 'patterned Cholesky info', n)
+      call check(all(lower(f(1:n, 1:n)) == lower(g(1:n, 1:n))), 'patterned Cholesky bits', n)
+      call check(all([(all(f(last(j) + 1:n, j) == 0.0_dp) .and. &
+                       (last(j) == j .or. f(last(j), j) /= 0.0_dp), j = 1, n)]), &
+                 'patterned Cholesky envelope', n)
+      call fill_v(rnd, b(1:n))
+      x(1:n) = b(1:n)
+      y(1:n) = b(1:n)
+      call mbdk_fixed_chol_solve(f(1:n, 1:n), n, x(1:n), last(1:n))
+      call full_chol_solve(g(1:n, 1:n), n, y(1:n))
+      call check(all(x(1:n) == y(1:n)), 'patterned Cholesky solve bits', n)
+      x(1:n) = b(1:n)
+      call mbdk_fixed_chol_solve(f(1:n, 1:n), n, x(1:n))
+      call check(all(x(1:n) == y(1:n)), 'patterned Cholesky solve bits, no envelope', n)
       ! ---- pivoted Cholesky of a semidefinite matrix of rank r ----
       r = max(1, n - 1 - mod(trial + n, 3))
       call fill(rnd, g(1:r, 1:n))
@@ -128,6 +153,74 @@ program fixed_order
   print '(a, i0, a)', 'fixed_order: LU, Cholesky, pivoted Cholesky and least squares agree with ' &
     // 'LAPACK, n = 1..', NMAX, ': PASS'
 contains
+  !> a(1:n, 1:n) symmetric, diagonally dominant, with exact zeros by kind: 1 a band of
+  !> half-width 1 + mod(n, 9); 2 blocks of five rows coupled to the next around a loop (a closed
+  !> chain of joints, the last block coupled to the first); 3 zeros scattered off the diagonal;
+  !> 4 an arrow (a band of one, and the last row and column full)
+  subroutine patterned(n, kind)
+    integer, intent(in) :: n, kind
+    integer :: i, j, bi, bj, nblk
+    logical :: keep
+    call fill(rnd, a(1:n, 1:n))
+    nblk = (n + 4) / 5
+    do j = 1, n
+      do i = j + 1, n
+        bi = (i - 1) / 5
+        bj = (j - 1) / 5
+        select case (kind)
+        case (1)
+          keep = i - j <= 1 + mod(n, 9)
+        case (2)
+          keep = bi - bj <= 1 .or. (bj == 0 .and. bi == nblk - 1)
+        case (3)
+          keep = mod(i * j + 2 * i, 3) /= 0
+        case default
+          keep = i - j <= 1 .or. i == n
+        end select
+        if (.not. keep) a(i, j) = 0.0_dp
+        a(j, i) = a(i, j)
+      end do
+    end do
+    do i = 1, n
+      a(i, i) = sum(abs(a(1:n, i))) + 1.0_dp
+    end do
+  end subroutine patterned
+  !> LAPACK's unblocked Cholesky (dpotf2 'L') with every product taken, zero or not
+  subroutine full_chol(l, n)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: l(n, n)
+    integer :: i, j, k
+    do j = 1, n
+      do k = 1, j - 1
+        do i = j, n
+          l(i, j) = l(i, j) - l(i, k) * l(j, k)
+        end do
+      end do
+      l(j, j) = sqrt(l(j, j))
+      do i = j + 1, n
+        l(i, j) = l(i, j) / l(j, j)
+      end do
+    end do
+  end subroutine full_chol
+  !> its solve (dpotrs 'L'), every product taken
+  subroutine full_chol_solve(l, n, v)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: l(n, n)
+    real(dp), intent(inout) :: v(n)
+    integer :: i, k
+    do k = 1, n
+      v(k) = v(k) / l(k, k)
+      do i = k + 1, n
+        v(i) = v(i) - l(i, k) * v(k)
+      end do
+    end do
+    do k = n, 1, -1
+      do i = k + 1, n
+        v(k) = v(k) - l(i, k) * v(i)
+      end do
+      v(k) = v(k) / l(k, k)
+    end do
+  end subroutine full_chol_solve
   !> a(1:m, 1:n) random with its last k rows combinations of the others (where m > k), a third
   !> of the entries of those others zero if sparse
   subroutine dependent_rows(m, n, k, sparse)

@@ -128,25 +128,37 @@ contains
   end subroutine mbdk_fixed_lu_solve
 
   !> A = L L^T in the lower triangle (dpotf2 'L'); info = 0, or j where the leading minor of
-  !> order j is not positive definite.
-  pure subroutine mbdk_fixed_chol_factor(a, n, info)
+  !> order j is not positive definite (-1: n above MBDK_FIXED_ORDER_MAX). Within the envelope
+  !> of L: each column k of L is used down to its last nonzero entry only (a product with a
+  !> zero leaves an entry as it is, so the sums, and the bits, are those of the full loops),
+  !> and last(k), that entry's row, is given where asked for mbdk_fixed_chol_solve. A Schur
+  !> complement of joints along a loop or a chain is banded in its rows' order, and its
+  !> factor stays inside that envelope.
+  pure subroutine mbdk_fixed_chol_factor(a, n, info, last)
     integer, intent(in) :: n
     real(dp), intent(inout) :: a(n, n)
     integer, intent(out) :: info
-    integer :: i, j, k
+    integer, intent(out), optional :: last(:)
+    integer :: i, j, k, ie
+    ! (a fixed size: gfortran takes an automatic array from the heap, at every call)
+    integer :: lst(MBDK_FIXED_ORDER_MAX)
     real(dp) :: ajj, x, x1, x2, x3
+    info = -1
+    if (n > MBDK_FIXED_ORDER_MAX) return
     info = 0
     do j = 1, n
       ! column j less the columns before it, k = 1 .. j - 1 in turn (down a contiguous column),
       ! four of them at a pass over column j: each entry still takes them one at a time, in
-      ! that order, and is loaded and stored once per pass
+      ! that order, and is loaded and stored once per pass. A column k that ends above row j
+      ! has a zero there and does nothing.
       k = 1
       do while (k + 3 <= j - 1)
         x = a(j, k)
         x1 = a(j, k + 1)
         x2 = a(j, k + 2)
         x3 = a(j, k + 3)
-        do i = j, n
+        ie = max(lst(k), lst(k + 1), lst(k + 2), lst(k + 3))
+        do i = j, ie
           a(i, j) = (((a(i, j) - a(i, k) * x) - a(i, k + 1) * x1) - a(i, k + 2) * x2) - &
                     a(i, k + 3) * x3
         end do
@@ -154,7 +166,7 @@ contains
       end do
       do k = k, j - 1
         x = a(j, k)
-        do i = j, n
+        do i = j, lst(k)
           a(i, j) = a(i, j) - a(i, k) * x
         end do
       end do
@@ -165,29 +177,47 @@ contains
       end if
       ajj = sqrt(ajj)
       a(j, j) = ajj
-      do i = j + 1, n
+      ! (divided down to the last nonzero entry: a zero divided is the same zero, and a
+      ! division costs more than the rest of a banded factor's work per entry)
+      lst(j) = j
+      do i = n, j + 1, -1
+        if (a(i, j) /= 0.0_dp) then
+          lst(j) = i
+          exit
+        end if
+      end do
+      do i = j + 1, lst(j)
         a(i, j) = a(i, j) / ajj
       end do
     end do
+    if (present(last)) last(1:n) = lst(1:n)
   end subroutine mbdk_fixed_chol_factor
 
-  !> b <- A^-1 b with the factor of mbdk_fixed_chol_factor (dpotrs 'L', one right-hand side).
-  pure subroutine mbdk_fixed_chol_solve(l, n, b)
+  !> b <- A^-1 b with the factor of mbdk_fixed_chol_factor (dpotrs 'L', one right-hand side);
+  !> with that factor's last, each column of L down to its last nonzero entry only (the same
+  !> sums as the full loops, and the back substitution's chain of dependent products shorter
+  !> by the zeros).
+  pure subroutine mbdk_fixed_chol_solve(l, n, b, last)
     integer, intent(in) :: n
     real(dp), intent(in) :: l(n, n)
     real(dp), intent(inout) :: b(n)
-    integer :: i, k
+    integer, intent(in), optional :: last(:)
+    integer :: i, k, ie
     real(dp) :: x
     do k = 1, n
       b(k) = b(k) / l(k, k)
       x = b(k)
-      do i = k + 1, n
+      ie = n
+      if (present(last)) ie = last(k)
+      do i = k + 1, ie
         b(i) = b(i) - l(i, k) * x
       end do
     end do
     do k = n, 1, -1
       x = b(k)
-      do i = k + 1, n
+      ie = n
+      if (present(last)) ie = last(k)
+      do i = k + 1, ie
         x = x - l(i, k) * b(i)
       end do
       b(k) = x / l(k, k)

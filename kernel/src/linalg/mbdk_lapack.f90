@@ -172,14 +172,18 @@ contains
   end subroutine mbdk_lu_solve
 
   !> In-place Cholesky (lower); MBDK_ERR_SINGULAR_MATRIX when A is not positive definite.
-  subroutine mbdk_chol_factor(a, stat)
+  !> last (n), where given: the envelope of the factor for mbdk_chol_solve (the row of each
+  !> column's last nonzero entry; n for every column above MBDK_FIXED_ORDER_MAX).
+  subroutine mbdk_chol_factor(a, stat, last)
     real(dp), intent(inout) :: a(:, :)
     integer, intent(out) :: stat
+    integer, intent(out), optional :: last(:)
     integer :: info, n
     n = size(a, 1)
     if (n <= MBDK_FIXED_ORDER_MAX) then
-      call mbdk_fixed_chol_factor(a, n, info)
+      call mbdk_fixed_chol_factor(a, n, info, last)
     else
+      if (present(last)) last(1:n) = n
       call dpotrf('L', n, a, n, info)
     end if
     stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info == 0)
@@ -218,15 +222,17 @@ contains
     stat = merge(MBDK_SUCCESS, MBDK_ERR_SINGULAR_MATRIX, info >= 0)
   end subroutine mbdk_chol_pivoted
 
-  !> Solves A x = b with the factor of mbdk_chol_factor; b is overwritten by x.
-  subroutine mbdk_chol_solve(l, b, stat)
+  !> Solves A x = b with the factor of mbdk_chol_factor (and its envelope last, where it gave
+  !> one); b is overwritten by x.
+  subroutine mbdk_chol_solve(l, b, stat, last)
     real(dp), intent(in) :: l(:, :)
     real(dp), intent(inout) :: b(:)
     integer, intent(out) :: stat
+    integer, intent(in), optional :: last(:)
     integer :: info, n
     n = size(l, 1)
     if (n <= MBDK_FIXED_ORDER_MAX) then
-      call mbdk_fixed_chol_solve(l, n, b)
+      call mbdk_fixed_chol_solve(l, n, b, last)
       stat = MBDK_SUCCESS
       return
     end if

@@ -252,6 +252,7 @@ module mbdk_spatial_model
     !> (all, or a redundant scene's independent set, whose count stays rank0); not at init, as
     !> the paths that never solve rows densely (sparse, penalty) would hold an m x m S for nothing
     real(dp), allocatable :: s(:, :), sx(:), sdiag(:)
+    integer, allocatable :: slast(:)   !< the envelope of S's factor (mbdk_chol_factor)
   end type mbdk_spatial_work_t
 
   !> The spatial model: a mechanism (mbdk_mechanism) with q = [r, p per body], v = [r', Omega
@@ -1678,27 +1679,30 @@ contains
     r = size(rows)
     stat = MBDK_SUCCESS
     associate (w => model%work)
-      ! all three or none: an allocation that failed part way leaves some of them allocated
-      if (.not. (allocated(w%s) .and. allocated(w%sx) .and. allocated(w%sdiag))) then
+      ! all four or none: an allocation that failed part way leaves some of them allocated
+      if (.not. (allocated(w%s) .and. allocated(w%sx) .and. allocated(w%sdiag) .and. &
+                 allocated(w%slast))) then
         if (allocated(w%s)) deallocate (w%s)
         if (allocated(w%sx)) deallocate (w%sx)
         if (allocated(w%sdiag)) deallocate (w%sdiag)
+        if (allocated(w%slast)) deallocate (w%slast)
       else if (size(w%s, 1) /= r) then
-        deallocate (w%s, w%sx, w%sdiag)
+        deallocate (w%s, w%sx, w%sdiag, w%slast)
       end if
       if (.not. allocated(w%s)) then
-        allocate (w%s(r, r), w%sx(r), w%sdiag(r), stat=info)
-        call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2), stat)
+        allocate (w%s(r, r), w%sx(r), w%sdiag(r), w%slast(r), stat=info)
+        call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 3), stat)
         if (stat /= MBDK_SUCCESS) return
       end if
-      call solve_rows_in(w%s, w%sx, w%sdiag)
+      call solve_rows_in(w%s, w%sx, w%sdiag, w%slast)
     end associate
 
   contains
 
-    !> the solve in the scratch s (r x r), x (r) and diag (r)
-    subroutine solve_rows_in(s, x, diag)
+    !> the solve in the scratch s (r x r), x (r), diag (r) and last (r, the factor's envelope)
+    subroutine solve_rows_in(s, x, diag, last)
       real(dp), intent(out) :: s(:, :), x(:), diag(:)
+      integer, intent(out) :: last(:)
       integer :: k
       call gram(model, c, mc, rows, s, stat)
       if (stat /= MBDK_SUCCESS) return
@@ -1707,7 +1711,7 @@ contains
       do k = 1, r
         diag(k) = s(k, k)
       end do
-      call mbdk_chol_factor(s, info)
+      call mbdk_chol_factor(s, info, last)
       stat = MBDK_ERR_SINGULAR_MATRIX
       if (info /= MBDK_SUCCESS) return
       ! each pivot against its own row's diagonal, at roundoff: which rows are dependent is
@@ -1722,7 +1726,7 @@ contains
           if (stat /= MBDK_SUCCESS) return
         end if
       end if
-      call mbdk_chol_solve(s, x, stat)
+      call mbdk_chol_solve(s, x, stat, last)
       if (stat /= MBDK_SUCCESS) then
         stat = MBDK_ERR_SINGULAR_MATRIX
         return
