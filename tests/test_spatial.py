@@ -455,64 +455,74 @@ def test_a_singular_pose_stops_by_name_naming_the_rank_not_a_gimbal_lock():
     assert "gimbal" not in str(err.value)
 
 
+def driven_parallelogram(redundant: bool, variant: int = 0):
+    """The planar parallelogram (its third crank where redundant, else an RSSR loop with
+    spherical joints at the coupler) in 3D, its crank driven at -1 rad/s from 60 degrees, so
+    that it reaches its flat pose at t = pi / 3; its motion is the driver's: the crank's angle
+    pi / 3 - t, the coupler's centre at (1 + cos, sin) of it, translating. variant: the bodies'
+    mass distribution (0 slender bars, 1 spheres, 2 boxes and a heavy crank with a light
+    coupler, 3 fat boxes of 10 kg)."""
+    planar = mbdk.scene("parallelogram_redundant")
+    links = [b.name for b in planar.bodies if redundant or b.name != "crank3"]
+    q0 = planar.q0()
+    bodies = []
+    for k, b in enumerate(planar.bodies):
+        if b.name not in links:
+            continue
+        length = math.sqrt(12 * b.inertia / b.mass)
+        d = body(b.name, b.mass, position=[q0[3 * k], q0[3 * k + 1], 0.0],
+                 cardan123=[0.0, 0.0, q0[3 * k + 2]])
+        # the driver's motion: the cranks turn at -1 rad/s, the coupler translates
+        if b.name == "coupler":
+            d["velocity"] = [math.sqrt(3) / 2, -0.5, 0.0]
+        else:
+            d["velocity"] = [math.sqrt(3) / 4, -0.25, 0.0]
+            d["omega_body"] = [0.0, 0.0, -1.0]
+        shape = [{"type": "bar", "length": length},
+                 {"type": "sphere", "radius": 0.3},
+                 {"type": "box", "size": [length, 0.1, 0.1]},
+                 {"type": "box", "size": [length, 0.3, 0.3]}][variant]
+        if variant == 2 and b.name in ("crank1", "coupler"):
+            d["mass"], d["inertia"] = ((1e3, [1.0, 1e2, 1e2]) if b.name == "crank1" else
+                                       (1e-3, [1e-6, 1e-3, 1e-3]))
+        else:
+            del d["inertia"]
+            d["shape"] = shape
+            d["mass"] = 10.0 if variant == 3 else b.mass
+        bodies.append(d)
+    joints = []
+    for j in planar.joints:
+        if j.body1 not in links or j.body2 not in links + [GROUND]:
+            continue
+        spherical = not redundant and j.name in ("B", "C")
+        joints.append({"name": j.name, "type": "spherical" if spherical else "revolute",
+                       "body1": j.body1, "body2": j.body2, "point1": [*j.point1, 0.0],
+                       "point2": [*j.point2, 0.0]} | ({} if spherical else {"axis": [0, 0, 1]}))
+    joints.append({"name": "drive", "type": "angle_driver", "body1": "crank1",
+                   "axis": [0, 0, 1], "function": {"rate": -1.0}})
+    sc = scene_from_dict({"body": bodies, "joint": joints,
+                          "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]},
+                         "driven_parallelogram.toml")
+    assert (sc.rows, evaluate_spatial(sc)["rank"]) == ((31, 24) if redundant else (17, 17))
+    return sc
+
+
 @pytest.mark.parametrize("redundant", [False, True])
 def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(redundant):
     """The reduced form refuses a near rank loss by the geometry's G = C W C^T, not by S =
-    C M^-1 C^T. The parallelogram in 3D, its crank driven at 1 rad/s from 60 degrees through
-    the flat pose at t = pi / 3: the motion is the driver's whatever the masses, and G the
-    geometry's, so the step at which the run stops must not depend on them. Masses from 1e-3
-    to 1e3 kg, inertias from 1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse), boxes
-    and spheres.
+    C M^-1 C^T. The driven parallelogram in 3D (driven_parallelogram) through its flat pose:
+    the motion is the driver's whatever the masses, and G the geometry's, so the step at
+    which the run stops must not depend on them. Masses from 1e-3 to 1e3 kg, inertias from
+    1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse), boxes and spheres.
     With the third crank (31 rows of rank 24) the solve is dense, and skips near_test's
     factorisation of G where S's pivots, already at hand, prove it clear (clear_of_near:
     W >= kappa M^-1, so G >= kappa S): with kappa ten times too large the spheres stop 6 steps
     later than the others (1000 times: the spheres and the fat boxes, 16 and 14).
     As an RSSR loop (spherical joints at the coupler, 17 independent rows) S is sparse enough
     for compact rows, whose near test factorises G on its own (mbdk_compact_schur)."""
-    planar = mbdk.scene("parallelogram_redundant")
-    links = [b.name for b in planar.bodies if redundant or b.name != "crank3"]
-    q0 = planar.q0()
     stops = []
     for variant in range(4):
-        bodies = []
-        for k, b in enumerate(planar.bodies):
-            if b.name not in links:
-                continue
-            length = math.sqrt(12 * b.inertia / b.mass)
-            d = body(b.name, b.mass, position=[q0[3 * k], q0[3 * k + 1], 0.0],
-                     cardan123=[0.0, 0.0, q0[3 * k + 2]])
-            # the driver's motion: the cranks turn at -1 rad/s, the coupler translates
-            if b.name == "coupler":
-                d["velocity"] = [math.sqrt(3) / 2, -0.5, 0.0]
-            else:
-                d["velocity"] = [math.sqrt(3) / 4, -0.25, 0.0]
-                d["omega_body"] = [0.0, 0.0, -1.0]
-            shape = [{"type": "bar", "length": length},
-                     {"type": "sphere", "radius": 0.3},
-                     {"type": "box", "size": [length, 0.1, 0.1]},
-                     {"type": "box", "size": [length, 0.3, 0.3]}][variant]
-            if variant == 2 and b.name in ("crank1", "coupler"):
-                d["mass"], d["inertia"] = ((1e3, [1.0, 1e2, 1e2]) if b.name == "crank1" else
-                                           (1e-3, [1e-6, 1e-3, 1e-3]))
-            else:
-                del d["inertia"]
-                d["shape"] = shape
-                d["mass"] = 10.0 if variant == 3 else b.mass
-            bodies.append(d)
-        joints = []
-        for j in planar.joints:
-            if j.body1 not in links or j.body2 not in links + [GROUND]:
-                continue
-            spherical = not redundant and j.name in ("B", "C")
-            joints.append({"name": j.name, "type": "spherical" if spherical else "revolute",
-                           "body1": j.body1, "body2": j.body2, "point1": [*j.point1, 0.0],
-                           "point2": [*j.point2, 0.0]} | ({} if spherical else {"axis": [0, 0, 1]}))
-        joints.append({"name": "drive", "type": "angle_driver", "body1": "crank1",
-                       "axis": [0, 0, 1], "function": {"rate": -1.0}})
-        sc = scene_from_dict({"body": bodies, "joint": joints,
-                              "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]},
-                             "driven_parallelogram.toml")
-        assert (sc.rows, evaluate_spatial(sc)["rank"]) == ((31, 24) if redundant else (17, 17))
+        sc = driven_parallelogram(redundant, variant)
         with pytest.raises(mbdk.SingularMatrixError, match="lost their rank") as err:
             mbdk.simulate(sc, "rk4", h=1e-3, t_end=1.2)
         r = err.value.result
@@ -522,6 +532,36 @@ def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(re
         assert 0.0 < np.arctan2(rot[-1, 1, 0], rot[-1, 0, 0]) < 0.05
         stops.append(len(r.t))
     assert len(set(stops)) == 1, stops
+
+
+@pytest.mark.parametrize("method", ["trapezoidal_index3", "generalized_alpha"])
+def test_the_index3_family_passes_a_flat_pose_that_a_step_ends_next_to(method):
+    """The index-3 family passes a singular pose: its projections at a step's end take the
+    regular path (the augmented Lagrangian) where the rows near a rank loss, judged on the
+    geometry (near_test, within NEAR_PIVOT). The redundant driven parallelogram (31 rows of
+    rank 24, the dense path), its steps sized so that one ends 1e-5, 1e-7 rad from the flat
+    pose or on it: the run goes on through the pose on the parallelogram's branch, and its
+    motion is the driver's (driven_parallelogram: an analytic reference) to roundoff away
+    from the pose. Within a few steps of it the joints hold the coupler's rotation to second
+    order only (Phi ~ phi^2 against Newton's tolerance): about 2e-5 rad there. Without the
+    near test in spatial_i3_cs_factor the exact path solves there with S's pivots at 1e-10
+    of their diagonal and less, and the runs stop off the joints (ConstraintDriftError or
+    EnergyDriftError at t = 1.046)."""
+    sc = driven_parallelogram(redundant=True)
+    for delta in (1e-5, 1e-7, 0.0):
+        h = (math.pi / 3 + delta) / 1000
+        r = mbdk.simulate(sc, method, h=h, t_end=1100 * h)
+        assert r.t[-1] == pytest.approx(1100 * h)
+        angle = np.pi / 3 - r.t
+        rot = r.orientation("crank1")
+        assert np.max(np.abs(np.arctan2(rot[:, 1, 0], rot[:, 0, 0]) - angle)) < 1e-9, delta
+        centre = np.column_stack([1.0 + np.cos(angle), np.sin(angle), 0.0 * angle])
+        rc = r.orientation("coupler")
+        dev = np.maximum(np.max(np.abs(r.position("coupler") - centre), axis=1),
+                         np.abs(np.arctan2(rc[:, 1, 0], rc[:, 0, 0])))
+        near = np.abs(r.t - np.pi / 3) < 5 * h
+        assert np.max(dev[~near]) < 1e-9, delta
+        assert np.max(dev[near]) < 1e-4, delta
 
 
 def test_error_controlled_methods_run_spatial_scenes():
