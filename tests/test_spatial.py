@@ -541,12 +541,14 @@ def test_the_index3_family_passes_a_flat_pose_that_a_step_ends_next_to(method):
     geometry (near_test, within NEAR_PIVOT). The redundant driven parallelogram (31 rows of
     rank 24, the dense path), its steps sized so that one ends 1e-5, 1e-7 rad from the flat
     pose or on it: the run goes on through the pose on the parallelogram's branch, and its
-    motion is the driver's (driven_parallelogram: an analytic reference) to roundoff away
-    from the pose. Within a few steps of it the joints hold the coupler's rotation to second
-    order only (Phi ~ phi^2 against Newton's tolerance): about 2e-5 rad there. Without the
-    near test in spatial_i3_cs_factor the exact path solves there with S's pivots at 1e-10
-    of their diagonal and less, and the runs stop off the joints (ConstraintDriftError or
-    EnergyDriftError at t = 1.046)."""
+    motion is the driver's (driven_parallelogram: an analytic reference) to Newton's
+    tolerance away from the pose. Within a few steps of it the joints hold the coupler's
+    rotation to second order only (Phi ~ phi^2 against that tolerance): some 1e-5 rad there.
+    At those step ends the geometry's relative pivot is the square of the distance to the
+    pose, far inside NEAR_PIVOT, so the regular path is taken there whatever the step's
+    placement within 1e-5 rad. Without the near test in spatial_i3_cs_factor the exact path
+    solves with S's pivots next to roundoff, and the runs stop off the joints
+    (ConstraintDriftError or EnergyDriftError just before the pose)."""
     sc = driven_parallelogram(redundant=True)
     for delta in (1e-5, 1e-7, 0.0):
         h = (math.pi / 3 + delta) / 1000

@@ -6,10 +6,12 @@
 !>     info = n, as dgetrf's.
 !>   Cholesky (dpotrf 'L') on A = G^T G + I: factors within 64 n eps max|A| of LAPACK's, the
 !>     solve's residual as the LU's; a matrix with a negative diagonal entry gives info > 0.
-!>   The Cholesky factor and solve of matrices with exact zeros (a band, a loop's blocks,
-!>     scattered zeros, an arrow): the same bits as the full loops, every product taken (the
-!>     factor and, with its envelope, the solve skip products with a zero entry of L), and an
-!>     envelope that ends at each column's last nonzero entry.
+!>   The Cholesky factor and solve of matrices with exact zeros (a band, a loop's blocks closed
+!>     on a moving body, scattered zeros, short chains with columns reaching the last row): the
+!>     same bits as the full loops, every product taken (the factor and, with its envelope, the
+!>     solve skip the products below each column's last nonzero entry), and an envelope that
+!>     ends at each column's last nonzero entry. Its zeros are all +0 (a -0 can come out +0
+!>     from the full loops and -0 from the envelope).
 !>   Pivoted Cholesky (dpstrf 'L', dstop 1e-10 max diag) on A = G^T G with G of rank r < n: the
 !>     same rank and pivot order as LAPACK's, and factors within 64 n eps max|A|.
 !>   Least squares (dgelsd, rcond eps max(m, n)) with n unknowns: about n/2 independent rows
@@ -156,7 +158,9 @@ contains
   !> a(1:n, 1:n) symmetric, diagonally dominant, with exact zeros by kind: 1 a band of
   !> half-width 1 + mod(n, 9); 2 blocks of five rows coupled to the next around a loop (a closed
   !> chain of joints, the last block coupled to the first); 3 zeros scattered off the diagonal;
-  !> 4 an arrow (a band of one, and the last row and column full)
+  !> 4 groups of three rows coupled in a chain, the group's last column reaching the last row
+  !> (an envelope that grows and shrinks from column to column, n in every third, so that a
+  !> block of four columns must take the longest of them)
   subroutine patterned(n, kind)
     integer, intent(in) :: n, kind
     integer :: i, j, bi, bj, nblk
@@ -175,7 +179,7 @@ contains
         case (3)
           keep = mod(i * j + 2 * i, 3) /= 0
         case default
-          keep = i - j <= 1 .or. i == n
+          keep = (i - j == 1 .and. mod(j, 3) /= 0) .or. (i == n .and. mod(j, 3) == 0)
         end select
         if (.not. keep) a(i, j) = 0.0_dp
         a(j, i) = a(i, j)

@@ -14,7 +14,8 @@
 !> and above the diagonal and the unit lower L below it, row j swapped with ipiv(j) at step j
 !> (the first largest magnitude in the column, as idamax), and stops at an exactly zero pivot;
 !> the Cholesky factorisations read and write the lower triangle only and stop at a pivot that
-!> is not positive (or NaN); the pivoted one takes the first largest remaining diagonal entry
+!> is not positive (or NaN), the unpivoted one keeping to its factor's envelope (the same
+!> values: see mbdk_fixed_chol_factor); the pivoted one takes the first largest remaining diagonal entry
 !> and stops at one at or below dstop (dpstf2's rule, its running dot products included). The
 !> least squares reaches dgelsd's solution by another road (an SVD in fixed order would be far
 !> more code): see mbdk_fixed_least_squares. Like LAPACK's, the LU takes a NaN or infinite
@@ -129,11 +130,14 @@ contains
 
   !> A = L L^T in the lower triangle (dpotf2 'L'); info = 0, or j where the leading minor of
   !> order j is not positive definite (-1: n above MBDK_FIXED_ORDER_MAX). Within the envelope
-  !> of L: each column k of L is used down to its last nonzero entry only (a product with a
-  !> zero leaves an entry as it is, so the sums, and the bits, are those of the full loops),
-  !> and last(k), that entry's row, is given where asked for mbdk_fixed_chol_solve. A Schur
-  !> complement of joints along a loop or a chain is banded in its rows' order, and its
-  !> factor stays inside that envelope.
+  !> of L: each column k of L is used down to its last nonzero entry only, and the zeros below
+  !> it are not divided. A product with a zero leaves an entry as it is, so every value is the
+  !> full loops' (a zero's sign aside: -0 - (-0) is +0, where the envelope leaves -0). last(k),
+  !> where asked (for mbdk_fixed_chol_solve): column k of L has no nonzero entry below row
+  !> last(k); defined where info = 0. The Schur complement of joints along a chain, or around
+  !> a loop whose two ends are on the ground (Bricard's), is banded in its rows' order, and
+  !> its factor keeps to that band; a loop closed on a moving body fills its columns to the
+  !> last row.
   pure subroutine mbdk_fixed_chol_factor(a, n, info, last)
     integer, intent(in) :: n
     real(dp), intent(inout) :: a(n, n)
@@ -194,9 +198,9 @@ contains
   end subroutine mbdk_fixed_chol_factor
 
   !> b <- A^-1 b with the factor of mbdk_fixed_chol_factor (dpotrs 'L', one right-hand side);
-  !> with that factor's last, each column of L down to its last nonzero entry only (the same
-  !> sums as the full loops, and the back substitution's chain of dependent products shorter
-  !> by the zeros).
+  !> with that factor's last, each column of L down to last(k) only: the full loops' values
+  !> (a zero's sign aside, and a non-finite b spreads only where L has entries), and the back
+  !> substitution's chain of dependent products shorter by the zeros.
   pure subroutine mbdk_fixed_chol_solve(l, n, b, last)
     integer, intent(in) :: n
     real(dp), intent(in) :: l(n, n)

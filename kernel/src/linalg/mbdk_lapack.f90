@@ -172,8 +172,9 @@ contains
   end subroutine mbdk_lu_solve
 
   !> In-place Cholesky (lower); MBDK_ERR_SINGULAR_MATRIX when A is not positive definite.
-  !> last (n), where given: the envelope of the factor for mbdk_chol_solve (the row of each
-  !> column's last nonzero entry; n for every column above MBDK_FIXED_ORDER_MAX).
+  !> last (n), where given: the envelope of the factor for mbdk_chol_solve (column k of L has
+  !> no nonzero entry below row last(k); every entry n where n > MBDK_FIXED_ORDER_MAX), defined
+  !> where stat is MBDK_SUCCESS.
   subroutine mbdk_chol_factor(a, stat, last)
     real(dp), intent(inout) :: a(:, :)
     integer, intent(out) :: stat

@@ -69,9 +69,9 @@ submodule (mbdk_spatial_model) mbdk_spatial_i3
 
   type, extends(mbdk_i3_aux_t) :: spatial_i3_aux_t
     !> C at the last evaluation (m x 6 nb), M^-1 C^T, the rows of the exact path and the
-    !> Cholesky factor of their S; the regular path's factor and beta
+    !> Cholesky factor of their S with its envelope (slast); the regular path's factor and beta
     real(dp), allocatable :: c(:, :), mc(:, :), s(:, :), al(:, :), y(:), x(:), r(:), muk(:)
-    integer, allocatable :: rows(:)
+    integer, allocatable :: rows(:), slast(:)
     logical :: regular = .false.
     real(dp) :: beta = 0.0_dp
     !> the sparse path (module header): C's compact rows at the last evaluation (cc) and at a
@@ -112,10 +112,10 @@ contains
       end if
       allocate (aux%c(m, nv), aux%mc(nv, m), aux%s(m, m), aux%al(nv, nv), &
                 aux%y(last_velocity(self)), aux%x(nv), aux%r(m), aux%muk(m), aux%rows(m), &
-                stat=astat)
+                aux%slast(m), stat=astat)
       call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (real(m, dp) * (2 * nv + m + 2) + &
-                             real(nv, dp) * (nv + 1) + last_velocity(self)) + MBDK_INT_BYTES * m, &
-                             stat, asked)
+                             real(nv, dp) * (nv + 1) + last_velocity(self)) + &
+                             MBDK_INT_BYTES * 2 * m, stat, asked)
       if (stat /= MBDK_SUCCESS) return
       aux%c = 0.0_dp
     end select
@@ -248,7 +248,7 @@ contains
       do k = 1, na
         diag(k) = aux%s(k, k)
       end do
-      call mbdk_chol_factor(aux%s(1:na, 1:na), stat)
+      call mbdk_chol_factor(aux%s(1:na, 1:na), stat, aux%slast(1:na))
       if (stat == MBDK_SUCCESS) then
         do k = 1, na
           if (.not. (aux%s(k, k)**2 > SOLVE_RTOL * diag(k))) stat = MBDK_ERR_SINGULAR_MATRIX
@@ -313,7 +313,7 @@ contains
         na = size(self%work%active)
         associate (rows => aux%rows(1:na), z => aux%muk(1:na))
           z = matmul(aux%c(rows, :), x) - c(rows)
-          call mbdk_chol_solve(aux%s(1:na, 1:na), z, stat)
+          call mbdk_chol_solve(aux%s(1:na, 1:na), z, stat, aux%slast(1:na))
           if (stat /= MBDK_SUCCESS) then
             stat = MBDK_ERR_SINGULAR_MATRIX
             return

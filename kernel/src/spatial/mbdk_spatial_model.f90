@@ -1691,7 +1691,8 @@ contains
       end if
       if (.not. allocated(w%s)) then
         allocate (w%s(r, r), w%sx(r), w%sdiag(r), w%slast(r), stat=info)
-        call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 3), stat)
+        call mbdk_alloc_status(info, MBDK_REAL_BYTES * real(r, dp) * (r + 2) + &
+                               MBDK_INT_BYTES * real(r, dp), stat)
         if (stat /= MBDK_SUCCESS) return
       end if
       call solve_rows_in(w%s, w%sx, w%sdiag, w%slast)
