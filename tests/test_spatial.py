@@ -516,8 +516,8 @@ def test_a_driven_loop_stops_at_its_flat_pose_at_one_step_whatever_its_masses(re
     1e-6 to 1e2 kg m^2, slender bars (axial 1e-6 of transverse), boxes and spheres.
     With the third crank (31 rows of rank 24) the solve is dense, and skips near_test's
     factorisation of G where S's pivots, already at hand, prove it clear (clear_of_near:
-    W >= kappa M^-1, so G >= kappa S): with kappa ten times too large the spheres stop 6 steps
-    later than the others (1000 times: the spheres and the fat boxes, 16 and 14).
+    W >= kappa M^-1, so G >= kappa S): with kappa ten times too large the bound clears poses
+    the near test would refuse, and the spheres stop steps later than the others.
     As an RSSR loop (spherical joints at the coupler, 17 independent rows) S is sparse enough
     for compact rows, whose near test factorises G on its own (mbdk_compact_schur)."""
     stops = []

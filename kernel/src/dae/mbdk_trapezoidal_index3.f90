@@ -107,11 +107,11 @@
 !> tiny-system routines (a call's overhead dominates such systems; model%small_dense = false,
 !> or more rows, take mbdk_lapack's general LU): the augmented form's matrix, when symmetric
 !> to roundoff (no dampers: their tangent stiffness is unsymmetric) and positive definite, by
-!> the block LDL^T with the bodies as 3 x 3 pivot blocks (half the cost of the LU: 0.76 us
-!> per step on the double pendulum at h = 1e-3 against 1.2 us); otherwise by the LU with partial pivoting. An LU that has served two
-!> solves forms its explicit inverse for the next ones (a fixed-length column product, a quarter
-!> of the triangular sweeps at 10 rows: the book scheme's matrix serves about 30 solves;
-!> stats%nlu counts either kind). The matrix is reused across iterations and steps
+!> the block LDL^T with the bodies as 3 x 3 pivot blocks (symmetry halves the LU's work);
+!> otherwise by the LU with partial pivoting. An LU that has served two solves forms its
+!> explicit inverse for the next ones (a fixed-length column product, a quarter of the
+!> triangular sweeps at 10 rows: the book scheme's matrix serves about 30 solves; stats%nlu
+!> counts either kind). The matrix is reused across iterations and steps
 !> while Newton contracts. It is rebuilt at the current iterate when the contraction rate exceeds
 !> 0.5 or two more iterations at the current rate would not reach the tolerance (an iteration
 !> costs about a factorisation), and when h changes. When an update grows with an old matrix, the

@@ -18,9 +18,9 @@
 !> values: see mbdk_fixed_chol_factor); the pivoted one takes the first largest remaining
 !> diagonal entry and stops at one at or below dstop (dpstf2's rule, its running dot products
 !> included). The least squares reaches dgelsd's solution by another road (an SVD in fixed
-!> order would be far more code): see mbdk_fixed_least_squares. Like LAPACK's, the LU takes a NaN or infinite
-!> entry as it comes: a caller that must refuse one tests its matrix (mbdk_index3_matrix's
-!> small path does; mbdk_least_squares refuses one before either path).
+!> order would be far more code): see mbdk_fixed_least_squares. Like LAPACK's, the LU takes a
+!> NaN or infinite entry as it comes: a caller that must refuse one tests its matrix
+!> (mbdk_index3_matrix's small path does; mbdk_least_squares refuses one before either path).
 module mbdk_fixed_order
   use mbdk_kinds, only: dp
   implicit none
