@@ -56,13 +56,14 @@ def progress(msg: str) -> None:
 
 
 def mbdk_step(scene, method: str, formulation: str, steps: int, solver: str = "auto",
-              repeats: int = 3) -> dict:
+              repeats: int = 3, coordinates: str = "absolute") -> dict:
     """Per-step thread CPU and wall time of a fixed-step run of `steps` steps (best of
     `repeats`), with no outputs sampled but the last state."""
     best = None
     for _ in range(repeats):
         r = mbdk.simulate(scene, method, formulation=formulation, h=H, t_end=steps * H,
-                          every=steps, outputs=(), solver=solver)
+                          every=steps, outputs=(), solver=solver,
+                          **({"coordinates": coordinates} if coordinates != "absolute" else {}))
         cur = (r.cpu_time / steps, r.wall_time / steps)
         best = cur if best is None or cur[0] < best[0] else best
     return {"cpu": best[0], "wall": best[1], "path": r.manifest.get("linear_solve", "")}
@@ -234,11 +235,15 @@ def per_body(out: Path, quick: bool) -> list:
               ("flyball_governor (A05)", "spatial", mbdk.scene("flyball_governor")),
               (f"spatial chain N = {n_chain}", "spatial", spatial_chain(n_chain))]
     rows = []
+    # the two IFToMM loops again in joint coordinates (kernel/src/spatial/mbdk_joint_coords.f90)
+    scenes += [(f"{name}, joint coordinates", "spatial (joint)", sc)
+               for name, model, sc in scenes if name.startswith(("bricard", "flyball"))]
     for name, model, sc in scenes:
         progress(f"per body: {name}")
         nb = len(sc.bodies)
         m = mbdk_step(sc, "rk4", "reduced", max(20, min(2000, 20000 // nb)),
-                      repeats=3 if quick else 5)
+                      repeats=3 if quick else 5,
+                      coordinates="joint" if model == "spatial (joint)" else "absolute")
         rows.append({"scene": name, "model": model, "bodies": nb, "rows": sc.rows,
                      "us/step": 1e6 * m["cpu"], "us/body": 1e6 * m["cpu"] / nb,
                      "path": m["path"].split(":")[0].split(" (")[0]})
@@ -266,7 +271,9 @@ def per_body(out: Path, quick: bool) -> list:
           "factorisation for the near-singular test only where S's pivots leave it open). The "
           "compiled heavy top is the scene's top in minimal coordinates (Euler's equations about "
           "its fixed point): what a spatial body costs without the absolute coordinates' "
-          "constraint solve.")
+          "constraint solve. The rows in joint coordinates integrate the joints' turns and "
+          "slides (the governor's tree: four; Bricard's: five, its joint F cut and kept as "
+          "rows).")
     return rows
 
 

@@ -415,6 +415,21 @@ def test_spatial_scenes_study(tmp_path, root):
     for m in ("bdf", "cvode_bdf"):
         r = pick[("flyball_governor", m, "rtol = 1e-08", "reduced")]
         assert r["status"] == "ok" and num(r["error"]) < 1e-5, m
+    # joint coordinates: every run succeeds; rk4's error (another ODE's truncation error, of
+    # the same motion) within a few times the absolute run's and at its order; the governor's
+    # tree keeps every row at roundoff
+    joint = rows(tmp_path / "spatial_joint_coordinates.csv")
+    assert all(r["status"] == "ok" for r in joint)
+    pj = {(r["scene"], r["method"], r["control"], r["coordinates"]): r for r in joint}
+    for (scene, method, control, coords), r in pj.items():
+        if method == "rk4" and coords == "joint":
+            a_err = num(pj[(scene, method, control, "absolute")]["error"])
+            assert num(r["error"]) < 3 * a_err + 1e-12, (scene, control)
+    ratio = (num(pj[("bricard", "rk4", "h = 0.008", "joint")]["error"])
+             / num(pj[("bricard", "rk4", "h = 0.004", "joint")]["error"]))
+    assert 2 ** 3.3 < ratio < 2 ** 4.7, ratio
+    assert all(num(r["max_abs_phi"]) < 1e-12 for r in joint
+               if r["scene"] == "flyball_governor" and r["coordinates"] == "joint")
 
 
 def test_ch5_formulas_study(tmp_path, root):

@@ -271,6 +271,12 @@ int main(int argc, char **argv)
                                           fbody, freal, &so, &opt, 0.0, off, &s3)
               == MBDK_ERR_INCONSISTENT_INITIAL && s3 == NULL,
               "a start off the joint is refused by name");
+        so.coordinates = MBDK_COORDS_JOINT;
+        check(mbdk_stepper_create_spatial(NB, mass, inertia, NJ, jtype, jbody, jreal, NF, ftype,
+                                          fbody, freal, &so, &opt, 0.0, state0, &s3)
+              == MBDK_ERR_NOT_APPLICABLE && s3 == NULL,
+              "joint coordinates are not a stepper's (the f2py entry spatial_run's)");
+        so.coordinates = MBDK_COORDS_ABSOLUTE;
         i3.adaptive = 1;
         check(mbdk_stepper_create_spatial_index3(NB, mass, inertia, NJ, jtype, jbody, jreal, NF,
                                                  ftype, fbody, freal, &so, &i3, 0.0, state0, &s3)

@@ -308,6 +308,7 @@ void mbdk_model_default_options(mbdk_model_options *opt);
  * scenes) with the same parameters, the orientation coordinates and how a quaternion keeps its
  * unit norm, and the watch. Start from mbdk_spatial_default_options. */
 enum mbdk_rotation { MBDK_ROT_QUATERNION = 1, MBDK_ROT_EULER313 = 2, MBDK_ROT_CARDAN123 = 3 };
+enum mbdk_coordinates { MBDK_COORDS_ABSOLUTE = 0, MBDK_COORDS_JOINT = 1 };
 enum mbdk_quaternion_norm { MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, MBDK_NORM_NONE = 3 };
 typedef struct mbdk_spatial_options {
     double baumgarte_alpha, baumgarte_beta;              /* (3.29) */
@@ -324,6 +325,10 @@ typedef struct mbdk_spatial_options {
     int norm;                     /* enum mbdk_quaternion_norm */
     int watch_every;              /* steps between checks; 0: the default (16) */
     int locate_events;            /* 1: dopri54 and bs32 end a step where a contact closes or opens */
+    /* enum mbdk_coordinates: the bodies' absolute coordinates, or joint coordinates on a
+     * spanning tree of the joints (kernel/src/spatial/mbdk_joint_coords.f90), the f2py entry
+     * spatial_run's ODE methods only: the steppers return MBDK_ERR_NOT_APPLICABLE for it */
+    int coordinates;
 } mbdk_spatial_options;
 
 void mbdk_spatial_default_options(mbdk_spatial_options *opt);

@@ -55,7 +55,8 @@ static const struct field spatial[] = {
     F(mbdk_spatial_options, watch_energy), F(mbdk_spatial_options, watch_momentum),
     F(mbdk_spatial_options, watch_quaternion), F(mbdk_spatial_options, formulation),
     F(mbdk_spatial_options, rotation), F(mbdk_spatial_options, norm),
-    F(mbdk_spatial_options, watch_every), F(mbdk_spatial_options, locate_events)};
+    F(mbdk_spatial_options, watch_every), F(mbdk_spatial_options, locate_events),
+    F(mbdk_spatial_options, coordinates)};
 static const struct field report[] = {
     F(mbdk_watch_report, value), F(mbdk_watch_report, tol), F(mbdk_watch_report, t),
     F(mbdk_watch_report, t_good), F(mbdk_watch_report, absolute), F(mbdk_watch_report, scale),

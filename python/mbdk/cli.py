@@ -56,7 +56,7 @@ from .fmu import export_fmu
 WRITERS = ("run", "sweep", "plot", "animate", "tables", "fmu")
 #: simulate's keywords an FMU does not take: its master chooses the communication points
 FMU_SKIP = RUN_SKIP | {"t_end", "every", "outputs", "dt_out", "t_eval", "locate_events",
-                       "switch_angles", "max_steps"}
+                       "switch_angles", "max_steps", "coordinates"}
 #: the API whose keywords are `mbdk solve`'s options (taken at import: the call itself goes
 #: through ode.solve_ode, which a test may stand in for)
 _SOLVE_API = ode.solve_ode

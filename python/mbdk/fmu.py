@@ -55,7 +55,7 @@ import numpy as np
 
 from . import _kernel, checks
 from .codes import FORCE_CODES, SPATIAL_FORCE_CODES, STRUCT_IDS
-from .errors import InvalidInputError
+from .errors import InvalidInputError, NotApplicableError
 from .ode import package_version
 from .plan import Request, make_plan
 from .results_io import check_writable, write_atomic
@@ -147,6 +147,10 @@ def export_fmu(scene, out, method: str = "rk4", h: float | None = None,
                       **options)
     except TypeError as exc:
         raise InvalidInputError(f"export_fmu: {exc}; the options are simulate's") from None
+    if req.coordinates != "absolute":
+        raise NotApplicableError(f"export_fmu: coordinates = {req.coordinates!r}: an FMU steps "
+                                 "its scene by the kernel's C stepper, in absolute coordinates; "
+                                 "leave coordinates out")
     plan = make_plan(sc, req)
     _check_plan(plan, method)
     h = plan.index3_options.h if plan.index3 else plan.ode_options.h

@@ -233,6 +233,7 @@ class SpatialOptions(_Struct):
     norm: int = 1                  # 1 project, 2 stabilise, 3 none
     watch_every: int = 16
     locate_events: int = 1
+    coordinates: int = 0           # 0 absolute, 1 joint (kernel/src/spatial/mbdk_joint_coords.f90)
 
 
 #: the share of the smallest atol an error-controlled method's projection leaves in Phi when

@@ -24,6 +24,7 @@ from .codes import (ADAPTIVE_MODES, DAE_FORMS, DAE_NONE, FORMULATIONS, INDEX3_FO
                     OUTPUTS, ROTATIONS, SOLVERS, SPATIAL_FORMULATIONS, STARTUP)
 from .errors import InvalidInputError, NotApplicableError
 from .index3 import factorisation
+from .joint_coords import COORDINATES, check_coordinates, check_joint_run
 from .methods import MethodInfo, method as method_info
 from .model import model_options
 from .ode import (DEFAULT_MAX_STEPS, RTOL_FLOOR, adaptive_options, plan as step_plan,
@@ -113,6 +114,7 @@ class Request:
     raise_on_failure: bool = True
     switch_angles: float | None = None
     lock_guard: float = 0.0
+    coordinates: str = "absolute"
     rho_inf: float | None = None
     alpha_hht: float | None = None
     newmark_beta: float | None = None
@@ -162,6 +164,8 @@ class RunPlan:
     #: what the manifest and a warning say of multipliers the run does not give to its
     #: tolerance (the book's index-3 scheme, ida's GGL form at a tight rtol); None elsewhere
     multipliers_note: str | None = None
+    #: a spatial run in joint coordinates: the split of its joints (mbdk.joint_coords)
+    joint_split: dict | None = None
 
     @property
     def t0(self) -> float:
@@ -234,6 +238,9 @@ def ggl_multipliers(method: str, formulation: str, rtol) -> str | None:
 def make_plan(scene: Scene, req: Request) -> RunPlan:
     """The run plan of a checked scene (mbdk.scene_file.checked) for the request: named errors
     for every argument that does not fit the method, the formulation or the scene's kind."""
+    check_coordinates(req.coordinates)
+    if req.coordinates == "joint" and scene.kind != "spatial":
+        check_joint_run(scene, req.method, method_info(req.method).family, "reduced")
     plan = _spatial_plan(scene, req) if scene.kind == "spatial" else _planar_plan(scene, req)
     if req.t_eval is not None:
         _sample_times(plan, req)
@@ -477,8 +484,9 @@ def _spatial_formulation(info_m: MethodInfo, method: str, formulation, scene: Sc
     return formulation
 
 
-def _spatial_method(info_m: MethodInfo, method: str, scene: Scene) -> None:
-    """The methods the spatial model does not run, refused by name."""
+def _spatial_method(info_m: MethodInfo, method: str, scene: Scene, joint: bool) -> None:
+    """The methods the spatial model does not run, refused by name (joint: in joint
+    coordinates, whose state [theta, theta'] has Euler-Cromer's layout)."""
     if info_m.solves != "ode" and info_m.family not in ("dae_index3", "ida"):
         raise NotApplicableError(
             f"{method} on spatial scene {scene.name!r}: it integrates the planar model's DAE; "
@@ -486,11 +494,12 @@ def _spatial_method(info_m: MethodInfo, method: str, scene: Scene) -> None:
             "baumgarte, penalty or projection formulation, bdf on their DAE itself "
             "(formulations 'i3', 'si2'), ida ('index1', 'ggl') and the index-3 methods "
             "(trapezoidal_index3, newmark, hht, generalized_alpha)")
-    if info_m.family == "euler_cromer":
+    if info_m.family == "euler_cromer" and not joint:
         raise NotApplicableError(f"euler_cromer on spatial scene {scene.name!r}: its state "
                                  "layout is y = [q, q'], and a spatial body's velocities (v, "
-                                 "Omega) are not its coordinates' rates; use symplectic methods "
-                                 "on planar scenes, or rk4 here")
+                                 "Omega) are not its coordinates' rates; use coordinates="
+                                 "'joint' (the joints' turns and slides and their rates), or "
+                                 "rk4 here")
 
 
 def _spatial_refusals(req: Request, index3: bool) -> None:
@@ -542,7 +551,7 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
     index3, ida = info_m.family == "dae_index3", info_m.family == "ida"
     _spatial_refusals(req, index3)
     family = family_parameters(req, info_m)
-    _spatial_method(info_m, method, scene)
+    _spatial_method(info_m, method, scene, req.coordinates == "joint")
     formulation = _spatial_formulation(info_m, method, req.formulation, scene)
     dae = formulation in ("i3", "si2") and info_m.family == "variable_bdf"
     penalty = None if is_default_penalty(req.penalty) else req.penalty
@@ -553,8 +562,10 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
     if method.startswith("cvode") and formulation == "projection":
         raise NotApplicableError(f"{method} with the projection formulation: CVODE cannot "
                                  "change the state between its steps; use reduced or baumgarte")
+    joint = req.coordinates == "joint"
+    split = check_joint_run(scene, method, info_m.family, formulation) if joint else None
     if method.startswith("cvode") and scene.rotation == "quaternion" and \
-            scene.quaternion_norm == "project":
+            scene.quaternion_norm == "project" and not joint:
         raise NotApplicableError(f"{method} on spatial scene {scene.name!r} with "
                                  "quaternion_norm = 'project': CVODE cannot change the state "
                                  "between its steps; set the scene's quaternion_norm to "
@@ -595,10 +606,11 @@ def _spatial_plan(scene: Scene, req: Request) -> RunPlan:
         watch_energy=w.energy or 0.0, watch_every=w.every, penalty_alpha=penalty[0],
         penalty_omega=penalty[1], penalty_mu=penalty[2], lock_guard=float(req.lock_guard),
         watch_momentum=w.momentum or 0.0, watch_quaternion=w.quaternion or 0.0,
-        locate_events=int(bool(req.locate_events)))
+        locate_events=int(bool(req.locate_events)),
+        coordinates=COORDINATES[req.coordinates])
     return RunPlan(kind="spatial", method=method, info=info_m, formulation=formulation,
-                   request=req, h=req.h, rtol=rtol, every=int(req.every), index3=index3,
-                   ida=ida, dae_bdf=dae,
+                   joint_split=split, request=req, h=req.h, rtol=rtol, every=int(req.every),
+                   index3=index3, ida=ida, dae_bdf=dae,
                    dae_form=(IDA_FORMULATIONS[formulation] if ida else
                              BDF_DAE_FORMULATIONS[formulation] if dae else DAE_NONE),
                    ode_options=replace(plan_["ode"], method=info_m.id), spatial_options=sopt,

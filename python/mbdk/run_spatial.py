@@ -10,6 +10,7 @@ from . import _compiled, _kernel
 from .checks import check_memory, memory_error
 from .codes import DENSE_CHOLESKY, DENSE_LU, dae_newton_matrix
 from .errors import Status, exception_for, status_message
+from .joint_coords import JOINT_SOLVE, describe
 from .ode import build_info
 from .options import empty, unpack
 from .plan import SPATIAL_IDA_FORMS, RunPlan
@@ -157,4 +158,11 @@ def _manifest(scene: Scene, plan: RunPlan, inv, sparse: bool = False, stats=None
     if plan.dae_bdf:
         manifest["form"] = SI2_FORM if formulation == "si2" else I3_FORM
         manifest["linear_solve"] = manifest["newton_matrix"] = dae_newton_matrix("bdf", stats)
+    manifest["coordinates"] = "absolute"
+    if plan.joint_split is not None:
+        manifest["coordinates"] = "joint"
+        manifest["joint_tree"] = describe(plan.joint_split)
+        manifest["linear_solve"] = JOINT_SOLVE
+        manifest["quaternion_norm"] = ("none needed (joint coordinates: each quaternion is "
+                                       "built from the joints' turns, unit to roundoff)")
     return manifest

@@ -56,7 +56,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
              alpha_hht: float | None = None, newmark_beta: float | None = None,
              newmark_gamma: float | None = None, alpha_m: float | None = None,
              alpha_f: float | None = None, t_eval=None, events=None,
-             **unknown) -> SceneResult:
+             coordinates: str = "absolute", **unknown) -> SceneResult:
     """Integrate a scene with any method and formulation, the time loop compiled.
 
     Parameters
@@ -181,6 +181,12 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     switch_angles : float, optional
         Spatial scenes in angle coordinates: stop within this distance of the gimbal lock
         (|sin theta| for 3-1-3, |cos beta| for 1-2-3) and go on in the other angle set.
+    coordinates : str
+        Spatial scenes: ``"absolute"`` (the default: each body's centre and orientation) or
+        ``"joint"``: the turns and slides of a spanning tree of revolute, prismatic,
+        cylindrical and fixed joints, the other joints kept as constraints
+        (``help(mbdk.joint_coords)``; the ODE methods on the reduced or baumgarte
+        formulation). The samples are the bodies' absolute states either way.
     rho_inf, alpha_hht, newmark_beta, newmark_gamma, alpha_m, alpha_f : float, optional
         The index-3 family's parameters (``help(mbdk.alpha_family)``): newmark takes
         newmark_beta, newmark_gamma (default 1/4, 1/2); hht alpha_hht in [-1/3, 0] (default
@@ -245,7 +251,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
                   watch=watch, locate_events=locate_events, raise_on_failure=raise_on_failure,
                   switch_angles=switch_angles, rho_inf=rho_inf, alpha_hht=alpha_hht,
                   newmark_beta=newmark_beta, newmark_gamma=newmark_gamma, alpha_m=alpha_m,
-                  alpha_f=alpha_f)
+                  alpha_f=alpha_f, coordinates=coordinates)
     if events is not None:
         check_events(events, method, formulation)
     if scene.kind == "spatial" and switch_angles is not None:

@@ -55,7 +55,7 @@ module mbdk_capi_stepper
   use mbdk_mechanism, only: mbdk_mechanism_t, MBDK_FORM_PROJECTION
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
     mbdk_spatial_options_t, mbdk_spatial_init, MBDK_SPATIAL_JOINT_REALS, &
-    MBDK_SPATIAL_FORCE_REALS, mbdk_spatial_outputs, MBDK_SPATIAL_NOUT
+    MBDK_SPATIAL_FORCE_REALS, mbdk_spatial_outputs, MBDK_SPATIAL_NOUT, MBDK_COORDS_ABSOLUTE
   use mbdk_watch, only: mbdk_watch_report_t, mbdk_watch_report_of
   use mbdk_elements, only: MBDK_EFFECT_WEAR, MBDK_FORCE_POINT, MBDK_FORCE_TORQUE, &
     MBDK_FORCE_GRAVITY, MBDK_FORCE_CONTACT, MBDK_FORCE_FRICTION
@@ -292,6 +292,10 @@ contains
     real(dp), allocatable :: jr(:, :), fr(:, :), inert(:, :, :)
     integer :: astat
     n = 0
+    ! joint coordinates are the f2py entry spatial_run's (mbdk_joint_coords); a stepper keeps
+    ! the absolute state its readers index
+    stat = MBDK_ERR_NOT_APPLICABLE
+    if (so%coordinates /= MBDK_COORDS_ABSOLUTE) return
     stat = MBDK_ERR_INVALID_INPUT
     ! counts whose tables no default integer indexes are refused before anything is allocated
     if (nb < 1 .or. nj < 0 .or. nf < 0 .or. nb > huge(1) / 13 .or. nj > huge(1) / NJR .or. &

@@ -26,7 +26,7 @@ module mbdk_entry
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mbdk_kinds, only: dp
   use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY, &
-    MBDK_ERR_OUTPUT_SIZE, mbdk_is_failure
+    MBDK_ERR_NOT_APPLICABLE, MBDK_ERR_OUTPUT_SIZE, mbdk_is_failure
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_methods, only: mbdk_method_info, MBDK_FAMILY_DAE_INDEX3, MBDK_FAMILY_IDA, &
@@ -45,11 +45,13 @@ module mbdk_entry
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
     mbdk_spatial_outputs, mbdk_spatial_multipliers, MBDK_SPATIAL_NOUT, &
     mbdk_spatial_options_t, mbdk_spatial_init
+  use mbdk_joint_coords, only: mbdk_joint_model_t, mbdk_joint_work_t, mbdk_joint_init, &
+    mbdk_joint_to_absolute
   implicit none
   private
   public :: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
     mbdk_entry_planar_outputs, mbdk_entry_spatial_outputs, mbdk_entry_planar_start, &
-    mbdk_entry_planar_sizes_ok, mbdk_entry_spatial_model
+    mbdk_entry_planar_sizes_ok, mbdk_entry_spatial_model, mbdk_entry_joint_integrate
 
   !> how a run is integrated (mbdk_entry_route)
   integer, parameter, public :: MBDK_ROUTE_ODE = 1, MBDK_ROUTE_DAE = 2, MBDK_ROUTE_INDEX3 = 3
@@ -140,6 +142,53 @@ contains
                           times)
     end select
   end subroutine mbdk_entry_integrate
+
+  !> A spatial scene's ODE in joint coordinates (mbdk_joint_coords): the joint model of the
+  !> full model (every joint, built at the assembled start y with options so, which ask for
+  !> joint coordinates) and the scene's tables (jtype .. freal, the first nj and nf columns),
+  !> integrated by opt's ODE method from t0 to t_end (mbdk_solve_ode; times: its sample times,
+  !> where given), its samples written as the full model's absolute states y_out(:, 1:
+  !> nwritten), so that the run's outputs, multipliers and contacts are the absolute model's
+  !> at them. A route other than the ODE's is MBDK_ERR_NOT_APPLICABLE.
+  subroutine mbdk_entry_joint_integrate(full, so, mass, inertia, nj, jtype, jbody, jreal, nf, &
+                                        ftype, fbody, freal, opt, dae_form, t0, t_end, y, &
+                                        t_out, y_out, nwritten, st, stat, times)
+    type(mbdk_spatial_model_t), intent(in), target :: full
+    type(mbdk_spatial_options_t), intent(in) :: so
+    real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), t0, t_end, &
+      y(:)
+    integer, intent(in) :: nj, nf, jtype(:), jbody(:, :), ftype(:), fbody(:, :), dae_form
+    type(mbdk_options_t), intent(in) :: opt
+    real(dp), intent(out) :: t_out(:), y_out(:, :)
+    integer, intent(out) :: nwritten
+    type(mbdk_stats_t), intent(inout) :: st
+    integer, intent(out) :: stat
+    real(dp), intent(in), optional :: times(:)
+    type(mbdk_joint_model_t) :: jm
+    type(mbdk_joint_work_t), target :: jw
+    real(dp), allocatable :: y0j(:), yj(:, :)
+    real(dp) :: asked
+    integer :: k, astat
+    nwritten = 0
+    t_out = 0.0_dp
+    y_out = 0.0_dp
+    stat = MBDK_ERR_NOT_APPLICABLE
+    if (mbdk_entry_route(opt%method, dae_form) /= MBDK_ROUTE_ODE) return
+    asked = 0.0_dp
+    call mbdk_joint_init(jm, jw, full, so, mass, inertia, jtype(1:nj), jbody(:, 1:nj), &
+                         jreal(:, 1:nj), ftype(1:nf), fbody(:, 1:nf), freal(:, 1:nf), t0, y, &
+                         y0j, stat, asked)
+    if (stat == MBDK_ERR_NO_MEMORY) st%alloc_bytes = st%alloc_bytes + asked
+    if (stat /= MBDK_SUCCESS) return
+    allocate (yj(jm%n, size(y_out, 2)), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * real(jm%n, dp) * size(y_out, 2), stat, &
+                           st%alloc_bytes)
+    if (stat /= MBDK_SUCCESS) return
+    call mbdk_solve_ode(jm, opt, t0, t_end, y0j, t_out, yj, nwritten, st, stat, times=times)
+    do k = 1, nwritten
+      call mbdk_joint_to_absolute(jm, yj(:, k), y_out(:, k))
+    end do
+  end subroutine mbdk_entry_joint_integrate
 
   !> The planar model of the tables (mbdk_model_start: the pose defaults filled in at y, the
   !> state assembled where assemble, moving the coordinates not given), checked against the

@@ -915,14 +915,15 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   ! compact rows and a sparse S (MBDK_SPATIAL_SPARSE_ROWS), else 0.
   use, intrinsic :: iso_c_binding, only: c_loc, c_sizeof, c_intptr_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
-  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY
+  use mbdk_status, only: MBDK_SUCCESS, MBDK_ERR_INVALID_INPUT, MBDK_ERR_NO_MEMORY, &
+    MBDK_ERR_NOT_APPLICABLE
   use mbdk_watch, only: mbdk_watch_reserve, mbdk_watch_report_t, mbdk_watch_report_of
   use mbdk_memory, only: mbdk_alloc_status, MBDK_REAL_BYTES, MBDK_INT_BYTES
   use mbdk_options, only: mbdk_options_t
   use mbdk_stats, only: mbdk_stats_t
   use mbdk_trapezoidal_index3, only: mbdk_index3_options_t, MBDK_INDEX3_BOOK
   use mbdk_entry, only: mbdk_entry_options, mbdk_entry_integrate, mbdk_entry_route, &
-    mbdk_entry_spatial_model, &
+    mbdk_entry_spatial_model, mbdk_entry_joint_integrate, &
     mbdk_entry_spatial_outputs, MBDK_ROUTE_ODE, MBDK_ROUTE_INDEX3
   use mbdk_spatial_model
   implicit none
@@ -949,7 +950,7 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
 !f2py integer intent(hide), depend(y0) :: n = len(y0)
 !f2py integer intent(hide), depend(statbuf) :: nstatw = len(statbuf)
 !f2py integer intent(hide), depend(wrbuf) :: nwrw = len(wrbuf)
-  type(mbdk_spatial_model_t) :: model
+  type(mbdk_spatial_model_t), target :: model
   type(mbdk_spatial_work_t), target :: work
   type(mbdk_spatial_options_t) :: so
   type(mbdk_options_t) :: opt
@@ -1010,8 +1011,18 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   end if
   ! the index-3 solve's statistics replace st: what was asked here is added back
   before = st%alloc_bytes
-  call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, y, t_out, y_out, a_out, &
-                            lam_out(1:model%m, :), iters, nwritten, st, status, atol, times)
+  if (so%coordinates == MBDK_COORDS_JOINT) then
+    ! joint coordinates (their samples the absolute states; per-state tolerances are an
+    ! absolute state's: refused)
+    status = MBDK_ERR_NOT_APPLICABLE
+    if (natol == 0) call mbdk_entry_joint_integrate(model, so, mass, inertia, nj, jtype, jbody, &
+                                                    jreal, nf, ftype, fbody, freal, opt, &
+                                                    dae_form, t0, t_end, y, t_out, y_out, &
+                                                    nwritten, st, status, times)
+  else
+    call mbdk_entry_integrate(model, opt, i3, dae_form, t0, t_end, y, t_out, y_out, a_out, &
+                              lam_out(1:model%m, :), iters, nwritten, st, status, atol, times)
+  end if
   if (route == MBDK_ROUTE_INDEX3) st%alloc_bytes = st%alloc_bytes + before
   s = status
   ! the drivers' power with the integrator's own multipliers, but the book scheme's (the index3
@@ -1026,6 +1037,30 @@ subroutine spatial_run(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1,
   statbuf = transfer(st, statbuf, nstatw)
   wrbuf = transfer(mbdk_watch_report_of(work%watch), wrbuf, nwrw)
 end subroutine spatial_run
+
+subroutine spatial_joint_tree(nb, nj, nj1, jtype, jbody, tjoint, kind, parent, ndof, status)
+  ! The spanning tree that joint coordinates (mbdk_joint_coords) grow over a spatial scene's
+  ! joint table (jtype, jbody: its first nj columns): per body its tree joint (1-based table
+  ! column; 0: the body hangs on none), its kind (1 turn, 2 slide, 3 cylinder, 4 fixed) and
+  ! parent (0: the ground); ndof the joint coordinates. status MBDK_ERR_NOT_APPLICABLE where a
+  ! body is off the tree or there is no coordinate; the joints on no body's row are cut.
+  use mbdk_status, only: MBDK_ERR_INVALID_INPUT
+  use mbdk_joint_coords, only: mbdk_joint_tree
+  implicit none
+  integer, intent(in) :: nb, nj, nj1
+  integer, intent(in) :: jtype(nj1), jbody(2, nj1)
+  integer, intent(out) :: tjoint(nb), kind(nb), parent(nb), ndof, status
+!f2py integer intent(hide), depend(jtype) :: nj1 = len(jtype)
+  integer :: order(nb)
+  tjoint = 0
+  kind = 0
+  parent = 0
+  ndof = 0
+  status = MBDK_ERR_INVALID_INPUT
+  if (nj < 0 .or. nj > nj1 .or. nb < 1) return
+  call mbdk_joint_tree(nb, jtype(1:nj), jbody(:, 1:nj), tjoint, kind, parent, order, ndof, &
+                       status)
+end subroutine spatial_joint_tree
 
 subroutine spatial_contact_states(nb, mass, inertia, nj, nj1, jtype, jbody, jreal, nf, nf1, &
                                   ftype, fbody, freal, nsow, sobuf, n, y0, t0, nsamp, y, nct, &

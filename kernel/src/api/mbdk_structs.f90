@@ -238,6 +238,7 @@ contains
       call add('norm', transfer(c_loc(so%norm), base), MBDK_FIELD_INT)
       call add('watch_every', transfer(c_loc(so%watch_every), base), MBDK_FIELD_INT)
       call add('locate_events', transfer(c_loc(so%locate_events), base), MBDK_FIELD_INT)
+      call add('coordinates', transfer(c_loc(so%coordinates), base), MBDK_FIELD_INT)
     case (MBDK_STRUCT_WATCH_REPORT)
       cname = 'mbdk_watch_report'
       nbytes = int(c_sizeof(wr))

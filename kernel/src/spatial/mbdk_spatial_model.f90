@@ -155,6 +155,9 @@ module mbdk_spatial_model
     MBDK_ROT_CARDAN123 = 3
   integer, parameter, public :: MBDK_NORM_PROJECT = 1, MBDK_NORM_STABILISE = 2, &
     MBDK_NORM_NONE = 3
+  !> the coordinates of a run (mbdk_spatial_options_t%coordinates): the bodies' absolute ones
+  !> (this model), or joint coordinates (mbdk_joint_coords)
+  integer, parameter, public :: MBDK_COORDS_ABSOLUTE = 0, MBDK_COORDS_JOINT = 1
   !> outputs per sample (mbdk_spatial_outputs)
   integer, parameter, public :: MBDK_SPATIAL_NOUT = 7
   !> Gauss-Newton iterations of a position projection before it gives up (it converges
@@ -213,6 +216,10 @@ module mbdk_spatial_model
     integer(c_int) :: watch_every = MBDK_WATCH_EVERY
     !> /= 0: the contacts' events, for the error-controlled Runge-Kutta pairs (mbdk_problem)
     integer(c_int) :: locate_events = 1
+    !> MBDK_COORDS_ABSOLUTE: the bodies' absolute coordinates (this model); MBDK_COORDS_JOINT:
+    !> joint coordinates on a spanning tree of the joints (mbdk_joint_coords), the ODE methods
+    !> of the f2py entry spatial_run only
+    integer(c_int) :: coordinates = MBDK_COORDS_ABSOLUTE
   end type mbdk_spatial_options_t
 
   !> one primitive constraint: rows row .. row + 2 (spherical) or row (a dot product)
@@ -225,8 +232,12 @@ module mbdk_spatial_model
     integer :: joint = 0      !< the joint (table column) it belongs to
   end type prim_t
 
-  !> the kinematics of every body at one state (index 0: the ground)
-  type :: frames_t
+  !> the kinematics of every body at one state (index 0: the ground): r the centre, rot the
+  !> rotation matrix (body to space), v the centre's velocity (space frame), om the angular
+  !> velocity (body frame). Public with frames, forces and constraints: the joint-coordinate
+  !> model (mbdk_joint_coords) sets them from its own coordinates and evaluates the scene's
+  !> forces and its cut joints' rows through them.
+  type, public :: frames_t
     real(dp), allocatable :: r(:, :), rot(:, :, :), v(:, :), om(:, :)
   end type frames_t
 
@@ -530,6 +541,8 @@ contains
         opt%penalty_mu <= huge(1.0_dp))) return
     if (opt%rotation < MBDK_ROT_QUATERNION .or. opt%rotation > MBDK_ROT_CARDAN123) return
     if (opt%norm < MBDK_NORM_PROJECT .or. opt%norm > MBDK_NORM_NONE) return
+    if (opt%coordinates /= MBDK_COORDS_ABSOLUTE .and. opt%coordinates /= MBDK_COORDS_JOINT) &
+      return
     ok = opt%baumgarte_alpha >= 0.0_dp .and. opt%baumgarte_beta >= 0.0_dp .and. &
          opt%norm_gain >= 0.0_dp .and. opt%projection_tol > 0.0_dp .and. &
          all(abs([opt%watch_position, opt%watch_velocity, opt%watch_energy, &
