@@ -16,6 +16,9 @@ import numpy as np
 import pytest
 
 import mbdk
+from mbdk.errors import Status
+from mbdk.plan import Request, make_plan
+from mbdk.run_spatial import run_spatial
 from mbdk.scene_file import scene_from_dict
 
 G = 9.81
@@ -67,6 +70,32 @@ def tree_scene(closed: bool):
         "tree.toml")
 
 
+def four_bar_3d(rocker_mass_factor=1.0, doubled=False):
+    """The built-in planar four-bar as spatial bars turning about z (gravity along -y): the
+    tree takes A (crank on the ground), B (coupler on the crank) and C, whose table lists the
+    coupler, the rocker's parent on the tree, as body1; D is cut, its three rows out of the
+    plane held by the tree itself (no gradient in joint coordinates) and its two in the plane
+    kept. rocker_mass_factor scales the rocker's mass (and so its inertia); doubled adds a
+    second revolute joint on A's axis, whose five cut rows the tree holds."""
+    planar = mbdk.scene("four_bar")
+    q0 = planar.q0()
+    bodies = []
+    for k, b in enumerate(planar.bodies):
+        bodies.append(body(b.name, b.mass * (rocker_mass_factor if b.name == "rocker" else 1.0),
+                           position=[q0[3 * k], q0[3 * k + 1], 0.0],
+                           cardan123=[0.0, 0.0, q0[3 * k + 2]]))
+        del bodies[-1]["inertia"]
+        bodies[-1]["shape"] = {"type": "bar", "length": math.sqrt(12 * b.inertia / b.mass)}
+    joints = [{"name": j.name, "type": "revolute", "body1": j.body1, "body2": j.body2,
+               "point1": [*j.point1, 0.0], "point2": [*j.point2, 0.0], "axis": [0, 0, 1]}
+              for j in planar.joints]
+    if doubled:
+        joints.append(dict(joints[0], name="A2"))
+    return scene_from_dict({"body": bodies, "joint": joints,
+                            "force": [{"type": "gravity", "g": [0.0, -G, 0.0]}]},
+                           "four_bar_3d.toml")
+
+
 def state_gap(ra, rj, nb):
     """The largest difference of two runs' samples: positions, quaternions (either sign) and
     velocities."""
@@ -80,10 +109,10 @@ def state_gap(ra, rj, nb):
 @pytest.mark.parametrize("closed", [False, True])
 def test_every_tree_joint_moves_as_in_absolute_coordinates(closed):
     """The chain of every tree joint kind (tree_scene), open and closed by a spherical joint:
-    rk4 at h = 1e-4 over 0.5 s in joint and in absolute coordinates, a motion of 0.7 (open) and
-    0.5 (closed) in the coordinates, apart by 1.1e-13 and 2.0e-13; a sign or term wrong in a
-    turn's, slide's or fixed joint's kinematics, bias, column or mass term parts them by far
-    more. The tree's joints hold at every sample to roundoff, where the
+    rk4 at h = 1e-4 over 0.5 s in joint and in absolute coordinates, a motion of tenths of a
+    metre and radian: both runs' truncation errors lie far below the bound, and a sign or term
+    wrong in a turn's, slide's or fixed joint's kinematics, bias, column or mass term parts
+    them by far more. The tree's joints hold at every sample to roundoff, where the
     absolute run's drift by its truncation."""
     sc = tree_scene(closed)
     kw = dict(h=1e-4, t_end=0.5, every=500)
@@ -101,8 +130,8 @@ def test_every_tree_joint_moves_as_in_absolute_coordinates(closed):
         assert np.max(rj.residuals[:, 0]) < 1e-13
         assert np.max(rj.residuals[:, 1]) < 1e-13
     # the energy balance (kinetic + potential - work of the damper and loads, 8.3 J), kept to
-    # the second-order quadrature of the work (1.3e-8 at this h, a quarter of it at h / 2) and
-    # the same as the absolute run's to 1.6e-13
+    # the watch's second-order quadrature of the work (it falls fourfold as h halves), and the
+    # same as the absolute run's
     e_j = rj.energy - rj.energy_parts["work"]
     e_a = ra.energy - ra.energy_parts["work"]
     assert np.max(np.abs(e_j - e_j[0])) < 3e-8
@@ -115,10 +144,9 @@ def test_the_iftomm_mechanisms_move_as_in_absolute_coordinates(name, t_end, tol,
     """The governor (a tree: four coordinates, its start spinning at 2 pi rad/s, which the
     joint rates are fitted to) and Bricard's linkage (five turns and the cut joint F, whose
     five rows have rank four in joint coordinates: one is left out at the start): rk4 at
-    h = 2e-5 in both coordinates, apart by 1.0e-10 (the governor's stiff spring-dampers, 8e5
-    N/m and 4e4 N s/m, amplify the velocities' roundoff) and 4.8e-13 here. The multipliers at
-    the samples (solved on the absolute state) agree to 7e-9 and 4e-13 of the largest (the
-    dampers again: 4e4 N s/m times the velocities' gap)."""
+    h = 2e-5 in both coordinates. The governor's bound is wider: its stiff spring-dampers (8e5
+    N/m and 4e4 N s/m) amplify the velocities' roundoff, and its multipliers (solved at the
+    samples on the absolute state) take the dampers' forces of those velocities."""
     sc = mbdk.scene(name)
     kw = dict(h=2e-5, t_end=t_end, every=5000)
     ra = mbdk.simulate(sc, "rk4", **kw)
@@ -134,9 +162,8 @@ def test_the_iftomm_mechanisms_move_as_in_absolute_coordinates(name, t_end, tol,
 def test_the_iftomm_mechanisms_in_joint_coordinates_meet_the_exudyn_reference():
     """Bricard's P3 and the governor's sleeve against the Exudyn values that
     tests/test_spatial.py keeps (converged to about 2e-8 and 1e-8), error-controlled in joint
-    coordinates (they meet it to 4e-10, well inside its accuracy); and rk4's order in joint
-    coordinates: its error on Bricard at 2 s, against dopri54 at rtol 1e-12, falls 15.6- and
-    15.8-fold per halving of h from 0.04 s."""
+    coordinates; and rk4's order in joint coordinates: its error on Bricard at 2 s, against
+    dopri54 at rtol 1e-12, falls sixteenfold per halving of h from 0.04 s."""
     r = mbdk.simulate(mbdk.scene("bricard"), "dopri54", rtol=1e-10, atol=1e-12, t_end=2.0,
                       dt_out=2.0, coordinates="joint")
     p3 = r.position("rod2") + np.einsum("kij,j->ki", r.orientation("rod2"), [0.0, -0.5, 0.0])
@@ -240,3 +267,61 @@ def test_an_fmu_refuses_joint_coordinates(tmp_path):
         mbdk.export_fmu(mbdk.scene("flyball_governor"), out, "rk4", h=1e-3,
                         coordinates="joint")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("factor", [1.0, 1e-6])
+def test_a_light_body_in_a_loop_is_no_singular_pose(factor):
+    """The four-bar in 3D (four_bar_3d), its rocker a millionth as heavy: S = G (J^T M J)^-1
+    G^T then has a pivot far below MBDK_SPATIAL_NEAR_PIVOT of its diagonal at every pose,
+    while the geometry's rows are far from dependent. The reduced form's near test is the
+    geometry's (as in absolute coordinates), so the run goes on and moves as the absolute one,
+    whose own test is the geometry's too; a test on S would stop it at its first evaluation."""
+    sc = four_bar_3d(factor)
+    kw = dict(h=1e-3, t_end=1.0, every=100)
+    ra = mbdk.simulate(sc, "rk4", **kw)
+    rj = mbdk.simulate(sc, "rk4", coordinates="joint", **kw)
+    tree = rj.manifest["joint_tree"]
+    assert tree["cut"] == ["D"] and tree["tree"][2] == "rocker on C (turn, from coupler)"
+    assert np.abs(ra.q[-1] - ra.q[0]).max() > 1.0
+    assert state_gap(ra, rj, 3) < 1e-8
+
+
+def test_a_joint_doubled_on_the_tree_leaves_no_row_to_solve():
+    """A second revolute joint on the crank's axis: its five rows are held by the tree at every
+    pose (no gradient in joint coordinates at the start, nor at a second pose), so none is
+    solved, and the run is the undoubled one's, while the absolute coordinates carry five
+    redundant rows."""
+    kw = dict(h=1e-3, t_end=0.5, every=100, coordinates="joint")
+    r1 = mbdk.simulate(four_bar_3d(), "rk4", **kw)
+    r2 = mbdk.simulate(four_bar_3d(doubled=True), "rk4", **kw)
+    assert r2.manifest["joint_tree"]["cut"] == ["D", "A2"]
+    assert np.abs(r1.q - r2.q).max() < 1e-14 and np.abs(r1.v - r2.v).max() < 1e-13
+
+
+def test_baumgarte_in_joint_coordinates_acts_on_the_cut_rows():
+    """Bricard by rk4 at h = 1e-2 on the baumgarte form: with alpha = beta = 0 it is the
+    reduced form's run exactly; with alpha = beta = 5 1/s the cut rows' drift stays at the
+    size of the reduced form's, where a sign of the terms turned would make it grow as
+    exp(5 t)."""
+    sc = mbdk.scene("bricard")
+    kw = dict(h=1e-2, t_end=2.0, coordinates="joint")
+    red = mbdk.simulate(sc, "rk4", **kw)
+    zero = mbdk.simulate(sc, "rk4", formulation="baumgarte", alpha=0.0, beta=0.0, **kw)
+    assert np.array_equal(red.q, zero.q)
+    r = mbdk.simulate(sc, "rk4", formulation="baumgarte", alpha=5.0, beta=5.0, **kw)
+    assert np.max(r.residuals[:, 0]) < 1e-6
+    assert np.max(r.residuals[:, 1]) < 1e-5
+    assert 0 < np.abs(r.q[-1] - red.q[-1]).max() < 1e-5
+
+
+def test_the_kernel_refuses_a_start_off_a_tree_joint():
+    """The tree is built from the start's pose, so a start off a tree joint would become a
+    rigid offset of the motion: the kernel refuses it (MBDK_ERR_INCONSISTENT_INITIAL) even
+    when called past the Python layer's own check of the start, which the absolute
+    coordinates' run, past the same check, does not."""
+    sc = four_bar_3d()
+    sc.bodies[2].position = np.asarray(sc.bodies[2].position) + [1e-6, 0.0, 0.0]
+    for coords, want in (("absolute", Status.SUCCESS), ("joint", Status.ERR_INCONSISTENT_INITIAL)):
+        plan = make_plan(sc, Request(method="rk4", t_end=0.01, h=1e-3, coordinates=coords,
+                                     assemble_initial=False))
+        assert run_spatial(sc, plan).result.status == want, coords

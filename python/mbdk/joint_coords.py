@@ -1,12 +1,13 @@
 """Joint coordinates for spatial scenes (``simulate(..., coordinates="joint")``).
 
 The kernel (kernel/src/spatial/mbdk_joint_coords.f90, whose header is the manual) grows a
-spanning tree over the scene's joints from the ground, in table order, breadth first: revolute,
-prismatic, cylindrical and fixed joints can carry a body (a turn, a slide, both, or none); the
-other joints, and any joint between two bodies already on the tree, are cut, and their rows are
-kept as constraints on the joint coordinates. The state is the joints' turns and slides and
-their rates; the tree's joints hold at every state to roundoff, and the samples are the bodies'
-absolute states, so that a joint run's outputs, watch and plots are an absolute run's.
+spanning tree over the scene's joints from the ground, in sweeps over the table in its order:
+revolute, prismatic, cylindrical and fixed joints can carry a body (a turn, a slide, both, or
+none); the other joints, and any joint between two bodies already on the tree, are cut, and
+their rows are kept as constraints on the joint coordinates. The state is the joints' turns
+and slides and their rates; the tree's joints hold at every state to roundoff, and the samples
+are the bodies' absolute states, so that a joint run's outputs, watch and plots are an
+absolute run's.
 
 This module asks the kernel for the split (spatial_joint_tree), refuses what the formulation
 does not take with a message that names the body, joint or option, and describes the split for
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 from . import _kernel
 from .errors import InvalidInputError, NotApplicableError, Status
-from .scene import Scene
+from .scene import GROUND, Scene
 from .spatial_model import spatial_tables
 
 #: simulate's coordinates and their codes (enum mbdk_coordinates, mbdk_spatial_options'
@@ -85,7 +86,12 @@ def check_joint_run(scene: Scene, method: str, family: str, formulation: str) ->
                                  "coordinates carry no wear states; use coordinates='absolute'")
     split = joint_tree(scene)
     if split["missing"]:
-        body = split["missing"][0]
+        # name a body next to the tree (on a joint to the ground or to a body on the tree):
+        # the one whose joint keeps the others off
+        on_tree = {GROUND} | {t["body"] for t in split["tree"]}
+        body = next((b for b in split["missing"] for j in scene.joints
+                     if b in (j.body1, j.body2) and ({j.body1, j.body2} - {b}) & on_tree),
+                    split["missing"][0])
         on = [j.name + f" ({j.type})" for j in scene.joints if body in (j.body1, j.body2)]
         raise NotApplicableError(
             f"{what}: body {body!r} hangs on no {', '.join(TREE_JOINTS)} joint that reaches "

@@ -3,12 +3,13 @@
 !> integrator.
 !>
 !> The scene's joints are split, once at the start, into a spanning tree and the joints left
-!> over. A tree grows from the ground over the joints in table order, and a joint joins it
-!> where it reaches a body not yet reached from one that is (a breadth-first growth, so the
-!> split is the same on every run). Revolute, prismatic, cylindrical and fixed joints can
-!> be tree joints; the others (spherical, universal, the drivers) and any joint between two
-!> bodies already reached are cut. Each tree joint gives its body the coordinates its motion
-!> relative to its parent has, measured from the initial pose:
+!> over. A tree grows from the ground in sweeps over the joint table in its order: a joint
+!> joins it where it reaches a body not yet reached from one that is (reached earlier in the
+!> same sweep or before), so that the split is the same on every run. Revolute, prismatic,
+!> cylindrical and fixed joints can be tree joints; the others (spherical, universal, the
+!> drivers) and any joint between two bodies already reached are cut. Each tree joint gives
+!> its body the coordinates its motion relative to its parent has, measured from the initial
+!> pose:
 !>   revolute     theta, the turn about the joint's axis through its point (1)
 !>   prismatic    s, the slide along the axis (1)
 !>   cylindrical  theta, then s along the same axis (2)
@@ -37,14 +38,20 @@
 !> (the path from the root): O(sum of depths^2) for J^T M J, which a mechanism of a few tens
 !> of bodies keeps small; a long chain is the absolute model's sparse path. Solved by
 !> Cholesky (mbdk_lapack), J^T M J and then S = G (J^T M J)^-1 G^T on the cut rows kept:
-!> those found independent at the start (a complete-pivoting Cholesky of G G^T, slides at the
-!> mechanism's length scale), so that a loop closed by a redundant joint (Bricard's linkage:
-!> 5 rows of rank 4 in joint space) keeps a fixed set. Formulations (the mbdk_mechanism codes):
-!>   reduced    G theta'' = gamma_c - C_c b; a pivot of S below MBDK_SPATIAL_NEAR_PIVOT of its
-!>              row's diagonal is a singular pose, MBDK_ERR_SINGULAR_MATRIX, as in the
-!>              absolute model
-!>   baumgarte  the same, less 2 alpha Phi_c' + beta^2 Phi_c (3.29); stops only at a pivot at
-!>              roundoff
+!> those found independent at the start (a complete-pivoting Cholesky of the geometry's
+!> Gs Gs^T, Gs = G with slides and the rows of lengths at the mechanism's length scale, each
+!> row of unit length), so that a loop closed by a redundant joint (Bricard's linkage: 5 rows
+!> of rank 4 in joint space) keeps a fixed set. A row with no gradient at the start is held by
+!> the tree itself (two joints on one axis) where it has none at a second pose either, and is
+!> left out; one that has one there (a dead-centre start) or a driver's row left out is
+!> MBDK_ERR_SINGULAR_MATRIX. Formulations (the mbdk_mechanism codes):
+!>   reduced    G theta'' = gamma_c - C_c b; a relative pivot of the geometry's Gs Gs^T on the
+!>              rows kept below MBDK_SPATIAL_NEAR_PIVOT is a singular pose,
+!>              MBDK_ERR_SINGULAR_MATRIX, as in the absolute model (the geometry, not S: a
+!>              light or slender body would make S's pivots small at a regular pose); it is
+!>              formed only where a pivot of S falls below that window of its diagonal
+!>   baumgarte  the same, less 2 alpha Phi_c' + beta^2 Phi_c (3.29); stops only at a pivot of S
+!>              at roundoff
 !> A tree has no cut rows, and then its ODE is the whole model: no constraint to drift.
 !>
 !> The scene's forces (gravity, point forces, torques, spring-dampers, contacts) and the cut
@@ -53,9 +60,13 @@
 !> joints. The full model (every joint) is the caller's; through it the run's watch (every
 !> row's Phi, C w + Phi_t, the energy balance, the conserved momenta), the contacts' events
 !> and the outputs see the absolute state (to_absolute) of each joint state, so that a joint
-!> run is checked against the same joints as an absolute one. Not taken here
-!> (MBDK_ERR_NOT_APPLICABLE): angle sets (a joint run's orientations are quaternions, built
-!> from the joint turns), wear states, the penalty and projection formulations.
+!> run is checked against the same joints as an absolute one. The start must be on the
+!> tree's joints (their rows at MBDK_JOINT_START_RTOL of the length scale) and its velocities
+!> fitted by the joint rates (FIT_RTOL), else MBDK_ERR_INCONSISTENT_INITIAL: the tree is
+!> built from the start's pose, and would freeze an offset from a joint into the motion. Not
+!> taken here (MBDK_ERR_NOT_APPLICABLE): angle sets (a joint run's orientations are
+!> quaternions, built from the joint turns), wear states, the penalty and projection
+!> formulations.
 module mbdk_joint_coords
   use mbdk_kinds, only: dp
   use mbdk_status
@@ -66,9 +77,10 @@ module mbdk_joint_coords
   use mbdk_sparse_schur, only: mbdk_sort_ints
   use mbdk_rotations, only: mbdk_quat_conj, mbdk_quat_matrix_of
   use mbdk_elements, only: MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, MBDK_JOINT_CYLINDRICAL, &
-    MBDK_JOINT_FIXED, mbdk_joint_rows, MBDK_BODY_SPATIAL
+    MBDK_JOINT_FIXED, MBDK_JOINT_ANGLE_DRIVER, MBDK_JOINT_SLIDE_DRIVER, mbdk_joint_rows, &
+    MBDK_BODY_SPATIAL
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
-    mbdk_spatial_options_t, mbdk_spatial_init, frames_t, forces, constraints, &
+    mbdk_spatial_options_t, mbdk_spatial_init, frames_t, frames, forces, constraints, &
     MBDK_ROT_QUATERNION, MBDK_SPATIAL_NEAR_PIVOT
   implicit none
   private
@@ -82,8 +94,13 @@ module mbdk_joint_coords
   real(dp), parameter :: SOLVE_RTOL = 64.0_dp * epsilon(1.0_dp)
   !> the start's velocities are fitted by the joint rates in the mass-weighted least squares;
   !> a fit off them by more than this fraction of the largest speed (rotations at the length
-  !> scale) is an inconsistent start (the Python layer's check holds them to 1e-10)
+  !> scale, and at least the length scale's speed at 1 rad/s) is an inconsistent start (the
+  !> Python layer refuses starts off their joints by more than its assembly's tolerance, 1e-6,
+  !> and assembles them to roundoff)
   real(dp), parameter :: FIT_RTOL = 1.0e-8_dp
+  !> the tree's joints' rows at the start, in the length scale (the rows of lengths) and in
+  !> radians, at most this: else the start is off a tree joint
+  real(dp), parameter, public :: MBDK_JOINT_START_RTOL = 1.0e-8_dp
   !> cut rows whose pivot in the complete-pivoting Cholesky of the unit-diagonal G G^T at the
   !> start falls to this are dependent (the absolute model's REDUNDANT_RTOL)
   real(dp), parameter :: REDUNDANT_RTOL = 1.0e-10_dp
@@ -100,6 +117,8 @@ module mbdk_joint_coords
     real(dp), allocatable :: lin(:, :), ang(:, :)
     real(dp), allocatable :: mq(:, :), dinv(:), qv(:), fw(:, :), nbd(:, :), phi(:), c(:, :), &
       gam(:), phit(:), g(:, :), yg(:, :), s(:, :), lam(:), sdiag(:), yabs(:), yabs3(:, :)
+    !> the geometric near test (close_loops): the kept rows of G scaled, their Gram matrix
+    real(dp), allocatable :: gs(:, :), gg(:, :)
   end type mbdk_joint_work_t
 
   !> The joint-coordinate model of a spatial scene: n = 2 ndof, nq = ndof.
@@ -119,8 +138,10 @@ module mbdk_joint_coords
     real(dp), allocatable :: axis(:, :), spt(:, :), c0(:, :), dch(:, :), e0(:, :)
     !> (0, axis) e0, so that a turn's (cos, sin axis) e0 is cos e0 + sin ae0
     real(dp), allocatable :: ae0(:, :)
-    !> per cut row, its two bodies (0: the ground), where its C has entries
+    !> per cut row, its two bodies (0: the ground), where its C has entries, and whether it
+    !> is a driver's
     integer, allocatable :: rbody(:, :)
+    logical, allocatable :: driver(:)
     real(dp), allocatable :: mass(:), inertia(:, :, :)
     !> the cut joints (table columns) and the cut rows solved (of the cut model's rows)
     integer, allocatable :: cut(:), active(:)
@@ -143,14 +164,15 @@ contains
   !> y0 and t0 with options so) is full: the tree split, the references taken at y0, the cut
   !> model built (its tables: the scene's with only the cut joints), the cut rows kept and the
   !> initial joint state y0j = [0; theta'_0] (theta'_0 fitted to y0's velocities). work:
-  !> the caller's, outliving the model. MBDK_ERR_NOT_APPLICABLE: a body off the tree, angle
-  !> sets, wear, a formulation other than reduced or baumgarte, no dof;
-  !> MBDK_ERR_INCONSISTENT_INITIAL: y0's velocities off the tree's joints (FIT_RTOL);
-  !> MBDK_ERR_SINGULAR_MATRIX: J^T M J singular at the start (a dof that moves no mass).
+  !> the caller's (its arrays made here), outliving the model. MBDK_ERR_NOT_APPLICABLE: a
+  !> body off the tree, angle sets, wear, a formulation other than reduced or baumgarte, no
+  !> dof; MBDK_ERR_INCONSISTENT_INITIAL: y0 off the tree's joints (MBDK_JOINT_START_RTOL) or
+  !> its velocities (FIT_RTOL); MBDK_ERR_SINGULAR_MATRIX: a cut row the start leaves no
+  !> gradient that has one elsewhere, or a driver's row left out (choose_cut_rows).
   subroutine mbdk_joint_init(jm, work, full, so, mass, inertia, jtype, jbody, jreal, ftype, &
                              fbody, freal, t0, y0, y0j, stat, asked)
     type(mbdk_joint_model_t), intent(out) :: jm
-    type(mbdk_joint_work_t), intent(inout), target :: work
+    type(mbdk_joint_work_t), intent(out), target :: work
     type(mbdk_spatial_model_t), intent(in), target :: full
     type(mbdk_spatial_options_t), intent(in) :: so
     real(dp), intent(in) :: mass(:), inertia(:, :, :), jreal(:, :), freal(:, :), t0, y0(:)
@@ -159,7 +181,7 @@ contains
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     type(mbdk_spatial_options_t) :: co
-    integer :: nb, nj, astat, k, i, r
+    integer :: nb, nj, astat, k, i, r, ncut
     logical, allocatable :: used(:)
 
     stat = MBDK_ERR_NOT_APPLICABLE
@@ -182,9 +204,13 @@ contains
     if (stat /= MBDK_SUCCESS) return
     jm%mass = mass
     jm%inertia = inertia
-    call grow_tree(jm, jtype, jbody, used, stat)
+    call grow_tree(jm, jtype, jbody, used, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     ! the cut model: the scene with only its cut joints (and every force)
+    ncut = count(.not. used)
+    allocate (jm%cut(ncut), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * real(ncut, dp), stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     jm%cut = pack([(k, k = 1, nj)], .not. used)
     co = so
     co%formulation = MBDK_FORM_REDUCED
@@ -199,16 +225,20 @@ contains
     if (stat /= MBDK_SUCCESS) return
     jm%mc = jm%cutm%m
     ! the cut model's rows run joint by joint in its table's order (mbdk_spatial_model)
-    allocate (jm%rbody(2, jm%mc), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 2.0_dp * jm%mc, stat, asked)
+    allocate (jm%rbody(2, jm%mc), jm%driver(jm%mc), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_INT_BYTES * 3.0_dp * jm%mc, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     r = 0
     do k = 1, size(jm%cut)
       do i = 1, mbdk_joint_rows(jtype(jm%cut(k)), MBDK_BODY_SPATIAL)
         jm%rbody(:, r + i) = jbody(:, jm%cut(k))
+        jm%driver(r + i) = jtype(jm%cut(k)) == MBDK_JOINT_ANGLE_DRIVER .or. &
+          jtype(jm%cut(k)) == MBDK_JOINT_SLIDE_DRIVER
       end do
       r = r + mbdk_joint_rows(jtype(jm%cut(k)), MBDK_BODY_SPATIAL)
     end do
+    call start_on_tree(full, jtype, used, t0, y0, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
     call take_references(jm, jbody, jreal, y0, stat)
     if (stat /= MBDK_SUCCESS) return
     call paths(jm, stat, asked)
@@ -229,8 +259,8 @@ contains
     call choose_cut_rows(jm, t0, y0j, stat, asked)
   end subroutine mbdk_joint_init
 
-  !> The tree from the ground over the joints (jtype, jbody: the scene's table) in table
-  !> order, breadth first: per body (nb) its tree joint (table column; 0: the body hangs on
+  !> The tree from the ground over the joints (jtype, jbody: the scene's table), in sweeps
+  !> over the table in its order: per body (nb) its tree joint (table column; 0: the body hangs on
   !> none), kind (MBDK_TREE_*), parent (0: the ground) and place in order (parents first,
   !> order(1:count)); ndof the coordinates. MBDK_ERR_NOT_APPLICABLE where a body is left off
   !> the tree or there is no coordinate. The f2py entry spatial_joint_tree reports it, so
@@ -296,11 +326,12 @@ contains
 
   !> The tree (mbdk_joint_tree) into jm: its first dof per body and which dofs turn; used(k)
   !> for the tree's joints.
-  subroutine grow_tree(jm, jtype, jbody, used, stat)
+  subroutine grow_tree(jm, jtype, jbody, used, stat, asked)
     type(mbdk_joint_model_t), intent(inout) :: jm
     integer, intent(in) :: jtype(:), jbody(:, :)
     logical, intent(out) :: used(:)
     integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
     integer :: i, k, b
     call mbdk_joint_tree(jm%nb, jtype, jbody, jm%tjoint, jm%kind, jm%parent, jm%order, &
                          jm%ndof, stat)
@@ -308,7 +339,7 @@ contains
     used = .false.
     used(jm%tjoint) = .true.
     allocate (jm%turn(jm%ndof), stat=k)
-    call mbdk_alloc_status(k, 4.0_dp * jm%ndof, stat)
+    call mbdk_alloc_status(k, 4.0_dp * jm%ndof, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     k = 1
     do i = 1, jm%nb
@@ -326,6 +357,41 @@ contains
       k = k + ndof_of(jm, b)
     end do
   end subroutine grow_tree
+
+  !> MBDK_ERR_INCONSISTENT_INITIAL where a tree joint's rows of the full model (in table
+  !> order, each joint's in turn) at the start exceed MBDK_JOINT_START_RTOL (rows of lengths at
+  !> the length scale): the tree is built from the start's pose.
+  subroutine start_on_tree(full, jtype, used, t0, y0, stat, asked)
+    type(mbdk_spatial_model_t), intent(in) :: full
+    integer, intent(in) :: jtype(:)
+    logical, intent(in) :: used(:)
+    real(dp), intent(in) :: t0, y0(:)
+    integer, intent(out) :: stat
+    real(dp), intent(inout), optional :: asked
+    type(frames_t) :: fr
+    real(dp), allocatable :: phi(:), c(:, :), gam(:)
+    integer :: k, r, i, nr, astat
+    call frames(full, y0, fr, stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    allocate (phi(full%m), c(full%m, 6 * full%nb), gam(full%m), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * full%m * (6.0_dp * full%nb + 2.0_dp), &
+                           stat, asked)
+    if (stat /= MBDK_SUCCESS) return
+    call constraints(full, fr, t0, phi, c, gam)
+    stat = MBDK_ERR_INCONSISTENT_INITIAL
+    r = 0
+    do k = 1, size(jtype)
+      nr = mbdk_joint_rows(jtype(k), MBDK_BODY_SPATIAL)
+      if (used(k)) then
+        do i = r + 1, r + nr
+          if (.not. (abs(phi(i)) <= MBDK_JOINT_START_RTOL * &
+                     merge(1.0_dp, full%length, full%row_angular(i)))) return
+        end do
+      end if
+      r = r + nr
+    end do
+    stat = MBDK_SUCCESS
+  end subroutine start_on_tree
 
   !> Each tree joint's axis and point on its parent (the table's on the parent's side), the
   !> child's centre and orientation relative to the parent at y0.
@@ -438,11 +504,12 @@ contains
               w%pt(3, nd), w%lin(3, np), w%ang(3, np), w%mq(nd, nd), w%dinv(nd), w%qv(nd), &
               w%fw(3, nb), &
               w%nbd(3, nb), w%phi(mc), w%c(mc, 6 * nb), w%gam(mc), w%phit(mc), w%g(mc, nd), &
-              w%yg(nd, mc), w%s(mc, mc), w%lam(mc), w%sdiag(mc), w%yabs(13 * nb), &
+              w%yg(nd, mc), w%s(mc, mc), w%lam(mc), w%sdiag(mc), w%gs(mc, nd), w%gg(mc, mc), &
+              w%yabs(13 * nb), &
               w%yabs3(13 * nb, 3), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (16.0_dp * (nb + 1) + 6.0_dp * nd + &
                            6.0_dp * np + nd * (nd + 2.0_dp) + 6.0_dp * nb + mc * (6.0_dp * nb + &
-                           2.0_dp * nd + mc + 5.0_dp) + 52.0_dp * nb), stat, asked)
+                           3.0_dp * nd + 2.0_dp * mc + 5.0_dp) + 52.0_dp * nb), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     allocate (w%fr%r(3, 0:nb), w%fr%rot(3, 3, 0:nb), w%fr%v(3, 0:nb), w%fr%om(3, 0:nb), &
               stat=astat)
@@ -460,8 +527,7 @@ contains
   !> quaternion and angular velocity in space, each dof's axis and point, and with bias the
   !> accelerations at theta'' = 0 (w%a0, w%al0). The work is done by kinematics_of on
   !> explicit-shape arrays, as are columns' and project_mass': the compiler then knows that
-  !> they do not alias and keeps no descriptor of an allocatable component in the loops (the
-  !> derived-type form took several times the instructions).
+  !> they do not alias, and reloads no descriptor of an allocatable component in the loops.
   pure subroutine kinematics(jm, y, w, bias)
     type(mbdk_joint_model_t), intent(in) :: jm
     real(dp), intent(in) :: y(:)
@@ -628,6 +694,7 @@ contains
     integer, intent(out) :: stat
     real(dp) :: vg, vs, power
     integer :: nd, i
+    logical :: look
     nd = self%ndof
     f = 0.0_dp
     stat = MBDK_ERR_NONFINITE
@@ -642,13 +709,19 @@ contains
       call project_mass(self, w, w%fw, w%nbd)
       call mbdk_chol_factor(w%mq, stat)
       if (stat /= MBDK_SUCCESS) return
-      w%dinv = 1.0_dp / [(w%mq(i, i), i = 1, nd)]
+      do i = 1, nd
+        w%dinv(i) = 1.0_dp / w%mq(i, i)
+      end do
       call forward(nd, w%mq, w%dinv, w%qv)
       if (self%nact > 0) then
         call cut_rows(self, t, w)
         call close_loops(nd, self%nact, self%formulation == MBDK_FORM_REDUCED, w%mq, w%dinv, &
-                         w%g, w%gam, w%yg, w%s, w%sdiag, w%lam, w%qv, stat)
+                         w%g, w%gam, w%yg, w%s, w%sdiag, w%lam, w%qv, look, stat)
         if (stat /= MBDK_SUCCESS) return
+        stat = MBDK_ERR_SINGULAR_MATRIX
+        if (look) then
+          if (near_geometry(self, w)) return
+        end if
       end if
       call backward(nd, w%mq, w%dinv, w%qv)
       f(1:nd) = y(nd + 1:2 * nd)
@@ -677,20 +750,24 @@ contains
   !> The closed loops' part of theta'': with M = J^T M J = L L^T (L in mq, dinv its
   !> diagonal's reciprocals) and qv = L^-1 Q on entry, Z = L^-1 G^T on the nact rows kept,
   !> S = Z^T Z, lambda from S lambda = Z^T qv - gamma', and qv = L^-1 Q - Z lambda on return
-  !> (theta'' = L^-T qv, the caller's backward substitution). A pivot of S at roundoff, or
-  !> on the reduced formulation (near) below MBDK_SPATIAL_NEAR_PIVOT of its row's diagonal, is
-  !> MBDK_ERR_SINGULAR_MATRIX.
-  subroutine close_loops(nd, na, near, mq, dinv, g, gam, z, s, sdiag, lam, qv, stat)
+  !> (theta'' = L^-T qv, the caller's backward substitution). A pivot of S at roundoff is
+  !> MBDK_ERR_SINGULAR_MATRIX; look: on the reduced formulation (near), a pivot below
+  !> MBDK_SPATIAL_NEAR_PIVOT of its row's diagonal, for the caller's test on the geometry
+  !> (near_geometry: S's pivots weigh the rows by the masses, small at a regular pose where a
+  !> body is light or slender).
+  subroutine close_loops(nd, na, near, mq, dinv, g, gam, z, s, sdiag, lam, qv, look, stat)
     integer, intent(in) :: nd, na
     logical, intent(in) :: near
     real(dp), intent(in) :: mq(nd, nd), dinv(nd), g(:, :), gam(:)
     real(dp), intent(inout) :: z(nd, na), s(na, na), sdiag(na), lam(na), qv(nd)
+    logical, intent(out) :: look
     integer, intent(out) :: stat
     integer :: i, k
     do i = 1, na
       z(:, i) = g(i, 1:nd)
       call forward(nd, mq, dinv, z(:, i))
     end do
+    look = .false.
     do i = 1, na
       do k = 1, i
         s(i, k) = dot_product(z(:, i), z(:, k))
@@ -703,10 +780,11 @@ contains
       stat = MBDK_ERR_SINGULAR_MATRIX
       return
     end if
+    look = .false.
     stat = MBDK_ERR_SINGULAR_MATRIX
     do i = 1, na
       if (.not. (s(i, i)**2 > SOLVE_RTOL * sdiag(i))) return
-      if (near .and. .not. (s(i, i)**2 > MBDK_SPATIAL_NEAR_PIVOT * sdiag(i))) return
+      if (near .and. .not. (s(i, i)**2 > MBDK_SPATIAL_NEAR_PIVOT * sdiag(i))) look = .true.
     end do
     call mbdk_chol_solve(s, lam, stat)
     if (stat /= MBDK_SUCCESS) return
@@ -801,7 +879,9 @@ contains
     real(dp), allocatable :: zero(:)
     integer :: b, o, p
     associate (w => jm%work)
-      allocate (zero(2 * jm%ndof))
+      allocate (zero(2 * jm%ndof), stat=o)
+      call mbdk_alloc_status(o, MBDK_REAL_BYTES * 2.0_dp * jm%ndof, stat)
+      if (stat /= MBDK_SUCCESS) return
       zero = 0.0_dp
       call kinematics(jm, zero, w, .false.)
       call columns(jm, w)
@@ -830,64 +910,131 @@ contains
         off = max(off, norm2(dv), jm%length * norm2(dw))
       end do
       stat = MBDK_ERR_INCONSISTENT_INITIAL
-      if (.not. (off <= FIT_RTOL * big)) return
+      if (.not. (off <= FIT_RTOL * max(big, jm%length))) return
       stat = MBDK_SUCCESS
     end associate
   end subroutine fit_rates
 
   !> The cut rows kept (jm%active): those independent in the joint coordinates at the start,
-  !> by a complete-pivoting Cholesky of G G^T scaled to a unit diagonal (rows of lengths at the
-  !> length scale, slides likewise), in the order of the table where none is dependent.
+  !> by a complete-pivoting Cholesky of the geometry's Gs Gs^T (scaled_rows, each row of unit
+  !> length), in the order of the table. A row with no gradient (below the square root of
+  !> REDUNDANT_RTOL) is left out where a second pose of the tree (each turn 0.5 rad on, each
+  !> slide a tenth of the length scale) leaves it none either: the tree holds it. Where it has
+  !> one there, the start is a dead centre of the loop; that, and a driver's row left out
+  !> (its motion would be lost), is MBDK_ERR_SINGULAR_MATRIX.
   subroutine choose_cut_rows(jm, t0, y0j, stat, asked)
     type(mbdk_joint_model_t), intent(inout) :: jm
     real(dp), intent(in) :: t0, y0j(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
-    real(dp), allocatable :: gs(:, :), gg(:, :)
+    real(dp), allocatable :: gs(:, :), g2(:, :), gg(:, :), y2(:)
     integer, allocatable :: piv(:), cand(:)
-    integer :: i, k, rank, astat, mc, nc
+    integer :: i, k, rank, astat, mc, nc, nd
     real(dp) :: nr
     mc = jm%mc
+    nd = jm%ndof
     stat = MBDK_SUCCESS
     jm%nact = 0
-    allocate (jm%active(mc), gs(mc, jm%ndof), gg(mc, mc), piv(mc), cand(mc), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * mc * (jm%ndof + mc + 2.0_dp), stat, asked)
+    allocate (jm%active(mc), gs(mc, nd), g2(mc, nd), gg(mc, mc), y2(2 * nd), piv(mc), &
+              cand(mc), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (mc * (2.0_dp * nd + mc + 2.0_dp) + &
+                           2.0_dp * nd), stat, asked)
     if (stat /= MBDK_SUCCESS .or. mc == 0) return
-    ! every row, kept in the order of the table, to take G at the start
+    ! every row, in the order of the table, to take G at the start and at a second pose
     jm%active = [(i, i = 1, mc)]
     jm%nact = mc
-    associate (w => jm%work)
-      call kinematics(jm, y0j, w, .true.)
-      call columns(jm, w)
-      call cut_rows(jm, t0, w)
-      gs = w%g(1:mc, :)
-    end associate
-    do k = 1, jm%ndof
-      if (.not. jm%turn(k)) gs(:, k) = gs(:, k) * jm%length
+    call scaled_rows(jm, t0, y0j, gs)
+    y2 = y0j
+    do k = 1, nd
+      y2(k) = y2(k) + merge(0.5_dp, 0.1_dp * jm%length, jm%turn(k))
     end do
-    ! a row the tree's motion leaves (all but) no gradient is held by the tree itself (a
-    ! joint doubled): dependent, as a pivot of G G^T at REDUNDANT_RTOL is
+    call scaled_rows(jm, t0, y2, g2)
     nc = 0
+    stat = MBDK_ERR_SINGULAR_MATRIX
     do i = 1, mc
-      if (.not. jm%cutm%row_angular(i)) gs(i, :) = gs(i, :) / jm%length
       nr = norm2(gs(i, :))
-      if (.not. (nr > sqrt(REDUNDANT_RTOL))) cycle
+      if (.not. (nr > sqrt(REDUNDANT_RTOL))) then
+        if (norm2(g2(i, :)) > sqrt(REDUNDANT_RTOL) .or. jm%driver(i)) return
+        cycle
+      end if
       nc = nc + 1
       cand(nc) = i
       gs(nc, :) = gs(i, :) / nr
     end do
+    stat = MBDK_SUCCESS
     jm%nact = 0
-    if (nc == 0) return
-    gg(1:nc, 1:nc) = matmul(gs(1:nc, :), transpose(gs(1:nc, :)))
-    call mbdk_chol_pivoted(gg(1:nc, 1:nc), piv(1:nc), rank, REDUNDANT_RTOL, stat)
-    if (stat /= MBDK_SUCCESS) return
-    jm%nact = rank
-    jm%active(1:rank) = cand(piv(1:rank))
-    call mbdk_sort_ints(jm%active(1:rank))
-    deallocate (jm%work%s, jm%work%lam, jm%work%sdiag)
-    allocate (jm%work%s(rank, rank), jm%work%lam(rank), jm%work%sdiag(rank), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * rank * (rank + 2.0_dp), stat, asked)
+    if (nc > 0) then
+      gg(1:nc, 1:nc) = matmul(gs(1:nc, :), transpose(gs(1:nc, :)))
+      call mbdk_chol_pivoted(gg(1:nc, 1:nc), piv(1:nc), rank, REDUNDANT_RTOL, stat)
+      if (stat /= MBDK_SUCCESS) return
+      jm%nact = rank
+      jm%active(1:rank) = cand(piv(1:rank))
+      call mbdk_sort_ints(jm%active(1:rank))
+    end if
+    stat = MBDK_ERR_SINGULAR_MATRIX
+    do i = 1, mc
+      if (jm%driver(i) .and. .not. any(jm%active(1:jm%nact) == i)) return
+    end do
+    rank = jm%nact
+    deallocate (jm%work%s, jm%work%lam, jm%work%sdiag, jm%work%gs, jm%work%gg)
+    allocate (jm%work%s(rank, rank), jm%work%lam(rank), jm%work%sdiag(rank), &
+              jm%work%gs(rank, nd), jm%work%gg(rank, rank), stat=astat)
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * rank * (2.0_dp * rank + nd + 2.0_dp), &
+                           stat, asked)
   end subroutine choose_cut_rows
+
+  !> The rows kept (all, while choose_cut_rows looks at them) of G at (t, y), scaled to the
+  !> geometry: a slide's column times the length scale (a length per length), a row of
+  !> lengths over it (radians per radian).
+  subroutine scaled_rows(jm, t, y, gs)
+    type(mbdk_joint_model_t), intent(in) :: jm
+    real(dp), intent(in) :: t, y(:)
+    real(dp), intent(out) :: gs(:, :)
+    integer :: i, k
+    call kinematics(jm, y, jm%work, .true.)
+    call columns(jm, jm%work)
+    call cut_rows(jm, t, jm%work)
+    do i = 1, jm%nact
+      gs(i, :) = jm%work%g(i, :)
+      if (.not. jm%cutm%row_angular(jm%active(i))) gs(i, :) = gs(i, :) / jm%length
+    end do
+    do k = 1, jm%ndof
+      if (.not. jm%turn(k)) gs(1:jm%nact, k) = gs(1:jm%nact, k) * jm%length
+    end do
+  end subroutine scaled_rows
+
+  !> The reduced form's near test of a rank loss on the geometry, where a pivot of S fell
+  !> into the window: the relative pivots of Gs Gs^T on the rows kept (w%g at the last
+  !> evaluation, scaled as scaled_rows scales them, each row of unit length), below
+  !> MBDK_SPATIAL_NEAR_PIVOT at a pose next to a rank loss.
+  logical function near_geometry(jm, w) result(near)
+    type(mbdk_joint_model_t), intent(in) :: jm
+    type(mbdk_joint_work_t), intent(inout) :: w
+    integer :: i, k, stat
+    real(dp) :: nr
+    near = .true.
+    do i = 1, jm%nact
+      w%gs(i, :) = w%g(i, :)
+      if (.not. jm%cutm%row_angular(jm%active(i))) w%gs(i, :) = w%gs(i, :) / jm%length
+      do k = 1, jm%ndof
+        if (.not. jm%turn(k)) w%gs(i, k) = w%gs(i, k) * jm%length
+      end do
+      nr = norm2(w%gs(i, :))
+      if (.not. (nr > 0.0_dp)) return
+      w%gs(i, :) = w%gs(i, :) / nr
+    end do
+    do i = 1, jm%nact
+      do k = 1, i
+        w%gg(i, k) = dot_product(w%gs(i, :), w%gs(k, :))
+      end do
+    end do
+    call mbdk_chol_factor(w%gg, stat)
+    if (stat /= MBDK_SUCCESS) return
+    do i = 1, jm%nact
+      if (.not. (w%gg(i, i)**2 > MBDK_SPATIAL_NEAR_PIVOT)) return
+    end do
+    near = .false.
+  end function near_geometry
 
   ! x × y, the quaternion product and a unit quaternion's rotation matrix, as mbdk_rotations'
   ! (mbdk_cross, mbdk_quat_mul, mbdk_quat_matrix_of): a function of another module is never
