@@ -60,7 +60,7 @@ RUN_HELP = {
     "locate_events": "dopri54, bs32: end a step where a contact closes or opens",
     "switch_angles": "spatial scenes with angles: switch the angle set this near its lock",
     "coordinates": "spatial scenes: absolute (each body's pose) or joint (a spanning tree's "
-                   "turns and slides, the other joints kept as rows)",
+                   "turns, slides and spherical turns, the other joints kept as rows)",
     "rho_inf": "generalized_alpha's spectral radius at infinity, in [0, 1]",
     "alpha_hht": "hht's alpha, in [-1/3, 0]",
     "newmark_beta": "the index-3 family's beta",

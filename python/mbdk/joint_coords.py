@@ -2,12 +2,12 @@
 
 The kernel (kernel/src/spatial/mbdk_joint_coords.f90, whose header is the manual) grows a
 spanning tree over the scene's joints from the ground, in sweeps over the table in its order:
-revolute, prismatic, cylindrical and fixed joints can carry a body (a turn, a slide, both, or
-none); the other joints, and any joint between two bodies already on the tree, are cut, and
-their rows are kept as constraints on the joint coordinates. The state is the joints' turns
-and slides and their rates; the tree's joints hold at every state to roundoff, and the samples
-are the bodies' absolute states, so that a joint run's outputs, watch and plots are an
-absolute run's.
+revolute, prismatic, cylindrical, spherical and fixed joints can carry a body (a turn, a slide,
+both, a turn in 3D as a quaternion, or none); the other joints, and any joint between two
+bodies already on the tree, are cut, and their rows are kept as constraints on the joint
+coordinates. The state is the joints' coordinates and their rates; the tree's joints hold at
+every state to roundoff, and the samples are the bodies' absolute states, so that a joint
+run's outputs, watch and plots are an absolute run's.
 
 This module asks the kernel for the split (spatial_joint_tree), refuses what the formulation
 does not take with a message that names the body, joint or option, and describes the split for
@@ -24,9 +24,9 @@ from .spatial_model import spatial_tables
 #: coordinates)
 COORDINATES = {"absolute": 0, "joint": 1}
 #: the kernel's kinds of a tree joint (MBDK_TREE_*)
-TREE_KINDS = {1: "turn", 2: "slide", 3: "turn and slide", 4: "fixed"}
+TREE_KINDS = {1: "turn", 2: "slide", 3: "turn and slide", 4: "fixed", 5: "ball"}
 #: the joint types that can carry a body on the tree
-TREE_JOINTS = ("revolute", "prismatic", "cylindrical", "fixed")
+TREE_JOINTS = ("revolute", "prismatic", "cylindrical", "spherical", "fixed")
 #: what the manifest says a joint run solves
 JOINT_SOLVE = ("joint coordinates: the projected equations J^T M J theta'' + G^T lambda = "
                "J^T (f - M b) (Cholesky, mbdk_lapack) and, on a closed loop, S = G (J^T M J)^-1 "
@@ -60,7 +60,8 @@ def joint_tree(scene: Scene) -> dict:
                      "parent": "ground" if parent[b] == 0 else names[parent[b] - 1]})
     on_tree = {t["joint"] for t in tree}
     return {"tree": tree, "cut": [j for j in joints if j not in on_tree], "ndof": int(ndof),
-            "missing": missing, "status": Status(int(status))}
+            "missing": missing, "status": Status(int(status)),
+            "ball": any(t["kind"] == "ball" for t in tree)}
 
 
 def check_joint_run(scene: Scene, method: str, family: str, formulation: str) -> dict:
@@ -96,11 +97,16 @@ def check_joint_run(scene: Scene, method: str, family: str, formulation: str) ->
         raise NotApplicableError(
             f"{what}: body {body!r} hangs on no {', '.join(TREE_JOINTS)} joint that reaches "
             f"the ground ({'its joints: ' + ', '.join(on) if on else 'it has no joint'}; "
-            f"{len(split['missing'])} bodies off the tree in all): joint coordinates take a "
-            "turn or a slide per tree joint; use coordinates='absolute'")
+            f"{len(split['missing'])} bodies off the tree in all): joint coordinates take the "
+            "motions these joints allow; use coordinates='absolute'")
     if split["status"] != Status.SUCCESS:
         raise NotApplicableError(f"{what}: its tree joints are all fixed (no coordinate to "
                                  "integrate)")
+    if method == "euler_cromer" and split["ball"]:
+        raise NotApplicableError(f"euler_cromer {what}: a spherical joint on the tree turns its "
+                                 "body by a quaternion, whose rates are not its angular "
+                                 "velocity (Euler-Cromer's layout y = [q, q'] takes turns and "
+                                 "slides only); use rk4")
     return split
 
 

@@ -184,7 +184,7 @@ def simulate(scene: Scene, method: str, *, h: float | None = None, t_end: float,
     coordinates : str
         Spatial scenes: ``"absolute"`` (the default: each body's centre and orientation) or
         ``"joint"``: the turns and slides of a spanning tree of revolute, prismatic,
-        cylindrical and fixed joints, the other joints kept as constraints
+        cylindrical, spherical and fixed joints, the other joints kept as constraints
         (``help(mbdk.joint_coords)``; the ODE methods on the reduced or baumgarte
         formulation). The samples are the bodies' absolute states either way.
     rho_inf, alpha_hht, newmark_beta, newmark_gamma, alpha_m, alpha_f : float, optional

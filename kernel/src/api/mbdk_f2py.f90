@@ -1041,8 +1041,8 @@ end subroutine spatial_run
 subroutine spatial_joint_tree(nb, nj, nj1, jtype, jbody, tjoint, kind, parent, ndof, status)
   ! The spanning tree that joint coordinates (mbdk_joint_coords) grow over a spatial scene's
   ! joint table (jtype, jbody: its first nj columns): per body its tree joint (1-based table
-  ! column; 0: the body hangs on none), its kind (1 turn, 2 slide, 3 cylinder, 4 fixed) and
-  ! parent (0: the ground); ndof the joint coordinates. status MBDK_ERR_NOT_APPLICABLE where a
+  ! column; 0: the body hangs on none), its kind (1 turn, 2 slide, 3 cylinder, 4 fixed,
+  ! 5 ball) and parent (0: the ground); ndof the joint rates. status MBDK_ERR_NOT_APPLICABLE where a
   ! body is off the tree or there is no coordinate; the joints on no body's row are cut.
   use mbdk_status, only: MBDK_ERR_INVALID_INPUT
   use mbdk_joint_coords, only: mbdk_joint_tree

@@ -6,18 +6,24 @@
 !> over. A tree grows from the ground in sweeps over the joint table in its order: a joint
 !> joins it where it reaches a body not yet reached from one that is (reached earlier in the
 !> same sweep or before), so that the split is the same on every run. Revolute, prismatic,
-!> cylindrical and fixed joints can be tree joints; the others (spherical, universal, the
+!> cylindrical, spherical and fixed joints can be tree joints; the others (universal, the
 !> drivers) and any joint between two bodies already reached are cut. Each tree joint gives
 !> its body the coordinates its motion relative to its parent has, measured from the initial
-!> pose:
-!>   revolute     theta, the turn about the joint's axis through its point (1)
-!>   prismatic    s, the slide along the axis (1)
-!>   cylindrical  theta, then s along the same axis (2)
+!> pose, and as many rates (dofs):
+!>   revolute     theta, the turn about the joint's axis through its point (1, 1)
+!>   prismatic    s, the slide along the axis (1, 1)
+!>   cylindrical  theta, then s along the same axis (2, 2)
+!>   spherical    p, the quaternion of the body's turn relative to its initial orientation on
+!>                its parent, and Omega, the body's angular velocity relative to its parent in
+!>                its own frame: p' = p (0, Omega) / 2 + k (1 - |p|^2) p / 2 (4, 3)
 !>   fixed        none (the body rides on its parent)
-!> so that the state is y = [theta; theta'] (ndof each, q' = v: Euler-Cromer applies). Every
-!> body must hang on the tree; a body reached only through a spherical or universal joint, or
-!> no joint, is MBDK_ERR_NOT_APPLICABLE (the absolute coordinates of mbdk_spatial_model take
-!> it).
+!> so that the state is y = [q; v] (nc coordinates, ndof rates; without a spherical joint
+!> q' = v, and Euler-Cromer applies). A spherical joint's turn is taken from p / |p|, so that
+!> its norm plays no part, and its norm is held by the stabilisation term, k the scene's
+!> norm_gain, whatever its quaternion_norm (no step changes the state: every ODE method
+!> takes it). Every body must hang on the tree; a body reached only through a universal joint,
+!> or no joint, is MBDK_ERR_NOT_APPLICABLE (the absolute coordinates of mbdk_spatial_model
+!> take it).
 !>
 !> The kinematics run from the root: a body's quaternion is its parent's times the joint's
 !> turn times the initial relative orientation, its centre follows from the joint's point,
@@ -26,7 +32,8 @@
 !> Shabana, Computational Dynamics, 2010, 8.3), in the space frame. With xi = (r', Omega)
 !> the absolute model's velocities of every body, xi = J theta' and xi' = J theta'' + b,
 !> column k of J on a body the dof moves being (u x (r - P), R^T u) for a turn about the unit
-!> axis u through P and (u, 0) for a slide. The absolute model's Newton-Euler equations
+!> axis u through P (a spherical joint's three: its body's axes through the joint's point)
+!> and (u, 0) for a slide. The absolute model's Newton-Euler equations
 !> M xi' = f - C_c^T lambda (mbdk_spatial_model: M = diag(m I, J), f with the gyroscopic
 !> moment) projected on J (virtual power) give
 !>
@@ -77,8 +84,8 @@ module mbdk_joint_coords
   use mbdk_sparse_schur, only: mbdk_sort_ints
   use mbdk_rotations, only: mbdk_quat_conj, mbdk_quat_matrix_of
   use mbdk_elements, only: MBDK_JOINT_REVOLUTE, MBDK_JOINT_PRISMATIC, MBDK_JOINT_CYLINDRICAL, &
-    MBDK_JOINT_FIXED, MBDK_JOINT_ANGLE_DRIVER, MBDK_JOINT_SLIDE_DRIVER, mbdk_joint_rows, &
-    MBDK_BODY_SPATIAL
+    MBDK_JOINT_FIXED, MBDK_JOINT_SPHERICAL, MBDK_JOINT_ANGLE_DRIVER, MBDK_JOINT_SLIDE_DRIVER, &
+    mbdk_joint_rows, MBDK_BODY_SPATIAL
   use mbdk_spatial_model, only: mbdk_spatial_model_t, mbdk_spatial_work_t, &
     mbdk_spatial_options_t, mbdk_spatial_init, frames_t, frames, forces, constraints, &
     MBDK_ROT_QUATERNION, MBDK_SPATIAL_NEAR_PIVOT
@@ -88,7 +95,7 @@ module mbdk_joint_coords
 
   !> the kinds of a tree joint (mbdk_joint_tree reports them)
   integer, parameter, public :: MBDK_TREE_TURN = 1, MBDK_TREE_SLIDE = 2, MBDK_TREE_CYLINDER = 3, &
-    MBDK_TREE_FIXED = 4
+    MBDK_TREE_FIXED = 4, MBDK_TREE_BALL = 5
   !> a pivot of S at or below this fraction of its row's diagonal is a singular solve at
   !> roundoff (the absolute model's SOLVE_RTOL)
   real(dp), parameter :: SOLVE_RTOL = 64.0_dp * epsilon(1.0_dp)
@@ -121,13 +128,16 @@ module mbdk_joint_coords
     real(dp), allocatable :: gs(:, :), gg(:, :)
   end type mbdk_joint_work_t
 
-  !> The joint-coordinate model of a spatial scene: n = 2 ndof, nq = ndof.
+  !> The joint-coordinate model of a spatial scene: n = nc + ndof, nq = ndof where nc = ndof
+  !> (no spherical joint on the tree).
   type, extends(mbdk_problem_t), public :: mbdk_joint_model_t
-    integer :: nb = 0, ndof = 0, mc = 0, nact = 0, formulation = MBDK_FORM_REDUCED
-    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp
+    integer :: nb = 0, ndof = 0, nc = 0, mc = 0, nact = 0, formulation = MBDK_FORM_REDUCED
+    real(dp) :: alpha = 0.0_dp, beta = 0.0_dp, norm_gain = 0.0_dp
     !> bodies from the root (parents first), and per body its parent (0: the ground), tree
     !> joint (table column), kind (MBDK_TREE_*) and first dof
     integer, allocatable :: order(:), parent(:), tjoint(:), kind(:), dof(:)
+    !> per body, its first coordinate in y
+    integer, allocatable :: qoff(:)
     !> per dof: .true. for a turn, .false. for a slide
     logical, allocatable :: turn(:)
     !> per body: the dofs that move it (the path from the root), pairs pptr(b) .. pptr(b+1)-1
@@ -193,14 +203,16 @@ contains
     jm%formulation = so%formulation
     jm%alpha = so%baumgarte_alpha
     jm%beta = so%baumgarte_beta
+    jm%norm_gain = so%norm_gain
     jm%length = full%geo_length
     jm%full => full
     allocate (jm%order(nb), jm%parent(nb), jm%tjoint(nb), jm%kind(nb), jm%dof(nb), &
+              jm%qoff(nb), &
               jm%axis(3, nb), jm%spt(3, nb), jm%c0(3, nb), jm%dch(3, nb), jm%e0(4, nb), &
               jm%ae0(4, nb), &
               jm%mass(nb), jm%inertia(3, 3, nb), jm%pptr(nb + 1), used(nj), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 32.0_dp * nb + MBDK_INT_BYTES * &
-                           (6.0_dp * nb + nj), stat, asked)
+                           (7.0_dp * nb + nj), stat, asked)
     if (stat /= MBDK_SUCCESS) return
     jm%mass = mass
     jm%inertia = inertia
@@ -246,15 +258,19 @@ contains
     call scratch(jm, work, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     jm%work => work
-    jm%n = 2 * jm%ndof
-    jm%nq = jm%ndof
+    jm%n = jm%nc + jm%ndof
+    jm%nq = merge(jm%ndof, 0, jm%nc == jm%ndof)
     jm%has_watch = full%has_watch
     jm%nevents = full%nevents
     allocate (y0j(jm%n), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * jm%n, stat, asked)
     if (stat /= MBDK_SUCCESS) return
+    ! the start: every turn and slide 0, every spherical joint's turn the identity
     y0j = 0.0_dp
-    call fit_rates(jm, y0, y0j(jm%ndof + 1:), stat)
+    do k = 1, nb
+      if (jm%kind(k) == MBDK_TREE_BALL) y0j(jm%qoff(k)) = 1.0_dp
+    end do
+    call fit_rates(jm, y0, y0j, stat)
     if (stat /= MBDK_SUCCESS) return
     call choose_cut_rows(jm, t0, y0j, stat, asked)
   end subroutine mbdk_joint_init
@@ -293,6 +309,8 @@ contains
           kd = MBDK_TREE_CYLINDER
         case (MBDK_JOINT_FIXED)
           kd = MBDK_TREE_FIXED
+        case (MBDK_JOINT_SPHERICAL)
+          kd = MBDK_TREE_BALL
         case default
           cycle
         end select
@@ -315,7 +333,7 @@ contains
         parent(child) = par
         tjoint(child) = k
         kind(child) = kd
-        ndof = ndof + merge(2, merge(0, 1, kd == MBDK_TREE_FIXED), kd == MBDK_TREE_CYLINDER)
+        ndof = ndof + dofs_of_kind(kd)
         grew = .true.
       end do
     end do
@@ -342,9 +360,11 @@ contains
     call mbdk_alloc_status(k, 4.0_dp * jm%ndof, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     k = 1
+    jm%nc = 0
     do i = 1, jm%nb
       b = jm%order(i)
       jm%dof(b) = k
+      jm%qoff(b) = jm%nc + 1
       select case (jm%kind(b))
       case (MBDK_TREE_TURN)
         jm%turn(k) = .true.
@@ -353,8 +373,11 @@ contains
       case (MBDK_TREE_CYLINDER)
         jm%turn(k) = .true.
         jm%turn(k + 1) = .false.
+      case (MBDK_TREE_BALL)
+        jm%turn(k:k + 2) = .true.
       end select
       k = k + ndof_of(jm, b)
+      jm%nc = jm%nc + merge(4, ndof_of(jm, b), jm%kind(b) == MBDK_TREE_BALL)
     end do
   end subroutine grow_tree
 
@@ -417,7 +440,7 @@ contains
       end if
       ! a fixed joint has no axis; the others' are checked non-zero by the model's init
       jm%axis(:, b) = 0.0_dp
-      if (jm%kind(b) /= MBDK_TREE_FIXED) then
+      if (jm%kind(b) /= MBDK_TREE_FIXED .and. jm%kind(b) /= MBDK_TREE_BALL) then
         if (.not. (norm2(a) > 0.0_dp)) return
         jm%axis(:, b) = a / norm2(a)
       end if
@@ -479,15 +502,23 @@ contains
   pure integer function ndof_of(jm, b)
     type(mbdk_joint_model_t), intent(in) :: jm
     integer, intent(in) :: b
-    select case (jm%kind(b))
-    case (MBDK_TREE_CYLINDER)
-      ndof_of = 2
-    case (MBDK_TREE_FIXED)
-      ndof_of = 0
-    case default
-      ndof_of = 1
-    end select
+    ndof_of = dofs_of_kind(jm%kind(b))
   end function ndof_of
+
+  !> the rates a tree joint of kind kd gives its body
+  pure integer function dofs_of_kind(kd)
+    integer, intent(in) :: kd
+    select case (kd)
+    case (MBDK_TREE_CYLINDER)
+      dofs_of_kind = 2
+    case (MBDK_TREE_FIXED)
+      dofs_of_kind = 0
+    case (MBDK_TREE_BALL)
+      dofs_of_kind = 3
+    case default
+      dofs_of_kind = 1
+    end select
+  end function dofs_of_kind
 
   !> The work arrays, sized once.
   subroutine scratch(jm, w, stat, asked)
@@ -533,22 +564,22 @@ contains
     real(dp), intent(in) :: y(:)
     type(mbdk_joint_work_t), intent(inout) :: w
     logical, intent(in) :: bias
-    call kinematics_of(jm%nb, jm%ndof, jm%order, jm%parent, jm%kind, jm%dof, jm%axis, jm%spt, &
-                       jm%c0, jm%dch, jm%e0, jm%ae0, y, bias, w%quat, w%fr%r, w%fr%rot, w%fr%v, &
-                       w%fr%om, w%omw, w%a0, w%al0, w%u, w%pt)
+    call kinematics_of(jm%nb, jm%nc, jm%ndof, jm%order, jm%parent, jm%kind, jm%dof, jm%qoff, &
+                       jm%axis, jm%spt, jm%c0, jm%dch, jm%e0, jm%ae0, y, bias, w%quat, w%fr%r, &
+                       w%fr%rot, w%fr%v, w%fr%om, w%omw, w%a0, w%al0, w%u, w%pt)
   end subroutine kinematics
 
-  pure subroutine kinematics_of(nb, nd, order, parent, kind, dof, axis, spt, c0, dch, e0, ae0, &
-                                y, bias, quat, r, rot, v, om, omw, a0, al0, u, pt)
-    integer, intent(in) :: nb, nd, order(nb), parent(nb), kind(nb), dof(nb)
+  pure subroutine kinematics_of(nb, nc, nd, order, parent, kind, dof, qoff, axis, spt, c0, dch, &
+                                e0, ae0, y, bias, quat, r, rot, v, om, omw, a0, al0, u, pt)
+    integer, intent(in) :: nb, nc, nd, order(nb), parent(nb), kind(nb), dof(nb), qoff(nb)
     real(dp), intent(in) :: axis(3, nb), spt(3, nb), c0(3, nb), dch(3, nb), e0(4, nb), &
-      ae0(4, nb), y(2 * nd)
+      ae0(4, nb), y(nc + nd)
     logical, intent(in) :: bias
     real(dp), intent(inout) :: quat(4, 0:nb), r(3, 0:nb), rot(3, 3, 0:nb), v(3, 0:nb), &
       om(3, 0:nb), omw(3, 0:nb), a0(3, 0:nb), al0(3, 0:nb), u(3, nd), pt(3, nd)
     real(dp) :: rp(3), vp(3), wp(3), ub(3), pnt(3), rb(3), rho(3), del(3), vb(3), wb(3), &
-      pdot(3), wu(3), h(4), th, thd, sl, sld, ap(3), alp(3)
-    integer :: i, b, p, k
+      pdot(3), wu(3), h(4), th, thd, sl, sld, ap(3), alp(3), sw(3)
+    integer :: i, b, p, k, c
     quat(:, 0) = [1.0_dp, 0.0_dp, 0.0_dp, 0.0_dp]
     omw(:, 0) = 0.0_dp
     a0(:, 0) = 0.0_dp
@@ -557,6 +588,7 @@ contains
       b = order(i)
       p = parent(b)
       k = dof(b)
+      c = qoff(b)
       rp = r(:, p)
       vp = v(:, p)
       wp = omw(:, p)
@@ -566,13 +598,13 @@ contains
       wu = cross(wp, ub)
       select case (kind(b))
       case (MBDK_TREE_TURN, MBDK_TREE_CYLINDER)
-        th = y(k)
-        thd = y(nd + k)
+        th = y(c)
+        thd = y(nc + k)
         sl = 0.0_dp
         sld = 0.0_dp
         if (kind(b) == MBDK_TREE_CYLINDER) then
-          sl = y(k + 1)
-          sld = y(nd + k + 1)
+          sl = y(c + 1)
+          sld = y(nc + k + 1)
           u(:, k + 1) = ub
         end if
         h = cos(0.5_dp * th) * e0(:, b) + sin(0.5_dp * th) * ae0(:, b)
@@ -592,12 +624,34 @@ contains
           a0(:, b) = ap + cross(alp, rho) + cross(wp, vb - vp) + &
             thd * (cross(wu, del) + cross(ub, vb - pdot)) + sld * wu
         end if
+      case (MBDK_TREE_BALL)
+        ! the turn p / |p| after the initial relative orientation; Omega (body frame) the
+        ! rates: omega = omega_p + R Omega, whose derivative at Omega' = 0 is omega_p x omega
+        h = y(c:c + 3) / norm2(y(c:c + 3))
+        quat(:, b) = qmul(quat(:, p), qmul(e0(:, b), h))
+        rot(:, :, b) = qmat(quat(:, b))
+        sw = rmul(rot(:, :, p), spt(:, b))
+        pnt = rp + sw
+        del = rmul(rot(:, :, b), dch(:, b))
+        rb = pnt + del
+        wb = wp + rmul(rot(:, :, b), y(nc + k:nc + k + 2))
+        pdot = cross(wb, del)
+        vb = vp + cross(wp, sw) + pdot
+        u(:, k:k + 2) = rot(:, :, b)
+        pt(:, k) = pnt
+        pt(:, k + 1) = pnt
+        pt(:, k + 2) = pnt
+        if (bias) then
+          al0(:, b) = alp + cross(wp, wb)
+          a0(:, b) = ap + cross(alp, sw) + cross(wp, cross(wp, sw)) + cross(al0(:, b), del) + &
+            cross(wb, pdot)
+        end if
       case default   ! a slide, or fixed (no dof: sl = sld = 0)
         sl = 0.0_dp
         sld = 0.0_dp
         if (kind(b) == MBDK_TREE_SLIDE) then
-          sl = y(k)
-          sld = y(nd + k)
+          sl = y(c)
+          sld = y(nc + k)
           u(:, k) = ub
           pt(:, k) = rp
         end if
@@ -693,12 +747,13 @@ contains
     real(dp), intent(out), contiguous :: f(:)
     integer, intent(out) :: stat
     real(dp) :: vg, vs, power
-    integer :: nd, i
+    integer :: nd, nc, i
     logical :: look
     nd = self%ndof
+    nc = self%nc
     f = 0.0_dp
     stat = MBDK_ERR_NONFINITE
-    if (.not. all(abs(y(1:2 * nd)) <= huge(1.0_dp))) return
+    if (.not. all(abs(y(1:nc + nd)) <= huge(1.0_dp))) return
     associate (w => self%work)
       call kinematics(self, y, w, .true.)
       call columns(self, w)
@@ -724,13 +779,35 @@ contains
         end if
       end if
       call backward(nd, w%mq, w%dinv, w%qv)
-      f(1:nd) = y(nd + 1:2 * nd)
-      f(nd + 1:2 * nd) = w%qv
+      call coordinate_rates(self, y, f)
+      f(nc + 1:nc + nd) = w%qv
     end associate
     stat = MBDK_ERR_NONFINITE
     if (.not. all(abs(f) <= huge(1.0_dp))) return
     stat = MBDK_SUCCESS
   end subroutine joint_rhs
+
+  !> q' of the coordinates at y = [q; v]: a turn's and a slide's their rate, a spherical
+  !> joint's p' = p (0, Omega) / 2 + k (1 - |p|^2) p / 2 (k = norm_gain).
+  pure subroutine coordinate_rates(jm, y, f)
+    type(mbdk_joint_model_t), intent(in) :: jm
+    real(dp), intent(in) :: y(:)
+    real(dp), intent(inout) :: f(:)
+    integer :: b, c, k, n
+    real(dp) :: p(4)
+    do b = 1, jm%nb
+      c = jm%qoff(b)
+      k = jm%nc + jm%dof(b)
+      n = ndof_of(jm, b)
+      if (jm%kind(b) == MBDK_TREE_BALL) then
+        p = y(c:c + 3)
+        f(c:c + 3) = 0.5_dp * qmul(p, [0.0_dp, y(k:k + 2)]) + &
+          0.5_dp * jm%norm_gain * (1.0_dp - dot_product(p, p)) * p
+      else
+        f(c:c + n - 1) = y(k:k + n - 1)
+      end if
+    end do
+  end subroutine coordinate_rates
 
   !> The loads left at theta'' = 0, f - M b per body: fw (space) less m a0, nbd (body frame)
   !> less the gyroscopic moment Omega x J Omega and J R^T alpha0.
@@ -870,20 +947,18 @@ contains
   !> theta'_0: the joint rates whose motion is nearest to y0's velocities in the kinetic
   !> energy's norm (J^T M J theta' = J^T M xi0); MBDK_ERR_INCONSISTENT_INITIAL where that
   !> motion is off them by more than FIT_RTOL of the largest speed.
-  subroutine fit_rates(jm, y0, rates, stat)
+  subroutine fit_rates(jm, y0, y0j, stat)
     type(mbdk_joint_model_t), intent(in) :: jm
     real(dp), intent(in) :: y0(:)
-    real(dp), intent(out) :: rates(:)
+    real(dp), intent(inout), target :: y0j(:)   !< its coordinates given, its rates set
     integer, intent(out) :: stat
     real(dp) :: e(3, jm%nb), n(3, jm%nb), dv(3), dw(3), off, big
-    real(dp), allocatable :: zero(:)
+    real(dp), pointer :: rates(:)
     integer :: b, o, p
+    rates => y0j(jm%nc + 1:jm%nc + jm%ndof)
+    rates = 0.0_dp
     associate (w => jm%work)
-      allocate (zero(2 * jm%ndof), stat=o)
-      call mbdk_alloc_status(o, MBDK_REAL_BYTES * 2.0_dp * jm%ndof, stat)
-      if (stat /= MBDK_SUCCESS) return
-      zero = 0.0_dp
-      call kinematics(jm, zero, w, .false.)
+      call kinematics(jm, y0j, w, .false.)
       call columns(jm, w)
       do b = 1, jm%nb
         o = jm%full%ncoord + 6 * (b - 1)
@@ -919,7 +994,8 @@ contains
   !> by a complete-pivoting Cholesky of the geometry's Gs Gs^T (scaled_rows, each row of unit
   !> length), in the order of the table. A row with no gradient (below the square root of
   !> REDUNDANT_RTOL) is left out where a second pose of the tree (each turn 0.5 rad on, each
-  !> slide a tenth of the length scale) leaves it none either: the tree holds it. Where it has
+  !> slide a tenth of the length scale, each spherical joint turned by about 0.8 rad) leaves it
+  !> none either: the tree holds it. Where it has
   !> one there, the start is a dead centre of the loop; that, and a driver's row left out
   !> (its motion would be lost), is MBDK_ERR_SINGULAR_MATRIX.
   subroutine choose_cut_rows(jm, t0, y0j, stat, asked)
@@ -935,18 +1011,28 @@ contains
     nd = jm%ndof
     stat = MBDK_SUCCESS
     jm%nact = 0
-    allocate (jm%active(mc), gs(mc, nd), g2(mc, nd), gg(mc, mc), y2(2 * nd), piv(mc), &
+    allocate (jm%active(mc), gs(mc, nd), g2(mc, nd), gg(mc, mc), y2(size(y0j)), piv(mc), &
               cand(mc), stat=astat)
     call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (mc * (2.0_dp * nd + mc + 2.0_dp) + &
-                           2.0_dp * nd), stat, asked)
+                           size(y0j)), stat, asked)
     if (stat /= MBDK_SUCCESS .or. mc == 0) return
     ! every row, in the order of the table, to take G at the start and at a second pose
     jm%active = [(i, i = 1, mc)]
     jm%nact = mc
     call scaled_rows(jm, t0, y0j, gs)
     y2 = y0j
-    do k = 1, nd
-      y2(k) = y2(k) + merge(0.5_dp, 0.1_dp * jm%length, jm%turn(k))
+    do i = 1, jm%nb
+      k = jm%qoff(i)
+      select case (jm%kind(i))
+      case (MBDK_TREE_TURN)
+        y2(k) = y2(k) + 0.5_dp
+      case (MBDK_TREE_SLIDE)
+        y2(k) = y2(k) + 0.1_dp * jm%length
+      case (MBDK_TREE_CYLINDER)
+        y2(k:k + 1) = y2(k:k + 1) + [0.5_dp, 0.1_dp * jm%length]
+      case (MBDK_TREE_BALL)
+        y2(k:k + 3) = [0.9_dp, 0.3_dp, -0.2_dp, 0.25_dp]
+      end select
     end do
     call scaled_rows(jm, t0, y2, g2)
     nc = 0
