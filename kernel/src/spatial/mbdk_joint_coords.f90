@@ -26,9 +26,10 @@
 !> take it).
 !>
 !> The kinematics run from the root: a body's quaternion is its parent's times the joint's
-!> turn times the initial relative orientation, its centre follows from the joint's point,
-!> and its velocity and the accelerations at theta'' = 0 (the bias) follow by the recursive
-!> formulas of rigid motion (Featherstone, Rigid Body Dynamics Algorithms, 2008, ch. 3;
+!> turn (about the axis in the parent's frame) times the initial relative orientation (a
+!> spherical joint's turn after it, in the body's frame), its centre follows from the joint's
+!> point, and its velocity and the accelerations at theta'' = 0 (the bias) follow by the
+!> recursive formulas of rigid motion (Featherstone, Rigid Body Dynamics Algorithms, 2008, ch. 3;
 !> Shabana, Computational Dynamics, 2010, 8.3), in the space frame. With xi = (r', Omega)
 !> the absolute model's velocities of every body, xi = J theta' and xi' = J theta'' + b,
 !> column k of J on a body the dof moves being (u x (r - P), R^T u) for a turn about the unit
