@@ -369,3 +369,33 @@ def test_cvode_takes_a_spherical_joint_in_joint_coordinates():
                       coordinates="joint")
     ref = mbdk.simulate(sc, "rk4", h=1e-4, t_end=0.5, every=5000, coordinates="joint")
     assert state_gap(r, ref, 1) < 1e-6
+
+
+def test_a_contact_in_joint_coordinates_strikes_as_in_absolute_coordinates():
+    """A bar swinging on a hinge strikes the floor with a sphere at its tip (the IMPACT law
+    with Hertz's exponent, damping and friction): the contact's forces and its events are the
+    absolute model's own, on the absolute state of the joint run. rk4 at h = 2e-5 through the
+    strike in both coordinates, and dopri54 at rtol 1e-9 (their steps differ, so their states
+    agree to the tolerance's effect through the strike). This law's force is smooth enough
+    that dopri54 takes about as many steps with its events located as without, so the events
+    themselves (the absolute model's function at the joint run's absolute state) are not what
+    this test tells apart."""
+    sc = scene_from_dict({
+        "scene": {"name": "hammer"},
+        "body": [body("bar", 2.0, (0.01, 0.17, 0.17), position=[0.5, 0.0, 0.3])],
+        "joint": [{"name": "hinge", "type": "revolute", "body1": "bar", "at": [0.0, 0.0, 0.3],
+                   "axis": [0.0, 1.0, 0.0]}],
+        "force": [{"type": "gravity", "g": [0.0, 0.0, -G]},
+                  {"type": "contact", "name": "floor", "body1": "bar", "body2": "ground",
+                   "shape1": {"type": "sphere", "radius": 0.05, "centre": [0.5, 0.0, 0.0]},
+                   "shape2": {"type": "plane", "normal": [0, 0, 1]}, "stiffness": 1e5,
+                   "exponent": 1.5, "damping": 50.0, "friction": {"static": 0.3}}]},
+        "hammer.toml")
+    ra = mbdk.simulate(sc, "rk4", h=2e-5, t_end=0.6, every=500)
+    rj = mbdk.simulate(sc, "rk4", h=2e-5, t_end=0.6, every=500, coordinates="joint")
+    assert ra.contacts["floor"]["normal_force"].max() > 100.0      # it strikes
+    assert state_gap(ra, rj, 1) < 1e-9
+    kw = dict(rtol=1e-9, atol=1e-11, t_end=0.6, dt_out=0.01)
+    ra = mbdk.simulate(sc, "dopri54", **kw)
+    rj = mbdk.simulate(sc, "dopri54", coordinates="joint", **kw)
+    assert rj.manifest["locate_events"] and state_gap(ra, rj, 1) < 1e-5
