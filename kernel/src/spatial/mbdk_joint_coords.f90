@@ -174,7 +174,8 @@ contains
   !> The joint model of the scene whose full absolute model (every joint, built at the start
   !> y0 and t0 with options so) is full: the tree split, the references taken at y0, the cut
   !> model built (its tables: the scene's with only the cut joints), the cut rows kept and the
-  !> initial joint state y0j = [0; theta'_0] (theta'_0 fitted to y0's velocities). work:
+  !> initial joint state y0j = [q_0; v_0] (q_0 every turn and slide 0 and every spherical
+  !> joint's quaternion the identity, v_0 fitted to y0's velocities). work:
   !> the caller's (its arrays made here), outliving the model. MBDK_ERR_NOT_APPLICABLE: a
   !> body off the tree, angle sets, wear, a formulation other than reduced or baumgarte, no
   !> dof; MBDK_ERR_INCONSISTENT_INITIAL: y0 off the tree's joints (MBDK_JOINT_START_RTOL) or
@@ -256,7 +257,7 @@ contains
     if (stat /= MBDK_SUCCESS) return
     call paths(jm, stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    call scratch(jm, work, stat, asked)
+    call scratch(jm, work, y0, stat, asked)
     if (stat /= MBDK_SUCCESS) return
     jm%work => work
     jm%n = jm%nc + jm%ndof
@@ -521,10 +522,12 @@ contains
     end select
   end function dofs_of_kind
 
-  !> The work arrays, sized once.
-  subroutine scratch(jm, w, stat, asked)
+  !> The work arrays, sized once; the frames by the full model's frames at its start y0, which
+  !> sizes them and sets the ground's (kinematics reads it as the root's parent).
+  subroutine scratch(jm, w, y0, stat, asked)
     type(mbdk_joint_model_t), intent(in) :: jm
     type(mbdk_joint_work_t), intent(inout) :: w
+    real(dp), intent(in) :: y0(:)
     integer, intent(out) :: stat
     real(dp), intent(inout), optional :: asked
     integer :: nb, nd, mc, np, astat
@@ -539,23 +542,14 @@ contains
               w%yg(nd, mc), w%s(mc, mc), w%lam(mc), w%sdiag(mc), w%gs(mc, nd), w%gg(mc, mc), &
               w%yabs(13 * nb), &
               w%yabs3(13 * nb, 3), stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (16.0_dp * (nb + 1) + 6.0_dp * nd + &
+    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * (13.0_dp * (nb + 1) + 6.0_dp * nd + &
                            6.0_dp * np + nd * (nd + 2.0_dp) + 6.0_dp * nb + mc * (6.0_dp * nb + &
                            3.0_dp * nd + 2.0_dp * mc + 5.0_dp) + 52.0_dp * nb), stat, asked)
     if (stat /= MBDK_SUCCESS) return
-    allocate (w%fr%r(3, 0:nb), w%fr%rot(3, 3, 0:nb), w%fr%v(3, 0:nb), w%fr%om(3, 0:nb), &
-              stat=astat)
-    call mbdk_alloc_status(astat, MBDK_REAL_BYTES * 18.0_dp * (nb + 1), stat, asked)
-    if (stat /= MBDK_SUCCESS) return
-    ! the ground, which kinematics reads as the root's parent
-    w%fr%r(:, 0) = 0.0_dp
-    w%fr%rot(:, :, 0) = reshape([1.0_dp, 0.0_dp, 0.0_dp, 0.0_dp, 1.0_dp, 0.0_dp, 0.0_dp, &
-                                 0.0_dp, 1.0_dp], [3, 3])
-    w%fr%v(:, 0) = 0.0_dp
-    w%fr%om(:, 0) = 0.0_dp
+    call frames(jm%full, y0, w%fr, stat, asked)
   end subroutine scratch
 
-  !> The kinematics at y = [theta; theta'] (the first 2 ndof): every body's frame (w%fr), its
+  !> The kinematics at y = [q; v] (the first nc + ndof): every body's frame (w%fr), its
   !> quaternion and angular velocity in space, each dof's axis and point, and with bias the
   !> accelerations at theta'' = 0 (w%a0, w%al0). The work is done by kinematics_of on
   !> explicit-shape arrays, as are columns' and project_mass': the compiler then knows that
